@@ -1,0 +1,2 @@
+//! placeholder
+pub use forestlod_shared as shared;

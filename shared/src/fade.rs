@@ -1,0 +1,185 @@
+//! LOD fade weights inside the transition band (E§4.3, §4.4; G§4; SPEC §6).
+//!
+//! The band is `[fade_start, fade_end] = [lod1_transition - fade_width, lod1_transition]` in view
+//! depth `d`. Before it a tree is LOD0 only, past it LOD1 only, and inside it the progress
+//! `t = (d - fade_start) / fade_width` drives the mode's weights. With `fade_width = 0` the band is
+//! a single depth and `t` is a step: LOD1 from `d >= lod1_transition` on.
+//!
+//! Invariants (property-tested):
+//! - `alpha`: `w0 + w1 = 1` within one ulp, both in `[0, 1]`, `w1` non-decreasing in `d`.
+//! - `dither`: each pixel (threshold `h`) is in exactly one LOD: the two sets partition the pixels.
+//! - `dither-sequential` (G§4): every pixel is in at least one LOD; the incoming LOD1 reaches full
+//!   coverage at mid-band before the outgoing LOD0 starts to thin out; order-independent because
+//!   both are alpha-tested, never blended.
+//! - `none`: a hard switch; exactly one LOD.
+//!
+//! Keep in sync with `gpu/src/shaders/common.wgsl` (`fade_progress`, `lod_weights`).
+
+/// Fade modes (SPEC §6).
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum FadeMode {
+    /// Hard switch at the transition distance.
+    None = 0,
+    /// Alpha cross-fade, E§4.4.
+    Alpha = 1,
+    /// Noise-dithered complementary pixel sets.
+    Dither = 2,
+    /// Noise-dithered sequential blend, G§4: first the incoming LOD in, then the outgoing out.
+    DitherSequential = 3,
+}
+
+impl FadeMode {
+    /// Every mode, in id order.
+    pub const ALL: [FadeMode; 4] = [FadeMode::None, FadeMode::Alpha, FadeMode::Dither, FadeMode::DitherSequential];
+    /// The mode with this id, if any.
+    pub fn from_id(id: u32) -> Option<Self> {
+        Self::ALL.get(id as usize).copied()
+    }
+    /// Name used on the command line, in CSVs and golden file names.
+    pub fn name(self) -> &'static str {
+        match self {
+            FadeMode::None => "none",
+            FadeMode::Alpha => "alpha",
+            FadeMode::Dither => "dither",
+            FadeMode::DitherSequential => "dither-sequential",
+        }
+    }
+    /// Parses [`FadeMode::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|m| m.name() == name)
+    }
+}
+
+/// Weight (alpha multiplier) of each LOD for one fragment. Dithered modes give 0 or 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LodWeights {
+    /// Weight of LOD0 (meshes).
+    pub lod0: f32,
+    /// Weight of LOD1 (billboards).
+    pub lod1: f32,
+}
+
+impl LodWeights {
+    /// Weight of `lod` (0 or 1).
+    pub fn of(self, lod: u32) -> f32 {
+        if lod == 0 { self.lod0 } else { self.lod1 }
+    }
+}
+
+/// Progress through the band: 0 before it, 1 past it, linear inside; a step at `fade_end` when the
+/// band is empty. NaN `d` gives 0.
+pub fn fade_progress(d: f32, fade_start: f32, fade_end: f32) -> f32 {
+    let width = fade_end - fade_start;
+    if width > 0.0 {
+        ((d - fade_start) / width).max(0.0).min(1.0)
+    } else if d >= fade_end {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// LOD weights of a fragment at view depth `d`; `dither` is the fragment's threshold in `[0, 1)`
+/// (a per-pixel noise value, ignored by `none` and `alpha`).
+pub fn lod_weights(mode: FadeMode, d: f32, fade_start: f32, fade_end: f32, dither: f32) -> LodWeights {
+    let t = fade_progress(d, fade_start, fade_end);
+    let step = |covered: bool| if covered { 1.0 } else { 0.0 };
+    match mode {
+        FadeMode::None => {
+            let one = step(d >= fade_end);
+            LodWeights { lod0: 1.0 - one, lod1: one }
+        }
+        FadeMode::Alpha => LodWeights { lod0: 1.0 - t, lod1: t },
+        FadeMode::Dither => {
+            let in1 = dither < t;
+            LodWeights { lod0: step(!in1), lod1: step(in1) }
+        }
+        FadeMode::DitherSequential => {
+            let cover1 = (2.0 * t).min(1.0);
+            let cover0 = (2.0 - 2.0 * t).min(1.0);
+            LodWeights { lod0: step(dither < cover0), lod1: step(dither < cover1) }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn config() -> ProptestConfig {
+        ProptestConfig { cases: 512, ..ProptestConfig::default() }
+    }
+
+    proptest! {
+        #![proptest_config(config())]
+
+        #[test]
+        fn alpha_weights_sum_to_one(d in -1e4f32..1e4, start in -1e3f32..2e3, width in 0.0f32..1e3) {
+            let end = start + width;
+            let w = lod_weights(FadeMode::Alpha, d, start, end, 0.0);
+            prop_assert!((0.0..=1.0).contains(&w.lod0) && (0.0..=1.0).contains(&w.lod1));
+            let sum = w.lod0 + w.lod1;
+            prop_assert!((sum - 1.0).abs() <= f32::EPSILON, "sum {sum} at d={d}");
+        }
+
+        #[test]
+        fn alpha_lod1_weight_is_monotone(a in -1e4f32..1e4, b in -1e4f32..1e4, start in -1e3f32..2e3, width in 0.0f32..1e3) {
+            let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+            let end = start + width;
+            prop_assert!(lod_weights(FadeMode::Alpha, lo, start, end, 0.0).lod1 <= lod_weights(FadeMode::Alpha, hi, start, end, 0.0).lod1);
+        }
+
+        #[test]
+        fn dither_partitions_pixels(d in -1e4f32..1e4, start in -1e3f32..2e3, width in 0.0f32..1e3, h in 0.0f32..1.0) {
+            let w = lod_weights(FadeMode::Dither, d, start, start + width, h);
+            prop_assert_eq!(w.lod0 + w.lod1, 1.0);
+        }
+
+        #[test]
+        fn dither_sequential_covers_every_pixel(d in -1e4f32..1e4, start in -1e3f32..2e3, width in 0.0f32..1e3, h in 0.0f32..1.0) {
+            let w = lod_weights(FadeMode::DitherSequential, d, start, start + width, h);
+            prop_assert!(w.lod0 + w.lod1 >= 1.0, "pixel h={h} at d={d} lost both LODs");
+        }
+
+        #[test]
+        fn dithered_coverage_matches_progress(start in -1e3f32..2e3, width in 1.0f32..1e3, s in 0.0f32..=1.0) {
+            // Over a uniform grid of thresholds, the fraction of pixels in LOD1 is t (within 1/N).
+            const N: usize = 1024;
+            let end = start + width;
+            let d = start + s * width;
+            let t = fade_progress(d, start, end);
+            let covered = (0..N).filter(|i| lod_weights(FadeMode::Dither, d, start, end, (*i as f32 + 0.5) / N as f32).lod1 == 1.0).count();
+            prop_assert!((covered as f32 / N as f32 - t).abs() <= 1.0 / N as f32 + 1e-6);
+        }
+
+        #[test]
+        fn none_is_exactly_one_lod(d in -1e4f32..1e4, start in -1e3f32..2e3, width in 0.0f32..1e3) {
+            let w = lod_weights(FadeMode::None, d, start, start + width, 0.3);
+            prop_assert_eq!(w.lod0 + w.lod1, 1.0);
+            prop_assert_eq!(w.lod1 == 1.0, d >= start + width);
+        }
+    }
+
+    #[test]
+    fn zero_width_band_is_a_step_at_the_transition() {
+        assert_eq!(fade_progress(999.9, 1000.0, 1000.0), 0.0);
+        assert_eq!(fade_progress(1000.0, 1000.0, 1000.0), 1.0);
+        assert_eq!(fade_progress(f32::NAN, 0.0, 10.0), 0.0);
+        let w = lod_weights(FadeMode::Alpha, 1000.0, 1000.0, 1000.0, 0.0);
+        assert_eq!((w.lod0, w.lod1), (0.0, 1.0));
+    }
+
+    #[test]
+    fn sequential_fades_incoming_in_before_outgoing_out() {
+        // First half: LOD0 untouched, LOD1 coverage grows; second half: the reverse.
+        let at = |t: f32, h: f32| lod_weights(FadeMode::DitherSequential, t * 100.0, 0.0, 100.0, h);
+        assert_eq!(at(0.25, 0.99).lod0, 1.0);
+        assert_eq!(at(0.25, 0.49).lod1, 1.0);
+        assert_eq!(at(0.25, 0.51).lod1, 0.0);
+        assert_eq!(at(0.75, 0.99).lod1, 1.0);
+        assert_eq!(at(0.75, 0.49).lod0, 1.0);
+        assert_eq!(at(0.75, 0.51).lod0, 0.0);
+    }
+}

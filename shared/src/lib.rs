@@ -1,0 +1,51 @@
+//! # forestlod-shared
+//!
+//! The plain-data types and the scalar formulas that the CPU reference (`forestlod-reference`) and the
+//! wgpu twin (`forestlod-gpu`) must agree on bit for bit. Everything here is `#[repr(C)]` +
+//! [`bytemuck::Pod`] with explicit padding and a compile-time size assertion, or a pure function of
+//! scalars. This crate owns no I/O and must never depend on wgpu or on the reference.
+//!
+//! ## Conventions (SPEC §3), used by every crate of the workspace
+//! - **Units** are metres. The world is **Z-up** (GIS) and right-handed. Trees stand on the XY plane or
+//!   on a terrain height; batches are formed on X and Y (E§4.2).
+//! - **Large coordinates**: scenes keep an `f64` origin; every `f32` position in these types is
+//!   relative to that origin, so the numbers the GPU sees stay small (SPEC §7).
+//! - **Camera**: position, forward, up, vertical field of view, near, far, viewport size. Clip space
+//!   follows wgpu: x, y in -1..1 with y up, depth in 0..1.
+//! - **Colour**: textures are sRGB-encoded RGBA8 with straight (not premultiplied) alpha; filtering
+//!   and blending happen in linear `f32`; output is sRGB8 (plus linear float EXR when asked).
+//! - **Rasterization** follows Vulkan: pixel centres at +0.5, 8 subpixel bits, top-left fill rule,
+//!   perspective-correct interpolation, depth test LESS.
+//! - **View depth** `d = (p - eye) · forward` is the one distance every LOD decision uses: batch
+//!   selection projects batch centres onto it (E§3.5) and the fragment fade evaluates it per pixel, so
+//!   the batch interval is conservative for every fragment of every tree in the batch.
+//! - **Determinism**: every formula here is a fixed sequence of `f32` operations without fused
+//!   multiply-add, so the reference reproduces it exactly; the GPU may contract or reorder, which the
+//!   parity tests classify as ambiguity near thresholds (SPEC §8).
+
+pub mod angle;
+pub mod camera;
+pub mod fade;
+pub mod interval;
+pub mod params;
+pub mod types;
+
+pub use angle::{angle_index, angle_index_eq31, angle_index_eq31_clamped, angle_index_for, bake_elevation};
+pub use camera::{Camera, CameraBasis, FrustumPlanes};
+pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
+pub use interval::{LodNeeds, ViewInterval, lod_needs, selection_margin, view_interval};
+pub use params::{AngleIndexMode, MipMode, ParamError, Params};
+pub use types::{BatchMeta, CommandData, DrawCommand, MeshMeta, SelectCounters};
+
+/// Number of low bits of `DrawCommand::base_vertex` that carry the mesh-local vertex index; the
+/// command index sits above them (see [`DrawCommand`]). Meshes therefore hold at most 256 vertices,
+/// ample for < 20-triangle trees (E§3.1). Keep in sync with `gpu/src/shaders/draw.wgsl`.
+pub const COMMAND_SHIFT: u32 = 8;
+/// The most vertices one tree mesh (or the billboard quad) may have: `1 << COMMAND_SHIFT`.
+pub const MAX_MESH_VERTICES: u32 = 1 << COMMAND_SHIFT;
+/// The most commands one frame can address: `base_vertex` is an `i32`.
+pub const MAX_COMMANDS: u32 = 1 << (31 - COMMAND_SHIFT);
+/// Level of detail of full meshes (E§3.1).
+pub const LOD_MESH: u32 = 0;
+/// Level of detail of camera-facing billboards (E§3.3).
+pub const LOD_BILLBOARD: u32 = 1;

@@ -1,0 +1,255 @@
+//! Pipeline parameters (SPEC §2, §5) with the thesis defaults (E§4.5.1, E§5.0.2) and validation.
+//!
+//! `Params` is `Pod` so that it uploads unchanged as the uniform of the `select` and `draw` shaders.
+//! Keep in sync with `struct Params` in `gpu/src/shaders/common.wgsl`.
+
+use bytemuck::{Pod, Zeroable};
+use core::fmt;
+
+/// How billboard mip levels are built (SPEC §5.2).
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum MipMode {
+    /// Alpha-weighted downsampling plus alpha equalization, E Alg. 3.2.
+    AlphaAware = 0,
+    /// Plain per-channel box filter: the "blit" the thesis rejects (E Fig. 3.5).
+    Box = 1,
+    /// Coverage-preserving scaling (Castaño 2010, NVTT).
+    CoveragePreserving = 2,
+}
+
+impl MipMode {
+    /// Every mode, in id order.
+    pub const ALL: [MipMode; 3] = [MipMode::AlphaAware, MipMode::Box, MipMode::CoveragePreserving];
+    /// The mode with this id, if any.
+    pub fn from_id(id: u32) -> Option<Self> {
+        Self::ALL.get(id as usize).copied()
+    }
+    /// Name used on the command line and in CSVs.
+    pub fn name(self) -> &'static str {
+        match self {
+            MipMode::AlphaAware => "alpha-aware",
+            MipMode::Box => "box",
+            MipMode::CoveragePreserving => "coverage",
+        }
+    }
+}
+
+/// Which billboard layer index the draw stage uses (SPEC §6).
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum AngleIndexMode {
+    /// Nearest baked elevation, clamped, NaN-free: [`crate::angle_index`].
+    Nearest = 0,
+    /// E Eq. 3.1 as written, then clamped to `0..K-1` (its bins do not centre on the bake angles).
+    Eq31Clamped = 1,
+}
+
+impl AngleIndexMode {
+    /// Every mode, in id order.
+    pub const ALL: [AngleIndexMode; 2] = [AngleIndexMode::Nearest, AngleIndexMode::Eq31Clamped];
+    /// The mode with this id, if any.
+    pub fn from_id(id: u32) -> Option<Self> {
+        Self::ALL.get(id as usize).copied()
+    }
+    /// Name used on the command line and in CSVs.
+    pub fn name(self) -> &'static str {
+        match self {
+            AngleIndexMode::Nearest => "nearest",
+            AngleIndexMode::Eq31Clamped => "eq31-clamped",
+        }
+    }
+}
+
+/// All tunable parameters of the pipeline. Distances in metres.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct Params {
+    /// Batch grid cell size on X and Y (E§3.4). Thesis optimum 500 m (E Fig. 5.5).
+    pub grid_size: f32,
+    /// Number of baked elevation angles K (E Alg. 3.1). Thesis default 10.
+    pub angle_count: u32,
+    /// Billboard texture side r, a power of two (E§4.5.1). Thesis default 128.
+    pub texture_size: u32,
+    /// Number of LOD levels l: 1 (meshes only) or 2 (meshes, then billboards). Thesis default 2.
+    pub lod_levels: u32,
+    /// View depth at which LOD1 (billboards) has fully replaced LOD0 (E§4.3). Thesis default 1000 m.
+    pub lod1_transition: f32,
+    /// Width of the fade band that ends at `lod1_transition` (E Fig. 5.7). Thesis default 250 m.
+    pub fade_width: f32,
+    /// View depth beyond which no tree is drawn (E§4.3). Not stated in the thesis; our default is
+    /// 4000 m, four transition distances, far enough that `synthetic` seen from `medium` fills the view.
+    pub draw_distance: f32,
+    /// [`crate::FadeMode`] as `u32`.
+    pub fade_mode: u32,
+    /// [`MipMode`] as `u32`.
+    pub mip_mode: u32,
+    /// [`AngleIndexMode`] as `u32`.
+    pub angle_index_mode: u32,
+    /// Alpha-test reference: fragments with alpha below it are discarded (SPEC §5.5).
+    pub alpha_cutoff: f32,
+    /// Explicit padding to a multiple of 16 bytes for uniform buffers.
+    pub _pad0: u32,
+}
+const _: () = assert!(core::mem::size_of::<Params>() == 48);
+
+impl Default for Params {
+    fn default() -> Self {
+        Self {
+            grid_size: 500.0,
+            angle_count: 10,
+            texture_size: 128,
+            lod_levels: 2,
+            lod1_transition: 1000.0,
+            fade_width: 250.0,
+            draw_distance: 4000.0,
+            fade_mode: crate::FadeMode::Alpha as u32,
+            mip_mode: MipMode::AlphaAware as u32,
+            angle_index_mode: AngleIndexMode::Nearest as u32,
+            alpha_cutoff: 0.5,
+            _pad0: 0,
+        }
+    }
+}
+
+/// A parameter that cannot be used, with its name, its value and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamError {
+    /// Field name, as in [`Params`].
+    pub field: &'static str,
+    /// The offending value, formatted.
+    pub value: String,
+    /// What a valid value looks like.
+    pub reason: &'static str,
+}
+
+impl fmt::Display for ParamError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "invalid parameter {} = {}: {}", self.field, self.value, self.reason)
+    }
+}
+
+impl std::error::Error for ParamError {}
+
+/// Largest texture side we accept: 4096 (SPEC §7 extreme; wgpu's default 2D limit is 8192).
+pub const MAX_TEXTURE_SIZE: u32 = 4096;
+/// Most elevation angles: one degree apart is already finer than any billboard can show.
+pub const MAX_ANGLE_COUNT: u32 = 91;
+/// Smallest grid cell: 1 cm. Below it cell indices of a 10 km scene overflow nothing, but batches of
+/// one tree are already reached at about 1 m, so smaller cells only cost memory.
+pub const MIN_GRID_SIZE: f32 = 0.01;
+/// Largest distances we accept (grid, transition, draw distance): 1e7 m, beyond Earth's diameter.
+pub const MAX_DISTANCE: f32 = 1.0e7;
+
+fn err(field: &'static str, value: impl fmt::Display, reason: &'static str) -> ParamError {
+    ParamError { field, value: value.to_string(), reason }
+}
+
+impl Params {
+    /// Fade mode, validated.
+    pub fn fade(&self) -> Result<crate::FadeMode, ParamError> {
+        crate::FadeMode::from_id(self.fade_mode)
+            .ok_or_else(|| err("fade_mode", self.fade_mode, "expected 0 (none), 1 (alpha), 2 (dither) or 3 (dither-sequential)"))
+    }
+    /// Mip mode, validated.
+    pub fn mips(&self) -> Result<MipMode, ParamError> {
+        MipMode::from_id(self.mip_mode)
+            .ok_or_else(|| err("mip_mode", self.mip_mode, "expected 0 (alpha-aware), 1 (box) or 2 (coverage)"))
+    }
+    /// Angle index mode, validated.
+    pub fn angle_mode(&self) -> Result<AngleIndexMode, ParamError> {
+        AngleIndexMode::from_id(self.angle_index_mode)
+            .ok_or_else(|| err("angle_index_mode", self.angle_index_mode, "expected 0 (nearest) or 1 (eq31-clamped)"))
+    }
+
+    /// Number of mip levels of a billboard layer, `log2(r) + 1` (r = 1 has one level).
+    pub fn mip_level_count(&self) -> u32 {
+        self.texture_size.max(1).ilog2() + 1
+    }
+
+    /// Checks every field, returning the first impossible one. Nothing downstream runs on invalid
+    /// parameters, so no stage needs to guard against NaN or zero divisors (SPEC §7).
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let finite_in = |field, v: f32, lo: f32, hi: f32, reason| {
+            if v.is_finite() && v >= lo && v <= hi { Ok(()) } else { Err(err(field, v, reason)) }
+        };
+        finite_in("grid_size", self.grid_size, MIN_GRID_SIZE, MAX_DISTANCE, "expected a finite size in 0.01..=1e7 m")?;
+        if self.angle_count == 0 || self.angle_count > MAX_ANGLE_COUNT {
+            return Err(err("angle_count", self.angle_count, "expected 1..=91 elevation angles"));
+        }
+        if !self.texture_size.is_power_of_two() || self.texture_size > MAX_TEXTURE_SIZE {
+            return Err(err("texture_size", self.texture_size, "expected a power of two in 1..=4096"));
+        }
+        if !(1..=2).contains(&self.lod_levels) {
+            return Err(err(
+                "lod_levels",
+                self.lod_levels,
+                "expected 1 (meshes only) or 2 (meshes then billboards): a scene has only these two representations",
+            ));
+        }
+        finite_in("lod1_transition", self.lod1_transition, 0.0, MAX_DISTANCE, "expected a finite distance in 0..=1e7 m")?;
+        finite_in("fade_width", self.fade_width, 0.0, MAX_DISTANCE, "expected a finite width in 0..=1e7 m")?;
+        finite_in("draw_distance", self.draw_distance, 0.0, MAX_DISTANCE, "expected a finite distance in 0..=1e7 m")?;
+        self.fade()?;
+        self.mips()?;
+        self.angle_mode()?;
+        finite_in("alpha_cutoff", self.alpha_cutoff, 0.0, 1.0, "expected a finite alpha in 0..=1")?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_thesis_values_and_valid() {
+        let p = Params::default();
+        assert_eq!((p.grid_size, p.angle_count, p.texture_size, p.lod_levels), (500.0, 10, 128, 2));
+        assert_eq!((p.lod1_transition, p.fade_width), (1000.0, 250.0));
+        assert_eq!(p.mip_level_count(), 8);
+        p.validate().unwrap();
+    }
+
+    #[test]
+    fn each_impossible_value_is_named() {
+        let cases: Vec<(&str, Params)> = vec![
+            ("grid_size", Params { grid_size: f32::NAN, ..Default::default() }),
+            ("grid_size", Params { grid_size: 0.0, ..Default::default() }),
+            ("grid_size", Params { grid_size: f32::INFINITY, ..Default::default() }),
+            ("angle_count", Params { angle_count: 0, ..Default::default() }),
+            ("texture_size", Params { texture_size: 100, ..Default::default() }),
+            ("texture_size", Params { texture_size: 8192, ..Default::default() }),
+            ("texture_size", Params { texture_size: 0, ..Default::default() }),
+            ("lod_levels", Params { lod_levels: 3, ..Default::default() }),
+            ("lod1_transition", Params { lod1_transition: -1.0, ..Default::default() }),
+            ("fade_width", Params { fade_width: f32::NEG_INFINITY, ..Default::default() }),
+            ("draw_distance", Params { draw_distance: f32::NAN, ..Default::default() }),
+            ("fade_mode", Params { fade_mode: 9, ..Default::default() }),
+            ("mip_mode", Params { mip_mode: 3, ..Default::default() }),
+            ("angle_index_mode", Params { angle_index_mode: 2, ..Default::default() }),
+            ("alpha_cutoff", Params { alpha_cutoff: 1.5, ..Default::default() }),
+        ];
+        for (field, p) in cases {
+            let e = p.validate().expect_err(field);
+            assert_eq!(e.field, field, "{e}");
+            assert!(e.to_string().contains(field), "{e}");
+        }
+    }
+
+    #[test]
+    fn extremes_that_are_allowed() {
+        for p in [
+            Params { texture_size: 1, ..Default::default() },
+            Params { texture_size: 4096, ..Default::default() },
+            Params { angle_count: 1, ..Default::default() },
+            Params { fade_width: 0.0, ..Default::default() },
+            Params { lod1_transition: 0.0, ..Default::default() },
+            Params { draw_distance: 0.0, ..Default::default() },
+            Params { draw_distance: 1e7, ..Default::default() },
+            Params { grid_size: 1e6, ..Default::default() },
+        ] {
+            p.validate().unwrap();
+        }
+    }
+}

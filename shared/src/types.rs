@@ -1,0 +1,133 @@
+//! GPU-visible records: batch metadata (E§4.2), draw commands and per-command data (E§4.3),
+//! per-mesh metadata (E§4.1) and selection counters.
+//!
+//! Keep in sync with `gpu/src/shaders/common.wgsl`. Every struct is `#[repr(C)]`, has only 4-byte
+//! fields, explicit padding, and a size assertion; WGSL storage-buffer layout of the same fields in
+//! the same order is then identical (every member 4-byte aligned, `vec3` avoided on purpose).
+
+use bytemuck::{Pod, Zeroable};
+
+/// One batch: the trees of one mesh inside one grid cell (E§3.4, §4.2).
+///
+/// Invariant: the bounding sphere (`center`, `radius`) contains the bounding sphere of every tree of
+/// the batch, tree heights included (E Fig. 3.7). `center` is the centre of the trees' sphere
+/// centres' bounding box, so a batch of one tree has exactly that tree's sphere.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct BatchMeta {
+    /// Bounding-sphere centre, relative to the scene origin.
+    pub center: [f32; 3],
+    /// Bounding-sphere radius, rounded up so containment survives `f32` rounding.
+    pub radius: f32,
+    /// Half-size of the bounding box of the trees' spheres, around `box_center`.
+    pub extent: [f32; 3],
+    /// Mesh (species) index shared by all trees of the batch.
+    pub mesh: u32,
+    /// Bounding-box centre (E§4.2 "geometric center").
+    pub box_center: [f32; 3],
+    /// Number of trees, the length of the batch's range in the indirection array.
+    pub len: u32,
+    /// 2D grid cell index `(floor(x / g), floor(y / g))`.
+    pub cell: [i32; 2],
+    /// Offset of the batch's range in the indirection array.
+    pub offset: u32,
+    /// Explicit padding.
+    pub _pad0: u32,
+}
+const _: () = assert!(core::mem::size_of::<BatchMeta>() == 64);
+
+/// `wgpu::util::DrawIndexedIndirectArgs`, field for field (and `VkDrawIndexedIndirectCommand`).
+///
+/// How the draw stage finds its per-command data without `gl_DrawID` (which WGSL lacks): mesh index
+/// buffers hold mesh-local vertex ids (< [`crate::MAX_MESH_VERTICES`]), and
+/// `base_vertex = command_index << COMMAND_SHIFT`, so the vertex stage reads
+/// `command = vertex_index >> COMMAND_SHIFT` and `local = vertex_index & (MAX_MESH_VERTICES - 1)`.
+/// `first_instance` is the batch's offset in the indirection array, so
+/// `instance_index` indexes it directly (E§4.4).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Pod, Zeroable)]
+pub struct DrawCommand {
+    /// Indices per instance: the mesh's, or 6 for the billboard quad.
+    pub index_count: u32,
+    /// Trees in the batch.
+    pub instance_count: u32,
+    /// Start of the mesh's (or the quad's) range in the shared index buffer.
+    pub first_index: u32,
+    /// `command_index << COMMAND_SHIFT`.
+    pub base_vertex: i32,
+    /// The batch's offset in the indirection array.
+    pub first_instance: u32,
+}
+const _: () = assert!(core::mem::size_of::<DrawCommand>() == 20);
+
+/// Per-command data read by the draw stage (E§4.3): the fade gradient and what to draw.
+///
+/// 32 bytes, so a command costs 20 + 32 = 52 bytes: exactly E Eq. 4.1's `52 l t` term.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct CommandData {
+    /// View depth where the fade band starts (`lod1_transition - fade_width`).
+    pub fade_start: f32,
+    /// View depth where the fade band ends (`lod1_transition`).
+    pub fade_end: f32,
+    /// Batch this command draws.
+    pub batch: u32,
+    /// Mesh index.
+    pub mesh: u32,
+    /// Level of detail: [`crate::LOD_MESH`] or [`crate::LOD_BILLBOARD`].
+    pub lod: u32,
+    /// 1 when the command draws billboards.
+    pub billboard: u32,
+    /// 1 when the batch's interval overlaps the fade band, so the fragment stage must fade.
+    pub fading: u32,
+    /// Explicit padding.
+    pub _pad0: u32,
+}
+const _: () = assert!(core::mem::size_of::<CommandData>() == 32);
+
+/// Per-mesh metadata for command generation and billboards (E§4.1).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct MeshMeta {
+    /// First index of the mesh in the shared index buffer.
+    pub first_index: u32,
+    /// Index count (3 per triangle).
+    pub index_count: u32,
+    /// First vertex of the mesh in the shared vertex buffer.
+    pub first_vertex: u32,
+    /// Vertex count (<= [`crate::MAX_MESH_VERTICES`]).
+    pub vertex_count: u32,
+    /// Mesh-local bounding-box minimum (unit scale, zero yaw).
+    pub bbox_min: [f32; 3],
+    /// Billboard half-width: the bounding box's horizontal circumradius (trees are radially
+    /// symmetric, E§3.3.1, so this covers every yaw).
+    pub billboard_half_width: f32,
+    /// Mesh-local bounding-box maximum.
+    pub bbox_max: [f32; 3],
+    /// Local bounding-sphere radius (half the box diagonal) around the box centre.
+    pub sphere_radius: f32,
+}
+const _: () = assert!(core::mem::size_of::<MeshMeta>() == 48);
+
+/// Work counters of one selection pass.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct SelectCounters {
+    /// Batches examined.
+    pub batches_tested: u32,
+    /// Batches culled because wholly beyond the draw distance.
+    pub culled_distance: u32,
+    /// Batches culled because wholly outside the frustum.
+    pub culled_frustum: u32,
+    /// Commands emitted.
+    pub commands: u32,
+    /// Commands with LOD0.
+    pub lod0_commands: u32,
+    /// Commands with LOD1.
+    pub lod1_commands: u32,
+    /// Batches that emitted two commands (overlap the fade band).
+    pub transition_batches: u32,
+    /// Tree instances across all emitted commands.
+    pub instances: u32,
+}
+const _: () = assert!(core::mem::size_of::<SelectCounters>() == 32);
