@@ -1,2 +1,30 @@
-//! placeholder
+//! # forestlod-reference: the CPU oracle
+//!
+//! Every stage of the grouped-LOD forest pipeline of Eichner 2024 (the core seed, cited as "E§…"),
+//! written to be read and trusted rather than to be fast: exact, documented, deterministic. The wgpu
+//! twin in `forestlod-gpu` is judged against it. Stages share names with their WGSL twins
+//! (`gpu/src/shaders/<stage>.wgsl`):
+//!
+//! | stage | module | seed |
+//! |---|---|---|
+//! | billboard bake | `bake` | E Alg. 3.1, §4.1 |
+//! | alpha-aware mipmaps | [`mips`] | E Alg. 3.2, §4.1 |
+//! | grid batches | [`batches`] | E§3.4, §4.2, Eq. 4.1 |
+//! | per-batch selection | [`select`] | E§3.5, §4.3 |
+//! | draw execution | `draw` | E§4.4 |
+//!
+//! Inputs come from [`scene`] (built-in procedural scenes and validated user scenes).
+//!
+//! Depends on `forestlod-shared`, glam, rayon and image/exr for I/O; never on wgpu. Parallel code
+//! (rayon) only ever splits work into pieces whose results are combined in a fixed order, so the
+//! output is bit-identical for any thread count.
+
+pub mod batches;
+pub mod error;
+pub mod mips;
+pub mod scene;
+pub mod select;
+pub mod texture;
+
+pub use error::InputError;
 pub use forestlod_shared as shared;

@@ -62,7 +62,11 @@ pub fn angle_index(v_dot_u: f32, k_count: u32) -> u32 {
 pub fn angle_index_eq31_clamped(v_dot_u: f32, k_count: u32) -> u32 {
     let s = v_dot_u.max(-1.0).min(1.0);
     let i = angle_index_eq31(s, k_count);
-    if i.is_nan() { 0 } else { i.max(0.0).min((k_count.max(1) - 1) as f32) as u32 }
+    if i.is_nan() {
+        0
+    } else {
+        i.max(0.0).min((k_count.max(1) - 1) as f32) as u32
+    }
 }
 
 /// The index of `mode` for `v_dot_u`.
@@ -141,7 +145,10 @@ mod tests {
     }
 
     fn config() -> ProptestConfig {
-        ProptestConfig { cases: 512, ..ProptestConfig::default() }
+        ProptestConfig {
+            cases: 512,
+            ..ProptestConfig::default()
+        }
     }
 
     proptest! {

@@ -53,7 +53,13 @@ pub struct FrustumPlanes {
 
 impl Camera {
     /// A camera at `eye` looking at `target`, world +Z up.
-    pub fn look_at(eye: [f32; 3], target: [f32; 3], fov_y_degrees: f32, width: u32, height: u32) -> Self {
+    pub fn look_at(
+        eye: [f32; 3],
+        target: [f32; 3],
+        fov_y_degrees: f32,
+        width: u32,
+        height: u32,
+    ) -> Self {
         let forward = (Vec3::from(target) - Vec3::from(eye)).to_array();
         Self {
             eye,
@@ -70,16 +76,34 @@ impl Camera {
 
     /// Rejects cameras no stage can use, naming the field and value (SPEC §7).
     pub fn validate(&self) -> Result<(), ParamError> {
-        let bad = |field, value: String, reason| Err(ParamError { field, value, reason });
+        let bad = |field, value: String, reason| {
+            Err(ParamError {
+                field,
+                value,
+                reason,
+            })
+        };
         let finite3 = |v: [f32; 3]| v.iter().all(|x| x.is_finite());
         if !finite3(self.eye) {
-            return bad("camera.eye", format!("{:?}", self.eye), "expected finite coordinates");
+            return bad(
+                "camera.eye",
+                format!("{:?}", self.eye),
+                "expected finite coordinates",
+            );
         }
         if !finite3(self.forward) || Vec3::from(self.forward).length_squared() < 1e-12 {
-            return bad("camera.forward", format!("{:?}", self.forward), "expected a finite, non-zero direction");
+            return bad(
+                "camera.forward",
+                format!("{:?}", self.forward),
+                "expected a finite, non-zero direction",
+            );
         }
         if !finite3(self.up) || Vec3::from(self.up).length_squared() < 1e-12 {
-            return bad("camera.up", format!("{:?}", self.up), "expected a finite, non-zero direction");
+            return bad(
+                "camera.up",
+                format!("{:?}", self.up),
+                "expected a finite, non-zero direction",
+            );
         }
         let f = Vec3::from(self.forward).normalize();
         if f.cross(Vec3::from(self.up).normalize()).length() < 1e-4 {
@@ -90,16 +114,32 @@ impl Camera {
             );
         }
         if !(self.fov_y.is_finite() && self.fov_y > 1e-4 && self.fov_y < 3.1) {
-            return bad("camera.fov_y", self.fov_y.to_string(), "expected a finite angle in (0.0001, 3.1) radians");
+            return bad(
+                "camera.fov_y",
+                self.fov_y.to_string(),
+                "expected a finite angle in (0.0001, 3.1) radians",
+            );
         }
         if !(self.near.is_finite() && self.near > 0.0) {
-            return bad("camera.near", self.near.to_string(), "expected a finite distance > 0");
+            return bad(
+                "camera.near",
+                self.near.to_string(),
+                "expected a finite distance > 0",
+            );
         }
         if !(self.far.is_finite() && self.far > self.near) {
-            return bad("camera.far", self.far.to_string(), "expected a finite distance > near");
+            return bad(
+                "camera.far",
+                self.far.to_string(),
+                "expected a finite distance > near",
+            );
         }
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
-            return bad("camera.viewport", format!("{}x{}", self.width, self.height), "expected 1..=16384 pixels per side");
+            return bad(
+                "camera.viewport",
+                format!("{}x{}", self.width, self.height),
+                "expected 1..=16384 pixels per side",
+            );
         }
         Ok(())
     }
@@ -178,7 +218,9 @@ impl FrustumPlanes {
     pub fn sphere_visible(&self, center: [f32; 3], radius: f32, eye: [f32; 3]) -> bool {
         let rel = [center[0] - eye[0], center[1] - eye[1], center[2] - eye[2]];
         let m = crate::selection_margin(rel, radius);
-        self.planes.iter().all(|p| p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3] >= -radius - m)
+        self.planes
+            .iter()
+            .all(|p| p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3] >= -radius - m)
     }
 }
 
@@ -208,11 +250,23 @@ mod tests {
         let c = cam();
         let vp = c.view_projection();
         let f = c.frustum();
-        for p in [[50.0f32, 20.0, 3.0], [50.0, 40.0, 10.0], [5.0, -2.0, 12.0], [200.0, -100.0, 40.0]] {
+        for p in [
+            [50.0f32, 20.0, 3.0],
+            [50.0, 40.0, 10.0],
+            [5.0, -2.0, 12.0],
+            [200.0, -100.0, 40.0],
+        ] {
             let clip = vp * glam::Vec4::new(p[0], p[1], p[2], 1.0);
             let ndc = clip.truncate() / clip.w;
-            let inside_matrix = clip.w > 0.0 && ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0 && (0.0..=1.0).contains(&ndc.z);
-            assert_eq!(f.sphere_visible(p, 0.0, c.eye), inside_matrix, "{p:?} ndc {ndc:?}");
+            let inside_matrix = clip.w > 0.0
+                && ndc.x.abs() <= 1.0
+                && ndc.y.abs() <= 1.0
+                && (0.0..=1.0).contains(&ndc.z);
+            assert_eq!(
+                f.sphere_visible(p, 0.0, c.eye),
+                inside_matrix,
+                "{p:?} ndc {ndc:?}"
+            );
         }
     }
 

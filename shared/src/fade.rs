@@ -31,7 +31,12 @@ pub enum FadeMode {
 
 impl FadeMode {
     /// Every mode, in id order.
-    pub const ALL: [FadeMode; 4] = [FadeMode::None, FadeMode::Alpha, FadeMode::Dither, FadeMode::DitherSequential];
+    pub const ALL: [FadeMode; 4] = [
+        FadeMode::None,
+        FadeMode::Alpha,
+        FadeMode::Dither,
+        FadeMode::DitherSequential,
+    ];
     /// The mode with this id, if any.
     pub fn from_id(id: u32) -> Option<Self> {
         Self::ALL.get(id as usize).copied()
@@ -82,23 +87,41 @@ pub fn fade_progress(d: f32, fade_start: f32, fade_end: f32) -> f32 {
 
 /// LOD weights of a fragment at view depth `d`; `dither` is the fragment's threshold in `[0, 1)`
 /// (a per-pixel noise value, ignored by `none` and `alpha`).
-pub fn lod_weights(mode: FadeMode, d: f32, fade_start: f32, fade_end: f32, dither: f32) -> LodWeights {
+pub fn lod_weights(
+    mode: FadeMode,
+    d: f32,
+    fade_start: f32,
+    fade_end: f32,
+    dither: f32,
+) -> LodWeights {
     let t = fade_progress(d, fade_start, fade_end);
     let step = |covered: bool| if covered { 1.0 } else { 0.0 };
     match mode {
         FadeMode::None => {
             let one = step(d >= fade_end);
-            LodWeights { lod0: 1.0 - one, lod1: one }
+            LodWeights {
+                lod0: 1.0 - one,
+                lod1: one,
+            }
         }
-        FadeMode::Alpha => LodWeights { lod0: 1.0 - t, lod1: t },
+        FadeMode::Alpha => LodWeights {
+            lod0: 1.0 - t,
+            lod1: t,
+        },
         FadeMode::Dither => {
             let in1 = dither < t;
-            LodWeights { lod0: step(!in1), lod1: step(in1) }
+            LodWeights {
+                lod0: step(!in1),
+                lod1: step(in1),
+            }
         }
         FadeMode::DitherSequential => {
             let cover1 = (2.0 * t).min(1.0);
             let cover0 = (2.0 - 2.0 * t).min(1.0);
-            LodWeights { lod0: step(dither < cover0), lod1: step(dither < cover1) }
+            LodWeights {
+                lod0: step(dither < cover0),
+                lod1: step(dither < cover1),
+            }
         }
     }
 }
@@ -109,7 +132,10 @@ mod tests {
     use proptest::prelude::*;
 
     fn config() -> ProptestConfig {
-        ProptestConfig { cases: 512, ..ProptestConfig::default() }
+        ProptestConfig {
+            cases: 512,
+            ..ProptestConfig::default()
+        }
     }
 
     proptest! {

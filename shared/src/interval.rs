@@ -30,11 +30,20 @@ pub fn selection_margin(rel: [f32; 3], radius: f32) -> f32 {
 }
 
 /// Projects the sphere `(center, radius)` onto the view direction (E§3.5).
-pub fn view_interval(center: [f32; 3], radius: f32, eye: [f32; 3], forward: [f32; 3]) -> ViewInterval {
+pub fn view_interval(
+    center: [f32; 3],
+    radius: f32,
+    eye: [f32; 3],
+    forward: [f32; 3],
+) -> ViewInterval {
     let rel = [center[0] - eye[0], center[1] - eye[1], center[2] - eye[2]];
     let d = rel[0] * forward[0] + rel[1] * forward[1] + rel[2] * forward[2];
     let m = selection_margin(rel, radius);
-    ViewInterval { d, lo: d - radius - m, hi: d + radius + m }
+    ViewInterval {
+        d,
+        lo: d - radius - m,
+        hi: d + radius + m,
+    }
 }
 
 /// Which LODs an interval needs.
@@ -66,9 +75,15 @@ impl LodNeeds {
 /// LOD0.
 pub fn lod_needs(lo: f32, hi: f32, fade_start: f32, fade_end: f32, lod_levels: u32) -> LodNeeds {
     if lod_levels < 2 {
-        return LodNeeds { lod0: true, lod1: false };
+        return LodNeeds {
+            lod0: true,
+            lod1: false,
+        };
     }
-    LodNeeds { lod0: lo < fade_end, lod1: hi >= fade_start }
+    LodNeeds {
+        lod0: lo < fade_end,
+        lod1: hi >= fade_start,
+    }
 }
 
 #[cfg(test)]
@@ -86,13 +101,49 @@ mod tests {
     #[test]
     fn needs_follow_the_band() {
         let n = |lo, hi| lod_needs(lo, hi, 750.0, 1000.0, 2);
-        assert_eq!(n(0.0, 700.0), LodNeeds { lod0: true, lod1: false });
-        assert_eq!(n(0.0, 800.0), LodNeeds { lod0: true, lod1: true });
-        assert_eq!(n(1000.0, 1200.0), LodNeeds { lod0: false, lod1: true });
-        assert_eq!(n(999.0, 1200.0), LodNeeds { lod0: true, lod1: true });
+        assert_eq!(
+            n(0.0, 700.0),
+            LodNeeds {
+                lod0: true,
+                lod1: false
+            }
+        );
+        assert_eq!(
+            n(0.0, 800.0),
+            LodNeeds {
+                lod0: true,
+                lod1: true
+            }
+        );
+        assert_eq!(
+            n(1000.0, 1200.0),
+            LodNeeds {
+                lod0: false,
+                lod1: true
+            }
+        );
+        assert_eq!(
+            n(999.0, 1200.0),
+            LodNeeds {
+                lod0: true,
+                lod1: true
+            }
+        );
         // One LOD level: meshes everywhere.
-        assert_eq!(lod_needs(5000.0, 6000.0, 750.0, 1000.0, 1), LodNeeds { lod0: true, lod1: false });
+        assert_eq!(
+            lod_needs(5000.0, 6000.0, 750.0, 1000.0, 1),
+            LodNeeds {
+                lod0: true,
+                lod1: false
+            }
+        );
         // "No LOD0" (transition 0, E Fig. 5.7): nothing in front of the eye needs LOD0.
-        assert_eq!(lod_needs(0.5, 10.0, -250.0, 0.0, 2), LodNeeds { lod0: false, lod1: true });
+        assert_eq!(
+            lod_needs(0.5, 10.0, -250.0, 0.0, 2),
+            LodNeeds {
+                lod0: false,
+                lod1: true
+            }
+        );
     }
 }

@@ -30,7 +30,9 @@ pub mod interval;
 pub mod params;
 pub mod types;
 
-pub use angle::{angle_index, angle_index_eq31, angle_index_eq31_clamped, angle_index_for, bake_elevation};
+pub use angle::{
+    angle_index, angle_index_eq31, angle_index_eq31_clamped, angle_index_for, bake_elevation,
+};
 pub use camera::{Camera, CameraBasis, FrustumPlanes};
 pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
 pub use interval::{LodNeeds, ViewInterval, lod_needs, selection_margin, view_interval};

@@ -20,7 +20,11 @@ pub enum MipMode {
 
 impl MipMode {
     /// Every mode, in id order.
-    pub const ALL: [MipMode; 3] = [MipMode::AlphaAware, MipMode::Box, MipMode::CoveragePreserving];
+    pub const ALL: [MipMode; 3] = [
+        MipMode::AlphaAware,
+        MipMode::Box,
+        MipMode::CoveragePreserving,
+    ];
     /// The mode with this id, if any.
     pub fn from_id(id: u32) -> Option<Self> {
         Self::ALL.get(id as usize).copied()
@@ -125,7 +129,11 @@ pub struct ParamError {
 
 impl fmt::Display for ParamError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "invalid parameter {} = {}: {}", self.field, self.value, self.reason)
+        write!(
+            f,
+            "invalid parameter {} = {}: {}",
+            self.field, self.value, self.reason
+        )
     }
 }
 
@@ -142,24 +150,43 @@ pub const MIN_GRID_SIZE: f32 = 0.01;
 pub const MAX_DISTANCE: f32 = 1.0e7;
 
 fn err(field: &'static str, value: impl fmt::Display, reason: &'static str) -> ParamError {
-    ParamError { field, value: value.to_string(), reason }
+    ParamError {
+        field,
+        value: value.to_string(),
+        reason,
+    }
 }
 
 impl Params {
     /// Fade mode, validated.
     pub fn fade(&self) -> Result<crate::FadeMode, ParamError> {
-        crate::FadeMode::from_id(self.fade_mode)
-            .ok_or_else(|| err("fade_mode", self.fade_mode, "expected 0 (none), 1 (alpha), 2 (dither) or 3 (dither-sequential)"))
+        crate::FadeMode::from_id(self.fade_mode).ok_or_else(|| {
+            err(
+                "fade_mode",
+                self.fade_mode,
+                "expected 0 (none), 1 (alpha), 2 (dither) or 3 (dither-sequential)",
+            )
+        })
     }
     /// Mip mode, validated.
     pub fn mips(&self) -> Result<MipMode, ParamError> {
-        MipMode::from_id(self.mip_mode)
-            .ok_or_else(|| err("mip_mode", self.mip_mode, "expected 0 (alpha-aware), 1 (box) or 2 (coverage)"))
+        MipMode::from_id(self.mip_mode).ok_or_else(|| {
+            err(
+                "mip_mode",
+                self.mip_mode,
+                "expected 0 (alpha-aware), 1 (box) or 2 (coverage)",
+            )
+        })
     }
     /// Angle index mode, validated.
     pub fn angle_mode(&self) -> Result<AngleIndexMode, ParamError> {
-        AngleIndexMode::from_id(self.angle_index_mode)
-            .ok_or_else(|| err("angle_index_mode", self.angle_index_mode, "expected 0 (nearest) or 1 (eq31-clamped)"))
+        AngleIndexMode::from_id(self.angle_index_mode).ok_or_else(|| {
+            err(
+                "angle_index_mode",
+                self.angle_index_mode,
+                "expected 0 (nearest) or 1 (eq31-clamped)",
+            )
+        })
     }
 
     /// Number of mip levels of a billboard layer, `log2(r) + 1` (r = 1 has one level).
@@ -171,14 +198,32 @@ impl Params {
     /// parameters, so no stage needs to guard against NaN or zero divisors (SPEC §7).
     pub fn validate(&self) -> Result<(), ParamError> {
         let finite_in = |field, v: f32, lo: f32, hi: f32, reason| {
-            if v.is_finite() && v >= lo && v <= hi { Ok(()) } else { Err(err(field, v, reason)) }
+            if v.is_finite() && v >= lo && v <= hi {
+                Ok(())
+            } else {
+                Err(err(field, v, reason))
+            }
         };
-        finite_in("grid_size", self.grid_size, MIN_GRID_SIZE, MAX_DISTANCE, "expected a finite size in 0.01..=1e7 m")?;
+        finite_in(
+            "grid_size",
+            self.grid_size,
+            MIN_GRID_SIZE,
+            MAX_DISTANCE,
+            "expected a finite size in 0.01..=1e7 m",
+        )?;
         if self.angle_count == 0 || self.angle_count > MAX_ANGLE_COUNT {
-            return Err(err("angle_count", self.angle_count, "expected 1..=91 elevation angles"));
+            return Err(err(
+                "angle_count",
+                self.angle_count,
+                "expected 1..=91 elevation angles",
+            ));
         }
         if !self.texture_size.is_power_of_two() || self.texture_size > MAX_TEXTURE_SIZE {
-            return Err(err("texture_size", self.texture_size, "expected a power of two in 1..=4096"));
+            return Err(err(
+                "texture_size",
+                self.texture_size,
+                "expected a power of two in 1..=4096",
+            ));
         }
         if !(1..=2).contains(&self.lod_levels) {
             return Err(err(
@@ -187,13 +232,37 @@ impl Params {
                 "expected 1 (meshes only) or 2 (meshes then billboards): a scene has only these two representations",
             ));
         }
-        finite_in("lod1_transition", self.lod1_transition, 0.0, MAX_DISTANCE, "expected a finite distance in 0..=1e7 m")?;
-        finite_in("fade_width", self.fade_width, 0.0, MAX_DISTANCE, "expected a finite width in 0..=1e7 m")?;
-        finite_in("draw_distance", self.draw_distance, 0.0, MAX_DISTANCE, "expected a finite distance in 0..=1e7 m")?;
+        finite_in(
+            "lod1_transition",
+            self.lod1_transition,
+            0.0,
+            MAX_DISTANCE,
+            "expected a finite distance in 0..=1e7 m",
+        )?;
+        finite_in(
+            "fade_width",
+            self.fade_width,
+            0.0,
+            MAX_DISTANCE,
+            "expected a finite width in 0..=1e7 m",
+        )?;
+        finite_in(
+            "draw_distance",
+            self.draw_distance,
+            0.0,
+            MAX_DISTANCE,
+            "expected a finite distance in 0..=1e7 m",
+        )?;
         self.fade()?;
         self.mips()?;
         self.angle_mode()?;
-        finite_in("alpha_cutoff", self.alpha_cutoff, 0.0, 1.0, "expected a finite alpha in 0..=1")?;
+        finite_in(
+            "alpha_cutoff",
+            self.alpha_cutoff,
+            0.0,
+            1.0,
+            "expected a finite alpha in 0..=1",
+        )?;
         Ok(())
     }
 }
@@ -205,7 +274,10 @@ mod tests {
     #[test]
     fn defaults_are_the_thesis_values_and_valid() {
         let p = Params::default();
-        assert_eq!((p.grid_size, p.angle_count, p.texture_size, p.lod_levels), (500.0, 10, 128, 2));
+        assert_eq!(
+            (p.grid_size, p.angle_count, p.texture_size, p.lod_levels),
+            (500.0, 10, 128, 2)
+        );
         assert_eq!((p.lod1_transition, p.fade_width), (1000.0, 250.0));
         assert_eq!(p.mip_level_count(), 8);
         p.validate().unwrap();
@@ -214,21 +286,111 @@ mod tests {
     #[test]
     fn each_impossible_value_is_named() {
         let cases: Vec<(&str, Params)> = vec![
-            ("grid_size", Params { grid_size: f32::NAN, ..Default::default() }),
-            ("grid_size", Params { grid_size: 0.0, ..Default::default() }),
-            ("grid_size", Params { grid_size: f32::INFINITY, ..Default::default() }),
-            ("angle_count", Params { angle_count: 0, ..Default::default() }),
-            ("texture_size", Params { texture_size: 100, ..Default::default() }),
-            ("texture_size", Params { texture_size: 8192, ..Default::default() }),
-            ("texture_size", Params { texture_size: 0, ..Default::default() }),
-            ("lod_levels", Params { lod_levels: 3, ..Default::default() }),
-            ("lod1_transition", Params { lod1_transition: -1.0, ..Default::default() }),
-            ("fade_width", Params { fade_width: f32::NEG_INFINITY, ..Default::default() }),
-            ("draw_distance", Params { draw_distance: f32::NAN, ..Default::default() }),
-            ("fade_mode", Params { fade_mode: 9, ..Default::default() }),
-            ("mip_mode", Params { mip_mode: 3, ..Default::default() }),
-            ("angle_index_mode", Params { angle_index_mode: 2, ..Default::default() }),
-            ("alpha_cutoff", Params { alpha_cutoff: 1.5, ..Default::default() }),
+            (
+                "grid_size",
+                Params {
+                    grid_size: f32::NAN,
+                    ..Default::default()
+                },
+            ),
+            (
+                "grid_size",
+                Params {
+                    grid_size: 0.0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "grid_size",
+                Params {
+                    grid_size: f32::INFINITY,
+                    ..Default::default()
+                },
+            ),
+            (
+                "angle_count",
+                Params {
+                    angle_count: 0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "texture_size",
+                Params {
+                    texture_size: 100,
+                    ..Default::default()
+                },
+            ),
+            (
+                "texture_size",
+                Params {
+                    texture_size: 8192,
+                    ..Default::default()
+                },
+            ),
+            (
+                "texture_size",
+                Params {
+                    texture_size: 0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "lod_levels",
+                Params {
+                    lod_levels: 3,
+                    ..Default::default()
+                },
+            ),
+            (
+                "lod1_transition",
+                Params {
+                    lod1_transition: -1.0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "fade_width",
+                Params {
+                    fade_width: f32::NEG_INFINITY,
+                    ..Default::default()
+                },
+            ),
+            (
+                "draw_distance",
+                Params {
+                    draw_distance: f32::NAN,
+                    ..Default::default()
+                },
+            ),
+            (
+                "fade_mode",
+                Params {
+                    fade_mode: 9,
+                    ..Default::default()
+                },
+            ),
+            (
+                "mip_mode",
+                Params {
+                    mip_mode: 3,
+                    ..Default::default()
+                },
+            ),
+            (
+                "angle_index_mode",
+                Params {
+                    angle_index_mode: 2,
+                    ..Default::default()
+                },
+            ),
+            (
+                "alpha_cutoff",
+                Params {
+                    alpha_cutoff: 1.5,
+                    ..Default::default()
+                },
+            ),
         ];
         for (field, p) in cases {
             let e = p.validate().expect_err(field);
@@ -240,14 +402,38 @@ mod tests {
     #[test]
     fn extremes_that_are_allowed() {
         for p in [
-            Params { texture_size: 1, ..Default::default() },
-            Params { texture_size: 4096, ..Default::default() },
-            Params { angle_count: 1, ..Default::default() },
-            Params { fade_width: 0.0, ..Default::default() },
-            Params { lod1_transition: 0.0, ..Default::default() },
-            Params { draw_distance: 0.0, ..Default::default() },
-            Params { draw_distance: 1e7, ..Default::default() },
-            Params { grid_size: 1e6, ..Default::default() },
+            Params {
+                texture_size: 1,
+                ..Default::default()
+            },
+            Params {
+                texture_size: 4096,
+                ..Default::default()
+            },
+            Params {
+                angle_count: 1,
+                ..Default::default()
+            },
+            Params {
+                fade_width: 0.0,
+                ..Default::default()
+            },
+            Params {
+                lod1_transition: 0.0,
+                ..Default::default()
+            },
+            Params {
+                draw_distance: 0.0,
+                ..Default::default()
+            },
+            Params {
+                draw_distance: 1e7,
+                ..Default::default()
+            },
+            Params {
+                grid_size: 1e6,
+                ..Default::default()
+            },
         ] {
             p.validate().unwrap();
         }

@@ -1,0 +1,1 @@
+//! mips (placeholder; being written).

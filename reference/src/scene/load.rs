@@ -1,0 +1,1 @@
+//! User scenes (placeholder; being written).

@@ -1,0 +1,150 @@
+//! Textures: sRGB-encoded RGBA8 with straight alpha (SPEC §3), and the exact colour conversions
+//! every stage uses.
+//!
+//! Decoding uses the exact sRGB transfer function in `f64`, rounded once to `f32` (a 256-entry
+//! table); encoding rounds to nearest after the inverse function. Both match what a GPU's
+//! `Rgba8UnormSrgb` format does to within the ±1 per channel that parity allows (SPEC §8).
+
+use std::sync::OnceLock;
+
+/// An RGBA8 image, row-major from the top-left texel, sRGB colour, straight alpha (linear).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Rgba8Image {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// `width * height` texels.
+    pub texels: Vec<[u8; 4]>,
+}
+
+/// A linear `f32` RGBA image (straight alpha), row-major from the top-left texel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinearImage {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// `width * height` texels, each `[r, g, b, a]` in linear light.
+    pub texels: Vec<[f32; 4]>,
+}
+
+impl Rgba8Image {
+    /// A `width` x `height` image filled with `fill`.
+    pub fn new(width: u32, height: u32, fill: [u8; 4]) -> Self {
+        Self {
+            width,
+            height,
+            texels: vec![fill; (width as usize) * (height as usize)],
+        }
+    }
+    /// Texel at column `x`, row `y`.
+    pub fn get(&self, x: u32, y: u32) -> [u8; 4] {
+        self.texels[(y * self.width + x) as usize]
+    }
+    /// Decodes to linear light (colour through the sRGB curve, alpha as is).
+    pub fn to_linear(&self) -> LinearImage {
+        LinearImage {
+            width: self.width,
+            height: self.height,
+            texels: self
+                .texels
+                .iter()
+                .map(|t| {
+                    [
+                        srgb_to_linear(t[0]),
+                        srgb_to_linear(t[1]),
+                        srgb_to_linear(t[2]),
+                        t[3] as f32 / 255.0,
+                    ]
+                })
+                .collect(),
+        }
+    }
+}
+
+impl LinearImage {
+    /// A `width` x `height` image filled with `fill`.
+    pub fn new(width: u32, height: u32, fill: [f32; 4]) -> Self {
+        Self {
+            width,
+            height,
+            texels: vec![fill; (width as usize) * (height as usize)],
+        }
+    }
+    /// Texel at column `x`, row `y`.
+    pub fn get(&self, x: u32, y: u32) -> [f32; 4] {
+        self.texels[(y * self.width + x) as usize]
+    }
+    /// Encodes to sRGB8 (colour through the inverse curve, alpha linearly), rounding to nearest.
+    pub fn to_rgba8(&self) -> Rgba8Image {
+        Rgba8Image {
+            width: self.width,
+            height: self.height,
+            texels: self
+                .texels
+                .iter()
+                .map(|t| {
+                    [
+                        linear_to_srgb(t[0]),
+                        linear_to_srgb(t[1]),
+                        linear_to_srgb(t[2]),
+                        unorm8(t[3]),
+                    ]
+                })
+                .collect(),
+        }
+    }
+}
+
+fn decode_table() -> &'static [f32; 256] {
+    static TABLE: OnceLock<[f32; 256]> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        let mut t = [0.0f32; 256];
+        for (i, v) in t.iter_mut().enumerate() {
+            let c = i as f64 / 255.0;
+            *v = if c <= 0.04045 {
+                c / 12.92
+            } else {
+                ((c + 0.055) / 1.055).powf(2.4)
+            } as f32;
+        }
+        t
+    })
+}
+
+/// sRGB-encoded byte to linear light in `[0, 1]`.
+pub fn srgb_to_linear(c: u8) -> f32 {
+    decode_table()[c as usize]
+}
+
+/// Linear light to an sRGB-encoded byte, clamping to `[0, 1]` and rounding to nearest; NaN gives 0.
+pub fn linear_to_srgb(l: f32) -> u8 {
+    let l = (l as f64).max(0.0).min(1.0);
+    let s = if l <= 0.0031308 {
+        l * 12.92
+    } else {
+        1.055 * l.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0 + 0.5).floor() as u8
+}
+
+/// Linear `[0, 1]` value to a UNORM byte, rounding to nearest; NaN gives 0.
+pub fn unorm8(v: f32) -> u8 {
+    (v.max(0.0).min(1.0) * 255.0 + 0.5).floor() as u8
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trips_every_byte() {
+        for c in 0..=255u8 {
+            assert_eq!(linear_to_srgb(srgb_to_linear(c)), c);
+        }
+        assert_eq!(linear_to_srgb(f32::NAN), 0);
+        assert_eq!(unorm8(f32::NAN), 0);
+        assert_eq!(unorm8(2.0), 255);
+    }
+}
