@@ -1,1 +1,219 @@
-//! select (being written).
+//! Per-batch LOD selection and draw-command generation (E§3.5, §4.3; SPEC §5.4). The CPU twin of
+//! `gpu/src/shaders/select.wgsl`, written shader-shaped on purpose: [`select_batch`] is the body of
+//! one compute invocation, [`select`] is the dispatch plus the stable compaction.
+//!
+//! ## Contract
+//! For each batch (E§4.3):
+//! 1. project its bounding sphere onto the view direction, `[d - r, d + r]` (E§3.5, Fig. 3.8),
+//!    widened by [`forestlod_shared::selection_margin`] for `f32` rounding;
+//! 2. cull it when the interval lies wholly beyond the draw distance (`lo > draw_distance`), or
+//!    when the sphere lies wholly outside one frustum plane;
+//! 3. otherwise emit one command per LOD the interval needs ([`forestlod_shared::lod_needs`]):
+//!    LOD0 when some point is nearer than the end of the fade band, LOD1 when some point is at or
+//!    past its start, both when it overlaps the band ("the batch needs to be drawn twice", E§3.1).
+//!
+//! Commands are compacted **stably**: in batch order, LOD0 before LOD1. Command `i` has
+//! `base_vertex = i << COMMAND_SHIFT` and `first_instance = batch.offset` (see
+//! [`forestlod_shared::DrawCommand`]). The GPU's atomic-counter variant may emit them in any order;
+//! its output equals this one as a multiset once `base_vertex` is masked off.
+//!
+//! ## Invariants (property-tested in `tests/tests/select_properties.rs`)
+//! - **Conservative**: for every tree, every LOD that tree needs by its own interval has a command
+//!   for its batch, and no tree that passes the per-tree frustum and draw-distance test has its
+//!   batch culled.
+//! - **Per-tree equality**: where every batch holds one tree, the grouped decisions equal
+//!   [`select_per_tree`]'s.
+//! - **Deterministic**: identical output for any rayon thread count.
+
+use forestlod_shared::{
+    BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, FrustumPlanes, LOD_BILLBOARD, LOD_MESH, LodNeeds,
+    MeshMeta, Params, SelectCounters, lod_needs, view_interval,
+};
+use rayon::prelude::*;
+
+/// What selection emitted for one frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Selection {
+    /// Indexed indirect draw commands, stably compacted.
+    pub commands: Vec<DrawCommand>,
+    /// Per-command data, parallel to `commands`.
+    pub data: Vec<CommandData>,
+    /// Work counters.
+    pub counters: SelectCounters,
+}
+
+/// Why a batch (or a tree, in the oracle) was not drawn, or which LODs it needs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Decision {
+    /// Wholly beyond the draw distance.
+    CulledDistance,
+    /// Wholly outside the view frustum.
+    CulledFrustum,
+    /// Drawn with these LODs.
+    Draw(LodNeeds),
+}
+
+impl Decision {
+    /// The LODs drawn (none when culled).
+    pub fn needs(self) -> LodNeeds {
+        match self {
+            Decision::Draw(n) => n,
+            _ => LodNeeds::default(),
+        }
+    }
+}
+
+/// Per-frame constants of selection, derived once from the camera and parameters (the uniform of
+/// the compute shader).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SelectUniform {
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Unit view direction.
+    pub forward: [f32; 3],
+    /// Frustum planes.
+    pub frustum: FrustumPlanes,
+    /// Start of the fade band, `lod1_transition - fade_width`.
+    pub fade_start: f32,
+    /// End of the fade band, `lod1_transition`.
+    pub fade_end: f32,
+    /// Draw distance.
+    pub draw_distance: f32,
+    /// LOD levels (1 or 2).
+    pub lod_levels: u32,
+}
+
+impl SelectUniform {
+    /// The uniform for a validated camera and validated parameters.
+    pub fn new(camera: &Camera, params: &Params) -> Self {
+        Self {
+            eye: camera.eye,
+            forward: camera.basis().forward.to_array(),
+            frustum: camera.frustum(),
+            fade_start: params.lod1_transition - params.fade_width,
+            fade_end: params.lod1_transition,
+            draw_distance: params.draw_distance,
+            lod_levels: params.lod_levels,
+        }
+    }
+
+    /// The decision for one bounding sphere: the same rule for a batch and for a lone tree.
+    pub fn decide(&self, center: [f32; 3], radius: f32) -> Decision {
+        let i = view_interval(center, radius, self.eye, self.forward);
+        if i.lo > self.draw_distance {
+            Decision::CulledDistance
+        } else if !self.frustum.sphere_visible(center, radius, self.eye) {
+            Decision::CulledFrustum
+        } else {
+            Decision::Draw(lod_needs(i.lo, i.hi, self.fade_start, self.fade_end, self.lod_levels))
+        }
+    }
+}
+
+/// Whether one tree is drawn by the draw stage's per-tree draw-distance discard (E§4.4): its
+/// bounding-sphere centre's view depth is within the draw distance.
+pub fn tree_within_draw_distance(u: &SelectUniform, tree_center: [f32; 3]) -> bool {
+    view_interval(tree_center, 0.0, u.eye, u.forward).d <= u.draw_distance
+}
+
+/// One compute invocation: the up to two commands of batch `index` (without `base_vertex`, which
+/// compaction assigns).
+pub fn select_batch(
+    u: &SelectUniform,
+    index: u32,
+    batch: &BatchMeta,
+    meshes: &[MeshMeta],
+    billboard: &MeshMeta,
+) -> (Decision, [Option<(DrawCommand, CommandData)>; 2]) {
+    let decision = u.decide(batch.center, batch.radius);
+    let needs = decision.needs();
+    let emit = |lod: u32| {
+        let range = if lod == LOD_MESH { &meshes[batch.mesh as usize] } else { billboard };
+        let command = DrawCommand {
+            index_count: range.index_count,
+            instance_count: batch.len,
+            first_index: range.first_index,
+            base_vertex: 0,
+            first_instance: batch.offset,
+        };
+        let data = CommandData {
+            fade_start: u.fade_start,
+            fade_end: u.fade_end,
+            batch: index,
+            mesh: batch.mesh,
+            lod,
+            billboard: (lod == LOD_BILLBOARD) as u32,
+            fading: needs.both() as u32,
+            _pad0: 0,
+        };
+        (command, data)
+    };
+    (decision, [needs.lod0.then(|| emit(LOD_MESH)), needs.lod1.then(|| emit(LOD_BILLBOARD))])
+}
+
+/// Selection for one frame over all batches, stably compacted (see the module docs).
+/// `meshes` must carry their packed index ranges ([`crate::geometry::pack_geometry`]).
+pub fn select(
+    batches: &[BatchMeta],
+    meshes: &[MeshMeta],
+    billboard: &MeshMeta,
+    camera: &Camera,
+    params: &Params,
+) -> Selection {
+    let u = SelectUniform::new(camera, params);
+    let per_batch: Vec<_> =
+        batches.par_iter().enumerate().map(|(i, b)| select_batch(&u, i as u32, b, meshes, billboard)).collect();
+    let mut out = Selection::default();
+    out.counters.batches_tested = batches.len() as u32;
+    for (decision, commands) in per_batch {
+        match decision {
+            Decision::CulledDistance => out.counters.culled_distance += 1,
+            Decision::CulledFrustum => out.counters.culled_frustum += 1,
+            Decision::Draw(n) => out.counters.transition_batches += n.both() as u32,
+        }
+        for (mut command, data) in commands.into_iter().flatten() {
+            command.base_vertex = (out.commands.len() as i32) << COMMAND_SHIFT;
+            out.counters.instances += command.instance_count;
+            if data.lod == LOD_MESH {
+                out.counters.lod0_commands += 1;
+            } else {
+                out.counters.lod1_commands += 1;
+            }
+            out.commands.push(command);
+            out.data.push(data);
+        }
+    }
+    out.counters.commands = out.commands.len() as u32;
+    out
+}
+
+/// The per-batch decisions alone (for tests and experiments).
+pub fn batch_decisions(batches: &[BatchMeta], camera: &Camera, params: &Params) -> Vec<Decision> {
+    let u = SelectUniform::new(camera, params);
+    batches.par_iter().map(|b| u.decide(b.center, b.radius)).collect()
+}
+
+/// The per-tree selection oracle: each tree decided alone, by its own bounding sphere, with the
+/// same rule as a batch, plus the draw stage's per-tree draw-distance discard. `spheres[i]` is
+/// tree `i`'s bounding sphere ([`crate::scene::tree_sphere`]).
+pub fn select_per_tree(spheres: &[([f32; 3], f32)], camera: &Camera, params: &Params) -> Vec<Decision> {
+    let u = SelectUniform::new(camera, params);
+    spheres
+        .par_iter()
+        .map(|&(c, r)| {
+            let d = u.decide(c, r);
+            if matches!(d, Decision::Draw(_)) && !tree_within_draw_distance(&u, c) { Decision::CulledDistance } else { d }
+        })
+        .collect()
+}
+
+/// Per-tree selection as a baseline pipeline would run it (E§5's *Vegetation*: every tree tested
+/// alone): the work the grouped selection saves. Returns the number of trees drawn per LOD.
+pub fn count_per_tree(decisions: &[Decision]) -> [u32; 2] {
+    decisions.iter().fold([0, 0], |mut acc, d| {
+        let n = d.needs();
+        acc[0] += n.lod0 as u32;
+        acc[1] += n.lod1 as u32;
+        acc
+    })
+}

@@ -1,0 +1,128 @@
+//! Properties of grouped selection (SPEC §6) against the per-tree oracle, on random scenes, cameras
+//! and parameters. Each property runs at least 256 cases.
+
+use forestlod_reference::batches::build_batches;
+use forestlod_reference::geometry::pack_geometry;
+use forestlod_reference::scene::tree_sphere;
+use forestlod_reference::select::{Decision, SelectUniform, batch_decisions, select, select_per_tree, tree_within_draw_distance};
+use forestlod_shared::{COMMAND_SHIFT, LodNeeds, Params};
+use forestlod_tests::{cameras, instances, params, scene_of, with_threads};
+use proptest::prelude::*;
+
+fn config() -> ProptestConfig {
+    ProptestConfig { cases: 256, ..ProptestConfig::default() }
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// The key property: every LOD a tree needs by its own bounding sphere has a command for its
+    /// batch, and no tree the oracle draws sits in a culled batch.
+    #[test]
+    fn selection_is_conservative(trees in instances(300), camera in cameras(), p in params()) {
+        let scene = scene_of(trees);
+        let metas = scene.mesh_metas();
+        let batches = build_batches(&scene, &metas, p.grid_size).unwrap();
+        let grouped = batch_decisions(&batches.metas, &camera, &p);
+        let spheres: Vec<_> = scene.instances.iter().map(|t| tree_sphere(t, &metas[t.mesh as usize])).collect();
+        let oracle = select_per_tree(&spheres, &camera, &p);
+        let mut drawn = 0;
+        for (b, meta) in batches.metas.iter().enumerate() {
+            for &tree in &batches.indirection[meta.offset as usize..(meta.offset + meta.len) as usize] {
+                let need = oracle[tree as usize].needs();
+                drawn += (need != LodNeeds::default()) as u32;
+                prop_assert!(
+                    grouped[b].needs().covers(need),
+                    "tree {tree} needs {need:?} but batch {b} ({meta:?}) decided {:?}", grouped[b]
+                );
+            }
+            // Culled batches are wholly outside: none of their trees is drawn by the oracle.
+            if !matches!(grouped[b], Decision::Draw(_)) {
+                for &tree in &batches.indirection[meta.offset as usize..(meta.offset + meta.len) as usize] {
+                    prop_assert_eq!(oracle[tree as usize].needs(), LodNeeds::default());
+                }
+            }
+        }
+        let _ = drawn;
+    }
+
+    /// Where every batch holds one tree, grouped selection followed by the draw stage's per-tree
+    /// draw-distance discard equals the per-tree oracle exactly.
+    #[test]
+    fn grouped_equals_per_tree_for_single_tree_batches(trees in instances(200), camera in cameras(), p in params()) {
+        let p = Params { grid_size: 0.01, ..p };
+        let scene = scene_of(trees);
+        let metas = scene.mesh_metas();
+        let batches = build_batches(&scene, &metas, p.grid_size).unwrap();
+        prop_assume!(batches.metas.iter().all(|b| b.len == 1));
+        let u = SelectUniform::new(&camera, &p);
+        let grouped = batch_decisions(&batches.metas, &camera, &p);
+        let spheres: Vec<_> = scene.instances.iter().map(|t| tree_sphere(t, &metas[t.mesh as usize])).collect();
+        let oracle = select_per_tree(&spheres, &camera, &p);
+        for (b, meta) in batches.metas.iter().enumerate() {
+            let tree = batches.indirection[meta.offset as usize] as usize;
+            let effective = if tree_within_draw_distance(&u, spheres[tree].0) { grouped[b].needs() } else { LodNeeds::default() };
+            prop_assert_eq!(effective, oracle[tree].needs(), "tree {} batch {}", tree, b);
+        }
+    }
+
+    /// Commands are well formed: base_vertex carries the command index, instance ranges are the
+    /// batches', index ranges the mesh's or the billboard quad's, counters add up.
+    #[test]
+    fn commands_are_well_formed(trees in instances(300), camera in cameras(), p in params()) {
+        let scene = scene_of(trees);
+        let geometry = pack_geometry(&scene);
+        let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
+        let s = select(&batches.metas, &geometry.meshes, &geometry.billboard, &camera, &p);
+        prop_assert_eq!(s.commands.len(), s.data.len());
+        prop_assert_eq!(s.counters.commands as usize, s.commands.len());
+        prop_assert_eq!(s.counters.batches_tested as usize, batches.metas.len());
+        prop_assert!(s.commands.len() <= p.lod_levels as usize * batches.metas.len());
+        let mut previous = None;
+        for (i, (c, d)) in s.commands.iter().zip(&s.data).enumerate() {
+            prop_assert_eq!(c.base_vertex, (i as i32) << COMMAND_SHIFT);
+            let b = &batches.metas[d.batch as usize];
+            prop_assert_eq!((c.first_instance, c.instance_count, d.mesh), (b.offset, b.len, b.mesh));
+            let range = if d.lod == 0 { geometry.meshes[b.mesh as usize] } else { geometry.billboard };
+            prop_assert_eq!((c.first_index, c.index_count), (range.first_index, range.index_count));
+            prop_assert_eq!(d.billboard, d.lod);
+            // Stable order: batch order, LOD0 before LOD1.
+            let key = (d.batch, d.lod);
+            prop_assert!(previous < Some(key));
+            previous = Some(key);
+        }
+    }
+
+    /// Identical output with 1 and 2 rayon threads.
+    #[test]
+    fn selection_is_thread_count_independent(trees in instances(300), camera in cameras(), p in params()) {
+        let scene = scene_of(trees);
+        let geometry = pack_geometry(&scene);
+        let run = || {
+            let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
+            let s = select(&batches.metas, &geometry.meshes, &geometry.billboard, &camera, &p);
+            (batches, s)
+        };
+        let one = with_threads(1, run);
+        let two = with_threads(2, run);
+        prop_assert_eq!(one, two);
+    }
+}
+
+/// A batch whose trees straddle the fade band gets both LODs, with `fading` set; one wholly inside
+/// LOD0 range gets only LOD0.
+#[test]
+fn straddling_batches_emit_both_lods() {
+    use forestlod_reference::scene::Instance;
+    let tree = |x: f32| Instance { position: [x, 0.0, 0.0], yaw: 0.0, scale: 1.0, mesh: 0 };
+    // Grid 500 m: cell 1 holds trees at 600 m and 990 m (band is 750..1000 m), cell 0 one at 100 m.
+    let scene = scene_of(vec![tree(100.0), tree(600.0), tree(990.0)]);
+    let geometry = pack_geometry(&scene);
+    let p = Params::default();
+    let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
+    let camera = forestlod_shared::Camera::look_at([0.0, 0.0, 5.0], [100.0, 0.0, 5.0], 60.0, 64, 64);
+    let s = select(&batches.metas, &geometry.meshes, &geometry.billboard, &camera, &p);
+    let lods: Vec<_> = s.data.iter().map(|d| (d.batch, d.lod, d.fading)).collect();
+    assert_eq!(lods, vec![(0, 0, 0), (1, 0, 1), (1, 1, 1)]);
+    assert_eq!(s.counters.transition_batches, 1);
+}
