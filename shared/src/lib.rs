@@ -24,6 +24,7 @@
 //!   parity tests classify as ambiguity near thresholds (SPEC §8).
 
 pub mod angle;
+pub mod billboard;
 pub mod camera;
 pub mod fade;
 pub mod interval;
@@ -33,6 +34,7 @@ pub mod types;
 pub use angle::{
     angle_index, angle_index_eq31, angle_index_eq31_clamped, angle_index_for, bake_elevation,
 };
+pub use billboard::{BillboardExtent, billboard_extent, dither_threshold};
 pub use camera::{Camera, CameraBasis, FrustumPlanes};
 pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
 pub use interval::{LodNeeds, ViewInterval, lod_needs, selection_margin, view_interval};
