@@ -1,1 +1,270 @@
-fn main() {}
+//! `forestlod`: the command line of the forestlod research codebase.
+//!
+//! - `forestlod scene info --scene stress`: trees, batches, meshes, memory beside E Eq. 4.1.
+//! - `forestlod select --scene synthetic --camera medium`: what selection emits for one frame, and
+//!   how long grouped and per-tree selection take.
+//!
+//! Every error is one line naming the field and the value, with exit code 1 (2 for usage errors).
+
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::{Parser, Subcommand};
+use forestlod_experiments::options::{ParamArgs, SceneArgs};
+use forestlod_reference::batches::{build_batches, memory_report};
+use forestlod_reference::cameras::named_camera;
+use forestlod_reference::geometry::pack_geometry;
+use forestlod_reference::scene::tree_sphere;
+use forestlod_reference::select::{count_per_tree, select, select_per_tree};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "forestlod",
+    version,
+    about = "Grouped-LOD forest rendering: CPU reference, experiments and tools"
+)]
+struct Cli {
+    /// With no subcommand: the main job, `render` with its defaults.
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// The main job: render one frame with the reference and write images, metrics and a summary.
+    Render(forestlod_experiments::render::RenderArgs),
+    /// Facts about a scene.
+    Scene {
+        #[command(subcommand)]
+        what: SceneCommand,
+    },
+    /// Print the GPU adapter wgpu finds (the one the parity tests use).
+    GpuInfo,
+    /// Run selection for one frame and print what it emitted.
+    Select {
+        #[command(flatten)]
+        scene: SceneArgs,
+        #[command(flatten)]
+        params: ParamArgs,
+        /// Named camera: far, medium, close (E§5.0.1).
+        #[arg(long, default_value = "medium")]
+        camera: String,
+        /// Horizontal rotation of the camera, degrees.
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        yaw: f32,
+        /// How many commands to list.
+        #[arg(long, default_value_t = 10)]
+        list: usize,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+enum SceneCommand {
+    /// Trees n, batches t, meshes m, memory beside E Eq. 4.1, batch statistics.
+    Info {
+        #[command(flatten)]
+        scene: SceneArgs,
+        #[command(flatten)]
+        params: ParamArgs,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
+
+fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
+    let params = params.params()?;
+    let scene = scene.load()?;
+    let geometry = pack_geometry(&scene);
+    let start = Instant::now();
+    let batches = build_batches(&scene, &geometry.meshes, params.grid_size)?;
+    let batch_seconds = start.elapsed().as_secs_f64();
+    let memory = memory_report(
+        scene.instances.len(),
+        batches.metas.len(),
+        scene.meshes.len(),
+        &params,
+    );
+    let stats = batches.stats();
+    if json {
+        let value = serde_json::json!({
+            "scene": scene.name, "n": memory.n, "t": memory.t, "m": memory.m,
+            "area_km2": scene.area_km2(), "origin": scene.origin, "mesh_triangles": scene.mesh_triangles(),
+            "memory": memory, "batches": stats, "batch_build_seconds": batch_seconds,
+        });
+        println!("{}", serde_json::to_string_pretty(&value)?);
+        return Ok(());
+    }
+    let mb = |b: u64| b as f64 / 1.0e6;
+    println!(
+        "scene {}: {:.3} km² at origin {:?}",
+        scene.name,
+        scene.area_km2(),
+        scene.origin
+    );
+    println!(
+        "  n = {} trees ({:.0} per km²)",
+        memory.n,
+        memory.n as f64 / scene.area_km2().max(1e-12)
+    );
+    println!(
+        "  m = {} meshes, {} triangles in all",
+        memory.m,
+        scene.mesh_triangles()
+    );
+    println!(
+        "  t = {} batches over {} occupied cells (grid {} m), built in {:.3} s",
+        memory.t, stats.cells, params.grid_size, batch_seconds
+    );
+    println!(
+        "  trees per batch: min {} / mean {:.1} / max {}; sphere radius mean {:.1} m, max {:.1} m",
+        stats.min_trees, stats.mean_trees, stats.max_trees, stats.mean_radius, stats.max_radius
+    );
+    println!(
+        "memory (a = {}, r = {}, l = {}): ours beside E Eq. 4.1",
+        memory.a, memory.r, memory.l
+    );
+    println!("  {:<22} {:>12} {:>12}", "term", "ours [B]", "Eq. 4.1 [B]");
+    let rows = [
+        ("indirection (4n)", memory.indirection, 4 * memory.n),
+        ("batch meta (64t)", memory.batch_meta, 64 * memory.t),
+        ("mesh meta (24m)", memory.mesh_meta, 24 * memory.m),
+        (
+            "billboards (16amr²)",
+            memory.billboards,
+            16 * memory.a * memory.m * memory.r * memory.r,
+        ),
+        ("commands (52lt)", memory.commands, 52 * memory.l * memory.t),
+        ("counters (4lm)", memory.counters, 4 * memory.l * memory.m),
+    ];
+    for (name, ours, eq) in rows {
+        println!("  {name:<22} {ours:>12} {eq:>12}");
+    }
+    println!(
+        "  {:<22} {:>12} {:>12}   ({:.2} MB vs {:.2} MB)",
+        "total",
+        memory.total,
+        memory.eq41,
+        mb(memory.total),
+        mb(memory.eq41)
+    );
+    Ok(())
+}
+
+fn select_frame(
+    scene: &SceneArgs,
+    params: &ParamArgs,
+    camera: &str,
+    yaw: f32,
+    list: usize,
+) -> Result<()> {
+    let params = params.params()?;
+    let scene = scene.load()?;
+    let camera = named_camera(camera, &scene, yaw, 1280, 720)?;
+    camera.validate()?;
+    let geometry = pack_geometry(&scene);
+    let batches = build_batches(&scene, &geometry.meshes, params.grid_size)?;
+    let start = Instant::now();
+    let selection = select(
+        &batches.metas,
+        &geometry.meshes,
+        &geometry.billboard,
+        &camera,
+        &params,
+    );
+    let grouped_seconds = start.elapsed().as_secs_f64();
+    let spheres: Vec<_> = scene
+        .instances
+        .iter()
+        .map(|t| tree_sphere(t, &geometry.meshes[t.mesh as usize]))
+        .collect();
+    let start = Instant::now();
+    let per_tree = select_per_tree(&spheres, &camera, &params);
+    let per_tree_seconds = start.elapsed().as_secs_f64();
+    let [lod0_trees, lod1_trees] = count_per_tree(&per_tree);
+    let c = selection.counters;
+    println!(
+        "scene {} ({} trees, {} batches), camera eye {:?} forward {:?}",
+        scene.name,
+        scene.instances.len(),
+        batches.metas.len(),
+        camera.eye,
+        camera.forward
+    );
+    println!(
+        "  batches tested {}, culled by distance {}, by frustum {}, in the fade band {}",
+        c.batches_tested, c.culled_distance, c.culled_frustum, c.transition_batches
+    );
+    println!(
+        "  commands {} (LOD0 {}, LOD1 {}), tree instances drawn {}",
+        c.commands, c.lod0_commands, c.lod1_commands, c.instances
+    );
+    println!("  per-tree oracle: {lod0_trees} trees need LOD0, {lod1_trees} need LOD1");
+    println!(
+        "  one-shot timings (use `cargo bench` for figures): grouped {:.3} ms, per-tree {:.3} ms",
+        grouped_seconds * 1e3,
+        per_tree_seconds * 1e3
+    );
+    for (i, (cmd, data)) in selection
+        .commands
+        .iter()
+        .zip(&selection.data)
+        .take(list)
+        .enumerate()
+    {
+        println!(
+            "  [{i}] batch {} mesh {} lod {} fading {} | index_count {} instances {} first_index {} base_vertex {} first_instance {}",
+            data.batch,
+            data.mesh,
+            data.lod,
+            data.fading,
+            cmd.index_count,
+            cmd.instance_count,
+            cmd.first_index,
+            cmd.base_vertex,
+            cmd.first_instance
+        );
+    }
+    if selection.commands.len() > list {
+        println!("  ... {} more (--list N)", selection.commands.len() - list);
+    }
+    Ok(())
+}
+
+fn gpu_info() -> Result<()> {
+    println!("gpu-info: the GPU crate is not built yet");
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        None => forestlod_experiments::render::run(&Default::default()),
+        Some(Command::Render(args)) => forestlod_experiments::render::run(args),
+        Some(Command::Scene {
+            what:
+                SceneCommand::Info {
+                    scene,
+                    params,
+                    json,
+                },
+        }) => scene_info(scene, params, *json),
+        Some(Command::Select {
+            scene,
+            params,
+            camera,
+            yaw,
+            list,
+        }) => select_frame(scene, params, camera, *yaw, *list),
+        Some(Command::GpuInfo) => gpu_info(),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -41,7 +41,11 @@ pub struct Batches {
 /// Rounds a non-negative `f64` up to the nearest `f32` not below it.
 fn f32_at_least(x: f64) -> f32 {
     let y = x as f32;
-    if (y as f64) < x { f32::from_bits(y.to_bits() + 1) } else { y }
+    if (y as f64) < x {
+        f32::from_bits(y.to_bits() + 1)
+    } else {
+        y
+    }
 }
 
 /// Cell of a base position. `None` when the index does not fit an `i32` (grid far too fine for the
@@ -56,9 +60,18 @@ pub fn cell_of(x: f32, y: f32, grid_size: f32) -> Option<[i32; 2]> {
 /// Groups the scene's trees into grid batches. `meshes` are the scene's mesh metadata
 /// ([`Scene::mesh_metas`] or the packed geometry's). Fails, naming the tree, when a cell index
 /// overflows `i32`.
-pub fn build_batches(scene: &Scene, meshes: &[MeshMeta], grid_size: f32) -> Result<Batches, InputError> {
+pub fn build_batches(
+    scene: &Scene,
+    meshes: &[MeshMeta],
+    grid_size: f32,
+) -> Result<Batches, InputError> {
     if !(grid_size.is_finite() && grid_size > 0.0) {
-        return Err(InputError::new("<params>", "field grid_size", grid_size, "expected a finite size > 0"));
+        return Err(InputError::new(
+            "<params>",
+            "field grid_size",
+            grid_size,
+            "expected a finite size > 0",
+        ));
     }
     // Spatial hash: only occupied (mesh, cell) keys exist (E§4.2).
     let mut cells: HashMap<(u32, i32, i32), Vec<u32>> = HashMap::new();
@@ -68,7 +81,9 @@ pub fn build_batches(scene: &Scene, meshes: &[MeshMeta], grid_size: f32) -> Resu
                 scene.name.clone(),
                 format!("instance {i}"),
                 format!("{:?}", t.position),
-                format!("grid cell index overflows i32 at grid_size {grid_size}: use a coarser grid"),
+                format!(
+                    "grid cell index overflows i32 at grid_size {grid_size}: use a coarser grid"
+                ),
             )
         })?;
         cells.entry((t.mesh, cy, cx)).or_default().push(i as u32);
@@ -80,16 +95,32 @@ pub fn build_batches(scene: &Scene, meshes: &[MeshMeta], grid_size: f32) -> Resu
     let mut indirection = Vec::with_capacity(scene.instances.len());
     for (mesh, cy, cx) in keys {
         let trees = &cells[&(mesh, cy, cx)];
-        let spheres: Vec<([f32; 3], f32)> =
-            trees.iter().map(|&t| tree_sphere(&scene.instances[t as usize], &meshes[mesh as usize])).collect();
-        metas.push(batch_meta(&spheres, mesh, [cx, cy], indirection.len() as u32));
+        let spheres: Vec<([f32; 3], f32)> = trees
+            .iter()
+            .map(|&t| tree_sphere(&scene.instances[t as usize], &meshes[mesh as usize]))
+            .collect();
+        metas.push(batch_meta(
+            &spheres,
+            mesh,
+            [cx, cy],
+            indirection.len() as u32,
+        ));
         indirection.extend_from_slice(trees);
     }
-    Ok(Batches { metas, indirection, grid_size })
+    Ok(Batches {
+        metas,
+        indirection,
+        grid_size,
+    })
 }
 
 /// Metadata of one batch from its trees' bounding spheres (see the module docs for the rules).
-pub fn batch_meta(spheres: &[([f32; 3], f32)], mesh: u32, cell: [i32; 2], offset: u32) -> BatchMeta {
+pub fn batch_meta(
+    spheres: &[([f32; 3], f32)],
+    mesh: u32,
+    cell: [i32; 2],
+    offset: u32,
+) -> BatchMeta {
     let mut cmin = [f32::INFINITY; 3];
     let mut cmax = [f32::NEG_INFINITY; 3];
     let mut bmin = [f32::INFINITY; 3];
@@ -106,7 +137,9 @@ pub fn batch_meta(spheres: &[([f32; 3], f32)], mesh: u32, cell: [i32; 2], offset
     let radius = spheres
         .iter()
         .map(|(c, r)| {
-            let d2: f64 = (0..3).map(|k| (c[k] as f64 - center[k] as f64).powi(2)).sum();
+            let d2: f64 = (0..3)
+                .map(|k| (c[k] as f64 - center[k] as f64).powi(2))
+                .sum();
             d2.sqrt() + *r as f64
         })
         .fold(0.0f64, f64::max);
@@ -146,14 +179,23 @@ impl Batches {
     /// Statistics of this batching.
     pub fn stats(&self) -> BatchStats {
         let t = self.metas.len();
-        let cells: std::collections::HashSet<[i32; 2]> = self.metas.iter().map(|m| m.cell).collect();
+        let cells: std::collections::HashSet<[i32; 2]> =
+            self.metas.iter().map(|m| m.cell).collect();
         BatchStats {
             batches: t,
             cells: cells.len(),
             min_trees: self.metas.iter().map(|m| m.len).min().unwrap_or(0),
-            mean_trees: if t == 0 { 0.0 } else { self.indirection.len() as f64 / t as f64 },
+            mean_trees: if t == 0 {
+                0.0
+            } else {
+                self.indirection.len() as f64 / t as f64
+            },
             max_trees: self.metas.iter().map(|m| m.len).max().unwrap_or(0),
-            mean_radius: if t == 0 { 0.0 } else { self.metas.iter().map(|m| m.radius as f64).sum::<f64>() / t as f64 },
+            mean_radius: if t == 0 {
+                0.0
+            } else {
+                self.metas.iter().map(|m| m.radius as f64).sum::<f64>() / t as f64
+            },
             max_radius: self.metas.iter().map(|m| m.radius).fold(0.0, f32::max),
         }
     }
@@ -214,13 +256,22 @@ pub fn mip_chain_bytes(r: u64) -> u64 {
 /// The memory our pipeline allocates for `trees` trees in `batches` with `params`.
 pub fn memory_report(trees: usize, batches: usize, meshes: usize, params: &Params) -> MemoryReport {
     let (n, t, m) = (trees as u64, batches as u64, meshes as u64);
-    let (a, r, l) = (params.angle_count as u64, params.texture_size as u64, params.lod_levels as u64);
+    let (a, r, l) = (
+        params.angle_count as u64,
+        params.texture_size as u64,
+        params.lod_levels as u64,
+    );
     let size = |s: usize| s as u64;
     let indirection = 4 * n;
     let batch_meta = size(core::mem::size_of::<BatchMeta>()) * t;
     let mesh_meta = size(core::mem::size_of::<MeshMeta>()) * m;
-    let billboards = if l >= 2 { a * m * mip_chain_bytes(r) } else { 0 };
-    let commands = size(core::mem::size_of::<DrawCommand>() + core::mem::size_of::<CommandData>()) * l * t;
+    let billboards = if l >= 2 {
+        a * m * mip_chain_bytes(r)
+    } else {
+        0
+    };
+    let commands =
+        size(core::mem::size_of::<DrawCommand>() + core::mem::size_of::<CommandData>()) * l * t;
     let counters = 4 * l * m + size(core::mem::size_of::<forestlod_shared::SelectCounters>());
     MemoryReport {
         n,

@@ -23,27 +23,50 @@ pub const CAMERA_NAMES: [&str; 3] = ["far", "medium", "close"];
 pub const NAMED_FOV_Y_DEGREES: f32 = 60.0;
 
 /// The named camera `name` for `scene`, rotated by `yaw_degrees` about +Z, at `width` x `height`.
-pub fn named_camera(name: &str, scene: &Scene, yaw_degrees: f32, width: u32, height: u32) -> Result<Camera, InputError> {
+pub fn named_camera(
+    name: &str,
+    scene: &Scene,
+    yaw_degrees: f32,
+    width: u32,
+    height: u32,
+) -> Result<Camera, InputError> {
     let [x0, y0, x1, y1] = scene.bounds;
     let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
     let ground = |x: f32, y: f32| scene.terrain.height(x, y);
     let (eye, yaw0, pitch) = match name {
         "far" => ([cx - 8000.0, cy, ground(cx, cy) + 300.0], 0.0f32, -2.0f32),
-        "medium" => ([x0 - 500.0, cy, ground(x0, cy) + 600.0], 0.0, -15.0),
+        "medium" => ([x0 - 200.0, cy, ground(x0, cy) + 250.0], 0.0, -12.0),
         "close" => ([cx, cy, ground(cx, cy) + 40.0], 0.0, -10.0),
         other => {
             return Err(InputError::new(
                 "<command line>",
                 "--camera",
                 other,
-                format!("unknown camera; expected one of {}", CAMERA_NAMES.join(", ")),
+                format!(
+                    "unknown camera; expected one of {}",
+                    CAMERA_NAMES.join(", ")
+                ),
             ));
         }
     };
     let yaw = (yaw0 + yaw_degrees).to_radians();
     let pitch = pitch.to_radians();
-    let forward = [yaw.cos() * pitch.cos(), yaw.sin() * pitch.cos(), pitch.sin()];
-    let mut camera = Camera::look_at(eye, [eye[0] + forward[0], eye[1] + forward[1], eye[2] + forward[2]], NAMED_FOV_Y_DEGREES, width, height);
+    let forward = [
+        yaw.cos() * pitch.cos(),
+        yaw.sin() * pitch.cos(),
+        pitch.sin(),
+    ];
+    let mut camera = Camera::look_at(
+        eye,
+        [
+            eye[0] + forward[0],
+            eye[1] + forward[1],
+            eye[2] + forward[2],
+        ],
+        NAMED_FOV_Y_DEGREES,
+        width,
+        height,
+    );
     camera.forward = forward;
     Ok(camera)
 }

@@ -50,7 +50,15 @@ pub fn pack_geometry(scene: &Scene) -> PackedGeometry {
         let mut meta = mesh.meta();
         meta.first_vertex = vertices.len() as u32;
         meta.first_index = indices.len() as u32;
-        vertices.extend(mesh.positions.iter().zip(&mesh.uvs).map(|(p, uv)| PackedVertex { position: *p, uv: *uv }));
+        vertices.extend(
+            mesh.positions
+                .iter()
+                .zip(&mesh.uvs)
+                .map(|(p, uv)| PackedVertex {
+                    position: *p,
+                    uv: *uv,
+                }),
+        );
         indices.extend_from_slice(&mesh.indices);
         meshes.push(meta);
     }
@@ -61,7 +69,15 @@ pub fn pack_geometry(scene: &Scene) -> PackedGeometry {
         vertex_count: BILLBOARD_CORNERS.len() as u32,
         ..bytemuck::Zeroable::zeroed()
     };
-    vertices.extend(BILLBOARD_CORNERS.iter().map(|c| PackedVertex { position: [c[0], 0.0, c[1]], uv: *c }));
+    vertices.extend(BILLBOARD_CORNERS.iter().map(|c| PackedVertex {
+        position: [c[0], 0.0, c[1]],
+        uv: *c,
+    }));
     indices.extend_from_slice(&BILLBOARD_INDICES);
-    PackedGeometry { vertices, indices, meshes, billboard }
+    PackedGeometry {
+        vertices,
+        indices,
+        meshes,
+        billboard,
+    }
 }

@@ -19,9 +19,22 @@
 //! (rayon) only ever splits work into pieces whose results are combined in a fixed order, so the
 //! output is bit-identical for any thread count.
 
+#![expect(
+    clippy::manual_clamp,
+    reason = "`x.max(lo).min(hi)` maps NaN to `lo` on purpose (NaN-free outputs, SPEC §7); `clamp` would propagate NaN"
+)]
+
+pub mod bake;
 pub mod batches;
+pub mod cameras;
+pub mod draw;
 pub mod error;
+pub mod geometry;
 pub mod mips;
+pub mod output;
+pub mod pipeline;
+pub mod raster;
+pub mod sampler;
 pub mod scene;
 pub mod select;
 pub mod texture;

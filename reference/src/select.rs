@@ -26,8 +26,8 @@
 //! - **Deterministic**: identical output for any rayon thread count.
 
 use forestlod_shared::{
-    BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, FrustumPlanes, LOD_BILLBOARD, LOD_MESH, LodNeeds,
-    MeshMeta, Params, SelectCounters, lod_needs, view_interval,
+    BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, FrustumPlanes, LOD_BILLBOARD,
+    LOD_MESH, LodNeeds, MeshMeta, Params, SelectCounters, lod_needs, view_interval,
 };
 use rayon::prelude::*;
 
@@ -105,7 +105,13 @@ impl SelectUniform {
         } else if !self.frustum.sphere_visible(center, radius, self.eye) {
             Decision::CulledFrustum
         } else {
-            Decision::Draw(lod_needs(i.lo, i.hi, self.fade_start, self.fade_end, self.lod_levels))
+            Decision::Draw(lod_needs(
+                i.lo,
+                i.hi,
+                self.fade_start,
+                self.fade_end,
+                self.lod_levels,
+            ))
         }
     }
 }
@@ -128,7 +134,11 @@ pub fn select_batch(
     let decision = u.decide(batch.center, batch.radius);
     let needs = decision.needs();
     let emit = |lod: u32| {
-        let range = if lod == LOD_MESH { &meshes[batch.mesh as usize] } else { billboard };
+        let range = if lod == LOD_MESH {
+            &meshes[batch.mesh as usize]
+        } else {
+            billboard
+        };
         let command = DrawCommand {
             index_count: range.index_count,
             instance_count: batch.len,
@@ -148,7 +158,13 @@ pub fn select_batch(
         };
         (command, data)
     };
-    (decision, [needs.lod0.then(|| emit(LOD_MESH)), needs.lod1.then(|| emit(LOD_BILLBOARD))])
+    (
+        decision,
+        [
+            needs.lod0.then(|| emit(LOD_MESH)),
+            needs.lod1.then(|| emit(LOD_BILLBOARD)),
+        ],
+    )
 }
 
 /// Selection for one frame over all batches, stably compacted (see the module docs).
@@ -161,8 +177,11 @@ pub fn select(
     params: &Params,
 ) -> Selection {
     let u = SelectUniform::new(camera, params);
-    let per_batch: Vec<_> =
-        batches.par_iter().enumerate().map(|(i, b)| select_batch(&u, i as u32, b, meshes, billboard)).collect();
+    let per_batch: Vec<_> = batches
+        .par_iter()
+        .enumerate()
+        .map(|(i, b)| select_batch(&u, i as u32, b, meshes, billboard))
+        .collect();
     let mut out = Selection::default();
     out.counters.batches_tested = batches.len() as u32;
     for (decision, commands) in per_batch {
@@ -190,19 +209,30 @@ pub fn select(
 /// The per-batch decisions alone (for tests and experiments).
 pub fn batch_decisions(batches: &[BatchMeta], camera: &Camera, params: &Params) -> Vec<Decision> {
     let u = SelectUniform::new(camera, params);
-    batches.par_iter().map(|b| u.decide(b.center, b.radius)).collect()
+    batches
+        .par_iter()
+        .map(|b| u.decide(b.center, b.radius))
+        .collect()
 }
 
 /// The per-tree selection oracle: each tree decided alone, by its own bounding sphere, with the
 /// same rule as a batch, plus the draw stage's per-tree draw-distance discard. `spheres[i]` is
 /// tree `i`'s bounding sphere ([`crate::scene::tree_sphere`]).
-pub fn select_per_tree(spheres: &[([f32; 3], f32)], camera: &Camera, params: &Params) -> Vec<Decision> {
+pub fn select_per_tree(
+    spheres: &[([f32; 3], f32)],
+    camera: &Camera,
+    params: &Params,
+) -> Vec<Decision> {
     let u = SelectUniform::new(camera, params);
     spheres
         .par_iter()
         .map(|&(c, r)| {
             let d = u.decide(c, r);
-            if matches!(d, Decision::Draw(_)) && !tree_within_draw_distance(&u, c) { Decision::CulledDistance } else { d }
+            if matches!(d, Decision::Draw(_)) && !tree_within_draw_distance(&u, c) {
+                Decision::CulledDistance
+            } else {
+                d
+            }
         })
         .collect()
 }

@@ -4,7 +4,7 @@
 //! **Frame.** A billboard of layer `k` is the tree seen along the baked view direction
 //! `V_k = h cos e_k + Z sin e_k`, where `h` is the unit horizontal direction from the tree to the eye
 //! and `e_k` the layer's bake elevation ([`crate::bake_elevation`]). Its plane is spanned by the
-//! horizontal right vector `R = normalize(h × Z)` and the tilted up vector
+//! horizontal right vector `R = normalize(Z × h)` (the right vector of a camera looking along `-V_k`) and the tilted up vector
 //! `U_k = Z cos e_k - h sin e_k`, so it faces the camera in yaw and snaps its tilt to the baked
 //! elevation (E§3.3.1: "the billboards are not completely view-oriented and instead snap to discrete
 //! evenly spaced vertical angles").

@@ -212,7 +212,8 @@ impl Camera {
 }
 
 impl FrustumPlanes {
-    /// Whether the sphere `(center, radius)` may intersect the frustum. Conservative: a sphere that
+    /// Whether the sphere `(center, radius)` may intersect the frustum. Keep in sync with
+    /// `sphere_visible` in `gpu/src/shaders/common.wgsl`. Conservative: a sphere that
     /// is outside only by less than [`crate::selection_margin`] counts as inside, and a sphere outside
     /// no single plane but outside the frustum near a corner counts as inside (the usual plane test).
     pub fn sphere_visible(&self, center: [f32; 3], radius: f32, eye: [f32; 3]) -> bool {

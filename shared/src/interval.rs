@@ -11,7 +11,8 @@
 //! containment of a tree's sphere in its batch's sphere carries over to their computed intervals.
 //! The per-tree oracle widens the same way, so a batch of one tree decides exactly as the oracle.
 //!
-//! Keep in sync with `gpu/src/shaders/select.wgsl`.
+//! Keep in sync with `gpu/src/shaders/common.wgsl` (`selection_margin`, `view_interval`, `lod_needs`),
+//! used by `gpu/src/shaders/select.wgsl`.
 
 /// A view-depth interval `[lo, hi]` around the projected centre `d`.
 #[derive(Clone, Copy, Debug, PartialEq)]

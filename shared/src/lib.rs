@@ -23,6 +23,11 @@
 //!   multiply-add, so the reference reproduces it exactly; the GPU may contract or reorder, which the
 //!   parity tests classify as ambiguity near thresholds (SPEC §8).
 
+#![expect(
+    clippy::manual_clamp,
+    reason = "`x.max(lo).min(hi)` maps NaN to `lo` on purpose (NaN-free outputs, SPEC §7); `clamp` would propagate NaN"
+)]
+
 pub mod angle;
 pub mod billboard;
 pub mod camera;
@@ -43,7 +48,8 @@ pub use types::{BatchMeta, CommandData, DrawCommand, MeshMeta, SelectCounters};
 
 /// Number of low bits of `DrawCommand::base_vertex` that carry the mesh-local vertex index; the
 /// command index sits above them (see [`DrawCommand`]). Meshes therefore hold at most 256 vertices,
-/// ample for < 20-triangle trees (E§3.1). Keep in sync with `gpu/src/shaders/draw.wgsl`.
+/// ample for < 20-triangle trees (E§3.1). Keep in sync with `gpu/src/shaders/common.wgsl`
+/// (and its use in `gpu/src/shaders/draw.wgsl`).
 pub const COMMAND_SHIFT: u32 = 8;
 /// The most vertices one tree mesh (or the billboard quad) may have: `1 << COMMAND_SHIFT`.
 pub const MAX_MESH_VERTICES: u32 = 1 << COMMAND_SHIFT;

@@ -84,7 +84,11 @@ pub struct Params {
     /// View depth beyond which no tree is drawn (E§4.3). Not stated in the thesis; our default is
     /// 4000 m, four transition distances, far enough that `synthetic` seen from `medium` fills the view.
     pub draw_distance: f32,
-    /// [`crate::FadeMode`] as `u32`.
+    /// [`crate::FadeMode`] as `u32`. Default `DitherSequential` (G§4), not the thesis's alpha
+    /// cross-fade (E§4.4): blending two partially transparent LODs lets up to a quarter of the
+    /// background through at mid-band (`(1 - w0)(1 - w1)` = 0.25), a visible pale band in
+    /// `forestlod render --fade-mode alpha`; the sequential dither draws every pixel with at least
+    /// one opaque LOD. `alpha` stays available as a variant.
     pub fade_mode: u32,
     /// [`MipMode`] as `u32`.
     pub mip_mode: u32,
@@ -107,7 +111,7 @@ impl Default for Params {
             lod1_transition: 1000.0,
             fade_width: 250.0,
             draw_distance: 4000.0,
-            fade_mode: crate::FadeMode::Alpha as u32,
+            fade_mode: crate::FadeMode::DitherSequential as u32,
             mip_mode: MipMode::AlphaAware as u32,
             angle_index_mode: AngleIndexMode::Nearest as u32,
             alpha_cutoff: 0.5,

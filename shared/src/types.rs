@@ -12,6 +12,9 @@ use bytemuck::{Pod, Zeroable};
 /// Invariant: the bounding sphere (`center`, `radius`) contains the bounding sphere of every tree of
 /// the batch, tree heights included (E Fig. 3.7). `center` is the centre of the trees' sphere
 /// centres' bounding box, so a batch of one tree has exactly that tree's sphere.
+///
+/// Keep in sync with `struct BatchMeta` in `gpu/src/shaders/common.wgsl` (layout checked by
+/// `gpu/tests/layout.rs`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct BatchMeta {
@@ -44,6 +47,9 @@ const _: () = assert!(core::mem::size_of::<BatchMeta>() == 64);
 /// `command = vertex_index >> COMMAND_SHIFT` and `local = vertex_index & (MAX_MESH_VERTICES - 1)`.
 /// `first_instance` is the batch's offset in the indirection array, so
 /// `instance_index` indexes it directly (E§4.4).
+///
+/// Keep in sync with `struct DrawCommand` in `gpu/src/shaders/common.wgsl` (layout checked by
+/// `gpu/tests/layout.rs`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Pod, Zeroable)]
 pub struct DrawCommand {
@@ -63,6 +69,9 @@ const _: () = assert!(core::mem::size_of::<DrawCommand>() == 20);
 /// Per-command data read by the draw stage (E§4.3): the fade gradient and what to draw.
 ///
 /// 32 bytes, so a command costs 20 + 32 = 52 bytes: exactly E Eq. 4.1's `52 l t` term.
+///
+/// Keep in sync with `struct CommandData` in `gpu/src/shaders/common.wgsl` (layout checked by
+/// `gpu/tests/layout.rs`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct CommandData {
@@ -86,6 +95,9 @@ pub struct CommandData {
 const _: () = assert!(core::mem::size_of::<CommandData>() == 32);
 
 /// Per-mesh metadata for command generation and billboards (E§4.1).
+///
+/// Keep in sync with `struct MeshMeta` in `gpu/src/shaders/common.wgsl` (layout checked by
+/// `gpu/tests/layout.rs`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct MeshMeta {
@@ -110,6 +122,9 @@ pub struct MeshMeta {
 const _: () = assert!(core::mem::size_of::<MeshMeta>() == 48);
 
 /// Work counters of one selection pass.
+///
+/// Keep in sync with `struct SelectCounters` in `gpu/src/shaders/common.wgsl` (layout checked by
+/// `gpu/tests/layout.rs`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct SelectCounters {

@@ -4,13 +4,18 @@
 use forestlod_reference::batches::build_batches;
 use forestlod_reference::geometry::pack_geometry;
 use forestlod_reference::scene::tree_sphere;
-use forestlod_reference::select::{Decision, SelectUniform, batch_decisions, select, select_per_tree, tree_within_draw_distance};
+use forestlod_reference::select::{
+    Decision, SelectUniform, batch_decisions, select, select_per_tree, tree_within_draw_distance,
+};
 use forestlod_shared::{COMMAND_SHIFT, LodNeeds, Params};
 use forestlod_tests::{cameras, instances, params, scene_of, with_threads};
 use proptest::prelude::*;
 
 fn config() -> ProptestConfig {
-    ProptestConfig { cases: 256, ..ProptestConfig::default() }
+    ProptestConfig {
+        cases: 256,
+        ..ProptestConfig::default()
+    }
 }
 
 proptest! {
@@ -114,14 +119,26 @@ proptest! {
 #[test]
 fn straddling_batches_emit_both_lods() {
     use forestlod_reference::scene::Instance;
-    let tree = |x: f32| Instance { position: [x, 0.0, 0.0], yaw: 0.0, scale: 1.0, mesh: 0 };
+    let tree = |x: f32| Instance {
+        position: [x, 0.0, 0.0],
+        yaw: 0.0,
+        scale: 1.0,
+        mesh: 0,
+    };
     // Grid 500 m: cell 1 holds trees at 600 m and 990 m (band is 750..1000 m), cell 0 one at 100 m.
     let scene = scene_of(vec![tree(100.0), tree(600.0), tree(990.0)]);
     let geometry = pack_geometry(&scene);
     let p = Params::default();
     let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
-    let camera = forestlod_shared::Camera::look_at([0.0, 0.0, 5.0], [100.0, 0.0, 5.0], 60.0, 64, 64);
-    let s = select(&batches.metas, &geometry.meshes, &geometry.billboard, &camera, &p);
+    let camera =
+        forestlod_shared::Camera::look_at([0.0, 0.0, 5.0], [100.0, 0.0, 5.0], 60.0, 64, 64);
+    let s = select(
+        &batches.metas,
+        &geometry.meshes,
+        &geometry.billboard,
+        &camera,
+        &p,
+    );
     let lods: Vec<_> = s.data.iter().map(|d| (d.batch, d.lod, d.fading)).collect();
     assert_eq!(lods, vec![(0, 0, 0), (1, 0, 1), (1, 1, 1)]);
     assert_eq!(s.counters.transition_batches, 1);

@@ -155,7 +155,7 @@ impl TreeMesh {
                 format!("expected at most {MAX_MESH_VERTICES} vertices per tree mesh"),
             ));
         }
-        if self.indices.len() % 3 != 0 {
+        if !self.indices.len().is_multiple_of(3) {
             return Err(InputError::new(
                 file,
                 at("index count".into()),

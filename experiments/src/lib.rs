@@ -1,0 +1,9 @@
+//! # forestlod-experiments
+//!
+//! The programs users run: the `forestlod` command line (scene info, selection, rendering, sweeps),
+//! the criterion benchmarks and the experiment programs. Shared here: resolving a scene from the
+//! command line and assembling [`forestlod_shared::Params`] from flags, each with the one-line
+//! errors the brief asks for (field and value, never a panic).
+
+pub mod options;
+pub mod render;

@@ -1,0 +1,218 @@
+//! The wgpu adapter, device and queue every stage runs on (SPEC §8: CI has no GPU and runs on
+//! Mesa's lavapipe, a Vulkan adapter of device type `Cpu`).
+//!
+//! [`GpuContext::new`] asks for a Vulkan adapter first (preferring a high-performance one, but
+//! accepting CPU adapters such as lavapipe's "llvmpipe"), then for any backend. It enables each
+//! optional feature the pipeline can use when the adapter offers it ([`WANTED_FEATURES`]) and
+//! takes the adapter's own limits. Tests get their context through [`gpu_or_explain`], which fails
+//! with an install hint when no adapter exists.
+
+use std::sync::OnceLock;
+
+/// The environment variable that lets GPU tests skip (instead of fail) without an adapter.
+pub const ALLOW_NO_GPU_ENV: &str = "FORESTLOD_ALLOW_NO_GPU";
+
+/// What a test prints (and panics with) when no adapter exists.
+pub const NO_GPU_HINT: &str = "no GPU adapter found: install Mesa's lavapipe (`apt-get install -y --no-install-recommends mesa-vulkan-drivers libvulkan1`) or set FORESTLOD_ALLOW_NO_GPU=1 to skip GPU tests";
+
+/// Optional features requested when the adapter offers them:
+/// - `MULTI_DRAW_INDIRECT_COUNT`: the draw stage takes its command count from the `select`
+///   counters buffer, so the CPU never reads it back (E§4.4);
+/// - `INDIRECT_FIRST_INSTANCE`: without it, wgpu ignores `first_instance` in indirect arguments,
+///   and the draw stage needs it to find a batch's range of the indirection array;
+/// - `TIMESTAMP_QUERY`: per-stage GPU timings for the experiments;
+/// - `FLOAT32_FILTERABLE`: linear filtering of float textures (depth and error images).
+pub const WANTED_FEATURES: wgpu::Features = wgpu::Features::MULTI_DRAW_INDIRECT_COUNT
+    .union(wgpu::Features::INDIRECT_FIRST_INSTANCE)
+    .union(wgpu::Features::TIMESTAMP_QUERY)
+    .union(wgpu::Features::FLOAT32_FILTERABLE);
+
+/// Everything that can go wrong talking to the GPU.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No adapter on any backend.
+    #[error("{NO_GPU_HINT} (wgpu: {0})")]
+    NoAdapter(String),
+    /// The adapter refused to create a device.
+    #[error("the adapter {adapter:?} refused to create a device: {reason}")]
+    RequestDevice {
+        /// Adapter name.
+        adapter: String,
+        /// wgpu's reason.
+        reason: String,
+    },
+    /// Waiting for the GPU failed (device lost, timeout).
+    #[error("waiting for the GPU failed: {0}")]
+    Poll(String),
+    /// Mapping a readback buffer failed.
+    #[error("mapping a readback buffer failed: {0}")]
+    Map(String),
+    /// A wgpu validation or out-of-memory error caught by an error scope.
+    #[error("wgpu rejected {what}: {reason}")]
+    Validation {
+        /// What was being created or run.
+        what: String,
+        /// wgpu's message.
+        reason: String,
+    },
+    /// An input a stage cannot use (empty where it must not be, index out of range, too large).
+    #[error("invalid input {field} = {value}: {reason}")]
+    Input {
+        /// Which input.
+        field: &'static str,
+        /// The offending value.
+        value: String,
+        /// What a valid value looks like.
+        reason: &'static str,
+    },
+}
+
+/// An adapter, its device and queue, and what they support.
+pub struct GpuContext {
+    /// The adapter the device was created on.
+    pub adapter: wgpu::Adapter,
+    /// The logical device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// Adapter name, backend, device type, driver.
+    pub info: wgpu::AdapterInfo,
+    /// The optional features actually enabled (a subset of [`WANTED_FEATURES`]).
+    pub features: wgpu::Features,
+    /// The device limits (the adapter's own).
+    pub limits: wgpu::Limits,
+    /// Compiled `select` pipelines, created on first use and shared by every [`crate::GpuSelect`].
+    pub(crate) select_pipelines: OnceLock<crate::select::SelectPipelines>,
+}
+
+impl std::fmt::Debug for GpuContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuContext")
+            .field("info", &self.info)
+            .field("features", &self.features)
+            .finish_non_exhaustive()
+    }
+}
+
+impl GpuContext {
+    /// Picks an adapter (Vulkan first, then any backend; high performance preferred, CPU adapters
+    /// accepted) and creates a device with every offered feature of [`WANTED_FEATURES`] and the
+    /// adapter's limits. Blocks (wgpu's futures are driven by `pollster`).
+    pub fn new() -> Result<Self, GpuError> {
+        let mut last_error = String::from("no backend tried");
+        for backends in [wgpu::Backends::VULKAN, wgpu::Backends::all()] {
+            let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+            desc.backends = backends;
+            // WGPU_BACKEND and friends still override, as everywhere in wgpu.
+            let instance = wgpu::Instance::new(desc.with_env());
+            let options = wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::HighPerformance,
+                force_fallback_adapter: false,
+                compatible_surface: None,
+                apply_limit_buckets: false,
+            };
+            match pollster::block_on(instance.request_adapter(&options)) {
+                Ok(adapter) => return Self::from_adapter(adapter),
+                Err(e) => last_error = e.to_string(),
+            }
+        }
+        Err(GpuError::NoAdapter(last_error))
+    }
+
+    /// Creates the device on a chosen adapter (see [`GpuContext::new`]).
+    pub fn from_adapter(adapter: wgpu::Adapter) -> Result<Self, GpuError> {
+        let info = adapter.get_info();
+        let features = adapter.features() & WANTED_FEATURES;
+        let limits = adapter.limits();
+        let desc = wgpu::DeviceDescriptor {
+            label: Some("forestlod"),
+            required_features: features,
+            required_limits: limits.clone(),
+            ..Default::default()
+        };
+        let (device, queue) = pollster::block_on(adapter.request_device(&desc)).map_err(|e| {
+            GpuError::RequestDevice {
+                adapter: info.name.clone(),
+                reason: e.to_string(),
+            }
+        })?;
+        Ok(Self {
+            adapter,
+            device,
+            queue,
+            info,
+            features,
+            limits,
+            select_pipelines: OnceLock::new(),
+        })
+    }
+
+    /// One line for logs: name, backend, device type and the enabled optional features.
+    pub fn describe(&self) -> String {
+        let names: Vec<String> = self
+            .features
+            .iter_names()
+            .map(|(name, _)| name.to_string())
+            .collect();
+        format!(
+            "{} ({:?}, {:?}, driver {} {}) features [{}]",
+            self.info.name,
+            self.info.backend,
+            self.info.device_type,
+            self.info.driver,
+            self.info.driver_info,
+            names.join(", ")
+        )
+    }
+
+    /// Whether `first_instance` of indirect draws is honoured (see [`WANTED_FEATURES`]).
+    pub fn has_indirect_first_instance(&self) -> bool {
+        self.features
+            .contains(wgpu::Features::INDIRECT_FIRST_INSTANCE)
+    }
+
+    /// Blocks until all submitted work is done.
+    pub fn wait(&self) -> Result<(), GpuError> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| GpuError::Poll(e.to_string()))
+    }
+
+    /// Runs `f` inside a validation + out-of-memory error scope and turns a caught error into
+    /// [`GpuError::Validation`] naming `what`.
+    pub fn checked<T>(&self, what: &str, f: impl FnOnce() -> T) -> Result<T, GpuError> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let value = f();
+        let errors = [
+            pollster::block_on(validation.pop()),
+            pollster::block_on(oom.pop()),
+        ];
+        match errors.into_iter().flatten().next() {
+            Some(e) => Err(GpuError::Validation {
+                what: what.to_string(),
+                reason: e.to_string(),
+            }),
+            None => Ok(value),
+        }
+    }
+}
+
+/// The context for a GPU test. Without an adapter it **panics** with [`NO_GPU_HINT`], unless the
+/// environment sets [`ALLOW_NO_GPU_ENV`]`=1`, in which case it prints that the test is skipped and
+/// returns `None` (CI never sets it: SPEC §8). Setting `XDG_RUNTIME_DIR` (which silences harmless
+/// Mesa warnings) is the caller's business.
+pub fn gpu_or_explain() -> Option<GpuContext> {
+    match GpuContext::new() {
+        Ok(ctx) => Some(ctx),
+        Err(e) => {
+            if std::env::var(ALLOW_NO_GPU_ENV).is_ok_and(|v| v == "1") {
+                eprintln!("skipping GPU test: {e} ({ALLOW_NO_GPU_ENV}=1)");
+                None
+            } else {
+                panic!("{e}");
+            }
+        }
+    }
+}

@@ -1,0 +1,37 @@
+//! # forestlod-gpu: the wgpu twin of the reference pipeline
+//!
+//! Every stage of the grouped-LOD forest pipeline (Eichner 2024, cited as "E§…") that runs on the
+//! GPU, written in WGSL and driven through wgpu 30, plus the readback helpers that let tests judge
+//! it buffer by buffer against the CPU oracle `forestlod-reference` (SPEC §8). Stages share their
+//! names with the reference: `reference/src/<stage>.rs` ↔ `gpu/src/shaders/<stage>.wgsl` ↔
+//! `gpu/src/<stage>.rs`.
+//!
+//! | stage | Rust driver | WGSL | seed |
+//! |---|---|---|---|
+//! | per-batch selection | [`select`] | `shaders/select.wgsl` | E§3.5, §4.3; SPEC §5.4 |
+//!
+//! What this crate owns:
+//! - [`GpuContext`]: adapter and device selection (any Vulkan adapter, lavapipe included), the
+//!   optional features the pipeline uses, and the context a test gets or is told how to get
+//!   ([`gpu_or_explain`]);
+//! - [`readback`]: uploading `Pod` slices and reading buffers and texture levels back;
+//! - [`shaders`]: the WGSL sources, with `common.wgsl` mirroring `forestlod-shared`'s `Pod` structs
+//!   field for field (a naga reflection test checks every offset);
+//! - the stage drivers ([`select`]).
+//!
+//! What it must not depend on: `forestlod-reference`. The oracle and its twin meet only in the
+//! `tests` crate, so a bug cannot leak from one into the other through shared code; the only code
+//! both sides share is `forestlod-shared` (types and scalar formulas).
+//!
+//! Numerics: the WGSL repeats the shared formulas operation for operation, in the same order, but
+//! a GPU compiler may contract `a * b + c` into a fused multiply-add or otherwise round
+//! differently. The parity tests therefore classify decisions within a small ε of a threshold as
+//! ambiguous instead of failing them (SPEC §8).
+
+pub mod context;
+pub mod readback;
+pub mod select;
+pub mod shaders;
+
+pub use context::{ALLOW_NO_GPU_ENV, GpuContext, GpuError, NO_GPU_HINT, gpu_or_explain};
+pub use select::{Compaction, GpuSelect, GpuSelection, SelectBuffers, SelectUniform};

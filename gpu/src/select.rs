@@ -1,0 +1,535 @@
+//! Per-batch LOD selection and draw-command generation on the GPU (E§3.5, §4.3; SPEC §5.4): the
+//! driver of `shaders/select.wgsl`, twin of `reference/src/select.rs`.
+//!
+//! ## Contract
+//! For each batch, exactly the reference's rule: project the bounding sphere onto the view
+//! direction (`[d - r - m, d + r + m]`, E§3.5), cull it beyond the draw distance or outside a
+//! frustum plane, otherwise emit one indexed indirect command per LOD the interval needs, with
+//! its [`CommandData`]. Outputs are three GPU buffers ([`SelectBuffers`]) usable directly by the
+//! draw stage: `commands` as the `INDIRECT` argument of `multi_draw_indexed_indirect(_count)`,
+//! `counters` as its count buffer (at [`SelectBuffers::COUNT_OFFSET`]), `data` as a storage buffer.
+//!
+//! Two compactions ([`Compaction`]):
+//! - **Stable** (three dispatches: decide, scan, write): batch order, LOD0 before LOD1, command `i`
+//!   with `base_vertex = i << COMMAND_SHIFT`. Equal to the reference bit for bit (SPEC §8), up to
+//!   decisions within ε of a threshold, where the GPU may round differently (fused multiply-add).
+//! - **Atomic** (one dispatch, as the thesis, E§4.3): each batch reserves its slots with one
+//!   `atomicAdd` on the command counter; the order is arbitrary, so parity is judged as a multiset
+//!   after masking `base_vertex` (which is still `slot << COMMAND_SHIFT`).
+//!
+//! Either way the CPU records O(1) dispatches per frame whatever the batch count (batches beyond
+//! `65535 * 64` spill into a second dispatch dimension, not into more dispatches). The per-frame
+//! constants are derived on the CPU exactly as `reference::select::SelectUniform::new` derives them
+//! (eye, unit forward, frustum planes, fade band), so only the per-batch arithmetic runs on the GPU.
+//!
+//! The draw stage can also take the reference's output instead ([`SelectBuffers::from_cpu`]), to
+//! test it in isolation (`--stage-from-cpu`).
+
+use std::num::NonZeroU64;
+
+use bytemuck::{Pod, Zeroable};
+use forestlod_shared::{
+    BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, MAX_COMMANDS, MeshMeta, Params,
+    SelectCounters,
+};
+
+use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
+use crate::{GpuContext, GpuError};
+
+/// Invocations per workgroup of the per-batch passes. Keep in sync with `select.wgsl`.
+pub const SELECT_WORKGROUP_SIZE: u32 = 64;
+/// Invocations of the single scan workgroup. Keep in sync with `select.wgsl`.
+pub const SCAN_WORKGROUP_SIZE: u32 = 256;
+
+/// Per-batch decision code (low two bits): culled beyond the draw distance.
+pub const DECISION_CULLED_DISTANCE: u32 = 0;
+/// Per-batch decision code: culled outside the frustum.
+pub const DECISION_CULLED_FRUSTUM: u32 = 1;
+/// Per-batch decision code: drawn, with [`DECISION_LOD0`] / [`DECISION_LOD1`] bits.
+pub const DECISION_DRAW: u32 = 2;
+/// Mask of the decision kind.
+pub const DECISION_KIND_MASK: u32 = 3;
+/// Decision bit: the batch needs LOD0.
+pub const DECISION_LOD0: u32 = 4;
+/// Decision bit: the batch needs LOD1.
+pub const DECISION_LOD1: u32 = 8;
+
+/// Which compaction writes the commands (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Compaction {
+    /// Prefix-sum compaction: deterministic, equal to the reference.
+    Stable,
+    /// Atomic-counter compaction as in the thesis (E§4.3): arbitrary order.
+    Atomic,
+}
+
+impl Compaction {
+    /// Both variants.
+    pub const ALL: [Compaction; 2] = [Compaction::Stable, Compaction::Atomic];
+    /// Name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Compaction::Stable => "stable",
+            Compaction::Atomic => "atomic",
+        }
+    }
+}
+
+/// The per-frame uniform of `select.wgsl`. Keep in sync with `struct SelectUniform` there.
+///
+/// The GPU twin of `reference::select::SelectUniform` plus the sizes and the billboard range the
+/// shader needs; uniform-compatible layout (`vec4` planes, each `vec3` followed by an `f32`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct SelectUniform {
+    /// Frustum planes `[nx, ny, nz, w]` relative to the eye (`Camera::frustum`).
+    pub planes: [[f32; 4]; 6],
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Start of the fade band, `lod1_transition - fade_width`.
+    pub fade_start: f32,
+    /// Unit view direction (`Camera::basis().forward`).
+    pub forward: [f32; 3],
+    /// End of the fade band, `lod1_transition`.
+    pub fade_end: f32,
+    /// Draw distance.
+    pub draw_distance: f32,
+    /// LOD levels (1 or 2).
+    pub lod_levels: u32,
+    /// Number of batches.
+    pub batch_count: u32,
+    /// Number of meshes.
+    pub mesh_count: u32,
+    /// First index of the billboard quad in the shared index buffer.
+    pub billboard_first_index: u32,
+    /// Index count of the billboard quad.
+    pub billboard_index_count: u32,
+    /// Explicit padding.
+    pub _pad0: u32,
+    /// Explicit padding.
+    pub _pad1: u32,
+}
+const _: () = assert!(size_of::<SelectUniform>() == 160);
+
+impl SelectUniform {
+    /// The uniform for a camera and parameters, derived as the reference derives its own.
+    pub fn new(
+        camera: &Camera,
+        params: &Params,
+        batch_count: u32,
+        mesh_count: u32,
+        billboard: &MeshMeta,
+    ) -> Self {
+        Self {
+            planes: camera.frustum().planes,
+            eye: camera.eye,
+            fade_start: params.lod1_transition - params.fade_width,
+            forward: camera.basis().forward.to_array(),
+            fade_end: params.lod1_transition,
+            draw_distance: params.draw_distance,
+            lod_levels: params.lod_levels,
+            batch_count,
+            mesh_count,
+            billboard_first_index: billboard.first_index,
+            billboard_index_count: billboard.index_count,
+            _pad0: 0,
+            _pad1: 0,
+        }
+    }
+}
+
+/// What selection emitted for one frame, read back (mirrors `reference::select::Selection`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GpuSelection {
+    /// Draw commands, `counters.commands` of them.
+    pub commands: Vec<DrawCommand>,
+    /// Per-command data, parallel to `commands`.
+    pub data: Vec<CommandData>,
+    /// Work counters.
+    pub counters: SelectCounters,
+}
+
+/// The output buffers of `select`, the input of the draw stage.
+#[derive(Debug)]
+pub struct SelectBuffers {
+    /// `DrawCommand`s: `STORAGE | INDIRECT | COPY_SRC | COPY_DST`.
+    pub commands: wgpu::Buffer,
+    /// `CommandData`s: `STORAGE | COPY_SRC | COPY_DST`.
+    pub data: wgpu::Buffer,
+    /// One `SelectCounters`: `STORAGE | INDIRECT | COPY_SRC | COPY_DST`; its `commands` field is
+    /// the draw count of `multi_draw_indexed_indirect_count`.
+    pub counters: wgpu::Buffer,
+    /// How many commands the buffers hold at most.
+    pub capacity: u32,
+}
+
+impl SelectBuffers {
+    /// Byte offset of `SelectCounters::commands` in [`SelectBuffers::counters`]: the count-buffer
+    /// offset for `multi_draw_indexed_indirect_count`.
+    pub const COUNT_OFFSET: u64 = core::mem::offset_of!(SelectCounters, commands) as u64;
+
+    /// Empty buffers for up to `capacity` commands (at least one).
+    pub fn with_capacity(ctx: &GpuContext, capacity: u32) -> Self {
+        use wgpu::BufferUsages as U;
+        let capacity = capacity.max(1);
+        let usage = U::STORAGE | U::COPY_SRC | U::COPY_DST;
+        Self {
+            commands: zeroed_buffer(
+                ctx,
+                "select commands",
+                u64::from(capacity) * size_of::<DrawCommand>() as u64,
+                usage | U::INDIRECT,
+            ),
+            data: zeroed_buffer(
+                ctx,
+                "select command data",
+                u64::from(capacity) * size_of::<CommandData>() as u64,
+                usage,
+            ),
+            counters: zeroed_buffer(
+                ctx,
+                "select counters",
+                size_of::<SelectCounters>() as u64,
+                usage | U::INDIRECT,
+            ),
+            capacity,
+        }
+    }
+
+    /// Buffers holding a selection computed elsewhere (the reference's `Selection`: pass
+    /// `&s.commands, &s.data, &s.counters`), so the draw stage can run on CPU input
+    /// (`--stage-from-cpu`). `counters.commands` should equal `commands.len()`.
+    pub fn from_cpu(
+        ctx: &GpuContext,
+        commands: &[DrawCommand],
+        data: &[CommandData],
+        counters: &SelectCounters,
+    ) -> Result<Self, GpuError> {
+        if commands.len() != data.len() || counters.commands as usize != commands.len() {
+            return Err(GpuError::Input {
+                field: "selection",
+                value: format!(
+                    "{} commands, {} data, counters.commands = {}",
+                    commands.len(),
+                    data.len(),
+                    counters.commands
+                ),
+                reason: "expected as many commands as data records and counters.commands",
+            });
+        }
+        use wgpu::BufferUsages as U;
+        Ok(Self {
+            commands: upload_storage(ctx, "select commands (cpu)", commands, U::INDIRECT),
+            data: upload_storage(ctx, "select command data (cpu)", data, U::empty()),
+            counters: upload_storage(
+                ctx,
+                "select counters (cpu)",
+                std::slice::from_ref(counters),
+                U::INDIRECT,
+            ),
+            capacity: (commands.len() as u32).max(1),
+        })
+    }
+
+    /// Reads the counters, then that many commands and data records. Blocks.
+    pub fn read(&self, ctx: &GpuContext) -> Result<GpuSelection, GpuError> {
+        let counters = read_buffer::<SelectCounters>(ctx, &self.counters, 0, 1)?[0];
+        let n = counters.commands;
+        if n > self.capacity {
+            return Err(GpuError::Input {
+                field: "counters.commands",
+                value: n.to_string(),
+                reason: "exceeds the command buffers' capacity: the GPU wrote out of range",
+            });
+        }
+        Ok(GpuSelection {
+            commands: read_buffer(ctx, &self.commands, 0, n as usize)?,
+            data: read_buffer(ctx, &self.data, 0, n as usize)?,
+            counters,
+        })
+    }
+}
+
+/// The compiled pipelines of `select.wgsl`, one set per [`GpuContext`] (cached there).
+#[derive(Debug)]
+pub struct SelectPipelines {
+    layout: wgpu::BindGroupLayout,
+    decide: wgpu::ComputePipeline,
+    scan: wgpu::ComputePipeline,
+    write: wgpu::ComputePipeline,
+    atomic: wgpu::ComputePipeline,
+}
+
+impl SelectPipelines {
+    /// Compiles `select.wgsl` and creates its four pipelines.
+    pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+        ctx.checked("select.wgsl pipelines", || {
+            let device = &ctx.device;
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("select.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(crate::shaders::select_source().into()),
+            });
+            let entry =
+                |binding: u32, ty: wgpu::BufferBindingType, min: u64| wgpu::BindGroupLayoutEntry {
+                    binding,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty,
+                        has_dynamic_offset: false,
+                        min_binding_size: NonZeroU64::new(min),
+                    },
+                    count: None,
+                };
+            let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("select"),
+                entries: &[
+                    entry(
+                        0,
+                        wgpu::BufferBindingType::Uniform,
+                        size_of::<SelectUniform>() as u64,
+                    ),
+                    entry(1, storage(true), 0),
+                    entry(2, storage(true), 0),
+                    entry(3, storage(false), 0),
+                    entry(4, storage(false), 0),
+                    entry(5, storage(false), 0),
+                    entry(6, storage(false), 0),
+                    entry(7, storage(false), size_of::<SelectCounters>() as u64),
+                ],
+            });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("select"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipeline = |entry_point: &str| {
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(entry_point),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some(entry_point),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            };
+            Self {
+                decide: pipeline("select_decide"),
+                scan: pipeline("select_scan"),
+                write: pipeline("select_write"),
+                atomic: pipeline("select_atomic"),
+                layout,
+            }
+        })
+    }
+}
+
+/// One scene's batches on the GPU, ready to select for any camera and parameters.
+pub struct GpuSelect<'a> {
+    ctx: &'a GpuContext,
+    uniform: wgpu::Buffer,
+    decisions: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    out: SelectBuffers,
+    batch_count: u32,
+    mesh_count: u32,
+    billboard: MeshMeta,
+}
+
+impl<'a> GpuSelect<'a> {
+    /// Uploads the batches and meshes (`meshes` with their packed index ranges, as the
+    /// reference's `pack_geometry` gives them; `billboard` the quad's range) and allocates room
+    /// for two commands per batch. Fails on a batch whose mesh index is out of range or on more
+    /// commands than `base_vertex` can address ([`MAX_COMMANDS`]).
+    pub fn new(
+        ctx: &'a GpuContext,
+        batches: &[BatchMeta],
+        meshes: &[MeshMeta],
+        billboard: &MeshMeta,
+    ) -> Result<Self, GpuError> {
+        if let Some((i, b)) = batches
+            .iter()
+            .enumerate()
+            .find(|(_, b)| b.mesh as usize >= meshes.len())
+        {
+            return Err(GpuError::Input {
+                field: "batch.mesh",
+                value: format!("batch {i} mesh {} of {} meshes", b.mesh, meshes.len()),
+                reason: "expected a mesh index below the mesh count",
+            });
+        }
+        let capacity = batches.len().saturating_mul(2);
+        if capacity > MAX_COMMANDS as usize {
+            return Err(GpuError::Input {
+                field: "batches",
+                value: batches.len().to_string(),
+                reason: "two commands per batch exceed MAX_COMMANDS (base_vertex is an i32)",
+            });
+        }
+        let pipelines = match ctx.select_pipelines.get() {
+            Some(p) => p,
+            None => {
+                let p = SelectPipelines::new(ctx)?;
+                // Another thread may have won the race; either set of pipelines works.
+                let _ = ctx.select_pipelines.set(p);
+                ctx.select_pipelines
+                    .get()
+                    .expect("select pipelines were just set")
+            }
+        };
+        use wgpu::BufferUsages as U;
+        let n = batches.len() as u64;
+        let batch_buffer = upload_storage(ctx, "select batches", batches, U::empty());
+        let mesh_buffer = upload_storage(ctx, "select meshes", meshes, U::empty());
+        let uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("select uniform"),
+            size: size_of::<SelectUniform>() as u64,
+            usage: U::UNIFORM | U::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let decisions = zeroed_buffer(ctx, "select decisions", n * 4, U::STORAGE | U::COPY_SRC);
+        let offsets = zeroed_buffer(ctx, "select offsets", n * 4, U::STORAGE | U::COPY_SRC);
+        let out = SelectBuffers::with_capacity(ctx, capacity as u32);
+        let bind_group = ctx.checked("select bind group", || {
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("select"),
+                layout: &pipelines.layout,
+                entries: &[
+                    (0, &uniform),
+                    (1, &batch_buffer),
+                    (2, &mesh_buffer),
+                    (3, &decisions),
+                    (4, &offsets),
+                    (5, &out.commands),
+                    (6, &out.data),
+                    (7, &out.counters),
+                ]
+                .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                    binding,
+                    resource: buffer.as_entire_binding(),
+                }),
+            })
+        })?;
+        Ok(Self {
+            ctx,
+            uniform,
+            decisions,
+            bind_group,
+            out,
+            batch_count: batches.len() as u32,
+            mesh_count: meshes.len() as u32,
+            billboard: *billboard,
+        })
+    }
+
+    /// Number of batches.
+    pub fn batch_count(&self) -> u32 {
+        self.batch_count
+    }
+
+    /// The output buffers (valid after a [`GpuSelect::dispatch`] or [`GpuSelect::encode`] has run).
+    pub fn buffers(&self) -> &SelectBuffers {
+        &self.out
+    }
+
+    /// Workgroup counts `(x, y)` covering every batch with `SELECT_WORKGROUP_SIZE` invocations
+    /// each, spilling into `y` beyond the per-dimension limit.
+    fn groups(&self) -> (u32, u32) {
+        let groups = self.batch_count.div_ceil(SELECT_WORKGROUP_SIZE);
+        let max_x = self.ctx.limits.max_compute_workgroups_per_dimension.max(1);
+        let x = groups.min(max_x);
+        let y = if x == 0 { 0 } else { groups.div_ceil(x) };
+        (x, y)
+    }
+
+    /// Records one frame's selection into `encoder`: writes the uniform (through the queue, so it
+    /// lands before the next submit), clears the counters, then three dispatches (stable) or one
+    /// (atomic). `camera` and `params` should be validated, as for the reference.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        params: &Params,
+        compaction: Compaction,
+    ) {
+        let uniform = SelectUniform::new(
+            camera,
+            params,
+            self.batch_count,
+            self.mesh_count,
+            &self.billboard,
+        );
+        self.ctx
+            .queue
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
+        encoder.clear_buffer(&self.out.counters, 0, None);
+        let pipelines = self
+            .ctx
+            .select_pipelines
+            .get()
+            .expect("GpuSelect::new created the pipelines");
+        let (x, y) = self.groups();
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("select"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        match compaction {
+            Compaction::Stable => {
+                pass.set_pipeline(&pipelines.decide);
+                pass.dispatch_workgroups(x, y, 1);
+                pass.set_pipeline(&pipelines.scan);
+                pass.dispatch_workgroups(1, 1, 1);
+                pass.set_pipeline(&pipelines.write);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+            Compaction::Atomic => {
+                pass.set_pipeline(&pipelines.atomic);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+        }
+    }
+
+    /// Runs one frame's selection and leaves the result on the GPU ([`GpuSelect::buffers`]) for
+    /// the draw stage. Does not wait.
+    pub fn dispatch(
+        &self,
+        camera: &Camera,
+        params: &Params,
+        compaction: Compaction,
+    ) -> Result<&SelectBuffers, GpuError> {
+        self.ctx.checked("select dispatch", || {
+            let mut encoder =
+                self.ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("select"),
+                    });
+            self.encode(&mut encoder, camera, params, compaction);
+            self.ctx.queue.submit([encoder.finish()]);
+        })?;
+        Ok(&self.out)
+    }
+
+    /// Runs one frame's selection and reads the result back. Blocks.
+    pub fn run(
+        &self,
+        camera: &Camera,
+        params: &Params,
+        compaction: Compaction,
+    ) -> Result<GpuSelection, GpuError> {
+        self.dispatch(camera, params, compaction)?;
+        self.out.read(self.ctx)
+    }
+
+    /// The per-batch decision codes of the last run (`DECISION_*`), for diagnostics and for
+    /// naming the batches where GPU and reference disagree.
+    pub fn read_decisions(&self) -> Result<Vec<u32>, GpuError> {
+        read_buffer(self.ctx, &self.decisions, 0, self.batch_count as usize)
+    }
+}
+
+/// `base_vertex` of command `slot`, as both compactions write it.
+pub fn base_vertex_of(slot: u32) -> i32 {
+    (slot << COMMAND_SHIFT) as i32
+}

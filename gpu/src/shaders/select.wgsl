@@ -1,0 +1,240 @@
+// select.wgsl: per-batch LOD selection and draw-command generation (E§3.5, §4.3; SPEC §5.4).
+// The GPU twin of reference/src/select.rs, driven by gpu/src/select.rs; common.wgsl is prepended.
+//
+// Contract (the reference's module docs, repeated): for each batch, project its bounding sphere
+// onto the view direction, `[d - r - m, d + r + m]` (E§3.5, Fig. 3.8); cull it when `lo` lies
+// beyond the draw distance or the sphere lies wholly outside one frustum plane; otherwise emit one
+// command per LOD the interval needs (`lod_needs`), both when it overlaps the fade band.
+//
+// Entry points:
+// - stable compaction, equal to the reference bit for bit (three dispatches):
+//   `select_decide` (one invocation per batch: decision, command count 0..2, counters),
+//   `select_scan` (one workgroup: exclusive prefix sum of the counts, in place),
+//   `select_write` (one invocation per batch: commands at the scanned offsets, LOD0 first);
+// - atomic compaction as in the thesis (E§4.3), one dispatch: `select_atomic` reserves its slots
+//   with one `atomicAdd` on the command counter, so the order of batches is arbitrary (LOD0 and
+//   LOD1 of one batch stay adjacent).
+// In both, command `slot` gets `base_vertex = slot << COMMAND_SHIFT`.
+
+// Keep in sync with forestlod_gpu::select::SelectUniform (gpu/src/select.rs). The CPU derives it
+// once per frame exactly as reference::select::SelectUniform::new does.
+struct SelectUniform {
+    planes: array<vec4<f32>, 6>,
+    eye: vec3<f32>,
+    fade_start: f32,
+    forward: vec3<f32>,
+    fade_end: f32,
+    draw_distance: f32,
+    lod_levels: u32,
+    batch_count: u32,
+    mesh_count: u32,
+    billboard_first_index: u32,
+    billboard_index_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// SelectCounters with atomic members: the same layout (8 x u32).
+struct SelectCountersAtomic {
+    batches_tested: atomic<u32>,
+    culled_distance: atomic<u32>,
+    culled_frustum: atomic<u32>,
+    commands: atomic<u32>,
+    lod0_commands: atomic<u32>,
+    lod1_commands: atomic<u32>,
+    transition_batches: atomic<u32>,
+    instances: atomic<u32>,
+}
+
+// Decision codes stored per batch; keep in sync with the DECISION_* consts of gpu/src/select.rs.
+const DECISION_CULLED_DISTANCE: u32 = 0u;
+const DECISION_CULLED_FRUSTUM: u32 = 1u;
+const DECISION_DRAW: u32 = 2u;
+const DECISION_KIND_MASK: u32 = 3u;
+const DECISION_LOD0: u32 = 4u;
+const DECISION_LOD1: u32 = 8u;
+
+// Keep in sync with SELECT_WORKGROUP_SIZE / SCAN_WORKGROUP_SIZE in gpu/src/select.rs.
+const SELECT_WORKGROUP_SIZE: u32 = 64u;
+const SCAN_WORKGROUP_SIZE: u32 = 256u;
+
+@group(0) @binding(0) var<uniform> u: SelectUniform;
+@group(0) @binding(1) var<storage, read> batches: array<BatchMeta>;
+@group(0) @binding(2) var<storage, read> meshes: array<MeshMeta>;
+// Per batch: DECISION_* kind plus LOD bits (read back by parity tests to name differing batches).
+@group(0) @binding(3) var<storage, read_write> decisions: array<u32>;
+// Per batch: command count after `select_decide`, exclusive prefix sum after `select_scan`.
+@group(0) @binding(4) var<storage, read_write> offsets: array<u32>;
+@group(0) @binding(5) var<storage, read_write> commands: array<DrawCommand>;
+@group(0) @binding(6) var<storage, read_write> command_data: array<CommandData>;
+@group(0) @binding(7) var<storage, read_write> counters: SelectCountersAtomic;
+
+// Twin of reference SelectUniform::decide: the same rule for a batch and for a lone tree.
+fn decide(b: BatchMeta) -> u32 {
+    let center = vec3<f32>(b.center[0], b.center[1], b.center[2]);
+    let i = view_interval(center, b.radius, u.eye, u.forward);
+    if i.lo > u.draw_distance {
+        return DECISION_CULLED_DISTANCE;
+    }
+    if !sphere_visible(u.planes, center, b.radius, u.eye) {
+        return DECISION_CULLED_FRUSTUM;
+    }
+    let n = lod_needs(i.lo, i.hi, u.fade_start, u.fade_end, u.lod_levels);
+    return DECISION_DRAW | select(0u, DECISION_LOD0, n.lod0) | select(0u, DECISION_LOD1, n.lod1);
+}
+
+// The batch's counter contributions (the reference's compaction loop, per batch); returns the
+// first slot of a contiguous range of `command_count(decision)` slots reserved on the counter.
+fn count(b: BatchMeta, decision: u32) -> u32 {
+    atomicAdd(&counters.batches_tested, 1u);
+    let kind = decision & DECISION_KIND_MASK;
+    if kind == DECISION_CULLED_DISTANCE {
+        atomicAdd(&counters.culled_distance, 1u);
+        return 0u;
+    }
+    if kind == DECISION_CULLED_FRUSTUM {
+        atomicAdd(&counters.culled_frustum, 1u);
+        return 0u;
+    }
+    let lod0 = (decision & DECISION_LOD0) != 0u;
+    let lod1 = (decision & DECISION_LOD1) != 0u;
+    let n = u32(lod0) + u32(lod1);
+    if lod0 && lod1 {
+        atomicAdd(&counters.transition_batches, 1u);
+    }
+    if lod0 {
+        atomicAdd(&counters.lod0_commands, 1u);
+    }
+    if lod1 {
+        atomicAdd(&counters.lod1_commands, 1u);
+    }
+    if n == 0u {
+        return 0u;
+    }
+    atomicAdd(&counters.instances, b.len * n);
+    return atomicAdd(&counters.commands, n);
+}
+
+fn command_count(decision: u32) -> u32 {
+    if (decision & DECISION_KIND_MASK) != DECISION_DRAW {
+        return 0u;
+    }
+    return u32((decision & DECISION_LOD0) != 0u) + u32((decision & DECISION_LOD1) != 0u);
+}
+
+// Twin of the reference's `emit` closure in select_batch, plus the compaction's base_vertex.
+fn emit(slot: u32, index: u32, b: BatchMeta, lod: u32, fading: bool) {
+    var first_index = u.billboard_first_index;
+    var index_count = u.billboard_index_count;
+    if lod == LOD_MESH {
+        let m = meshes[b.mesh];
+        first_index = m.first_index;
+        index_count = m.index_count;
+    }
+    commands[slot] = DrawCommand(index_count, b.len, first_index, i32(slot << COMMAND_SHIFT), b.offset);
+    command_data[slot] = CommandData(
+        u.fade_start, u.fade_end, index, b.mesh, lod, u32(lod == LOD_BILLBOARD), u32(fading), 0u
+    );
+}
+
+// Writes the batch's commands from `slot` on: LOD0 first, then LOD1.
+fn emit_all(slot: u32, index: u32, b: BatchMeta, decision: u32) {
+    if (decision & DECISION_KIND_MASK) != DECISION_DRAW {
+        return;
+    }
+    let lod0 = (decision & DECISION_LOD0) != 0u;
+    let lod1 = (decision & DECISION_LOD1) != 0u;
+    let fading = lod0 && lod1;
+    if lod0 {
+        emit(slot, index, b, LOD_MESH, fading);
+    }
+    if lod1 {
+        emit(slot + u32(lod0), index, b, LOD_BILLBOARD, fading);
+    }
+}
+
+// Batch index of an invocation of a (possibly 2D, for more than 65535 workgroups) dispatch.
+fn batch_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
+    return gid.y * (groups.x * SELECT_WORKGROUP_SIZE) + gid.x;
+}
+
+// Stable, pass 1: decision, command count, counters.
+@compute @workgroup_size(SELECT_WORKGROUP_SIZE)
+fn select_decide(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let index = batch_index(gid, groups);
+    if index >= u.batch_count {
+        return;
+    }
+    let b = batches[index];
+    let decision = decide(b);
+    decisions[index] = decision;
+    count(b, decision);
+    offsets[index] = command_count(decision);
+}
+
+var<workgroup> scan_tmp: array<u32, SCAN_WORKGROUP_SIZE>;
+var<workgroup> scan_carry: u32;
+
+// Stable, pass 2: exclusive prefix sum of `offsets`, in place, by one workgroup walking the array
+// in chunks (Hillis-Steele within a chunk, a running carry across chunks). O(n log 256) work, one
+// dispatch; plenty for the batch counts of E§5 (tens of thousands).
+@compute @workgroup_size(SCAN_WORKGROUP_SIZE)
+fn select_scan(@builtin(local_invocation_index) lid: u32) {
+    let n = u.batch_count;
+    if lid == 0u {
+        scan_carry = 0u;
+    }
+    workgroupBarrier();
+    let chunks = (n + SCAN_WORKGROUP_SIZE - 1u) / SCAN_WORKGROUP_SIZE;
+    for (var c = 0u; c < chunks; c++) {
+        let index = c * SCAN_WORKGROUP_SIZE + lid;
+        var value = 0u;
+        if index < n {
+            value = offsets[index];
+        }
+        scan_tmp[lid] = value;
+        workgroupBarrier();
+        for (var step = 1u; step < SCAN_WORKGROUP_SIZE; step = step << 1u) {
+            var add = 0u;
+            if lid >= step {
+                add = scan_tmp[lid - step];
+            }
+            workgroupBarrier();
+            scan_tmp[lid] = scan_tmp[lid] + add;
+            workgroupBarrier();
+        }
+        let carry = scan_carry;
+        if index < n {
+            offsets[index] = carry + scan_tmp[lid] - value;
+        }
+        workgroupBarrier();
+        if lid == SCAN_WORKGROUP_SIZE - 1u {
+            scan_carry = carry + scan_tmp[lid];
+        }
+        workgroupBarrier();
+    }
+}
+
+// Stable, pass 3: commands at the scanned offsets, in batch order, LOD0 before LOD1.
+@compute @workgroup_size(SELECT_WORKGROUP_SIZE)
+fn select_write(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let index = batch_index(gid, groups);
+    if index >= u.batch_count {
+        return;
+    }
+    emit_all(offsets[index], index, batches[index], decisions[index]);
+}
+
+// Atomic compaction (E§4.3): decide, reserve slots with one atomicAdd, write; one dispatch.
+@compute @workgroup_size(SELECT_WORKGROUP_SIZE)
+fn select_atomic(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let index = batch_index(gid, groups);
+    if index >= u.batch_count {
+        return;
+    }
+    let b = batches[index];
+    let decision = decide(b);
+    decisions[index] = decision;
+    let slot = count(b, decision);
+    emit_all(slot, index, b, decision);
+}

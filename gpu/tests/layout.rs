@@ -1,0 +1,202 @@
+//! The WGSL structs of `common.wgsl` and `select.wgsl` have the layout of their Rust twins: every
+//! member at the same byte offset, every struct the same size. Checked with naga's reflection (the
+//! offsets naga computes are the ones wgpu's backends use), so a drifting field fails here rather
+//! than as garbage in a parity test. Also validates the modules, including that `Params`, `Camera`
+//! and `SelectUniform` are legal in the uniform address space.
+
+use core::mem::{offset_of, size_of};
+
+use forestlod_gpu::SelectUniform;
+use forestlod_gpu::shaders::{COMMON_WGSL, select_source};
+use forestlod_shared::{
+    BatchMeta, Camera, CommandData, DrawCommand, MeshMeta, Params, SelectCounters,
+};
+
+/// A Rust struct's layout: `(field, offset)` in declaration order, and its size.
+struct RustLayout {
+    name: &'static str,
+    fields: Vec<(&'static str, usize)>,
+    size: usize,
+}
+
+macro_rules! rust_layout {
+    ($ty:ident { $($field:ident),* $(,)? }) => {
+        RustLayout {
+            name: stringify!($ty),
+            fields: vec![$((stringify!($field), offset_of!($ty, $field))),*],
+            size: size_of::<$ty>(),
+        }
+    };
+}
+
+fn rust_layouts() -> Vec<RustLayout> {
+    vec![
+        rust_layout!(Params {
+            grid_size,
+            angle_count,
+            texture_size,
+            lod_levels,
+            lod1_transition,
+            fade_width,
+            draw_distance,
+            fade_mode,
+            mip_mode,
+            angle_index_mode,
+            alpha_cutoff,
+            _pad0
+        }),
+        rust_layout!(Camera {
+            eye,
+            fov_y,
+            forward,
+            near,
+            up,
+            far,
+            width,
+            height,
+            _pad0
+        }),
+        rust_layout!(BatchMeta {
+            center,
+            radius,
+            extent,
+            mesh,
+            box_center,
+            len,
+            cell,
+            offset,
+            _pad0
+        }),
+        rust_layout!(DrawCommand {
+            index_count,
+            instance_count,
+            first_index,
+            base_vertex,
+            first_instance
+        }),
+        rust_layout!(CommandData {
+            fade_start,
+            fade_end,
+            batch,
+            mesh,
+            lod,
+            billboard,
+            fading,
+            _pad0
+        }),
+        rust_layout!(MeshMeta {
+            first_index,
+            index_count,
+            first_vertex,
+            vertex_count,
+            bbox_min,
+            billboard_half_width,
+            bbox_max,
+            sphere_radius
+        }),
+        rust_layout!(SelectCounters {
+            batches_tested,
+            culled_distance,
+            culled_frustum,
+            commands,
+            lod0_commands,
+            lod1_commands,
+            transition_batches,
+            instances
+        }),
+        rust_layout!(SelectUniform {
+            planes,
+            eye,
+            fade_start,
+            forward,
+            fade_end,
+            draw_distance,
+            lod_levels,
+            batch_count,
+            mesh_count,
+            billboard_first_index,
+            billboard_index_count,
+            _pad0,
+            _pad1
+        }),
+    ]
+}
+
+/// `(member, offset)` list and span of the WGSL struct `name`, if the module declares it.
+fn wgsl_layout(module: &naga::Module, name: &str) -> Option<(Vec<(String, u32)>, u32)> {
+    module.types.iter().find_map(|(_, ty)| match &ty.inner {
+        naga::TypeInner::Struct { members, span } if ty.name.as_deref() == Some(name) => Some((
+            members
+                .iter()
+                .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+                .collect(),
+            *span,
+        )),
+        _ => None,
+    })
+}
+
+fn validate(source: &str) -> naga::Module {
+    let module = naga::front::wgsl::parse_str(source)
+        .unwrap_or_else(|e| panic!("WGSL parse error:\n{}", e.emit_to_string(source)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("WGSL validation error:\n{}", e.emit_to_string(source)));
+    module
+}
+
+#[test]
+fn wgsl_structs_match_their_rust_twins() {
+    // Bind the uniform-side structs as uniforms so validation checks their uniform layout rules.
+    let source = format!(
+        "{}\n@group(9) @binding(0) var<uniform> layout_params: Params;\n\
+         @group(9) @binding(1) var<uniform> layout_camera: Camera;\n",
+        select_source()
+    );
+    let module = validate(&source);
+    let mut checked = 0;
+    for rust in rust_layouts() {
+        let (members, span) = wgsl_layout(&module, rust.name)
+            .unwrap_or_else(|| panic!("WGSL has no struct {}", rust.name));
+        let wgsl: Vec<(&str, usize)> = members
+            .iter()
+            .map(|(n, o)| (n.as_str(), *o as usize))
+            .collect();
+        assert_eq!(
+            wgsl, rust.fields,
+            "struct {}: WGSL members/offsets (left) differ from Rust (right)",
+            rust.name
+        );
+        assert_eq!(
+            span as usize, rust.size,
+            "struct {}: WGSL size differs from Rust",
+            rust.name
+        );
+        checked += 1;
+        eprintln!(
+            "{}: {} members, {} bytes: layouts equal",
+            rust.name,
+            rust.fields.len(),
+            rust.size
+        );
+    }
+    assert_eq!(checked, 8);
+}
+
+#[test]
+fn common_wgsl_is_valid_alone() {
+    validate(COMMON_WGSL);
+}
+
+/// The atomic counters struct must have the plain counters' layout, since both name one buffer.
+#[test]
+fn atomic_counters_have_the_counters_layout() {
+    let module = validate(&select_source());
+    let (plain, plain_span) = wgsl_layout(&module, "SelectCounters").unwrap();
+    let (atomic, atomic_span) = wgsl_layout(&module, "SelectCountersAtomic").unwrap();
+    assert_eq!(plain, atomic);
+    assert_eq!(plain_span, atomic_span);
+}

@@ -1,0 +1,229 @@
+//! The billboard bake (E Alg. 3.1, §4.1; SPEC §5.1): every mesh rendered unlit from `K` elevation
+//! angles into the layers of an array texture, then mipmapped by the [`crate::mips`] stage.
+//!
+//! ## Contract
+//! - Layer `mesh * K + k` holds mesh `mesh` seen at elevation `e_k = 90° / (K - 1) · k`
+//!   ([`forestlod_shared::bake_elevation`]; `K = 1` bakes the level view only), from the fixed
+//!   azimuth `h = +X` (trees are radially symmetric, E§3.3.1, so one azimuth stands for all).
+//! - The projection is orthographic and fitted to the mesh's bounding box ("Calculate Orthogonal
+//!   Projection From BB", E Alg. 3.1): the layer spans `[-W, W]` along the billboard's right vector
+//!   and `[bottom, bottom + height]` along its tilted up vector, from
+//!   [`forestlod_shared::billboard_extent`]. The draw stage expands its quads with the same extent,
+//!   so a texel lands where the mesh point it shows would be.
+//! - The layer is `r x r` (r a power of two, validated by [`forestlod_shared::Params::validate`]),
+//!   cleared to transparent black; mesh texels are sampled bilinearly from level 0 (the bake's
+//!   resolution is close to the texture's, and a fixed level keeps the GPU twin's sampling
+//!   identical), fragments of alpha exactly 0 are discarded, the rest replace the colour behind them
+//!   under the depth test LESS. Unlit, as the thesis.
+//! - Rendered with the reference rasterizer ([`crate::raster`]), so the rules are the GPU's; the
+//!   WGSL twin is `gpu/src/shaders/bake.wgsl` (render passes into array layers).
+
+use forestlod_shared::{
+    BillboardExtent, MeshMeta, MipMode, Params, bake_elevation, billboard_extent,
+};
+use rayon::prelude::*;
+
+use crate::InputError;
+use crate::mips::{MipChain, build_mip_array};
+use crate::raster::{ClearValues, DrawState, FragmentOutput, RenderTarget, Vertex};
+use crate::sampler::Texture;
+use crate::scene::{Scene, TreeMesh};
+use crate::texture::Rgba8Image;
+
+/// The bake's output: the billboard array texture with mips, and the extent of every layer.
+#[derive(Clone, Debug)]
+pub struct BakedBillboards {
+    /// Angles per mesh, `K`.
+    pub angle_count: u32,
+    /// Layer side, `r`.
+    pub texture_size: u32,
+    /// Level 0 of every layer, `mesh * K + k`.
+    pub layers: Vec<Rgba8Image>,
+    /// Full mip chain of every layer, in layer order.
+    pub chains: Vec<MipChain>,
+    /// The sampled array texture (every layer's chain, 8-bit).
+    pub texture: Texture,
+    /// Extent of every layer.
+    pub extents: Vec<BillboardExtent>,
+}
+
+/// Orthographic clip-space position of mesh-local point `p` in layer `k`'s bake view (module docs).
+pub fn bake_clip(p: [f32; 3], meta: &MeshMeta, elevation: f32) -> [f32; 4] {
+    let e = billboard_extent(meta, elevation);
+    let (s, c) = elevation.sin_cos();
+    // h = +X, R = Z × h = +Y, U = Z cos e - h sin e, V = h cos e + Z sin e (toward the viewer).
+    let right = p[1];
+    let up = p[2] * c - p[0] * s;
+    let toward_viewer = p[0] * c + p[2] * s;
+    let half_width = e.half_width.max(f32::MIN_POSITIVE);
+    let height = e.height.max(f32::MIN_POSITIVE);
+    // Depth 0 at the nearest point of the bounding sphere, 1 at the farthest.
+    let center = [
+        (meta.bbox_min[0] + meta.bbox_max[0]) * 0.5,
+        (meta.bbox_min[1] + meta.bbox_max[1]) * 0.5,
+        (meta.bbox_min[2] + meta.bbox_max[2]) * 0.5,
+    ];
+    let center_toward = center[0] * c + center[2] * s;
+    let radius = meta.sphere_radius.max(f32::MIN_POSITIVE);
+    let depth = (center_toward + radius - toward_viewer) / (2.0 * radius);
+    [
+        right / half_width,
+        (up - e.bottom) / height * 2.0 - 1.0,
+        depth,
+        1.0,
+    ]
+}
+
+/// Bakes layer `k` of `k_count` for one mesh at `r x r`: level 0 only.
+pub fn bake_layer(
+    mesh: &TreeMesh,
+    meta: &MeshMeta,
+    mesh_texture: &Texture,
+    k: u32,
+    k_count: u32,
+    r: u32,
+) -> Rgba8Image {
+    let elevation = bake_elevation(k, k_count);
+    let triangles: Vec<[Vertex<2>; 3]> = mesh
+        .indices
+        .chunks_exact(3)
+        .map(|t| {
+            core::array::from_fn(|i| {
+                let v = t[i] as usize;
+                Vertex::new(bake_clip(mesh.positions[v], meta, elevation), mesh.uvs[v])
+            })
+        })
+        .collect();
+    let shader = |f: &crate::raster::Fragment<2>| {
+        let texel = mesh_texture.bilinear(0, 0, f.varyings);
+        (texel[3] > 0.0).then_some(FragmentOutput {
+            color: texel,
+            id: 1,
+        })
+    };
+    let mut target = RenderTarget::new(r, r, ClearValues::default());
+    target.draw(&triangles, &shader, &DrawState::OPAQUE);
+    target.color_image()
+}
+
+/// Mip chains of every mesh texture, as sampled textures (the draw stage's LOD0 textures).
+pub fn mesh_textures(
+    scene: &Scene,
+    mode: MipMode,
+    alpha_ref: f32,
+) -> Result<Vec<Texture>, InputError> {
+    scene
+        .meshes
+        .iter()
+        .map(|m| {
+            let chain = crate::mips::build_mips(&m.texture, mode, alpha_ref).map_err(|e| {
+                InputError::new(
+                    scene.name.clone(),
+                    format!("mesh {:?}, texture", m.name),
+                    format!("{}x{}", m.texture.width, m.texture.height),
+                    e.to_string(),
+                )
+            })?;
+            Texture::new(chain.levels.into_iter().map(|l| l.rgba8).collect()).map_err(|e| {
+                InputError::new(
+                    scene.name.clone(),
+                    format!("mesh {:?}, texture", m.name),
+                    "mip chain",
+                    e.to_string(),
+                )
+            })
+        })
+        .collect()
+}
+
+/// E Alg. 3.1 for every mesh and angle, then the mips stage on every layer.
+pub fn bake(
+    scene: &Scene,
+    metas: &[MeshMeta],
+    mesh_textures: &[Texture],
+    params: &Params,
+) -> Result<BakedBillboards, InputError> {
+    let (k_count, r) = (params.angle_count, params.texture_size);
+    let jobs: Vec<(usize, u32)> = (0..scene.meshes.len())
+        .flat_map(|m| (0..k_count).map(move |k| (m, k)))
+        .collect();
+    let layers: Vec<Rgba8Image> = jobs
+        .par_iter()
+        .map(|&(m, k)| {
+            bake_layer(
+                &scene.meshes[m],
+                &metas[m],
+                &mesh_textures[m],
+                k,
+                k_count,
+                r,
+            )
+        })
+        .collect();
+    let extents = jobs
+        .iter()
+        .map(|&(m, k)| billboard_extent(&metas[m], bake_elevation(k, k_count)))
+        .collect();
+    let mode = params.mips().map_err(InputError::from)?;
+    let chains = build_mip_array(&layers, mode, params.alpha_cutoff).map_err(|e| {
+        InputError::new(
+            "<bake>",
+            "billboard layers",
+            format!("{r}x{r}"),
+            e.to_string(),
+        )
+    })?;
+    let texture = Texture::new_array(
+        chains
+            .iter()
+            .map(|c| c.levels.iter().map(|l| l.rgba8.clone()).collect())
+            .collect(),
+    )
+    .map_err(|e| {
+        InputError::new(
+            "<bake>",
+            "billboard array",
+            format!("{r}x{r}"),
+            e.to_string(),
+        )
+    })?;
+    Ok(BakedBillboards {
+        angle_count: k_count,
+        texture_size: r,
+        layers,
+        chains,
+        texture,
+        extents,
+    })
+}
+
+/// A contact sheet of level 0 of every layer: one row per mesh, one column per angle, over a
+/// checkerboard so transparency shows.
+pub fn contact_sheet(baked: &BakedBillboards, meshes: usize) -> Rgba8Image {
+    let (k, r) = (baked.angle_count, baked.texture_size);
+    let (w, h) = (k * r, meshes as u32 * r);
+    let mut sheet = Rgba8Image::new(w, h, [0, 0, 0, 255]);
+    for (layer, image) in baked.layers.iter().enumerate() {
+        let (row, col) = (layer as u32 / k, layer as u32 % k);
+        for y in 0..r {
+            for x in 0..r {
+                let check = if ((x / 8) + (y / 8)) % 2 == 0 {
+                    200.0
+                } else {
+                    150.0
+                };
+                let t = image.get(x, y);
+                let a = t[3] as f32 / 255.0;
+                let px: [u8; 4] = core::array::from_fn(|c| {
+                    if c == 3 {
+                        255
+                    } else {
+                        (t[c] as f32 * a + check * (1.0 - a)).round() as u8
+                    }
+                });
+                sheet.texels[((row * r + y) * w + col * r + x) as usize] = px;
+            }
+        }
+    }
+    sheet
+}

@@ -1,0 +1,422 @@
+//! Draw execution (E§4.4; SPEC §5.5): the reference twin of `gpu/src/shaders/draw.wgsl`, written
+//! shader-shaped: [`vertex_stage`] is the vertex shader, [`TreeShader`] the fragment shader, and
+//! [`draw_frame`] replays the one multi-draw-indirect call command by command.
+//!
+//! ## Contract
+//! - **Vertex pulling through the indirection** (E§4.4): for command `c` and instance `j`, the tree
+//!   is `indirection[first_instance + j]`; vertex `index + base_vertex` splits into the command
+//!   (`>> COMMAND_SHIFT`) and the mesh-local vertex. No per-command state changes: one draw call.
+//! - **Per-tree draw-distance discard** (E§4.4 "a fine-grained discard operation, based on whether
+//!   the tree is within the draw distance"): a tree whose bounding-sphere centre lies beyond the draw
+//!   distance (view depth) emits no triangles ([`crate::select::tree_within_draw_distance`]).
+//! - **LOD0** transforms the mesh: `p = base + Rz(yaw) · scale · local`.
+//! - **LOD1** expands the billboard quad in the vertex stage (wgpu has no geometry stage): yaw faces
+//!   the camera, tilt snaps to the elevation of the layer chosen by the angle index
+//!   ([`forestlod_shared::angle_index_for`] of `V · U` with `V` from the tree base to the eye),
+//!   extent from [`forestlod_shared::billboard_extent`], the frame of `shared::billboard`. When the
+//!   eye is straight above the base (no horizontal direction) the camera's horizontal back vector
+//!   stands in, and `+X` if that is degenerate too.
+//! - **Fade** (E§4.4; SPEC §6): every fragment carries its view depth `d = (p - eye) · forward`;
+//!   for billboards it is clamped per vertex to the tree's bounding-sphere interval, so a quad corner
+//!   poking out of the sphere never asks for a LOD its batch was not selected for. Weights come from
+//!   [`forestlod_shared::lod_weights`] with the per-pixel [`forestlod_shared::dither_threshold`]; a
+//!   weight of 0 discards, otherwise the fragment's alpha is the weight and blending is source-over
+//!   (so weight 1 is an opaque write).
+//! - **Alpha test**: a texel with alpha below `params.alpha_cutoff` is discarded; kept texels count
+//!   as opaque (the fade weight alone sets the output alpha).
+//! - **Textures**: LOD0 samples its mesh's texture, LOD1 the billboard array layer
+//!   `mesh * K + k`, both trilinear with the implicit level of detail of the quad's derivatives.
+//! - **Outputs**: colour (RGBA8 sRGB), depth, and the LOD-id view of E Fig. 3.1 in the aux target:
+//!   [`LOD_ID_TERRAIN`], [`LOD_ID_MESH`], [`LOD_ID_BILLBOARD`], [`LOD_ID_TRANSITION`] (a fragment
+//!   whose weight is below 1 inside the band).
+//! - A flat terrain-following ground grid is drawn first ([`terrain_triangles`]), opaque.
+
+use forestlod_shared::{
+    COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, Params, angle_index_for, bake_elevation,
+    billboard_extent, dither_threshold, lod_weights, view_interval,
+};
+use glam::{Mat4, Vec3, Vec4};
+
+use crate::bake::BakedBillboards;
+use crate::batches::Batches;
+use crate::geometry::PackedGeometry;
+use crate::raster::{
+    ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, RenderTarget, Triangle, Vertex,
+};
+use crate::sampler::{Sampler, Texture};
+use crate::scene::{Scene, tree_sphere};
+use crate::select::{SelectUniform, Selection, tree_within_draw_distance};
+use crate::texture::srgb_to_linear;
+
+/// LOD-id of background pixels.
+pub const LOD_ID_BACKGROUND: u32 = 0;
+/// LOD-id of full meshes (green in E Fig. 3.1).
+pub const LOD_ID_MESH: u32 = 1;
+/// LOD-id of billboards (blue).
+pub const LOD_ID_BILLBOARD: u32 = 2;
+/// LOD-id of fading fragments in the transition band (red).
+pub const LOD_ID_TRANSITION: u32 = 3;
+/// LOD-id of the ground.
+pub const LOD_ID_TERRAIN: u32 = 4;
+
+/// Sky colour (sRGB8), the clear colour of every frame.
+pub const SKY_SRGB: [u8; 3] = [168, 198, 226];
+
+/// Varyings of the tree pipeline: `u, v, view depth, texture layer, command index`.
+pub const TREE_VARYINGS: usize = 5;
+
+/// The tree's world transform pieces the vertex stage needs.
+#[derive(Clone, Copy, Debug)]
+struct TreeFrame {
+    base: Vec3,
+    yaw: f32,
+    scale: f32,
+    mesh: u32,
+    sphere_center: [f32; 3],
+    sphere_radius: f32,
+}
+
+/// Everything a frame's draw reads, as bound resources would be.
+pub struct DrawResources<'a> {
+    /// The scene (instances are the per-tree data).
+    pub scene: &'a Scene,
+    /// Packed vertex and index buffers.
+    pub geometry: &'a PackedGeometry,
+    /// Batches and the indirection array.
+    pub batches: &'a Batches,
+    /// Mesh textures with mips, in mesh order.
+    pub mesh_textures: &'a [Texture],
+    /// Billboard array texture.
+    pub billboards: &'a BakedBillboards,
+}
+
+/// The per-frame uniform of the draw stage (the `Camera` and `Params` bindings of `draw.wgsl`).
+pub struct DrawUniform<'a> {
+    /// Selection's uniform: eye, unit forward, draw distance.
+    pub select: SelectUniform,
+    /// The camera.
+    pub camera: &'a Camera,
+    /// `projection * view`.
+    pub view_proj: Mat4,
+    /// The parameters.
+    pub params: &'a Params,
+}
+
+impl<'a> DrawUniform<'a> {
+    /// The uniform of a validated camera and parameters.
+    pub fn new(camera: &'a Camera, params: &'a Params) -> Self {
+        Self {
+            select: SelectUniform::new(camera, params),
+            camera,
+            view_proj: camera.view_projection(),
+            params,
+        }
+    }
+}
+
+/// The vertex shader: clip position and varyings of vertex `vertex_index` (index value plus
+/// `base_vertex`) of instance `instance_index` (plus `first_instance`). `None` when the tree is
+/// discarded by the draw distance (the GPU twin emits a degenerate position instead).
+pub fn vertex_stage(
+    res: &DrawResources,
+    selection: &Selection,
+    uniform: &DrawUniform,
+    vertex_index: u32,
+    instance_index: u32,
+) -> Option<Vertex<TREE_VARYINGS>> {
+    let (u, camera, view_proj, params) = (
+        &uniform.select,
+        uniform.camera,
+        &uniform.view_proj,
+        uniform.params,
+    );
+    let command = vertex_index >> COMMAND_SHIFT;
+    let local = vertex_index & (MAX_MESH_VERTICES - 1);
+    let data = &selection.data[command as usize];
+    let tree_index = res.batches.indirection[instance_index as usize] as usize;
+    let t = &res.scene.instances[tree_index];
+    let mesh_meta = &res.geometry.meshes[t.mesh as usize];
+    let (sphere_center, sphere_radius) = tree_sphere(t, mesh_meta);
+    let tree = TreeFrame {
+        base: Vec3::from(t.position),
+        yaw: t.yaw,
+        scale: t.scale,
+        mesh: t.mesh,
+        sphere_center,
+        sphere_radius,
+    };
+    if !tree_within_draw_distance(u, tree.sphere_center) {
+        return None;
+    }
+    let eye = Vec3::from(camera.eye);
+    let forward = Vec3::from(u.forward);
+    let (world, uv, layer) = if data.billboard == 0 {
+        let v = res.geometry.vertices[(mesh_meta.first_vertex + local) as usize];
+        let p = Vec3::from(v.position) * tree.scale;
+        let (s, c) = tree.yaw.sin_cos();
+        let rotated = Vec3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
+        (tree.base + rotated, v.uv, tree.mesh as f32)
+    } else {
+        let corner =
+            res.geometry.vertices[(res.geometry.billboard.first_vertex + local) as usize].uv;
+        let to_eye = eye - tree.base;
+        let v_dot_u = to_eye.z / to_eye.length();
+        let k_count = params.angle_count;
+        let mode = params
+            .angle_mode()
+            .unwrap_or(forestlod_shared::AngleIndexMode::Nearest);
+        let k = angle_index_for(mode, v_dot_u, k_count);
+        let elevation = bake_elevation(k, k_count);
+        let mut h = Vec3::new(to_eye.x, to_eye.y, 0.0);
+        if h.length_squared() < 1e-12 {
+            h = Vec3::new(-forward.x, -forward.y, 0.0);
+        }
+        if h.length_squared() < 1e-12 {
+            h = Vec3::X;
+        }
+        let h = h.normalize();
+        let right = Vec3::Z.cross(h);
+        let (s, c) = elevation.sin_cos();
+        let up = Vec3::Z * c - h * s;
+        let e = billboard_extent(mesh_meta, elevation);
+        let along_right = (2.0 * corner[0] - 1.0) * e.half_width * tree.scale;
+        let along_up = (e.bottom + (1.0 - corner[1]) * e.height) * tree.scale;
+        (
+            tree.base + right * along_right + up * along_up,
+            corner,
+            (tree.mesh * k_count + k) as f32,
+        )
+    };
+    let mut depth = (world - eye).dot(forward);
+    if data.billboard != 0 {
+        let i = view_interval(
+            tree.sphere_center,
+            tree.sphere_radius,
+            camera.eye,
+            u.forward,
+        );
+        depth = depth.max(i.lo).min(i.hi);
+    }
+    let clip = *view_proj * Vec4::new(world.x, world.y, world.z, 1.0);
+    Some(Vertex::new(
+        clip.to_array(),
+        [uv[0], uv[1], depth, layer, command as f32],
+    ))
+}
+
+/// The fragment shader of the tree pipeline (module docs).
+pub struct TreeShader<'a> {
+    res: &'a DrawResources<'a>,
+    selection: &'a Selection,
+    fade: FadeMode,
+    alpha_cutoff: f32,
+}
+
+impl TreeShader<'_> {
+    fn shade(&self, f: &Fragment<TREE_VARYINGS>) -> Option<FragmentOutput> {
+        let [u, v, depth, layer, command] = f.varyings;
+        let data = &self.selection.data[command.round() as usize];
+        let layer = layer.round() as u32;
+        let uv = [u, v];
+        let (ddx, ddy) = ([f.ddx[0], f.ddx[1]], [f.ddy[0], f.ddy[1]]);
+        let texel = if data.billboard == 0 {
+            self.res.mesh_textures[layer as usize].sample(&Sampler::TRILINEAR, 0, uv, ddx, ddy)
+        } else {
+            self.res
+                .billboards
+                .texture
+                .sample(&Sampler::TRILINEAR, layer, uv, ddx, ddy)
+        };
+        if texel[3] < self.alpha_cutoff {
+            return None;
+        }
+        let weight = if data.fading != 0 {
+            lod_weights(
+                self.fade,
+                depth,
+                data.fade_start,
+                data.fade_end,
+                dither_threshold(f.x, f.y),
+            )
+            .of(data.lod)
+        } else {
+            1.0
+        };
+        if weight <= 0.0 {
+            return None;
+        }
+        let id = if weight < 1.0 {
+            LOD_ID_TRANSITION
+        } else if data.billboard == 0 {
+            LOD_ID_MESH
+        } else {
+            LOD_ID_BILLBOARD
+        };
+        Some(FragmentOutput {
+            color: [texel[0], texel[1], texel[2], weight],
+            id,
+        })
+    }
+}
+
+/// Ground colour (sRGB8) at a height, a muted green-brown ramp.
+fn ground_color(z: f32) -> [f32; 3] {
+    let t = ((z + 30.0) / 60.0).clamp(0.0, 1.0);
+    let lo = [96u8, 110, 70];
+    let hi = [140u8, 132, 96];
+    core::array::from_fn(|c| srgb_to_linear(lo[c]) * (1.0 - t) + srgb_to_linear(hi[c]) * t)
+}
+
+/// Cells per side of the ground grid.
+pub const TERRAIN_CELLS: u32 = 64;
+/// How far the ground extends beyond the scene's footprint, metres.
+pub const TERRAIN_MARGIN: f32 = 2000.0;
+
+/// The ground: a `TERRAIN_CELLS`² grid over the footprint plus [`TERRAIN_MARGIN`], following
+/// the terrain height, sunk 0.05 m so tree bases are not z-fighting it. Varyings: linear RGB.
+pub fn terrain_triangles(scene: &Scene, view_proj: &Mat4) -> Vec<Triangle<3>> {
+    let [x0, y0, x1, y1] = scene.bounds;
+    let (x0, y0, x1, y1) = (
+        x0 - TERRAIN_MARGIN,
+        y0 - TERRAIN_MARGIN,
+        x1 + TERRAIN_MARGIN,
+        y1 + TERRAIN_MARGIN,
+    );
+    let n = TERRAIN_CELLS;
+    let vertex = |i: u32, j: u32| {
+        let x = x0 + (x1 - x0) * i as f32 / n as f32;
+        let y = y0 + (y1 - y0) * j as f32 / n as f32;
+        let z = scene.terrain.height(x, y) - 0.05;
+        let clip = *view_proj * Vec4::new(x, y, z, 1.0);
+        Vertex::new(clip.to_array(), ground_color(z))
+    };
+    let mut out = Vec::with_capacity((n * n * 2) as usize);
+    for j in 0..n {
+        for i in 0..n {
+            let (a, b, c, d) = (
+                vertex(i, j),
+                vertex(i + 1, j),
+                vertex(i + 1, j + 1),
+                vertex(i, j + 1),
+            );
+            out.push([a, b, c]);
+            out.push([a, c, d]);
+        }
+    }
+    out
+}
+
+/// The result of drawing one frame.
+pub struct DrawnFrame {
+    /// Colour, depth and LOD-id buffers.
+    pub target: RenderTarget,
+    /// Ground draw counters.
+    pub terrain_stats: DrawStats,
+    /// Tree draw counters.
+    pub tree_stats: DrawStats,
+    /// Trees dropped by the per-tree draw-distance discard.
+    pub trees_discarded: u64,
+}
+
+/// Assembles the tree triangles of every command in command order (the input assembly and vertex
+/// stage of the multi-draw), skipping discarded trees.
+pub fn tree_triangles(
+    res: &DrawResources,
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+) -> (Vec<Triangle<TREE_VARYINGS>>, u64) {
+    use rayon::prelude::*;
+    let uniform = DrawUniform::new(camera, params);
+    // One work item per (command, instance), flattened in draw order; collected in order.
+    let items: Vec<(u32, u32)> = selection
+        .commands
+        .iter()
+        .enumerate()
+        .flat_map(|(c, cmd)| {
+            (0..cmd.instance_count).map(move |j| (c as u32, cmd.first_instance + j))
+        })
+        .collect();
+    let per_instance: Vec<Option<Vec<Triangle<TREE_VARYINGS>>>> = items
+        .par_iter()
+        .map(|&(c, instance)| {
+            let cmd = &selection.commands[c as usize];
+            let indices = &res.geometry.indices
+                [cmd.first_index as usize..(cmd.first_index + cmd.index_count) as usize];
+            let mut tris = Vec::with_capacity(indices.len() / 3);
+            for t in indices.chunks_exact(3) {
+                let mut tri = [Vertex::new([0.0; 4], [0.0; TREE_VARYINGS]); 3];
+                for (k, &index) in t.iter().enumerate() {
+                    let vertex_index = (index as i32 + cmd.base_vertex) as u32;
+                    tri[k] = vertex_stage(res, selection, &uniform, vertex_index, instance)?;
+                }
+                tris.push(tri);
+            }
+            Some(tris)
+        })
+        .collect();
+    let discarded = per_instance.iter().filter(|t| t.is_none()).count() as u64;
+    (
+        per_instance.into_iter().flatten().flatten().collect(),
+        discarded,
+    )
+}
+
+/// Draws one frame: sky, ground, then every command of `selection` (module docs).
+pub fn draw_frame(
+    res: &DrawResources,
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+) -> DrawnFrame {
+    let sky = SKY_SRGB.map(srgb_to_linear);
+    let mut target = RenderTarget::new(
+        camera.width,
+        camera.height,
+        ClearValues {
+            color: [sky[0], sky[1], sky[2], 1.0],
+            depth: 1.0,
+            aux: LOD_ID_BACKGROUND,
+        },
+    );
+    let view_proj = camera.view_projection();
+    let ground = terrain_triangles(res.scene, &view_proj);
+    let ground_shader = |f: &Fragment<3>| {
+        Some(FragmentOutput {
+            color: [f.varyings[0], f.varyings[1], f.varyings[2], 1.0],
+            id: LOD_ID_TERRAIN,
+        })
+    };
+    let terrain_stats = target.draw(&ground, &ground_shader, &DrawState::OPAQUE);
+
+    let (triangles, trees_discarded) = tree_triangles(res, selection, camera, params);
+    let shader = TreeShader {
+        res,
+        selection,
+        fade: params.fade().unwrap_or(FadeMode::Alpha),
+        alpha_cutoff: params.alpha_cutoff,
+    };
+    let state = DrawState {
+        depth_write: true,
+        ..DrawState::TRANSPARENT
+    };
+    let closure = |f: &Fragment<TREE_VARYINGS>| shader.shade(f);
+    let tree_stats = target.draw(&triangles, &closure, &state);
+    DrawnFrame {
+        target,
+        terrain_stats,
+        tree_stats,
+        trees_discarded,
+    }
+}
+
+/// Colour of each LOD-id in the debug view (E Fig. 3.1: green LOD0, blue LOD1, red transition).
+pub fn lod_id_color(id: u32) -> [u8; 4] {
+    match id {
+        LOD_ID_MESH => [40, 200, 60, 255],
+        LOD_ID_BILLBOARD => [50, 90, 230, 255],
+        LOD_ID_TRANSITION => [230, 40, 40, 255],
+        LOD_ID_TERRAIN => [90, 90, 90, 255],
+        _ => [20, 20, 20, 255],
+    }
+}

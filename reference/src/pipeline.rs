@@ -1,0 +1,148 @@
+//! The whole reference pipeline for one scene and one frame (E Fig. 3.2): the slow path
+//! (batches, mesh mips, billboard bake and mips) once per scene and parameters, then selection and
+//! draw per frame, with the wall time of every stage and the work counters of E§5.
+//!
+//! `prepare` is what the thesis reruns only when geometry or instances change; `render` is the
+//! per-frame path.
+
+use std::time::Instant;
+
+use forestlod_shared::{Camera, Params};
+use serde::Serialize;
+
+use crate::InputError;
+use crate::bake::{BakedBillboards, bake, mesh_textures};
+use crate::batches::{Batches, MemoryReport, build_batches, memory_report};
+use crate::draw::{DrawResources, DrawnFrame, draw_frame};
+use crate::geometry::{PackedGeometry, pack_geometry};
+use crate::sampler::Texture;
+use crate::scene::Scene;
+use crate::select::{Selection, select};
+
+/// Seconds spent in each slow-path stage.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct PrepareTimings {
+    /// Packing meshes into shared buffers.
+    pub pack: f64,
+    /// Grid batches (E§4.2).
+    pub batches: f64,
+    /// Mesh texture mips.
+    pub mesh_mips: f64,
+    /// Billboard bake and mips (E Alg. 3.1, 3.2).
+    pub bake: f64,
+}
+
+/// Everything the per-frame path reads, built once per scene and parameters.
+pub struct Prepared {
+    /// The scene.
+    pub scene: Scene,
+    /// Packed geometry.
+    pub geometry: PackedGeometry,
+    /// Batches and indirection.
+    pub batches: Batches,
+    /// Mesh textures with mips.
+    pub mesh_textures: Vec<Texture>,
+    /// The billboard array texture.
+    pub billboards: BakedBillboards,
+    /// Memory beside E Eq. 4.1.
+    pub memory: MemoryReport,
+    /// Slow-path timings.
+    pub timings: PrepareTimings,
+}
+
+/// Runs the slow path. `params` must be valid (it is validated again here).
+pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
+    params.validate()?;
+    let mut timings = PrepareTimings::default();
+    let t = Instant::now();
+    let geometry = pack_geometry(&scene);
+    timings.pack = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let batches = build_batches(&scene, &geometry.meshes, params.grid_size)?;
+    timings.batches = t.elapsed().as_secs_f64();
+    let mode = params.mips()?;
+    let t = Instant::now();
+    let textures = mesh_textures(&scene, mode, params.alpha_cutoff)?;
+    timings.mesh_mips = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let billboards = bake(&scene, &geometry.meshes, &textures, params)?;
+    timings.bake = t.elapsed().as_secs_f64();
+    let memory = memory_report(
+        scene.instances.len(),
+        batches.metas.len(),
+        scene.meshes.len(),
+        params,
+    );
+    Ok(Prepared {
+        scene,
+        geometry,
+        batches,
+        mesh_textures: textures,
+        billboards,
+        memory,
+        timings,
+    })
+}
+
+/// Seconds per frame stage.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct FrameTimings {
+    /// Selection and command generation (E§4.3).
+    pub select: f64,
+    /// Draw execution (E§4.4), ground included.
+    pub draw: f64,
+}
+
+/// One rendered frame.
+pub struct Frame {
+    /// What selection emitted.
+    pub selection: Selection,
+    /// The drawn buffers and counters.
+    pub drawn: DrawnFrame,
+    /// Stage timings.
+    pub timings: FrameTimings,
+}
+
+impl Prepared {
+    /// The resources the draw stage binds.
+    pub fn resources(&self) -> DrawResources<'_> {
+        DrawResources {
+            scene: &self.scene,
+            geometry: &self.geometry,
+            batches: &self.batches,
+            mesh_textures: &self.mesh_textures,
+            billboards: &self.billboards,
+        }
+    }
+
+    /// Selection for one frame.
+    pub fn select(&self, camera: &Camera, params: &Params) -> Selection {
+        select(
+            &self.batches.metas,
+            &self.geometry.meshes,
+            &self.geometry.billboard,
+            camera,
+            params,
+        )
+    }
+
+    /// The per-frame path: selection, then draw. The camera is validated first.
+    pub fn render(&self, camera: &Camera, params: &Params) -> Result<Frame, InputError> {
+        camera.validate()?;
+        params.validate()?;
+        let t = Instant::now();
+        let selection = self.select(camera, params);
+        let select_seconds = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let drawn = draw_frame(&self.resources(), &selection, camera, params);
+        let draw_seconds = t.elapsed().as_secs_f64();
+        Ok(Frame {
+            selection,
+            drawn,
+            timings: FrameTimings {
+                select: select_seconds,
+                draw: draw_seconds,
+            },
+        })
+    }
+}

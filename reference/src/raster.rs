@@ -1,0 +1,1053 @@
+//! The reference software rasterizer: triangles in wgpu clip space to an sRGB RGBA8 colour target,
+//! an `f32` depth target and a `u32` auxiliary target, following the Vulkan rules that the GPU (and
+//! Mesa's lavapipe in CI) follows, so that the wgpu twin can be compared pixel by pixel (SPEC §3, §8).
+//!
+//! ## Contract
+//!
+//! [`RenderTarget::draw`] takes a triangle list ([`Triangle`]: three [`Vertex`]es, each a clip-space
+//! position plus `N` `f32` varyings), a [`FragmentShader`] and a [`DrawState`], and runs, for every
+//! triangle in submission order:
+//!
+//! 1. **Clipping** (Vulkan §"Primitive Clipping"). The clip volume is `0 <= z <= w` (wgpu's depth
+//!    range) and `-w <= x, y <= w`. Against the near (`z >= 0`) and far (`z <= w`) planes we clip
+//!    exactly, in homogeneous space. Against x and y we clip only at a **guard band**
+//!    [`GUARD_BAND_PX`] pixels outside the viewport: coverage never depends on x/y clipping (the
+//!    spec lets implementations rasterize outside the viewport and discard), and the guard band is
+//!    what keeps snapped coordinates small enough for exact `i64` edge functions (see below).
+//!    The Sutherland–Hodgman clipper always interpolates from the vertex inside a plane towards the
+//!    one outside, so an edge shared by two triangles is cut at bit-identical points in both and the
+//!    mesh stays watertight. The clipped convex polygon is split into a fan `(v0, vi, vi+1)`; each
+//!    piece keeps the primitive id of its triangle.
+//! 2. **Viewport transform** (Vulkan §"Controlling the Viewport"), in `f32` as the GPU does, with
+//!    wgpu's flipped viewport (negative height), so framebuffer y points down:
+//!    `x_f = (x_ndc + 1)/2 · width`, `y_f = (1 - y_ndc)/2 · height`, `z_f = z_ndc`.
+//! 3. **Snapping** to [`SUBPIXEL_BITS`] = 8 fractional bits (Vulkan `subPixelPrecisionBits`; lavapipe
+//!    reports 8): `X = round_half_even(x_f · 256)` as `i64`, the IEEE default rounding that
+//!    lavapipe's `lrintf` uses.
+//! 4. **Setup** (Vulkan §"Basic Polygon Rasterization"): the signed area in framebuffer coordinates
+//!    decides facing: with [`FrontFace::Ccw`] a triangle is front-facing when it is counter-clockwise
+//!    in NDC with y up, which is Vulkan's `a > 0` after wgpu's viewport flip. Zero-area triangles
+//!    (after snapping) cover nothing. Both windings are rasterized unless [`CullMode`] says otherwise.
+//! 5. **Coverage**: one sample per pixel at its centre `(x + 0.5, y + 0.5)`, tested against three
+//!    exact `i64` edge functions. Vulkan requires that a sample on an edge shared by two triangles is
+//!    covered by exactly one of them and leaves the choice to the implementation; like lavapipe (and
+//!    Direct3D) we use the **top-left rule** in framebuffer coordinates (y down): a sample exactly on
+//!    an edge is covered only if that edge is a *top* edge (horizontal, interior below it) or a *left*
+//!    edge (interior to its right).
+//! 6. **Interpolation**: depth `z_f` is interpolated linearly in screen space (Vulkan §"Basic Polygon
+//!    Rasterization", `z = a·z_a + b·z_b + c·z_c`, used by §"Depth Test") and clamped to `[0, 1]`;
+//!    varyings are **perspective-correct** (the same section's `f = (a·f_a/w_a + b·f_b/w_b +
+//!    c·f_c/w_c) / (a/w_a + b/w_b + c/w_c)`), with barycentrics `a, b, c` computed in `f64` from the
+//!    exact edge functions and results rounded once to `f32`.
+//! 7. **Quads and derivatives** (Vulkan §"Derivative Operations", §"Helper Invocations"): pixels are
+//!    processed in 2x2 quads aligned to even coordinates. Varyings are evaluated at all four pixel
+//!    centres, covered or not (the uncovered ones stand for helper invocations), and every fragment
+//!    of the quad receives the **coarse** derivatives anchored at the quad's top-left pixel:
+//!    `ddx = f(x0 + 1, y0) - f(x0, y0)`, `ddy = f(x0, y0 + 1) - f(x0, y0)` (`ddy` points down, towards
+//!    the next framebuffer row). This is what `dFdxCoarse`/`dFdyCoarse` may return and what lavapipe
+//!    uses for implicit texture LOD (one LOD per quad). Helper invocations are not shaded: the only
+//!    derivatives on offer are those of the varyings, which is what texture sampling needs.
+//! 8. **Fragment stage and output merge** (Vulkan §"Depth Test", §"Blending", §"Primitive Order"):
+//!    for each covered sample in submission order: the depth test **LESS** (`z < stored`; skipped,
+//!    i.e. wgpu's `CompareFunction::Always`, when [`DrawState::depth_test`] is false); then the
+//!    [`FragmentShader`], which may discard (alpha test); then, for a kept fragment, the depth write
+//!    (if [`DrawState::depth_write`]), the colour write through [`Blend`] and the `u32` id write.
+//!    The depth test runs *before* the shader: the shader cannot change depth, so a fragment that
+//!    fails the test can have no effect whatever the shader does, and testing first gives the same
+//!    buffers as testing after (Vulkan's early fragment tests). Depth is written only after the
+//!    shader keeps the fragment.
+//! 9. **Colour target** is RGBA8 sRGB, like wgpu's `Rgba8UnormSrgb`: the shader's linear,
+//!    straight-alpha colour is clamped to `[0, 1]` (NaN to 0, as conversion to UNORM does), blended in
+//!    `f32` with the destination decoded to linear, and re-encoded to sRGB8 with round-to-nearest
+//!    after **every** fragment. This per-fragment quantization is what the GPU does, and what makes
+//!    the two agree within ±1 per channel (SPEC §8).
+//!
+//! ## Invariants
+//!
+//! - **Watertight, no double hits**: triangles sharing an edge (same snapped endpoints) cover every
+//!   sample on it exactly once; a fan tiling a convex region covers each sample in it exactly once.
+//! - **Primitive order** (Vulkan §"Primitive Order"): per pixel, fragments are merged in submission
+//!   order. Parallelism is over screen tiles of [`TILE_SIZE`]² pixels (rayon): every tile processes
+//!   every triangle overlapping it, in submission order, into its own pixels only. Setup is parallel
+//!   over triangles but collected in order. Hence the buffers are **bit-identical for any thread
+//!   count**, and so are the [`DrawStats`].
+//! - **Exact coverage**: all coverage arithmetic is integer. Snapped coordinates are bounded by the
+//!   guard band: `|X|, |Y| <= M = 2 · (GUARD_BAND_PX + MAX_TARGET_SIZE) · 256 < 2^30` (the factor 2
+//!   absorbs `f32` rounding at the guard band), so an edge function, a difference of two products
+//!   of coordinate differences, is at most `8 M² < 2^62` and cannot overflow `i64`. A polygon whose
+//!   snapped coordinates exceed `M` anyway (only possible when a vertex has `w` so close to zero that
+//!   the division overflows) is dropped. So is any triangle with a non-finite clip coordinate
+//!   (Vulkan leaves those undefined).
+
+use std::ops::{Add, AddAssign};
+
+use rayon::prelude::*;
+
+use crate::texture::{Rgba8Image, linear_to_srgb, srgb_to_linear, unorm8};
+
+/// Fractional bits of snapped framebuffer coordinates (Vulkan `subPixelPrecisionBits`; lavapipe
+/// reports 8).
+pub const SUBPIXEL_BITS: u32 = 8;
+/// One pixel in snapped (fixed-point) units.
+const SUBPIXEL_ONE: i64 = 1 << SUBPIXEL_BITS;
+/// Half a pixel in snapped units: the offset of a pixel centre.
+const SUBPIXEL_HALF: i64 = SUBPIXEL_ONE / 2;
+
+/// Largest width or height of a [`RenderTarget`] (the limit `Camera::validate` enforces too).
+pub const MAX_TARGET_SIZE: u32 = 16384;
+
+/// How far, in pixels, the x/y clip planes lie outside the viewport on every side (module docs).
+pub const GUARD_BAND_PX: u32 = 1 << 20;
+
+/// Side of the square screen tiles that are rendered in parallel. Even, so that 2x2 quads never
+/// straddle two tiles.
+pub const TILE_SIZE: u32 = 64;
+
+/// Bound on the magnitude of snapped coordinates (module docs, "Exact coverage").
+const MAX_ABS_FIXED: i64 = 2 * (GUARD_BAND_PX as i64 + MAX_TARGET_SIZE as i64) * SUBPIXEL_ONE;
+const _: () = assert!(
+    8 * (MAX_ABS_FIXED as i128) * (MAX_ABS_FIXED as i128) < i64::MAX as i128,
+    "edge functions of guard-band coordinates must fit in i64"
+);
+const _: () = assert!(TILE_SIZE.is_multiple_of(2));
+
+/// A vertex as the vertex stage outputs it: a clip-space position (wgpu conventions: after the
+/// divide by `w`, x and y in `-1..1` with y up, depth in `0..1`) and `N` varyings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Vertex<const N: usize> {
+    /// Clip-space position `[x, y, z, w]`.
+    pub clip: [f32; 4],
+    /// Values interpolated (perspective-correct) across the triangle.
+    pub varyings: [f32; N],
+}
+
+impl<const N: usize> Vertex<N> {
+    /// A vertex from its clip-space position and varyings.
+    pub fn new(clip: [f32; 4], varyings: [f32; N]) -> Self {
+        Self { clip, varyings }
+    }
+}
+
+/// Three vertices; a draw is a list of them (a "triangle list" topology).
+pub type Triangle<const N: usize> = [Vertex<N>; 3];
+
+/// Output-merge colour blending (per draw).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Blend {
+    /// Overwrite the destination (`BlendState::REPLACE`).
+    #[default]
+    Replace,
+    /// Straight-alpha "source over": `rgb = src.rgb·src.a + dst.rgb·(1 - src.a)`,
+    /// `a = src.a + dst.a·(1 - src.a)`, in linear light (wgpu `SrcAlpha, OneMinusSrcAlpha` for
+    /// colour and `One, OneMinusSrcAlpha` for alpha).
+    AlphaBlend,
+}
+
+/// Which faces are dropped before rasterization.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CullMode {
+    /// Rasterize both windings.
+    #[default]
+    None,
+    /// Drop front-facing triangles.
+    Front,
+    /// Drop back-facing triangles.
+    Back,
+}
+
+/// Which winding is front-facing, judged in NDC with y up (wgpu's `FrontFace`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FrontFace {
+    /// Counter-clockwise triangles face the viewer (wgpu's default).
+    #[default]
+    Ccw,
+    /// Clockwise triangles face the viewer.
+    Cw,
+}
+
+/// Fixed-function state of one draw.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DrawState {
+    /// Depth test LESS when true; when false every fragment passes (wgpu `CompareFunction::Always`).
+    pub depth_test: bool,
+    /// Write the depth of kept fragments (even when `depth_test` is false, as wgpu does).
+    pub depth_write: bool,
+    /// How colour is merged.
+    pub blend: Blend,
+    /// Face culling.
+    pub cull: CullMode,
+    /// Which winding is front-facing.
+    pub front_face: FrontFace,
+}
+
+impl DrawState {
+    /// Opaque geometry: depth test and write, no blending, no culling.
+    pub const OPAQUE: Self = Self {
+        depth_test: true,
+        depth_write: true,
+        blend: Blend::Replace,
+        cull: CullMode::None,
+        front_face: FrontFace::Ccw,
+    };
+    /// Transparent geometry: depth test without write, alpha blending, no culling.
+    pub const TRANSPARENT: Self = Self {
+        depth_test: true,
+        depth_write: false,
+        blend: Blend::AlphaBlend,
+        cull: CullMode::None,
+        front_face: FrontFace::Ccw,
+    };
+}
+
+impl Default for DrawState {
+    /// [`DrawState::OPAQUE`].
+    fn default() -> Self {
+        Self::OPAQUE
+    }
+}
+
+/// What the fragment stage sees for one covered pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fragment<const N: usize> {
+    /// Pixel column (framebuffer, from the left).
+    pub x: u32,
+    /// Pixel row (framebuffer, from the top).
+    pub y: u32,
+    /// Interpolated depth `z_f` in `[0, 1]`: the value that is tested and written.
+    pub depth: f32,
+    /// Perspective-correct varyings at the pixel centre.
+    pub varyings: [f32; N],
+    /// Coarse derivative of each varying along +x (module docs, step 7).
+    pub ddx: [f32; N],
+    /// Coarse derivative of each varying along +y, i.e. down one framebuffer row.
+    pub ddy: [f32; N],
+    /// Whether the triangle faces the viewer ([`FrontFace`]).
+    pub front_facing: bool,
+    /// Index of the triangle in the draw's slice (Vulkan `PrimitiveId`; clipped pieces keep it).
+    pub primitive_id: u32,
+}
+
+/// What the fragment stage returns for a kept fragment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FragmentOutput {
+    /// Linear-light RGBA, straight alpha; clamped to `[0, 1]` at the output merge.
+    pub color: [f32; 4],
+    /// Value written to the auxiliary `u32` target (e.g. the LOD id of the debug view).
+    pub id: u32,
+}
+
+/// The fragment stage: `None` discards the fragment (alpha test), leaving every target untouched.
+///
+/// Implemented for every `Fn(&Fragment<N>) -> Option<FragmentOutput> + Sync` closure. Tiles run in
+/// parallel, hence `Sync`; a shader is called in submission order per pixel but in no particular
+/// order across pixels, so it must not depend on call order.
+pub trait FragmentShader<const N: usize>: Sync {
+    /// Shades one covered fragment.
+    fn shade(&self, fragment: &Fragment<N>) -> Option<FragmentOutput>;
+}
+
+impl<const N: usize, F> FragmentShader<N> for F
+where
+    F: Fn(&Fragment<N>) -> Option<FragmentOutput> + Sync,
+{
+    fn shade(&self, fragment: &Fragment<N>) -> Option<FragmentOutput> {
+        self(fragment)
+    }
+}
+
+/// Work counters of one or more draws (add them up with `+=`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DrawStats {
+    /// Triangles submitted.
+    pub triangles_in: u64,
+    /// Triangles leaving the clipper: 1 for a triangle wholly inside, 0 for one wholly outside, the
+    /// fan size of a clipped polygon otherwise.
+    pub triangles_clipped: u64,
+    /// Triangles set up for rasterization: those of `triangles_clipped` with non-zero snapped area
+    /// that are not culled.
+    pub triangles_rasterized: u64,
+    /// Covered samples (before the depth test): the rasterizer's output.
+    pub fragments_covered: u64,
+    /// Fragment shader invocations: covered samples that passed the depth test, which runs first
+    /// (module docs, step 8). Helper pixels are not counted (they are never shaded).
+    pub fragments_shaded: u64,
+    /// Fragments kept by the shader and merged into the targets. `fragments_written / pixels` is
+    /// the overdraw.
+    pub fragments_written: u64,
+}
+
+impl AddAssign for DrawStats {
+    fn add_assign(&mut self, o: Self) {
+        self.triangles_in += o.triangles_in;
+        self.triangles_clipped += o.triangles_clipped;
+        self.triangles_rasterized += o.triangles_rasterized;
+        self.fragments_covered += o.fragments_covered;
+        self.fragments_shaded += o.fragments_shaded;
+        self.fragments_written += o.fragments_written;
+    }
+}
+
+impl Add for DrawStats {
+    type Output = Self;
+    fn add(mut self, o: Self) -> Self {
+        self += o;
+        self
+    }
+}
+
+/// Values a [`RenderTarget`] is cleared to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClearValues {
+    /// Linear-light RGBA, straight alpha (encoded to sRGB8 like a clear of an `Rgba8UnormSrgb`
+    /// attachment).
+    pub color: [f32; 4],
+    /// Depth (1.0: the far plane, so LESS accepts anything drawn).
+    pub depth: f32,
+    /// Auxiliary id.
+    pub aux: u32,
+}
+
+impl Default for ClearValues {
+    /// Transparent black, depth 1.0, id 0.
+    fn default() -> Self {
+        Self {
+            color: [0.0; 4],
+            depth: 1.0,
+            aux: 0,
+        }
+    }
+}
+
+/// A colour (RGBA8 sRGB), depth (`f32`) and auxiliary (`u32`) target of one size, drawn into by any
+/// number of [`RenderTarget::draw`] calls. All buffers are row-major from the top-left pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderTarget {
+    width: u32,
+    height: u32,
+    color: Vec<[u8; 4]>,
+    depth: Vec<f32>,
+    aux: Vec<u32>,
+}
+
+impl RenderTarget {
+    /// A `width` x `height` target cleared to `clear`.
+    ///
+    /// # Panics
+    /// If a side is 0 or larger than [`MAX_TARGET_SIZE`] (the guard band bound depends on it).
+    pub fn new(width: u32, height: u32, clear: ClearValues) -> Self {
+        assert!(
+            (1..=MAX_TARGET_SIZE).contains(&width) && (1..=MAX_TARGET_SIZE).contains(&height),
+            "render target {width}x{height}: expected 1..={MAX_TARGET_SIZE} pixels per side"
+        );
+        let n = width as usize * height as usize;
+        let mut target = Self {
+            width,
+            height,
+            color: vec![[0; 4]; n],
+            depth: vec![0.0; n],
+            aux: vec![0; n],
+        };
+        target.clear(clear);
+        target
+    }
+
+    /// Resets every pixel of every buffer.
+    pub fn clear(&mut self, clear: ClearValues) {
+        let c = encode(clamp_color(clear.color));
+        self.color.fill(c);
+        self.depth.fill(clear.depth);
+        self.aux.fill(clear.aux);
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The colour buffer: sRGB-encoded RGB, linear alpha.
+    pub fn color(&self) -> &[[u8; 4]] {
+        &self.color
+    }
+
+    /// The depth buffer.
+    pub fn depth(&self) -> &[f32] {
+        &self.depth
+    }
+
+    /// The auxiliary id buffer.
+    pub fn aux(&self) -> &[u32] {
+        &self.aux
+    }
+
+    /// The colour buffer as an image (ready for PNG encoding).
+    pub fn color_image(&self) -> Rgba8Image {
+        Rgba8Image {
+            width: self.width,
+            height: self.height,
+            texels: self.color.clone(),
+        }
+    }
+
+    /// Draws a triangle list (module docs for every step) and returns its work counters.
+    ///
+    /// # Panics
+    /// If there are more than `u32::MAX` triangles (primitive ids are `u32`, as in Vulkan).
+    pub fn draw<const N: usize, S>(
+        &mut self,
+        triangles: &[Triangle<N>],
+        shader: &S,
+        state: &DrawState,
+    ) -> DrawStats
+    where
+        S: FragmentShader<N> + ?Sized,
+    {
+        assert!(
+            u32::try_from(triangles.len()).is_ok(),
+            "a draw holds at most u32::MAX triangles"
+        );
+        let viewport = Viewport::new(self.width, self.height);
+        let mut stats = DrawStats {
+            triangles_in: triangles.len() as u64,
+            ..DrawStats::default()
+        };
+
+        // Clip, project, snap and set up, in parallel but collected in submission order.
+        let per_primitive: Vec<(u64, Vec<SetupTriangle<N>>)> = triangles
+            .par_iter()
+            .enumerate()
+            .map(|(id, tri)| setup_primitive(id as u32, tri, &viewport, state))
+            .collect();
+        let mut setup = Vec::with_capacity(triangles.len());
+        for (clipped, pieces) in per_primitive {
+            stats.triangles_clipped += clipped;
+            setup.extend(pieces);
+        }
+        stats.triangles_rasterized = setup.len() as u64;
+
+        // Bin by bounding box; each bin lists setup indices in increasing, i.e. submission, order.
+        let tiles = self.tiles();
+        let tiles_x = self.width.div_ceil(TILE_SIZE) as usize;
+        let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles.len()];
+        for (i, tri) in setup.iter().enumerate() {
+            let Some(b) = tri.bbox else { continue };
+            for ty in (b.y0 / TILE_SIZE)..=((b.y1 - 1) / TILE_SIZE) {
+                for tx in (b.x0 / TILE_SIZE)..=((b.x1 - 1) / TILE_SIZE) {
+                    bins[ty as usize * tiles_x + tx as usize].push(i as u32);
+                }
+            }
+        }
+
+        // Render tiles in parallel, each into a private copy of its pixels.
+        let rendered: Vec<Option<(TileBuffers, FragmentCounts)>> = tiles
+            .par_iter()
+            .zip(bins.par_iter())
+            .map(|(rect, bin)| {
+                if bin.is_empty() {
+                    return None;
+                }
+                let mut buffers = self.load_tile(*rect);
+                let counts = render_tile(&mut buffers, bin, &setup, shader, state);
+                Some((buffers, counts))
+            })
+            .collect();
+
+        // Write back in tile order (tiles are disjoint, so the order only fixes the sum's order).
+        for (buffers, counts) in rendered.into_iter().flatten() {
+            stats.fragments_covered += counts.covered;
+            stats.fragments_shaded += counts.shaded;
+            stats.fragments_written += counts.written;
+            self.store_tile(&buffers);
+        }
+        stats
+    }
+
+    /// Screen tiles, row by row.
+    fn tiles(&self) -> Vec<PixelRect> {
+        let mut tiles = Vec::new();
+        for y0 in (0..self.height).step_by(TILE_SIZE as usize) {
+            for x0 in (0..self.width).step_by(TILE_SIZE as usize) {
+                tiles.push(PixelRect {
+                    x0,
+                    y0,
+                    x1: (x0 + TILE_SIZE).min(self.width),
+                    y1: (y0 + TILE_SIZE).min(self.height),
+                });
+            }
+        }
+        tiles
+    }
+
+    fn load_tile(&self, rect: PixelRect) -> TileBuffers {
+        let n = rect.width() as usize * rect.height() as usize;
+        let mut b = TileBuffers {
+            rect,
+            color: Vec::with_capacity(n),
+            depth: Vec::with_capacity(n),
+            aux: Vec::with_capacity(n),
+        };
+        for y in rect.y0..rect.y1 {
+            let row = self.index(rect.x0, y)..self.index(rect.x1, y);
+            b.color.extend_from_slice(&self.color[row.clone()]);
+            b.depth.extend_from_slice(&self.depth[row.clone()]);
+            b.aux.extend_from_slice(&self.aux[row]);
+        }
+        b
+    }
+
+    fn store_tile(&mut self, b: &TileBuffers) {
+        let w = b.rect.width() as usize;
+        for (j, y) in (b.rect.y0..b.rect.y1).enumerate() {
+            let row = self.index(b.rect.x0, y)..self.index(b.rect.x1, y);
+            let local = j * w..(j + 1) * w;
+            self.color[row.clone()].copy_from_slice(&b.color[local.clone()]);
+            self.depth[row.clone()].copy_from_slice(&b.depth[local.clone()]);
+            self.aux[row].copy_from_slice(&b.aux[local]);
+        }
+    }
+
+    fn index(&self, x: u32, y: u32) -> usize {
+        y as usize * self.width as usize + x as usize
+    }
+}
+
+/// A half-open pixel rectangle `[x0, x1) x [y0, y1)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PixelRect {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+impl PixelRect {
+    fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+    fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+    fn contains(&self, x: u32, y: u32) -> bool {
+        (self.x0..self.x1).contains(&x) && (self.y0..self.y1).contains(&y)
+    }
+    fn intersect(&self, o: &PixelRect) -> Option<PixelRect> {
+        let r = PixelRect {
+            x0: self.x0.max(o.x0),
+            y0: self.y0.max(o.y0),
+            x1: self.x1.min(o.x1),
+            y1: self.y1.min(o.y1),
+        };
+        (r.x0 < r.x1 && r.y0 < r.y1).then_some(r)
+    }
+}
+
+/// Viewport constants: the transform (module docs, step 2) and the guard-band clip planes.
+struct Viewport {
+    width: u32,
+    height: u32,
+    half_w: f32,
+    half_h: f32,
+    /// The x clip planes are `-guard_x·w <= x <= guard_x·w`: `GUARD_BAND_PX` outside the viewport.
+    guard_x: f32,
+    /// Likewise for y.
+    guard_y: f32,
+}
+
+impl Viewport {
+    fn new(width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            half_w: width as f32 * 0.5,
+            half_h: height as f32 * 0.5,
+            guard_x: 1.0 + 2.0 * GUARD_BAND_PX as f32 / width as f32,
+            guard_y: 1.0 + 2.0 * GUARD_BAND_PX as f32 / height as f32,
+        }
+    }
+
+    /// Signed distance-like value of `p` to clip plane `plane`: inside when `>= 0`.
+    /// Planes: near `z >= 0`, far `z <= w`, then the guard band's left, right, bottom, top.
+    fn plane_distance(&self, plane: usize, p: &[f32; 4]) -> f32 {
+        let [x, y, z, w] = *p;
+        match plane {
+            0 => z,
+            1 => w - z,
+            2 => self.guard_x * w + x,
+            3 => self.guard_x * w - x,
+            4 => self.guard_y * w + y,
+            5 => self.guard_y * w - y,
+            _ => unreachable!("six clip planes"),
+        }
+    }
+
+    /// Bit mask of the planes `p` is outside of (NaN counts as outside).
+    fn outcode(&self, p: &[f32; 4]) -> u32 {
+        (0..CLIP_PLANES)
+            .filter(|&i| {
+                let d = self.plane_distance(i, p);
+                d < 0.0 || d.is_nan()
+            })
+            .fold(0, |m, i| m | 1 << i)
+    }
+}
+
+const CLIP_PLANES: usize = 6;
+
+/// Clips one triangle to the near, far and guard-band planes (module docs, step 1). Returns the
+/// clipped convex polygon, empty when nothing is left.
+fn clip_triangle<const N: usize>(tri: &Triangle<N>, viewport: &Viewport) -> Vec<Vertex<N>> {
+    let codes = tri.map(|v| viewport.outcode(&v.clip));
+    if codes[0] & codes[1] & codes[2] != 0 {
+        return Vec::new(); // wholly outside one plane
+    }
+    let mut poly = tri.to_vec();
+    let crossed = codes[0] | codes[1] | codes[2];
+    for plane in (0..CLIP_PLANES).filter(|&p| crossed & (1 << p) != 0) {
+        let mut out = Vec::with_capacity(poly.len() + 1);
+        for (i, cur) in poly.iter().enumerate() {
+            let next = &poly[(i + 1) % poly.len()];
+            let dc = viewport.plane_distance(plane, &cur.clip);
+            let dn = viewport.plane_distance(plane, &next.clip);
+            let (cur_in, next_in) = (dc >= 0.0, dn >= 0.0);
+            if cur_in {
+                out.push(*cur);
+            }
+            if cur_in != next_in {
+                // Always from the inside vertex towards the outside one, so both triangles sharing
+                // this edge compute the same point. An inside vertex on the plane is itself the
+                // intersection and is emitted on its own.
+                let (inside, outside, di, d_out) = if cur_in {
+                    (cur, next, dc, dn)
+                } else {
+                    (next, cur, dn, dc)
+                };
+                if di > 0.0 {
+                    out.push(lerp_vertex(inside, outside, di / (di - d_out)));
+                }
+            }
+        }
+        poly = out;
+        if poly.len() < 3 {
+            return Vec::new();
+        }
+    }
+    poly
+}
+
+fn lerp_vertex<const N: usize>(a: &Vertex<N>, b: &Vertex<N>, t: f32) -> Vertex<N> {
+    let lerp = |x: f32, y: f32| x + t * (y - x);
+    Vertex {
+        clip: std::array::from_fn(|i| lerp(a.clip[i], b.clip[i])),
+        varyings: std::array::from_fn(|i| lerp(a.varyings[i], b.varyings[i])),
+    }
+}
+
+/// A vertex after the viewport transform and snapping.
+#[derive(Clone, Copy)]
+struct ScreenVertex<const N: usize> {
+    /// Snapped framebuffer position, in 1/256 pixel.
+    pos: [i64; 2],
+    /// `z_f = z / w`.
+    z: f32,
+    /// `1 / w`.
+    inv_w: f64,
+    varyings: [f32; N],
+}
+
+fn project<const N: usize>(v: &Vertex<N>, viewport: &Viewport) -> Option<ScreenVertex<N>> {
+    let [x, y, z, w] = v.clip;
+    // Viewport transform in f32 (module docs, step 2), then snapping (step 3).
+    let xf = (x / w) * viewport.half_w + viewport.half_w;
+    let yf = viewport.half_h - (y / w) * viewport.half_h;
+    let snap = |c: f32| {
+        let s = (c * SUBPIXEL_ONE as f32).round_ties_even();
+        (s.is_finite() && s.abs() <= MAX_ABS_FIXED as f32).then_some(s as i64)
+    };
+    Some(ScreenVertex {
+        pos: [snap(xf)?, snap(yf)?],
+        z: z / w,
+        inv_w: 1.0 / w as f64,
+        varyings: v.varyings,
+    })
+}
+
+/// A triangle ready for coverage: snapped, oriented with positive area, with its edge rules.
+#[derive(Clone, Copy)]
+struct SetupTriangle<const N: usize> {
+    primitive_id: u32,
+    front_facing: bool,
+    /// Vertices, ordered so that `area > 0` (clockwise on screen, where y points down).
+    v: [ScreenVertex<N>; 3],
+    /// Twice the signed area in snapped units², `> 0`.
+    area: i64,
+    /// Per edge (edge `i` is opposite vertex `i`): 0 for a top or left edge, -1 otherwise; a sample
+    /// is covered when `E_i + bias_i >= 0` for all `i`.
+    bias: [i64; 3],
+    /// Pixels whose centres lie in the vertices' bounding box, within the target; `None` if none.
+    bbox: Option<PixelRect>,
+}
+
+/// Twice the signed area of `(a, b, p)`: the edge function of edge `a -> b` at `p`.
+fn edge_function(a: [i64; 2], b: [i64; 2], p: [i64; 2]) -> i64 {
+    (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
+}
+
+/// Whether the edge `a -> b` of a triangle with positive area (y down) is a top or left edge.
+///
+/// With positive area the interior lies where the edge function is positive. A horizontal edge
+/// (`dy == 0`) has the interior below it exactly when `dx > 0`: a top edge. A non-horizontal edge
+/// has the interior to its right exactly when `dy < 0`: a left edge.
+fn is_top_left(a: [i64; 2], b: [i64; 2]) -> bool {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    dy < 0 || (dy == 0 && dx > 0)
+}
+
+/// Clips, projects and sets up one submitted triangle. Returns how many triangles left the clipper
+/// and those that survived setup.
+fn setup_primitive<const N: usize>(
+    id: u32,
+    tri: &Triangle<N>,
+    viewport: &Viewport,
+    state: &DrawState,
+) -> (u64, Vec<SetupTriangle<N>>) {
+    if tri.iter().any(|v| v.clip.iter().any(|c| !c.is_finite())) {
+        return (0, Vec::new());
+    }
+    let poly = clip_triangle(tri, viewport);
+    if poly.is_empty() {
+        return (0, Vec::new());
+    }
+    let fan = poly.len() as u64 - 2;
+    let Some(screen) = poly
+        .iter()
+        .map(|v| project(v, viewport))
+        .collect::<Option<Vec<_>>>()
+    else {
+        return (fan, Vec::new());
+    };
+    let pieces = (1..screen.len() - 1)
+        .filter_map(|i| setup_triangle(id, [screen[0], screen[i], screen[i + 1]], viewport, state))
+        .collect();
+    (fan, pieces)
+}
+
+fn setup_triangle<const N: usize>(
+    primitive_id: u32,
+    mut v: [ScreenVertex<N>; 3],
+    viewport: &Viewport,
+    state: &DrawState,
+) -> Option<SetupTriangle<N>> {
+    let mut area = edge_function(v[0].pos, v[1].pos, v[2].pos);
+    if area == 0 {
+        return None; // degenerate: covers nothing
+    }
+    // Vulkan's `a = -area / 2` (its formula's minus sign turns y-down into y-up): `a > 0` is
+    // counter-clockwise as seen in NDC with y up.
+    let ccw = area < 0;
+    let front_facing = match state.front_face {
+        FrontFace::Ccw => ccw,
+        FrontFace::Cw => !ccw,
+    };
+    let culled = match state.cull {
+        CullMode::None => false,
+        CullMode::Front => front_facing,
+        CullMode::Back => !front_facing,
+    };
+    if culled {
+        return None;
+    }
+    if area < 0 {
+        v.swap(1, 2);
+        area = -area;
+    }
+    let p = v.map(|s| s.pos);
+    // Edge i runs between the two vertices other than i, in winding order.
+    let bias = std::array::from_fn(|i| {
+        let (a, b) = (p[(i + 1) % 3], p[(i + 2) % 3]);
+        if is_top_left(a, b) { 0 } else { -1 }
+    });
+
+    // Pixels whose centre X = 256·x + 128 lies within [min, max] of the vertices.
+    let min = |k: usize| p.iter().map(|q| q[k]).min().unwrap_or(0);
+    let max = |k: usize| p.iter().map(|q| q[k]).max().unwrap_or(0);
+    let first = |lo: i64| -((SUBPIXEL_HALF - lo).div_euclid(SUBPIXEL_ONE)); // ceil((lo - 128) / 256)
+    let last = |hi: i64| (hi - SUBPIXEL_HALF).div_euclid(SUBPIXEL_ONE); // floor((hi - 128) / 256)
+    let x0 = first(min(0)).max(0);
+    let y0 = first(min(1)).max(0);
+    let x1 = (last(max(0)) + 1).min(viewport.width as i64);
+    let y1 = (last(max(1)) + 1).min(viewport.height as i64);
+    let bbox = (x0 < x1 && y0 < y1).then_some(PixelRect {
+        x0: x0 as u32,
+        y0: y0 as u32,
+        x1: x1 as u32,
+        y1: y1 as u32,
+    });
+
+    Some(SetupTriangle {
+        primitive_id,
+        front_facing,
+        v,
+        area,
+        bias,
+        bbox,
+    })
+}
+
+impl<const N: usize> SetupTriangle<N> {
+    /// Edge functions at the centre of pixel `(x, y)`; `E_i` belongs to the edge opposite vertex
+    /// `i`, so `E_i / area` is vertex `i`'s screen-space barycentric weight.
+    fn edges(&self, x: u32, y: u32) -> [i64; 3] {
+        let s = [
+            x as i64 * SUBPIXEL_ONE + SUBPIXEL_HALF,
+            y as i64 * SUBPIXEL_ONE + SUBPIXEL_HALF,
+        ];
+        let p = self.v.map(|v| v.pos);
+        std::array::from_fn(|i| edge_function(p[(i + 1) % 3], p[(i + 2) % 3], s))
+    }
+
+    /// The top-left coverage test (module docs, step 5).
+    fn covers(&self, e: &[i64; 3]) -> bool {
+        (0..3).all(|i| e[i] + self.bias[i] >= 0)
+    }
+
+    /// Screen-space barycentric weights of a sample with edge functions `e`.
+    fn barycentrics(&self, e: &[i64; 3]) -> [f64; 3] {
+        e.map(|ei| ei as f64 / self.area as f64)
+    }
+
+    /// Depth at a sample with edge functions `e`: linear in screen space, clamped to `[0, 1]`.
+    fn depth(&self, e: &[i64; 3]) -> f32 {
+        let b = self.barycentrics(e);
+        let z: f64 = (0..3).map(|i| b[i] * self.v[i].z as f64).sum();
+        (z as f32).clamp(0.0, 1.0)
+    }
+
+    /// Perspective-correct varyings at a sample with edge functions `e` (inside the triangle or,
+    /// for helper pixels, outside it).
+    fn varyings(&self, e: &[i64; 3]) -> [f32; N] {
+        let b = self.barycentrics(e);
+        let q: [f64; 3] = std::array::from_fn(|i| b[i] * self.v[i].inv_w);
+        let denom = q[0] + q[1] + q[2];
+        std::array::from_fn(|j| {
+            let num: f64 = (0..3).map(|i| q[i] * self.v[i].varyings[j] as f64).sum();
+            (num / denom) as f32
+        })
+    }
+}
+
+/// A tile's private copy of its pixels.
+struct TileBuffers {
+    rect: PixelRect,
+    color: Vec<[u8; 4]>,
+    depth: Vec<f32>,
+    aux: Vec<u32>,
+}
+
+#[derive(Default)]
+struct FragmentCounts {
+    covered: u64,
+    shaded: u64,
+    written: u64,
+}
+
+/// Pixel offsets within a quad: top-left, top-right, bottom-left, bottom-right.
+const QUAD: [(u32, u32); 4] = [(0, 0), (1, 0), (0, 1), (1, 1)];
+
+/// Rasterizes the triangles of `bin` (indices into `setup`, in submission order) into one tile.
+fn render_tile<const N: usize, S>(
+    buffers: &mut TileBuffers,
+    bin: &[u32],
+    setup: &[SetupTriangle<N>],
+    shader: &S,
+    state: &DrawState,
+) -> FragmentCounts
+where
+    S: FragmentShader<N> + ?Sized,
+{
+    let tile = buffers.rect;
+    let mut counts = FragmentCounts::default();
+    for tri in bin.iter().map(|&i| &setup[i as usize]) {
+        let Some(r) = tri.bbox.and_then(|b| b.intersect(&tile)) else {
+            continue;
+        };
+        // Quads are aligned to even coordinates; tiles start at even coordinates too.
+        for qy in ((r.y0 & !1)..r.y1).step_by(2) {
+            for qx in ((r.x0 & !1)..r.x1).step_by(2) {
+                let edges = QUAD.map(|(dx, dy)| tri.edges(qx + dx, qy + dy));
+                let covered: [bool; 4] = std::array::from_fn(|k| {
+                    let (x, y) = (qx + QUAD[k].0, qy + QUAD[k].1);
+                    r.contains(x, y) && tri.covers(&edges[k])
+                });
+                if !covered.iter().any(|&c| c) {
+                    continue;
+                }
+                // The early depth test of the covered pixels (module docs, step 8).
+                let at = QUAD.map(|(dx, dy)| {
+                    ((qy + dy - tile.y0) * tile.width() + (qx + dx - tile.x0)) as usize
+                });
+                let mut depth = [0.0f32; 4];
+                let mut passed = [false; 4];
+                for k in (0..4).filter(|&k| covered[k]) {
+                    counts.covered += 1;
+                    depth[k] = tri.depth(&edges[k]);
+                    // `at[k]` may lie outside the tile only for uncovered pixels.
+                    passed[k] = !state.depth_test || depth[k] < buffers.depth[at[k]];
+                }
+                if !passed.iter().any(|&p| p) {
+                    continue;
+                }
+                // All four pixels are interpolated, covered or not (helpers), for the derivatives.
+                let values = edges.map(|e| tri.varyings(&e));
+                let ddx = std::array::from_fn(|j| values[1][j] - values[0][j]);
+                let ddy = std::array::from_fn(|j| values[2][j] - values[0][j]);
+                for k in (0..4).filter(|&k| passed[k]) {
+                    counts.shaded += 1;
+                    let fragment = Fragment {
+                        x: qx + QUAD[k].0,
+                        y: qy + QUAD[k].1,
+                        depth: depth[k],
+                        varyings: values[k],
+                        ddx,
+                        ddy,
+                        front_facing: tri.front_facing,
+                        primitive_id: tri.primitive_id,
+                    };
+                    let Some(out) = shader.shade(&fragment) else {
+                        continue; // discarded
+                    };
+                    counts.written += 1;
+                    let at = at[k];
+                    if state.depth_write {
+                        buffers.depth[at] = depth[k];
+                    }
+                    buffers.color[at] = merge(buffers.color[at], out.color, state.blend);
+                    buffers.aux[at] = out.id;
+                }
+            }
+        }
+    }
+    counts
+}
+
+/// Clamps to `[0, 1]`, NaN to 0 (Vulkan: fixed-point attachments clamp source values before
+/// blending).
+fn clamp_color(c: [f32; 4]) -> [f32; 4] {
+    c.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) })
+}
+
+/// sRGB8 colour, UNORM8 alpha, rounded to nearest.
+fn encode(c: [f32; 4]) -> [u8; 4] {
+    [
+        linear_to_srgb(c[0]),
+        linear_to_srgb(c[1]),
+        linear_to_srgb(c[2]),
+        unorm8(c[3]),
+    ]
+}
+
+fn decode(c: [u8; 4]) -> [f32; 4] {
+    [
+        srgb_to_linear(c[0]),
+        srgb_to_linear(c[1]),
+        srgb_to_linear(c[2]),
+        c[3] as f32 / 255.0,
+    ]
+}
+
+/// The output merge of one fragment into an sRGB8 pixel (module docs, step 9).
+fn merge(dst: [u8; 4], src: [f32; 4], blend: Blend) -> [u8; 4] {
+    let s = clamp_color(src);
+    match blend {
+        Blend::Replace => encode(s),
+        Blend::AlphaBlend => {
+            let d = decode(dst);
+            let a = s[3];
+            let rgb = |i: usize| s[i] * a + d[i] * (1.0 - a);
+            encode([rgb(0), rgb(1), rgb(2), a + d[3] * (1.0 - a)])
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn vertex(x: f32, y: f32) -> Vertex<0> {
+        Vertex::new([x, y, 0.5, 1.0], [])
+    }
+
+    #[test]
+    fn top_left_classification_of_a_clockwise_triangle() {
+        // (0,0) -> (4,0) -> (0,4) in y-down pixels has positive area: top edge, hypotenuse
+        // (bottom-right, not top-left), left edge.
+        let p = [[0, 0], [4, 0], [0, 4]];
+        assert!(edge_function(p[0], p[1], p[2]) > 0);
+        assert!(is_top_left(p[0], p[1]));
+        assert!(!is_top_left(p[1], p[2]));
+        assert!(is_top_left(p[2], p[0]));
+        // A bottom edge is not top-left.
+        assert!(!is_top_left([4, 4], [0, 4]));
+    }
+
+    #[test]
+    fn the_clipper_keeps_inside_triangles_untouched_and_drops_outside_ones() {
+        let vp = Viewport::new(16, 16);
+        let inside = [vertex(-0.5, -0.5), vertex(0.5, -0.5), vertex(0.0, 0.5)];
+        assert_eq!(clip_triangle(&inside, &vp), inside.to_vec());
+        let behind = inside.map(|v| Vertex::new([v.clip[0], v.clip[1], -0.1, 1.0], []));
+        assert!(clip_triangle(&behind, &vp).is_empty());
+        let beyond = inside.map(|v| Vertex::new([v.clip[0], v.clip[1], 1.5, 1.0], []));
+        assert!(clip_triangle(&beyond, &vp).is_empty());
+    }
+
+    #[test]
+    fn the_clipper_cuts_at_the_near_plane_and_keeps_the_polygon_convex() {
+        let vp = Viewport::new(16, 16);
+        let tri = [
+            Vertex::new([0.0, 0.0, -1.0, 1.0], [0.0]),
+            Vertex::new([0.5, 0.0, 1.0, 2.0], [1.0]),
+            Vertex::new([0.0, 0.5, 1.0, 2.0], [1.0]),
+        ];
+        let poly = clip_triangle(&tri, &vp);
+        assert_eq!(poly.len(), 4);
+        for v in &poly {
+            assert!(v.clip[2] >= 0.0 && v.clip[2] <= v.clip[3], "{v:?}");
+        }
+        // The cut points are halfway along the edges from the clipped vertex (z: -1 -> 1).
+        assert!(poly.iter().any(|v| v.varyings == [0.5]));
+    }
+
+    #[test]
+    fn a_shared_edge_is_cut_at_the_same_point_from_both_sides() {
+        let vp = Viewport::new(16, 16);
+        let a = Vertex::new([0.3, -0.7, -0.37, 1.3], [0.1]);
+        let b = Vertex::new([-0.2, 0.9, 0.81, 1.1], [0.7]);
+        let c = Vertex::new([0.9, 0.4, 0.5, 1.0], [0.3]);
+        let d = Vertex::new([-0.9, -0.4, 0.5, 1.0], [0.9]);
+        let p1 = clip_triangle(&[a, b, c], &vp);
+        let p2 = clip_triangle(&[b, a, d], &vp);
+        let new1: Vec<_> = p1.iter().filter(|v| ![a, b, c].contains(v)).collect();
+        let new2: Vec<_> = p2.iter().filter(|v| ![a, b, d].contains(v)).collect();
+        let common: Vec<_> = new1.iter().filter(|v| new2.contains(v)).collect();
+        assert_eq!(common.len(), 1, "{p1:?}\n{p2:?}");
+        assert!(common[0].clip[2].abs() < 1e-6);
+    }
+
+    #[test]
+    fn blending_is_source_over_in_linear_light_with_srgb_storage() {
+        let dst = encode([1.0, 0.0, 0.0, 1.0]);
+        let out = merge(dst, [0.0, 0.0, 1.0, 0.5], Blend::AlphaBlend);
+        assert_eq!(out, [linear_to_srgb(0.5), 0, linear_to_srgb(0.5), 255]);
+        assert_eq!(
+            merge(dst, [2.0, f32::NAN, -1.0, 1.0], Blend::Replace),
+            [255, 0, 0, 255]
+        );
+        // Alpha: a + d.a (1 - a).
+        let out = merge(encode([0.0; 4]), [1.0, 1.0, 1.0, 0.5], Blend::AlphaBlend);
+        assert_eq!(out[3], unorm8(0.5));
+    }
+}

@@ -1,0 +1,612 @@
+//! Texture sampling as a GPU does it: sRGB RGBA8 textures with a mip chain and array layers,
+//! clamp-to-edge addressing, nearest / bilinear / trilinear filtering and the implicit level of
+//! detail from screen-space derivatives (SPEC §3, §8).
+//!
+//! ## Contract
+//!
+//! - **Texels** are sRGB-encoded RGBA8 with straight alpha ([`Rgba8Image`]). A fetched texel is
+//!   decoded to linear light *before* any filtering (Vulkan §"Texel Input Operations", "sRGB to
+//!   linear conversion" precedes §"Texel Filtering"), exactly as an `Rgba8UnormSrgb` view is
+//!   sampled: colour through the sRGB curve, alpha as `a / 255`. Results are linear `[f32; 4]`,
+//!   straight alpha (filtering does not premultiply).
+//! - **Coordinates** `uv` are normalized: `(0, 0)` is the top-left corner of the texture, `(1, 1)` the
+//!   bottom-right; texel `i` of a level of width `w` covers `u·w ∈ [i, i + 1)`, its centre at
+//!   `i + 0.5` (Vulkan §"Texel Coordinate Systems"). The same `uv` addresses every mip level.
+//! - **Addressing** is clamp-to-edge (Vulkan §"Wrapping Operation", `CLAMP_TO_EDGE`): each integer
+//!   texel index is clamped to `[0, size - 1]` after filtering picks it. Array layers are clamped to
+//!   `[0, layers - 1]` as Vulkan clamps the layer coordinate.
+//! - **Nearest** (Vulkan §"Texel Filtering", `NEAREST`): texel `i = floor(u·w)`.
+//! - **Bilinear** (`LINEAR`): `i0 = floor(u·w - 0.5)`, `i1 = i0 + 1`, `α = frac(u·w - 0.5)`,
+//!   likewise `j0, j1, β` in v, and `τ = (1-α)(1-β)·τ00 + α(1-β)·τ10 + (1-α)β·τ01 + αβ·τ11`. At a
+//!   texel centre `α = β = 0` and the texel comes back bit for bit.
+//! - **Level of detail** (Vulkan §"Scale Factor Operation", §"Level-of-Detail Operation", §"Image
+//!   Level(s) Selection"), from the derivatives of `uv` along framebuffer x and y:
+//!   - scale to texels of level 0: `∂u/∂x·w0`, `∂v/∂x·h0`, `∂u/∂y·w0`, `∂v/∂y·h0`;
+//!   - `ρx = |(∂u/∂x·w0, ∂v/∂x·h0)|`, `ρy = |(∂u/∂y·w0, ∂v/∂y·h0)|` (Euclidean lengths);
+//!   - isotropic filtering: `ρ = max(ρx, ρy)` ("max of lengths"), `η = 1`, `λ_base = log2(ρ)`.
+//!     Vulkan allows implementations to approximate `ρx`, `ρy` (for instance by the largest
+//!     absolute component, lavapipe's opt-in `GALLIVM_PERF=rho_approx`); we use the exact lengths,
+//!     which is lavapipe's default;
+//!   - no bias, `minLod = 0`, `maxLod` large (wgpu's sampler defaults): `λ = λ_base`;
+//!     **magnification** when `λ <= 0` (the mag filter is used, on level 0), minification otherwise;
+//!   - `d' = clamp(λ, 0, q)` with `q = levels - 1` ([`SamplerLod::lambda`]). Mipmap mode nearest:
+//!     level `ceil(d' + 0.5) - 1` (Vulkan's preferred rounding, halves go down). Mipmap mode linear
+//!     (trilinear): levels `floor(d')` and `min(floor(d') + 1, q)`, blended by `δ = frac(d')`.
+//!   - `ρ = 0` gives `λ = -∞` (magnified, level 0); an infinite or NaN `ρ` (derivatives that blew
+//!     up, e.g. at helper pixels beyond a grazing plane's horizon) is treated as `+∞`: the coarsest
+//!     level. Vulkan leaves NaN undefined; this choice is documented, not matched.
+//!
+//! ## Precision against the GPU
+//!
+//! Filter weights here are exact `f32` fractions. lavapipe quantizes them to 8 bits of subtexel
+//! precision (`subTexelPrecisionBits` = 8) and blends in reduced precision, so a filtered result
+//! may differ from this one by up to ±1 per channel after encoding to 8 bits; parity allows
+//! exactly that (SPEC §8). Trilinear is true trilinear on both sides (lavapipe's "brilinear"
+//! shortcut is opt-in, `GALLIVM_PERF=brilinear`). The implicit LOD uses one derivative pair per 2x2 quad on both sides
+//! (the rasterizer's coarse derivatives; lavapipe's default per-quad LOD), so `λ` itself agrees up
+//! to the GPU's `log2` approximation.
+
+use crate::texture::{Rgba8Image, srgb_to_linear};
+
+/// A texture whose shape cannot be sampled: every variant names the layer/level and sizes.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum TextureShapeError {
+    /// No layers at all.
+    #[error("texture has no array layers")]
+    NoLayers,
+    /// A layer without levels.
+    #[error("texture layer {layer} has no mip levels")]
+    NoLevels {
+        /// The layer.
+        layer: usize,
+    },
+    /// Level 0 of zero size.
+    #[error("texture layer {layer} level 0 is {width}x{height}: expected at least 1x1")]
+    Empty {
+        /// The layer.
+        layer: usize,
+        /// Its width.
+        width: u32,
+        /// Its height.
+        height: u32,
+    },
+    /// Layers disagree on the level count, or a chain is longer than halving allows.
+    #[error("texture layer {layer} has {found} mip levels: expected {expected}")]
+    LevelCount {
+        /// The layer.
+        layer: usize,
+        /// Levels found.
+        found: usize,
+        /// Levels expected (layer 0's count, at most the full chain's).
+        expected: usize,
+    },
+    /// A level whose size is not `max(1, size0 >> level)`, or whose texel count is not its area.
+    #[error(
+        "texture layer {layer} level {level} is {width}x{height} with {texels} texels: expected {expected_width}x{expected_height}"
+    )]
+    LevelSize {
+        /// The layer.
+        layer: usize,
+        /// The level.
+        level: usize,
+        /// Its width.
+        width: u32,
+        /// Its height.
+        height: u32,
+        /// Its texel count.
+        texels: usize,
+        /// The width it must have.
+        expected_width: u32,
+        /// The height it must have.
+        expected_height: u32,
+    },
+}
+
+/// A sampled texture: array layers, each a mip chain of sRGB RGBA8 levels of halving size.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Texture {
+    /// `layers[layer][level]`.
+    layers: Vec<Vec<Rgba8Image>>,
+}
+
+/// How texels are filtered within one level (wgpu's `FilterMode`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FilterMode {
+    /// The texel containing the sample point.
+    #[default]
+    Nearest,
+    /// Bilinear between the four nearest texel centres (or linear between two levels, as the
+    /// mipmap filter).
+    Linear,
+}
+
+/// Filter state of a sampler (wgpu's `SamplerDescriptor` filters; addressing is always
+/// clamp-to-edge, LOD clamps are wgpu's defaults).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sampler {
+    /// Filter within a level when magnified (`λ <= 0`).
+    pub mag_filter: FilterMode,
+    /// Filter within a level when minified (`λ > 0`).
+    pub min_filter: FilterMode,
+    /// Filter between mip levels.
+    pub mipmap_filter: FilterMode,
+}
+
+impl Sampler {
+    /// Nearest texel of the nearest level.
+    pub const NEAREST: Self = Self {
+        mag_filter: FilterMode::Nearest,
+        min_filter: FilterMode::Nearest,
+        mipmap_filter: FilterMode::Nearest,
+    };
+    /// Bilinear within the nearest level.
+    pub const BILINEAR: Self = Self {
+        mag_filter: FilterMode::Linear,
+        min_filter: FilterMode::Linear,
+        mipmap_filter: FilterMode::Nearest,
+    };
+    /// Bilinear within two levels, blended linearly.
+    pub const TRILINEAR: Self = Self {
+        mag_filter: FilterMode::Linear,
+        min_filter: FilterMode::Linear,
+        mipmap_filter: FilterMode::Linear,
+    };
+}
+
+/// The level-of-detail computation for one set of derivatives (module docs), exposed for tests
+/// and debug views.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SamplerLod {
+    /// Length of the x derivative in level-0 texels per pixel.
+    pub rho_x: f32,
+    /// Length of the y derivative in level-0 texels per pixel.
+    pub rho_y: f32,
+    /// `max(ρx, ρy)`; NaN if either is NaN.
+    pub rho: f32,
+    /// `log2(ρ)`, unclamped (may be `±∞` or NaN).
+    pub lambda_base: f32,
+    /// `λ_base` clamped to `[0, levels - 1]`, NaN read as `+∞`: the (fractional) level sampled.
+    pub lambda: f32,
+    /// Whether the mag filter applies (`λ_base <= 0`).
+    pub magnified: bool,
+}
+
+impl Texture {
+    /// A single-layer texture from its mip chain (level 0 first).
+    pub fn new(levels: Vec<Rgba8Image>) -> Result<Self, TextureShapeError> {
+        Self::new_array(vec![levels])
+    }
+
+    /// An array texture: `layers[layer][level]`. Every layer has the same level count and sizes;
+    /// level `k` is `max(1, w0 >> k)` x `max(1, h0 >> k)`; a chain may stop before 1x1.
+    pub fn new_array(layers: Vec<Vec<Rgba8Image>>) -> Result<Self, TextureShapeError> {
+        let first = layers.first().ok_or(TextureShapeError::NoLayers)?;
+        let base = first
+            .first()
+            .ok_or(TextureShapeError::NoLevels { layer: 0 })?;
+        let (w0, h0) = (base.width, base.height);
+        let full_chain = (32 - w0.max(h0).leading_zeros()) as usize;
+        let expected = first.len().min(full_chain.max(1));
+        for (layer, levels) in layers.iter().enumerate() {
+            let Some(l0) = levels.first() else {
+                return Err(TextureShapeError::NoLevels { layer });
+            };
+            if l0.width == 0 || l0.height == 0 {
+                return Err(TextureShapeError::Empty {
+                    layer,
+                    width: l0.width,
+                    height: l0.height,
+                });
+            }
+            if levels.len() != expected {
+                return Err(TextureShapeError::LevelCount {
+                    layer,
+                    found: levels.len(),
+                    expected,
+                });
+            }
+            for (level, img) in levels.iter().enumerate() {
+                let (ew, eh) = ((w0 >> level).max(1), (h0 >> level).max(1));
+                if img.width != ew
+                    || img.height != eh
+                    || img.texels.len() != ew as usize * eh as usize
+                {
+                    return Err(TextureShapeError::LevelSize {
+                        layer,
+                        level,
+                        width: img.width,
+                        height: img.height,
+                        texels: img.texels.len(),
+                        expected_width: ew,
+                        expected_height: eh,
+                    });
+                }
+            }
+        }
+        Ok(Self { layers })
+    }
+
+    /// Width of level 0.
+    pub fn width(&self) -> u32 {
+        self.layers[0][0].width
+    }
+
+    /// Height of level 0.
+    pub fn height(&self) -> u32 {
+        self.layers[0][0].height
+    }
+
+    /// Number of mip levels (`q + 1`).
+    pub fn level_count(&self) -> usize {
+        self.layers[0].len()
+    }
+
+    /// Number of array layers.
+    pub fn layer_count(&self) -> usize {
+        self.layers.len()
+    }
+
+    /// One level of one layer, both clamped to what exists.
+    pub fn level(&self, layer: u32, level: usize) -> &Rgba8Image {
+        let levels = &self.layers[(layer as usize).min(self.layers.len() - 1)];
+        &levels[level.min(levels.len() - 1)]
+    }
+
+    /// Texel `(x, y)` of a level, clamp-to-edge, decoded to linear light.
+    pub fn texel(&self, layer: u32, level: usize, x: i64, y: i64) -> [f32; 4] {
+        let img = self.level(layer, level);
+        let x = x.clamp(0, img.width as i64 - 1) as u32;
+        let y = y.clamp(0, img.height as i64 - 1) as u32;
+        let t = img.get(x, y);
+        [
+            srgb_to_linear(t[0]),
+            srgb_to_linear(t[1]),
+            srgb_to_linear(t[2]),
+            t[3] as f32 / 255.0,
+        ]
+    }
+
+    /// Nearest-texel sample of one level: texel `floor(uv · size)`, clamped.
+    pub fn nearest(&self, layer: u32, level: usize, uv: [f32; 2]) -> [f32; 4] {
+        let img = self.level(layer, level);
+        let u = uv[0] * img.width as f32;
+        let v = uv[1] * img.height as f32;
+        self.texel(layer, level, floor_index(u), floor_index(v))
+    }
+
+    /// Bilinear sample of one level (module docs): exact `f32` weights, filtered in linear light.
+    pub fn bilinear(&self, layer: u32, level: usize, uv: [f32; 2]) -> [f32; 4] {
+        let img = self.level(layer, level);
+        let u = uv[0] * img.width as f32 - 0.5;
+        let v = uv[1] * img.height as f32 - 0.5;
+        let (fu, fv) = (u.floor(), v.floor());
+        let (alpha, beta) = (u - fu, v - fv);
+        let (i0, j0) = (floor_index(u), floor_index(v));
+        let t00 = self.texel(layer, level, i0, j0);
+        let t10 = self.texel(layer, level, i0 + 1, j0);
+        let t01 = self.texel(layer, level, i0, j0 + 1);
+        let t11 = self.texel(layer, level, i0 + 1, j0 + 1);
+        std::array::from_fn(|c| {
+            (1.0 - alpha) * (1.0 - beta) * t00[c]
+                + alpha * (1.0 - beta) * t10[c]
+                + (1.0 - alpha) * beta * t01[c]
+                + alpha * beta * t11[c]
+        })
+    }
+
+    /// Trilinear sample at fractional level `lambda` (clamped to `[0, levels - 1]`): bilinear in
+    /// levels `floor(λ)` and `floor(λ) + 1`, blended by `frac(λ)`.
+    pub fn trilinear(&self, layer: u32, uv: [f32; 2], lambda: f32) -> [f32; 4] {
+        self.sample_level(&Sampler::TRILINEAR, layer, uv, lambda.max(0.0))
+    }
+
+    /// The level of detail for `uv` derivatives along framebuffer x (`ddx`) and y (`ddy`).
+    pub fn lod(&self, ddx: [f32; 2], ddy: [f32; 2]) -> SamplerLod {
+        let (w0, h0) = (self.width() as f32, self.height() as f32);
+        let length = |d: [f32; 2]| {
+            let (du, dv) = (d[0] * w0, d[1] * h0);
+            (du * du + dv * dv).sqrt()
+        };
+        let (rho_x, rho_y) = (length(ddx), length(ddy));
+        let rho = if rho_x.is_nan() || rho_y.is_nan() {
+            f32::NAN
+        } else {
+            rho_x.max(rho_y)
+        };
+        let lambda_base = rho.log2();
+        SamplerLod {
+            rho_x,
+            rho_y,
+            rho,
+            lambda_base,
+            lambda: self.clamp_lambda(lambda_base),
+            magnified: lambda_base <= 0.0,
+        }
+    }
+
+    /// Samples with the implicit level of detail of `uv`'s derivatives, like WGSL `textureSample`.
+    pub fn sample(
+        &self,
+        sampler: &Sampler,
+        layer: u32,
+        uv: [f32; 2],
+        ddx: [f32; 2],
+        ddy: [f32; 2],
+    ) -> [f32; 4] {
+        self.sample_level(sampler, layer, uv, self.lod(ddx, ddy).lambda_base)
+    }
+
+    /// Samples at an explicit `λ` (before clamping to the chain), like WGSL `textureSampleLevel`.
+    pub fn sample_level(
+        &self,
+        sampler: &Sampler,
+        layer: u32,
+        uv: [f32; 2],
+        lambda: f32,
+    ) -> [f32; 4] {
+        let magnified = lambda <= 0.0;
+        let filter = if magnified {
+            sampler.mag_filter
+        } else {
+            sampler.min_filter
+        };
+        let d = self.clamp_lambda(lambda);
+        let q = self.level_count() - 1;
+        match sampler.mipmap_filter {
+            FilterMode::Nearest => {
+                let level = if magnified {
+                    0
+                } else {
+                    ((d + 0.5).ceil() - 1.0) as usize
+                };
+                self.filter(filter, layer, level.min(q), uv)
+            }
+            FilterMode::Linear => {
+                let hi = d.floor();
+                let delta = d - hi;
+                let hi = hi as usize;
+                let t_hi = self.filter(filter, layer, hi, uv);
+                if delta == 0.0 {
+                    return t_hi;
+                }
+                let t_lo = self.filter(filter, layer, (hi + 1).min(q), uv);
+                std::array::from_fn(|c| (1.0 - delta) * t_hi[c] + delta * t_lo[c])
+            }
+        }
+    }
+
+    fn filter(&self, mode: FilterMode, layer: u32, level: usize, uv: [f32; 2]) -> [f32; 4] {
+        match mode {
+            FilterMode::Nearest => self.nearest(layer, level, uv),
+            FilterMode::Linear => self.bilinear(layer, level, uv),
+        }
+    }
+
+    /// `clamp(λ, 0, q)`, NaN read as `+∞`.
+    fn clamp_lambda(&self, lambda: f32) -> f32 {
+        let q = (self.level_count() - 1) as f32;
+        if lambda.is_nan() {
+            q
+        } else {
+            lambda.clamp(0.0, q)
+        }
+    }
+}
+
+/// `floor(c)` as a texel index; non-finite or huge coordinates saturate (and then clamp to the
+/// edge).
+fn floor_index(c: f32) -> i64 {
+    c.floor() as i64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::texture::linear_to_srgb;
+
+    /// A `w` x `h` level whose texel `(x, y)` has red `8x`, green `8y`, blue `30·level`, alpha
+    /// `255 - x` (all mod 256).
+    fn gradient(w: u32, h: u32, level: u8) -> Rgba8Image {
+        let mut img = Rgba8Image::new(w, h, [0; 4]);
+        for y in 0..h {
+            for x in 0..w {
+                img.texels[(y * w + x) as usize] = [
+                    (x * 8 % 256) as u8,
+                    (y * 8 % 256) as u8,
+                    level.wrapping_mul(30),
+                    255 - (x % 256) as u8,
+                ];
+            }
+        }
+        img
+    }
+
+    fn chain(w: u32, h: u32) -> Vec<Rgba8Image> {
+        let mut levels = Vec::new();
+        let (mut w, mut h, mut k) = (w, h, 0u8);
+        loop {
+            levels.push(gradient(w, h, k));
+            if w == 1 && h == 1 {
+                return levels;
+            }
+            (w, h, k) = ((w / 2).max(1), (h / 2).max(1), k + 1);
+        }
+    }
+
+    fn linear(t: [u8; 4]) -> [f32; 4] {
+        [
+            srgb_to_linear(t[0]),
+            srgb_to_linear(t[1]),
+            srgb_to_linear(t[2]),
+            t[3] as f32 / 255.0,
+        ]
+    }
+
+    fn close(a: [f32; 4], b: [f32; 4]) -> bool {
+        a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-6)
+    }
+
+    #[test]
+    fn bilinear_at_texel_centres_returns_the_texel_exactly() {
+        let tex = Texture::new(chain(16, 8)).unwrap();
+        for level in 0..tex.level_count() {
+            let img = tex.level(0, level).clone();
+            for y in 0..img.height {
+                for x in 0..img.width {
+                    let uv = [
+                        (x as f32 + 0.5) / img.width as f32,
+                        (y as f32 + 0.5) / img.height as f32,
+                    ];
+                    assert_eq!(tex.bilinear(0, level, uv), linear(img.get(x, y)));
+                    assert_eq!(tex.nearest(0, level, uv), linear(img.get(x, y)));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn bilinear_halfway_between_texels_averages_in_linear_light() {
+        let tex = Texture::new(chain(16, 8)).unwrap();
+        let img = tex.level(0, 0).clone();
+        // Halfway between texel (3, 2) and (4, 2): u·w = 4.0.
+        let got = tex.bilinear(0, 0, [4.0 / 16.0, 2.5 / 8.0]);
+        let (a, b) = (linear(img.get(3, 2)), linear(img.get(4, 2)));
+        let want = std::array::from_fn(|c| 0.5 * (a[c] + b[c]));
+        assert!(close(got, want), "{got:?} vs {want:?}");
+        // The average of the decoded values, not the decode of the averaged bytes.
+        let encoded_average =
+            srgb_to_linear(((img.get(3, 2)[0] as u16 + img.get(4, 2)[0] as u16) / 2) as u8);
+        assert_ne!(got[0], encoded_average);
+        // The centre of four texels averages all four.
+        let got = tex.bilinear(0, 0, [4.0 / 16.0, 3.0 / 8.0]);
+        let t = [img.get(3, 2), img.get(4, 2), img.get(3, 3), img.get(4, 3)].map(linear);
+        let want = std::array::from_fn(|c| 0.25 * (t[0][c] + t[1][c] + t[2][c] + t[3][c]));
+        assert!(close(got, want), "{got:?} vs {want:?}");
+    }
+
+    #[test]
+    fn addressing_clamps_to_the_edge() {
+        let tex = Texture::new(chain(16, 8)).unwrap();
+        let img = tex.level(0, 0).clone();
+        // Every tap clamps to the corner texel (weights sum to 1 up to f32 rounding).
+        assert!(close(
+            tex.bilinear(0, 0, [-3.0, -0.2]),
+            linear(img.get(0, 0))
+        ));
+        assert!(close(
+            tex.bilinear(0, 0, [1.7, 2.0]),
+            linear(img.get(15, 7))
+        ));
+        assert_eq!(tex.nearest(0, 0, [1.0, 1.0]), linear(img.get(15, 7)));
+        // Half a texel from the left border: only column 0 contributes.
+        assert_eq!(tex.bilinear(0, 0, [0.0, 0.5 / 8.0]), linear(img.get(0, 0)));
+        assert_eq!(tex.nearest(0, 0, [f32::NAN, 0.0]), linear(img.get(0, 0)));
+    }
+
+    #[test]
+    fn lambda_is_log2_of_texels_per_pixel() {
+        let tex = Texture::new(chain(64, 32)).unwrap();
+        let one = tex.lod([1.0 / 64.0, 0.0], [0.0, 1.0 / 32.0]);
+        assert_eq!((one.rho, one.lambda_base, one.lambda), (1.0, 0.0, 0.0));
+        assert!(one.magnified);
+        let two = tex.lod([2.0 / 64.0, 0.0], [0.0, 2.0 / 32.0]);
+        assert_eq!((two.rho, two.lambda_base, two.lambda), (2.0, 1.0, 1.0));
+        assert!(!two.magnified);
+        // Max of lengths: the longer derivative decides, diagonals count by their length.
+        let aniso = tex.lod([4.0 / 64.0, 0.0], [0.0, 1.0 / 32.0]);
+        assert_eq!(aniso.lambda, 2.0);
+        let diag = tex.lod([3.0 / 64.0, 4.0 / 32.0], [0.0, 0.0]);
+        assert_eq!(diag.rho, 5.0);
+        // Clamped to the chain; magnification clamps to 0; NaN goes to the coarsest level.
+        assert_eq!(tex.lod([1e6, 0.0], [0.0, 0.0]).lambda, 6.0);
+        assert_eq!(tex.lod([0.0; 2], [0.0; 2]).lambda, 0.0);
+        assert_eq!(tex.lod([f32::NAN, 0.0], [0.0; 2]).lambda, 6.0);
+        assert_eq!(tex.lod([f32::INFINITY, 0.0], [0.0; 2]).lambda, 6.0);
+    }
+
+    #[test]
+    fn level_selection_follows_the_mipmap_mode() {
+        let tex = Texture::new(chain(64, 64)).unwrap();
+        let uv = [0.3, 0.6];
+        // Nearest mipmap: d' = 1.5 rounds down to level 1, 1.51 to level 2.
+        let at = |lambda| tex.sample_level(&Sampler::BILINEAR, 0, uv, lambda);
+        assert_eq!(at(1.5), tex.bilinear(0, 1, uv));
+        assert_eq!(at(1.51), tex.bilinear(0, 2, uv));
+        assert_eq!(at(-3.0), tex.bilinear(0, 0, uv));
+        assert_eq!(at(99.0), tex.bilinear(0, 6, uv));
+        // Linear mipmap: halfway between levels 2 and 3.
+        let (a, b) = (tex.bilinear(0, 2, uv), tex.bilinear(0, 3, uv));
+        let want = std::array::from_fn(|c| 0.5 * (a[c] + b[c]));
+        assert!(close(tex.trilinear(0, uv, 2.5), want));
+        assert_eq!(tex.trilinear(0, uv, 2.0), a);
+        // Magnified: mag filter on level 0; minified: min filter.
+        let mixed = Sampler {
+            mag_filter: FilterMode::Nearest,
+            min_filter: FilterMode::Linear,
+            mipmap_filter: FilterMode::Nearest,
+        };
+        assert_eq!(tex.sample_level(&mixed, 0, uv, 0.0), tex.nearest(0, 0, uv));
+        assert_eq!(
+            tex.sample_level(&mixed, 0, uv, 0.25),
+            tex.bilinear(0, 0, uv)
+        );
+        // Implicit LOD: 4 texels per pixel selects level 2.
+        let d = 4.0 / 64.0;
+        assert_eq!(
+            tex.sample(&Sampler::NEAREST, 0, uv, [d, 0.0], [0.0, d]),
+            tex.nearest(0, 2, uv)
+        );
+    }
+
+    #[test]
+    fn array_layers_are_separate_and_clamped() {
+        let mut other = chain(8, 8);
+        for img in &mut other {
+            img.texels
+                .iter_mut()
+                .for_each(|t| *t = [255, 255, 255, 255]);
+        }
+        let tex = Texture::new_array(vec![chain(8, 8), other]).unwrap();
+        assert_eq!(tex.layer_count(), 2);
+        let white = tex.bilinear(1, 0, [0.5, 0.5]);
+        assert_eq!(white, [1.0; 4]);
+        assert_eq!(tex.bilinear(7, 0, [0.5, 0.5]), white);
+        assert_ne!(tex.bilinear(0, 0, [0.5, 0.5]), white);
+        assert_eq!(linear_to_srgb(white[0]), 255);
+    }
+
+    #[test]
+    fn malformed_chains_are_named() {
+        assert_eq!(Texture::new_array(vec![]), Err(TextureShapeError::NoLayers));
+        assert_eq!(
+            Texture::new(vec![]),
+            Err(TextureShapeError::NoLevels { layer: 0 })
+        );
+        let mut bad = chain(8, 4);
+        bad[2] = gradient(3, 1, 2);
+        assert!(matches!(
+            Texture::new(bad),
+            Err(TextureShapeError::LevelSize {
+                level: 2,
+                expected_width: 2,
+                ..
+            })
+        ));
+        let mut long = chain(4, 4);
+        long.push(gradient(1, 1, 9));
+        assert!(matches!(
+            Texture::new(long),
+            Err(TextureShapeError::LevelCount {
+                found: 4,
+                expected: 3,
+                ..
+            })
+        ));
+        let short = chain(8, 8)[..2].to_vec();
+        assert!(Texture::new_array(vec![chain(8, 8)[..2].to_vec(), short]).is_ok());
+        assert!(matches!(
+            Texture::new_array(vec![chain(8, 8), chain(8, 8)[..2].to_vec()]),
+            Err(TextureShapeError::LevelCount { layer: 1, .. })
+        ));
+    }
+}

@@ -1,0 +1,649 @@
+//! File-based tests of the user-scene loaders (SPEC §4): scene files, CSV instance tables, OBJ meshes
+//! and PNG textures, good and bad, plus property tests that no input bytes make a loader panic.
+
+use std::path::{Path, PathBuf};
+
+use forestlod_reference::scene::Terrain;
+use forestlod_reference::scene::builtin::{self, Species};
+use forestlod_reference::scene::load::{
+    UpAxis, decode_png_texture, load_instances_csv, load_instances_with_builtin_species,
+    load_obj_mesh, load_path, load_scene_file, parse_instances_csv, parse_obj_mesh,
+    parse_scene_file,
+};
+use forestlod_reference::texture::Rgba8Image;
+use proptest::prelude::*;
+
+/// A fresh directory under the system temp dir, unique to this process and test.
+fn temp_dir(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!(
+        "forestlod-scene-loading-{}-{test}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+fn png(color: image::ExtendedColorType, channels: usize, w: u32, h: u32) -> Vec<u8> {
+    use image::ImageEncoder;
+    let mut data = vec![0u8; (w * h) as usize * channels];
+    for (i, b) in data.iter_mut().enumerate() {
+        *b = (i * 37 % 256) as u8;
+    }
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(&data, w, h, color)
+        .unwrap();
+    out
+}
+
+fn rgba_png(w: u32, h: u32) -> Vec<u8> {
+    png(image::ExtendedColorType::Rgba8, 4, w, h)
+}
+
+/// A crossed-card tree: 2 quads = 4 triangles, Y up (as most exporters write).
+const CARD_TREE_Y_UP: &str = "\
+# crossed cards, Y up
+o tree
+v -2 0 0
+v 2 0 0
+v 2 8 0
+v -2 8 0
+v 0 0 -2
+v 0 0 2
+v 0 8 2
+v 0 8 -2
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+f 1/1 2/2 3/3 4/4
+f 5/1 6/2 7/3 8/4
+";
+
+const HEADER: &str = "x,y,z,yaw,scale,species\n";
+
+fn assert_mentions(e: &str, parts: &[&str]) {
+    for p in parts {
+        assert!(e.contains(p), "error {e:?} should mention {p:?}");
+    }
+}
+
+#[test]
+fn scene_file_with_builtin_and_obj_species_loads() {
+    let dir = temp_dir("good");
+    write(&dir, "card.obj", CARD_TREE_Y_UP);
+    write(&dir, "card.png", rgba_png(16, 32));
+    write(
+        &dir,
+        "trees.csv",
+        format!(
+            "{HEADER}500000.0,5300000.0,200.0,0.0,1.0,spruce\n\
+             500100.0,5300050.0,210.0,1.5,0.8,card\n\
+             500050.5,5300020.25,205.0,3.0,1.2,0\n"
+        ),
+    );
+    let scene_path = write(
+        &dir,
+        "wachau.toml",
+        "# a user scene\n\
+         instances = \"trees.csv\"\n\
+         [terrain]\n\
+         kind = \"flat\"\n\
+         z = 195.0\n\
+         [[species]]\n\
+         name = \"spruce\"\n\
+         builtin = \"spruce\"\n\
+         [[species]]\n\
+         name = \"card\"\n\
+         mesh = \"card.obj\"\n\
+         texture = \"card.png\"\n\
+         up = \"y\"\n",
+    );
+    let scene = load_scene_file(&scene_path).unwrap();
+    assert_eq!(scene.name, "wachau");
+    assert_eq!(scene.meshes.len(), 2);
+    assert_eq!(scene.meshes[1].name, "card");
+    assert_eq!(scene.meshes[1].indices.len(), 12);
+    // Y-up OBJ: the card's top (OBJ y = 8) becomes z = 8.
+    assert!(scene.meshes[1].positions.iter().any(|p| p[2] == 8.0));
+    assert_eq!(scene.meshes[1].texture.width, 16);
+    // Default origin: centre of the bounding box, rounded to whole metres.
+    assert_eq!(scene.origin, [500050.0, 5300025.0, 205.0]);
+    assert_eq!(scene.instances.len(), 3);
+    assert_eq!(scene.instances[0].position, [-50.0, -25.0, -5.0]);
+    assert_eq!(scene.instances[2].position, [0.5, -4.75, 0.0]);
+    assert_eq!(scene.instances[1].mesh, 1);
+    assert_eq!(scene.instances[2].mesh, 0);
+    assert_eq!(scene.terrain, Terrain::Flat { z: -10.0 });
+    assert_eq!(scene.bounds, [-50.0, -25.0, 50.0, 25.0]);
+    scene.validate("x").unwrap();
+    assert_eq!(load_path(&scene_path).unwrap(), scene);
+}
+
+#[test]
+fn scene_file_defaults_origin_hills_and_builtin_species() {
+    let dir = temp_dir("defaults");
+    write(&dir, "t.csv", format!("{HEADER}10,20,3,0,1,birch\n"));
+    let path = write(
+        &dir,
+        "s.toml",
+        "name = \"hilly\"\ninstances = \"t.csv\"\norigin = [0.0, 0.0, 0.0]\n\
+         [terrain]\nkind = \"hills\"\namplitude = 25.0\nwavelength = 1500.0\n",
+    );
+    let scene = load_scene_file(&path).unwrap();
+    assert_eq!(scene.name, "hilly");
+    assert_eq!(scene.origin, [0.0; 3]);
+    assert_eq!(scene.meshes.len(), 5);
+    assert_eq!(scene.instances[0].mesh, Species::Birch as u32);
+    assert_eq!(scene.instances[0].position, [10.0, 20.0, 3.0]);
+    assert_eq!(scene.terrain, builtin::HILLS);
+}
+
+#[test]
+fn bare_csv_uses_builtin_species() {
+    let dir = temp_dir("bare");
+    let path = write(
+        &dir,
+        "stand.csv",
+        format!("{HEADER}1,1,0,0,1,oak\n3,1,0,0,1,poplar\n2,5,1,0,1,2\n"),
+    );
+    let scene = load_instances_with_builtin_species(&path).unwrap();
+    assert_eq!(scene.name, "stand");
+    assert_eq!(scene.meshes.len(), 5);
+    assert_eq!(scene.origin, [2.0, 3.0, 1.0]);
+    assert_eq!(scene.instances[1].mesh, Species::Poplar as u32);
+    assert_eq!(scene.terrain, Terrain::Flat { z: -1.0 });
+    assert_eq!(load_path(&path).unwrap(), scene);
+}
+
+#[test]
+fn utm_coordinates_keep_decimetres_relative_to_the_origin() {
+    let dir = temp_dir("utm");
+    // 0.1 m steps at UTM northing: f32 world coordinates would lose them (spacing 0.5 m at 5.3e6).
+    let mut csv = HEADER.to_string();
+    for i in 0..10 {
+        csv.push_str(&format!("512345.1,{}.{i},250,0,1,pine\n", 5_312_345));
+    }
+    let path = write(&dir, "utm.csv", csv);
+    let scene = load_instances_with_builtin_species(&path).unwrap();
+    let ys: Vec<f32> = scene.instances.iter().map(|t| t.position[1]).collect();
+    for w in ys.windows(2) {
+        assert!((w[1] - w[0] - 0.1).abs() < 1e-4, "{ys:?}");
+    }
+}
+
+#[test]
+fn bad_csv_files_give_errors_naming_file_line_column_and_value() {
+    let dir = temp_dir("badcsv");
+    let names: Vec<String> = vec!["spruce".into(), "oak".into()];
+    let cases: &[(&str, String, &[&str])] = &[
+        (
+            "nan.csv",
+            format!("{HEADER}1,2,3,0,1,oak\n1,NaN,3,0,1,oak\n"),
+            &["nan.csv", "line 3", "column y", "NaN"],
+        ),
+        (
+            "negscale.csv",
+            format!("{HEADER}1,2,3,0,-0.5,oak\n"),
+            &["negscale.csv", "line 2", "column scale", "-0.5"],
+        ),
+        (
+            "species.csv",
+            format!("{HEADER}1,2,3,0,1,maple\n"),
+            &[
+                "species.csv",
+                "line 2",
+                "column species",
+                "maple",
+                "spruce, oak",
+            ],
+        ),
+        (
+            "index.csv",
+            format!("{HEADER}1,2,3,0,1,2\n"),
+            &["index.csv", "line 2", "column species", "\"2\""],
+        ),
+        (
+            "type.csv",
+            format!("{HEADER}1,2,3,0,1,oak\n\n1,2,3,zero,1,oak\n"),
+            &["type.csv", "line 4", "column yaw", "zero"],
+        ),
+        (
+            "empty.csv",
+            HEADER.to_string(),
+            &["empty.csv", "line 2", "empty table"],
+        ),
+        ("nothing.csv", String::new(), &["nothing.csv", "empty file"]),
+        (
+            "count.csv",
+            format!("{HEADER}1,2,3,0,1,oak,extra\n"),
+            &["count.csv", "line 2", "column count", "extra"],
+        ),
+        (
+            "missing.csv",
+            "x,y,yaw,scale,species\n1,2,0,1,oak\n".to_string(),
+            &["missing.csv", "line 1", "column z", "missing column"],
+        ),
+        (
+            "inf.csv",
+            format!("{HEADER}inf,2,3,0,1,oak\n"),
+            &["inf.csv", "line 2", "column x", "inf"],
+        ),
+    ];
+    for (name, text, expect) in cases {
+        let path = write(&dir, name, text);
+        let e = load_instances_csv(&path, &names).unwrap_err().to_string();
+        assert_mentions(&e, expect);
+    }
+    let e = load_instances_csv(&dir.join("absent.csv"), &names)
+        .unwrap_err()
+        .to_string();
+    assert_mentions(&e, &["absent.csv", "cannot be read"]);
+}
+
+#[test]
+fn bad_scene_files_give_errors_naming_file_line_field_and_value() {
+    let dir = temp_dir("badtoml");
+    write(&dir, "t.csv", format!("{HEADER}1,2,3,0,1,a\n"));
+    write(&dir, "empty.csv", HEADER);
+    write(&dir, "card.obj", CARD_TREE_Y_UP);
+    write(&dir, "rgba.png", rgba_png(8, 8));
+    write(
+        &dir,
+        "rgb.png",
+        png(image::ExtendedColorType::Rgb8, 3, 8, 8),
+    );
+    write(&dir, "odd.png", rgba_png(12, 8));
+    write(
+        &dir,
+        "bad_index.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 9/1\n",
+    );
+    let species_a = "[[species]]\nname = \"a\"\nbuiltin = \"oak\"\n";
+    let cases: Vec<(&str, String, Vec<&str>)> = vec![
+        (
+            "unknown_key.toml",
+            format!("instances = \"t.csv\"\ncolour = \"red\"\n{species_a}"),
+            vec!["unknown_key.toml", "line 2", "colour"],
+        ),
+        (
+            "wrong_type.toml",
+            format!("instances = \"t.csv\"\norigin = \"abc\"\n{species_a}"),
+            vec!["wrong_type.toml", "line 2", "abc"],
+        ),
+        (
+            "nan_origin.toml",
+            format!("instances = \"t.csv\"\norigin = [nan, 0.0, 0.0]\n{species_a}"),
+            vec!["nan_origin.toml", "line 2", "field origin", "NaN"],
+        ),
+        (
+            "no_instances.toml",
+            species_a.to_string(),
+            vec!["no_instances.toml", "instances"],
+        ),
+        (
+            "bad_builtin.toml",
+            "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nbuiltin = \"baobab\"\n".into(),
+            vec![
+                "bad_builtin.toml",
+                "line 4",
+                "species[0].builtin",
+                "baobab",
+                "spruce",
+            ],
+        ),
+        (
+            "dup.toml",
+            format!("instances = \"t.csv\"\n{species_a}{species_a}"),
+            vec!["dup.toml", "line 6", "species[1].name", "duplicate"],
+        ),
+        (
+            "no_mesh.toml",
+            "instances = \"t.csv\"\n[[species]]\nname = \"a\"\n".into(),
+            vec!["no_mesh.toml", "species[0]", "builtin"],
+        ),
+        (
+            "bad_terrain.toml",
+            format!("instances = \"t.csv\"\n[terrain]\nkind = \"flat\"\nz = inf\n{species_a}"),
+            vec!["bad_terrain.toml", "line 4", "terrain.z", "inf"],
+        ),
+        (
+            "bad_kind.toml",
+            format!("instances = \"t.csv\"\n[terrain]\nkind = \"mountains\"\n{species_a}"),
+            vec!["bad_kind.toml", "line 3", "terrain.kind", "mountains"],
+        ),
+        (
+            "flat_no_z.toml",
+            format!("instances = \"t.csv\"\n[terrain]\nkind = \"flat\"\n{species_a}"),
+            vec!["flat_no_z.toml", "line 2", "terrain.z", "missing"],
+        ),
+        (
+            "flat_amplitude.toml",
+            format!(
+                "instances = \"t.csv\"\n[terrain]\nkind = \"flat\"\nz = 1.0\namplitude = 3.0\n{species_a}"
+            ),
+            vec!["flat_amplitude.toml", "line 5", "terrain.amplitude", "3", "not allowed"],
+        ),
+        (
+            "bad_wavelength.toml",
+            format!(
+                "instances = \"t.csv\"\n[terrain]\nkind = \"hills\"\namplitude = 5.0\nwavelength = 0.0\n{species_a}"
+            ),
+            vec!["bad_wavelength.toml", "terrain.wavelength", "0"],
+        ),
+        (
+            "missing_csv.toml",
+            format!("instances = \"nope.csv\"\n{species_a}"),
+            vec!["nope.csv", "cannot be read"],
+        ),
+        (
+            "empty_instances.toml",
+            format!("instances = \"empty.csv\"\n{species_a}"),
+            vec!["empty.csv", "empty table"],
+        ),
+        (
+            "csv_species.toml",
+            "instances = \"t.csv\"\n[[species]]\nname = \"b\"\nbuiltin = \"oak\"\n".into(),
+            vec!["t.csv", "line 2", "column species", "\"a\""],
+        ),
+        (
+            "rgb.toml",
+            "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"card.obj\"\ntexture = \"rgb.png\"\n".into(),
+            vec!["rgb.png", "colour type", "Rgb8"],
+        ),
+        (
+            "odd.toml",
+            "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"card.obj\"\ntexture = \"odd.png\"\n".into(),
+            vec!["odd.png", "width", "12", "power of two"],
+        ),
+        (
+            "no_texture.toml",
+            "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"card.obj\"\n".into(),
+            vec!["no_texture.toml", "species[0].texture", "missing"],
+        ),
+        (
+            "missing_png.toml",
+            "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"card.obj\"\ntexture = \"gone.png\"\n".into(),
+            vec!["gone.png", "cannot be read"],
+        ),
+        (
+            "obj_index.toml",
+            "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"bad_index.obj\"\ntexture = \"rgba.png\"\n".into(),
+            vec!["bad_index.obj", "line 5", "9/1", "out of range"],
+        ),
+        (
+            "both.toml",
+            "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nbuiltin = \"oak\"\nmesh = \"card.obj\"\ntexture = \"rgba.png\"\n".into(),
+            vec!["both.toml", "species[0].builtin", "either"],
+        ),
+        (
+            "truncated.toml",
+            "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nbuiltin = \"oa".into(),
+            vec!["truncated.toml", "line 4"],
+        ),
+    ];
+    for (name, text, expect) in &cases {
+        let path = write(&dir, name, text);
+        let e = load_scene_file(&path).unwrap_err().to_string();
+        assert_mentions(&e, expect);
+    }
+    let e = load_scene_file(&dir.join("absent.toml"))
+        .unwrap_err()
+        .to_string();
+    assert_mentions(&e, &["absent.toml", "cannot be read"]);
+    let garbage = write(&dir, "garbage.toml", [0xffu8, 0xfe, 0x00, 0x41]);
+    let e = load_scene_file(&garbage).unwrap_err().to_string();
+    assert_mentions(&e, &["garbage.toml", "line 1", "UTF-8"]);
+    let e = load_path(&dir.join("scene.json")).unwrap_err().to_string();
+    assert_mentions(&e, &["scene.json", "extension", "json"]);
+}
+
+#[test]
+fn obj_files_are_checked() {
+    let dir = temp_dir("obj");
+    let tex = write(&dir, "t.png", rgba_png(4, 4));
+    let good = write(&dir, "good.obj", CARD_TREE_Y_UP);
+    let m = load_obj_mesh("card", &good, &tex, UpAxis::Z).unwrap();
+    assert_eq!(m.indices.len() / 3, 4);
+    let nan = write(&dir, "nan.obj", "v 0 0 0\nv 1 NaN 0\n");
+    let e = load_obj_mesh("t", &nan, &tex, UpAxis::Z)
+        .unwrap_err()
+        .to_string();
+    assert_mentions(&e, &["nan.obj", "line 2", "NaN"]);
+    let neg = write(
+        &dir,
+        "neg.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf -1/1 -2/1 -4/1\n",
+    );
+    let e = load_obj_mesh("t", &neg, &tex, UpAxis::Z)
+        .unwrap_err()
+        .to_string();
+    assert_mentions(&e, &["neg.obj", "line 5", "-4/1", "out of range"]);
+    let e = load_obj_mesh("t", &dir.join("none.obj"), &tex, UpAxis::Z)
+        .unwrap_err()
+        .to_string();
+    assert_mentions(&e, &["none.obj", "cannot be read"]);
+    // Relative indices that are in range work.
+    let rel = write(
+        &dir,
+        "rel.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nf -3/-3 -2/-2 -1/-1\n",
+    );
+    assert_eq!(
+        load_obj_mesh("t", &rel, &tex, UpAxis::Z)
+            .unwrap()
+            .indices
+            .len(),
+        3
+    );
+}
+
+#[test]
+fn every_builtin_loads_valid_and_deterministic() {
+    for name in builtin::BUILTIN_NAMES {
+        if *name == "stress" {
+            continue; // covered by the library's own test (1.47M trees)
+        }
+        let a = builtin::by_name(name).unwrap();
+        a.validate(name).unwrap();
+        assert_eq!(a, builtin::by_name(name).unwrap(), "{name}");
+        for m in &a.meshes {
+            assert!(m.indices.len() / 3 < 20);
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Property tests: no bytes make a loader panic.
+// ---------------------------------------------------------------------------------------------
+
+fn names() -> Vec<String> {
+    Species::ALL.iter().map(|s| s.name().to_string()).collect()
+}
+
+/// Lines of CSV-ish tokens: more likely than raw bytes to reach the row checks.
+fn csv_like() -> impl Strategy<Value = String> {
+    let token = prop::sample::select(vec![
+        "x",
+        "y",
+        "z",
+        "yaw",
+        "scale",
+        "species",
+        "0",
+        "1",
+        "-1",
+        "1e308",
+        "1e39",
+        "NaN",
+        "inf",
+        "-inf",
+        "oak",
+        "4",
+        "5",
+        "abc",
+        "",
+        "\"",
+        "\"a,b\"",
+        " ",
+        "0.5",
+        "4294967296",
+        "\u{feff}x",
+    ]);
+    let row = prop::collection::vec(token, 0..8).prop_map(|t| t.join(","));
+    prop::collection::vec(row, 0..6).prop_map(|rows| rows.join("\n"))
+}
+
+/// Lines of OBJ-ish tokens.
+fn obj_like() -> impl Strategy<Value = String> {
+    let token = prop::sample::select(vec![
+        "v",
+        "vt",
+        "vn",
+        "f",
+        "l",
+        "p",
+        "o",
+        "g",
+        "s",
+        "usemtl",
+        "mtllib",
+        "#",
+        "0",
+        "1",
+        "2",
+        "3",
+        "-1",
+        "-9",
+        "1/1",
+        "2/2",
+        "3/3",
+        "1//1",
+        "1/1/1",
+        "1/0",
+        "0/1",
+        "-1/-1",
+        "9223372036854775807",
+        "-9223372036854775808",
+        "nan",
+        "inf",
+        "1e40",
+        "0.5",
+        "x",
+        "/",
+        "//",
+        "1/2/3/4",
+        "\u{3000}",
+    ]);
+    let line = prop::collection::vec(token, 0..7).prop_map(|t| t.join(" "));
+    prop::collection::vec(line, 0..24).prop_map(|lines| lines.join("\n"))
+}
+
+/// Scene files built from plausible and implausible pieces.
+fn toml_like() -> impl Strategy<Value = String> {
+    let piece = prop::sample::select(vec![
+        "instances = \"t.csv\"\n",
+        "instances = \"missing.csv\"\n",
+        "instances = 3\n",
+        "name = \"n\"\n",
+        "name = \"\"\n",
+        "origin = [0.0, 0.0, 0.0]\n",
+        "origin = [nan, 1.0, 2.0]\n",
+        "origin = [1.0]\n",
+        "[terrain]\nkind = \"flat\"\nz = 1.0\n",
+        "[terrain]\nkind = \"hills\"\namplitude = 1e300\nwavelength = -1.0\n",
+        "[terrain]\nkind = \"cliff\"\n",
+        "[[species]]\nname = \"a\"\nbuiltin = \"oak\"\n",
+        "[[species]]\nname = \"b\"\nbuiltin = \"none\"\n",
+        "[[species]]\nname = \"c\"\nmesh = \"m.obj\"\ntexture = \"t.png\"\n",
+        "[[species]]\nname = \"d\"\nmesh = \"m.obj\"\n",
+        "[[species]]\n",
+        "up = \"x\"\n",
+        "extra = 1\n",
+        "[",
+        "\"",
+    ]);
+    prop::collection::vec(piece, 0..8).prop_map(|p| p.concat())
+}
+
+fn tex() -> Rgba8Image {
+    Rgba8Image::new(4, 4, [1, 2, 3, 4])
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn csv_loader_never_panics_on_bytes(bytes in prop::collection::vec(any::<u8>(), 0..512)) {
+        let _ = parse_instances_csv(&bytes[..], "fuzz.csv", &names());
+    }
+
+    #[test]
+    fn csv_loader_never_panics_on_csv_like_text(text in csv_like()) {
+        match parse_instances_csv(text.as_bytes(), "fuzz.csv", &names()) {
+            Ok(rows) => {
+                prop_assert!(!rows.is_empty());
+                for r in rows {
+                    prop_assert!(r.scale > 0.0 && r.scale.is_finite() && r.yaw.is_finite());
+                    prop_assert!(r.position.iter().all(|c| c.is_finite()));
+                    prop_assert!(r.mesh < 5);
+                }
+            }
+            Err(e) => prop_assert!(e.to_string().contains("fuzz.csv")),
+        }
+    }
+
+    #[test]
+    fn obj_loader_never_panics_on_bytes(bytes in prop::collection::vec(any::<u8>(), 0..512)) {
+        let _ = parse_obj_mesh("fuzz", &bytes, "fuzz.obj", UpAxis::Z, tex());
+    }
+
+    #[test]
+    fn obj_loader_never_panics_on_obj_like_text(text in obj_like()) {
+        if let Ok(mesh) = parse_obj_mesh("fuzz", text.as_bytes(), "fuzz.obj", UpAxis::Y, tex()) {
+            prop_assert!(mesh.validate("fuzz.obj").is_ok());
+        }
+    }
+
+    #[test]
+    fn toml_loader_never_panics_on_bytes(bytes in prop::collection::vec(any::<u8>(), 0..512)) {
+        let dir = std::env::temp_dir().join("forestlod-scene-loading-fuzz-nonexistent");
+        let _ = parse_scene_file(&bytes, &dir.join("fuzz.toml"));
+    }
+
+    #[test]
+    fn png_decoder_never_panics_on_bytes(bytes in prop::collection::vec(any::<u8>(), 0..512)) {
+        let _ = decode_png_texture(&bytes, "fuzz.png");
+    }
+}
+
+#[test]
+fn toml_loader_never_panics_on_scene_like_text() {
+    // A fixed directory with a good CSV, OBJ and PNG so that generated scene files reach the loaders.
+    let dir = temp_dir("toml-fuzz");
+    write(&dir, "t.csv", format!("{HEADER}1,2,3,0,1,0\n"));
+    write(&dir, "m.obj", CARD_TREE_Y_UP);
+    write(&dir, "t.png", rgba_png(4, 4));
+    let path = dir.join("fuzz.toml");
+    let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig {
+        cases: 256,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    });
+    runner
+        .run(&toml_like(), |text| {
+            match parse_scene_file(text.as_bytes(), &path) {
+                Ok(scene) => prop_assert!(scene.validate("fuzz").is_ok()),
+                Err(e) => prop_assert!(!e.to_string().is_empty()),
+            }
+            Ok(())
+        })
+        .unwrap();
+}
