@@ -28,12 +28,12 @@
 //!   `mesh * K + k`, both trilinear with the implicit level of detail of the quad's derivatives.
 //! - **Outputs**: colour (RGBA8 sRGB), depth, and the LOD-id view of E Fig. 3.1 in the aux target:
 //!   [`LOD_ID_TERRAIN`], [`LOD_ID_MESH`], [`LOD_ID_BILLBOARD`], [`LOD_ID_TRANSITION`] (a fragment
-//!   whose weight is below 1 inside the band).
+//!   of a fading command whose view depth lies strictly inside the band, in every fade mode).
 //! - A flat terrain-following ground grid is drawn first ([`terrain_triangles`]), opaque.
 
 use forestlod_shared::{
     COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, Params, angle_index_for, bake_elevation,
-    billboard_extent, dither_threshold, lod_weights, view_interval,
+    billboard_extent, dither_threshold, fade_progress, lod_weights, view_interval,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -245,7 +245,11 @@ impl TreeShader<'_> {
         if weight <= 0.0 {
             return None;
         }
-        let id = if weight < 1.0 {
+        let in_band = data.fading != 0 && {
+            let t = fade_progress(depth, data.fade_start, data.fade_end);
+            t > 0.0 && t < 1.0
+        };
+        let id = if in_band {
             LOD_ID_TRANSITION
         } else if data.billboard == 0 {
             LOD_ID_MESH

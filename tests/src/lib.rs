@@ -3,6 +3,7 @@
 //! exercise the selection rules alone.
 
 pub mod backend;
+pub mod scenarios;
 
 use forestlod_reference::scene::{Instance, Scene, Terrain, TreeMesh};
 use forestlod_reference::texture::Rgba8Image;
