@@ -5,5 +5,9 @@
 //! command line and assembling [`forestlod_shared::Params`] from flags, each with the one-line
 //! errors the brief asks for (field and value, never a panic).
 
+pub mod metrics;
 pub mod options;
+pub mod plot;
 pub mod render;
+pub mod report;
+pub mod sweep;

@@ -3,6 +3,8 @@
 //! - `forestlod scene info --scene stress`: trees, batches, meshes, memory beside E Eq. 4.1.
 //! - `forestlod select --scene synthetic --camera medium`: what selection emits for one frame, and
 //!   how long grouped and per-tree selection take.
+//! - `forestlod sweep [FILE] --out DIR [--quick]`: the speed–accuracy sweeps
+//!   (`experiments/sweeps/README.md`); `forestlod report --run DIR` summarizes them.
 //!
 //! Every error is one line naming the field and the value, with exit code 1 (2 for usage errors).
 
@@ -40,6 +42,11 @@ enum Command {
     },
     /// Print the GPU adapter wgpu finds (the one the parity tests use).
     GpuInfo,
+    /// Measure the speed–accuracy trade: run sweep TOML files (all built-ins when no file is
+    /// given) against the ray-traced ground truth, writing CSVs and plots.
+    Sweep(forestlod_experiments::sweep::SweepArgs),
+    /// Write DIR/report.md over the sweeps in DIR.
+    Report(forestlod_experiments::report::ReportArgs),
     /// Run selection for one frame and print what it emitted.
     Select {
         #[command(flatten)]
@@ -233,8 +240,34 @@ fn select_frame(
     Ok(())
 }
 
+/// `forestlod gpu-info`: the adapter the GPU twin and the parity tests use, its backend, device
+/// type and the optional features enabled; exit code 0 with or without an adapter.
 fn gpu_info() -> Result<()> {
-    println!("gpu-info: the GPU crate is not built yet");
+    match forestlod_gpu::GpuContext::new() {
+        Ok(ctx) => {
+            let info = &ctx.info;
+            println!("adapter: {}", info.name);
+            println!("backend: {:?}", info.backend);
+            println!("device type: {:?}", info.device_type);
+            println!("driver: {} {}", info.driver, info.driver_info);
+            let names: Vec<String> = ctx
+                .features
+                .iter_names()
+                .map(|(name, _)| name.to_string())
+                .collect();
+            println!("features enabled: {}", names.join(", "));
+            let draw = match forestlod_gpu::GpuDraw::new(&ctx) {
+                Ok(d) => format!("one {} call per frame", d.indirect_mode().name()),
+                Err(e) => format!("unavailable: {e}"),
+            };
+            println!("draw stage: {draw}");
+            println!(
+                "limits: max 2D texture {}, max array layers {}",
+                ctx.limits.max_texture_dimension_2d, ctx.limits.max_texture_array_layers
+            );
+        }
+        Err(e) => println!("GPU: no adapter ({e})"),
+    }
     Ok(())
 }
 
@@ -259,6 +292,8 @@ fn main() -> ExitCode {
             list,
         }) => select_frame(scene, params, camera, *yaw, *list),
         Some(Command::GpuInfo) => gpu_info(),
+        Some(Command::Sweep(args)) => forestlod_experiments::sweep::run(args),
+        Some(Command::Report(args)) => forestlod_experiments::report::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

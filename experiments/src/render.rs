@@ -2,6 +2,15 @@
 //! of a scene with the reference pipeline and write colour, depth, the LOD-id view, the baked
 //! billboard atlas, a metrics JSON and a short summary into an output folder.
 //!
+//! When wgpu finds an adapter (`forestlod_gpu::GpuContext::new`), the same frame is also rendered
+//! by the GPU twin (`gpu/src/shaders/select.wgsl` then `draw.wgsl`; `--stage-from-cpu` chooses
+//! which GPU stages take their input from the reference instead, as vello's `force_gpu_from`) and
+//! judged against the reference with `forestlod_tests::image_compare` (SPEC §8): `gpu_color.png`,
+//! `gpu_lod.png` and `diff.png` are written beside the reference's images, and the metrics and the
+//! summary gain a `parity` section (adapter, maximum differences per buffer, mismatch and
+//! ambiguity counts, FLIP mean). Without an adapter the summary says `GPU: no adapter` and the job
+//! still succeeds; a parity failure is reported, not turned into an error.
+//!
 //! Everything is computed before anything is written, so a failure leaves the output folder as it
 //! was.
 
@@ -16,6 +25,13 @@ use forestlod_reference::pipeline::{Frame, Prepared, prepare};
 use forestlod_reference::{InputError, draw};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
+
+use forestlod_gpu::{GpuContext, GpuDraw};
+use forestlod_shared::{Camera, Params};
+use forestlod_tests::backend::{StagesFromCpu, alpha_test_alternatives, render_gpu};
+use forestlod_tests::image_compare::{
+    ClassCounts, ImageReport, Images, class_image, compare_images, difference_image,
+};
 
 use crate::options::{ParamArgs, SceneArgs};
 
@@ -41,6 +57,14 @@ pub struct RenderArgs {
     /// Output folder (created if missing).
     #[arg(long, default_value = "out")]
     pub out: PathBuf,
+    /// GPU stages that take their input from the reference twin instead of the GPU stage before
+    /// them: a comma-separated list of `select` (draw the reference's selection) and `textures`
+    /// (sample the reference's mesh mips and billboard bake), or `none` (all on the GPU).
+    #[arg(long, default_value = "none")]
+    pub stage_from_cpu: String,
+    /// Skip the GPU twin even when an adapter exists.
+    #[arg(long)]
+    pub no_gpu: bool,
 }
 
 impl Default for RenderArgs {
@@ -117,9 +141,184 @@ pub fn metrics(
     })
 }
 
+/// What the GPU side of the main job produced.
+pub enum GpuOutcome {
+    /// No adapter (or `--no-gpu`): the reason, for the summary.
+    Skipped(String),
+    /// The GPU ran but failed (a wgpu error): the message.
+    Failed {
+        /// Adapter description.
+        adapter: String,
+        /// What went wrong.
+        error: String,
+    },
+    /// The GPU frame and its verdict.
+    Rendered(Box<GpuRender>),
+}
+
+/// A GPU frame of the main job and its comparison with the reference frame.
+pub struct GpuRender {
+    /// Adapter description (`GpuContext::describe`).
+    pub adapter: String,
+    /// The buffers read back.
+    pub images: Images,
+    /// The comparison with the reference.
+    pub report: ImageReport,
+    /// The draw calls recorded.
+    pub calls: forestlod_gpu::DrawCalls,
+    /// Which stages took reference input.
+    pub from_cpu: StagesFromCpu,
+    /// Wall seconds of the GPU frame (uploads, select, draw, readback).
+    pub seconds: f64,
+}
+
+/// Renders the frame on the GPU, when an adapter exists, and compares it with the reference's.
+pub fn gpu_frame(
+    prepared: &Prepared,
+    frame: &Frame,
+    camera: &Camera,
+    params: &Params,
+    from_cpu: StagesFromCpu,
+    name: &str,
+) -> GpuOutcome {
+    let ctx = match GpuContext::new() {
+        Ok(ctx) => ctx,
+        Err(e) => return GpuOutcome::Skipped(format!("no adapter ({e})")),
+    };
+    let adapter = ctx.describe();
+    let failed = |e: String| GpuOutcome::Failed {
+        adapter: adapter.clone(),
+        error: e,
+    };
+    let t = Instant::now();
+    let draw = match GpuDraw::new(&ctx) {
+        Ok(d) => d,
+        Err(e) => return failed(e.to_string()),
+    };
+    let gpu = match render_gpu(&ctx, &draw, prepared, camera, params, from_cpu) {
+        Ok(g) => g,
+        Err(e) => return failed(e.to_string()),
+    };
+    let seconds = t.elapsed().as_secs_f64();
+    let target = &frame.drawn.target;
+    let reference = Images {
+        width: target.width(),
+        height: target.height(),
+        color: target.color().to_vec(),
+        depth: target.depth().to_vec(),
+        lod_id: target.aux().to_vec(),
+    };
+    let alternatives = alpha_test_alternatives(prepared, camera, params);
+    let report = compare_images(name, &gpu.images, &reference, &alternatives, camera);
+    GpuOutcome::Rendered(Box::new(GpuRender {
+        adapter,
+        images: gpu.images,
+        report,
+        calls: gpu.calls,
+        from_cpu,
+        seconds,
+    }))
+}
+
+fn counts_json(c: &ClassCounts) -> serde_json::Value {
+    json!({
+        "exact": c.exact, "within_tolerance": c.within_tolerance, "window": c.window,
+        "threshold_ambiguous": c.threshold_ambiguous, "depth_tie": c.depth_tie,
+        "translucent": c.translucent, "edge_ambiguous": c.edge_ambiguous, "mismatches": c.mismatches,
+    })
+}
+
+/// The `parity` object of the metrics JSON.
+pub fn parity_json(outcome: &GpuOutcome) -> serde_json::Value {
+    use forestlod_tests::image_compare as ic;
+    match outcome {
+        GpuOutcome::Skipped(why) => json!({ "gpu": why }),
+        GpuOutcome::Failed { adapter, error } => json!({ "adapter": adapter, "error": error }),
+        GpuOutcome::Rendered(g) => {
+            let r = &g.report;
+            json!({
+                "adapter": g.adapter,
+                "stages_from_cpu": g.from_cpu.name(),
+                "indirect_call": g.calls.mode.name(),
+                "cpu_draw_calls": { "terrain": g.calls.terrain, "trees": g.calls.trees, "max_commands": g.calls.max_commands },
+                "gpu_frame_seconds": g.seconds,
+                "passed": r.passed(),
+                "mismatch_budget_per_buffer": r.compound_budget(),
+                "failures": r.failures(),
+                "mismatch_examples": r.examples,
+                "flip_mean": r.flip_mean,
+                "edge_pixels": r.edge_pixels,
+                "color": {
+                    "max_diff": r.color_max_diff, "max_diff_after_window": r.color_max_window_diff,
+                    "max_interior_diff": r.color_max_interior_diff, "counts": counts_json(&r.color),
+                },
+                "depth": {
+                    "max_diff": r.depth_max_diff, "max_interior_ulps": r.depth_max_interior_ulps,
+                    "counts": counts_json(&r.depth),
+                },
+                "lod_id": { "counts": counts_json(&r.lod_id) },
+                "tolerances": {
+                    "color": ic::COLOR_TOLERANCE, "edge_color_margin": ic::EDGE_COLOR_MARGIN,
+                    "depth_ulps": ic::DEPTH_MAX_ULPS, "depth_edge_rel": ic::DEPTH_EDGE_REL,
+                    "alpha_test_shifts": ic::ALPHA_TEST_SHIFTS, "depth_tie_max_fraction": ic::DEPTH_TIE_MAX_FRACTION,
+                    "compound_max_fraction": ic::MAX_COMPOUND_FRACTION,
+                    "flip_mean_max": ic::FLIP_MEAN_MAX,
+                },
+            })
+        }
+    }
+}
+
+/// The summary lines of the GPU side.
+pub fn parity_text(outcome: &GpuOutcome) -> String {
+    match outcome {
+        GpuOutcome::Skipped(why) => format!("GPU: {why}\n"),
+        GpuOutcome::Failed { adapter, error } => format!("GPU ({adapter}): failed: {error}\n"),
+        GpuOutcome::Rendered(g) => {
+            let r = &g.report;
+            let verdict = if r.passed() {
+                "PASSED".to_string()
+            } else {
+                format!("FAILED ({})", r.failures().join("; "))
+            };
+            format!(
+                "GPU: {} ({} s, stages from the reference: {}, {} CPU draw call(s) for all trees via {})\n\
+                 parity {verdict}: FLIP mean {:.4}; colour max diff {} ({} after the ±1 px window, {} on interior pixels), \
+                 {} mismatches, {} ambiguous; depth max diff {:.2e} ({} ulp interior), {} mismatches; \
+                 LOD id {} mismatches, {} ambiguous (mismatch budget {} per buffer)\n",
+                g.adapter,
+                format_args!("{:.2}", g.seconds),
+                g.from_cpu.name(),
+                g.calls.trees,
+                g.calls.mode.name(),
+                r.flip_mean,
+                r.color_max_diff,
+                r.color_max_window_diff,
+                r.color_max_interior_diff,
+                r.color.mismatches,
+                r.color.threshold_ambiguous + r.color.depth_tie + r.color.edge_ambiguous,
+                r.depth_max_diff,
+                r.depth_max_interior_ulps,
+                r.depth.mismatches,
+                r.lod_id.mismatches,
+                r.lod_id.threshold_ambiguous + r.lod_id.edge_ambiguous,
+                r.compound_budget(),
+            )
+        }
+    }
+}
+
 /// The main job.
 pub fn run(args: &RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
     let params = args.params.params()?;
+    let from_cpu = StagesFromCpu::parse(&args.stage_from_cpu).map_err(|e| {
+        InputError::new(
+            "<command line>",
+            "--stage-from-cpu",
+            &args.stage_from_cpu,
+            e,
+        )
+    })?;
     let (scene, scene_seconds) = stage("loading scene", || args.scene.load());
     let scene = scene?;
     let camera = named_camera(&args.camera, &scene, args.yaw, args.width, args.height)?;
@@ -133,10 +332,21 @@ pub fn run(args: &RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
     });
     let frame = frame?;
 
-    let metrics = metrics(&prepared, &frame, args, scene_seconds);
+    let gpu = if args.no_gpu {
+        GpuOutcome::Skipped("skipped (--no-gpu)".into())
+    } else {
+        let name = format!("{}-{}", prepared.scene.name, args.camera);
+        let (outcome, _) = stage("GPU twin (select + draw) and parity", || {
+            gpu_frame(&prepared, &frame, &camera, &params, from_cpu, &name)
+        });
+        outcome
+    };
+
+    let mut metrics = metrics(&prepared, &frame, args, scene_seconds);
+    metrics["parity"] = parity_json(&gpu);
     let target = &frame.drawn.target;
     let (w, h) = (target.width(), target.height());
-    let summary = summary_text(&metrics);
+    let summary = format!("{}{}", summary_text(&metrics), parity_text(&gpu));
     write_outputs(&args.out, |dir| {
         write_png(&dir.join("color.png"), &target.color_image())?;
         write_depth_exr(&dir.join("depth.exr"), w, h, target.depth())?;
@@ -149,6 +359,22 @@ pub fn run(args: &RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
             &dir.join("atlas.png"),
             &contact_sheet(&prepared.billboards, prepared.scene.meshes.len()),
         )?;
+        if let GpuOutcome::Rendered(g) = &gpu {
+            let reference = Images {
+                width: w,
+                height: h,
+                color: target.color().to_vec(),
+                depth: Vec::new(),
+                lod_id: Vec::new(),
+            };
+            write_png(&dir.join("gpu_color.png"), &g.images.color_image())?;
+            write_png(&dir.join("gpu_lod.png"), &g.images.lod_image())?;
+            write_png(&dir.join("parity_classes.png"), &class_image(&g.report))?;
+            write_png(
+                &dir.join("diff.png"),
+                &difference_image(&g.images, &reference),
+            )?;
+        }
         std::fs::write(
             dir.join("metrics.json"),
             serde_json::to_string_pretty(&metrics).unwrap_or_default(),
@@ -172,8 +398,13 @@ pub fn run(args: &RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
         Ok(())
     })?;
     print!("{summary}");
+    let gpu_files = if matches!(gpu, GpuOutcome::Rendered(_)) {
+        "gpu_color.png, gpu_lod.png, diff.png, parity_classes.png, "
+    } else {
+        ""
+    };
     println!(
-        "wrote color.png, depth.exr, depth_preview.png, lod.png, atlas.png, metrics.json, summary.txt to {}",
+        "wrote color.png, depth.exr, depth_preview.png, lod.png, atlas.png, {gpu_files}metrics.json, summary.txt to {}",
         args.out.display()
     );
     let _ = draw::LOD_ID_MESH;

@@ -9,6 +9,9 @@
 //! | stage | Rust driver | WGSL | seed |
 //! |---|---|---|---|
 //! | per-batch selection | [`select`] | `shaders/select.wgsl` | E§3.5, §4.3; SPEC §5.4 |
+//! | billboard bake | [`bake`] | `shaders/bake.wgsl` | E Alg. 3.1, §4.1; SPEC §5.1 |
+//! | billboard mip chains | [`mips`] | `shaders/mips.wgsl` | E Alg. 3.2, §3.3.2, §4.1; SPEC §5.2 |
+//! | draw execution | [`draw`] | `shaders/draw.wgsl` | E§3.3.1, §4.4; SPEC §5.5 |
 //!
 //! What this crate owns:
 //! - [`GpuContext`]: adapter and device selection (any Vulkan adapter, lavapipe included), the
@@ -28,10 +31,20 @@
 //! differently. The parity tests therefore classify decisions within a small ε of a threshold as
 //! ambiguous instead of failing them (SPEC §8).
 
+pub mod bake;
 pub mod context;
+pub mod draw;
+pub mod mips;
 pub mod readback;
 pub mod select;
 pub mod shaders;
 
+pub use bake::{BakeMesh, GpuBake, GpuBaked};
 pub use context::{ALLOW_NO_GPU_ENV, GpuContext, GpuError, NO_GPU_HINT, gpu_or_explain};
+pub use draw::{
+    DrawCalls, DrawInputs, DrawInstance, DrawScene, DrawSceneDesc, DrawTarget, DrawTextures,
+    DrawVertex, DrawnImages, GpuDraw, IndirectMode, MipLevel, TerrainVertex, terrain_vertices,
+    upload_texture_array,
+};
+pub use mips::{GpuMips, MipArray, MipLevelStats, MipTexels};
 pub use select::{Compaction, GpuSelect, GpuSelection, SelectBuffers, SelectUniform};

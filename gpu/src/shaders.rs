@@ -5,6 +5,8 @@
 pub const COMMON_WGSL: &str = include_str!("shaders/common.wgsl");
 /// The `select` stage's own source (without [`COMMON_WGSL`]).
 pub const SELECT_WGSL: &str = include_str!("shaders/select.wgsl");
+/// The `draw` stage's own source (without [`COMMON_WGSL`]).
+pub const DRAW_WGSL: &str = include_str!("shaders/draw.wgsl");
 
 /// The full source of a stage: [`COMMON_WGSL`] then `stage`.
 pub fn with_common(stage: &str) -> String {
@@ -14,4 +16,25 @@ pub fn with_common(stage: &str) -> String {
 /// The full `select` module source.
 pub fn select_source() -> String {
     with_common(SELECT_WGSL)
+}
+
+/// The `mips` stage's own source (without [`COMMON_WGSL`]).
+pub const MIPS_WGSL: &str = include_str!("shaders/mips.wgsl");
+
+/// The full `mips` module source.
+pub fn mips_source() -> String {
+    with_common(MIPS_WGSL)
+}
+
+/// The `bake` stage's own source (without [`COMMON_WGSL`]).
+pub const BAKE_WGSL: &str = include_str!("shaders/bake.wgsl");
+
+/// The full `bake` module source.
+pub fn bake_source() -> String {
+    with_common(BAKE_WGSL)
+}
+
+/// The full `draw` module source.
+pub fn draw_source() -> String {
+    with_common(DRAW_WGSL)
 }

@@ -99,6 +99,7 @@ pub fn bake_layer(
         (texel[3] > 0.0).then_some(FragmentOutput {
             color: texel,
             id: 1,
+            depth: None,
         })
     };
     let mut target = RenderTarget::new(r, r, ClearValues::default());

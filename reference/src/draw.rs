@@ -259,12 +259,14 @@ impl TreeShader<'_> {
         Some(FragmentOutput {
             color: [texel[0], texel[1], texel[2], weight],
             id,
+            depth: None,
         })
     }
 }
 
-/// Ground colour (sRGB8) at a height, a muted green-brown ramp.
-fn ground_color(z: f32) -> [f32; 3] {
+/// Ground colour at a height, a muted green-brown ramp between two sRGB8 colours, returned in
+/// linear light (the ground's vertex colour; the ray-traced ground truth uses it too).
+pub fn ground_color(z: f32) -> [f32; 3] {
     let t = ((z + 30.0) / 60.0).clamp(0.0, 1.0);
     let lo = [96u8, 110, 70];
     let hi = [140u8, 132, 96];
@@ -389,6 +391,7 @@ pub fn draw_frame(
         Some(FragmentOutput {
             color: [f.varyings[0], f.varyings[1], f.varyings[2], 1.0],
             id: LOD_ID_TERRAIN,
+            depth: None,
         })
     };
     let terrain_stats = target.draw(&ground, &ground_shader, &DrawState::OPAQUE);

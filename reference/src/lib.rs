@@ -13,6 +13,10 @@
 //! | per-batch selection | [`select`] | E§3.5, §4.3 |
 //! | draw execution | `draw` | E§4.4 |
 //!
+//! Beside the pipeline, for the experiments (SPEC §9, §10): [`ground_truth`] (full meshes for every
+//! tree, ray-traced with obvhs, alpha-tested, supersampled: the accuracy yardstick) and
+//! [`baselines`] (E§5's *Vegetation* and *Primitive*, on the same rasterizer).
+//!
 //! Inputs come from [`scene`] (built-in procedural scenes and validated user scenes).
 //!
 //! Depends on `forestlod-shared`, glam, rayon and image/exr for I/O; never on wgpu. Parallel code
@@ -25,14 +29,17 @@
 )]
 
 pub mod bake;
+pub mod baselines;
 pub mod batches;
 pub mod cameras;
 pub mod draw;
 pub mod error;
 pub mod geometry;
+pub mod ground_truth;
 pub mod mips;
 pub mod output;
 pub mod pipeline;
+pub mod precision;
 pub mod raster;
 pub mod sampler;
 pub mod scene;

@@ -52,10 +52,14 @@
 //!    i.e. wgpu's `CompareFunction::Always`, when [`DrawState::depth_test`] is false); then the
 //!    [`FragmentShader`], which may discard (alpha test); then, for a kept fragment, the depth write
 //!    (if [`DrawState::depth_write`]), the colour write through [`Blend`] and the `u32` id write.
-//!    The depth test runs *before* the shader: the shader cannot change depth, so a fragment that
+//!    The depth test runs *before* the shader: the shader cannot lower depth, so a fragment that
 //!    fails the test can have no effect whatever the shader does, and testing first gives the same
 //!    buffers as testing after (Vulkan's early fragment tests). Depth is written only after the
-//!    shader keeps the fragment.
+//!    shader keeps the fragment. A shader may **replace** the depth ([`FragmentOutput::depth`],
+//!    SPIR-V `FragDepth`) under the conservative-depth contract `DepthGreater`: its depth is never
+//!    below the interpolated one, so the early test rejects only fragments that the late test
+//!    would reject too. The returned depth is clamped to `[0, 1]` (Vulkan clamps `FragDepth` to the
+//!    viewport's depth range), tested again with LESS when the depth test is on, and written.
 //! 9. **Colour target** is RGBA8 sRGB, like wgpu's `Rgba8UnormSrgb`: the shader's linear,
 //!    straight-alpha colour is clamped to `[0, 1]` (NaN to 0, as conversion to UNORM does), blended in
 //!    `f32` with the destination decoded to linear, and re-encoded to sRGB8 with round-to-nearest
@@ -234,6 +238,12 @@ pub struct FragmentOutput {
     pub color: [f32; 4],
     /// Value written to the auxiliary `u32` target (e.g. the LOD id of the debug view).
     pub id: u32,
+    /// A depth the shader writes instead of the interpolated one (SPIR-V `FragDepth`), or `None`
+    /// for the interpolated depth. Module docs, step 8: the shader must not return less than
+    /// [`Fragment::depth`] (SPIR-V `DepthGreater`, GLSL `layout(depth_greater)`), so the early
+    /// test stays valid; the returned depth is clamped to `[0, 1]`, tested again (LESS) and
+    /// written. NaN discards the fragment. Used by the *Primitive* baseline (E§5).
+    pub depth: Option<f32>,
 }
 
 /// The fragment stage: `None` discards the fragment (alpha test), leaving every target untouched.
@@ -919,10 +929,22 @@ where
                     let Some(out) = shader.shade(&fragment) else {
                         continue; // discarded
                     };
-                    counts.written += 1;
                     let at = at[k];
+                    // Shader-written depth (module docs, step 8): clamped, then the late test.
+                    let z = match out.depth {
+                        None => depth[k],
+                        Some(d) if d.is_nan() => continue,
+                        Some(d) => {
+                            let d = d.clamp(0.0, 1.0);
+                            if state.depth_test && d >= buffers.depth[at] {
+                                continue;
+                            }
+                            d
+                        }
+                    };
+                    counts.written += 1;
                     if state.depth_write {
-                        buffers.depth[at] = depth[k];
+                        buffers.depth[at] = z;
                     }
                     buffers.color[at] = merge(buffers.color[at], out.color, state.blend);
                     buffers.aux[at] = out.id;

@@ -42,6 +42,7 @@ fn coverage(triangles: &[Triangle<0>], w: u32, h: u32) -> (Vec<u32>, DrawStats) 
         Some(FragmentOutput {
             color: [1.0; 4],
             id: f.primitive_id,
+            depth: None,
         })
     };
     let mut target = RenderTarget::new(w, h, ClearValues::default());
@@ -393,6 +394,7 @@ fn check_perspective(x_near: f32) {
         Some(FragmentOutput {
             color: [f.ddx[0], f.ddy[0], 0.0, 1.0],
             id: f.varyings[0].to_bits(),
+            depth: None,
         })
     };
     let clear = ClearValues {
@@ -524,7 +526,13 @@ fn flat_quad(z: f32) -> [Triangle<0>; 2] {
 }
 
 fn solid(color: [f32; 4], id: u32) -> impl Fn(&Fragment<0>) -> Option<FragmentOutput> + Sync {
-    move |_| Some(FragmentOutput { color, id })
+    move |_| {
+        Some(FragmentOutput {
+            color,
+            id,
+            depth: None,
+        })
+    }
 }
 
 #[test]
@@ -561,6 +569,7 @@ fn depth_less_keeps_the_nearest_whatever_the_order_and_the_first_on_ties() {
         Some(FragmentOutput {
             color: [1.0; 4],
             id: f.primitive_id,
+            depth: None,
         })
     };
     t.draw(&both, &by_primitive, &DrawState::OPAQUE);
@@ -585,6 +594,7 @@ fn depth_write_off_and_discard_leave_depth_alone() {
         (f.x >= w / 2).then_some(FragmentOutput {
             color: [0.0, 0.0, 0.0, 1.0],
             id: 2,
+            depth: None,
         })
     };
     let stats = t.draw(&flat_quad(0.7), &half, &DrawState::OPAQUE);
@@ -651,6 +661,7 @@ fn facing_and_culling_follow_wgpu_conventions() {
             Some(FragmentOutput {
                 color: [1.0; 4],
                 id: 1 + f.front_facing as u32,
+                depth: None,
             })
         };
         t.draw(&[tri], &shader, &state);
@@ -733,6 +744,7 @@ fn a_textured_triangle_list_reproduces_the_texture_at_one_and_two_texels_per_pix
             Some(FragmentOutput {
                 color,
                 id: lod.lambda.to_bits(),
+                depth: None,
             })
         };
         let mut t = RenderTarget::new(w, h, ClearValues::default());
@@ -784,6 +796,7 @@ fn render_scene(tris: &[Triangle<3>], threads: usize) -> (RenderTarget, DrawStat
             (a > 0.15).then_some(FragmentOutput {
                 color: [r, g, (f.ddx[0] * 50.0).abs(), a],
                 id: f.primitive_id,
+                depth: None,
             })
         };
         let mut stats = t.draw(&tris[..tris.len() / 2], &shader, &DrawState::OPAQUE);
@@ -810,4 +823,56 @@ proptest! {
         let bits = |t: &RenderTarget| t.depth().iter().map(|d| d.to_bits()).collect::<Vec<_>>();
         prop_assert!(bits(&one) == bits(&two) && bits(&one) == bits(&three));
     }
+}
+
+/// A shader-written depth (`FragmentOutput::depth`, SPIR-V `FragDepth` under `DepthGreater`)
+/// replaces the interpolated one: it is clamped to `[0, 1]`, tested again with LESS and written;
+/// NaN discards. This is what the *Primitive* baseline's ray-cast quads rely on (E§5).
+#[test]
+fn shader_written_depth_is_clamped_tested_and_written() {
+    let (w, h) = (8, 8);
+    let mut t = RenderTarget::new(w, h, ClearValues::default());
+    // A wall at depth 0.5 on the right half only.
+    let right = |f: &Fragment<0>| {
+        (f.x >= w / 2).then_some(FragmentOutput {
+            color: [1.0; 4],
+            id: 1,
+            depth: None,
+        })
+    };
+    t.draw(&flat_quad(0.5), &right, &DrawState::OPAQUE);
+    // A quad interpolated at 0.1 whose shader pushes depth back: rows 0-1 to 0.3 (in front of the
+    // wall), rows 2-3 to 0.8 (behind it), rows 4-5 to 2.0 (clamped to 1.0: behind the wall, and
+    // not below the cleared 1.0 on the left, so not written there either), rows 6-7 NaN
+    // (discarded).
+    let pushed = |f: &Fragment<0>| {
+        let depth = match f.y / 2 {
+            0 => 0.3,
+            1 => 0.8,
+            2 => 2.0,
+            _ => f32::NAN,
+        };
+        Some(FragmentOutput {
+            color: [0.0, 0.0, 0.0, 1.0],
+            id: 2,
+            depth: Some(depth),
+        })
+    };
+    let stats = t.draw(&flat_quad(0.1), &pushed, &DrawState::OPAQUE);
+    assert_eq!(stats.fragments_shaded, (w * h) as u64);
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            let wall = x >= w / 2;
+            let expected = match y / 2 {
+                0 => (2, 0.3),
+                1 if !wall => (2, 0.8),
+                _ if wall => (1, 0.5),
+                _ => (0, 1.0),
+            };
+            assert_eq!((t.aux()[i], t.depth()[i]), expected, "({x}, {y})");
+        }
+    }
+    // Written: all of rows 0-1, the left half of rows 2-3.
+    assert_eq!(stats.fragments_written, (2 * w + w / 2 * 2) as u64);
 }

@@ -79,7 +79,7 @@ fn assert_mentions(e: &str, parts: &[&str]) {
 fn scene_file_with_builtin_and_obj_species_loads() {
     let dir = temp_dir("good");
     write(&dir, "card.obj", CARD_TREE_Y_UP);
-    write(&dir, "card.png", rgba_png(16, 32));
+    write(&dir, "card.png", rgba_png(16, 16));
     write(
         &dir,
         "trees.csv",
@@ -577,8 +577,17 @@ fn tex() -> Rgba8Image {
     Rgba8Image::new(4, 4, [1, 2, 3, 4])
 }
 
+/// Cases per byte-fuzzing property: 256, or `PROPTEST_CASES` when set (a long fuzzing run:
+/// `PROPTEST_CASES=20000 cargo test --release -p forestlod-reference --test scene_loading`).
+fn fuzz_cases() -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(256)
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: fuzz_cases(), failure_persistence: None, ..ProptestConfig::default() })]
 
     #[test]
     fn csv_loader_never_panics_on_bytes(bytes in prop::collection::vec(any::<u8>(), 0..512)) {
@@ -633,7 +642,7 @@ fn toml_loader_never_panics_on_scene_like_text() {
     write(&dir, "t.png", rgba_png(4, 4));
     let path = dir.join("fuzz.toml");
     let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig {
-        cases: 256,
+        cases: fuzz_cases(),
         failure_persistence: None,
         ..ProptestConfig::default()
     });
@@ -646,4 +655,165 @@ fn toml_loader_never_panics_on_scene_like_text() {
             Ok(())
         })
         .unwrap();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Structure-aware PNG fuzzing and the whole file path (brief "Bad input and fuzzing").
+// ---------------------------------------------------------------------------------------------
+
+/// CRC-32 (ISO 3309, as PNG chunks use), bit by bit.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+/// Recomputes the CRC of every chunk whose length field fits the data, so that mutations reach
+/// the decoder's parsing instead of stopping at its checksum test.
+fn fix_crcs(png: &mut [u8]) {
+    let mut at = 8; // signature
+    while at + 12 <= png.len() {
+        let len = u32::from_be_bytes(png[at..at + 4].try_into().unwrap()) as usize;
+        let Some(end) = (at + 8).checked_add(len) else {
+            return;
+        };
+        if end + 4 > png.len() {
+            return;
+        }
+        let crc = crc32(&png[at + 4..end]);
+        png[end..end + 4].copy_from_slice(&crc.to_be_bytes());
+        at = end + 4;
+    }
+}
+
+/// A valid RGBA8 PNG of side `side` (IHDR width at bytes 16..20, height at 20..24).
+fn valid_png(side: u32) -> Vec<u8> {
+    rgba_png(side, side)
+}
+
+/// A valid PNG whose IHDR declares `width` x `height` (CRC fixed), its data unchanged.
+fn png_declaring(width: u32, height: u32) -> Vec<u8> {
+    let mut png = valid_png(4);
+    png[16..20].copy_from_slice(&width.to_be_bytes());
+    png[20..24].copy_from_slice(&height.to_be_bytes());
+    fix_crcs(&mut png);
+    png
+}
+
+#[test]
+fn png_with_huge_or_lying_dimensions_is_rejected_cleanly() {
+    // Declared larger than allowed: rejected from the header, before any allocation.
+    for (w, h, what) in [
+        (1 << 30, 1 << 30, "width"),
+        (u32::MAX, 4, "width"),
+        (4, 8192, "height"),
+        (0, 4, "file"),
+    ] {
+        let e = decode_png_texture(&png_declaring(w, h), "huge.png")
+            .unwrap_err()
+            .to_string();
+        assert_mentions(&e, &["huge.png", what]);
+    }
+    // Declared within limits but the data holds 4x4 texels: the decoder runs out of data.
+    for side in [8u32, 4096] {
+        let e = decode_png_texture(&png_declaring(side, side), "lying.png")
+            .unwrap_err()
+            .to_string();
+        assert_mentions(&e, &["lying.png", "invalid PNG"]);
+    }
+    // Every truncation of a valid PNG is an error naming the file, or (cut inside the trailing
+    // IEND chunk, after all image data) the complete image: never a partial one.
+    let full = valid_png(8);
+    let whole = decode_png_texture(&full, "cut.png").unwrap();
+    let mut accepted = 0;
+    for cut in 0..full.len() {
+        match decode_png_texture(&full[..cut], "cut.png") {
+            Ok(t) => {
+                assert!(
+                    cut >= full.len() - 12,
+                    "cut at {cut} of {} accepted",
+                    full.len()
+                );
+                assert_eq!(t, whole, "cut at {cut}");
+                accepted += 1;
+            }
+            Err(e) => assert!(e.to_string().starts_with("cut.png"), "cut at {cut}: {e}"),
+        }
+    }
+    assert!(accepted <= 12);
+}
+
+/// A directory with a good CSV, OBJ and PNG beside the generated scene files.
+fn fuzz_dir(test: &str) -> PathBuf {
+    let dir = temp_dir(test);
+    write(&dir, "t.csv", format!("{HEADER}1,2,3,0,1,0\n"));
+    write(&dir, "m.obj", CARD_TREE_Y_UP);
+    write(&dir, "t.png", rgba_png(4, 4));
+    dir
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: fuzz_cases(), failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// Mutated valid PNGs (bytes overwritten, then every chunk CRC fixed, then optionally cut)
+    /// never panic the decoder, and what it accepts is a square power-of-two RGBA8 texture.
+    #[test]
+    fn png_decoder_never_panics_on_mutated_pngs(
+        side in prop::sample::select(vec![1u32, 2, 4, 8, 16]),
+        edits in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8),
+        cut in prop::option::of(any::<prop::sample::Index>()),
+    ) {
+        let mut png = valid_png(side);
+        for (at, byte) in &edits {
+            let i = 8 + at.index(png.len() - 8);
+            png[i] = *byte;
+        }
+        fix_crcs(&mut png);
+        if let Some(cut) = cut {
+            png.truncate(cut.index(png.len() + 1));
+        }
+        match decode_png_texture(&png, "mutated.png") {
+            Ok(t) => {
+                prop_assert!(t.width == t.height && t.width.is_power_of_two() && t.width <= 4096);
+                prop_assert_eq!(t.texels.len(), (t.width * t.height) as usize);
+            }
+            Err(e) => prop_assert!(e.to_string().starts_with("mutated.png")),
+        }
+    }
+
+    /// The whole file path: arbitrary bytes as a scene file on disk, as an instance table on disk
+    /// and as an OBJ/PNG pair named by a good scene file never panic `load_scene_file`,
+    /// `load_path` or `load_instances_with_builtin_species`; what they accept validates.
+    #[test]
+    fn file_loaders_never_panic_on_bytes(
+        bytes in prop::collection::vec(any::<u8>(), 0..1024),
+        which in 0u8..4,
+    ) {
+        let dir = fuzz_dir("file-fuzz");
+        let result = match which {
+            0 => load_scene_file(&write(&dir, "fuzz.toml", &bytes)),
+            1 => load_path(&write(&dir, "fuzz.csv", &bytes)),
+            2 => {
+                write(&dir, "fuzz.obj", &bytes);
+                load_scene_file(&write(&dir, "s.toml", "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"fuzz.obj\"\ntexture = \"t.png\"\n"))
+            }
+            _ => {
+                write(&dir, "fuzz.png", &bytes);
+                load_scene_file(&write(&dir, "s.toml", "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"m.obj\"\ntexture = \"fuzz.png\"\n"))
+            }
+        };
+        match result {
+            Ok(scene) => prop_assert!(scene.validate("fuzz").is_ok()),
+            Err(e) => prop_assert!(!e.to_string().contains('\n'), "one-line error: {e}"),
+        }
+    }
 }

@@ -148,3 +148,368 @@ pub fn gpu_backends() -> Vec<GpuBackend> {
         })
         .unwrap_or_default()
 }
+
+// ---------------------------------------------------------------------------------------------
+// The draw stage (SPEC §5.5, §8): one frame rendered by the reference or by the GPU twin.
+
+use forestlod_gpu::draw::{DrawCalls, DrawTarget, GpuDraw, MipLevel};
+use forestlod_gpu::{
+    BakeMesh, DrawInputs, DrawInstance, DrawScene, DrawSceneDesc, DrawTextures, DrawVertex,
+    GpuBake, GpuError, terrain_vertices, upload_texture_array,
+};
+use forestlod_reference::pipeline::Prepared;
+use forestlod_reference::sampler::Texture;
+
+use crate::image_compare::Images;
+
+/// Which GPU stages take their input from the reference twin instead of the GPU stage before
+/// them (`forestlod render --stage-from-cpu select,textures`; vello's `force_gpu_from` is the
+/// model). The draw stage itself always runs on the GPU.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct StagesFromCpu {
+    /// Draw the reference's selection (uploaded with `SelectBuffers::from_cpu`) instead of
+    /// `select.wgsl`'s.
+    pub select: bool,
+    /// Sample the reference's mesh mips and billboard bake (uploaded with
+    /// `upload_texture_array`) instead of the textures of the GPU mips (`mips.wgsl`, on the mesh
+    /// textures) and bake (`bake.wgsl`, then `mips.wgsl`) stages.
+    pub textures: bool,
+}
+
+impl StagesFromCpu {
+    /// Every stage on the GPU.
+    pub const NONE: Self = Self {
+        select: false,
+        textures: false,
+    };
+    /// Only the draw stage on the GPU: it alone is judged.
+    pub const ALL: Self = Self {
+        select: true,
+        textures: true,
+    };
+
+    /// Parses a comma-separated list of `select`, `textures` (empty or `none`: nothing).
+    pub fn parse(list: &str) -> Result<Self, String> {
+        let mut out = Self::NONE;
+        for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            match item {
+                "select" => out.select = true,
+                "textures" => out.textures = true,
+                "none" => {}
+                other => {
+                    return Err(format!(
+                        "unknown stage {other:?} in --stage-from-cpu {list:?}: expected a comma-separated list of select, textures (or none)"
+                    ));
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// The list form [`StagesFromCpu::parse`] reads, `none` when empty.
+    pub fn name(self) -> String {
+        let mut parts = Vec::new();
+        if self.select {
+            parts.push("select");
+        }
+        if self.textures {
+            parts.push("textures");
+        }
+        if parts.is_empty() {
+            "none".into()
+        } else {
+            parts.join(",")
+        }
+    }
+}
+
+/// A `draw` implementation: renders one frame of a prepared scene.
+pub trait Renderer {
+    /// Name for reports, e.g. `gpu(from-cpu: select,textures)`.
+    fn name(&self) -> String;
+    /// Renders one frame. `camera` and `params` are valid and `params` is what `prepared` was
+    /// prepared with.
+    fn render(&self, prepared: &Prepared, camera: &Camera, params: &Params) -> Images;
+}
+
+/// The CPU oracle: `Prepared::render` (select, then `draw_frame`).
+pub struct ReferenceRenderer;
+
+impl Renderer for ReferenceRenderer {
+    fn name(&self) -> String {
+        "reference".into()
+    }
+    fn render(&self, prepared: &Prepared, camera: &Camera, params: &Params) -> Images {
+        let frame = prepared.render(camera, params).expect("reference render");
+        let t = &frame.drawn.target;
+        Images {
+            width: t.width(),
+            height: t.height(),
+            color: t.color().to_vec(),
+            depth: t.depth().to_vec(),
+            lod_id: t.aux().to_vec(),
+        }
+    }
+}
+
+/// The reference frames with the alpha-test cutoff moved by each of
+/// `±image_compare::ALPHA_TEST_SHIFTS`: the alternatives that classify threshold-ambiguous
+/// pixels (`image_compare` module docs).
+pub fn alpha_test_alternatives(
+    prepared: &Prepared,
+    camera: &Camera,
+    params: &Params,
+) -> Vec<Images> {
+    crate::image_compare::ALPHA_TEST_SHIFTS
+        .iter()
+        .flat_map(|&d| [-d, d])
+        .map(|d| {
+            let p = Params {
+                alpha_cutoff: (params.alpha_cutoff + d).clamp(0.0, 1.0),
+                ..*params
+            };
+            ReferenceRenderer.render(prepared, camera, &p)
+        })
+        .collect()
+}
+
+/// What a GPU frame used and produced.
+#[derive(Debug)]
+pub struct GpuFrame {
+    /// The buffers read back.
+    pub images: Images,
+    /// The CPU-side draw calls it recorded.
+    pub calls: DrawCalls,
+    /// Where its inputs came from.
+    pub from_cpu: StagesFromCpu,
+}
+
+/// The draw stage's static inputs of a prepared scene, converted from the reference's types.
+pub struct DrawSceneData {
+    /// Packed vertices.
+    pub vertices: Vec<DrawVertex>,
+    /// Trees.
+    pub instances: Vec<DrawInstance>,
+    /// The ground, from the reference scene's terrain.
+    pub terrain: Vec<forestlod_gpu::TerrainVertex>,
+}
+
+impl DrawSceneData {
+    /// Converts the prepared scene's geometry, instances and terrain.
+    pub fn new(prepared: &Prepared) -> Self {
+        let scene = &prepared.scene;
+        Self {
+            vertices: prepared
+                .geometry
+                .vertices
+                .iter()
+                .map(|v| DrawVertex {
+                    position: v.position,
+                    uv: v.uv,
+                })
+                .collect(),
+            instances: scene
+                .instances
+                .iter()
+                .map(|t| DrawInstance {
+                    position: t.position,
+                    yaw: t.yaw,
+                    scale: t.scale,
+                    mesh: t.mesh,
+                })
+                .collect(),
+            terrain: terrain_vertices(scene.bounds, |x, y| scene.terrain.height(x, y)),
+        }
+    }
+
+    /// The descriptor [`DrawScene::new`] uploads.
+    pub fn desc<'a>(&'a self, prepared: &'a Prepared) -> DrawSceneDesc<'a> {
+        DrawSceneDesc {
+            vertices: &self.vertices,
+            indices: &prepared.geometry.indices,
+            meshes: &prepared.geometry.meshes,
+            billboard: prepared.geometry.billboard,
+            instances: &self.instances,
+            indirection: &prepared.batches.indirection,
+            terrain: &self.terrain,
+        }
+    }
+}
+
+/// The layers of reference textures as [`MipLevel`]s: every layer of every texture, in order.
+pub fn mip_levels<'a>(textures: &[&'a Texture]) -> Vec<Vec<MipLevel<'a>>> {
+    textures
+        .iter()
+        .flat_map(|t| {
+            (0..t.layer_count() as u32).map(move |layer| {
+                (0..t.level_count())
+                    .map(|level| {
+                        let img = t.level(layer, level);
+                        MipLevel {
+                            width: img.width,
+                            height: img.height,
+                            texels: &img.texels,
+                        }
+                    })
+                    .collect()
+            })
+        })
+        .collect()
+}
+
+/// Uploads the reference's mesh textures (one layer per mesh) and billboard array.
+pub fn upload_reference_textures(
+    ctx: &GpuContext,
+    prepared: &Prepared,
+) -> Result<(wgpu::Texture, wgpu::Texture), GpuError> {
+    let meshes: Vec<&Texture> = prepared.mesh_textures.iter().collect();
+    let mesh = upload_texture_array(ctx, "mesh textures (cpu)", &mip_levels(&meshes))?;
+    let billboards = upload_texture_array(
+        ctx,
+        "billboards (cpu)",
+        &mip_levels(&[&prepared.billboards.texture]),
+    )?;
+    Ok((mesh, billboards))
+}
+
+/// The GPU's own textures for a prepared scene: the mesh textures' chains built by the GPU mips
+/// stage (one layer per mesh; they must be square, of one power-of-two size) and the billboard
+/// array baked and mipmapped by the GPU bake stage, both with `params`' mip mode and alpha
+/// cutoff, as the reference's `prepare` builds its own.
+pub fn gpu_textures(
+    ctx: &GpuContext,
+    prepared: &Prepared,
+    params: &Params,
+) -> Result<(wgpu::Texture, wgpu::Texture), GpuError> {
+    let scene = &prepared.scene;
+    let mode = params.mips().map_err(|e| GpuError::Input {
+        field: "params.mip_mode",
+        value: e.to_string(),
+        reason: "expected a MipMode id",
+    })?;
+    let side = scene.meshes.first().map_or(0, |m| m.texture.width);
+    if let Some(m) = scene
+        .meshes
+        .iter()
+        .find(|m| m.texture.width != side || m.texture.height != side)
+    {
+        return Err(GpuError::Input {
+            field: "mesh texture size",
+            value: format!(
+                "mesh {:?} is {}x{}, mesh 0 is {side}x{side}",
+                m.name, m.texture.width, m.texture.height
+            ),
+            reason: "the GPU mips stage builds one square array: every mesh texture must have mesh 0's square size",
+        });
+    }
+    let bake = GpuBake::new(ctx)?;
+    let level0: Vec<&[[u8; 4]]> = scene.meshes.iter().map(|m| &m.texture.texels[..]).collect();
+    let mesh_level0 = forestlod_gpu::mips::upload_level0(ctx, side, &level0)?;
+    let mesh = bake
+        .mips()
+        .run(mesh_level0, mode, params.alpha_cutoff)?
+        .texture;
+    let meshes: Vec<BakeMesh> = scene
+        .meshes
+        .iter()
+        .map(|m| BakeMesh {
+            positions: &m.positions,
+            uvs: &m.uvs,
+            indices: &m.indices,
+            texture_width: m.texture.width,
+            texture_height: m.texture.height,
+            texture: &m.texture.texels,
+            meta: m.meta(),
+        })
+        .collect();
+    let billboards = bake.bake(&meshes, params)?.mips.texture;
+    Ok((mesh, billboards))
+}
+
+/// Renders one frame on the GPU, reading the buffers back: `select.wgsl` (stable compaction) or
+/// the reference's selection, the GPU stages' textures ([`gpu_textures`]) or the reference's,
+/// then `draw.wgsl`. `draw` holds the compiled pipelines (see [`gpu_draw`]).
+pub fn render_gpu(
+    ctx: &GpuContext,
+    draw: &GpuDraw,
+    prepared: &Prepared,
+    camera: &Camera,
+    params: &Params,
+    from_cpu: StagesFromCpu,
+) -> Result<GpuFrame, GpuError> {
+    let data = DrawSceneData::new(prepared);
+    let scene = DrawScene::new(ctx, &data.desc(prepared))?;
+    let (mesh, billboards) = if from_cpu.textures {
+        upload_reference_textures(ctx, prepared)?
+    } else {
+        gpu_textures(ctx, prepared, params)?
+    };
+    let textures = DrawTextures::new(&mesh, &billboards)?;
+    let target = DrawTarget::new(ctx, camera.width, camera.height)?;
+    let gpu_select;
+    let cpu_buffers;
+    let selection = if from_cpu.select {
+        let s = prepared.select(camera, params);
+        cpu_buffers =
+            forestlod_gpu::SelectBuffers::from_cpu(ctx, &s.commands, &s.data, &s.counters)?;
+        &cpu_buffers
+    } else {
+        gpu_select = GpuSelect::new(
+            ctx,
+            &prepared.batches.metas,
+            &prepared.geometry.meshes,
+            &prepared.geometry.billboard,
+        )?;
+        gpu_select.dispatch(camera, params, Compaction::Stable)?
+    };
+    let inputs = DrawInputs {
+        scene: &scene,
+        textures: &textures,
+        selection,
+    };
+    let calls = draw.render(ctx, &inputs, camera, params, &target)?;
+    let out = target.read(ctx)?;
+    Ok(GpuFrame {
+        images: Images {
+            width: out.width,
+            height: out.height,
+            color: out.color,
+            depth: out.depth,
+            lod_id: out.lod_id,
+        },
+        calls,
+        from_cpu,
+    })
+}
+
+/// The draw pipelines of this test binary's context (compiled once).
+pub fn gpu_draw(ctx: &'static GpuContext) -> &'static GpuDraw {
+    static DRAW: OnceLock<GpuDraw> = OnceLock::new();
+    DRAW.get_or_init(|| GpuDraw::new(ctx).expect("GpuDraw::new"))
+}
+
+/// `draw.wgsl` fed by the chosen stages.
+pub struct GpuRenderer {
+    /// The shared context.
+    pub ctx: &'static GpuContext,
+    /// Which inputs come from the reference.
+    pub from_cpu: StagesFromCpu,
+}
+
+impl Renderer for GpuRenderer {
+    fn name(&self) -> String {
+        format!("gpu(from-cpu: {})", self.from_cpu.name())
+    }
+    fn render(&self, prepared: &Prepared, camera: &Camera, params: &Params) -> Images {
+        render_gpu(
+            self.ctx,
+            gpu_draw(self.ctx),
+            prepared,
+            camera,
+            params,
+            self.from_cpu,
+        )
+        .unwrap_or_else(|e| panic!("{}: {e}", self.name()))
+        .images
+    }
+}

@@ -3,7 +3,9 @@
 //! exercise the selection rules alone.
 
 pub mod backend;
+pub mod image_compare;
 pub mod scenarios;
+pub mod texel_compare;
 
 use forestlod_reference::scene::{Instance, Scene, Terrain, TreeMesh};
 use forestlod_reference::texture::Rgba8Image;

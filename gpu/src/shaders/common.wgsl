@@ -159,3 +159,153 @@ fn lod_needs(lo: f32, hi: f32, fade_start: f32, fade_end: f32, lod_levels: u32) 
     }
     return LodNeeds((lo < fade_end), (hi >= fade_start));
 }
+
+// ---------------------------------------------------------------------------------------------
+// Twins of shared/src/angle.rs, shared/src/billboard.rs and shared/src/fade.rs, used by
+// draw.wgsl (E§3.3.1, §4.4; G§4; SPEC §6). Same operations in the same order as the Rust; where
+// Rust relies on `f32::max`/`min` returning the non-NaN operand, the WGSL spells the NaN case out
+// with comparisons (WGSL's `max`/`min` leave NaN implementation-defined).
+
+// π/2 and π as f32 (core::f32::consts::FRAC_PI_2, PI).
+const F32_FRAC_PI_2: f32 = 1.5707963705062866;
+const F32_PI: f32 = 3.1415927410125732;
+
+// Keep in sync with forestlod_shared::FadeMode (shared/src/fade.rs).
+const FADE_NONE: u32 = 0u;
+const FADE_ALPHA: u32 = 1u;
+const FADE_DITHER: u32 = 2u;
+const FADE_DITHER_SEQUENTIAL: u32 = 3u;
+
+// Keep in sync with forestlod_shared::AngleIndexMode (shared/src/params.rs).
+const ANGLE_INDEX_NEAREST: u32 = 0u;
+const ANGLE_INDEX_EQ31_CLAMPED: u32 = 1u;
+
+// `x.max(lo).min(hi)` of Rust: NaN maps to `lo`.
+fn clamp_nan_low(x: f32, lo: f32, hi: f32) -> f32 {
+    if !(x >= lo) {
+        return lo;
+    }
+    if x > hi {
+        return hi;
+    }
+    return x;
+}
+
+// forestlod_shared::angle_index_eq31: E Eq. 3.1 as written, `a - floor((2a/π) acos(V·U))`.
+fn angle_index_eq31(v_dot_u: f32, a: u32) -> f32 {
+    let af = f32(a);
+    return af - floor((2.0 * af / F32_PI) * acos(v_dot_u));
+}
+
+// forestlod_shared::bake_elevation: `90° / (K - 1) · k`, K = 1 the level view, k clamped.
+fn bake_elevation(k: u32, k_count: u32) -> f32 {
+    if k_count <= 1u {
+        return 0.0;
+    }
+    let kk = min(k, k_count - 1u);
+    return F32_FRAC_PI_2 / f32(k_count - 1u) * f32(kk);
+}
+
+// forestlod_shared::angle_index: nearest baked elevation, clamped, NaN-free (ties round up).
+fn angle_index(v_dot_u: f32, k_count: u32) -> u32 {
+    if k_count <= 1u {
+        return 0u;
+    }
+    let s = clamp_nan_low(v_dot_u, 0.0, 1.0);
+    let elevation = asin(s);
+    let step = F32_FRAC_PI_2 / f32(k_count - 1u);
+    let i = floor(elevation / step + 0.5);
+    return min(u32(i), k_count - 1u);
+}
+
+// forestlod_shared::angle_index_eq31_clamped: Eq. 3.1 clamped into 0..K-1, NaN-free.
+fn angle_index_eq31_clamped(v_dot_u: f32, k_count: u32) -> u32 {
+    let s = clamp_nan_low(v_dot_u, -1.0, 1.0);
+    let i = angle_index_eq31(s, k_count);
+    if i != i {
+        return 0u;
+    }
+    return u32(clamp_nan_low(i, 0.0, f32(max(k_count, 1u) - 1u)));
+}
+
+// forestlod_shared::angle_index_for.
+fn angle_index_for(mode: u32, v_dot_u: f32, k_count: u32) -> u32 {
+    if mode == ANGLE_INDEX_EQ31_CLAMPED {
+        return angle_index_eq31_clamped(v_dot_u, k_count);
+    }
+    return angle_index(v_dot_u, k_count);
+}
+
+// Keep in sync with forestlod_shared::BillboardExtent (shared/src/billboard.rs).
+struct BillboardExtent {
+    half_width: f32,
+    bottom: f32,
+    height: f32,
+}
+
+// forestlod_shared::billboard_extent: the layer's rectangle in the billboard frame.
+fn billboard_extent(mesh: MeshMeta, elevation: f32) -> BillboardExtent {
+    let s = sin(elevation);
+    let c = cos(elevation);
+    let w = mesh.billboard_half_width;
+    let z0 = mesh.bbox_min[2];
+    let z1 = mesh.bbox_max[2];
+    return BillboardExtent(w, z0 * c - w * s, (z1 - z0) * c + 2.0 * w * s);
+}
+
+// forestlod_shared::dither_threshold: PCG-style integer hash of the pixel, 24 bits as a fraction.
+// u32 arithmetic wraps in WGSL exactly as `wrapping_*` in Rust.
+fn dither_threshold(x: u32, y: u32) -> f32 {
+    var v = x * 1664525u + y * 1013904223u + 0x9E3779B9u;
+    let state = v * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    v = (word >> 22u) ^ word;
+    return f32(v >> 8u) * (1.0 / 16777216.0);
+}
+
+// forestlod_shared::fade_progress: 0 before the band, 1 past it, linear inside; a step at
+// `fade_end` for an empty band; NaN depth gives 0.
+fn fade_progress(d: f32, fade_start: f32, fade_end: f32) -> f32 {
+    let width = fade_end - fade_start;
+    if width > 0.0 {
+        return clamp_nan_low((d - fade_start) / width, 0.0, 1.0);
+    } else if d >= fade_end {
+        return 1.0;
+    }
+    return 0.0;
+}
+
+// Keep in sync with forestlod_shared::LodWeights (shared/src/fade.rs).
+struct LodWeights {
+    lod0: f32,
+    lod1: f32,
+}
+
+// forestlod_shared::LodWeights::of.
+fn lod_weight_of(w: LodWeights, lod: u32) -> f32 {
+    if lod == 0u {
+        return w.lod0;
+    }
+    return w.lod1;
+}
+
+// forestlod_shared::lod_weights: the weight of each LOD of a fragment at view depth `d` with
+// per-pixel threshold `dither`.
+fn lod_weights(mode: u32, d: f32, fade_start: f32, fade_end: f32, dither: f32) -> LodWeights {
+    let t = fade_progress(d, fade_start, fade_end);
+    if mode == FADE_NONE {
+        let one = select(0.0, 1.0, d >= fade_end);
+        return LodWeights(1.0 - one, one);
+    }
+    if mode == FADE_ALPHA {
+        return LodWeights(1.0 - t, t);
+    }
+    if mode == FADE_DITHER {
+        let in1 = dither < t;
+        return LodWeights(select(1.0, 0.0, in1), select(0.0, 1.0, in1));
+    }
+    // FADE_DITHER_SEQUENTIAL
+    let cover1 = min(2.0 * t, 1.0);
+    let cover0 = min(2.0 - 2.0 * t, 1.0);
+    return LodWeights(select(0.0, 1.0, dither < cover0), select(0.0, 1.0, dither < cover1));
+}

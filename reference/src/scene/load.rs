@@ -6,7 +6,7 @@
 //!   position (line and column name for CSV, line/column or field for TOML, line for OBJ), the
 //!   offending value and what was expected: NaN/inf, negative or zero scale, unknown species, wrong
 //!   type, missing or unknown column, wrong column count, empty table, too many rows, index out of
-//!   range, texture not 8-bit RGBA / zero / non-power-of-two / too large, missing or unreadable
+//!   range, texture not 8-bit RGBA / zero / non-power-of-two / non-square / too large, missing or unreadable
 //!   file. No input bytes make these functions panic (property-tested). Every successful load ends
 //!   with [`Scene::validate`].
 //! - **Large coordinates** (SPEC §3, §7): CSV coordinates are parsed as `f64` (UTM scale,
@@ -1152,11 +1152,12 @@ pub fn load_png_texture(path: &Path) -> Result<Rgba8Image, InputError> {
 }
 
 /// Decodes PNG `bytes` (`file` names them in errors) as a texture: the image must decode to 8-bit
-/// RGBA (colour type 6 at bit depth 8, or a palette with transparency), with power-of-two sides of
-/// at most [`MAX_TEXTURE_SIDE`]. Colour is taken as sRGB, alpha as straight (SPEC §3).
+/// RGBA (colour type 6 at bit depth 8, or a palette with transparency), square, with a power-of-two
+/// side of at most [`MAX_TEXTURE_SIDE`]. Colour is taken as sRGB, alpha as straight (SPEC §3).
 pub fn decode_png_texture(bytes: &[u8], file: &str) -> Result<Rgba8Image, InputError> {
+    let size = format!("{} bytes", bytes.len());
     let decoder = image::codecs::png::PngDecoder::new(Cursor::new(bytes))
-        .map_err(|e| InputError::new(file, "file", "", format!("invalid PNG: {e}")))?;
+        .map_err(|e| InputError::new(file, "file", &size, format!("invalid PNG: {e}")))?;
     let (width, height) = decoder.dimensions();
     if decoder.color_type() != image::ColorType::Rgba8 {
         return Err(InputError::new(
@@ -1176,8 +1177,18 @@ pub fn decode_png_texture(bytes: &[u8], file: &str) -> Result<Rgba8Image, InputE
             ));
         }
     }
+    // The mips stage (E Alg. 3.2) builds square chains only; say so here, where the file is known,
+    // rather than in `prepare`, which no longer knows it.
+    if width != height {
+        return Err(InputError::new(
+            file,
+            "size",
+            format!("{width}x{height}"),
+            "expected a square texture (the mip chain of every texture is square)",
+        ));
+    }
     let image = image::DynamicImage::from_decoder(decoder)
-        .map_err(|e| InputError::new(file, "file", "", format!("invalid PNG: {e}")))?
+        .map_err(|e| InputError::new(file, "image data", &size, format!("invalid PNG: {e}")))?
         .into_rgba8();
     let texels = image.pixels().map(|p| p.0).collect();
     Ok(Rgba8Image {
@@ -1444,9 +1455,16 @@ mod tests {
 
     #[test]
     fn png_must_be_rgba8_power_of_two_and_small() {
-        let t = decode_png_texture(&png(image::ExtendedColorType::Rgba8, 8, 4), "t.png").unwrap();
-        assert_eq!((t.width, t.height), (8, 4));
+        let t = decode_png_texture(&png(image::ExtendedColorType::Rgba8, 8, 8), "t.png").unwrap();
+        assert_eq!((t.width, t.height), (8, 8));
         assert_eq!(t.texels[0], [7, 7, 7, 7]);
+        let e = decode_png_texture(&png(image::ExtendedColorType::Rgba8, 8, 4), "t.png")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("t.png") && e.contains("8x4") && e.contains("square"),
+            "{e}"
+        );
         let e = decode_png_texture(&png(image::ExtendedColorType::Rgb8, 8, 8), "t.png")
             .unwrap_err()
             .to_string();

@@ -1,0 +1,268 @@
+//! Accuracy of a rendered frame against the ray-traced ground truth (SPEC §10,
+//! [`forestlod_reference::ground_truth`]): the "accuracy" half of the speed–accuracy trade.
+//!
+//! - **FLIP** (Andersson et al. 2020, via the `nv-flip` crate): a per-pixel perceptual error in
+//!   `[0, 1]` between the ground truth and the frame, both sRGB8. We report its mean and its 95th
+//!   and 99th percentiles (nearest-rank on the sorted map), because LOD artefacts are sparse: a
+//!   mean alone hides a few badly wrong trees. Viewing condition: [`FLIP_PIXELS_PER_DEGREE`].
+//! - **Coverage error**: the fraction of pixels whose class differs, *tree* versus *not tree*
+//!   (sky or ground). The ground truth's class is the majority of its supersamples
+//!   ([`forestlod_reference::ground_truth::PixelClass`]); the frame's comes from its LOD-id aux
+//!   buffer (mesh, billboard or transition ids are trees). It isolates silhouette errors (billboard
+//!   coverage, mip alpha, culling) from colour errors.
+//! - **Per-LOD error maps**: the FLIP map split by the frame's LOD id, so one sees *where* the error
+//!   comes from (E Fig. 3.1's colours name the classes), with the mean FLIP of each class.
+
+use forestlod_reference::draw::{
+    LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION,
+};
+use forestlod_reference::ground_truth::{GroundTruthImage, PixelClass};
+use forestlod_reference::texture::Rgba8Image;
+use serde::{Deserialize, Serialize};
+
+/// FLIP's viewing condition: pixels per degree of visual angle. The `nv-flip` default, 67 ppd
+/// (a 0.7 m viewing distance from a 0.7 m wide 3840-pixel monitor, FLIP's reference setup). The
+/// experiments' images are smaller than 4K, so this is the stricter choice: errors look as they
+/// would when the frame fills a high-resolution display.
+pub const FLIP_PIXELS_PER_DEGREE: f32 = nv_flip::DEFAULT_PIXELS_PER_DEGREE;
+
+/// The LOD-id classes of the per-LOD maps, with file-name labels, in display order.
+pub const LOD_CLASSES: [(u32, &str); 5] = [
+    (LOD_ID_MESH, "lod0"),
+    (LOD_ID_BILLBOARD, "lod1"),
+    (LOD_ID_TRANSITION, "transition"),
+    (LOD_ID_TERRAIN, "terrain"),
+    (LOD_ID_BACKGROUND, "sky"),
+];
+
+/// Whether an aux id is a tree (any LOD).
+pub fn is_tree_id(id: u32) -> bool {
+    matches!(id, LOD_ID_MESH | LOD_ID_BILLBOARD | LOD_ID_TRANSITION)
+}
+
+/// Accuracy figures of one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Accuracy {
+    /// Mean FLIP error.
+    pub flip_mean: f64,
+    /// 95th percentile of the FLIP map.
+    pub flip_p95: f64,
+    /// 99th percentile of the FLIP map.
+    pub flip_p99: f64,
+    /// Fraction of pixels whose tree / not-tree class differs from the ground truth.
+    pub coverage_error: f64,
+    /// Fraction of pixels that are trees in the ground truth.
+    pub gt_tree_fraction: f64,
+    /// Fraction of pixels that are trees in the frame.
+    pub tree_fraction: f64,
+}
+
+/// The FLIP error map of `test` against `reference` (equal sizes), row-major.
+///
+/// # Panics
+/// If the sizes differ.
+pub fn flip_map(reference: &Rgba8Image, test: &Rgba8Image) -> Vec<f32> {
+    assert_eq!(
+        (reference.width, reference.height),
+        (test.width, test.height),
+        "FLIP needs equally sized images"
+    );
+    let rgb = |img: &Rgba8Image| -> Vec<u8> {
+        img.texels.iter().flat_map(|t| [t[0], t[1], t[2]]).collect()
+    };
+    let r = nv_flip::FlipImageRgb8::with_data(reference.width, reference.height, &rgb(reference));
+    let t = nv_flip::FlipImageRgb8::with_data(test.width, test.height, &rgb(test));
+    nv_flip::flip(r, t, FLIP_PIXELS_PER_DEGREE).to_vec()
+}
+
+/// Nearest-rank percentile `p` in `[0, 100]` of unsorted values (0 for none).
+pub fn percentile(values: &[f32], p: f64) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f32::total_cmp);
+    let rank = ((p / 100.0) * v.len() as f64).ceil().max(1.0) as usize;
+    v[rank.min(v.len()) - 1] as f64
+}
+
+/// Accuracy of a frame (colour and LOD-id aux buffer) against the ground truth, and the FLIP map.
+///
+/// # Panics
+/// If the sizes differ.
+pub fn accuracy(gt: &GroundTruthImage, color: &Rgba8Image, aux: &[u32]) -> (Accuracy, Vec<f32>) {
+    assert_eq!(aux.len(), gt.class.len(), "aux buffer size");
+    let map = flip_map(&gt.srgb, color);
+    let n = map.len().max(1) as f64;
+    let mean = map.iter().map(|&e| e as f64).sum::<f64>() / n;
+    let mut differ = 0u64;
+    let mut gt_trees = 0u64;
+    let mut trees = 0u64;
+    for (c, &id) in gt.class.iter().zip(aux) {
+        let a = *c == PixelClass::Tree;
+        let b = is_tree_id(id);
+        differ += (a != b) as u64;
+        gt_trees += a as u64;
+        trees += b as u64;
+    }
+    (
+        Accuracy {
+            flip_mean: mean,
+            flip_p95: percentile(&map, 95.0),
+            flip_p99: percentile(&map, 99.0),
+            coverage_error: differ as f64 / n,
+            gt_tree_fraction: gt_trees as f64 / n,
+            tree_fraction: trees as f64 / n,
+        },
+        map,
+    )
+}
+
+/// A FLIP map as a magma-coloured image (black: no error, yellow-white: error 1), FLIP's own LUT.
+pub fn error_image(map: &[f32], width: u32, height: u32) -> Rgba8Image {
+    let lut = nv_flip::magma_lut().to_vec();
+    let entries = lut.len() / 3;
+    Rgba8Image {
+        width,
+        height,
+        texels: map
+            .iter()
+            .map(|&e| {
+                let i = ((e.clamp(0.0, 1.0) * 255.0).round() as usize) % entries;
+                [lut[3 * i], lut[3 * i + 1], lut[3 * i + 2], 255]
+            })
+            .collect(),
+    }
+}
+
+/// One class of the per-LOD split.
+pub struct LodErrorMap {
+    /// File-name label ([`LOD_CLASSES`]).
+    pub label: &'static str,
+    /// The FLIP map where the frame's id is this class, dark grey elsewhere.
+    pub image: Rgba8Image,
+    /// Pixels of this class.
+    pub pixels: u64,
+    /// Mean FLIP over them (0 when none).
+    pub flip_mean: f64,
+}
+
+/// The FLIP map split by the frame's LOD id ([`LOD_CLASSES`]).
+pub fn per_lod_error_maps(map: &[f32], aux: &[u32], width: u32, height: u32) -> Vec<LodErrorMap> {
+    let full = error_image(map, width, height);
+    LOD_CLASSES
+        .iter()
+        .map(|&(id, label)| {
+            let mut sum = 0.0f64;
+            let mut pixels = 0u64;
+            let texels = full
+                .texels
+                .iter()
+                .zip(map.iter().zip(aux))
+                .map(|(t, (&e, &a))| {
+                    if a == id {
+                        sum += e as f64;
+                        pixels += 1;
+                        *t
+                    } else {
+                        [40, 40, 40, 255]
+                    }
+                })
+                .collect();
+            LodErrorMap {
+                label,
+                image: Rgba8Image {
+                    width,
+                    height,
+                    texels,
+                },
+                pixels,
+                flip_mean: if pixels == 0 {
+                    0.0
+                } else {
+                    sum / pixels as f64
+                },
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn image(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 4]) -> Rgba8Image {
+        Rgba8Image {
+            width: w,
+            height: h,
+            texels: (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .map(|(x, y)| f(x, y))
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn flip_is_zero_for_identical_images_and_grows_with_the_difference() {
+        let a = image(32, 32, |x, y| [(x * 8) as u8, (y * 8) as u8, 90, 255]);
+        assert!(flip_map(&a, &a).iter().all(|&e| e == 0.0));
+        let small = image(32, 32, |x, y| [(x * 8) as u8 + 3, (y * 8) as u8, 90, 255]);
+        let large = image(32, 32, |x, y| {
+            [255 - (x * 8) as u8, (y * 8) as u8, 200, 255]
+        });
+        let m = |b: &Rgba8Image| flip_map(&a, b).iter().map(|&e| e as f64).sum::<f64>();
+        assert!(m(&small) < m(&large));
+    }
+
+    #[test]
+    fn percentiles_are_nearest_rank() {
+        let v: Vec<f32> = (1..=100).map(|i| i as f32).collect();
+        assert_eq!(percentile(&v, 95.0), 95.0);
+        assert_eq!(percentile(&v, 99.0), 99.0);
+        assert_eq!(percentile(&v, 100.0), 100.0);
+        assert_eq!(percentile(&[], 50.0), 0.0);
+    }
+
+    #[test]
+    fn coverage_error_counts_tree_versus_not_tree() {
+        let (w, h) = (4, 2);
+        let srgb = image(w, h, |_, _| [10, 20, 30, 255]);
+        let class = vec![
+            PixelClass::Tree,
+            PixelClass::Tree,
+            PixelClass::Sky,
+            PixelClass::Ground,
+            PixelClass::Tree,
+            PixelClass::Sky,
+            PixelClass::Sky,
+            PixelClass::Ground,
+        ];
+        let gt = GroundTruthImage {
+            width: w,
+            height: h,
+            samples_per_axis: 1,
+            linear: vec![[0.0; 3]; 8],
+            srgb: srgb.clone(),
+            class,
+            tree_fraction: vec![0.0; 8],
+            rays: 8,
+        };
+        // Billboard and transition count as trees; terrain vs sky does not matter.
+        let aux = [
+            LOD_ID_BILLBOARD,
+            LOD_ID_TRANSITION,
+            LOD_ID_TERRAIN,
+            LOD_ID_BACKGROUND,
+            LOD_ID_TERRAIN, // miss
+            LOD_ID_MESH,    // extra
+            LOD_ID_BACKGROUND,
+            LOD_ID_BACKGROUND,
+        ];
+        let (acc, map) = accuracy(&gt, &srgb, &aux);
+        assert_eq!(acc.coverage_error, 2.0 / 8.0);
+        assert_eq!(acc.flip_mean, 0.0);
+        assert_eq!(map.len(), 8);
+        let maps = per_lod_error_maps(&map, &aux, w, h);
+        assert_eq!(maps.iter().map(|m| m.pixels).sum::<u64>(), 8);
+    }
+}

@@ -1,0 +1,83 @@
+//! CI smoke test of the whole experiment machinery (SPEC §10): every built-in sweep in quick mode
+//! (`forestlod sweep --quick`: the `tiny` scene, small images, few steps), then the report. Each
+//! CSV must hold, for every variant the sweep lists, frames with a finite cost figure (frame time
+//! and work counters) and a finite accuracy figure (FLIP against the ray-traced ground truth,
+//! coverage error). No timing is asserted; the quick run's wall time is printed.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use forestlod_experiments::report::{read_rows, write_report};
+use forestlod_experiments::sweep::{BUILTIN_SWEEPS, Manifest, SweepArgs, SweepSpec, run};
+
+#[test]
+fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
+    let out = std::env::temp_dir().join(format!("forestlod-sweep-quick-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let start = Instant::now();
+    run(&SweepArgs {
+        file: None,
+        out: out.clone(),
+        quick: true,
+        scene: None,
+        width: None,
+        height: None,
+        yaw_steps: None,
+        repeats: None,
+    })
+    .expect("the quick sweeps run");
+    eprintln!(
+        "quick sweeps: {:.1} s wall time",
+        start.elapsed().as_secs_f64()
+    );
+    for (name, text) in BUILTIN_SWEEPS {
+        let spec = SweepSpec::parse(text, name).unwrap();
+        let dir: PathBuf = out.join(name);
+        let manifest: Manifest =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("sweep.json")).unwrap())
+                .unwrap();
+        assert!(manifest.quick);
+        for (plot, _) in &manifest.plots {
+            assert!(dir.join(plot).is_file(), "{name}: plot {plot} missing");
+        }
+        for im in &manifest.images {
+            for p in [&im.color, &im.lod, &im.flip, &im.ground_truth] {
+                assert!(dir.join(p).is_file(), "{name}: image {p} missing");
+            }
+        }
+        let rows = read_rows(&dir.join(&manifest.csv)).unwrap();
+        let mut per_variant: BTreeMap<&str, usize> = BTreeMap::new();
+        for r in &rows {
+            let cost = [r.select_s, r.draw_s, r.frame_s, r.overdraw];
+            let acc = [r.flip_mean, r.flip_p95, r.flip_p99, r.coverage_error];
+            assert!(
+                cost.iter().all(|v| v.is_finite() && *v >= 0.0) && r.frame_s > 0.0,
+                "{name}: cost figures of {} {} {}: {cost:?}",
+                r.variant,
+                r.camera,
+                r.setting
+            );
+            assert!(
+                acc.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)),
+                "{name}: accuracy figures of {} {} {}: {acc:?}",
+                r.variant,
+                r.camera,
+                r.setting
+            );
+            *per_variant.entry(r.variant.as_str()).or_default() += 1;
+        }
+        for v in &spec.variants {
+            assert!(
+                per_variant.get(v.as_str()).copied().unwrap_or(0) > 0,
+                "{name}: no frame of variant {v}"
+            );
+        }
+    }
+    let report = write_report(&out).expect("the report is written");
+    let text = std::fs::read_to_string(&report).unwrap();
+    for (name, _) in BUILTIN_SWEEPS {
+        assert!(text.contains(&format!("`{name}`")), "report lacks {name}");
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -1,0 +1,1298 @@
+//! Draw execution on the GPU (E§4.4; SPEC §5.5): the driver of `shaders/draw.wgsl`, twin of
+//! `reference/src/draw.rs`.
+//!
+//! ## Contract
+//! One render pass into three targets: colour ([`COLOR_FORMAT`], sRGB8, blended in linear light),
+//! depth ([`DEPTH_FORMAT`], test LESS, written) and the LOD-id view of E Fig. 3.1
+//! ([`LOD_ID_FORMAT`], not blended). The pass clears to the reference's values (sky
+//! [`SKY_SRGB`], depth 1, id [`LOD_ID_BACKGROUND`]), draws the ground grid
+//! ([`terrain_vertices`], opaque, one plain draw) and then **every** selected command with one
+//! indirect call:
+//! - `multi_draw_indexed_indirect_count` when the adapter has `MULTI_DRAW_INDIRECT_COUNT`, its
+//!   count read by the GPU from the `select` counters ([`SelectBuffers::COUNT_OFFSET`]), so the
+//!   CPU never learns how many commands there are (E§4.4);
+//! - otherwise `multi_draw_indexed_indirect` over the buffers' whole capacity; the vertex stage
+//!   then drops slots at or past `counters.commands` (they may hold an older frame's commands).
+//!
+//! Either way the CPU records two draw calls per frame whatever the tree and batch counts
+//! ([`DrawCalls`]). `INDIRECT_FIRST_INSTANCE` is required (`first_instance` is the batch's offset
+//! into the indirection array); [`GpuDraw::new`] fails with [`GpuError::Input`] without it.
+//!
+//! The vertex stage pulls everything from storage buffers ([`DrawScene`]): packed vertices
+//! ([`DrawVertex`], the reference's `PackedVertex`), instances ([`DrawInstance`]), the
+//! indirection array, mesh metadata, and the per-command data of `select`. The fragment stage
+//! samples one 2D array texture holding every mesh texture (one layer per mesh: binding arrays
+//! are not portable, so all mesh textures must share one size; [`upload_texture_array`] says so
+//! when they do not) or the billboard array (layer `mesh * K + k`, E Alg. 3.1), trilinear with
+//! the implicit LOD, alpha-tests, fades and writes the LOD id. Every formula is the reference's,
+//! operation for operation; see `draw.wgsl`.
+//!
+//! ## Where the GPU may differ (judged by `tests/src/image_compare.rs`, SPEC §8)
+//! `sin`/`cos`/`asin`/`acos` and the matrix product round differently from the CPU's libm and
+//! glam (vertex positions move by ~1e-7 relative, so a pixel centre within that of an edge may
+//! flip), the GPU may fuse multiply-adds, and lavapipe filters with 8-bit subtexel weights and an
+//! approximate `log2` for λ. None of these is a rule difference; each is classified in the
+//! comparison, not hidden by a wider tolerance.
+
+use std::num::NonZeroU64;
+
+use bytemuck::{Pod, Zeroable};
+use forestlod_shared::{Camera, MAX_COMMANDS, MAX_MESH_VERTICES, MeshMeta, Params};
+use wgpu::util::DeviceExt;
+
+use crate::readback::{read_texture, upload_storage};
+use crate::{GpuContext, GpuError, SelectBuffers};
+
+/// Format of the colour target (the reference's sRGB8 `RenderTarget` colour).
+pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// Format of the depth target.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Format of the LOD-id target (the reference's `aux` buffer).
+pub const LOD_ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+/// Format of the textures [`upload_texture_array`] creates (sRGB RGBA8, SPEC §3).
+pub const TEXTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+
+/// LOD-id of background pixels. Keep in sync with `reference/src/draw.rs`.
+pub const LOD_ID_BACKGROUND: u32 = 0;
+/// LOD-id of full meshes (green in E Fig. 3.1). Keep in sync with `draw.wgsl`.
+pub const LOD_ID_MESH: u32 = 1;
+/// LOD-id of billboards (blue).
+pub const LOD_ID_BILLBOARD: u32 = 2;
+/// LOD-id of fragments of a fading command strictly inside the band (red).
+pub const LOD_ID_TRANSITION: u32 = 3;
+/// LOD-id of the ground.
+pub const LOD_ID_TERRAIN: u32 = 4;
+
+/// Sky colour (sRGB8), the clear colour. Keep in sync with `reference::draw::SKY_SRGB`.
+pub const SKY_SRGB: [u8; 3] = [168, 198, 226];
+/// Cells per side of the ground grid. Keep in sync with `reference::draw::TERRAIN_CELLS`.
+pub const TERRAIN_CELLS: u32 = 64;
+/// Ground margin beyond the footprint, metres. Keep in sync with `reference::draw::TERRAIN_MARGIN`.
+pub const TERRAIN_MARGIN: f32 = 2000.0;
+
+/// One vertex of the shared vertex buffer: the reference's `geometry::PackedVertex`, field for
+/// field. Keep in sync with `struct DrawVertex` in `draw.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct DrawVertex {
+    /// Mesh-local position (unit scale, zero yaw); for the billboard quad, unused.
+    pub position: [f32; 3],
+    /// Texture coordinate; for the billboard quad, the corner.
+    pub uv: [f32; 2],
+}
+const _: () = assert!(size_of::<DrawVertex>() == 20);
+
+/// One tree as the vertex stage reads it (the reference's `scene::Instance`). Keep in sync with
+/// `struct DrawInstance` in `draw.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct DrawInstance {
+    /// Base position relative to the scene origin.
+    pub position: [f32; 3],
+    /// Rotation about +Z, radians.
+    pub yaw: f32,
+    /// Uniform scale.
+    pub scale: f32,
+    /// Mesh index.
+    pub mesh: u32,
+}
+const _: () = assert!(size_of::<DrawInstance>() == 24);
+
+/// One ground vertex: world position and linear RGB colour.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct TerrainVertex {
+    /// Position relative to the scene origin.
+    pub position: [f32; 3],
+    /// Linear RGB.
+    pub color: [f32; 3],
+}
+const _: () = assert!(size_of::<TerrainVertex>() == 24);
+
+/// The per-frame uniform of `draw.wgsl` (the reference's `DrawUniform`). Keep in sync with
+/// `struct DrawUniform` there (layout checked by this module's tests).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct DrawUniform {
+    /// `projection * view`, column-major.
+    pub view_proj: [[f32; 4]; 4],
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Draw distance.
+    pub draw_distance: f32,
+    /// Unit view direction (`Camera::basis().forward`).
+    pub forward: [f32; 3],
+    /// Billboard angles K.
+    pub angle_count: u32,
+    /// `FadeMode` as `u32`.
+    pub fade_mode: u32,
+    /// `AngleIndexMode` as `u32`.
+    pub angle_index_mode: u32,
+    /// Alpha-test reference.
+    pub alpha_cutoff: f32,
+    /// First vertex of the billboard quad in the shared vertex buffer.
+    pub billboard_first_vertex: u32,
+}
+const _: () = assert!(size_of::<DrawUniform>() == 112);
+
+impl DrawUniform {
+    /// The uniform of a validated camera and parameters, derived as the reference derives its
+    /// own (`DrawUniform::new` there: `SelectUniform` eye and forward, `Camera::view_projection`).
+    pub fn new(camera: &Camera, params: &Params, billboard_first_vertex: u32) -> Self {
+        Self {
+            view_proj: camera.view_projection().to_cols_array_2d(),
+            eye: camera.eye,
+            draw_distance: params.draw_distance,
+            forward: camera.basis().forward.to_array(),
+            angle_count: params.angle_count,
+            fade_mode: params.fade_mode,
+            angle_index_mode: params.angle_index_mode,
+            alpha_cutoff: params.alpha_cutoff,
+            billboard_first_vertex,
+        }
+    }
+}
+
+/// sRGB byte to linear light: the exact curve in `f64`, rounded once to `f32` (as the
+/// reference's `texture::srgb_to_linear` table).
+fn srgb_to_linear(c: u8) -> f32 {
+    let c = c as f64 / 255.0;
+    (if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }) as f32
+}
+
+/// Ground colour (linear RGB) at a height: the reference's `ground_color`.
+fn ground_color(z: f32) -> [f32; 3] {
+    let t = ((z + 30.0) / 60.0).clamp(0.0, 1.0);
+    let lo = [96u8, 110, 70];
+    let hi = [140u8, 132, 96];
+    core::array::from_fn(|c| srgb_to_linear(lo[c]) * (1.0 - t) + srgb_to_linear(hi[c]) * t)
+}
+
+/// The ground grid as a triangle list in world space, the twin of the reference's
+/// `terrain_triangles` (same grid, same vertex order, same colours): [`TERRAIN_CELLS`]² cells
+/// over the footprint `bounds = [min_x, min_y, max_x, max_y]` plus [`TERRAIN_MARGIN`], following
+/// `height(x, y)` (the scene's terrain), sunk 0.05 m.
+pub fn terrain_vertices(bounds: [f32; 4], height: impl Fn(f32, f32) -> f32) -> Vec<TerrainVertex> {
+    let [x0, y0, x1, y1] = bounds;
+    let (x0, y0, x1, y1) = (
+        x0 - TERRAIN_MARGIN,
+        y0 - TERRAIN_MARGIN,
+        x1 + TERRAIN_MARGIN,
+        y1 + TERRAIN_MARGIN,
+    );
+    let n = TERRAIN_CELLS;
+    let vertex = |i: u32, j: u32| {
+        let x = x0 + (x1 - x0) * i as f32 / n as f32;
+        let y = y0 + (y1 - y0) * j as f32 / n as f32;
+        let z = height(x, y) - 0.05;
+        TerrainVertex {
+            position: [x, y, z],
+            color: ground_color(z),
+        }
+    };
+    let mut out = Vec::with_capacity((n * n * 6) as usize);
+    for j in 0..n {
+        for i in 0..n {
+            let (a, b, c, d) = (
+                vertex(i, j),
+                vertex(i + 1, j),
+                vertex(i + 1, j + 1),
+                vertex(i, j + 1),
+            );
+            out.extend_from_slice(&[a, b, c, a, c, d]);
+        }
+    }
+    out
+}
+
+/// One mip level of one layer, for [`upload_texture_array`]: sRGB RGBA8 texels, row-major from
+/// the top-left.
+#[derive(Clone, Copy, Debug)]
+pub struct MipLevel<'a> {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// `width * height` texels.
+    pub texels: &'a [[u8; 4]],
+}
+
+/// Uploads array layers (`layers[layer][level]`, level 0 first) into one 2D array texture of
+/// [`TEXTURE_FORMAT`] with `TEXTURE_BINDING | COPY_DST | COPY_SRC` usage. Every layer must have the
+/// same level 0 size and level count, level `k` being `max(1, w0 >> k)` x `max(1, h0 >> k)`;
+/// anything else (mesh textures of different sizes, say) is a [`GpuError::Input`] naming the
+/// layer, level and sizes. Used for the mesh textures (one layer per mesh) and for billboard
+/// arrays computed on the CPU.
+pub fn upload_texture_array(
+    ctx: &GpuContext,
+    label: &str,
+    layers: &[Vec<MipLevel>],
+) -> Result<wgpu::Texture, GpuError> {
+    let bad = |field, value: String, reason| {
+        Err(GpuError::Input {
+            field,
+            value,
+            reason,
+        })
+    };
+    let Some(base) = layers.first().and_then(|l| l.first()) else {
+        return bad(
+            "texture layers",
+            format!("{label}: {} layers", layers.len()),
+            "expected at least one layer with at least one level",
+        );
+    };
+    let (w0, h0, levels) = (base.width, base.height, layers[0].len());
+    if w0 == 0 || h0 == 0 {
+        return bad(
+            "texture size",
+            format!("{label}: {w0}x{h0}"),
+            "expected a non-empty level 0",
+        );
+    }
+    let max_levels = (32 - w0.max(h0).leading_zeros()) as usize;
+    if levels > max_levels {
+        return bad(
+            "texture levels",
+            format!("{label}: {levels} levels for {w0}x{h0}"),
+            "expected at most a full mip chain",
+        );
+    }
+    if layers.len() as u32 > ctx.limits.max_texture_array_layers {
+        return bad(
+            "texture layers",
+            format!(
+                "{label}: {} layers, adapter limit {}",
+                layers.len(),
+                ctx.limits.max_texture_array_layers
+            ),
+            "expected no more layers than the adapter allows",
+        );
+    }
+    for (layer, chain) in layers.iter().enumerate() {
+        if chain.len() != levels {
+            return bad(
+                "texture levels",
+                format!(
+                    "{label}: layer {layer} has {} levels, layer 0 has {levels}",
+                    chain.len()
+                ),
+                "expected every layer to have the same mip chain (one array texture)",
+            );
+        }
+        for (level, l) in chain.iter().enumerate() {
+            let (ew, eh) = ((w0 >> level).max(1), (h0 >> level).max(1));
+            if l.width != ew || l.height != eh || l.texels.len() != (ew * eh) as usize {
+                return bad(
+                    "texture size",
+                    format!(
+                        "{label}: layer {layer} level {level} is {}x{} with {} texels, expected {ew}x{eh} (layer 0 level 0 is {w0}x{h0})",
+                        l.width,
+                        l.height,
+                        l.texels.len()
+                    ),
+                    "expected every layer of one array texture to share its size (all mesh textures must be equally sized)",
+                );
+            }
+        }
+    }
+    let texture = ctx.checked("texture array", || {
+        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: w0,
+                height: h0,
+                depth_or_array_layers: layers.len() as u32,
+            },
+            mip_level_count: levels as u32,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: TEXTURE_FORMAT,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_DST
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        for (layer, chain) in layers.iter().enumerate() {
+            for (level, l) in chain.iter().enumerate() {
+                ctx.queue.write_texture(
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &texture,
+                        mip_level: level as u32,
+                        origin: wgpu::Origin3d {
+                            x: 0,
+                            y: 0,
+                            z: layer as u32,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    bytemuck::cast_slice(l.texels),
+                    wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(4 * l.width),
+                        rows_per_image: Some(l.height),
+                    },
+                    wgpu::Extent3d {
+                        width: l.width,
+                        height: l.height,
+                        depth_or_array_layers: 1,
+                    },
+                );
+            }
+        }
+        texture
+    })?;
+    Ok(texture)
+}
+
+/// What [`DrawScene::new`] uploads: the reference's packed geometry, instances, indirection and
+/// the ground, as plain slices.
+#[derive(Clone, Copy, Debug)]
+pub struct DrawSceneDesc<'a> {
+    /// Shared vertex buffer, every mesh then the billboard quad.
+    pub vertices: &'a [DrawVertex],
+    /// Shared index buffer of mesh-local ids.
+    pub indices: &'a [u32],
+    /// Mesh metadata with packed offsets, in mesh order.
+    pub meshes: &'a [MeshMeta],
+    /// The billboard quad's range.
+    pub billboard: MeshMeta,
+    /// Trees.
+    pub instances: &'a [DrawInstance],
+    /// Tree indices, batch by batch (E§4.2).
+    pub indirection: &'a [u32],
+    /// The ground, from [`terrain_vertices`].
+    pub terrain: &'a [TerrainVertex],
+}
+
+/// A scene's static draw buffers on the GPU (what E§4.1 uploads once).
+#[derive(Debug)]
+pub struct DrawScene {
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    instances: wgpu::Buffer,
+    indirection: wgpu::Buffer,
+    meshes: wgpu::Buffer,
+    terrain: wgpu::Buffer,
+    terrain_vertex_count: u32,
+    billboard_first_vertex: u32,
+    mesh_count: u32,
+}
+
+impl DrawScene {
+    /// Validates and uploads. Errors name the first offending mesh, instance or index: a mesh
+    /// range outside the buffers or with more than `MAX_MESH_VERTICES` vertices, an instance whose
+    /// mesh is out of range, an indirection entry past the instances.
+    pub fn new(ctx: &GpuContext, desc: &DrawSceneDesc) -> Result<Self, GpuError> {
+        let bad = |field, value: String, reason| {
+            Err(GpuError::Input {
+                field,
+                value,
+                reason,
+            })
+        };
+        let ranges = desc
+            .meshes
+            .iter()
+            .enumerate()
+            .map(|(i, m)| (format!("mesh {i}"), m))
+            .chain(std::iter::once((
+                "billboard quad".to_string(),
+                &desc.billboard,
+            )));
+        for (name, m) in ranges {
+            let vertex_end = m.first_vertex as u64 + m.vertex_count as u64;
+            let index_end = m.first_index as u64 + m.index_count as u64;
+            if m.vertex_count > MAX_MESH_VERTICES
+                || vertex_end > desc.vertices.len() as u64
+                || index_end > desc.indices.len() as u64
+            {
+                return bad(
+                    "mesh range",
+                    format!(
+                        "{name}: vertices {}+{}, indices {}+{} of {} vertices, {} indices",
+                        m.first_vertex,
+                        m.vertex_count,
+                        m.first_index,
+                        m.index_count,
+                        desc.vertices.len(),
+                        desc.indices.len()
+                    ),
+                    "expected ranges inside the shared buffers and at most MAX_MESH_VERTICES (256) vertices per mesh",
+                );
+            }
+        }
+        if let Some((i, t)) = desc
+            .instances
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.mesh as usize >= desc.meshes.len())
+        {
+            return bad(
+                "instance.mesh",
+                format!("instance {i} mesh {} of {}", t.mesh, desc.meshes.len()),
+                "expected a mesh index below the mesh count",
+            );
+        }
+        if let Some((i, &t)) = desc
+            .indirection
+            .iter()
+            .enumerate()
+            .find(|&(_, &t)| t as usize >= desc.instances.len())
+        {
+            return bad(
+                "indirection",
+                format!("entry {i} = {t} of {} instances", desc.instances.len()),
+                "expected tree indices below the instance count",
+            );
+        }
+        use wgpu::BufferUsages as U;
+        let terrain = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("draw terrain"),
+                contents: if desc.terrain.is_empty() {
+                    &[0u8; size_of::<TerrainVertex>()]
+                } else {
+                    bytemuck::cast_slice(desc.terrain)
+                },
+                usage: U::VERTEX | U::COPY_DST,
+            });
+        Ok(Self {
+            vertices: upload_storage(ctx, "draw vertices", desc.vertices, U::empty()),
+            indices: upload_storage(ctx, "draw indices", desc.indices, U::INDEX),
+            instances: upload_storage(ctx, "draw instances", desc.instances, U::empty()),
+            indirection: upload_storage(ctx, "draw indirection", desc.indirection, U::empty()),
+            meshes: upload_storage(ctx, "draw meshes", desc.meshes, U::empty()),
+            terrain,
+            terrain_vertex_count: desc.terrain.len() as u32,
+            billboard_first_vertex: desc.billboard.first_vertex,
+            mesh_count: desc.meshes.len() as u32,
+        })
+    }
+
+    /// Number of meshes.
+    pub fn mesh_count(&self) -> u32 {
+        self.mesh_count
+    }
+}
+
+/// The textures the fragment stage samples: every mesh texture (one layer per mesh) and the
+/// billboard array (layer `mesh * K + k`), both with full mip chains, filterable float formats
+/// (sRGB RGBA8 from [`upload_texture_array`] or from the GPU bake).
+#[derive(Debug)]
+pub struct DrawTextures {
+    mesh: wgpu::TextureView,
+    billboards: wgpu::TextureView,
+    mesh_layers: u32,
+    billboard_layers: u32,
+}
+
+impl DrawTextures {
+    /// Views of two 2D array textures (`TEXTURE_BINDING` usage, a filterable float format).
+    pub fn new(mesh: &wgpu::Texture, billboards: &wgpu::Texture) -> Result<Self, GpuError> {
+        let view = |t: &wgpu::Texture, what: &'static str| {
+            let filterable = matches!(
+                t.format().sample_type(None, None),
+                Some(wgpu::TextureSampleType::Float { filterable: true })
+            );
+            if !filterable
+                || !t.usage().contains(wgpu::TextureUsages::TEXTURE_BINDING)
+                || t.dimension() != wgpu::TextureDimension::D2
+            {
+                return Err(GpuError::Input {
+                    field: what,
+                    value: format!("{:?} {:?} {:?}", t.format(), t.dimension(), t.usage()),
+                    reason: "expected a 2D (array) texture of a filterable float format with TEXTURE_BINDING usage",
+                });
+            }
+            Ok(t.create_view(&wgpu::TextureViewDescriptor {
+                label: Some(what),
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            }))
+        };
+        Ok(Self {
+            mesh: view(mesh, "mesh texture array")?,
+            billboards: view(billboards, "billboard texture array")?,
+            mesh_layers: mesh.depth_or_array_layers(),
+            billboard_layers: billboards.depth_or_array_layers(),
+        })
+    }
+}
+
+/// The three render targets of a frame and their readback.
+#[derive(Debug)]
+pub struct DrawTarget {
+    color: wgpu::Texture,
+    depth: wgpu::Texture,
+    lod_id: wgpu::Texture,
+    width: u32,
+    height: u32,
+}
+
+/// A frame read back: the GPU twin of the reference's `RenderTarget` buffers, row-major from the
+/// top-left pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DrawnImages {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// sRGB-encoded RGB, linear alpha.
+    pub color: Vec<[u8; 4]>,
+    /// Depth in `[0, 1]`.
+    pub depth: Vec<f32>,
+    /// LOD ids (`LOD_ID_*`).
+    pub lod_id: Vec<u32>,
+}
+
+impl DrawTarget {
+    /// Targets of `width` x `height` (1..=the adapter's 2D limit).
+    pub fn new(ctx: &GpuContext, width: u32, height: u32) -> Result<Self, GpuError> {
+        let max = ctx.limits.max_texture_dimension_2d;
+        if width == 0 || height == 0 || width > max || height > max {
+            return Err(GpuError::Input {
+                field: "draw target size",
+                value: format!("{width}x{height} (adapter limit {max})"),
+                reason: "expected 1..=limit pixels per side",
+            });
+        }
+        let make = |label, format| {
+            ctx.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::COPY_SRC
+                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+        };
+        Ok(Self {
+            color: make("draw colour", COLOR_FORMAT),
+            depth: make("draw depth", DEPTH_FORMAT),
+            lod_id: make("draw lod id", LOD_ID_FORMAT),
+            width,
+            height,
+        })
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The colour target (for callers that keep drawing into it).
+    pub fn color_texture(&self) -> &wgpu::Texture {
+        &self.color
+    }
+
+    /// Reads all three buffers back. Blocks. Depth is copied directly where the device can copy
+    /// depth textures to buffers, else through a compute pass that loads it texel by texel
+    /// (wgpu's GL backend lacks `DEPTH_TEXTURE_AND_BUFFER_COPIES`).
+    pub fn read(&self, ctx: &GpuContext) -> Result<DrawnImages, GpuError> {
+        let color = read_texture(ctx, &self.color, 0, 0)?;
+        let lod_id = read_texture(ctx, &self.lod_id, 0, 0)?;
+        let depth_copies = ctx
+            .adapter
+            .get_downlevel_capabilities()
+            .flags
+            .contains(wgpu::DownlevelFlags::DEPTH_TEXTURE_AND_BUFFER_COPIES);
+        let depth = if depth_copies {
+            read_texture(ctx, &self.depth, 0, 0)?.cast()
+        } else {
+            self.read_depth_by_compute(ctx)?
+        };
+        Ok(DrawnImages {
+            width: self.width,
+            height: self.height,
+            color: color
+                .data
+                .chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect(),
+            depth,
+            lod_id: lod_id.cast(),
+        })
+    }
+
+    /// The depth buffer through a compute pass (`textureLoad` into a storage buffer).
+    fn read_depth_by_compute(&self, ctx: &GpuContext) -> Result<Vec<f32>, GpuError> {
+        const SOURCE: &str = "
+            @group(0) @binding(0) var depth_texture: texture_2d<f32>;
+            @group(0) @binding(1) var<storage, read_write> out: array<f32>;
+            @compute @workgroup_size(8, 8)
+            fn copy_depth(@builtin(global_invocation_id) id: vec3<u32>) {
+                let size = textureDimensions(depth_texture);
+                if id.x < size.x && id.y < size.y {
+                    out[id.y * size.x + id.x] = textureLoad(depth_texture, vec2<i32>(id.xy), 0).x;
+                }
+            }";
+        let n = self.width as u64 * self.height as u64;
+        let buffer = crate::readback::zeroed_buffer(
+            ctx,
+            "depth copy",
+            n * 4,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        );
+        ctx.checked("depth copy by compute", || {
+            let module = ctx
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("copy_depth"),
+                    source: wgpu::ShaderSource::Wgsl(SOURCE.into()),
+                });
+            // A depth texture binds as unfilterable float (GLSL has no `textureLoad` of depth
+            // textures, but loads from a float view).
+            let layout = ctx
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("copy_depth"),
+                    entries: &[
+                        wgpu::BindGroupLayoutEntry {
+                            binding: 0,
+                            visibility: wgpu::ShaderStages::COMPUTE,
+                            ty: wgpu::BindingType::Texture {
+                                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                                view_dimension: wgpu::TextureViewDimension::D2,
+                                multisampled: false,
+                            },
+                            count: None,
+                        },
+                        wgpu::BindGroupLayoutEntry {
+                            binding: 1,
+                            visibility: wgpu::ShaderStages::COMPUTE,
+                            ty: wgpu::BindingType::Buffer {
+                                ty: wgpu::BufferBindingType::Storage { read_only: false },
+                                has_dynamic_offset: false,
+                                min_binding_size: None,
+                            },
+                            count: None,
+                        },
+                    ],
+                });
+            let pipeline_layout =
+                ctx.device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("copy_depth"),
+                        bind_group_layouts: &[Some(&layout)],
+                        immediate_size: 0,
+                    });
+            let pipeline = ctx
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("copy_depth"),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some("copy_depth"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+            let view = self.depth.create_view(&wgpu::TextureViewDescriptor {
+                aspect: wgpu::TextureAspect::DepthOnly,
+                ..Default::default()
+            });
+            let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("copy_depth"),
+                layout: &layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::TextureView(&view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: buffer.as_entire_binding(),
+                    },
+                ],
+            });
+            let mut encoder = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("copy_depth"),
+                });
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("copy_depth"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&pipeline);
+                pass.set_bind_group(0, &bind_group, &[]);
+                pass.dispatch_workgroups(self.width.div_ceil(8), self.height.div_ceil(8), 1);
+            }
+            ctx.queue.submit([encoder.finish()]);
+        })?;
+        crate::readback::read_buffer(ctx, &buffer, 0, n as usize)
+    }
+}
+
+/// How the tree commands are issued (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum IndirectMode {
+    /// `multi_draw_indexed_indirect_count`, count from the select counters.
+    Count,
+    /// `multi_draw_indexed_indirect` over the whole capacity; the vertex stage drops slots past
+    /// the count.
+    MaxCount,
+}
+
+impl IndirectMode {
+    /// The wgpu call's name, for reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            IndirectMode::Count => "multi_draw_indexed_indirect_count",
+            IndirectMode::MaxCount => "multi_draw_indexed_indirect",
+        }
+    }
+}
+
+/// The CPU-side draw calls one frame recorded: constant whatever the trees and batches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DrawCalls {
+    /// Draw calls recorded for the ground (1).
+    pub terrain: u32,
+    /// Draw calls recorded for every tree command together (1).
+    pub trees: u32,
+    /// Which indirect call.
+    pub mode: IndirectMode,
+    /// The `max_count` / `count` argument: the selection buffers' capacity.
+    pub max_commands: u32,
+}
+
+/// Everything one frame's draw reads.
+#[derive(Clone, Copy, Debug)]
+pub struct DrawInputs<'a> {
+    /// Static scene buffers.
+    pub scene: &'a DrawScene,
+    /// Mesh and billboard textures.
+    pub textures: &'a DrawTextures,
+    /// The `select` output (GPU selection, or the reference's via [`SelectBuffers::from_cpu`]).
+    pub selection: &'a SelectBuffers,
+}
+
+/// The compiled draw pipelines of one device.
+#[derive(Debug)]
+pub struct GpuDraw {
+    layout: wgpu::BindGroupLayout,
+    trees: wgpu::RenderPipeline,
+    terrain: wgpu::RenderPipeline,
+    sampler: wgpu::Sampler,
+    uniform: wgpu::Buffer,
+    mode: IndirectMode,
+}
+
+impl GpuDraw {
+    /// Compiles `draw.wgsl`. Fails with [`GpuError::Input`] when the device lacks
+    /// `INDIRECT_FIRST_INSTANCE` (the draw stage cannot find a batch's trees without it).
+    pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+        let mode = if ctx
+            .features
+            .contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT)
+        {
+            IndirectMode::Count
+        } else {
+            IndirectMode::MaxCount
+        };
+        Self::with_indirect_mode(ctx, mode)
+    }
+
+    /// As [`GpuDraw::new`] with a chosen [`IndirectMode`] (tests force
+    /// [`IndirectMode::MaxCount`] on adapters that have the count variant). `Count` without
+    /// `MULTI_DRAW_INDIRECT_COUNT` is a [`GpuError::Input`].
+    pub fn with_indirect_mode(ctx: &GpuContext, mode: IndirectMode) -> Result<Self, GpuError> {
+        if mode == IndirectMode::Count
+            && !ctx
+                .features
+                .contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT)
+        {
+            return Err(GpuError::Input {
+                field: "adapter features",
+                value: format!("{} lacks MULTI_DRAW_INDIRECT_COUNT", ctx.info.name),
+                reason: "IndirectMode::Count needs it; use IndirectMode::MaxCount",
+            });
+        }
+        if !ctx.has_indirect_first_instance() {
+            return Err(GpuError::Input {
+                field: "adapter features",
+                value: format!("{} lacks INDIRECT_FIRST_INSTANCE", ctx.info.name),
+                reason: "the draw stage needs first_instance in indirect draws (it is each batch's offset into the indirection array, E§4.4)",
+            });
+        }
+        ctx.checked("draw.wgsl pipelines", || {
+            let device = &ctx.device;
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("draw.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(crate::shaders::draw_source().into()),
+            });
+            use wgpu::ShaderStages as S;
+            let buffer = |binding, visibility, ty, min: u64| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility,
+                ty: wgpu::BindingType::Buffer {
+                    ty,
+                    has_dynamic_offset: false,
+                    min_binding_size: NonZeroU64::new(min),
+                },
+                count: None,
+            };
+            let storage = wgpu::BufferBindingType::Storage { read_only: true };
+            let texture = |binding| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: S::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                    view_dimension: wgpu::TextureViewDimension::D2Array,
+                    multisampled: false,
+                },
+                count: None,
+            };
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("draw"),
+                entries: &[
+                    buffer(
+                        0,
+                        S::VERTEX_FRAGMENT,
+                        wgpu::BufferBindingType::Uniform,
+                        size_of::<DrawUniform>() as u64,
+                    ),
+                    buffer(1, S::VERTEX, storage, 0),
+                    buffer(2, S::VERTEX, storage, 0),
+                    buffer(3, S::VERTEX, storage, 0),
+                    buffer(4, S::VERTEX, storage, 0),
+                    buffer(5, S::VERTEX_FRAGMENT, storage, 0),
+                    buffer(
+                        6,
+                        S::VERTEX,
+                        storage,
+                        size_of::<forestlod_shared::SelectCounters>() as u64,
+                    ),
+                    texture(7),
+                    texture(8),
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 9,
+                        visibility: S::FRAGMENT,
+                        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                        count: None,
+                    },
+                ],
+            });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("draw"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let depth_stencil = Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            });
+            let primitive = wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode: None,
+                ..Default::default()
+            };
+            let targets = |blend: Option<wgpu::BlendState>| {
+                [
+                    Some(wgpu::ColorTargetState {
+                        format: COLOR_FORMAT,
+                        blend,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                    Some(wgpu::ColorTargetState {
+                        format: LOD_ID_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                ]
+            };
+            // Straight-alpha source-over (reference raster `Blend::AlphaBlend`).
+            let source_over = wgpu::BlendState {
+                color: wgpu::BlendComponent {
+                    src_factor: wgpu::BlendFactor::SrcAlpha,
+                    dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+                    operation: wgpu::BlendOperation::Add,
+                },
+                alpha: wgpu::BlendComponent {
+                    src_factor: wgpu::BlendFactor::One,
+                    dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+                    operation: wgpu::BlendOperation::Add,
+                },
+            };
+            let tree_targets = targets(Some(source_over));
+            let trees = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("draw trees"),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("tree_vertex"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive,
+                depth_stencil: depth_stencil.clone(),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("tree_fragment"),
+                    compilation_options: Default::default(),
+                    targets: &tree_targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+            let terrain_attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3];
+            let terrain_targets = targets(None);
+            let terrain = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("draw terrain"),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("terrain_vertex"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(wgpu::VertexBufferLayout {
+                        array_stride: size_of::<TerrainVertex>() as u64,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &terrain_attributes,
+                    })],
+                },
+                primitive,
+                depth_stencil,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("terrain_fragment"),
+                    compilation_options: Default::default(),
+                    targets: &terrain_targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+            // Reference `Sampler::TRILINEAR`: clamp-to-edge, no bias, default LOD clamps.
+            let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("draw trilinear"),
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                mipmap_filter: wgpu::MipmapFilterMode::Linear,
+                ..Default::default()
+            });
+            let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("draw uniform"),
+                size: size_of::<DrawUniform>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            Self {
+                layout,
+                trees,
+                terrain,
+                sampler,
+                uniform,
+                mode,
+            }
+        })
+    }
+
+    /// How this device issues the tree commands.
+    pub fn indirect_mode(&self) -> IndirectMode {
+        self.mode
+    }
+
+    /// Records one frame's pass into `encoder` (the uniform goes through the queue, so it lands
+    /// before the next submit). `camera` and `params` should be validated, as for the reference.
+    /// Errors: textures with fewer layers than the meshes (and `K` angles) need, or selection
+    /// buffers larger than `base_vertex` can address.
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &DrawInputs,
+        camera: &Camera,
+        params: &Params,
+        target: &DrawTarget,
+    ) -> Result<DrawCalls, GpuError> {
+        let DrawInputs {
+            scene,
+            textures,
+            selection,
+        } = *inputs;
+        if textures.mesh_layers < scene.mesh_count
+            || (textures.billboard_layers as u64)
+                < scene.mesh_count as u64 * params.angle_count as u64
+        {
+            return Err(GpuError::Input {
+                field: "draw textures",
+                value: format!(
+                    "{} mesh layers, {} billboard layers for {} meshes x {} angles",
+                    textures.mesh_layers,
+                    textures.billboard_layers,
+                    scene.mesh_count,
+                    params.angle_count
+                ),
+                reason: "expected a layer per mesh and K layers per mesh in the billboard array",
+            });
+        }
+        if selection.capacity > MAX_COMMANDS {
+            return Err(GpuError::Input {
+                field: "selection capacity",
+                value: selection.capacity.to_string(),
+                reason: "expected at most MAX_COMMANDS (base_vertex is an i32)",
+            });
+        }
+        let uniform = DrawUniform::new(camera, params, scene.billboard_first_vertex);
+        ctx.queue
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
+        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("draw"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.uniform.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: scene.vertices.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: scene.instances.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: scene.indirection.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: scene.meshes.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: selection.data.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: selection.counters.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: wgpu::BindingResource::TextureView(&textures.mesh),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 8,
+                    resource: wgpu::BindingResource::TextureView(&textures.billboards),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 9,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
+            ],
+        });
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let (color, depth, lod_id) = (
+            view(&target.color),
+            view(&target.depth),
+            view(&target.lod_id),
+        );
+        let sky = SKY_SRGB.map(|c| srgb_to_linear(c) as f64);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("draw"),
+            color_attachments: &[
+                Some(wgpu::RenderPassColorAttachment {
+                    view: &color,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: sky[0],
+                            g: sky[1],
+                            b: sky[2],
+                            a: 1.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                }),
+                Some(wgpu::RenderPassColorAttachment {
+                    view: &lod_id,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: LOD_ID_BACKGROUND as f64,
+                            g: 0.0,
+                            b: 0.0,
+                            a: 0.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                }),
+            ],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.set_pipeline(&self.terrain);
+        pass.set_vertex_buffer(0, scene.terrain.slice(..));
+        pass.draw(0..scene.terrain_vertex_count, 0..1);
+        pass.set_pipeline(&self.trees);
+        pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
+        match self.mode {
+            IndirectMode::Count => pass.multi_draw_indexed_indirect_count(
+                &selection.commands,
+                0,
+                &selection.counters,
+                SelectBuffers::COUNT_OFFSET,
+                selection.capacity,
+            ),
+            IndirectMode::MaxCount => {
+                pass.multi_draw_indexed_indirect(&selection.commands, 0, selection.capacity)
+            }
+        }
+        Ok(DrawCalls {
+            terrain: 1,
+            trees: 1,
+            mode: self.mode,
+            max_commands: selection.capacity,
+        })
+    }
+
+    /// Records and submits one frame (does not wait; read the target to wait).
+    pub fn render(
+        &self,
+        ctx: &GpuContext,
+        inputs: &DrawInputs,
+        camera: &Camera,
+        params: &Params,
+        target: &DrawTarget,
+    ) -> Result<DrawCalls, GpuError> {
+        ctx.checked("draw pass", || {
+            let mut encoder = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("draw"),
+                });
+            let calls = self.encode(ctx, &mut encoder, inputs, camera, params, target)?;
+            ctx.queue.submit([encoder.finish()]);
+            Ok(calls)
+        })?
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use core::mem::offset_of;
+
+    /// `DrawUniform`, `DrawVertex` and `DrawInstance` have their WGSL twins' layout (naga
+    /// reflection of the full `draw.wgsl` module, which also validates it).
+    #[test]
+    fn wgsl_layouts_match_rust() {
+        let source = crate::shaders::draw_source();
+        let module = naga::front::wgsl::parse_str(&source).expect("draw.wgsl parses");
+        let mut validator = naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::all(),
+        );
+        validator.validate(&module).expect("draw.wgsl validates");
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).expect("layout");
+        let find = |name: &str| {
+            module
+                .types
+                .iter()
+                .find(|(_, t)| t.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("struct {name} in draw.wgsl"))
+        };
+        let check = |name: &str, fields: &[(&str, usize)], size: usize| {
+            let (handle, ty) = find(name);
+            let naga::TypeInner::Struct { members, span } = &ty.inner else {
+                panic!("{name} is not a struct")
+            };
+            assert_eq!(*span as usize, size, "{name} size");
+            assert_eq!(layouter[handle].size as usize, size, "{name} size");
+            assert_eq!(members.len(), fields.len(), "{name} member count");
+            for (m, (field, offset)) in members.iter().zip(fields) {
+                assert_eq!(m.name.as_deref(), Some(*field), "{name} member order");
+                assert_eq!(m.offset as usize, *offset, "{name}.{field} offset");
+            }
+        };
+        check(
+            "DrawUniform",
+            &[
+                ("view_proj", offset_of!(DrawUniform, view_proj)),
+                ("eye", offset_of!(DrawUniform, eye)),
+                ("draw_distance", offset_of!(DrawUniform, draw_distance)),
+                ("forward", offset_of!(DrawUniform, forward)),
+                ("angle_count", offset_of!(DrawUniform, angle_count)),
+                ("fade_mode", offset_of!(DrawUniform, fade_mode)),
+                (
+                    "angle_index_mode",
+                    offset_of!(DrawUniform, angle_index_mode),
+                ),
+                ("alpha_cutoff", offset_of!(DrawUniform, alpha_cutoff)),
+                (
+                    "billboard_first_vertex",
+                    offset_of!(DrawUniform, billboard_first_vertex),
+                ),
+            ],
+            size_of::<DrawUniform>(),
+        );
+        check(
+            "DrawVertex",
+            &[
+                ("position", offset_of!(DrawVertex, position)),
+                ("uv", offset_of!(DrawVertex, uv)),
+            ],
+            size_of::<DrawVertex>(),
+        );
+        check(
+            "DrawInstance",
+            &[
+                ("position", offset_of!(DrawInstance, position)),
+                ("yaw", offset_of!(DrawInstance, yaw)),
+                ("scale", offset_of!(DrawInstance, scale)),
+                ("mesh", offset_of!(DrawInstance, mesh)),
+            ],
+            size_of::<DrawInstance>(),
+        );
+    }
+
+    #[test]
+    fn terrain_grid_is_two_triangles_per_cell_over_the_margin() {
+        let v = terrain_vertices([0.0, 0.0, 100.0, 100.0], |_, _| 1.0);
+        assert_eq!(v.len(), (TERRAIN_CELLS * TERRAIN_CELLS * 6) as usize);
+        assert_eq!(v[0].position, [-TERRAIN_MARGIN, -TERRAIN_MARGIN, 0.95]);
+        let last = v.last().unwrap().position;
+        assert_eq!(last[1], 100.0 + TERRAIN_MARGIN);
+        assert_eq!(srgb_to_linear(255), 1.0);
+        assert_eq!(srgb_to_linear(0), 0.0);
+    }
+}

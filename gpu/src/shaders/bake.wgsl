@@ -1,0 +1,97 @@
+// bake.wgsl: the billboard bake (E Alg. 3.1, E§4.1; SPEC §5.1). The GPU twin of
+// reference/src/bake.rs (`bake_clip`, `bake_layer`), driven by gpu/src/bake.rs; common.wgsl is
+// prepended.
+//
+// Contract (the reference's module docs, repeated): layer `mesh * K + k` of the billboard array
+// texture holds mesh `mesh` seen from the fixed azimuth +X at elevation e_k = 90° / (K - 1) · k,
+// through an orthographic projection fitted to the mesh's bounding box: `[-W, W]` along the
+// billboard's right vector R = +Y and `[bottom, bottom + height]` along its tilted up vector
+// U_k = Z cos e - X sin e (forestlod_shared::billboard_extent), depth 0 at the near side of the
+// bounding sphere and 1 at the far side. Unlit: the fragment is the mesh texture's level 0,
+// sampled bilinearly with clamp-to-edge (the sRGB texture decodes before filtering), discarded
+// when its alpha is 0; the pipeline state does the rest (depth test LESS with writes into a
+// Depth32Float attachment cleared to 1, colour REPLACE into an Rgba8UnormSrgb layer cleared to
+// transparent black, no culling), as the reference rasterizer does (reference/src/raster.rs).
+//
+// `bake_vs` is reference `bake_clip` operation for operation, in the same order. The per-layer
+// constants that need transcendental functions (sin and cos of the elevation) or come from the
+// shared extent formula are computed once on the CPU with the very calls the reference makes
+// (`bake_elevation(k, K).sin_cos()`, `billboard_extent`) and passed in `BakeLayer`: WGSL's sin
+// and cos have implementation-defined precision, so recomputing them here would move vertices.
+
+// Keep in sync with forestlod_gpu::bake::BakeLayer (gpu/src/bake.rs). One per layer, bound with a
+// dynamic offset.
+struct BakeLayer {
+    // MeshMeta::bbox_min.
+    bbox_min: vec3<f32>,
+    // MeshMeta::sphere_radius.
+    sphere_radius: f32,
+    // MeshMeta::bbox_max.
+    bbox_max: vec3<f32>,
+    // sin of the layer's elevation (f32 `sin_cos`, as the reference).
+    sin_e: f32,
+    // cos of the layer's elevation.
+    cos_e: f32,
+    // billboard_extent(meta, elevation).half_width.
+    half_width: f32,
+    // billboard_extent(meta, elevation).bottom.
+    bottom: f32,
+    // billboard_extent(meta, elevation).height.
+    height: f32,
+}
+
+// f32::MIN_POSITIVE, the floor of every divisor of bake_clip.
+const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
+
+@group(0) @binding(0) var<uniform> layer: BakeLayer;
+// The mesh's texture, level 0 only, Rgba8UnormSrgb.
+@group(0) @binding(1) var mesh_texture: texture_2d<f32>;
+// Bilinear, clamp-to-edge.
+@group(0) @binding(2) var mesh_sampler: sampler;
+
+struct BakeVertex {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+}
+
+// reference `bake_clip`: orthographic clip-space position of mesh-local point `p`.
+fn bake_clip(p: vec3<f32>) -> vec4<f32> {
+    let s = layer.sin_e;
+    let c = layer.cos_e;
+    // h = +X, R = Z × h = +Y, U = Z cos e - h sin e, V = h cos e + Z sin e (toward the viewer).
+    let right = p.y;
+    let up = p.z * c - p.x * s;
+    let toward_viewer = p.x * c + p.z * s;
+    let half_width = max(layer.half_width, F32_MIN_POSITIVE);
+    let height = max(layer.height, F32_MIN_POSITIVE);
+    // Depth 0 at the nearest point of the bounding sphere, 1 at the farthest.
+    let center = vec3<f32>(
+        (layer.bbox_min.x + layer.bbox_max.x) * 0.5,
+        (layer.bbox_min.y + layer.bbox_max.y) * 0.5,
+        (layer.bbox_min.z + layer.bbox_max.z) * 0.5,
+    );
+    let center_toward = center.x * c + center.z * s;
+    let radius = max(layer.sphere_radius, F32_MIN_POSITIVE);
+    let depth = (center_toward + radius - toward_viewer) / (2.0 * radius);
+    return vec4<f32>(
+        right / half_width,
+        (up - layer.bottom) / height * 2.0 - 1.0,
+        depth,
+        1.0,
+    );
+}
+
+@vertex
+fn bake_vs(@location(0) position: vec3<f32>, @location(1) uv: vec2<f32>) -> BakeVertex {
+    return BakeVertex(bake_clip(position), uv);
+}
+
+// reference `bake_layer`'s shader: level 0, bilinear; alpha exactly 0 is discarded.
+@fragment
+fn bake_fs(v: BakeVertex) -> @location(0) vec4<f32> {
+    let texel = textureSampleLevel(mesh_texture, mesh_sampler, v.uv, 0.0);
+    if !(texel.a > 0.0) {
+        discard;
+    }
+    return texel;
+}

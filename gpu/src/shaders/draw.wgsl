@@ -1,0 +1,260 @@
+// draw.wgsl: the draw stage (E§4.4; SPEC §5.5), twin of reference/src/draw.rs. Prepended by
+// common.wgsl (gpu/src/shaders.rs). Function names follow the reference: `tree_vertex` is
+// `vertex_stage`, `tree_fragment` is `TreeShader::shade`, `terrain_*` draws `terrain_triangles`.
+//
+// One render pass: the ground grid (opaque, a plain vertex buffer), then every selected command
+// with ONE multi-draw-indirect call (gpu/src/draw.rs). Vertices are pulled from storage buffers:
+// `command = vertex_index >> COMMAND_SHIFT` and `local = vertex_index & (MAX_MESH_VERTICES - 1)`
+// (`base_vertex = command << COMMAND_SHIFT`, shared/src/types.rs), the tree is
+// `indirection[instance_index]` (`first_instance` = the batch's offset, E§4.4).
+
+// Keep in sync with forestlod_shared::MAX_MESH_VERTICES.
+const MAX_MESH_VERTICES: u32 = 1u << COMMAND_SHIFT;
+
+// Keep in sync with reference/src/draw.rs (LOD_ID_*) and gpu/src/draw.rs.
+const LOD_ID_MESH: u32 = 1u;
+const LOD_ID_BILLBOARD: u32 = 2u;
+const LOD_ID_TRANSITION: u32 = 3u;
+const LOD_ID_TERRAIN: u32 = 4u;
+
+// A clip position outside the far plane (z > w): a triangle whose three vertices all sit here
+// is clipped away entirely and, being degenerate too, could never cover a sample anyway. Used for
+// trees beyond the draw distance and for commands past the selection's count.
+const DISCARDED_POSITION: vec4<f32> = vec4<f32>(0.0, 0.0, 2.0, 1.0);
+
+// Keep in sync with gpu/src/draw.rs `DrawUniform` (layout checked by its tests).
+struct DrawUniform {
+    view_proj: mat4x4<f32>,
+    eye: vec3<f32>,
+    draw_distance: f32,
+    // Unit view direction (`Camera::basis().forward`).
+    forward: vec3<f32>,
+    angle_count: u32,
+    fade_mode: u32,
+    angle_index_mode: u32,
+    alpha_cutoff: f32,
+    billboard_first_vertex: u32,
+}
+
+// Keep in sync with gpu/src/draw.rs `DrawVertex` (= reference PackedVertex).
+struct DrawVertex {
+    position: array<f32, 3>,
+    uv: array<f32, 2>,
+}
+
+// Keep in sync with gpu/src/draw.rs `DrawInstance`.
+struct DrawInstance {
+    position: array<f32, 3>,
+    yaw: f32,
+    scale: f32,
+    mesh: u32,
+}
+
+@group(0) @binding(0) var<uniform> u: DrawUniform;
+@group(0) @binding(1) var<storage, read> vertices: array<DrawVertex>;
+@group(0) @binding(2) var<storage, read> instances: array<DrawInstance>;
+@group(0) @binding(3) var<storage, read> indirection: array<u32>;
+@group(0) @binding(4) var<storage, read> meshes: array<MeshMeta>;
+@group(0) @binding(5) var<storage, read> command_data: array<CommandData>;
+@group(0) @binding(6) var<storage, read> counters: SelectCounters;
+// One layer per mesh (all mesh textures share one size).
+@group(0) @binding(7) var mesh_textures: texture_2d_array<f32>;
+// Layer `mesh * K + k` (E Alg. 3.1).
+@group(0) @binding(8) var billboard_textures: texture_2d_array<f32>;
+// Trilinear, clamp-to-edge (reference Sampler::TRILINEAR).
+@group(0) @binding(9) var tree_sampler: sampler;
+
+struct TreeVaryings {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+    // View depth `(p - eye) · forward`, clamped to the tree's sphere interval for billboards.
+    @location(1) depth: f32,
+    @location(2) @interpolate(flat) layer: u32,
+    @location(3) @interpolate(flat) command: u32,
+}
+
+struct TargetOutput {
+    @location(0) color: vec4<f32>,
+    @location(1) lod_id: u32,
+}
+
+// reference/src/scene/mod.rs `round_up`: the next f32 above a positive finite value.
+fn round_up(x: f32) -> f32 {
+    let bits = bitcast<u32>(x);
+    if x > 0.0 && (bits & 0x7f800000u) != 0x7f800000u {
+        return bitcast<f32>(bits + 1u);
+    }
+    return x;
+}
+
+struct TreeSphere {
+    center: vec3<f32>,
+    radius: f32,
+}
+
+// reference/src/scene/mod.rs `tree_sphere`: the mesh's local sphere scaled, rotated, translated.
+fn tree_sphere(t: DrawInstance, mesh: MeshMeta) -> TreeSphere {
+    let lx = (mesh.bbox_min[0] + mesh.bbox_max[0]) * 0.5 * t.scale;
+    let ly = (mesh.bbox_min[1] + mesh.bbox_max[1]) * 0.5 * t.scale;
+    let lz = (mesh.bbox_min[2] + mesh.bbox_max[2]) * 0.5 * t.scale;
+    let s = sin(t.yaw);
+    let c = cos(t.yaw);
+    let rotated = vec3<f32>(c * lx - s * ly, s * lx + c * ly, lz);
+    let base = vec3<f32>(t.position[0], t.position[1], t.position[2]);
+    return TreeSphere(base + rotated, round_up(mesh.sphere_radius * t.scale));
+}
+
+// reference/src/select.rs `tree_within_draw_distance` (E§4.4's per-tree discard).
+fn tree_within_draw_distance(center: vec3<f32>) -> bool {
+    return view_interval(center, 0.0, u.eye, u.forward).d <= u.draw_distance;
+}
+
+// reference `vertex_stage`.
+@vertex
+fn tree_vertex(
+    @builtin(vertex_index) vertex_index: u32,
+    @builtin(instance_index) instance_index: u32,
+) -> TreeVaryings {
+    var out: TreeVaryings;
+    out.clip = DISCARDED_POSITION;
+    out.uv = vec2<f32>(0.0, 0.0);
+    out.depth = 0.0;
+    out.layer = 0u;
+    out.command = 0u;
+    let command = vertex_index >> COMMAND_SHIFT;
+    let local = vertex_index & (MAX_MESH_VERTICES - 1u);
+    // Without a count buffer the multi-draw runs every slot; slots past the count may hold a
+    // previous frame's commands.
+    if command >= counters.commands {
+        return out;
+    }
+    let data = command_data[command];
+    let tree_index = indirection[instance_index];
+    let t = instances[tree_index];
+    let mesh_meta = meshes[t.mesh];
+    let sphere = tree_sphere(t, mesh_meta);
+    if !tree_within_draw_distance(sphere.center) {
+        return out;
+    }
+    let base = vec3<f32>(t.position[0], t.position[1], t.position[2]);
+    var world: vec3<f32>;
+    var uv: vec2<f32>;
+    var layer: u32;
+    if data.billboard == 0u {
+        let v = vertices[mesh_meta.first_vertex + local];
+        let p = vec3<f32>(v.position[0], v.position[1], v.position[2]) * t.scale;
+        let s = sin(t.yaw);
+        let c = cos(t.yaw);
+        let rotated = vec3<f32>(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
+        world = base + rotated;
+        uv = vec2<f32>(v.uv[0], v.uv[1]);
+        layer = t.mesh;
+    } else {
+        let corner_vertex = vertices[u.billboard_first_vertex + local];
+        let corner = vec2<f32>(corner_vertex.uv[0], corner_vertex.uv[1]);
+        let to_eye = u.eye - base;
+        let v_dot_u = to_eye.z / length(to_eye);
+        let k_count = u.angle_count;
+        let k = angle_index_for(u.angle_index_mode, v_dot_u, k_count);
+        let elevation = bake_elevation(k, k_count);
+        var h = vec3<f32>(to_eye.x, to_eye.y, 0.0);
+        if dot(h, h) < 1e-12 {
+            h = vec3<f32>(-u.forward.x, -u.forward.y, 0.0);
+        }
+        if dot(h, h) < 1e-12 {
+            h = vec3<f32>(1.0, 0.0, 0.0);
+        }
+        h = h * (1.0 / length(h));
+        // Z × h and Z cos e - h sin e, written out (h.z = 0).
+        let right = vec3<f32>(-h.y, h.x, 0.0);
+        let s = sin(elevation);
+        let c = cos(elevation);
+        let up = vec3<f32>(-(h.x * s), -(h.y * s), c);
+        let e = billboard_extent(mesh_meta, elevation);
+        let along_right = (2.0 * corner.x - 1.0) * e.half_width * t.scale;
+        let along_up = (e.bottom + (1.0 - corner.y) * e.height) * t.scale;
+        world = base + right * along_right + up * along_up;
+        uv = corner;
+        layer = t.mesh * k_count + k;
+    }
+    let rel = world - u.eye;
+    var depth = rel.x * u.forward.x + rel.y * u.forward.y + rel.z * u.forward.z;
+    if data.billboard != 0u {
+        let i = view_interval(sphere.center, sphere.radius, u.eye, u.forward);
+        depth = min(max(depth, i.lo), i.hi);
+    }
+    out.clip = u.view_proj * vec4<f32>(world, 1.0);
+    out.uv = uv;
+    out.depth = depth;
+    out.layer = layer;
+    out.command = command;
+    return out;
+}
+
+// reference `TreeShader::shade`.
+@fragment
+fn tree_fragment(in: TreeVaryings) -> TargetOutput {
+    let data = command_data[in.command];
+    // Both textures are sampled before any branch: implicit-LOD sampling needs uniform control
+    // flow (the quad's derivatives); the layer index clamps to the array (WGSL and Vulkan).
+    let mesh_texel = textureSample(mesh_textures, tree_sampler, in.uv, in.layer);
+    let billboard_texel = textureSample(billboard_textures, tree_sampler, in.uv, in.layer);
+    let texel = select(mesh_texel, billboard_texel, data.billboard != 0u);
+    if texel.a < u.alpha_cutoff {
+        discard;
+    }
+    var weight = 1.0;
+    if data.fading != 0u {
+        let pixel = vec2<u32>(in.clip.xy);
+        let w = lod_weights(
+            u.fade_mode,
+            in.depth,
+            data.fade_start,
+            data.fade_end,
+            dither_threshold(pixel.x, pixel.y),
+        );
+        weight = lod_weight_of(w, data.lod);
+    }
+    if weight <= 0.0 {
+        discard;
+    }
+    var in_band = false;
+    if data.fading != 0u {
+        let t = fade_progress(in.depth, data.fade_start, data.fade_end);
+        in_band = t > 0.0 && t < 1.0;
+    }
+    var out: TargetOutput;
+    out.color = vec4<f32>(texel.rgb, weight);
+    if in_band {
+        out.lod_id = LOD_ID_TRANSITION;
+    } else if data.billboard == 0u {
+        out.lod_id = LOD_ID_MESH;
+    } else {
+        out.lod_id = LOD_ID_BILLBOARD;
+    }
+    return out;
+}
+
+struct TerrainVaryings {
+    @builtin(position) clip: vec4<f32>,
+    // Linear RGB.
+    @location(0) color: vec3<f32>,
+}
+
+// reference `terrain_triangles`' vertex transform.
+@vertex
+fn terrain_vertex(@location(0) position: vec3<f32>, @location(1) color: vec3<f32>) -> TerrainVaryings {
+    var out: TerrainVaryings;
+    out.clip = u.view_proj * vec4<f32>(position, 1.0);
+    out.color = color;
+    return out;
+}
+
+// reference `draw_frame`'s ground shader: opaque, LOD_ID_TERRAIN.
+@fragment
+fn terrain_fragment(in: TerrainVaryings) -> TargetOutput {
+    var out: TargetOutput;
+    out.color = vec4<f32>(in.color, 1.0);
+    out.lod_id = LOD_ID_TERRAIN;
+    return out;
+}

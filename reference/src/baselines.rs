@@ -1,0 +1,547 @@
+//! The two pipelines the thesis measures against (E§5; SPEC §9), on the reference rasterizer, so
+//! that cost and accuracy are measured by the same machinery as ours.
+//!
+//! ## Vegetation (E§5: "renders the entire geometry for every tree")
+//! Every tree at full mesh (the geometry of our LOD0), with **per-tree** frustum culling and the
+//! per-tree draw-distance test: the oracle [`crate::select::select_per_tree`] decides each tree
+//! alone. The visible trees are compacted mesh by mesh into an instance list and drawn with the
+//! very draw stage of our pipeline ([`crate::draw::draw_frame`]): one instanced command per mesh
+//! that has visible trees, LOD0, no fade. So its pixels differ from ours exactly where our LOD
+//! choices differ.
+//!
+//! ## Primitive (E§5: "billboard quads for each tree, simulating the geometry by doing ray casting
+//! on simple geometry in the fragment shader ... a sphere on top of a cylinder")
+//! Per visible tree (the same per-tree culling), one camera-facing quad whose fragment stage
+//! ray-casts a proxy and **writes the hit's depth** ([`crate::raster::FragmentOutput::depth`], the
+//! `gl_FragDepth` the thesis blames for Primitive's cost: it defeats early-Z on a GPU). The proxy,
+//! from the mesh's bounding box, scaled by the tree's scale (yaw is irrelevant: it is symmetric
+//! about the trunk axis `x = y = 0`):
+//! - crown sphere of radius `R` = the box's half-width (`max(extent x, extent y) / 2`), centred on
+//!   the trunk axis so that it touches the box top: `z_c = max(z_max - R, z_min + R)`;
+//! - trunk cylinder of radius [`TRUNK_RADIUS_FRACTION`]`· R` from the box bottom up to the sphere
+//!   centre. Its caps are not traced: the bottom rests on the ground, the top is inside the crown.
+//!
+//! Colour is flat: the species' average colour as seen from the side, the mean linear RGB of the
+//! texels that pass the alpha test in the mesh's level-0 billboard bake at elevation 0 (layer
+//! `mesh · K`, [`crate::bake`]): the crown dominates it, the trunk adds its visible share. The mean
+//! over the raw texture would instead weigh the bark region of the atlas as much as its area, and
+//! comes out brown. One colour for sphere and trunk alike. The quad lies in the plane perpendicular
+//! to the view direction at the proxy's nearest view depth (its bounding sphere's), sized to cover
+//! the proxy's projection (bound in [`primitive_quad`]), so every ray-cast depth is at or behind
+//! the quad's: the conservative-depth contract the rasterizer's early test needs. A proxy within
+//! [`NEAR_FALLBACK_FACTOR`] near-plane distances of the eye gets a full-screen quad at the near
+//! plane instead.
+//!
+//! ## Counters
+//! Both report the trees tested (every tree: the per-tree culling work), trees drawn, commands,
+//! the rasterizer's [`DrawStats`], and the bytes the method adds to the scene data
+//! ([`BaselineFrame::memory_bytes`]).
+
+use std::time::Instant;
+
+use forestlod_shared::{
+    COMMAND_SHIFT, Camera, CommandData, DrawCommand, LOD_MESH, MeshMeta, Params,
+};
+use glam::{Vec3, Vec4};
+
+use crate::batches::Batches;
+use crate::draw::{
+    DrawResources, LOD_ID_BACKGROUND, LOD_ID_MESH, LOD_ID_TERRAIN, SKY_SRGB, draw_frame,
+    terrain_triangles,
+};
+use crate::pipeline::{FrameTimings, Prepared};
+use crate::raster::{
+    ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, RenderTarget, Triangle, Vertex,
+};
+use crate::scene::{Scene, tree_sphere};
+use crate::select::{Decision, Selection, select_per_tree, tree_within_draw_distance};
+use crate::texture::srgb_to_linear;
+
+/// Trunk radius of the Primitive proxy as a fraction of the crown radius: a 20 m spruce with a
+/// 3 m crown radius gets a 0.3 m trunk, about what the procedural bark cards show.
+pub const TRUNK_RADIUS_FRACTION: f32 = 0.1;
+
+/// A proxy whose bounding sphere comes nearer the eye than this many near-plane distances gets a
+/// full-screen quad (the projected-size bound divides by the nearest depth, which would blow up).
+pub const NEAR_FALLBACK_FACTOR: f32 = 2.0;
+
+/// Bytes per visible tree in a baseline's compacted instance list (one `u32` tree index).
+pub const INSTANCE_INDEX_BYTES: u64 = 4;
+/// Bytes of one Primitive proxy record per mesh: crown radius, crown centre height, trunk radius,
+/// bottom height and linear RGB plus padding (8 `f32`).
+pub const PROXY_BYTES: u64 = 32;
+
+/// Which baseline (E§5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Baseline {
+    /// Full meshes for every visible tree.
+    Vegetation,
+    /// One ray-cast sphere-on-cylinder quad per visible tree.
+    Primitive,
+}
+
+impl Baseline {
+    /// Both, in the thesis's order.
+    pub const ALL: [Baseline; 2] = [Baseline::Vegetation, Baseline::Primitive];
+    /// Name used on the command line and in CSVs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Baseline::Vegetation => "vegetation",
+            Baseline::Primitive => "primitive",
+        }
+    }
+}
+
+/// One frame of a baseline.
+pub struct BaselineFrame {
+    /// Colour, depth and id buffers (ids: [`LOD_ID_MESH`] for trees, [`LOD_ID_TERRAIN`], background).
+    pub target: RenderTarget,
+    /// Ground draw counters.
+    pub terrain_stats: DrawStats,
+    /// Tree draw counters.
+    pub tree_stats: DrawStats,
+    /// Trees culled one by one (every tree of the scene).
+    pub trees_tested: u64,
+    /// Visible trees, ascending tree indices.
+    pub visible: Vec<u32>,
+    /// Draw commands issued for trees.
+    pub commands: u64,
+    /// Culling (as `select`) and drawing (as `draw`) wall times.
+    pub timings: FrameTimings,
+    /// Bytes the method adds to the scene data: the compacted instance list plus its commands
+    /// (Vegetation) or proxy records (Primitive).
+    pub memory_bytes: u64,
+}
+
+/// Bounding spheres of every tree ([`tree_sphere`]), the input of per-tree culling.
+pub fn tree_spheres(scene: &Scene, meshes: &[MeshMeta]) -> Vec<([f32; 3], f32)> {
+    scene
+        .instances
+        .iter()
+        .map(|t| tree_sphere(t, &meshes[t.mesh as usize]))
+        .collect()
+}
+
+/// Per-tree culling (the oracle of [`select_per_tree`]): the trees drawn, ascending.
+pub fn visible_trees(spheres: &[([f32; 3], f32)], camera: &Camera, params: &Params) -> Vec<u32> {
+    select_per_tree(spheres, camera, params)
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| matches!(d, Decision::Draw(_)))
+        .map(|(i, _)| i as u32)
+        .collect()
+}
+
+/// The trees our grouped pipeline draws in a frame: every tree of every command's batch that
+/// passes the draw stage's per-tree draw-distance discard, ascending and without repeats.
+pub fn trees_drawn_by_selection(
+    prepared: &Prepared,
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+) -> Vec<u32> {
+    let u = crate::select::SelectUniform::new(camera, params);
+    let mut out: Vec<u32> = selection
+        .commands
+        .iter()
+        .flat_map(|c| {
+            prepared.batches.indirection
+                [c.first_instance as usize..(c.first_instance + c.instance_count) as usize]
+                .iter()
+                .copied()
+        })
+        .filter(|&t| {
+            let tree = &prepared.scene.instances[t as usize];
+            let (center, _) = tree_sphere(tree, &prepared.geometry.meshes[tree.mesh as usize]);
+            tree_within_draw_distance(&u, center)
+        })
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+/// Renders one frame of *Vegetation* (module docs) with our draw stage.
+pub fn render_vegetation(
+    prepared: &Prepared,
+    spheres: &[([f32; 3], f32)],
+    camera: &Camera,
+    params: &Params,
+) -> BaselineFrame {
+    let t = Instant::now();
+    let visible = visible_trees(spheres, camera, params);
+    // Compact mesh by mesh: one instanced command per mesh with visible trees.
+    let meshes = prepared.scene.meshes.len();
+    let mut by_mesh: Vec<Vec<u32>> = vec![Vec::new(); meshes];
+    for &tree in &visible {
+        by_mesh[prepared.scene.instances[tree as usize].mesh as usize].push(tree);
+    }
+    let mut indirection = Vec::with_capacity(visible.len());
+    let mut selection = Selection::default();
+    let u = crate::select::SelectUniform::new(camera, params);
+    for (mesh, trees) in by_mesh.iter().enumerate() {
+        if trees.is_empty() {
+            continue;
+        }
+        let range = &prepared.geometry.meshes[mesh];
+        selection.commands.push(DrawCommand {
+            index_count: range.index_count,
+            instance_count: trees.len() as u32,
+            first_index: range.first_index,
+            base_vertex: (selection.commands.len() as i32) << COMMAND_SHIFT,
+            first_instance: indirection.len() as u32,
+        });
+        selection.data.push(CommandData {
+            fade_start: u.fade_start,
+            fade_end: u.fade_end,
+            batch: 0,
+            mesh: mesh as u32,
+            lod: LOD_MESH,
+            billboard: 0,
+            fading: 0,
+            _pad0: 0,
+        });
+        indirection.extend_from_slice(trees);
+    }
+    let select_seconds = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let batches = Batches {
+        metas: Vec::new(),
+        indirection,
+        grid_size: prepared.batches.grid_size,
+    };
+    let res = DrawResources {
+        scene: &prepared.scene,
+        geometry: &prepared.geometry,
+        batches: &batches,
+        mesh_textures: &prepared.mesh_textures,
+        billboards: &prepared.billboards,
+    };
+    let drawn = draw_frame(&res, &selection, camera, params);
+    let draw_seconds = t.elapsed().as_secs_f64();
+    let commands = selection.commands.len() as u64;
+    BaselineFrame {
+        target: drawn.target,
+        terrain_stats: drawn.terrain_stats,
+        tree_stats: drawn.tree_stats,
+        trees_tested: spheres.len() as u64,
+        memory_bytes: visible.len() as u64 * INSTANCE_INDEX_BYTES
+            + commands
+                * (core::mem::size_of::<DrawCommand>() + core::mem::size_of::<CommandData>())
+                    as u64,
+        visible,
+        commands,
+        timings: FrameTimings {
+            select: select_seconds,
+            draw: draw_seconds,
+        },
+    }
+}
+
+/// The *Primitive* proxy of one mesh, in mesh-local coordinates (module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Proxy {
+    /// Crown sphere radius.
+    pub crown_radius: f32,
+    /// Height of the crown sphere's centre above the base.
+    pub crown_z: f32,
+    /// Trunk cylinder radius.
+    pub trunk_radius: f32,
+    /// Height of the trunk's bottom (the box bottom).
+    pub bottom_z: f32,
+    /// Flat colour, linear RGB: the mean of the side view's texels that pass the alpha test.
+    pub color: [f32; 3],
+}
+
+impl Proxy {
+    /// The proxy of a mesh from its bounding box and its side view (the level-0 bake at elevation
+    /// 0; module docs).
+    pub fn of_mesh(
+        meta: &MeshMeta,
+        side_view: &crate::texture::Rgba8Image,
+        alpha_cutoff: f32,
+    ) -> Self {
+        let ex = meta.bbox_max[0] - meta.bbox_min[0];
+        let ey = meta.bbox_max[1] - meta.bbox_min[1];
+        let r = 0.5 * ex.max(ey);
+        let crown_z = (meta.bbox_max[2] - r).max(meta.bbox_min[2] + r);
+        let mut sum = [0.0f64; 3];
+        let mut n = 0u64;
+        for t in &side_view.texels {
+            if t[3] as f32 / 255.0 >= alpha_cutoff {
+                for c in 0..3 {
+                    sum[c] += srgb_to_linear(t[c]) as f64;
+                }
+                n += 1;
+            }
+        }
+        let color = if n == 0 {
+            [0.0; 3]
+        } else {
+            sum.map(|s| (s / n as f64) as f32)
+        };
+        Self {
+            crown_radius: r,
+            crown_z,
+            trunk_radius: TRUNK_RADIUS_FRACTION * r,
+            bottom_z: meta.bbox_min[2],
+            color,
+        }
+    }
+
+    /// Radius of a sphere centred on the trunk axis at [`Proxy::center_z`] that holds the proxy
+    /// (the circumsphere of its bounding box).
+    pub fn bounding_radius(&self) -> f32 {
+        let half_h = 0.5 * (self.crown_z + self.crown_radius - self.bottom_z);
+        (2.0 * self.crown_radius * self.crown_radius + half_h * half_h).sqrt() * (1.0 + 1e-5)
+    }
+
+    /// Height of the proxy's bounding-box centre.
+    pub fn center_z(&self) -> f32 {
+        0.5 * (self.crown_z + self.crown_radius + self.bottom_z)
+    }
+
+    /// Nearest ray parameter `t >= t_min` where `origin + t·dir` meets the proxy of a tree standing
+    /// at `base` with `scale`, or `None`. `origin` and `dir` need not be normalized.
+    pub fn intersect(
+        &self,
+        base: Vec3,
+        scale: f32,
+        origin: Vec3,
+        dir: Vec3,
+        t_min: f32,
+    ) -> Option<f32> {
+        let mut best: Option<f32> = None;
+        let mut take = |t: f32| {
+            if t >= t_min && best.is_none_or(|b| t < b) {
+                best = Some(t);
+            }
+        };
+        // Sphere.
+        let c = base + Vec3::new(0.0, 0.0, self.crown_z * scale);
+        let r = self.crown_radius * scale;
+        let oc = origin - c;
+        let a = dir.dot(dir);
+        let b = oc.dot(dir);
+        let disc = b * b - a * (oc.dot(oc) - r * r);
+        if disc >= 0.0 {
+            let s = disc.sqrt();
+            take((-b - s) / a);
+            take((-b + s) / a);
+        }
+        // Vertical cylinder from the bottom to the crown centre, no caps.
+        let rt = self.trunk_radius * scale;
+        let (z0, z1) = (base.z + self.bottom_z * scale, c.z);
+        let (ox, oy) = (origin.x - base.x, origin.y - base.y);
+        let a2 = dir.x * dir.x + dir.y * dir.y;
+        if a2 > 0.0 {
+            let b2 = ox * dir.x + oy * dir.y;
+            let disc = b2 * b2 - a2 * (ox * ox + oy * oy - rt * rt);
+            if disc >= 0.0 {
+                let s = disc.sqrt();
+                for t in [(-b2 - s) / a2, (-b2 + s) / a2] {
+                    let z = origin.z + t * dir.z;
+                    if z >= z0 && z <= z1 {
+                        take(t);
+                    }
+                }
+            }
+        }
+        best
+    }
+}
+
+/// Proxies of every mesh of a prepared scene.
+pub fn proxies(prepared: &Prepared, alpha_cutoff: f32) -> Vec<Proxy> {
+    let k = prepared.billboards.angle_count as usize;
+    prepared
+        .geometry
+        .meshes
+        .iter()
+        .enumerate()
+        .map(|(m, meta)| Proxy::of_mesh(meta, &prepared.billboards.layers[m * k], alpha_cutoff))
+        .collect()
+}
+
+/// Varyings of the Primitive quads: world position on the quad (3) and the tree index.
+const PRIMITIVE_VARYINGS: usize = 4;
+
+/// World-space corners of the camera-facing quad of a proxy with bounding sphere `(center,
+/// radius)` (module docs): in the plane perpendicular to the view direction at depth
+/// `d_q = d_c - radius`, centred on the centre's projection, half-side `radius·(1 + |lat|/d_c)`
+/// with `lat` the centre's offset from the view axis. Every point `p` of the sphere projects (from
+/// the eye, onto that plane) within that distance of the centre's projection: with `d_p >= d_q`
+/// the projected offset is `d_q·|lat_c(1/d_p - 1/d_c) + lat_u·radius/d_p| <= radius(|lat|/d_c + 1)`.
+/// Near the eye ([`NEAR_FALLBACK_FACTOR`]) the quad covers the whole view at `1.001·near`.
+pub fn primitive_quad(camera: &Camera, center: Vec3, radius: f32) -> [Vec3; 4] {
+    let b = camera.basis();
+    let eye = Vec3::from(camera.eye);
+    let rel = center - eye;
+    let d_c = rel.dot(b.forward);
+    let (mid, half_x, half_y) = if d_c - radius < NEAR_FALLBACK_FACTOR * camera.near {
+        let d_q = camera.near * 1.001;
+        let ty = (camera.fov_y * 0.5).tan() * d_q * 1.1;
+        (eye + b.forward * d_q, ty * camera.aspect(), ty)
+    } else {
+        let d_q = d_c - radius;
+        let lat = (rel - b.forward * d_c).length();
+        let half = radius * (1.0 + lat / d_c);
+        (eye + rel * (d_q / d_c), half, half)
+    };
+    [
+        mid - b.right * half_x - b.up * half_y,
+        mid + b.right * half_x - b.up * half_y,
+        mid + b.right * half_x + b.up * half_y,
+        mid - b.right * half_x + b.up * half_y,
+    ]
+}
+
+/// Renders one frame of *Primitive* (module docs).
+pub fn render_primitive(
+    prepared: &Prepared,
+    spheres: &[([f32; 3], f32)],
+    proxies: &[Proxy],
+    camera: &Camera,
+    params: &Params,
+) -> BaselineFrame {
+    let t = Instant::now();
+    let visible = visible_trees(spheres, camera, params);
+    let select_seconds = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let sky = SKY_SRGB.map(srgb_to_linear);
+    let mut target = RenderTarget::new(
+        camera.width,
+        camera.height,
+        ClearValues {
+            color: [sky[0], sky[1], sky[2], 1.0],
+            depth: 1.0,
+            aux: LOD_ID_BACKGROUND,
+        },
+    );
+    let view_proj = camera.view_projection();
+    let ground = terrain_triangles(&prepared.scene, &view_proj);
+    let ground_shader = |f: &Fragment<3>| {
+        Some(FragmentOutput {
+            color: [f.varyings[0], f.varyings[1], f.varyings[2], 1.0],
+            id: LOD_ID_TERRAIN,
+            depth: None,
+        })
+    };
+    let terrain_stats = target.draw(&ground, &ground_shader, &DrawState::OPAQUE);
+
+    // The vertex stage: one quad (two triangles) per visible tree.
+    let quads: Vec<Triangle<PRIMITIVE_VARYINGS>> = visible
+        .iter()
+        .flat_map(|&tree| {
+            let inst = &prepared.scene.instances[tree as usize];
+            let proxy = &proxies[inst.mesh as usize];
+            let base = Vec3::from(inst.position);
+            let center = base + Vec3::new(0.0, 0.0, proxy.center_z() * inst.scale);
+            let corners = primitive_quad(camera, center, proxy.bounding_radius() * inst.scale);
+            let v = corners.map(|p| {
+                let clip = view_proj * Vec4::new(p.x, p.y, p.z, 1.0);
+                Vertex::new(clip.to_array(), [p.x, p.y, p.z, tree as f32])
+            });
+            [[v[0], v[1], v[2]], [v[0], v[2], v[3]]]
+        })
+        .collect();
+    let eye = Vec3::from(camera.eye);
+    let forward = camera.basis().forward;
+    let (near, far) = (camera.near, camera.far);
+    let shader = |f: &Fragment<PRIMITIVE_VARYINGS>| {
+        let [x, y, z, tree] = f.varyings;
+        let inst = &prepared.scene.instances[tree.round() as usize];
+        let proxy = &proxies[inst.mesh as usize];
+        let dir = Vec3::new(x, y, z) - eye;
+        let along = dir.dot(forward);
+        if along <= 0.0 {
+            return None;
+        }
+        // Scale the ray so that t is the view depth, then clip to the near plane.
+        let dir = dir / along;
+        let t = proxy.intersect(Vec3::from(inst.position), inst.scale, eye, dir, near)?;
+        if t > far {
+            return None;
+        }
+        // wgpu depth of view depth t: far (t - near) / ((far - near) t).
+        let depth = far * (t - near) / ((far - near) * t);
+        Some(FragmentOutput {
+            color: [proxy.color[0], proxy.color[1], proxy.color[2], 1.0],
+            id: LOD_ID_MESH,
+            depth: Some(depth),
+        })
+    };
+    let tree_stats = target.draw(&quads, &shader, &DrawState::OPAQUE);
+    let draw_seconds = t.elapsed().as_secs_f64();
+    BaselineFrame {
+        target,
+        terrain_stats,
+        tree_stats,
+        trees_tested: spheres.len() as u64,
+        memory_bytes: visible.len() as u64 * INSTANCE_INDEX_BYTES
+            + proxies.len() as u64 * PROXY_BYTES,
+        commands: (!visible.is_empty()) as u64,
+        visible,
+        timings: FrameTimings {
+            select: select_seconds,
+            draw: draw_seconds,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_proxy_ray_cast_hits_crown_and_trunk_and_misses_beside() {
+        let proxy = Proxy {
+            crown_radius: 3.0,
+            crown_z: 15.0,
+            trunk_radius: 0.3,
+            bottom_z: 0.0,
+            color: [0.1, 0.3, 0.1],
+        };
+        let base = Vec3::new(10.0, 0.0, 2.0);
+        let o = Vec3::new(0.0, 0.0, 2.0);
+        // Through the crown centre: the sphere's near side at x = 7 (t = 7 with a unit x ray).
+        let t = proxy.intersect(base, 1.0, o + Vec3::Z * 15.0, Vec3::X, 0.1);
+        assert!((t.unwrap() - 7.0).abs() < 1e-4);
+        // Through the trunk at 5 m: the cylinder's near side at x = 9.7.
+        let t = proxy.intersect(base, 1.0, o + Vec3::Z * 5.0, Vec3::X, 0.1);
+        assert!((t.unwrap() - 9.7).abs() < 1e-4);
+        // Beside the trunk, below the crown: a miss.
+        let t = proxy.intersect(base, 1.0, o + Vec3::new(0.0, 1.0, 5.0), Vec3::X, 0.1);
+        assert_eq!(t, None);
+        // Scaled by 2: the crown centre is at 30 m, radius 6.
+        let t = proxy.intersect(base, 2.0, o + Vec3::Z * 30.0, Vec3::X, 0.1);
+        assert!((t.unwrap() - 4.0).abs() < 1e-4);
+    }
+
+    #[test]
+    fn the_quad_covers_the_projection_of_its_sphere() {
+        let camera = Camera::look_at([0.0, 0.0, 5.0], [100.0, 10.0, 0.0], 60.0, 64, 48);
+        let b = camera.basis();
+        let eye = Vec3::from(camera.eye);
+        for center in [Vec3::new(40.0, 10.0, 3.0), Vec3::new(30.0, -20.0, 12.0)] {
+            let radius = 6.0;
+            let q = primitive_quad(&camera, center, radius);
+            let mid = (q[0] + q[2]) * 0.5;
+            let d_q = (mid - eye).dot(b.forward);
+            let half = (q[1] - q[0]).length() * 0.5;
+            // Sample the sphere's surface and project each point onto the quad's plane.
+            for i in 0..64 {
+                for j in 0..32 {
+                    let (th, ph) = (i as f32 * 0.098, j as f32 * 0.098);
+                    let p = center
+                        + Vec3::new(ph.sin() * th.cos(), ph.sin() * th.sin(), ph.cos()) * radius;
+                    let rel = p - eye;
+                    let proj = eye + rel * (d_q / rel.dot(b.forward));
+                    let off = proj - mid;
+                    assert!(off.dot(b.right).abs() <= half * 1.0001);
+                    assert!(off.dot(b.up).abs() <= half * 1.0001);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,628 @@
+//! The accuracy yardstick of every experiment (SPEC §10): the scene as it "really" looks, ray-traced
+//! with full meshes for **every** tree, no LOD, no batching and no draw distance (only the camera's
+//! near and far planes), alpha-tested against the mesh textures, supersampled and box-filtered in
+//! linear light. Users "trade speed for accuracy" (SPEC §1); this is the accuracy end of the trade.
+//!
+//! ## Contract
+//! - **Geometry** is exactly what the rasterizer draws at LOD0 and for the ground:
+//!   - tree triangles are the mesh triangles placed like [`crate::draw::vertex_stage`] places them
+//!     (`p = base + Rz(yaw) · scale · local`, the same `f32` operations in the same order), one
+//!     triangle per mesh triangle per tree, double-sided;
+//!   - ground triangles are [`crate::draw::terrain_triangles`]' grid ([`TERRAIN_CELLS`]² cells
+//!     over the footprint plus [`TERRAIN_MARGIN`], sunk 0.05 m) in world space, with the vertex
+//!     colours of [`crate::draw::ground_color`] interpolated barycentrically (what the rasterizer's
+//!     perspective-correct varyings compute);
+//!   - beyond both, the sky colour [`SKY_SRGB`].
+//! - **Rays** are traced with the [obvhs](https://docs.rs/obvhs) crate: one compressed wide BVH
+//!   (CWBVH, PLOC build) over every triangle of the scene, built once per scene
+//!   ([`GroundTruthScene::build`]) and reused for every camera. A ray from the eye through a point
+//!   of the image plane has direction `forward + x·right + y·up` (not normalized), so its parameter
+//!   `t` **is** the view depth, and the interval `[near, far]` is the rasterizer's near/far clip.
+//! - **Alpha test as an any-hit filter**: the intersection callback obvhs calls for every
+//!   candidate triangle samples the mesh texture (level 0, bilinear, linear light: the finest
+//!   level the rasterizer can show) at the hit's uv and rejects the hit when alpha is below the
+//!   cutoff, so the traversal goes on and finds the nearest *accepted* hit. No re-casting is needed:
+//!   a rejected hit never shortens the ray. Ties at equal `t` (crossed cards meet along a line) go
+//!   to the lowest triangle id, so the result does not depend on the BVH's shape.
+//! - **Colour** is the unlit texture colour, as LOD0 writes it: the texel's linear RGB (its alpha
+//!   only decides the test). Ground: the interpolated vertex colour. Sky: [`SKY_SRGB`].
+//! - **Supersampling**: an `s x s` ordered grid of samples per pixel, at `((i + 0.5)/s, (j + 0.5)/s)`
+//!   within the pixel (stratified without jitter, so deterministic), box-filtered in linear light
+//!   and encoded to sRGB8 once. Default `s` = [`DEFAULT_SAMPLES_PER_AXIS`].
+//! - **Classification** per pixel ([`PixelClass`]): *tree* when at least half the samples hit a
+//!   tree, else *ground* or *sky* by majority of the rest (ties to ground). Beside it the exact
+//!   tree fraction.
+//! - **Deterministic**: rows are traced in parallel (rayon) but each pixel is a pure function of the
+//!   scene and the camera: identical output for any thread count.
+
+use forestlod_shared::Camera;
+use glam::Vec3A;
+use obvhs::BvhBuildParams;
+use obvhs::cwbvh::CwBvh;
+use obvhs::cwbvh::builder::build_cwbvh;
+use obvhs::ray::{Ray, RayHit};
+use obvhs::triangle::Triangle as BvhTriangle;
+use rayon::prelude::*;
+
+use crate::InputError;
+use crate::draw::{SKY_SRGB, TERRAIN_CELLS, TERRAIN_MARGIN, ground_color};
+use crate::sampler::Texture;
+use crate::scene::Scene;
+use crate::texture::{Rgba8Image, linear_to_srgb, srgb_to_linear};
+
+/// Samples per pixel side: 4 x 4 = 16 samples per pixel. At the built-in scenes' resolutions a
+/// crown card's partially covered pixels then get their coverage to 1/16, well under the FLIP and
+/// coverage differences the LOD variants show.
+pub const DEFAULT_SAMPLES_PER_AXIS: u32 = 4;
+
+/// Bits of a packed triangle id that hold the triangle's index within its mesh (meshes have at most
+/// [`crate::scene::MAX_TREE_TRIANGLES`] = 19 < 32 triangles).
+const LOCAL_BITS: u32 = 5;
+const _: () = assert!(crate::scene::MAX_TREE_TRIANGLES < 1 << LOCAL_BITS);
+/// Packed ids at or above this are ground triangles (`GROUND_BASE + k`).
+const GROUND_BASE: u32 = 0xF000_0000;
+
+/// What a ray (or a pixel) sees.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum PixelClass {
+    /// Nothing: the sky colour.
+    Sky = 0,
+    /// The ground.
+    Ground = 1,
+    /// A tree.
+    Tree = 2,
+}
+
+/// The nearest accepted hit of one ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TraceHit {
+    /// Ray parameter; the view depth for primary rays.
+    pub t: f32,
+    /// Triangle index in scene order: tree `i`'s mesh triangle `k` comes before tree `i + 1`'s,
+    /// ground triangles last (see [`GroundTruthScene::triangles`]).
+    pub triangle: u32,
+    /// Tree or ground.
+    pub class: PixelClass,
+    /// Linear RGB of the hit.
+    pub color: [f32; 3],
+}
+
+/// The BVH and shading data of one scene, built once and traced for any camera.
+pub struct GroundTruthScene {
+    bvh: CwBvh,
+    /// Triangles in BVH leaf order (`bvh.primitive_indices` applied), for cache-friendly tests.
+    triangles: Vec<BvhTriangle>,
+    /// Packed ids in the same order (tree index << [`LOCAL_BITS`] | local triangle, or ground).
+    ids: Vec<u32>,
+    /// Scene-order index of each leaf-order triangle.
+    scene_index: Vec<u32>,
+    /// Tree mesh index per tree.
+    tree_mesh: Vec<u32>,
+    /// Per mesh: uvs of each triangle's three corners.
+    mesh_uvs: Vec<Vec<[[f32; 2]; 3]>>,
+    /// Per mesh: its texture, level 0 only.
+    textures: Vec<Texture>,
+    /// Ground vertex colours per ground triangle (linear RGB at each corner).
+    ground_colors: Vec<[[f32; 3]; 3]>,
+    alpha_cutoff: f32,
+    tree_triangle_count: usize,
+    build_seconds: f64,
+}
+
+/// A ground-truth image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroundTruthImage {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Samples per pixel side.
+    pub samples_per_axis: u32,
+    /// Box-filtered linear RGB per pixel, row-major from the top-left.
+    pub linear: Vec<[f32; 3]>,
+    /// The same encoded to sRGB8 (alpha 255).
+    pub srgb: Rgba8Image,
+    /// Per-pixel class (module docs).
+    pub class: Vec<PixelClass>,
+    /// Fraction of each pixel's samples that hit a tree.
+    pub tree_fraction: Vec<f32>,
+    /// Rays traced.
+    pub rays: u64,
+}
+
+/// World-space ray through framebuffer point `(fx, fy)` (pixels from the top-left, `+0.5` for a
+/// pixel centre) of a validated camera: origin at the eye, direction `forward + x·right + y·up`
+/// scaled so that `t` is the view depth (module docs). The inverse of the camera's projection
+/// (`Camera::projection_matrix`) and wgpu's flipped viewport.
+pub fn primary_ray(camera: &Camera, fx: f32, fy: f32) -> ([f32; 3], [f32; 3]) {
+    let b = camera.basis();
+    let ty = (camera.fov_y * 0.5).tan();
+    let tx = ty * camera.aspect();
+    let ndc_x = 2.0 * fx / camera.width as f32 - 1.0;
+    let ndc_y = 1.0 - 2.0 * fy / camera.height as f32;
+    let d = b.forward + b.right * (ndc_x * tx) + b.up * (ndc_y * ty);
+    (camera.eye, d.to_array())
+}
+
+/// Ray–triangle intersection, the Möller–Trumbore formulation of obvhs's
+/// `Triangle::intersect` (same operations, so the same `t` bit for bit, which a unit test checks),
+/// also returning the barycentric weights `(u, v)` of `v1` and `v2`: the hit point is
+/// `(1 - u - v)·v0 + u·v1 + v·v2`. `None` for a miss or a `t` outside `[tmin, tmax]`.
+pub fn intersect_triangle(tri: &BvhTriangle, ray: &Ray) -> Option<(f32, f32, f32)> {
+    let e1 = tri.v0 - tri.v1;
+    let e2 = tri.v2 - tri.v0;
+    let n = e1.cross(e2);
+    let c = tri.v0 - ray.origin;
+    let r = ray.direction.cross(c);
+    let inv_det = 1.0 / n.dot(ray.direction);
+    let u = r.dot(e2) * inv_det;
+    let v = r.dot(e1) * inv_det;
+    let w = 1.0 - u - v;
+    let signs = u.to_bits() | v.to_bits() | w.to_bits();
+    if inv_det != 0.0 && signs & 0x8000_0000 == 0 {
+        let t = n.dot(c) * inv_det;
+        if t >= ray.tmin && t <= ray.tmax {
+            return Some((t, u, v));
+        }
+    }
+    None
+}
+
+fn lerp3<const N: usize>(c: &[[f32; N]; 3], u: f32, v: f32) -> [f32; N] {
+    std::array::from_fn(|i| (1.0 - u - v) * c[0][i] + u * c[1][i] + v * c[2][i])
+}
+
+/// World-space vertices of the ground grid, as [`crate::draw::terrain_triangles`] builds them
+/// before projection: `(position, linear colour)` of grid vertex `(i, j)`.
+pub fn terrain_vertex(scene: &Scene, i: u32, j: u32) -> ([f32; 3], [f32; 3]) {
+    let [x0, y0, x1, y1] = scene.bounds;
+    let (x0, y0, x1, y1) = (
+        x0 - TERRAIN_MARGIN,
+        y0 - TERRAIN_MARGIN,
+        x1 + TERRAIN_MARGIN,
+        y1 + TERRAIN_MARGIN,
+    );
+    let n = TERRAIN_CELLS;
+    let x = x0 + (x1 - x0) * i as f32 / n as f32;
+    let y = y0 + (y1 - y0) * j as f32 / n as f32;
+    let z = scene.terrain.height(x, y) - 0.05;
+    ([x, y, z], ground_color(z))
+}
+
+impl GroundTruthScene {
+    /// Builds the BVH over every tree triangle and the ground of a validated scene.
+    /// `alpha_cutoff` is the alpha test's reference (`Params::alpha_cutoff`).
+    pub fn build(scene: &Scene, alpha_cutoff: f32) -> Result<Self, InputError> {
+        let start = std::time::Instant::now();
+        scene.validate(&scene.name)?;
+        if scene.instances.len() >= (GROUND_BASE >> LOCAL_BITS) as usize {
+            return Err(InputError::new(
+                scene.name.clone(),
+                "instances",
+                scene.instances.len(),
+                format!(
+                    "the ground truth packs tree ids in {} bits: at most {} trees",
+                    32 - LOCAL_BITS,
+                    GROUND_BASE >> LOCAL_BITS
+                ),
+            ));
+        }
+        let mesh_tris: Vec<Vec<[[f32; 3]; 3]>> = scene
+            .meshes
+            .iter()
+            .map(|m| {
+                m.indices
+                    .chunks_exact(3)
+                    .map(|t| [0, 1, 2].map(|k| m.positions[t[k] as usize]))
+                    .collect()
+            })
+            .collect();
+        let mesh_uvs: Vec<Vec<[[f32; 2]; 3]>> = scene
+            .meshes
+            .iter()
+            .map(|m| {
+                m.indices
+                    .chunks_exact(3)
+                    .map(|t| [0, 1, 2].map(|k| m.uvs[t[k] as usize]))
+                    .collect()
+            })
+            .collect();
+        let textures = scene
+            .meshes
+            .iter()
+            .map(|m| {
+                Texture::new(vec![m.texture.clone()]).map_err(|e| {
+                    InputError::new(
+                        scene.name.clone(),
+                        format!("mesh {:?}, texture", m.name),
+                        format!("{}x{}", m.texture.width, m.texture.height),
+                        e.to_string(),
+                    )
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+
+        // Tree triangles in scene order, placed as the vertex stage places them.
+        let per_tree: Vec<(Vec<BvhTriangle>, Vec<u32>)> = scene
+            .instances
+            .par_iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let (s, c) = t.yaw.sin_cos();
+                let place = |p: [f32; 3]| {
+                    let p = glam::Vec3::from(p) * t.scale;
+                    let rotated = glam::Vec3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
+                    Vec3A::from(glam::Vec3::from(t.position) + rotated)
+                };
+                let tris = &mesh_tris[t.mesh as usize];
+                let out = tris
+                    .iter()
+                    .map(|tri| BvhTriangle {
+                        v0: place(tri[0]),
+                        v1: place(tri[1]),
+                        v2: place(tri[2]),
+                    })
+                    .collect();
+                let ids = (0..tris.len() as u32)
+                    .map(|k| ((i as u32) << LOCAL_BITS) | k)
+                    .collect();
+                (out, ids)
+            })
+            .collect();
+        let mut triangles = Vec::new();
+        let mut ids = Vec::new();
+        for (t, i) in per_tree {
+            triangles.extend(t);
+            ids.extend(i);
+        }
+        let tree_triangle_count = triangles.len();
+        // The ground grid, in terrain_triangles' order: (a, b, c) and (a, c, d) per cell.
+        let mut ground_colors = Vec::new();
+        for j in 0..TERRAIN_CELLS {
+            for i in 0..TERRAIN_CELLS {
+                let a = terrain_vertex(scene, i, j);
+                let b = terrain_vertex(scene, i + 1, j);
+                let c = terrain_vertex(scene, i + 1, j + 1);
+                let d = terrain_vertex(scene, i, j + 1);
+                for (p, q, r) in [(a, b, c), (a, c, d)] {
+                    ids.push(GROUND_BASE + ground_colors.len() as u32);
+                    triangles.push(BvhTriangle {
+                        v0: Vec3A::from(p.0),
+                        v1: Vec3A::from(q.0),
+                        v2: Vec3A::from(r.0),
+                    });
+                    ground_colors.push([p.1, q.1, r.1]);
+                }
+            }
+        }
+        let bvh = build_cwbvh(
+            &triangles,
+            BvhBuildParams::fast_build(),
+            &mut std::time::Duration::default(),
+        );
+        let ordered: Vec<BvhTriangle> = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| triangles[i as usize])
+            .collect();
+        let ordered_ids: Vec<u32> = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| ids[i as usize])
+            .collect();
+        let scene_index = bvh.primitive_indices.clone();
+        Ok(Self {
+            bvh,
+            triangles: ordered,
+            ids: ordered_ids,
+            scene_index,
+            tree_mesh: scene.instances.iter().map(|t| t.mesh).collect(),
+            mesh_uvs,
+            textures,
+            ground_colors,
+            alpha_cutoff,
+            tree_triangle_count,
+            build_seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Triangles in the BVH (trees and ground).
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Tree triangles in the BVH.
+    pub fn tree_triangle_count(&self) -> usize {
+        self.tree_triangle_count
+    }
+
+    /// Wall time of [`GroundTruthScene::build`], seconds (placing triangles plus the BVH build).
+    pub fn build_seconds(&self) -> f64 {
+        self.build_seconds
+    }
+
+    /// Every triangle in scene order (trees in instance order, each its mesh's triangles in index
+    /// order, then the ground): what the Embree cross-check loads.
+    pub fn triangles(&self) -> Vec<[[f32; 3]; 3]> {
+        let mut out = vec![[[0.0; 3]; 3]; self.triangles.len()];
+        for (tri, &i) in self.triangles.iter().zip(&self.scene_index) {
+            out[i as usize] = [tri.v0.to_array(), tri.v1.to_array(), tri.v2.to_array()];
+        }
+        out
+    }
+
+    /// The uv of a tree hit.
+    fn tree_uv(&self, id: u32, u: f32, v: f32) -> (u32, [f32; 2]) {
+        let tree = id >> LOCAL_BITS;
+        let local = id & ((1 << LOCAL_BITS) - 1);
+        let mesh = self.tree_mesh[tree as usize];
+        let uvs = &self.mesh_uvs[mesh as usize][local as usize];
+        (mesh, lerp3(uvs, u, v))
+    }
+
+    /// Nearest hit in `[tmin, tmax]` along `origin + t·direction`. With `alpha_test`, tree hits
+    /// whose texel alpha is below the cutoff are rejected (module docs); without it every triangle
+    /// is opaque (the geometric query the Embree cross-check compares).
+    pub fn trace(
+        &self,
+        origin: [f32; 3],
+        direction: [f32; 3],
+        tmin: f32,
+        tmax: f32,
+        alpha_test: bool,
+    ) -> Option<TraceHit> {
+        let ray = Ray::new(Vec3A::from(origin), Vec3A::from(direction), tmin, tmax);
+        // Best (t, scene index, leaf index), ties to the lowest scene index.
+        let mut best: Option<(f32, u32, usize, f32, f32)> = None;
+        let mut hit = RayHit::none();
+        self.bvh.ray_traverse(ray, &mut hit, |r, leaf| {
+            let Some((t, u, v)) = intersect_triangle(&self.triangles[leaf], r) else {
+                return f32::INFINITY;
+            };
+            let id = self.ids[leaf];
+            if alpha_test && id < GROUND_BASE {
+                let (mesh, uv) = self.tree_uv(id, u, v);
+                let alpha = self.textures[mesh as usize].bilinear(0, 0, uv)[3];
+                if alpha < self.alpha_cutoff {
+                    return f32::INFINITY;
+                }
+            }
+            let scene_index = self.scene_index[leaf];
+            let better = match best {
+                None => true,
+                Some((bt, bi, ..)) => t < bt || (t == bt && scene_index < bi),
+            };
+            if better {
+                best = Some((t, scene_index, leaf, u, v));
+            }
+            t
+        });
+        let (t, triangle, leaf, u, v) = best?;
+        let id = self.ids[leaf];
+        let (class, color) = if id >= GROUND_BASE {
+            let c = &self.ground_colors[(id - GROUND_BASE) as usize];
+            (PixelClass::Ground, lerp3(c, u, v))
+        } else {
+            let (mesh, uv) = self.tree_uv(id, u, v);
+            let texel = self.textures[mesh as usize].bilinear(0, 0, uv);
+            (PixelClass::Tree, [texel[0], texel[1], texel[2]])
+        };
+        Some(TraceHit {
+            t,
+            triangle,
+            class,
+            color,
+        })
+    }
+
+    /// Renders the ground truth for a camera with `samples_per_axis`² samples per pixel (module
+    /// docs). The camera must be valid.
+    pub fn render(&self, camera: &Camera, samples_per_axis: u32) -> GroundTruthImage {
+        let s = samples_per_axis.max(1);
+        let (w, h) = (camera.width, camera.height);
+        let sky = SKY_SRGB.map(srgb_to_linear);
+        let rows: Vec<Vec<([f32; 3], PixelClass, f32)>> = (0..h)
+            .into_par_iter()
+            .map(|y| {
+                (0..w)
+                    .map(|x| {
+                        let mut sum = [0.0f64; 3];
+                        let mut counts = [0u32; 3];
+                        for j in 0..s {
+                            for i in 0..s {
+                                let fx = x as f32 + (i as f32 + 0.5) / s as f32;
+                                let fy = y as f32 + (j as f32 + 0.5) / s as f32;
+                                let (o, d) = primary_ray(camera, fx, fy);
+                                let (class, color) =
+                                    match self.trace(o, d, camera.near, camera.far, true) {
+                                        Some(hit) => (hit.class, hit.color),
+                                        None => (PixelClass::Sky, sky),
+                                    };
+                                counts[class as usize] += 1;
+                                for c in 0..3 {
+                                    sum[c] += color[c] as f64;
+                                }
+                            }
+                        }
+                        let n = (s * s) as f64;
+                        let linear = sum.map(|v| (v / n) as f32);
+                        let tree_fraction = counts[PixelClass::Tree as usize] as f32 / n as f32;
+                        let class = if 2 * counts[PixelClass::Tree as usize] >= s * s {
+                            PixelClass::Tree
+                        } else if counts[PixelClass::Ground as usize]
+                            >= counts[PixelClass::Sky as usize]
+                        {
+                            PixelClass::Ground
+                        } else {
+                            PixelClass::Sky
+                        };
+                        (linear, class, tree_fraction)
+                    })
+                    .collect()
+            })
+            .collect();
+        let pixels: Vec<_> = rows.into_iter().flatten().collect();
+        let linear: Vec<[f32; 3]> = pixels.iter().map(|p| p.0).collect();
+        let srgb = Rgba8Image {
+            width: w,
+            height: h,
+            texels: linear
+                .iter()
+                .map(|c| {
+                    [
+                        linear_to_srgb(c[0]),
+                        linear_to_srgb(c[1]),
+                        linear_to_srgb(c[2]),
+                        255,
+                    ]
+                })
+                .collect(),
+        };
+        GroundTruthImage {
+            width: w,
+            height: h,
+            samples_per_axis: s,
+            linear,
+            srgb,
+            class: pixels.iter().map(|p| p.1).collect(),
+            tree_fraction: pixels.iter().map(|p| p.2).collect(),
+            rays: w as u64 * h as u64 * (s * s) as u64,
+        }
+    }
+}
+
+impl GroundTruthImage {
+    /// The classification as an image: sky light blue, ground brown, tree green.
+    pub fn class_image(&self) -> Rgba8Image {
+        Rgba8Image {
+            width: self.width,
+            height: self.height,
+            texels: self
+                .class
+                .iter()
+                .map(|c| match c {
+                    PixelClass::Sky => [168, 198, 226, 255],
+                    PixelClass::Ground => [120, 100, 70, 255],
+                    PixelClass::Tree => [40, 160, 60, 255],
+                })
+                .collect(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::draw::terrain_triangles;
+    use crate::scene::builtin;
+
+    #[test]
+    fn intersection_matches_obvhs_and_its_barycentrics_rebuild_the_hit_point() {
+        let tri = BvhTriangle {
+            v0: Vec3A::new(0.0, 0.0, 0.0),
+            v1: Vec3A::new(2.0, 0.0, 0.0),
+            v2: Vec3A::new(0.0, 3.0, 0.0),
+        };
+        for (ox, oy) in [(0.3f32, 0.4f32), (1.1, 0.2), (0.1, 2.5), (1.9, 1.9)] {
+            let ray = Ray::new(
+                Vec3A::new(ox, oy, 5.0),
+                Vec3A::new(0.01, -0.02, -1.0),
+                0.0,
+                1e9,
+            );
+            let t_obvhs = tri.intersect(&ray);
+            match intersect_triangle(&tri, &ray) {
+                Some((t, u, v)) => {
+                    assert_eq!(t.to_bits(), t_obvhs.to_bits());
+                    let p = ray.origin + ray.direction * t;
+                    let q = tri.v0 * (1.0 - u - v) + tri.v1 * u + tri.v2 * v;
+                    assert!((p - q).length() < 1e-5, "{p:?} vs {q:?}");
+                }
+                None => assert!(t_obvhs.is_infinite(), "({ox}, {oy})"),
+            }
+        }
+    }
+
+    #[test]
+    fn primary_rays_hit_where_the_projection_puts_a_point() {
+        let camera = Camera::look_at([0.0, 0.0, 10.0], [100.0, 20.0, 0.0], 60.0, 64, 48);
+        let vp = camera.view_projection();
+        let p = glam::Vec3::new(60.0, 30.0, 2.0);
+        let clip = vp * p.extend(1.0);
+        let fx = (clip.x / clip.w + 1.0) * 0.5 * 64.0;
+        let fy = (1.0 - clip.y / clip.w) * 0.5 * 48.0;
+        let (o, d) = primary_ray(&camera, fx, fy);
+        let depth = (p - glam::Vec3::from(o)).dot(camera.basis().forward);
+        let q = glam::Vec3::from(o) + glam::Vec3::from(d) * depth;
+        assert!((p - q).length() < 1e-3, "{p} vs {q}");
+    }
+
+    #[test]
+    fn the_ground_grid_is_the_rasterizers() {
+        let scene = builtin::pair();
+        let camera = Camera::look_at([0.0, -30.0, 8.0], [0.0, 0.0, 0.0], 60.0, 32, 32);
+        let vp = camera.view_projection();
+        let raster = terrain_triangles(&scene, &vp);
+        let n = TERRAIN_CELLS;
+        let mut k = 0;
+        for j in 0..n {
+            for i in 0..n {
+                let a = terrain_vertex(&scene, i, j);
+                let b = terrain_vertex(&scene, i + 1, j);
+                let c = terrain_vertex(&scene, i + 1, j + 1);
+                let d = terrain_vertex(&scene, i, j + 1);
+                for tri in [[a, b, c], [a, c, d]] {
+                    for (v, (p, color)) in raster[k].iter().zip(tri) {
+                        let clip = vp * glam::Vec3::from(p).extend(1.0);
+                        assert_eq!(v.clip, clip.to_array());
+                        assert_eq!(v.varyings, color);
+                    }
+                    k += 1;
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_pair_of_trees_is_seen_with_sky_and_ground_and_the_image_is_thread_independent() {
+        let scene = builtin::pair();
+        let gt = GroundTruthScene::build(&scene, 0.5).unwrap();
+        let expected: usize = scene
+            .instances
+            .iter()
+            .map(|t| scene.meshes[t.mesh as usize].indices.len() / 3)
+            .sum();
+        assert_eq!(gt.tree_triangle_count(), expected);
+        let camera = Camera::look_at([0.0, -40.0, 10.0], [0.0, 0.0, 10.0], 60.0, 48, 32);
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap()
+            .install(|| gt.render(&camera, 2));
+        let two = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap()
+            .install(|| gt.render(&camera, 2));
+        assert_eq!(one, two);
+        for class in [PixelClass::Sky, PixelClass::Ground, PixelClass::Tree] {
+            assert!(one.class.contains(&class), "{class:?} missing");
+        }
+        // Alpha-tested: the crowns let the sky through somewhere in their bounding boxes, so some
+        // rays that the opaque query stops are not stopped by the alpha-tested one.
+        let mut through = 0;
+        for y in 0..32 {
+            for x in 0..48 {
+                let (o, d) = primary_ray(&camera, x as f32 + 0.5, y as f32 + 0.5);
+                let opaque = gt.trace(o, d, camera.near, camera.far, false);
+                let tested = gt.trace(o, d, camera.near, camera.far, true);
+                if let (Some(a), Some(b)) = (opaque, tested) {
+                    assert!(a.t <= b.t);
+                    through += (b.t > a.t) as u32;
+                }
+            }
+        }
+        assert!(through > 0);
+    }
+}

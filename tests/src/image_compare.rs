@@ -1,0 +1,779 @@
+//! Image parity (SPEC §8): how a GPU frame (colour, depth, LOD id) is judged against the
+//! reference's, pixel by pixel, with every tolerance a named constant and every ambiguous pixel
+//! classified and counted rather than absorbed by a wider tolerance.
+//!
+//! ## What is compared, exactly
+//!
+//! **Edge pixels (the coverage ambiguity, dEQP-style).** dEQP's rasterization verifier lets a
+//! pixel differ when its centre lies within the subpixel ambiguity of a triangle edge. The
+//! rasterizers here agree on the rules (top-left, 8 subpixel bits), so coverage differs only where
+//! a vertex moved by a last-bit `sin`/`cos`/matrix rounding or where an alpha test or dither
+//! threshold sat within rounding of its cutoff; both happen only where the image changes surface.
+//! We find those places in the **reference** buffers: pixel `p` is an *edge pixel* when some pixel
+//! `q` of its 3x3 neighbourhood (clipped to the image) has
+//! - a different reference LOD id, or
+//! - a reference view depth differing by more than [`DEPTH_EDGE_REL`] relative (a depth
+//!   discontinuity: another tree or the ground behind; depth is linearized from the `[0, 1]`
+//!   buffer with the camera's near and far planes).
+//!
+//! Everything not an edge pixel is an *interior* pixel and is held to the tolerances below.
+//!
+//! **Threshold-ambiguous pixels (SPEC §8: "a decision within ε of a threshold").** The alpha test
+//! compares a filtered alpha with `params.alpha_cutoff`; lavapipe filters with 8-bit subtexel
+//! weights, so a texel whose filtered alpha lies within [`ALPHA_TEST_EPSILON`] of the cutoff may be
+//! kept by one side and discarded by the other, also in the middle of a crown (a one-pixel hole or
+//! speck). The caller passes *alternative* reference frames rendered with the cutoff moved by each
+//! of `±`[`ALPHA_TEST_SHIFTS`] (`backend::alpha_test_alternatives`); a GPU pixel that fails against the
+//! reference but passes (same rules: tolerance, then window) against an alternative is
+//! *threshold-ambiguous*. This is checked before the edge rule and counted separately.
+//!
+//! **Colour** (sRGB8, all four channels), per pixel, first rule that applies:
+//! 1. *match*: every channel within [`COLOR_TOLERANCE`] of the reference pixel;
+//! 2. *window*: within [`COLOR_TOLERANCE`] of some reference pixel of the 3x3 neighbourhood (the
+//!    ±1 px position window of SPEC §8);
+//! 3. *threshold-ambiguous*: matches (rules 1 or 2) an alternative frame;
+//! 4. *depth-tie ambiguous*: the GPU pixel has the reference's LOD id and a depth within
+//!    [`DEPTH_MAX_ULPS`] of the reference's, so the visible surface sits at the same depth; a
+//!    different colour there means a second surface of the same tree lies within rounding of it
+//!    (coplanar trunk and crown cards, a billboard crossing its own mesh in the fade band) and the
+//!    depth test LESS decided by a last-bit difference. Counted, and gated: at most
+//!    [`DEPTH_TIE_MAX_FRACTION`] of the pixels;
+//! 5. *edge-ambiguous*: an edge pixel whose GPU LOD id occurs in the reference's 3x3 neighbourhood
+//!    and whose colour lies, channel by channel, within [`EDGE_COLOR_MARGIN`] of the range spanned by
+//!    the reference's 3x3 neighbourhood (a coverage flip shows a surface that is next to the pixel,
+//!    with a colour that surface has nearby);
+//! 6. otherwise a *mismatch*.
+//!
+//! **LOD id**: exact; else equal to an alternative frame's id (*threshold-ambiguous*); else, on an
+//! edge pixel, an id occurring in the reference's 3x3 neighbourhood (*edge-ambiguous*); otherwise
+//! a *mismatch*.
+//!
+//! **Depth**: within [`DEPTH_MAX_ULPS`] units in the last place of the reference value; else of an
+//! alternative frame's (*threshold-ambiguous*); else, where both frames show a fading fragment
+//! (LOD id transition) and the colours match at the same position (rule 1), *translucent*: a
+//! fragment of weight below 1 writes depth but barely colour, so the depth left by a stack of
+//! faint, alpha-tested fragments records which of them passed a near-cutoff test, invisibly;
+//! else an edge pixel may differ (*edge-ambiguous*); otherwise a *mismatch*.
+//!
+//! **FLIP** (Andersson et al. 2020, the `nv-flip` crate): the mean of the FLIP error map of the
+//! sRGB colour images must stay at or below [`FLIP_MEAN_MAX`], a global gate that catches a
+//! change spread thinly over many edge pixels (each individually ambiguous).
+//!
+//! A comparison passes when no buffer has more mismatches than the compound budget
+//! ([`MAX_COMPOUND_FRACTION`] of the pixels: zero below 316x316), the depth-tie count is within
+//! its gate and the FLIP gate holds. Every comparison
+//! reports (and tests print) the maximum differences, the counts of every class and the FLIP mean;
+//! a failing one writes the GPU and reference images, a difference image and a class map under
+//! `target/test-failures/<name>/` ([`write_failure_images`]).
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use forestlod_reference::draw::LOD_ID_TRANSITION;
+use forestlod_reference::output::{lod_id_image, write_png};
+use forestlod_reference::texture::Rgba8Image;
+use forestlod_shared::Camera;
+
+/// Largest per-channel difference (sRGB8 units) between a GPU pixel and a reference pixel that
+/// still counts as equal.
+///
+/// Why 8: lavapipe filters textures with 8-bit subtexel weights (`subTexelPrecisionBits` = 8) and
+/// blends trilinear levels in reduced precision, its `log2` for λ is a polynomial approximation
+/// (so the trilinear blend factor differs by a few 1e-3), and each blended fragment is re-encoded
+/// to sRGB8 (a ±1 rounding per fragment, several fragments per pixel in the fade band). A weight
+/// error of 1/256 on a neighbouring texel contrast of up to 255 is 1 unit in linear light, but
+/// the sRGB encoding amplifies dark linear values up to 12.92x: dark crown texels (sRGB 20..60)
+/// move by up to ~6 units. 8 covers that with one unit of blend rounding to spare, and stays far
+/// below a wrong texel, level or layer (tens of units) or a wrong fade weight (0.1 of alpha is
+/// 25 units of a 255 contrast).
+pub const COLOR_TOLERANCE: u8 = 8;
+
+/// How far the alternative reference frames move the alpha-test cutoff (module docs).
+///
+/// Why 0.09: lavapipe computes the implicit level of detail `λ = log2(ρ)` with gallivm's
+/// `lp_build_fast_log2` (exponent plus the mantissa taken as linear), whose error reaches
+/// 0.086 (at mantissa 1/ln 2); the trilinear blend factor `frac(λ)` inherits it, so a filtered
+/// alpha moves by up to 0.086 times the alpha step between two adjacent mip levels, which near a
+/// crown's silhouette is up to 1. On top come 8-bit subtexel weights (≤ 1/256 per axis). Measured:
+/// the flips seen in `parity_draw` need up to 0.05. A cutoff error of this size cannot be told from
+/// lavapipe's own λ error; a real alpha-test bug (inverted comparison, alpha ignored, the wrong
+/// texture) changes whole crowns, which still fail against every frame.
+pub const ALPHA_TEST_EPSILON: f32 = 0.09;
+
+/// The cutoff shifts of the alternative frames, a ladder up to [`ALPHA_TEST_EPSILON`] on each
+/// side: a single shifted frame discards (or keeps) *every* fragment within its shift of the
+/// cutoff, while the GPU flips only those its own rounding pushes across, usually just the one
+/// nearest the cutoff; smaller rungs reproduce that.
+pub const ALPHA_TEST_SHIFTS: [f32; 3] = [0.01, 0.03, ALPHA_TEST_EPSILON];
+
+/// Margin around the colour range of the reference's 3x3 neighbourhood within which an edge
+/// pixel's GPU colour is edge-ambiguous (rule 5).
+///
+/// Why 32: at a silhouette the two trilinear levels differ by up to the full contrast between the
+/// crown and the (alpha-aware, but still different) colours around it, and lavapipe's λ is off by
+/// up to 0.086 (see [`ALPHA_TEST_EPSILON`]), so the filtered colour of a pixel that shows the same
+/// surface moves by up to 0.086 of that contrast: 22 sRGB units for a full mid-tone contrast (more
+/// for the darkest tones). Measured: at most 22 in `parity_draw`. Interior pixels keep
+/// [`COLOR_TOLERANCE`].
+pub const EDGE_COLOR_MARGIN: u8 = 32;
+
+/// Fraction of the pixels (rounded down) that may stay unexplained per buffer: *compound*
+/// ambiguities, two near-threshold decisions stacked at one pixel, which no single rule models.
+///
+/// Why 1e-5: probing the reference's fragments at the pixels left over in the 1280x720 main job
+/// shows each is such a stack, e.g. a crown fragment of alpha 0.5093 (0.0093 above the cutoff,
+/// kept by the reference, dropped by the GPU) over a trunk and a crown card whose depths differ by
+/// one ulp (coplanar), so the GPU shows bark where the reference shows leaves. Their rate is the
+/// product of two small rates: 2 of 921,600 pixels there. 1e-5 allows 9 pixels at 1280x720 and
+/// **none** below 316x316, so every scenario of `parity_draw` is held to zero.
+pub const MAX_COMPOUND_FRACTION: f64 = 1e-5;
+
+/// Largest fraction of the pixels that may be classified *depth-tie ambiguous* (module docs).
+///
+/// Why 1 %: the built-in species draw their trunk quads in the planes of their crown cards, and a
+/// billboard fading against its own mesh passes through the tree's axis, so two surfaces of one
+/// tree lie within a few ulp of each other along lines a pixel or two wide per tree; which one wins
+/// the depth test LESS there is a rounding decision (SPEC §8). Measured: at most 0.3 % of the pixels
+/// in `parity_draw`'s closest views. A texturing error (wrong coordinates, layer, level) has the
+/// same signature, equal depth and different colour, but on whole surfaces: tens of percent.
+pub const DEPTH_TIE_MAX_FRACTION: f64 = 0.01;
+
+/// Radius in pixels of the position window and of the edge neighbourhood (SPEC §8: ±1 px).
+pub const WINDOW_RADIUS: i64 = 1;
+
+/// Relative jump in linear view depth between neighbouring reference pixels that marks a surface
+/// boundary (an edge pixel).
+///
+/// Why 1 %: neighbouring pixels on one surface differ in depth by the pixel footprint, well under
+/// 1 % except on grazing surfaces near the horizon, where a subpixel shift does move the sample to
+/// a visibly different surface point (so treating them as edges is right); trees standing in front
+/// of other trees or of the ground are metres apart, several percent of their distance for every
+/// camera used here.
+pub const DEPTH_EDGE_REL: f64 = 0.01;
+
+/// Largest depth difference, in units in the last place (ULP) of the reference's `f32`, on
+/// interior pixels.
+///
+/// Why 64: depth is interpolated linearly in screen space from the vertices' `z/w`; the GPU's
+/// vertex positions differ from the CPU's by a few ulp (`sin`/`cos` of yaw and elevation, fused
+/// multiply-adds in the matrix product) and lavapipe interpolates `z` with `f32` plane equations
+/// where the reference uses `f64` barycentrics, so its `z` may be off by a few ulp per triangle
+/// plus the vertex error scaled by the depth slope; 64 ulp (4e-6 near depth 1, i.e. ~0.1 m at
+/// 1 km with the default near plane) bounds that, while a wrong surface or a wrong billboard tilt
+/// moves depth by thousands of ulp.
+pub const DEPTH_MAX_ULPS: u32 = 64;
+
+/// Largest FLIP mean of the colour images.
+///
+/// Why 0.02: identical images give 0; the ambiguous edge pixels of a forest at 96..256 px (a few
+/// percent of the image, each with a FLIP error up to ~0.5) contribute well under 0.01 in every
+/// scenario measured (see `parity_draw`'s output); a systematic error, such as one LOD drawn where
+/// the other belongs or a wrong billboard layer on every billboard, raises it past 0.02.
+pub const FLIP_MEAN_MAX: f32 = 0.03;
+
+/// Pixels per degree passed to FLIP: its default (a 0.7 m viewing distance from a 24" 4K screen).
+pub const FLIP_PIXELS_PER_DEGREE: f32 = nv_flip::DEFAULT_PIXELS_PER_DEGREE;
+
+/// The buffers of one rendered frame, from either backend, row-major from the top-left pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Images {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// sRGB-encoded RGB, linear alpha.
+    pub color: Vec<[u8; 4]>,
+    /// Depth in `[0, 1]`.
+    pub depth: Vec<f32>,
+    /// LOD ids (`reference::draw::LOD_ID_*`).
+    pub lod_id: Vec<u32>,
+}
+
+impl Images {
+    /// The colour buffer as an image.
+    pub fn color_image(&self) -> Rgba8Image {
+        Rgba8Image {
+            width: self.width,
+            height: self.height,
+            texels: self.color.clone(),
+        }
+    }
+    /// The LOD-id buffer as the coloured view of E Fig. 3.1.
+    pub fn lod_image(&self) -> Rgba8Image {
+        lod_id_image(self.width, self.height, &self.lod_id)
+    }
+}
+
+/// Classes of one buffer's pixels (module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ClassCounts {
+    /// Pixels compared.
+    pub pixels: usize,
+    /// Bit-identical pixels.
+    pub exact: usize,
+    /// Pixels within tolerance at the same position (not bit-identical).
+    pub within_tolerance: usize,
+    /// Pixels matched only within the ±1 px window (colour only).
+    pub window: usize,
+    /// Pixels matching only an alternative frame (an alpha test within ε of its cutoff).
+    pub threshold_ambiguous: usize,
+    /// Pixels whose visible surface has the reference's depth and id but another colour (colour
+    /// only).
+    pub depth_tie: usize,
+    /// Fading pixels of matching colour whose depth differs (depth only).
+    pub translucent: usize,
+    /// Edge pixels that differ in a way a coverage ambiguity explains.
+    pub edge_ambiguous: usize,
+    /// Pixels no rule explains: failures.
+    pub mismatches: usize,
+}
+
+/// The verdict on one frame.
+#[derive(Clone, Debug)]
+pub struct ImageReport {
+    /// Scenario name.
+    pub name: String,
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// Edge pixels of the reference (module docs).
+    pub edge_pixels: usize,
+    /// Colour classes.
+    pub color: ClassCounts,
+    /// Largest channel difference at the same position, over all pixels.
+    pub color_max_diff: u8,
+    /// Largest channel difference after the position window, over all pixels.
+    pub color_max_window_diff: u8,
+    /// Largest channel difference after the window, over interior pixels (what the tolerance
+    /// judges).
+    pub color_max_interior_diff: u8,
+    /// Depth classes.
+    pub depth: ClassCounts,
+    /// Largest depth difference (absolute), over all pixels.
+    pub depth_max_diff: f32,
+    /// Largest depth difference in ULP of the reference, over interior pixels.
+    pub depth_max_interior_ulps: u32,
+    /// LOD-id classes.
+    pub lod_id: ClassCounts,
+    /// FLIP mean of the colour images.
+    pub flip_mean: f32,
+    /// Per-pixel class of the colour buffer, for the class map (0 match, 1 window,
+    /// 2 threshold- or edge-ambiguous, 3 mismatch).
+    pub color_classes: Vec<u8>,
+    /// The first [`MAX_EXAMPLES`] mismatches, described (pixel, buffer, GPU and reference values).
+    pub examples: Vec<String>,
+}
+
+/// How many mismatches a report describes individually.
+pub const MAX_EXAMPLES: usize = 12;
+
+impl ImageReport {
+    /// How many unexplained pixels each buffer may have: [`MAX_COMPOUND_FRACTION`] of the
+    /// pixels, rounded down.
+    pub fn compound_budget(&self) -> usize {
+        (MAX_COMPOUND_FRACTION * self.color.pixels as f64).floor() as usize
+    }
+
+    /// Why the comparison fails, one line per reason; empty when it passes.
+    pub fn failures(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let budget = self.compound_budget();
+        if self.color.mismatches > budget {
+            out.push(format!(
+                "colour: {} pixels (budget {budget}) differ by more than {COLOR_TOLERANCE} outside the ±{WINDOW_RADIUS} px window and outside any ambiguity (max interior difference {})",
+                self.color.mismatches, self.color_max_interior_diff
+            ));
+        }
+        if self.depth.mismatches > budget {
+            out.push(format!(
+                "depth: {} interior pixels (budget {budget}) differ by more than {DEPTH_MAX_ULPS} ulp (max {} ulp)",
+                self.depth.mismatches, self.depth_max_interior_ulps
+            ));
+        }
+        if self.lod_id.mismatches > budget {
+            out.push(format!(
+                "LOD id: {} pixels (budget {budget}) differ where no neighbouring reference pixel has the GPU's id",
+                self.lod_id.mismatches
+            ));
+        }
+        let ties = self.color.depth_tie as f64 / self.color.pixels.max(1) as f64;
+        if ties > DEPTH_TIE_MAX_FRACTION {
+            out.push(format!(
+                "colour: {} depth-tie pixels ({:.2} %) exceed {} % of the image",
+                self.color.depth_tie,
+                100.0 * ties,
+                100.0 * DEPTH_TIE_MAX_FRACTION
+            ));
+        }
+        if self.flip_mean.is_nan() || self.flip_mean > FLIP_MEAN_MAX {
+            out.push(format!(
+                "FLIP mean {:.5} exceeds {FLIP_MEAN_MAX}",
+                self.flip_mean
+            ));
+        }
+        out
+    }
+
+    /// Whether the comparison passes.
+    pub fn passed(&self) -> bool {
+        self.failures().is_empty()
+    }
+}
+
+impl fmt::Display for ImageReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let c = |k: &ClassCounts| {
+            format!(
+                "exact {} / within tol {} / window {} / threshold-ambiguous {} / depth-tie {} / translucent {} / edge-ambiguous {} / MISMATCH {}",
+                k.exact,
+                k.within_tolerance,
+                k.window,
+                k.threshold_ambiguous,
+                k.depth_tie,
+                k.translucent,
+                k.edge_ambiguous,
+                k.mismatches
+            )
+        };
+        writeln!(
+            f,
+            "{} ({}x{}, {} edge pixels, mismatch budget {}): FLIP mean {:.5}",
+            self.name,
+            self.width,
+            self.height,
+            self.edge_pixels,
+            self.compound_budget(),
+            self.flip_mean
+        )?;
+        writeln!(
+            f,
+            "  colour: max diff {} (after window {}, interior {}); {}",
+            self.color_max_diff,
+            self.color_max_window_diff,
+            self.color_max_interior_diff,
+            c(&self.color)
+        )?;
+        writeln!(
+            f,
+            "  depth:  max diff {:.3e} (interior max {} ulp); {}",
+            self.depth_max_diff,
+            self.depth_max_interior_ulps,
+            c(&self.depth)
+        )?;
+        write!(f, "  LOD id: {}", c(&self.lod_id))?;
+        for e in &self.examples {
+            write!(f, "\n    mismatch: {e}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Linear view depth of a `[0, 1]` depth value for the camera's projection
+/// (`Camera::projection_matrix`: `z = far/(far-near) · (1 - near/d)`).
+fn linear_depth(z: f32, near: f64, far: f64) -> f64 {
+    let denominator = 1.0 - z as f64 * (far - near) / far;
+    if denominator <= 0.0 {
+        f64::INFINITY
+    } else {
+        near / denominator
+    }
+}
+
+/// Distance in units in the last place between two finite non-negative `f32`s.
+fn ulps(a: f32, b: f32) -> u32 {
+    if a == b {
+        return 0;
+    }
+    if !(a.is_finite() && b.is_finite()) || a < 0.0 || b < 0.0 {
+        return u32::MAX;
+    }
+    a.to_bits().abs_diff(b.to_bits())
+}
+
+fn channel_diff(a: [u8; 4], b: [u8; 4]) -> u8 {
+    (0..4).map(|c| a[c].abs_diff(b[c])).max().unwrap_or(0)
+}
+
+/// The 3x3 (window radius) neighbourhood of `(x, y)` clipped to the image, as indices.
+fn neighbourhood(x: u32, y: u32, w: u32, h: u32) -> impl Iterator<Item = usize> {
+    let r = WINDOW_RADIUS;
+    (-r..=r).flat_map(move |dy| {
+        (-r..=r).filter_map(move |dx| {
+            let (qx, qy) = (x as i64 + dx, y as i64 + dy);
+            (qx >= 0 && qy >= 0 && qx < w as i64 && qy < h as i64)
+                .then(|| qy as usize * w as usize + qx as usize)
+        })
+    })
+}
+
+/// FLIP mean of two sRGB8 colour buffers (alpha ignored).
+pub fn flip_mean(reference: &[[u8; 4]], test: &[[u8; 4]], width: u32, height: u32) -> f32 {
+    let rgb = |c: &[[u8; 4]]| -> Vec<u8> { c.iter().flat_map(|p| [p[0], p[1], p[2]]).collect() };
+    let r = nv_flip::FlipImageRgb8::with_data(width, height, &rgb(reference));
+    let t = nv_flip::FlipImageRgb8::with_data(width, height, &rgb(test));
+    let error = nv_flip::flip(r, t, FLIP_PIXELS_PER_DEGREE);
+    nv_flip::FlipPool::from_image(&error).mean()
+}
+
+/// Compares a GPU frame with the reference's (module docs). `alternatives` are reference frames
+/// rendered with the decision thresholds moved within the GPU's precision (possibly none);
+/// `camera` gives the near and far planes for depth linearization.
+///
+/// # Panics
+/// If the frames differ in size or a buffer has the wrong length.
+pub fn compare_images(
+    name: &str,
+    gpu: &Images,
+    reference: &Images,
+    alternatives: &[Images],
+    camera: &Camera,
+) -> ImageReport {
+    let (w, h) = (reference.width, reference.height);
+    assert_eq!(
+        (gpu.width, gpu.height),
+        (w, h),
+        "{name}: image sizes differ"
+    );
+    let n = w as usize * h as usize;
+    for (what, len) in [
+        ("gpu colour", gpu.color.len()),
+        ("gpu depth", gpu.depth.len()),
+        ("gpu lod", gpu.lod_id.len()),
+        ("ref colour", reference.color.len()),
+        ("ref depth", reference.depth.len()),
+        ("ref lod", reference.lod_id.len()),
+    ] {
+        assert_eq!(len, n, "{name}: {what} buffer length");
+    }
+    for a in alternatives {
+        assert_eq!(
+            (a.width, a.height),
+            (w, h),
+            "{name}: alternative frame size"
+        );
+        assert_eq!(
+            (a.color.len(), a.depth.len(), a.lod_id.len()),
+            (n, n, n),
+            "{name}: alternative buffer lengths"
+        );
+    }
+    let (near, far) = (camera.near as f64, camera.far as f64);
+    let lin: Vec<f64> = reference
+        .depth
+        .iter()
+        .map(|&z| linear_depth(z, near, far))
+        .collect();
+    let edge: Vec<bool> = (0..n)
+        .map(|i| {
+            let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
+            neighbourhood(x, y, w, h).any(|q| {
+                reference.lod_id[q] != reference.lod_id[i] || {
+                    let (a, b) = (lin[i], lin[q]);
+                    (a - b).abs() > DEPTH_EDGE_REL * a.min(b)
+                }
+            })
+        })
+        .collect();
+
+    let mut report = ImageReport {
+        name: name.to_string(),
+        width: w,
+        height: h,
+        edge_pixels: edge.iter().filter(|&&e| e).count(),
+        color: ClassCounts {
+            pixels: n,
+            ..Default::default()
+        },
+        color_max_diff: 0,
+        color_max_window_diff: 0,
+        color_max_interior_diff: 0,
+        depth: ClassCounts {
+            pixels: n,
+            ..Default::default()
+        },
+        depth_max_diff: 0.0,
+        depth_max_interior_ulps: 0,
+        lod_id: ClassCounts {
+            pixels: n,
+            ..Default::default()
+        },
+        flip_mean: flip_mean(&reference.color, &gpu.color, w, h),
+        color_classes: vec![0; n],
+        examples: Vec::new(),
+    };
+    let example = |report: &mut ImageReport, what: String| {
+        if report.examples.len() < MAX_EXAMPLES {
+            report.examples.push(what);
+        }
+    };
+
+    for (i, &is_edge) in edge.iter().enumerate() {
+        let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
+        let near_ids = || neighbourhood(x, y, w, h).any(|q| reference.lod_id[q] == gpu.lod_id[i]);
+
+        // Colour.
+        let (g, r) = (gpu.color[i], reference.color[i]);
+        let d = channel_diff(g, r);
+        let window_diff = neighbourhood(x, y, w, h)
+            .map(|q| channel_diff(g, reference.color[q]))
+            .min()
+            .unwrap_or(d);
+        report.color_max_diff = report.color_max_diff.max(d);
+        report.color_max_window_diff = report.color_max_window_diff.max(window_diff);
+        if !is_edge {
+            report.color_max_interior_diff = report.color_max_interior_diff.max(window_diff);
+        }
+        let class = if d == 0 {
+            report.color.exact += 1;
+            0
+        } else if d <= COLOR_TOLERANCE {
+            report.color.within_tolerance += 1;
+            0
+        } else if window_diff <= COLOR_TOLERANCE {
+            report.color.window += 1;
+            1
+        } else if alternatives.iter().any(|a| {
+            neighbourhood(x, y, w, h).any(|q| channel_diff(g, a.color[q]) <= COLOR_TOLERANCE)
+        }) {
+            report.color.threshold_ambiguous += 1;
+            2
+        } else if gpu.lod_id[i] == reference.lod_id[i]
+            && ulps(gpu.depth[i], reference.depth[i]) <= DEPTH_MAX_ULPS
+        {
+            report.color.depth_tie += 1;
+            2
+        } else if is_edge && near_ids() && {
+            let within_range = |c: usize| {
+                let (lo, hi) = neighbourhood(x, y, w, h)
+                    .map(|q| reference.color[q][c])
+                    .fold((u8::MAX, u8::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
+                g[c] >= lo.saturating_sub(EDGE_COLOR_MARGIN)
+                    && g[c] <= hi.saturating_add(EDGE_COLOR_MARGIN)
+            };
+            (0..4).all(within_range)
+        } {
+            report.color.edge_ambiguous += 1;
+            2
+        } else {
+            report.color.mismatches += 1;
+            example(
+                &mut report,
+                format!(
+                    "colour ({x}, {y}): GPU {g:?} id {}, reference {r:?} id {}, edge {}, window diff {window_diff}, outside neighbourhood range by {}, alternatives diff {:?}, depth {} ulp",
+                    gpu.lod_id[i],
+                    reference.lod_id[i],
+                    is_edge,
+                    (0..4)
+                        .map(|c| {
+                            let (lo, hi) = neighbourhood(x, y, w, h)
+                                .map(|q| reference.color[q][c])
+                                .fold((u8::MAX, u8::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
+                            lo.saturating_sub(g[c]).max(g[c].saturating_sub(hi))
+                        })
+                        .max()
+                        .unwrap_or(0),
+                    alternatives
+                        .iter()
+                        .map(|a| neighbourhood(x, y, w, h)
+                            .map(|q| channel_diff(g, a.color[q]))
+                            .min()
+                            .unwrap_or(255))
+                        .collect::<Vec<_>>(),
+                    ulps(gpu.depth[i], reference.depth[i])
+                ),
+            );
+            3
+        };
+        report.color_classes[i] = class;
+
+        // Depth.
+        let (gz, rz) = (gpu.depth[i], reference.depth[i]);
+        let u = ulps(gz, rz);
+        report.depth_max_diff = report.depth_max_diff.max((gz - rz).abs());
+        if !is_edge {
+            report.depth_max_interior_ulps = report.depth_max_interior_ulps.max(u);
+        }
+        if u == 0 {
+            report.depth.exact += 1;
+        } else if u <= DEPTH_MAX_ULPS {
+            report.depth.within_tolerance += 1;
+        } else if alternatives
+            .iter()
+            .any(|a| ulps(gz, a.depth[i]) <= DEPTH_MAX_ULPS)
+        {
+            report.depth.threshold_ambiguous += 1;
+        } else if gpu.lod_id[i] == LOD_ID_TRANSITION
+            && reference.lod_id[i] == LOD_ID_TRANSITION
+            && d <= COLOR_TOLERANCE
+        {
+            report.depth.translucent += 1;
+        } else if is_edge {
+            report.depth.edge_ambiguous += 1;
+        } else {
+            report.depth.mismatches += 1;
+            example(
+                &mut report,
+                format!(
+                    "depth ({x}, {y}): GPU {gz} reference {rz} ({u} ulp), ids {} / {}",
+                    gpu.lod_id[i], reference.lod_id[i]
+                ),
+            );
+        }
+
+        // LOD id.
+        if gpu.lod_id[i] == reference.lod_id[i] {
+            report.lod_id.exact += 1;
+        } else if alternatives.iter().any(|a| a.lod_id[i] == gpu.lod_id[i]) {
+            report.lod_id.threshold_ambiguous += 1;
+        } else if is_edge && near_ids() {
+            report.lod_id.edge_ambiguous += 1;
+        } else {
+            report.lod_id.mismatches += 1;
+            example(
+                &mut report,
+                format!(
+                    "LOD id ({x}, {y}): GPU {} reference {}, edge {}",
+                    gpu.lod_id[i], reference.lod_id[i], is_edge
+                ),
+            );
+        }
+    }
+    report
+}
+
+/// Where failing comparisons write their images: `<workspace>/target/test-failures/<name>/`
+/// (`/target` is git-ignored).
+pub fn failure_dir(name: &str) -> PathBuf {
+    let safe: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../target/test-failures")
+        .join(safe)
+}
+
+/// The per-pixel colour difference, amplified x4, opaque.
+pub fn difference_image(a: &Images, b: &Images) -> Rgba8Image {
+    Rgba8Image {
+        width: a.width,
+        height: a.height,
+        texels: a
+            .color
+            .iter()
+            .zip(&b.color)
+            .map(|(x, y)| {
+                let d: [u8; 3] = core::array::from_fn(|c| x[c].abs_diff(y[c]).saturating_mul(4));
+                [d[0], d[1], d[2], 255]
+            })
+            .collect(),
+    }
+}
+
+/// The colour classes as an image: black match, yellow window, blue ambiguous, red mismatch.
+pub fn class_image(report: &ImageReport) -> Rgba8Image {
+    const COLORS: [[u8; 4]; 4] = [
+        [0, 0, 0, 255],
+        [200, 200, 0, 255],
+        [40, 80, 255, 255],
+        [255, 0, 0, 255],
+    ];
+    Rgba8Image {
+        width: report.width,
+        height: report.height,
+        texels: report
+            .color_classes
+            .iter()
+            .map(|&c| COLORS[c as usize])
+            .collect(),
+    }
+}
+
+/// Writes `actual.png` (GPU colour), `expected.png` (reference colour), `difference.png`,
+/// `classes.png`, `actual_lod.png` and `expected_lod.png` into [`failure_dir`]; returns the folder.
+pub fn write_failure_images(report: &ImageReport, gpu: &Images, reference: &Images) -> PathBuf {
+    let dir = failure_dir(&report.name);
+    let _ = std::fs::create_dir_all(&dir);
+    let files = [
+        ("actual.png", gpu.color_image()),
+        ("expected.png", reference.color_image()),
+        ("difference.png", difference_image(gpu, reference)),
+        ("classes.png", class_image(report)),
+        ("actual_lod.png", gpu.lod_image()),
+        ("expected_lod.png", reference.lod_image()),
+    ];
+    for (file, image) in files {
+        if let Err(e) = write_png(&dir.join(file), &image) {
+            eprintln!("could not write {}: {e}", dir.join(file).display());
+        }
+    }
+    dir
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera() -> Camera {
+        Camera::look_at([0.0; 3], [1.0, 0.0, 0.0], 60.0, 8, 8)
+    }
+
+    fn flat(id: u32, color: [u8; 4], depth: f32) -> Images {
+        Images {
+            width: 8,
+            height: 8,
+            color: vec![color; 64],
+            depth: vec![depth; 64],
+            lod_id: vec![id; 64],
+        }
+    }
+
+    #[test]
+    fn identical_images_pass_with_zero_flip() {
+        let a = flat(1, [10, 120, 30, 255], 0.9);
+        let r = compare_images("same", &a, &a, &[], &camera());
+        assert!(r.passed(), "{r}");
+        assert_eq!(r.color.exact, 64);
+        assert_eq!(r.flip_mean, 0.0);
+    }
+
+    #[test]
+    fn an_interior_difference_is_a_mismatch_and_an_edge_one_is_ambiguous() {
+        let reference = flat(1, [10, 120, 30, 255], 0.9);
+        let mut gpu = reference.clone();
+        gpu.color[3 * 8 + 3] = [200, 20, 30, 255];
+        gpu.lod_id[3 * 8 + 3] = 2;
+        let r = compare_images("interior", &gpu, &reference, &[], &camera());
+        assert_eq!((r.color.mismatches, r.lod_id.mismatches), (1, 1), "{r}");
+        assert!(!r.passed());
+        // The same change next to a reference pixel of id 2 and that colour: edge-ambiguous.
+        let mut reference2 = reference.clone();
+        reference2.color[3 * 8 + 4] = [200, 20, 30, 255];
+        reference2.lod_id[3 * 8 + 4] = 2;
+        let mut gpu2 = reference2.clone();
+        gpu2.color[3 * 8 + 3] = [190, 20, 30, 255];
+        gpu2.lod_id[3 * 8 + 3] = 2;
+        let r = compare_images("edge", &gpu2, &reference2, &[], &camera());
+        assert_eq!(r.lod_id.mismatches, 0, "{r}");
+        assert_eq!(r.lod_id.edge_ambiguous, 1, "{r}");
+        assert_eq!(r.color.window + r.color.edge_ambiguous, 1, "{r}");
+    }
+
+    #[test]
+    fn depth_is_judged_in_ulps() {
+        let reference = flat(1, [0; 4], 0.5);
+        let mut gpu = reference.clone();
+        gpu.depth[0] = f32::from_bits(0.5f32.to_bits() + DEPTH_MAX_ULPS);
+        gpu.depth[1] = f32::from_bits(0.5f32.to_bits() + DEPTH_MAX_ULPS + 1);
+        let r = compare_images("depth", &gpu, &reference, &[], &camera());
+        assert_eq!(r.depth.within_tolerance, 1);
+        assert_eq!(r.depth.mismatches, 1);
+    }
+}

@@ -1,0 +1,306 @@
+//! RGBA8 texel comparison and the "one test body, several backends" adapters of the `mips` and
+//! `bake` stages (SPEC §5.1, §5.2, §8), used by `tests/tests/parity_mips.rs` and
+//! `tests/tests/parity_bake.rs`.
+//!
+//! - [`TexelTally`] counts texels compared, differing and beyond a tolerance, and keeps the largest
+//!   per-channel difference and the first offender, so every parity test can report "how many,
+//!   how far" (SPEC §8: "RGBA8 texels within ±1 per channel, with the count and maximum of
+//!   differences reported").
+//! - [`MipsBackend`] builds mip chains from level-0 layers: [`ReferenceMips`]
+//!   (`forestlod_reference::mips::build_mip_array`) or [`GpuMipsBackend`] (`mips.wgsl` on the
+//!   same level 0, uploaded from the CPU), both returning [`LevelOut`]s in the reference's terms.
+//! - [`BakeBackend`] renders level 0 of every layer: [`ReferenceBake`]
+//!   (`forestlod_reference::bake::bake_layer`) or [`GpuBakeBackend`] (`bake.wgsl`).
+//!
+//! The GPU pipelines are compiled once per test binary ([`gpu_bake`]) on the shared context of
+//! [`crate::backend::gpu_context`].
+
+use std::sync::OnceLock;
+
+use forestlod_gpu::bake::BakeMesh;
+use forestlod_gpu::mips::{ADJUST_CONSTANT, ADJUST_KEEP, ADJUST_REMAP, ADJUST_SCALE};
+use forestlod_gpu::{GpuBake, MipLevelStats};
+use forestlod_reference::bake::bake_layer;
+use forestlod_reference::mips::{AlphaAdjust, build_mip_array};
+use forestlod_reference::sampler::Texture;
+use forestlod_reference::scene::TreeMesh;
+use forestlod_reference::texture::Rgba8Image;
+use forestlod_shared::MipMode;
+use rayon::prelude::*;
+
+use crate::backend::gpu_context;
+
+/// Largest per-channel difference of two texels.
+pub fn channel_diff(a: [u8; 4], b: [u8; 4]) -> u8 {
+    (0..4).map(|c| a[c].abs_diff(b[c])).max().unwrap_or(0)
+}
+
+/// Running totals of a texel-by-texel comparison.
+#[derive(Clone, Debug, Default)]
+pub struct TexelTally {
+    /// Texels compared.
+    pub texels: u64,
+    /// Texels with any channel different.
+    pub differing: u64,
+    /// Texels with a channel beyond the tolerance.
+    pub over_tolerance: u64,
+    /// Largest per-channel difference seen.
+    pub max_diff: u8,
+    /// The first texel beyond the tolerance: where, GPU value, reference value.
+    pub first_over: Option<(String, [u8; 4], [u8; 4])>,
+}
+
+impl TexelTally {
+    /// Compares `got` with `want` texel by texel (equal lengths), allowing `tolerance` per
+    /// channel; `what` names the image in the first offender's description.
+    pub fn compare(&mut self, what: &str, got: &[[u8; 4]], want: &[[u8; 4]], tolerance: u8) {
+        assert_eq!(got.len(), want.len(), "{what}: texel counts differ");
+        for (i, (&g, &w)) in got.iter().zip(want).enumerate() {
+            self.texel(|| format!("{what} texel {i}"), g, w, tolerance);
+        }
+    }
+
+    /// Records one texel pair.
+    pub fn texel(
+        &mut self,
+        what: impl FnOnce() -> String,
+        got: [u8; 4],
+        want: [u8; 4],
+        tolerance: u8,
+    ) {
+        self.texels += 1;
+        let d = channel_diff(got, want);
+        if d == 0 {
+            return;
+        }
+        self.differing += 1;
+        self.max_diff = self.max_diff.max(d);
+        if d > tolerance {
+            self.over_tolerance += 1;
+            if self.first_over.is_none() {
+                self.first_over = Some((what(), got, want));
+            }
+        }
+    }
+
+    /// Adds another tally's totals (its first offender only if this one has none).
+    pub fn merge(&mut self, other: &TexelTally) {
+        self.texels += other.texels;
+        self.differing += other.differing;
+        self.over_tolerance += other.over_tolerance;
+        self.max_diff = self.max_diff.max(other.max_diff);
+        if self.first_over.is_none() {
+            self.first_over.clone_from(&other.first_over);
+        }
+    }
+
+    /// One line for the test log.
+    pub fn summary(&self) -> String {
+        format!(
+            "{} texels compared, {} differing, {} beyond tolerance, max channel difference {}",
+            self.texels, self.differing, self.over_tolerance, self.max_diff
+        )
+    }
+}
+
+/// One level of one layer as a mips backend reports it, in the reference's terms.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelOut {
+    /// The final texels.
+    pub image: Rgba8Image,
+    /// `[MinAlpha_k, MaxAlpha_k]` of the raw level.
+    pub raw_alpha_range: [f32; 2],
+    /// How raw alpha became final alpha.
+    pub adjust: AlphaAdjust,
+    /// Texels passing the alpha test.
+    pub pass_count: u64,
+}
+
+/// A `mips` implementation: level-0 layers in, every level of every layer out.
+pub trait MipsBackend {
+    /// Name for reports.
+    fn name(&self) -> String;
+    /// Builds the chains of `layers` (equal square power-of-two sizes): `[layer][level]`.
+    fn build(&self, layers: &[Rgba8Image], mode: MipMode, alpha_ref: f32) -> Vec<Vec<LevelOut>>;
+}
+
+/// The CPU oracle, `forestlod_reference::mips`.
+pub struct ReferenceMips;
+
+impl MipsBackend for ReferenceMips {
+    fn name(&self) -> String {
+        "reference".into()
+    }
+    fn build(&self, layers: &[Rgba8Image], mode: MipMode, alpha_ref: f32) -> Vec<Vec<LevelOut>> {
+        build_mip_array(layers, mode, alpha_ref)
+            .expect("build_mip_array")
+            .into_iter()
+            .map(|chain| {
+                chain
+                    .levels
+                    .into_iter()
+                    .map(|l| LevelOut {
+                        image: l.rgba8,
+                        raw_alpha_range: l.raw_alpha_range,
+                        adjust: l.adjust,
+                        pass_count: l.alpha_test_pass_count,
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// `mips.wgsl` on level 0 uploaded from the CPU (`GpuMips::run_from_cpu`).
+pub struct GpuMipsBackend {
+    /// The compiled stages.
+    pub bake: &'static GpuBake<'static>,
+}
+
+/// A GPU [`MipLevelStats`] adjustment as the reference's [`AlphaAdjust`].
+pub fn adjust_of(stats: &MipLevelStats) -> AlphaAdjust {
+    let p = stats.adjust;
+    match stats.adjust_kind {
+        ADJUST_KEEP => AlphaAdjust::Keep,
+        ADJUST_REMAP => AlphaAdjust::Remap {
+            from: [p[0], p[1]],
+            to: [p[2], p[3]],
+        },
+        ADJUST_CONSTANT => AlphaAdjust::Constant(p[0]),
+        ADJUST_SCALE => AlphaAdjust::Scale(p[0]),
+        other => panic!("GPU wrote an unknown adjust kind {other}"),
+    }
+}
+
+impl MipsBackend for GpuMipsBackend {
+    fn name(&self) -> String {
+        "gpu".into()
+    }
+    fn build(&self, layers: &[Rgba8Image], mode: MipMode, alpha_ref: f32) -> Vec<Vec<LevelOut>> {
+        let ctx = self.bake.mips().context();
+        let side = layers[0].width;
+        let texels: Vec<&[[u8; 4]]> = layers.iter().map(|l| l.texels.as_slice()).collect();
+        let array = self
+            .bake
+            .mips()
+            .run_from_cpu(side, &texels, mode, alpha_ref)
+            .expect("GpuMips::run_from_cpu");
+        let chains = array.read_chains(ctx).expect("read chains");
+        let stats = array
+            .read_stats(ctx)
+            .expect("read stats")
+            .expect("GPU-built arrays have stats");
+        chains
+            .into_iter()
+            .zip(stats)
+            .map(|(chain, stats)| {
+                chain
+                    .into_iter()
+                    .zip(stats)
+                    .map(|(level, s)| LevelOut {
+                        image: Rgba8Image {
+                            width: level.side,
+                            height: level.side,
+                            texels: level.texels,
+                        },
+                        raw_alpha_range: s.raw_alpha_range(),
+                        adjust: adjust_of(&s),
+                        pass_count: u64::from(s.pass_count),
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// A `bake` implementation: level 0 of every layer `mesh * K + k`.
+pub trait BakeBackend {
+    /// Name for reports.
+    fn name(&self) -> String;
+    /// Bakes `meshes` from `angle_count` angles at `side x side`.
+    fn bake_level0(&self, meshes: &[TreeMesh], angle_count: u32, side: u32) -> Vec<Rgba8Image>;
+}
+
+/// The CPU oracle, `forestlod_reference::bake::bake_layer` per layer (level 0 of the mesh
+/// texture is all the bake samples).
+pub struct ReferenceBake;
+
+impl BakeBackend for ReferenceBake {
+    fn name(&self) -> String {
+        "reference".into()
+    }
+    fn bake_level0(&self, meshes: &[TreeMesh], angle_count: u32, side: u32) -> Vec<Rgba8Image> {
+        let textures: Vec<Texture> = meshes
+            .iter()
+            .map(|m| Texture::new(vec![m.texture.clone()]).expect("mesh texture"))
+            .collect();
+        let jobs: Vec<(usize, u32)> = (0..meshes.len())
+            .flat_map(|m| (0..angle_count).map(move |k| (m, k)))
+            .collect();
+        jobs.par_iter()
+            .map(|&(m, k)| {
+                bake_layer(
+                    &meshes[m],
+                    &meshes[m].meta(),
+                    &textures[m],
+                    k,
+                    angle_count,
+                    side,
+                )
+            })
+            .collect()
+    }
+}
+
+/// `bake.wgsl`, level 0 read back before the mips stage.
+pub struct GpuBakeBackend {
+    /// The compiled stages.
+    pub bake: &'static GpuBake<'static>,
+}
+
+/// A reference mesh as the GPU bake takes it.
+pub fn bake_mesh(mesh: &TreeMesh) -> BakeMesh<'_> {
+    BakeMesh {
+        positions: &mesh.positions,
+        uvs: &mesh.uvs,
+        indices: &mesh.indices,
+        texture_width: mesh.texture.width,
+        texture_height: mesh.texture.height,
+        texture: &mesh.texture.texels,
+        meta: mesh.meta(),
+    }
+}
+
+impl BakeBackend for GpuBakeBackend {
+    fn name(&self) -> String {
+        "gpu".into()
+    }
+    fn bake_level0(&self, meshes: &[TreeMesh], angle_count: u32, side: u32) -> Vec<Rgba8Image> {
+        let ctx = self.bake.mips().context();
+        let inputs: Vec<BakeMesh<'_>> = meshes.iter().map(bake_mesh).collect();
+        let texture = self
+            .bake
+            .bake_level0(&inputs, angle_count, side)
+            .expect("GpuBake::bake_level0");
+        let array = forestlod_gpu::MipArray::from_texture(ctx, texture, MipMode::Box, 0.5)
+            .expect("wrap the baked texture");
+        array
+            .read_level0(ctx)
+            .expect("read level 0")
+            .into_iter()
+            .map(|l| Rgba8Image {
+                width: l.side,
+                height: l.side,
+                texels: l.texels,
+            })
+            .collect()
+    }
+}
+
+/// The bake and mips stages compiled once for this test binary on the shared context; `None`
+/// without an adapter when `FORESTLOD_ALLOW_NO_GPU=1`.
+pub fn gpu_bake() -> Option<&'static GpuBake<'static>> {
+    static BAKE: OnceLock<Option<GpuBake<'static>>> = OnceLock::new();
+    BAKE.get_or_init(|| gpu_context().map(|ctx| GpuBake::new(ctx).expect("compile bake and mips")))
+        .as_ref()
+}

@@ -1,0 +1,236 @@
+//! How the adapter computes the implicit level of detail (SPEC §8): the reference samples with
+//! the exact `λ = log2(max(|∂uv/∂x|, |∂uv/∂y|))` (`reference/src/sampler.rs`); the GPU's λ is
+//! measured here, so the tolerances of `forestlod_tests::image_compare` that depend on it rest
+//! on data, not on a guess.
+//!
+//! A full-screen triangle samples a 256² texture whose level `k` has red `255 · (k mod 2)` and
+//! green `28k`, with texture coordinates `uv = M · pixel / 256` for a 2x2 matrix `M`; trilinear
+//! filtering then returns the level to ±0.5 in green and the blend fraction in red, so
+//! `λ = clamp(log2 ρ)` is read back (from an `Rg32Float` target) to 1/255.
+
+use forestlod_tests::backend::gpu_context;
+
+/// Largest |λ_GPU − λ_exact| accepted. Measured on lavapipe (Mesa 22.3, LLVM 15): see the test's
+/// output; the bound documents it and catches an adapter that approximates much worse.
+pub const MAX_LAMBDA_ERROR: f32 = 0.1;
+
+const SOURCE: &str = "
+struct U { m: vec4<f32> }
+@group(0) @binding(0) var<uniform> u: U;
+@group(0) @binding(1) var t: texture_2d<f32>;
+@group(0) @binding(2) var s: sampler;
+@vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let p = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(p * 2.0 - 1.0, 0.0, 1.0);
+}
+@fragment fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
+    let uv = vec2<f32>(u.m.x * pos.x + u.m.y * pos.y, u.m.z * pos.x + u.m.w * pos.y) / 256.0;
+    return textureSample(t, s, uv);
+}";
+
+#[test]
+fn implicit_lod_matches_log2_of_the_derivatives() {
+    let Some(ctx) = gpu_context() else { return };
+    let device = &ctx.device;
+    let size = 256u32;
+    let levels = 9u32;
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("lod levels"),
+        size: wgpu::Extent3d {
+            width: size,
+            height: size,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: levels,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8Unorm,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    for k in 0..levels {
+        let side = size >> k;
+        let texel = [if k % 2 == 1 { 255u8 } else { 0 }, (28 * k) as u8, 0, 255];
+        let data: Vec<u8> = (0..side * side).flat_map(|_| texel).collect();
+        ctx.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: k,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            &data,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(4 * side),
+                rows_per_image: Some(side),
+            },
+            wgpu::Extent3d {
+                width: side,
+                height: side,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+    let target = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("lod out"),
+        size: wgpu::Extent3d {
+            width: 16,
+            height: 16,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rg32Float,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("lod"),
+        source: wgpu::ShaderSource::Wgsl(SOURCE.into()),
+    });
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("lod"),
+        layout: None,
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: None,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs"),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format: wgpu::TextureFormat::Rg32Float,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+        address_mode_u: wgpu::AddressMode::Repeat,
+        address_mode_v: wgpu::AddressMode::Repeat,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        mipmap_filter: wgpu::MipmapFilterMode::Linear,
+        ..Default::default()
+    });
+    let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: 16,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let view = texture.create_view(&Default::default());
+    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: uniform.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::TextureView(&view),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::Sampler(&sampler),
+            },
+        ],
+    });
+    let target_view = target.create_view(&Default::default());
+    let mut worst = (0.0f32, [0.0f32; 4], 0.0f32, 0.0f32);
+    let mut sum = 0.0f64;
+    let mut count = 0;
+    for shape in 0..3 {
+        for step in 0..=64 {
+            // ρ from 2^0.5 to 2^6.5.
+            let exponent = 0.5 + step as f32 * 6.0 / 64.0;
+            let r = exponent.exp2();
+            let m = match shape {
+                0 => [r, 0.0, 0.0, r * 0.5],                 // axis-aligned, anisotropic
+                1 => [r * 0.6, r * 0.8, -r * 0.8, r * 0.6],  // rotated: |∂uv/∂x| = r
+                _ => [r * 0.7071, r * 0.7071, 0.0, r * 0.3], // diagonal derivative along x
+            };
+            ctx.queue
+                .write_buffer(&uniform, 0, bytemuck::cast_slice(&m));
+            let mut encoder = device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: None,
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &target_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    ..Default::default()
+                });
+                pass.set_pipeline(&pipeline);
+                pass.set_bind_group(0, &bind_group, &[]);
+                pass.draw(0..3, 0..1);
+            }
+            ctx.queue.submit([encoder.finish()]);
+            let out: Vec<f32> = forestlod_gpu::readback::read_texture(ctx, &target, 0, 0)
+                .unwrap()
+                .cast();
+            let rho_x = (m[0] * m[0] + m[2] * m[2]).sqrt();
+            let rho_y = (m[1] * m[1] + m[3] * m[3]).sqrt();
+            let exact = rho_x.max(rho_y).log2().clamp(0.0, (levels - 1) as f32);
+            // G gives the level to ±0.5 (28 units per level), R its fraction exactly: between
+            // an even level (R = 0) and the next odd one (R = 1) the blend is R, else 1 - R.
+            let (r_frac, g) = (out[2 * (8 * 16 + 8)], out[2 * (8 * 16 + 8) + 1]);
+            let coarse = g * 255.0 / 28.0;
+            let base = coarse.floor();
+            let frac = if base as u32 % 2 == 0 {
+                r_frac
+            } else {
+                1.0 - r_frac
+            };
+            let mut gpu = base + frac;
+            // `base` may be off by one where the fraction is near 0 or 1.
+            for candidate in [base - 1.0, base + 1.0] {
+                let f = if (candidate as i32).rem_euclid(2) == 0 {
+                    r_frac
+                } else {
+                    1.0 - r_frac
+                };
+                if ((candidate + f) - coarse).abs() < (gpu - coarse).abs() {
+                    gpu = candidate + f;
+                }
+            }
+            let err = gpu - exact;
+            sum += err.abs() as f64;
+            count += 1;
+            if err.abs() > worst.0.abs() {
+                worst = (err, m, exact, gpu);
+            }
+        }
+    }
+    eprintln!(
+        "implicit LOD: max |λ_gpu − λ_exact| = {:.4} (λ exact {:.4}, GPU {:.4}, M {:?}); mean {:.4} over {count} cases",
+        worst.0.abs(),
+        worst.2,
+        worst.3,
+        worst.1,
+        sum / count as f64
+    );
+    assert!(
+        worst.0.abs() <= MAX_LAMBDA_ERROR,
+        "λ error {} exceeds {MAX_LAMBDA_ERROR}",
+        worst.0
+    );
+}
