@@ -157,7 +157,11 @@ pub fn pareto(groups: &[(String, Summary)]) -> Vec<(String, Summary)> {
 }
 
 fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), InputError> {
-    let rel = |p: &str| format!("{}/{p}", m.name);
+    let folder = dir
+        .file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_else(|| m.name.clone());
+    let rel = |p: &str| format!("{folder}/{p}");
     let rows = read_rows(&dir.join(&m.csv))?;
     let _ = writeln!(out, "## {}\n", m.title);
     if !m.description.is_empty() {

@@ -78,8 +78,9 @@ use forestlod_shared::Camera;
 /// still counts as equal.
 ///
 /// Why 8: lavapipe filters textures with 8-bit subtexel weights (`subTexelPrecisionBits` = 8) and
-/// blends trilinear levels in reduced precision, its `log2` for λ is a polynomial approximation
-/// (so the trilinear blend factor differs by a few 1e-3), and each blended fragment is re-encoded
+/// blends trilinear levels in reduced precision, its λ is off by up to 1/16 (measured, see
+/// [`ALPHA_TEST_EPSILON`]; on smooth texture regions adjacent levels differ little), and each
+/// blended fragment is re-encoded
 /// to sRGB8 (a ±1 rounding per fragment, several fragments per pixel in the fade band). A weight
 /// error of 1/256 on a neighbouring texel contrast of up to 255 is 1 unit in linear light, but
 /// the sRGB encoding amplifies dark linear values up to 12.92x: dark crown texels (sRGB 20..60)
@@ -90,14 +91,15 @@ pub const COLOR_TOLERANCE: u8 = 8;
 
 /// How far the alternative reference frames move the alpha-test cutoff (module docs).
 ///
-/// Why 0.09: lavapipe computes the implicit level of detail `λ = log2(ρ)` with gallivm's
-/// `lp_build_fast_log2` (exponent plus the mantissa taken as linear), whose error reaches
-/// 0.086 (at mantissa 1/ln 2); the trilinear blend factor `frac(λ)` inherits it, so a filtered
-/// alpha moves by up to 0.086 times the alpha step between two adjacent mip levels, which near a
-/// crown's silhouette is up to 1. On top come 8-bit subtexel weights (≤ 1/256 per axis). Measured:
-/// the flips seen in `parity_draw` need up to 0.05. A cutoff error of this size cannot be told from
-/// lavapipe's own λ error; a real alpha-test bug (inverted comparison, alpha ignored, the wrong
-/// texture) changes whole crowns, which still fail against every frame.
+/// Why 0.09: the GPU's implicit level of detail is not the reference's exact `log2`: measured on
+/// lavapipe by `tests/tests/sampler_lod.rs`, `|λ_GPU - λ_exact|` reaches 0.047 (mean 0.031, as if
+/// λ kept 4 fractional bits: at most 1/16). The trilinear blend factor `frac(λ)` inherits it, so a
+/// filtered alpha moves by up to 1/16 of the alpha step between two adjacent mip levels, which
+/// near a crown's silhouette or an atlas border is up to 1: 0.0625. On top come 8-bit subtexel
+/// weights (≤ 1/256 per axis) and the UNORM decode: 0.09 in all. Measured: the flips seen in
+/// `parity_draw` need up to 0.05. A cutoff error of this size cannot be told from the GPU's own
+/// λ error; a real alpha-test bug (inverted comparison, alpha ignored, the wrong texture) changes
+/// whole crowns, which still fail against every frame.
 pub const ALPHA_TEST_EPSILON: f32 = 0.09;
 
 /// The cutoff shifts of the alternative frames, a ladder up to [`ALPHA_TEST_EPSILON`] on each
@@ -110,11 +112,11 @@ pub const ALPHA_TEST_SHIFTS: [f32; 3] = [0.01, 0.03, ALPHA_TEST_EPSILON];
 /// pixel's GPU colour is edge-ambiguous (rule 5).
 ///
 /// Why 32: at a silhouette the two trilinear levels differ by up to the full contrast between the
-/// crown and the (alpha-aware, but still different) colours around it, and lavapipe's λ is off by
-/// up to 0.086 (see [`ALPHA_TEST_EPSILON`]), so the filtered colour of a pixel that shows the same
-/// surface moves by up to 0.086 of that contrast: 22 sRGB units for a full mid-tone contrast (more
-/// for the darkest tones). Measured: at most 22 in `parity_draw`. Interior pixels keep
-/// [`COLOR_TOLERANCE`].
+/// crown and the (alpha-aware, but still different) colours around it, and the GPU's λ is off by
+/// up to 1/16 (see [`ALPHA_TEST_EPSILON`]), so the filtered colour of a pixel that shows the same
+/// surface moves by up to 1/16 of that contrast: 16 sRGB units for a full mid-tone contrast, about
+/// twice that for the darkest tones (the sRGB curve is steepest there). Measured: at most 22 in
+/// `parity_draw`. Interior pixels keep [`COLOR_TOLERANCE`].
 pub const EDGE_COLOR_MARGIN: u8 = 32;
 
 /// Fraction of the pixels (rounded down) that may stay unexplained per buffer: *compound*
@@ -245,14 +247,15 @@ pub struct ImageReport {
     pub color_max_diff: u8,
     /// Largest channel difference after the position window, over all pixels.
     pub color_max_window_diff: u8,
-    /// Largest channel difference after the window, over interior pixels (what the tolerance
-    /// judges).
+    /// Largest channel difference after the window, over interior (non-edge) pixels, before the
+    /// threshold and depth-tie classes are applied.
     pub color_max_interior_diff: u8,
     /// Depth classes.
     pub depth: ClassCounts,
     /// Largest depth difference (absolute), over all pixels.
     pub depth_max_diff: f32,
-    /// Largest depth difference in ULP of the reference, over interior pixels.
+    /// Largest depth difference in ULP of the reference, over interior (non-edge) pixels, before
+    /// the threshold and translucent classes are applied.
     pub depth_max_interior_ulps: u32,
     /// LOD-id classes.
     pub lod_id: ClassCounts,

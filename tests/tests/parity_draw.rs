@@ -292,3 +292,43 @@ fn one_draw_call_and_stale_slots_past_the_count_are_ignored() {
     .unwrap();
     assert_eq!((frame.calls.terrain, frame.calls.trees), (1, 1));
 }
+
+/// The constants the GPU draw stage repeats from the reference (it may not depend on it).
+#[test]
+fn draw_constants_agree_with_the_reference() {
+    use forestlod_gpu::draw as gpu;
+    use forestlod_reference::draw as cpu;
+    assert_eq!(gpu::SKY_SRGB, cpu::SKY_SRGB);
+    assert_eq!(gpu::TERRAIN_CELLS, cpu::TERRAIN_CELLS);
+    assert_eq!(gpu::TERRAIN_MARGIN, cpu::TERRAIN_MARGIN);
+    assert_eq!(
+        [
+            gpu::LOD_ID_BACKGROUND,
+            gpu::LOD_ID_MESH,
+            gpu::LOD_ID_BILLBOARD,
+            gpu::LOD_ID_TRANSITION,
+            gpu::LOD_ID_TERRAIN
+        ],
+        [
+            cpu::LOD_ID_BACKGROUND,
+            cpu::LOD_ID_MESH,
+            cpu::LOD_ID_BILLBOARD,
+            cpu::LOD_ID_TRANSITION,
+            cpu::LOD_ID_TERRAIN
+        ]
+    );
+    // The ground grid: same vertices, in the same order, as the reference's triangles.
+    let scene = builtin::tiny();
+    let camera = forestlod_reference::cameras::named_camera("medium", &scene, 0.0, 64, 64).unwrap();
+    let view_proj = camera.view_projection();
+    let gpu_grid = forestlod_gpu::terrain_vertices(scene.bounds, |x, y| scene.terrain.height(x, y));
+    let cpu_grid = cpu::terrain_triangles(&scene, &view_proj);
+    assert_eq!(gpu_grid.len(), cpu_grid.len() * 3);
+    for (g, t) in gpu_grid.chunks_exact(3).zip(&cpu_grid) {
+        for (v, w) in g.iter().zip(t) {
+            let p = view_proj * glam::Vec4::new(v.position[0], v.position[1], v.position[2], 1.0);
+            assert_eq!(p.to_array(), w.clip);
+            assert_eq!(v.color, w.varyings);
+        }
+    }
+}
