@@ -163,7 +163,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         .unwrap_or_else(|| m.name.clone());
     let rel = |p: &str| format!("{folder}/{p}");
     let rows = read_rows(&dir.join(&m.csv))?;
-    let _ = writeln!(out, "## {}\n", m.title);
+    let _ = writeln!(out, "## {} ({})\n", m.title, m.scenes.join(", "));
     if !m.description.is_empty() {
         let _ = writeln!(out, "{}\n", m.description.trim());
     }
@@ -334,7 +334,8 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                 front
                     .iter()
                     .map(|(k, s)| format!(
-                        "**{k}** ({} ms, FLIP {:.4})",
+                        "**{}** ({} ms, FLIP {:.4})",
+                        k.trim(),
                         ms(s.frame_s),
                         s.flip_mean
                     ))
@@ -455,14 +456,14 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
     );
     let _ = writeln!(out, "Contents:\n");
     for (_, m) in &manifests {
-        let anchor: String = m
-            .title
+        let heading = format!("{} ({})", m.title, m.scenes.join(", "));
+        let anchor: String = heading
             .to_lowercase()
             .chars()
             .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-')
             .map(|c| if c == ' ' { '-' } else { c })
             .collect();
-        let _ = writeln!(out, "- [{}](#{anchor}) (`{}`)", m.title, m.name);
+        let _ = writeln!(out, "- [{heading}](#{anchor}) (`{}`)", m.name);
     }
     let _ = writeln!(out);
     for (dir, m) in &manifests {
