@@ -1,0 +1,115 @@
+//! Per-stage GPU times of the wgpu twin beside the reference's times for the same frames:
+//! `synthetic` and `stress` at the named cameras `far`, `medium`, `close` (E§5.0.1).
+//!
+//! `cargo run --release -p forestlod-experiments --bin gpu_bench -- --out out/gpu_bench`
+//!
+//! Each GPU stage is timed as wall time from submit to completion (`device.poll(wait)`), median of
+//! `--reps` repetitions after one warm-up; the reference stages are timed in the same process on
+//! the same frames (one repetition: the reference draw of `stress` takes seconds). Timestamp
+//! queries are not used: on lavapipe (a CPU device) submit-to-completion wall time is what the
+//! stage costs; on a real GPU it includes submission overhead of about a few tens of µs.
+//! Writes `gpu_bench.csv`, one row per (scene, camera).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Parser;
+use forestlod_experiments::options::ParamArgs;
+use forestlod_gpu::draw::{DrawInputs, DrawScene, DrawTarget, DrawTextures};
+use forestlod_gpu::{Compaction, GpuContext, GpuDraw, GpuSelect};
+use forestlod_reference::cameras::named_camera;
+use forestlod_reference::pipeline::prepare;
+use forestlod_reference::scene::builtin;
+use forestlod_tests::backend::{DrawSceneData, gpu_textures};
+
+#[derive(Parser, Debug)]
+struct Args {
+    #[command(flatten)]
+    params: ParamArgs,
+    /// Scenes to run.
+    #[arg(long, value_delimiter = ',', default_value = "synthetic,stress")]
+    scenes: Vec<String>,
+    /// Viewport width.
+    #[arg(long, default_value_t = 320)]
+    width: u32,
+    /// Viewport height.
+    #[arg(long, default_value_t = 180)]
+    height: u32,
+    /// GPU repetitions per stage (median reported).
+    #[arg(long, default_value_t = 3)]
+    reps: usize,
+    /// Output folder.
+    #[arg(long, default_value = "out/gpu_bench")]
+    out: PathBuf,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args = Args::parse();
+    let params = args.params.params()?;
+    let ctx = GpuContext::new()?;
+    println!("adapter: {}", ctx.describe());
+    let draw = GpuDraw::new(&ctx)?;
+    let mut csv = String::from(
+        "adapter,scene,camera,width,height,commands,ref_select_s,gpu_select_stable_s,gpu_select_atomic_s,ref_draw_s,gpu_draw_s,select_ratio_ref_over_gpu,draw_ratio_ref_over_gpu\n",
+    );
+    for name in &args.scenes {
+        let scene = builtin::by_name(name)?;
+        let prepared = prepare(scene, &params)?;
+        let data = DrawSceneData::new(&prepared);
+        let gpu_scene = DrawScene::new(&ctx, &data.desc(&prepared))?;
+        let (mesh, billboards) = gpu_textures(&ctx, &prepared, &params)?;
+        let textures = DrawTextures::new(&mesh, &billboards)?;
+        let target = DrawTarget::new(&ctx, args.width, args.height)?;
+        let select = GpuSelect::new(&ctx, &prepared.batches.metas, &prepared.geometry.meshes, &prepared.geometry.billboard)?;
+        for camera_name in ["far", "medium", "close"] {
+            let camera = named_camera(camera_name, &prepared.scene, 0.0, args.width, args.height)?;
+            let time_gpu = |f: &dyn Fn() -> Result<(), forestlod_gpu::GpuError>| -> Result<f64, Box<dyn std::error::Error>> {
+                let mut times = Vec::new();
+                for rep in 0..=args.reps {
+                    let t = Instant::now();
+                    f()?;
+                    ctx.wait()?;
+                    if rep > 0 {
+                        times.push(t.elapsed().as_secs_f64());
+                    }
+                }
+                Ok(median(times))
+            };
+            let select_atomic = time_gpu(&|| select.dispatch(&camera, &params, Compaction::Atomic).map(|_| ()))?;
+            let select_stable = time_gpu(&|| select.dispatch(&camera, &params, Compaction::Stable).map(|_| ()))?;
+            let buffers = select.dispatch(&camera, &params, Compaction::Stable)?;
+            ctx.wait()?;
+            let inputs = DrawInputs { scene: &gpu_scene, textures: &textures, selection: buffers };
+            let gpu_draw = time_gpu(&|| draw.render(&ctx, &inputs, &camera, &params, &target).map(|_| ()))?;
+            let frame = prepared.render(&camera, &params)?;
+            let (ref_select, ref_draw) = (frame.timings.select, frame.timings.draw);
+            println!(
+                "{name}/{camera_name}: {} commands | select ref {:.3} ms, gpu stable {:.3} ms, atomic {:.3} ms | draw ref {:.1} ms, gpu {:.1} ms",
+                frame.selection.counters.commands,
+                ref_select * 1e3,
+                select_stable * 1e3,
+                select_atomic * 1e3,
+                ref_draw * 1e3,
+                gpu_draw * 1e3
+            );
+            csv.push_str(&format!(
+                "\"{}\",{name},{camera_name},{},{},{},{ref_select:.6},{select_stable:.6},{select_atomic:.6},{ref_draw:.6},{gpu_draw:.6},{:.3},{:.3}\n",
+                ctx.info.name,
+                args.width,
+                args.height,
+                frame.selection.counters.commands,
+                ref_select / select_stable,
+                ref_draw / gpu_draw
+            ));
+        }
+    }
+    std::fs::create_dir_all(&args.out)?;
+    std::fs::write(args.out.join("gpu_bench.csv"), csv)?;
+    println!("wrote {}", args.out.join("gpu_bench.csv").display());
+    Ok(())
+}
