@@ -3,12 +3,12 @@
 //!
 //! `cargo run --release -p forestlod-experiments --bin gpu_bench -- --out out/gpu_bench`
 //!
-//! Each GPU stage is timed as wall time from submit to completion (`device.poll(wait)`), median of
-//! `--reps` repetitions after one warm-up; the reference stages are timed in the same process on
-//! the same frames (one repetition: the reference draw of `stress` takes seconds). Timestamp
-//! queries are not used: on lavapipe (a CPU device) submit-to-completion wall time is what the
-//! stage costs; on a real GPU it includes submission overhead of about a few tens of µs.
-//! Writes `gpu_bench.csv`, one row per (scene, camera).
+//! Each GPU stage is timed two ways, median of `--reps` repetitions after one warm-up: wall time
+//! from submit to completion (`device.poll(wait)`), and, where the adapter offers
+//! `TIMESTAMP_QUERY`, GPU time between timestamps written by empty compute passes recorded just
+//! before and just after the stage in the same command encoder. The reference stages are timed in
+//! the same process on the same frames (one repetition: the reference draw of `stress` takes
+//! seconds). Writes `gpu_bench.csv`, one row per (scene, camera).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -43,6 +43,63 @@ struct Args {
     out: PathBuf,
 }
 
+/// GPU seconds spent by the commands `record` adds to an encoder, from timestamps written by empty
+/// compute passes before and after them; `None` without `TIMESTAMP_QUERY`.
+fn timestamped(
+    ctx: &GpuContext,
+    record: &dyn Fn(&mut wgpu::CommandEncoder) -> Result<(), forestlod_gpu::GpuError>,
+) -> Result<Option<f64>, Box<dyn std::error::Error>> {
+    if !ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY) {
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        record(&mut encoder)?;
+        ctx.queue.submit([encoder.finish()]);
+        ctx.wait()?;
+        return Ok(None);
+    }
+    let queries = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
+        label: Some("stage timestamps"),
+        ty: wgpu::QueryType::Timestamp,
+        count: 2,
+    });
+    let resolve = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("timestamp resolve"),
+        size: 16,
+        usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    let mark = |encoder: &mut wgpu::CommandEncoder, index: u32| {
+        encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("timestamp"),
+            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                query_set: &queries,
+                beginning_of_pass_write_index: Some(index),
+                end_of_pass_write_index: None,
+            }),
+        });
+    };
+    mark(&mut encoder, 0);
+    record(&mut encoder)?;
+    mark(&mut encoder, 1);
+    encoder.resolve_query_set(&queries, 0..2, &resolve, 0);
+    ctx.queue.submit([encoder.finish()]);
+    ctx.wait()?;
+    let ticks: Vec<u64> = forestlod_gpu::readback::read_buffer(ctx, &resolve, 0, 2)?;
+    let period_ns = ctx.queue.get_timestamp_period() as f64;
+    Ok(Some(
+        ticks[1].saturating_sub(ticks[0]) as f64 * period_ns * 1e-9,
+    ))
+}
+
+fn median_opt(v: Vec<Option<f64>>) -> Option<f64> {
+    let v: Vec<f64> = v.into_iter().flatten().collect();
+    (!v.is_empty()).then(|| median(v))
+}
+
+fn fmt_opt(v: Option<f64>) -> String {
+    v.map_or_else(String::new, |s| format!("{s:.6}"))
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -55,7 +112,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("adapter: {}", ctx.describe());
     let draw = GpuDraw::new(&ctx)?;
     let mut csv = String::from(
-        "adapter,scene,camera,width,height,commands,ref_select_s,gpu_select_stable_s,gpu_select_atomic_s,ref_draw_s,gpu_draw_s,select_ratio_ref_over_gpu,draw_ratio_ref_over_gpu\n",
+        "adapter,scene,camera,width,height,commands,ref_select_s,gpu_select_stable_s,gpu_select_atomic_s,ref_draw_s,gpu_draw_s,gpu_select_stable_timestamp_s,gpu_draw_timestamp_s,select_ratio_ref_over_gpu,draw_ratio_ref_over_gpu\n",
     );
     for name in &args.scenes {
         let scene = builtin::by_name(name)?;
@@ -65,7 +122,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let (mesh, billboards) = gpu_textures(&ctx, &prepared, &params)?;
         let textures = DrawTextures::new(&mesh, &billboards)?;
         let target = DrawTarget::new(&ctx, args.width, args.height)?;
-        let select = GpuSelect::new(&ctx, &prepared.batches.metas, &prepared.geometry.meshes, &prepared.geometry.billboard)?;
+        let select = GpuSelect::new(
+            &ctx,
+            &prepared.batches.metas,
+            &prepared.geometry.meshes,
+            &prepared.geometry.billboard,
+        )?;
         for camera_name in ["far", "medium", "close"] {
             let camera = named_camera(camera_name, &prepared.scene, 0.0, args.width, args.height)?;
             let time_gpu = |f: &dyn Fn() -> Result<(), forestlod_gpu::GpuError>| -> Result<f64, Box<dyn std::error::Error>> {
@@ -80,29 +142,64 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
                 Ok(median(times))
             };
-            let select_atomic = time_gpu(&|| select.dispatch(&camera, &params, Compaction::Atomic).map(|_| ()))?;
-            let select_stable = time_gpu(&|| select.dispatch(&camera, &params, Compaction::Stable).map(|_| ()))?;
+            let select_atomic = time_gpu(&|| {
+                select
+                    .dispatch(&camera, &params, Compaction::Atomic)
+                    .map(|_| ())
+            })?;
+            let select_stable = time_gpu(&|| {
+                select
+                    .dispatch(&camera, &params, Compaction::Stable)
+                    .map(|_| ())
+            })?;
             let buffers = select.dispatch(&camera, &params, Compaction::Stable)?;
             ctx.wait()?;
-            let inputs = DrawInputs { scene: &gpu_scene, textures: &textures, selection: buffers };
-            let gpu_draw = time_gpu(&|| draw.render(&ctx, &inputs, &camera, &params, &target).map(|_| ()))?;
+            let inputs = DrawInputs {
+                scene: &gpu_scene,
+                textures: &textures,
+                selection: buffers,
+            };
+            let gpu_draw = time_gpu(&|| {
+                draw.render(&ctx, &inputs, &camera, &params, &target)
+                    .map(|_| ())
+            })?;
+            let mut ts_select = Vec::new();
+            let mut ts_draw = Vec::new();
+            for _ in 0..=args.reps {
+                ts_select.push(timestamped(&ctx, &|e| {
+                    select.encode(e, &camera, &params, Compaction::Stable);
+                    Ok(())
+                })?);
+                ts_draw.push(timestamped(&ctx, &|e| {
+                    draw.encode(&ctx, e, &inputs, &camera, &params, &target)
+                        .map(|_| ())
+                })?);
+            }
+            let (ts_select, ts_draw) = (
+                median_opt(ts_select.split_off(1)),
+                median_opt(ts_draw.split_off(1)),
+            );
             let frame = prepared.render(&camera, &params)?;
             let (ref_select, ref_draw) = (frame.timings.select, frame.timings.draw);
             println!(
-                "{name}/{camera_name}: {} commands | select ref {:.3} ms, gpu stable {:.3} ms, atomic {:.3} ms | draw ref {:.1} ms, gpu {:.1} ms",
+                "{name}/{camera_name}: {} commands | select ref {:.3} ms, gpu stable {:.3} ms (timestamps {:?} ms), atomic {:.3} ms | draw ref {:.1} ms, gpu {:.1} ms (timestamps {:?} ms)",
                 frame.selection.counters.commands,
                 ref_select * 1e3,
                 select_stable * 1e3,
+                ts_select.map(|s| s * 1e3),
                 select_atomic * 1e3,
                 ref_draw * 1e3,
-                gpu_draw * 1e3
+                gpu_draw * 1e3,
+                ts_draw.map(|s| s * 1e3)
             );
             csv.push_str(&format!(
-                "\"{}\",{name},{camera_name},{},{},{},{ref_select:.6},{select_stable:.6},{select_atomic:.6},{ref_draw:.6},{gpu_draw:.6},{:.3},{:.3}\n",
-                ctx.info.name,
+                "\"{}\",{name},{camera_name},{},{},{},{ref_select:.6},{select_stable:.6},{select_atomic:.6},{ref_draw:.6},{gpu_draw:.6},{},{},{:.3},{:.3}\n",
+                ctx.info.name.replace(',', ";"),
                 args.width,
                 args.height,
                 frame.selection.counters.commands,
+                fmt_opt(ts_select),
+                fmt_opt(ts_draw),
                 ref_select / select_stable,
                 ref_draw / gpu_draw
             ));
