@@ -18,11 +18,11 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use clap::Args;
+use forestlod_reference::InputError;
 use forestlod_reference::bake::contact_sheet;
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::output::{depth_preview, lod_id_image, write_depth_exr, write_png};
 use forestlod_reference::pipeline::{Frame, Prepared, prepare};
-use forestlod_reference::{InputError, draw};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
@@ -407,7 +407,6 @@ pub fn run(args: &RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
         "wrote color.png, depth.exr, depth_preview.png, lod.png, atlas.png, {gpu_files}metrics.json, summary.txt to {}",
         args.out.display()
     );
-    let _ = draw::LOD_ID_MESH;
     Ok(())
 }
 
