@@ -38,12 +38,16 @@ pub struct Summary {
     pub frame_s: f64,
     /// Mean commands.
     pub commands: f64,
-    /// Mean tree triangles.
+    /// Mean tree triangles (NaN when no row counted them: the GPU backend).
     pub triangles: f64,
-    /// Mean tree fragments shaded.
+    /// Mean tree fragments shaded (NaN when no row counted them).
     pub fragments: f64,
-    /// Mean overdraw.
+    /// Mean overdraw (NaN when no row counted it).
     pub overdraw: f64,
+    /// Mean trees drawn finer than per-tree selection would (SPEC §6).
+    pub trees_finer: f64,
+    /// Mean trees drawn coarser than per-tree selection would.
+    pub trees_coarser: f64,
     /// Mean memory bytes.
     pub memory_bytes: f64,
     /// Mean FLIP.
@@ -59,15 +63,21 @@ pub struct Summary {
 /// Means of `rows`.
 pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     let mut s = Summary::default();
+    let mut counted = 0usize;
     for r in rows {
         s.frames += 1;
         s.select_s += r.select_s;
         s.draw_s += r.draw_s;
         s.frame_s += r.frame_s;
         s.commands += r.commands as f64;
-        s.triangles += r.triangles as f64;
-        s.fragments += r.fragments as f64;
-        s.overdraw += r.overdraw;
+        if let (Some(t), Some(f), Some(o)) = (r.triangles, r.fragments, r.overdraw) {
+            counted += 1;
+            s.triangles += t as f64;
+            s.fragments += f as f64;
+            s.overdraw += o;
+        }
+        s.trees_finer += r.trees_finer as f64;
+        s.trees_coarser += r.trees_coarser as f64;
         s.memory_bytes += r.memory_bytes as f64;
         s.flip_mean += r.flip_mean;
         s.flip_p95 += r.flip_p95;
@@ -80,9 +90,8 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
         &mut s.draw_s,
         &mut s.frame_s,
         &mut s.commands,
-        &mut s.triangles,
-        &mut s.fragments,
-        &mut s.overdraw,
+        &mut s.trees_finer,
+        &mut s.trees_coarser,
         &mut s.memory_bytes,
         &mut s.flip_mean,
         &mut s.flip_p95,
@@ -91,16 +100,29 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     ] {
         *v /= n;
     }
+    let c = if counted == 0 {
+        f64::NAN
+    } else {
+        counted as f64
+    };
+    for v in [&mut s.triangles, &mut s.fragments, &mut s.overdraw] {
+        *v /= c;
+    }
     s
+}
+
+/// A row's variant with its backend, e.g. `ours (gpu)`.
+pub fn variant_label(r: &Row) -> String {
+    format!("{} ({})", r.variant, r.backend)
 }
 
 /// The group a row is summarized in: by camera for yaw sweeps, by distance for the distance
 /// path, by setting otherwise; always by variant.
 pub fn group_key(x_axis: &str, r: &Row) -> String {
     match x_axis {
-        "yaw" => format!("{}, {}, {}", r.camera, r.variant, r.setting),
-        "distance" => format!("{:>6} m, {}, {}", r.distance_m, r.variant, r.setting),
-        _ => format!("{}, {}", r.variant, r.setting),
+        "yaw" => format!("{}, {}, {}", r.camera, variant_label(r), r.setting),
+        "distance" => format!("{:>6} m, {}, {}", r.distance_m, variant_label(r), r.setting),
+        _ => format!("{}, {}", variant_label(r), r.setting),
     }
 }
 
@@ -129,7 +151,9 @@ fn ms(s: f64) -> String {
 }
 
 fn big(v: f64) -> String {
-    if v >= 1e6 {
+    if v.is_nan() {
+        "-".into()
+    } else if v >= 1e6 {
         format!("{:.2}M", v / 1e6)
     } else if v >= 1e3 {
         format!("{:.1}k", v / 1e3)
@@ -174,10 +198,19 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         .collect();
     let _ = writeln!(
         out,
-        "Setup: scenes {}; variants {}; {}x{} pixels; ground truth {} rays/pixel ({} rays, BVH {}); \
+        "Setup: scenes {}; variants {}; backends {}{}; {}x{} pixels; ground truth {} rays/pixel ({} rays, BVH {}); \
          {} frames in {:.1} s{}. Data: [`{}`]({}).\n",
         m.scenes.join(", "),
         m.variants.join(", "),
+        if m.backends.is_empty() {
+            "reference".to_string()
+        } else {
+            m.backends.join(", ")
+        },
+        m.gpu_adapter
+            .as_ref()
+            .map(|a| format!(" (GPU: {a})"))
+            .unwrap_or_default(),
         m.width,
         m.height,
         m.ground_truth_spp,
@@ -213,21 +246,23 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         .collect();
     let _ = writeln!(
         out,
-        "| group | frames | frame ms | select ms | draw ms | commands | triangles | fragments | overdraw | memory MB | FLIP mean | FLIP p95 | FLIP p99 | coverage err |"
+        "| group | frames | frame ms | select ms | draw ms | commands | trees finer / coarser | triangles | fragments | overdraw | memory MB | FLIP mean | FLIP p95 | FLIP p99 | coverage err |"
     );
     let _ = writeln!(
         out,
-        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
     );
     for (k, s) in &summaries {
         let _ = writeln!(
             out,
-            "| {k} | {} | {} | {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.4} | {:.4} | {:.4} | {:.4} |",
+            "| {k} | {} | {} | {} | {} | {} | {} / {} | {} | {} | {:.2} | {:.2} | {:.4} | {:.4} | {:.4} | {:.4} |",
             s.frames,
             ms(s.frame_s),
             ms(s.select_s),
             ms(s.draw_s),
             big(s.commands),
+            big(s.trees_finer),
+            big(s.trees_coarser),
             big(s.triangles),
             big(s.fragments),
             s.overdraw,
@@ -244,21 +279,27 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
     if m.variants.len() > 1 && m.variants.iter().any(|v| v == "ours") {
         let _ = writeln!(
             out,
-            "Speed-up of ours (mean frame time of the baseline / ours, same frames) and accuracy:\n"
+            "Speed-up of ours (mean frame time of the baseline / ours, same frames, same backend) and accuracy:\n"
         );
         let _ = writeln!(
             out,
-            "| camera | ours ms | vegetation ms | primitive ms | vegetation / ours | primitive / ours | FLIP ours / veg / prim | coverage err ours / veg / prim |"
+            "| backend | camera | ours ms | vegetation ms | primitive ms | vegetation / ours | primitive / ours | FLIP ours / veg / prim | coverage err ours / veg / prim |"
         );
-        let _ = writeln!(out, "|---|--:|--:|--:|--:|--:|---|---|");
-        let mut cams: Vec<String> = Vec::new();
+        let _ = writeln!(out, "|---|---|--:|--:|--:|--:|--:|---|---|");
+        let mut pairs: Vec<(String, String)> = Vec::new();
         for r in &rows {
-            if !cams.contains(&r.camera) {
-                cams.push(r.camera.clone());
+            let key = (r.backend.clone(), r.camera.clone());
+            if !pairs.contains(&key) {
+                pairs.push(key);
             }
         }
-        for cam in cams {
-            let s = |v: &str| summarize(rows.iter().filter(|r| r.camera == cam && r.variant == v));
+        for (backend, cam) in pairs {
+            let s = |v: &str| {
+                summarize(
+                    rows.iter()
+                        .filter(|r| r.camera == cam && r.variant == v && r.backend == backend),
+                )
+            };
             let (o, veg, prim) = (s("ours"), s("vegetation"), s("primitive"));
             let ratio = |b: &Summary| {
                 if b.frames == 0 || o.frame_s <= 0.0 {
@@ -276,7 +317,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             };
             let _ = writeln!(
                 out,
-                "| {cam} | {} | {} | {} | {} | {} | {} / {} / {} | {} / {} / {} |",
+                "| {backend} | {cam} | {} | {} | {} | {} | {} | {} / {} / {} | {} / {} / {} |",
                 ms(o.frame_s),
                 if veg.frames > 0 {
                     ms(veg.frame_s)
@@ -304,10 +345,11 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
     // Pareto fronts: per camera for 360° sweeps (cameras are not comparable), per distance for
     // the distance path, over all settings otherwise.
     let mut sections: Vec<String> = Vec::new();
+    // Times of different backends are not comparable: one front per backend.
     let section_of = |r: &Row| match m.x_axis.as_str() {
-        "yaw" => r.camera.clone(),
-        "distance" => format!("{} m", r.distance_m),
-        _ => "all frames".to_string(),
+        "yaw" => format!("{} ({})", r.camera, r.backend),
+        "distance" => format!("{} m ({})", r.distance_m, r.backend),
+        _ => format!("all frames ({})", r.backend),
     };
     for r in &rows {
         let s = section_of(r);
@@ -367,8 +409,13 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             };
             let _ = writeln!(
                 out,
-                "| {pose} | {} / {} (FLIP {:.4}, cov {:.4}) | ![]({}) | ![]({}) | ![]({}) | ![]({}) |",
+                "| {pose} | {} ({}) / {} (FLIP {:.4}, cov {:.4}) | ![]({}) | ![]({}) | ![]({}) | ![]({}) |",
                 im.variant,
+                if im.backend.is_empty() {
+                    "reference"
+                } else {
+                    &im.backend
+                },
                 im.setting,
                 im.accuracy.flip_mean,
                 im.accuracy.coverage_error,
@@ -446,8 +493,10 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
     let _ = writeln!(
         out,
         "Generated by `forestlod report --run {}` from the sweeps `forestlod sweep` wrote there. \
-         Cost is measured on the **reference (CPU) backend**: wall-clock select and draw time of the \
-         software rasterizer, plus work counters that carry over to a GPU (commands, triangles, \
+         Cost is measured on the backend each sweep names (its Setup line): the **reference (CPU)** \
+         backend's wall-clock select and draw time of the software rasterizer, or the **GPU** \
+         backend's submit-to-completion times of the wgpu twin (timestamp queries beside them in \
+         the CSV where the adapter offers them); plus work counters that carry over to a GPU (commands, triangles, \
          fragments, overdraw) and memory (E Eq. 4.1). Accuracy is the error against a ray-traced \
          ground truth of full meshes for every tree, alpha-tested and supersampled (SPEC §10): FLIP \
          mean and 95th/99th percentiles, and the fraction of pixels whose tree / not-tree class \

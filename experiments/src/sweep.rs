@@ -3,8 +3,8 @@
 //! A sweep is a small TOML file (format in `experiments/sweeps/README.md`): scenes, cameras (named
 //! 360° sweeps or a distance path), which parameters take which values, and which variants run
 //! (`ours`, `vegetation`, `primitive`: SPEC §9, [`forestlod_reference::baselines`]). For every
-//! frame it records cost (select / draw / frame seconds on the reference backend, work counters,
-//! memory) and accuracy against the ray-traced ground truth
+//! frame it records cost (select / draw / frame seconds, work counters, memory, and how many trees
+//! batching drew finer or coarser than per-tree selection would: SPEC §6) and accuracy against the ray-traced ground truth
 //! ([`forestlod_reference::ground_truth`], [`crate::metrics`]), writes one CSV row per frame, and
 //! plots cost against accuracy plus thesis-style runtime plots (E Fig. 5.1–5.7) as PNGs.
 //!
@@ -13,26 +13,37 @@
 //! few steps): `forestlod sweep --quick --out DIR` runs all of them, the CI smoke test of the whole
 //! experiment machinery.
 //!
-//! Timings are wall-clock seconds of the reference (CPU) backend, the minimum over `repeats`
-//! renders of a frame; the GPU backend will plug in beside `ours` later. Ground-truth images are
-//! rendered once per scene and camera pose and shared by every variant and parameter set.
+//! Every variant runs on the backends the file names (`backends = ["reference", "gpu"]`, or
+//! `--backend`): the reference (CPU) rasterizer, or the wgpu twin through
+//! [`forestlod_tests::backend::GpuSweepScene`] (GPU selection or per-tree culling, the GPU-baked
+//! textures, `draw.wgsl` / `primitive.wgsl`). Timings are wall-clock seconds, the minimum over
+//! `repeats` renders of a frame: CPU time on the reference, submit-to-completion on the GPU (plus
+//! timestamp-query times where the adapter has them). Ratios are only meaningful between rows of
+//! one backend. Ground-truth images are rendered once per scene and camera pose and shared by
+//! every variant, backend and parameter set.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
+use forestlod_gpu::{Compaction, GpuContext, GpuError};
 use forestlod_reference::InputError;
 use forestlod_reference::baselines::{
-    Proxy, proxies, render_primitive, render_vegetation, tree_spheres, trees_drawn_by_selection,
+    INSTANCE_INDEX_BYTES, PROXY_BYTES, Proxy, proxies, render_primitive, render_vegetation,
+    tree_spheres, trees_drawn_by_selection,
 };
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::ground_truth::{GroundTruthImage, GroundTruthScene};
 use forestlod_reference::output::{lod_id_image, write_png};
 use forestlod_reference::pipeline::{Prepared, prepare};
-use forestlod_reference::raster::RenderTarget;
 use forestlod_reference::scene::{Scene, builtin, load};
-use forestlod_shared::{AngleIndexMode, Camera, FadeMode, MipMode, Params};
+use forestlod_reference::select::{BatchingCounts, batching_counts};
+use forestlod_reference::texture::Rgba8Image;
+use forestlod_shared::{
+    AngleIndexMode, Camera, CommandData, DrawCommand, FadeMode, MipMode, Params,
+};
+use forestlod_tests::backend::{GpuSweepScene, GpuVariant};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 
@@ -40,7 +51,7 @@ use crate::metrics::{Accuracy, accuracy, error_image, per_lod_error_maps};
 use crate::plot::{Axes, Series, Style, bar_plot, xy_plot};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 8] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 9] = [
     ("camera360", include_str!("../sweeps/camera360.toml")),
     ("distance", include_str!("../sweeps/distance.toml")),
     ("grid_size", include_str!("../sweeps/grid_size.toml")),
@@ -52,10 +63,16 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 8] = [
     ("fade_mode", include_str!("../sweeps/fade_mode.toml")),
     ("mip_mode", include_str!("../sweeps/mip_mode.toml")),
     ("angle_index", include_str!("../sweeps/angle_index.toml")),
+    ("compaction", include_str!("../sweeps/compaction.toml")),
 ];
 
-/// Variant names accepted in `variants`.
-pub const VARIANTS: [&str; 3] = ["ours", "vegetation", "primitive"];
+/// Variant names accepted in `variants`: ours (stable compaction on the GPU), ours with the
+/// thesis's atomic-counter compaction (E§4.3; GPU backend only: the reference has one, stable,
+/// compaction, equal to the atomic one as a multiset), and the two baselines of E§5.
+pub const VARIANTS: [&str; 4] = ["ours", "ours-atomic", "vegetation", "primitive"];
+
+/// Backend names accepted in `backends`: the CPU reference and the wgpu twin (`gpu/`).
+pub const BACKENDS: [&str; 2] = ["reference", "gpu"];
 
 /// Options of `forestlod sweep`.
 #[derive(Args, Clone, Debug)]
@@ -83,6 +100,9 @@ pub struct SweepArgs {
     /// Replace the number of timed renders per frame (the minimum is kept).
     #[arg(long)]
     pub repeats: Option<u32>,
+    /// Replace the backends: `reference`, `gpu`, or both comma-separated (`reference,gpu`).
+    #[arg(long)]
+    pub backend: Option<String>,
 }
 
 /// One camera entry of a sweep file.
@@ -139,6 +159,8 @@ pub struct QuickSpec {
     pub axes: Option<BTreeMap<String, Vec<toml::Value>>>,
     /// Base parameter overrides (applied after the file's `[params]`).
     pub params: Option<toml::Table>,
+    /// Backends.
+    pub backends: Option<Vec<String>>,
 }
 
 /// A sweep file.
@@ -154,9 +176,12 @@ pub struct SweepSpec {
     pub description: String,
     /// Scenes: built-in names or scene files.
     pub scenes: Vec<String>,
-    /// Variants: `ours`, `vegetation`, `primitive`.
+    /// Variants: `ours`, `ours-atomic`, `vegetation`, `primitive`.
     #[serde(default = "default_variants")]
     pub variants: Vec<String>,
+    /// Backends: `reference` (default), `gpu`.
+    #[serde(default = "default_backends")]
+    pub backends: Vec<String>,
     /// Image width.
     #[serde(default = "default_width")]
     pub width: u32,
@@ -191,6 +216,9 @@ pub struct SweepSpec {
 fn default_variants() -> Vec<String> {
     vec!["ours".into()]
 }
+fn default_backends() -> Vec<String> {
+    vec!["reference".into()]
+}
 fn default_width() -> u32 {
     320
 }
@@ -220,8 +248,10 @@ pub struct Row {
     pub yaw_deg: f32,
     /// Distance of the distance path, metres (0 for named cameras).
     pub distance_m: f32,
-    /// `ours`, `vegetation` or `primitive`.
+    /// `ours`, `ours-atomic`, `vegetation` or `primitive`.
     pub variant: String,
+    /// `reference` or `gpu`.
+    pub backend: String,
     /// Parameter-set label (setting plus axis values).
     pub setting: String,
     /// Parameters.
@@ -248,26 +278,39 @@ pub struct Row {
     pub width: u32,
     /// Image size.
     pub height: u32,
-    /// Selection (ours) or per-tree culling (baselines), seconds.
+    /// Selection (ours) or per-tree culling (baselines), wall seconds (GPU: submit to completion).
     pub select_s: f64,
-    /// Draw, ground included, seconds.
+    /// Draw, ground included, wall seconds (GPU: submit to completion, readback excluded).
     pub draw_s: f64,
     /// `select_s + draw_s`.
     pub frame_s: f64,
+    /// GPU backend: selection / culling time from timestamp queries, seconds, where offered.
+    pub gpu_select_s: Option<f64>,
+    /// GPU backend: draw pass time from timestamp queries, seconds, where offered.
+    pub gpu_draw_s: Option<f64>,
     /// Batches tested (ours) or trees tested (baselines).
     pub batches_tested: u64,
     /// Draw commands.
     pub commands: u64,
     /// Trees drawn.
     pub trees_drawn: u64,
-    /// Tree triangles submitted.
-    pub triangles: u64,
-    /// Tree fragments shaded.
-    pub fragments: u64,
-    /// Tree fragments written.
-    pub fragments_written: u64,
-    /// `fragments_written / pixels`.
-    pub overdraw: f64,
+    /// Ours: trees given the full mesh although per-tree selection would not (SPEC §6,
+    /// [`forestlod_reference::select::BatchingCounts`]); baselines: 0 (they select per tree).
+    pub trees_finer: u64,
+    /// Ours: trees given a billboard although per-tree selection would not; baselines: 0.
+    pub trees_coarser: u64,
+    /// Ours: trees drawn although per-tree culling would drop them; baselines: 0.
+    pub trees_outside_view: u64,
+    /// Ours: trees missing a LOD per-tree selection gives them (conservative selection: 0).
+    pub trees_missing_lod: u64,
+    /// Tree triangles submitted (reference backend; the GPU has no such counter here).
+    pub triangles: Option<u64>,
+    /// Tree fragments shaded (reference backend).
+    pub fragments: Option<u64>,
+    /// Tree fragments written (reference backend).
+    pub fragments_written: Option<u64>,
+    /// `fragments_written / pixels` (reference backend).
+    pub overdraw: Option<f64>,
     /// Bytes the method adds to the scene data (ours: E Eq. 4.1's terms as allocated).
     pub memory_bytes: u64,
     /// FLIP mean against the ground truth.
@@ -295,6 +338,9 @@ pub struct FrameImages {
     pub distance_m: f32,
     /// Variant.
     pub variant: String,
+    /// Backend.
+    #[serde(default)]
+    pub backend: String,
     /// Parameter-set label.
     pub setting: String,
     /// The frame's colour.
@@ -330,6 +376,12 @@ pub struct Manifest {
     pub scenes: Vec<String>,
     /// Variants.
     pub variants: Vec<String>,
+    /// Backends.
+    #[serde(default)]
+    pub backends: Vec<String>,
+    /// The GPU adapter, when the GPU backend ran.
+    #[serde(default)]
+    pub gpu_adapter: Option<String>,
     /// Image size.
     pub width: u32,
     /// Image size.
@@ -499,6 +551,34 @@ impl SweepSpec {
                 ));
             }
         }
+        if self.backends.is_empty() {
+            return Err(InputError::new(
+                file,
+                "backends",
+                "[]",
+                "expected at least one of reference, gpu",
+            ));
+        }
+        for b in &self.backends {
+            if !BACKENDS.contains(&b.as_str()) {
+                return Err(InputError::new(
+                    file,
+                    "backends",
+                    b,
+                    format!("expected one of {}", BACKENDS.join(", ")),
+                ));
+            }
+        }
+        if self.variants.iter().any(|v| v == "ours-atomic")
+            && self.backends.iter().any(|b| b == "reference")
+        {
+            return Err(InputError::new(
+                file,
+                "variants",
+                "ours-atomic",
+                "the atomic-counter compaction exists on the gpu backend only (the reference's stable compaction equals it as a multiset); use backends = [\"gpu\"]",
+            ));
+        }
         for c in &self.cameras {
             if c.name == "distance" {
                 if c.distances.as_ref().is_none_or(|d| d.is_empty()) {
@@ -562,6 +642,9 @@ impl SweepSpec {
         }
         if let Some(p) = q.params {
             self.params.extend(p);
+        }
+        if let Some(b) = q.backends {
+            self.backends = b;
         }
         self
     }
@@ -720,25 +803,45 @@ fn io_err(path: &Path, e: impl std::fmt::Display) -> InputError {
 
 /// What one variant produced for one frame.
 struct VariantFrame {
-    target: RenderTarget,
+    color: Rgba8Image,
+    aux: Vec<u32>,
     select_s: f64,
     draw_s: f64,
+    gpu_select_s: Option<f64>,
+    gpu_draw_s: Option<f64>,
     batches_tested: u64,
     commands: u64,
     trees_drawn: u64,
-    triangles: u64,
-    fragments: u64,
-    fragments_written: u64,
+    batching: BatchingCounts,
+    triangles: Option<u64>,
+    fragments: Option<u64>,
+    fragments_written: Option<u64>,
     memory_bytes: u64,
 }
 
-/// Per-scene state kept across sweeps of one run: the scene and its ground-truth BVH, and the
-/// ground-truth images already rendered.
+impl VariantFrame {
+    /// Keeps the minimum of each time over repeats (the work and images are the same).
+    fn keep_fastest(mut self, other: VariantFrame) -> Self {
+        let min_opt = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        self.select_s = self.select_s.min(other.select_s);
+        self.draw_s = self.draw_s.min(other.draw_s);
+        self.gpu_select_s = min_opt(self.gpu_select_s, other.gpu_select_s);
+        self.gpu_draw_s = min_opt(self.gpu_draw_s, other.gpu_draw_s);
+        self
+    }
+}
+
+/// Per-scene state kept across sweeps of one run: the scene and its ground-truth BVH, the
+/// ground-truth images already rendered, and the GPU context once a sweep asks for it.
 #[derive(Default)]
 pub struct Runner {
     scene: Option<(String, Scene, GroundTruthScene)>,
     images: HashMap<String, GroundTruthImage>,
     rays: u64,
+    gpu: Option<&'static GpuContext>,
 }
 
 impl Runner {
@@ -758,6 +861,17 @@ impl Runner {
         Ok((s, g))
     }
 
+    /// The GPU context, created on first use (an error with the install hint when there is no
+    /// adapter: the GPU backend was asked for, so it is not skipped).
+    fn gpu(&mut self) -> Result<&'static GpuContext, GpuError> {
+        if let Some(ctx) = self.gpu {
+            return Ok(ctx);
+        }
+        let ctx: &'static GpuContext = Box::leak(Box::new(GpuContext::new()?));
+        self.gpu = Some(ctx);
+        Ok(ctx)
+    }
+
     /// Runs one sweep into `out/<name>/`.
     pub fn run_sweep(
         &mut self,
@@ -772,7 +886,13 @@ impl Runner {
         let dir = out.join(&spec.name);
         let img_dir = dir.join("img");
         std::fs::create_dir_all(&img_dir).map_err(|e| io_err(&img_dir, e))?;
-        let frames = spec.scenes.len() * sets.len() * poses.len() * spec.variants.len();
+        let use_gpu = spec.backends.iter().any(|b| b == "gpu");
+        let gpu_ctx = if use_gpu { Some(self.gpu()?) } else { None };
+        let frames = spec.scenes.len()
+            * sets.len()
+            * poses.len()
+            * spec.variants.len()
+            * spec.backends.len();
         let bar = ProgressBar::new(frames as u64);
         bar.set_style(
             ProgressStyle::with_template(
@@ -797,17 +917,22 @@ impl Runner {
             ));
             for set in &sets {
                 let prepared = prepare(scene.clone(), &set.params)?;
-                let baselines = spec.variants.iter().any(|v| v != "ours");
-                let spheres = if baselines {
-                    tree_spheres(&prepared.scene, &prepared.geometry.meshes)
-                } else {
-                    Vec::new()
-                };
+                let spheres = tree_spheres(&prepared.scene, &prepared.geometry.meshes);
+                let baselines = spec
+                    .variants
+                    .iter()
+                    .any(|v| v == "vegetation" || v == "primitive");
                 let proxy_list: Vec<Proxy> = if baselines {
                     proxies(&prepared, set.params.alpha_cutoff)
                 } else {
                     Vec::new()
                 };
+                // The GPU side of this parameter set: buffers uploaded and textures baked once.
+                let mut gpu_scene = match gpu_ctx {
+                    Some(ctx) => Some(GpuSweepScene::new(ctx, &prepared, &set.params)?),
+                    None => None,
+                };
+                let mut gpu_warm = false;
                 for pose in &poses {
                     let camera = if pose.camera == "distance" {
                         distance_camera(scene, pose.distance_m, spec.width, spec.height)
@@ -831,68 +956,94 @@ impl Runner {
                         self.images.insert(key.clone(), img);
                     }
                     let gt = &self.images[&key];
-                    for variant in &spec.variants {
-                        let vf = render_variant(
-                            variant,
-                            &prepared,
-                            &spheres,
-                            &proxy_list,
-                            &camera,
-                            &set.params,
-                            spec.repeats,
-                        )?;
-                        let t = &vf.target;
-                        let (acc, map) = accuracy(gt, &t.color_image(), t.aux());
-                        let pixels = (spec.width as u64 * spec.height as u64).max(1);
-                        let p = &set.params;
-                        rows.push(Row {
-                            sweep: spec.name.clone(),
-                            scene: scene.name.clone(),
-                            camera: pose.camera.clone(),
-                            yaw_deg: pose.yaw_deg,
-                            distance_m: pose.distance_m,
-                            variant: variant.clone(),
-                            setting: set.label.clone(),
-                            grid_size: p.grid_size,
-                            angle_count: p.angle_count,
-                            texture_size: p.texture_size,
-                            lod_levels: p.lod_levels,
-                            lod1_transition: p.lod1_transition,
-                            fade_width: p.fade_width,
-                            draw_distance: p.draw_distance,
-                            fade_mode: p.fade().map(FadeMode::name).unwrap_or("?").into(),
-                            mip_mode: p.mips().map(MipMode::name).unwrap_or("?").into(),
-                            angle_index: p
-                                .angle_mode()
-                                .map(AngleIndexMode::name)
-                                .unwrap_or("?")
-                                .into(),
-                            width: spec.width,
-                            height: spec.height,
-                            select_s: vf.select_s,
-                            draw_s: vf.draw_s,
-                            frame_s: vf.select_s + vf.draw_s,
-                            batches_tested: vf.batches_tested,
-                            commands: vf.commands,
-                            trees_drawn: vf.trees_drawn,
-                            triangles: vf.triangles,
-                            fragments: vf.fragments,
-                            fragments_written: vf.fragments_written,
-                            overdraw: vf.fragments_written as f64 / pixels as f64,
-                            memory_bytes: vf.memory_bytes,
-                            flip_mean: acc.flip_mean,
-                            flip_p95: acc.flip_p95,
-                            flip_p99: acc.flip_p99,
-                            coverage_error: acc.coverage_error,
-                            gt_tree_fraction: acc.gt_tree_fraction,
-                            tree_fraction: acc.tree_fraction,
-                        });
-                        if pose.save_images {
-                            images.push(save_frame_images(
-                                &dir, scene, pose, variant, set, gt, &vf.target, &map, acc,
-                            )?);
+                    for backend in &spec.backends {
+                        for variant in &spec.variants {
+                            let frame = Frame {
+                                prepared: &prepared,
+                                spheres: &spheres,
+                                proxies: &proxy_list,
+                                camera: &camera,
+                                params: &set.params,
+                            };
+                            let vf = if backend == "gpu" {
+                                let gs = gpu_scene.as_mut().expect("created when use_gpu");
+                                if !gpu_warm {
+                                    // First frame of a parameter set: pipelines, bind groups and
+                                    // lavapipe's shader JIT warm up outside the timed renders.
+                                    render_gpu_variant(gs, variant, &frame, 1)?;
+                                    gpu_warm = true;
+                                }
+                                render_gpu_variant(gs, variant, &frame, spec.repeats)?
+                            } else {
+                                render_variant(variant, &frame, spec.repeats)?
+                            };
+                            let (acc, map) = accuracy(gt, &vf.color, &vf.aux);
+                            let pixels = (spec.width as u64 * spec.height as u64).max(1);
+                            let p = &set.params;
+                            rows.push(Row {
+                                sweep: spec.name.clone(),
+                                scene: scene.name.clone(),
+                                camera: pose.camera.clone(),
+                                yaw_deg: pose.yaw_deg,
+                                distance_m: pose.distance_m,
+                                variant: variant.clone(),
+                                backend: backend.clone(),
+                                setting: set.label.clone(),
+                                grid_size: p.grid_size,
+                                angle_count: p.angle_count,
+                                texture_size: p.texture_size,
+                                lod_levels: p.lod_levels,
+                                lod1_transition: p.lod1_transition,
+                                fade_width: p.fade_width,
+                                draw_distance: p.draw_distance,
+                                fade_mode: p.fade().map(FadeMode::name).unwrap_or("?").into(),
+                                mip_mode: p.mips().map(MipMode::name).unwrap_or("?").into(),
+                                angle_index: p
+                                    .angle_mode()
+                                    .map(AngleIndexMode::name)
+                                    .unwrap_or("?")
+                                    .into(),
+                                width: spec.width,
+                                height: spec.height,
+                                select_s: vf.select_s,
+                                draw_s: vf.draw_s,
+                                frame_s: vf.select_s + vf.draw_s,
+                                gpu_select_s: vf.gpu_select_s,
+                                gpu_draw_s: vf.gpu_draw_s,
+                                batches_tested: vf.batches_tested,
+                                commands: vf.commands,
+                                trees_drawn: vf.trees_drawn,
+                                trees_finer: vf.batching.trees_finer,
+                                trees_coarser: vf.batching.trees_coarser,
+                                trees_outside_view: vf.batching.trees_outside_view,
+                                trees_missing_lod: vf.batching.trees_missing_lod,
+                                triangles: vf.triangles,
+                                fragments: vf.fragments,
+                                fragments_written: vf.fragments_written,
+                                overdraw: vf.fragments_written.map(|f| f as f64 / pixels as f64),
+                                memory_bytes: vf.memory_bytes,
+                                flip_mean: acc.flip_mean,
+                                flip_p95: acc.flip_p95,
+                                flip_p99: acc.flip_p99,
+                                coverage_error: acc.coverage_error,
+                                gt_tree_fraction: acc.gt_tree_fraction,
+                                tree_fraction: acc.tree_fraction,
+                            });
+                            if pose.save_images {
+                                images.push(save_frame_images(
+                                    &dir,
+                                    scene,
+                                    pose,
+                                    (variant, backend),
+                                    set,
+                                    gt,
+                                    (&vf.color, &vf.aux),
+                                    &map,
+                                    acc,
+                                )?);
+                            }
+                            bar.inc(1);
                         }
-                        bar.inc(1);
                     }
                 }
             }
@@ -914,6 +1065,8 @@ impl Runner {
             x_axis: spec.x_axis.clone(),
             scenes: spec.scenes.clone(),
             variants: spec.variants.clone(),
+            backends: spec.backends.clone(),
+            gpu_adapter: gpu_ctx.map(GpuContext::describe),
             width: spec.width,
             height: spec.height,
             ground_truth_spp: spec.samples * spec.samples,
@@ -932,16 +1085,34 @@ impl Runner {
     }
 }
 
-/// Renders one variant, `repeats` times, keeping the minimum select and draw times.
-fn render_variant(
-    variant: &str,
-    prepared: &Prepared,
-    spheres: &[([f32; 3], f32)],
-    proxy_list: &[Proxy],
-    camera: &Camera,
-    params: &Params,
-    repeats: u32,
-) -> Result<VariantFrame, InputError> {
+/// One frame's inputs, shared by every variant and backend.
+struct Frame<'a> {
+    prepared: &'a Prepared,
+    spheres: &'a [([f32; 3], f32)],
+    proxies: &'a [Proxy],
+    camera: &'a Camera,
+    params: &'a Params,
+}
+
+fn unknown_variant(variant: &str) -> InputError {
+    InputError::new(
+        "<sweep>",
+        "variant",
+        variant,
+        format!("expected one of {}", VARIANTS.join(", ")),
+    )
+}
+
+/// Renders one variant on the reference backend, `repeats` times, keeping the minimum select
+/// and draw times.
+fn render_variant(variant: &str, f: &Frame, repeats: u32) -> Result<VariantFrame, InputError> {
+    let Frame {
+        prepared,
+        spheres,
+        proxies: proxy_list,
+        camera,
+        params,
+    } = *f;
     let mut best: Option<VariantFrame> = None;
     for _ in 0..repeats.max(1) {
         let vf = match variant {
@@ -949,18 +1120,30 @@ fn render_variant(
                 let frame = prepared.render(camera, params)?;
                 let c = frame.selection.counters;
                 let trees = trees_drawn_by_selection(prepared, &frame.selection, camera, params);
+                let batching = batching_counts(
+                    spheres,
+                    &prepared.batches.indirection,
+                    &frame.selection,
+                    camera,
+                    params,
+                );
                 let s = frame.drawn.tree_stats;
+                let target = frame.drawn.target;
                 VariantFrame {
                     select_s: frame.timings.select,
                     draw_s: frame.timings.draw,
+                    gpu_select_s: None,
+                    gpu_draw_s: None,
                     batches_tested: c.batches_tested as u64,
                     commands: c.commands as u64,
                     trees_drawn: trees.len() as u64,
-                    triangles: s.triangles_in,
-                    fragments: s.fragments_shaded,
-                    fragments_written: s.fragments_written,
+                    batching,
+                    triangles: Some(s.triangles_in),
+                    fragments: Some(s.fragments_shaded),
+                    fragments_written: Some(s.fragments_written),
                     memory_bytes: prepared.memory.total,
-                    target: frame.drawn.target,
+                    color: target.color_image(),
+                    aux: target.aux().to_vec(),
                 }
             }
             "vegetation" | "primitive" => {
@@ -973,32 +1156,114 @@ fn render_variant(
                 VariantFrame {
                     select_s: f.timings.select,
                     draw_s: f.timings.draw,
+                    gpu_select_s: None,
+                    gpu_draw_s: None,
                     batches_tested: f.trees_tested,
                     commands: f.commands,
                     trees_drawn: f.visible.len() as u64,
-                    triangles: s.triangles_in,
-                    fragments: s.fragments_shaded,
-                    fragments_written: s.fragments_written,
+                    batching: BatchingCounts::default(),
+                    triangles: Some(s.triangles_in),
+                    fragments: Some(s.fragments_shaded),
+                    fragments_written: Some(s.fragments_written),
                     memory_bytes: f.memory_bytes,
-                    target: f.target,
+                    color: f.target.color_image(),
+                    aux: f.target.aux().to_vec(),
                 }
             }
-            other => {
-                return Err(InputError::new(
-                    "<sweep>",
-                    "variant",
-                    other,
-                    format!("expected one of {}", VARIANTS.join(", ")),
-                ));
-            }
+            other => return Err(unknown_variant(other)),
         };
         best = Some(match best {
             None => vf,
-            Some(mut b) => {
-                b.select_s = b.select_s.min(vf.select_s);
-                b.draw_s = b.draw_s.min(vf.draw_s);
-                b
+            Some(b) => b.keep_fastest(vf),
+        });
+    }
+    Ok(best.expect("at least one repeat"))
+}
+
+/// Renders one variant on the GPU backend ([`GpuSweepScene`]), `repeats` times, keeping the
+/// minimum times. Work counters the GPU does not report (trees drawn by ours, the batching
+/// counts) come from the reference's selection of the same frame, which the parity tests prove
+/// equal to the GPU's (`tests/tests/parity_select.rs`); triangles and fragments stay empty.
+fn render_gpu_variant(
+    gs: &mut GpuSweepScene,
+    variant: &str,
+    f: &Frame,
+    repeats: u32,
+) -> Result<VariantFrame, Box<dyn std::error::Error>> {
+    let Frame {
+        prepared,
+        spheres,
+        proxies: proxy_list,
+        camera,
+        params,
+    } = *f;
+    let gpu_variant = match variant {
+        "ours" => GpuVariant::Ours(Compaction::Stable),
+        "ours-atomic" => GpuVariant::Ours(Compaction::Atomic),
+        "vegetation" => GpuVariant::Vegetation,
+        "primitive" => GpuVariant::Primitive,
+        other => return Err(unknown_variant(other).into()),
+    };
+    let mut best: Option<VariantFrame> = None;
+    for _ in 0..repeats.max(1) {
+        let g = gs.render(gpu_variant, camera, params)?;
+        let (batches_tested, trees_drawn, batching, memory_bytes) = match gpu_variant {
+            GpuVariant::Ours(_) => {
+                let selection = prepared.select(camera, params);
+                let trees = trees_drawn_by_selection(prepared, &selection, camera, params);
+                let batching = batching_counts(
+                    spheres,
+                    &prepared.batches.indirection,
+                    &selection,
+                    camera,
+                    params,
+                );
+                (
+                    prepared.batches.metas.len() as u64,
+                    trees.len() as u64,
+                    batching,
+                    prepared.memory.total,
+                )
             }
+            GpuVariant::Vegetation | GpuVariant::Primitive => {
+                let visible = g.trees_drawn.unwrap_or(0);
+                // The reference baselines' accounting (reference/src/baselines.rs).
+                let extra = if gpu_variant == GpuVariant::Vegetation {
+                    g.commands * (size_of::<DrawCommand>() + size_of::<CommandData>()) as u64
+                } else {
+                    proxy_list.len() as u64 * PROXY_BYTES
+                };
+                (
+                    spheres.len() as u64,
+                    visible,
+                    BatchingCounts::default(),
+                    visible * INSTANCE_INDEX_BYTES + extra,
+                )
+            }
+        };
+        let vf = VariantFrame {
+            color: Rgba8Image {
+                width: g.images.width,
+                height: g.images.height,
+                texels: g.images.color,
+            },
+            aux: g.images.lod_id,
+            select_s: g.select_s,
+            draw_s: g.draw_s,
+            gpu_select_s: g.gpu_select_s,
+            gpu_draw_s: g.gpu_draw_s,
+            batches_tested,
+            commands: g.commands,
+            trees_drawn,
+            batching,
+            triangles: None,
+            fragments: None,
+            fragments_written: None,
+            memory_bytes,
+        };
+        best = Some(match best {
+            None => vf,
+            Some(b) => b.keep_fastest(vf),
         });
     }
     Ok(best.expect("at least one repeat"))
@@ -1026,10 +1291,10 @@ fn save_frame_images(
     dir: &Path,
     scene: &Scene,
     pose: &Pose,
-    variant: &str,
+    (variant, backend): (&str, &str),
     set: &ParamSet,
     gt: &GroundTruthImage,
-    target: &RenderTarget,
+    (color, aux): (&Rgba8Image, &[u32]),
     map: &[f32],
     acc: Accuracy,
 ) -> Result<FrameImages, InputError> {
@@ -1038,8 +1303,8 @@ fn save_frame_images(
     } else {
         format!("{}_{}_y{}", scene.name, pose.camera, pose.yaw_deg)
     };
-    let stem = slug(&format!("{pose_slug}_{variant}_{}", set.label));
-    let (w, h) = (target.width(), target.height());
+    let stem = slug(&format!("{pose_slug}_{variant}_{backend}_{}", set.label));
+    let (w, h) = (color.width, color.height);
     let rel = |name: String| format!("img/{name}");
     let gt_path = rel(format!("{}_gt.png", slug(&pose_slug)));
     let gt_class = rel(format!("{}_gt_class.png", slug(&pose_slug)));
@@ -1047,15 +1312,15 @@ fn save_frame_images(
         write_png(&dir.join(&gt_path), &gt.srgb)?;
         write_png(&dir.join(&gt_class), &gt.class_image())?;
     }
-    let color = rel(format!("{stem}_color.png"));
+    let color_path = rel(format!("{stem}_color.png"));
     let lod = rel(format!("{stem}_lod.png"));
     let flip = rel(format!("{stem}_flip.png"));
-    write_png(&dir.join(&color), &target.color_image())?;
-    write_png(&dir.join(&lod), &lod_id_image(w, h, target.aux()))?;
+    write_png(&dir.join(&color_path), color)?;
+    write_png(&dir.join(&lod), &lod_id_image(w, h, aux))?;
     write_png(&dir.join(&flip), &error_image(map, w, h))?;
     let mut per_lod = Vec::new();
-    if variant == "ours" {
-        for m in per_lod_error_maps(map, target.aux(), w, h) {
+    if variant.starts_with("ours") {
+        for m in per_lod_error_maps(map, aux, w, h) {
             if m.pixels == 0 {
                 continue;
             }
@@ -1069,8 +1334,9 @@ fn save_frame_images(
         yaw_deg: pose.yaw_deg,
         distance_m: pose.distance_m,
         variant: variant.into(),
+        backend: backend.into(),
         setting: set.label.clone(),
-        color,
+        color: color_path,
         lod,
         flip,
         per_lod,
@@ -1110,7 +1376,33 @@ fn write_plots(
         .collect();
     let x_by_label: HashMap<String, Option<f64>> =
         sets.iter().map(|s| (s.label.clone(), s.x)).collect();
-    let nv = spec.variants.len();
+    // With several backends a series is a (variant, backend) pair: relabel the variant.
+    let (rows, variants): (Vec<Row>, Vec<String>) = if spec.backends.len() > 1 {
+        let label = |v: &str, b: &str| format!("{v} ({b})");
+        (
+            rows.iter()
+                .map(|r| Row {
+                    variant: label(&r.variant, &r.backend),
+                    ..r.clone()
+                })
+                .collect(),
+            spec.backends
+                .iter()
+                .flat_map(|b| spec.variants.iter().map(move |v| label(v, b)))
+                .collect(),
+        )
+    } else {
+        (rows.to_vec(), spec.variants.clone())
+    };
+    let rows = &rows[..];
+    let nv = variants.len();
+    let backend_label = if spec.backends.len() > 1 {
+        "reference CPU and GPU backends".to_string()
+    } else if spec.backends.iter().any(|b| b == "gpu") {
+        "GPU backend".to_string()
+    } else {
+        "reference CPU backend".to_string()
+    };
     let mut out = Vec::new();
     let mut plot = |name: &str,
                     caption: String,
@@ -1171,7 +1463,7 @@ fn write_plots(
         let series = group(&all, &y, &|r: &Row| r.frame_s, false);
         let axes = Axes {
             title: format!("{}: cost vs accuracy", spec.name),
-            x_label: "frame time [s] (reference CPU backend, log)".into(),
+            x_label: format!("frame time [s] ({backend_label}, log)"),
             y_label: ylabel.into(),
             log_x: true,
             log_y: false,
@@ -1212,7 +1504,6 @@ fn write_plots(
                     &|p| xy_plot(p, &axes, &series, Style::Lines),
                 )?;
                 // Mean time of each pass per variant (E Fig. 5.1c).
-                let variants: Vec<String> = spec.variants.clone();
                 let values: Vec<Vec<f64>> = variants
                     .iter()
                     .map(|v| {
@@ -1447,6 +1738,52 @@ pub fn resolve(file: Option<&str>) -> Result<Vec<SweepSpec>, InputError> {
     }
 }
 
+/// Variants that run on the GPU backend only.
+pub const GPU_ONLY_VARIANTS: [&str; 1] = ["ours-atomic"];
+
+/// A sweep as `forestlod sweep` runs it: `--quick` and the command-line overrides applied, then
+/// validated. `None` when nothing is left to run: `--backend reference` on a sweep of GPU-only
+/// variants (the dropped variants are named on stderr).
+pub fn configure(spec: SweepSpec, args: &SweepArgs) -> Result<Option<SweepSpec>, InputError> {
+    let mut spec = if args.quick { spec.quick() } else { spec };
+    if let Some(s) = &args.scene {
+        spec.scenes = vec![s.clone()];
+    }
+    spec.width = args.width.unwrap_or(spec.width);
+    spec.height = args.height.unwrap_or(spec.height);
+    spec.repeats = args.repeats.unwrap_or(spec.repeats).max(1);
+    if let Some(b) = &args.backend {
+        spec.backends = b.split(',').map(|s| s.trim().to_string()).collect();
+        if !spec.backends.iter().any(|b| b == "gpu") {
+            let (gpu_only, keep): (Vec<String>, Vec<String>) = spec
+                .variants
+                .iter()
+                .cloned()
+                .partition(|v| GPU_ONLY_VARIANTS.contains(&v.as_str()));
+            if !gpu_only.is_empty() {
+                eprintln!(
+                    "sweep {}: variant(s) {} need the gpu backend; not run with --backend {b}",
+                    spec.name,
+                    gpu_only.join(", ")
+                );
+            }
+            spec.variants = keep;
+            if spec.variants.is_empty() {
+                return Ok(None);
+            }
+        }
+    }
+    if let Some(n) = args.yaw_steps {
+        for c in &mut spec.cameras {
+            if c.name != "distance" {
+                c.yaw_steps = Some(n);
+            }
+        }
+    }
+    spec.validate(&format!("<sweep {}>", spec.name))?;
+    Ok(Some(spec))
+}
+
 /// `forestlod sweep`.
 pub fn run(args: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
     let specs = resolve(args.file.as_deref())?;
@@ -1454,21 +1791,11 @@ pub fn run(args: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
     let mut runner = Runner::default();
     let start = Instant::now();
     for spec in specs {
-        let mut spec = if args.quick { spec.quick() } else { spec };
-        if let Some(s) = &args.scene {
-            spec.scenes = vec![s.clone()];
-        }
-        spec.width = args.width.unwrap_or(spec.width);
-        spec.height = args.height.unwrap_or(spec.height);
-        spec.repeats = args.repeats.unwrap_or(spec.repeats).max(1);
-        if let Some(n) = args.yaw_steps {
-            for c in &mut spec.cameras {
-                if c.name != "distance" {
-                    c.yaw_steps = Some(n);
-                }
-            }
-        }
-        spec.validate(&format!("<sweep {}>", spec.name))?;
+        let name = spec.name.clone();
+        let Some(spec) = configure(spec, args)? else {
+            eprintln!("sweep {name}: nothing to run on the chosen backends");
+            continue;
+        };
         let m = runner.run_sweep(&spec, args.quick, &args.out)?;
         println!(
             "sweep {}: {} frames in {:.1} s -> {}",

@@ -9,14 +9,21 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use forestlod_experiments::report::{read_rows, write_report};
-use forestlod_experiments::sweep::{BUILTIN_SWEEPS, Manifest, SweepArgs, SweepSpec, run};
+use forestlod_experiments::sweep::{
+    BUILTIN_SWEEPS, Manifest, SweepArgs, SweepSpec, configure, run,
+};
 
 #[test]
 fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
     let out = std::env::temp_dir().join(format!("forestlod-sweep-quick-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
-    let start = Instant::now();
-    run(&SweepArgs {
+    // The GPU backend needs an adapter: without one this fails with the install hint, unless the
+    // user opted out (FORESTLOD_ALLOW_NO_GPU=1), in which case only the reference backend runs.
+    let backend = match forestlod_gpu::gpu_or_explain() {
+        Some(_) => None,
+        None => Some("reference".to_string()),
+    };
+    let args = SweepArgs {
         file: None,
         out: out.clone(),
         quick: true,
@@ -25,14 +32,18 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
         height: None,
         yaw_steps: None,
         repeats: None,
-    })
-    .expect("the quick sweeps run");
+        backend: backend.clone(),
+    };
+    let start = Instant::now();
+    run(&args).expect("the quick sweeps run");
     eprintln!(
         "quick sweeps: {:.1} s wall time",
         start.elapsed().as_secs_f64()
     );
     for (name, text) in BUILTIN_SWEEPS {
-        let spec = SweepSpec::parse(text, name).unwrap();
+        let Some(spec) = configure(SweepSpec::parse(text, name).unwrap(), &args).unwrap() else {
+            continue;
+        };
         let dir: PathBuf = out.join(name);
         let manifest: Manifest =
             serde_json::from_str(&std::fs::read_to_string(dir.join("sweep.json")).unwrap())
@@ -47,9 +58,9 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
             }
         }
         let rows = read_rows(&dir.join(&manifest.csv)).unwrap();
-        let mut per_variant: BTreeMap<&str, usize> = BTreeMap::new();
+        let mut per_variant: BTreeMap<(&str, &str), usize> = BTreeMap::new();
         for r in &rows {
-            let cost = [r.select_s, r.draw_s, r.frame_s, r.overdraw];
+            let cost = [r.select_s, r.draw_s, r.frame_s];
             let acc = [r.flip_mean, r.flip_p95, r.flip_p99, r.coverage_error];
             assert!(
                 cost.iter().all(|v| v.is_finite() && *v >= 0.0) && r.frame_s > 0.0,
@@ -65,18 +76,40 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
                 r.camera,
                 r.setting
             );
-            *per_variant.entry(r.variant.as_str()).or_default() += 1;
-        }
-        for v in &spec.variants {
-            assert!(
-                per_variant.get(v.as_str()).copied().unwrap_or(0) > 0,
-                "{name}: no frame of variant {v}"
+            // The reference counts fragments; the GPU backend does not.
+            assert_eq!(
+                r.overdraw.is_some(),
+                r.backend == "reference",
+                "{name}: overdraw of {} on {}",
+                r.variant,
+                r.backend
             );
+            assert!(r.overdraw.is_none_or(|o| o.is_finite() && o >= 0.0));
+            // Conservative selection: no tree misses a LOD the per-tree oracle gives it.
+            assert_eq!(r.trees_missing_lod, 0, "{name}: {} {}", r.variant, r.camera);
+            *per_variant
+                .entry((r.variant.as_str(), r.backend.as_str()))
+                .or_default() += 1;
+        }
+        for b in &spec.backends {
+            for v in &spec.variants {
+                assert!(
+                    per_variant
+                        .get(&(v.as_str(), b.as_str()))
+                        .copied()
+                        .unwrap_or(0)
+                        > 0,
+                    "{name}: no frame of variant {v} on backend {b}"
+                );
+            }
         }
     }
     let report = write_report(&out).expect("the report is written");
     let text = std::fs::read_to_string(&report).unwrap();
     for (name, _) in BUILTIN_SWEEPS {
+        if !out.join(name).join("sweep.json").is_file() {
+            continue; // GPU-only sweep with the GPU opted out
+        }
         assert!(text.contains(&format!("`{name}`")), "report lacks {name}");
     }
     let _ = std::fs::remove_dir_all(&out);

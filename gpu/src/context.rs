@@ -83,6 +83,8 @@ pub struct GpuContext {
     pub limits: wgpu::Limits,
     /// Compiled `select` pipelines, created on first use and shared by every [`crate::GpuSelect`].
     pub(crate) select_pipelines: OnceLock<crate::select::SelectPipelines>,
+    /// Compiled `cull` pipelines, created on first use and shared by every [`crate::GpuCull`].
+    pub(crate) cull_pipelines: OnceLock<crate::cull::CullPipelines>,
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -144,6 +146,7 @@ impl GpuContext {
             features,
             limits,
             select_pipelines: OnceLock::new(),
+            cull_pipelines: OnceLock::new(),
         })
     }
 

@@ -20,7 +20,9 @@
 //!
 //! The vertex stage pulls everything from storage buffers ([`DrawScene`]): packed vertices
 //! ([`DrawVertex`], the reference's `PackedVertex`), instances ([`DrawInstance`]), the
-//! indirection array, mesh metadata, and the per-command data of `select`. The fragment stage
+//! indirection array (the scene's, batch by batch, unless [`DrawInputs::indirection`] replaces
+//! it: the Vegetation baseline draws the compacted visible trees of `cull.rs`, E§5), mesh
+//! metadata, and the per-command data of `select` (or of `cull`). The fragment stage
 //! samples one 2D array texture holding every mesh texture (one layer per mesh: binding arrays
 //! are not portable, so all mesh textures must share one size; [`upload_texture_array`] says so
 //! when they do not) or the billboard array (layer `mesh * K + k`, E Alg. 3.1), trilinear with
@@ -374,12 +376,12 @@ pub struct DrawSceneDesc<'a> {
 pub struct DrawScene {
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
-    instances: wgpu::Buffer,
+    pub(crate) instances: wgpu::Buffer,
     indirection: wgpu::Buffer,
     meshes: wgpu::Buffer,
-    terrain: wgpu::Buffer,
-    terrain_vertex_count: u32,
-    billboard_first_vertex: u32,
+    pub(crate) terrain: wgpu::Buffer,
+    pub(crate) terrain_vertex_count: u32,
+    pub(crate) billboard_first_vertex: u32,
     mesh_count: u32,
 }
 
@@ -783,8 +785,150 @@ pub struct DrawInputs<'a> {
     pub scene: &'a DrawScene,
     /// Mesh and billboard textures.
     pub textures: &'a DrawTextures,
-    /// The `select` output (GPU selection, or the reference's via [`SelectBuffers::from_cpu`]).
+    /// The `select` output (GPU selection, or the reference's via [`SelectBuffers::from_cpu`]),
+    /// or the baselines' per-tree culling (`GpuCull::buffers`).
     pub selection: &'a SelectBuffers,
+    /// The tree indices the commands' `first_instance` ranges index, in place of the scene's
+    /// batch-by-batch indirection ([`DrawSceneDesc::indirection`]): `None` for our pipeline, the
+    /// compacted list of `GpuCull::indirection` for the Vegetation baseline (E§5).
+    pub indirection: Option<&'a wgpu::Buffer>,
+}
+
+/// The depth state of every pass into a [`DrawTarget`]: test LESS, write.
+pub(crate) fn depth_stencil_state() -> wgpu::DepthStencilState {
+    wgpu::DepthStencilState {
+        format: DEPTH_FORMAT,
+        depth_write_enabled: Some(true),
+        depth_compare: Some(wgpu::CompareFunction::Less),
+        stencil: Default::default(),
+        bias: Default::default(),
+    }
+}
+
+/// Triangle lists, no culling (the reference rasterizer culls nothing).
+pub(crate) fn primitive_state() -> wgpu::PrimitiveState {
+    wgpu::PrimitiveState {
+        topology: wgpu::PrimitiveTopology::TriangleList,
+        front_face: wgpu::FrontFace::Ccw,
+        cull_mode: None,
+        ..Default::default()
+    }
+}
+
+/// The colour targets of a [`DrawTarget`] pass: colour with `blend`, the LOD id unblended.
+pub(crate) fn target_states(
+    blend: Option<wgpu::BlendState>,
+) -> [Option<wgpu::ColorTargetState>; 2] {
+    [
+        Some(wgpu::ColorTargetState {
+            format: COLOR_FORMAT,
+            blend,
+            write_mask: wgpu::ColorWrites::ALL,
+        }),
+        Some(wgpu::ColorTargetState {
+            format: LOD_ID_FORMAT,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        }),
+    ]
+}
+
+/// The ground pipeline: `draw.wgsl`'s `terrain_vertex` / `terrain_fragment` (opaque). `module` is
+/// the compiled `draw.wgsl`; `layout`'s group 0 must hold at least binding 0, the [`DrawUniform`]
+/// (the only resource the terrain entry points use), so other passes into a [`DrawTarget`] (the
+/// Primitive baseline) draw the very same ground.
+pub(crate) fn terrain_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::PipelineLayout,
+) -> wgpu::RenderPipeline {
+    let terrain_attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3];
+    let terrain_targets = target_states(None);
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("draw terrain"),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("terrain_vertex"),
+            compilation_options: Default::default(),
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: size_of::<TerrainVertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &terrain_attributes,
+            })],
+        },
+        primitive: primitive_state(),
+        depth_stencil: Some(depth_stencil_state()),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("terrain_fragment"),
+            compilation_options: Default::default(),
+            targets: &terrain_targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// Begins the one render pass of a frame into `target`, cleared to the reference's values: sky
+/// [`SKY_SRGB`] (in linear light), depth 1, LOD id [`LOD_ID_BACKGROUND`].
+pub(crate) fn begin_target_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    target: &DrawTarget,
+    label: &str,
+) -> wgpu::RenderPass<'e> {
+    let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+    let (color, depth, lod_id) = (
+        view(&target.color),
+        view(&target.depth),
+        view(&target.lod_id),
+    );
+    let sky = SKY_SRGB.map(|c| srgb_to_linear(c) as f64);
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[
+            Some(wgpu::RenderPassColorAttachment {
+                view: &color,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color {
+                        r: sky[0],
+                        g: sky[1],
+                        b: sky[2],
+                        a: 1.0,
+                    }),
+                    store: wgpu::StoreOp::Store,
+                },
+            }),
+            Some(wgpu::RenderPassColorAttachment {
+                view: &lod_id,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color {
+                        r: LOD_ID_BACKGROUND as f64,
+                        g: 0.0,
+                        b: 0.0,
+                        a: 0.0,
+                    }),
+                    store: wgpu::StoreOp::Store,
+                },
+            }),
+        ],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: &depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(1.0),
+                store: wgpu::StoreOp::Store,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
 }
 
 /// The compiled draw pipelines of one device.
@@ -898,33 +1042,6 @@ impl GpuDraw {
                 bind_group_layouts: &[Some(&layout)],
                 immediate_size: 0,
             });
-            let depth_stencil = Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            });
-            let primitive = wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                front_face: wgpu::FrontFace::Ccw,
-                cull_mode: None,
-                ..Default::default()
-            };
-            let targets = |blend: Option<wgpu::BlendState>| {
-                [
-                    Some(wgpu::ColorTargetState {
-                        format: COLOR_FORMAT,
-                        blend,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    }),
-                    Some(wgpu::ColorTargetState {
-                        format: LOD_ID_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    }),
-                ]
-            };
             // Straight-alpha source-over (reference raster `Blend::AlphaBlend`).
             let source_over = wgpu::BlendState {
                 color: wgpu::BlendComponent {
@@ -938,7 +1055,7 @@ impl GpuDraw {
                     operation: wgpu::BlendOperation::Add,
                 },
             };
-            let tree_targets = targets(Some(source_over));
+            let tree_targets = target_states(Some(source_over));
             let trees = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some("draw trees"),
                 layout: Some(&pipeline_layout),
@@ -948,8 +1065,8 @@ impl GpuDraw {
                     compilation_options: Default::default(),
                     buffers: &[],
                 },
-                primitive,
-                depth_stencil: depth_stencil.clone(),
+                primitive: primitive_state(),
+                depth_stencil: Some(depth_stencil_state()),
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
                     module: &module,
@@ -960,33 +1077,7 @@ impl GpuDraw {
                 multiview_mask: None,
                 cache: None,
             });
-            let terrain_attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3];
-            let terrain_targets = targets(None);
-            let terrain = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("draw terrain"),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("terrain_vertex"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(wgpu::VertexBufferLayout {
-                        array_stride: size_of::<TerrainVertex>() as u64,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &terrain_attributes,
-                    })],
-                },
-                primitive,
-                depth_stencil,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("terrain_fragment"),
-                    compilation_options: Default::default(),
-                    targets: &terrain_targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            let terrain = terrain_pipeline(device, &module, &pipeline_layout);
             // Reference `Sampler::TRILINEAR`: clamp-to-edge, no bias, default LOD clamps.
             let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("draw trilinear"),
@@ -1034,6 +1125,7 @@ impl GpuDraw {
             scene,
             textures,
             selection,
+            indirection,
         } = *inputs;
         if textures.mesh_layers < scene.mesh_count
             || (textures.billboard_layers as u64)
@@ -1079,7 +1171,9 @@ impl GpuDraw {
                 },
                 wgpu::BindGroupEntry {
                     binding: 3,
-                    resource: scene.indirection.as_entire_binding(),
+                    resource: indirection
+                        .unwrap_or(&scene.indirection)
+                        .as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
                     binding: 4,
@@ -1107,57 +1201,7 @@ impl GpuDraw {
                 },
             ],
         });
-        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let (color, depth, lod_id) = (
-            view(&target.color),
-            view(&target.depth),
-            view(&target.lod_id),
-        );
-        let sky = SKY_SRGB.map(|c| srgb_to_linear(c) as f64);
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("draw"),
-            color_attachments: &[
-                Some(wgpu::RenderPassColorAttachment {
-                    view: &color,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: sky[0],
-                            g: sky[1],
-                            b: sky[2],
-                            a: 1.0,
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                }),
-                Some(wgpu::RenderPassColorAttachment {
-                    view: &lod_id,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: LOD_ID_BACKGROUND as f64,
-                            g: 0.0,
-                            b: 0.0,
-                            a: 0.0,
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                }),
-            ],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &depth,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Store,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = begin_target_pass(encoder, target, "draw");
         pass.set_bind_group(0, &bind_group, &[]);
         pass.set_pipeline(&self.terrain);
         pass.set_vertex_buffer(0, scene.terrain.slice(..));

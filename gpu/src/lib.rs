@@ -12,6 +12,8 @@
 //! | billboard bake | [`bake`] | `shaders/bake.wgsl` | E Alg. 3.1, §4.1; SPEC §5.1 |
 //! | billboard mip chains | [`mips`] | `shaders/mips.wgsl` | E Alg. 3.2, §3.3.2, §4.1; SPEC §5.2 |
 //! | draw execution | [`draw`] | `shaders/draw.wgsl` | E§3.3.1, §4.4; SPEC §5.5 |
+//! | baselines' per-tree culling | [`cull`] | `shaders/cull.wgsl` | E§5; SPEC §9 |
+//! | Primitive baseline's ray-cast quads | [`primitive`] | `shaders/primitive.wgsl` | E§5; SPEC §9 |
 //!
 //! What this crate owns:
 //! - [`GpuContext`]: adapter and device selection (any Vulkan adapter, lavapipe included), the
@@ -20,7 +22,7 @@
 //! - [`readback`]: uploading `Pod` slices and reading buffers and texture levels back;
 //! - [`shaders`]: the WGSL sources, with `common.wgsl` mirroring `forestlod-shared`'s `Pod` structs
 //!   field for field (a naga reflection test checks every offset);
-//! - the stage drivers ([`select`]).
+//! - the stage drivers ([`select`], [`bake`], [`mips`], [`draw`], [`cull`], [`primitive`]).
 //!
 //! What it must not depend on: `forestlod-reference`. The oracle and its twin meet only in the
 //! `tests` crate, so a bug cannot leak from one into the other through shared code; the only code
@@ -33,18 +35,22 @@
 
 pub mod bake;
 pub mod context;
+pub mod cull;
 pub mod draw;
 pub mod mips;
+pub mod primitive;
 pub mod readback;
 pub mod select;
 pub mod shaders;
 
 pub use bake::{BakeMesh, GpuBake, GpuBaked};
 pub use context::{ALLOW_NO_GPU_ENV, GpuContext, GpuError, NO_GPU_HINT, gpu_or_explain};
+pub use cull::{CullTree, DrawIndirectArgs, GpuCull, GpuCulled};
 pub use draw::{
     DrawCalls, DrawInputs, DrawInstance, DrawScene, DrawSceneDesc, DrawTarget, DrawTextures,
     DrawVertex, DrawnImages, GpuDraw, IndirectMode, MipLevel, TerrainVertex, terrain_vertices,
     upload_texture_array,
 };
 pub use mips::{GpuMips, MipArray, MipLevelStats, MipTexels};
+pub use primitive::{GpuPrimitive, GpuProxies, PrimitiveInputs};
 pub use select::{Compaction, GpuSelect, GpuSelection, SelectBuffers, SelectUniform};

@@ -41,7 +41,8 @@ pub const SELECT_WORKGROUP_SIZE: u32 = 64;
 /// Invocations of the single scan workgroup. Keep in sync with `select.wgsl`.
 pub const SCAN_WORKGROUP_SIZE: u32 = 256;
 
-/// Per-batch decision code (low two bits): culled beyond the draw distance.
+/// Per-batch (and, in `cull`, per-tree) decision code (low two bits): culled beyond the draw
+/// distance. The `DECISION_*` codes are kept in sync with `common.wgsl`.
 pub const DECISION_CULLED_DISTANCE: u32 = 0;
 /// Per-batch decision code: culled outside the frustum.
 pub const DECISION_CULLED_FRUSTUM: u32 = 1;

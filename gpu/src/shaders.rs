@@ -38,3 +38,19 @@ pub fn bake_source() -> String {
 pub fn draw_source() -> String {
     with_common(DRAW_WGSL)
 }
+
+/// The `cull` stage's own source (without [`COMMON_WGSL`]): the baselines' per-tree culling.
+pub const CULL_WGSL: &str = include_str!("shaders/cull.wgsl");
+
+/// The full `cull` module source.
+pub fn cull_source() -> String {
+    with_common(CULL_WGSL)
+}
+
+/// The `primitive` stage's own source (without [`COMMON_WGSL`]): the Primitive baseline's quads.
+pub const PRIMITIVE_WGSL: &str = include_str!("shaders/primitive.wgsl");
+
+/// The full `primitive` module source.
+pub fn primitive_source() -> String {
+    with_common(PRIMITIVE_WGSL)
+}

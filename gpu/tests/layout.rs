@@ -1,4 +1,5 @@
-//! The WGSL structs of `common.wgsl` and `select.wgsl` have the layout of their Rust twins: every
+//! The WGSL structs of `common.wgsl`, `select.wgsl` and `primitive.wgsl` (the Primitive baseline's
+//! `ProxyRecord`) have the layout of their Rust twins: every
 //! member at the same byte offset, every struct the same size. Checked with naga's reflection (the
 //! offsets naga computes are the ones wgpu's backends use), so a drifting field fails here rather
 //! than as garbage in a parity test. Also validates the modules, including that `Params`, `Camera`
@@ -7,9 +8,9 @@
 use core::mem::{offset_of, size_of};
 
 use forestlod_gpu::SelectUniform;
-use forestlod_gpu::shaders::{COMMON_WGSL, select_source};
+use forestlod_gpu::shaders::{COMMON_WGSL, cull_source, primitive_source, select_source};
 use forestlod_shared::{
-    BatchMeta, Camera, CommandData, DrawCommand, MeshMeta, Params, SelectCounters,
+    BatchMeta, Camera, CommandData, DrawCommand, MeshMeta, Params, ProxyRecord, SelectCounters,
 };
 
 /// A Rust struct's layout: `(field, offset)` in declaration order, and its size.
@@ -157,9 +158,22 @@ fn wgsl_structs_match_their_rust_twins() {
         select_source()
     );
     let module = validate(&source);
+    let primitive = validate(&primitive_source());
     let mut checked = 0;
-    for rust in rust_layouts() {
-        let (members, span) = wgsl_layout(&module, rust.name)
+    let primitive_layouts = vec![rust_layout!(ProxyRecord {
+        crown_radius,
+        crown_z,
+        trunk_radius,
+        bottom_z,
+        color,
+        _pad0
+    })];
+    let layouts = rust_layouts()
+        .into_iter()
+        .map(|l| (l, &module))
+        .chain(primitive_layouts.into_iter().map(|l| (l, &primitive)));
+    for (rust, module) in layouts {
+        let (members, span) = wgsl_layout(module, rust.name)
             .unwrap_or_else(|| panic!("WGSL has no struct {}", rust.name));
         let wgsl: Vec<(&str, usize)> = members
             .iter()
@@ -183,12 +197,29 @@ fn wgsl_structs_match_their_rust_twins() {
             rust.size
         );
     }
-    assert_eq!(checked, 8);
+    assert_eq!(checked, 9);
 }
 
 #[test]
 fn common_wgsl_is_valid_alone() {
     validate(COMMON_WGSL);
+}
+
+/// The modules that repeat shared structs in their own files (`cull.wgsl`'s `SelectCounters`
+/// use, `primitive.wgsl`'s `ProxyRecord`) validate, and `common.wgsl`'s shared structs keep their
+/// layout there too.
+#[test]
+fn cull_and_primitive_modules_validate() {
+    for source in [cull_source(), primitive_source()] {
+        let module = validate(&source);
+        for name in ["SelectCounters", "DrawCommand", "CommandData", "MeshMeta"] {
+            assert_eq!(
+                wgsl_layout(&module, name),
+                wgsl_layout(&validate(COMMON_WGSL), name),
+                "{name}"
+            );
+        }
+    }
 }
 
 /// The atomic counters struct must have the plain counters' layout, since both name one buffer.

@@ -32,6 +32,11 @@
 //! [`NEAR_FALLBACK_FACTOR`] near-plane distances of the eye gets a full-screen quad at the near
 //! plane instead.
 //!
+//! ## GPU twins
+//! `gpu/src/cull.rs` (per-tree culling and Vegetation's compaction, [`vegetation_commands`]) and
+//! `gpu/src/primitive.rs` (the Primitive's quads and ray cast, one [`ProxyRecord`] per mesh),
+//! judged by `tests/tests/parity_baselines.rs`.
+//!
 //! ## Counters
 //! Both report the trees tested (every tree: the per-tree culling work), trees drawn, commands,
 //! the rasterizer's [`DrawStats`], and the bytes the method adds to the scene data
@@ -40,7 +45,8 @@
 use std::time::Instant;
 
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, CommandData, DrawCommand, LOD_MESH, MeshMeta, Params,
+    COMMAND_SHIFT, Camera, CommandData, DrawCommand, LOD_MESH, MeshMeta, Params, ProxyRecord,
+    SelectCounters,
 };
 use glam::{Vec3, Vec4};
 
@@ -65,11 +71,22 @@ pub const TRUNK_RADIUS_FRACTION: f32 = 0.1;
 /// full-screen quad (the projected-size bound divides by the nearest depth, which would blow up).
 pub const NEAR_FALLBACK_FACTOR: f32 = 2.0;
 
+/// Depth of the near fallback's full-screen quad, in near-plane distances.
+pub const NEAR_FALLBACK_DEPTH: f32 = 1.001;
+
+/// Margin of the near fallback's full-screen quad over the view's half-extent.
+pub const NEAR_FALLBACK_MARGIN: f32 = 1.1;
+
+/// Factor [`Proxy::bounding_radius`] widens the proxy's box circumradius by, so the bounding
+/// sphere holds the proxy whatever the `f32` rounding.
+pub const PROXY_BOUND_SCALE: f32 = 1.0 + 1e-5;
+
 /// Bytes per visible tree in a baseline's compacted instance list (one `u32` tree index).
 pub const INSTANCE_INDEX_BYTES: u64 = 4;
 /// Bytes of one Primitive proxy record per mesh: crown radius, crown centre height, trunk radius,
 /// bottom height and linear RGB plus padding (8 `f32`).
 pub const PROXY_BYTES: u64 = 32;
+const _: () = assert!(core::mem::size_of::<ProxyRecord>() as u64 == PROXY_BYTES);
 
 /// Which baseline (E§5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -161,20 +178,23 @@ pub fn trees_drawn_by_selection(
     out
 }
 
-/// Renders one frame of *Vegetation* (module docs) with our draw stage.
-pub fn render_vegetation(
-    prepared: &Prepared,
-    spheres: &[([f32; 3], f32)],
+/// Vegetation's compaction (module docs): the visible trees (ascending) grouped mesh by mesh into
+/// an instance list (`meshes` with their packed index ranges, [`crate::geometry::pack_geometry`]), and one instanced LOD0 command per mesh with visible trees, in mesh order
+/// (`base_vertex = i << COMMAND_SHIFT`, `first_instance` the mesh's offset in the list, no fade).
+/// Returns the commands, with the counters the GPU twin (`gpu/src/cull.rs`) also writes: trees
+/// tested in `batches_tested`, `commands` = `lod0_commands`, visible trees in `instances` (the
+/// culled counts stay 0), and the list.
+pub fn vegetation_commands(
+    scene: &Scene,
+    meshes: &[MeshMeta],
+    visible: &[u32],
     camera: &Camera,
     params: &Params,
-) -> BaselineFrame {
-    let t = Instant::now();
-    let visible = visible_trees(spheres, camera, params);
+) -> (Selection, Vec<u32>) {
     // Compact mesh by mesh: one instanced command per mesh with visible trees.
-    let meshes = prepared.scene.meshes.len();
-    let mut by_mesh: Vec<Vec<u32>> = vec![Vec::new(); meshes];
-    for &tree in &visible {
-        by_mesh[prepared.scene.instances[tree as usize].mesh as usize].push(tree);
+    let mut by_mesh: Vec<Vec<u32>> = vec![Vec::new(); scene.meshes.len()];
+    for &tree in visible {
+        by_mesh[scene.instances[tree as usize].mesh as usize].push(tree);
     }
     let mut indirection = Vec::with_capacity(visible.len());
     let mut selection = Selection::default();
@@ -183,7 +203,7 @@ pub fn render_vegetation(
         if trees.is_empty() {
             continue;
         }
-        let range = &prepared.geometry.meshes[mesh];
+        let range = &meshes[mesh];
         selection.commands.push(DrawCommand {
             index_count: range.index_count,
             instance_count: trees.len() as u32,
@@ -203,6 +223,33 @@ pub fn render_vegetation(
         });
         indirection.extend_from_slice(trees);
     }
+    let n = selection.commands.len() as u32;
+    selection.counters = SelectCounters {
+        batches_tested: scene.instances.len() as u32,
+        commands: n,
+        lod0_commands: n,
+        instances: visible.len() as u32,
+        ..SelectCounters::default()
+    };
+    (selection, indirection)
+}
+
+/// Renders one frame of *Vegetation* (module docs) with our draw stage.
+pub fn render_vegetation(
+    prepared: &Prepared,
+    spheres: &[([f32; 3], f32)],
+    camera: &Camera,
+    params: &Params,
+) -> BaselineFrame {
+    let t = Instant::now();
+    let visible = visible_trees(spheres, camera, params);
+    let (selection, indirection) = vegetation_commands(
+        &prepared.scene,
+        &prepared.geometry.meshes,
+        &visible,
+        camera,
+        params,
+    );
     let select_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let batches = Batches {
@@ -293,7 +340,7 @@ impl Proxy {
     /// (the circumsphere of its bounding box).
     pub fn bounding_radius(&self) -> f32 {
         let half_h = 0.5 * (self.crown_z + self.crown_radius - self.bottom_z);
-        (2.0 * self.crown_radius * self.crown_radius + half_h * half_h).sqrt() * (1.0 + 1e-5)
+        (2.0 * self.crown_radius * self.crown_radius + half_h * half_h).sqrt() * PROXY_BOUND_SCALE
     }
 
     /// Height of the proxy's bounding-box centre.
@@ -311,6 +358,33 @@ impl Proxy {
         dir: Vec3,
         t_min: f32,
     ) -> Option<f32> {
+        self.intersect_shifted(base, scale, origin, dir, t_min, 0.0)
+    }
+
+    /// [`Proxy::intersect`] with each root test `disc >= 0` (sphere and cylinder) moved to
+    /// `disc >= disc_shift · ε · m`, `m` the larger magnitude of the two products the discriminant
+    /// subtracts (`b·b` and `a·(|o|² - r²)`) and `ε` = `f32::EPSILON`: positive shifts shrink the
+    /// proxy's silhouettes, negative ones widen them, by `disc_shift` roundings of the
+    /// discriminant. `0.0` is exactly [`Proxy::intersect`]. The GPU parity tests render
+    /// alternative frames with it: far from the eye the discriminant cancels catastrophically
+    /// (a trunk 0.34 m wide 700 m away has `r² ≈ 2` units in the last place of `b·b`), so a
+    /// rounding difference (a fused multiply-add on the GPU) decides its hits there.
+    pub fn intersect_shifted(
+        &self,
+        base: Vec3,
+        scale: f32,
+        origin: Vec3,
+        dir: Vec3,
+        t_min: f32,
+        disc_shift: f32,
+    ) -> Option<f32> {
+        let threshold = |p: f32, q: f32| {
+            if disc_shift == 0.0 {
+                0.0
+            } else {
+                disc_shift * f32::EPSILON * p.abs().max(q.abs())
+            }
+        };
         let mut best: Option<f32> = None;
         let mut take = |t: f32| {
             if t >= t_min && best.is_none_or(|b| t < b) {
@@ -323,8 +397,9 @@ impl Proxy {
         let oc = origin - c;
         let a = dir.dot(dir);
         let b = oc.dot(dir);
-        let disc = b * b - a * (oc.dot(oc) - r * r);
-        if disc >= 0.0 {
+        let (p, q) = (b * b, a * (oc.dot(oc) - r * r));
+        let disc = p - q;
+        if disc >= threshold(p, q) {
             let s = disc.sqrt();
             take((-b - s) / a);
             take((-b + s) / a);
@@ -336,8 +411,9 @@ impl Proxy {
         let a2 = dir.x * dir.x + dir.y * dir.y;
         if a2 > 0.0 {
             let b2 = ox * dir.x + oy * dir.y;
-            let disc = b2 * b2 - a2 * (ox * ox + oy * oy - rt * rt);
-            if disc >= 0.0 {
+            let (p, q) = (b2 * b2, a2 * (ox * ox + oy * oy - rt * rt));
+            let disc = p - q;
+            if disc >= threshold(p, q) {
                 let s = disc.sqrt();
                 for t in [(-b2 - s) / a2, (-b2 + s) / a2] {
                     let z = origin.z + t * dir.z;
@@ -348,6 +424,20 @@ impl Proxy {
             }
         }
         best
+    }
+}
+
+impl From<&Proxy> for ProxyRecord {
+    /// The proxy as the GPU twin reads it (`gpu/src/shaders/primitive.wgsl`).
+    fn from(p: &Proxy) -> Self {
+        Self {
+            crown_radius: p.crown_radius,
+            crown_z: p.crown_z,
+            trunk_radius: p.trunk_radius,
+            bottom_z: p.bottom_z,
+            color: p.color,
+            _pad0: 0,
+        }
     }
 }
 
@@ -379,8 +469,8 @@ pub fn primitive_quad(camera: &Camera, center: Vec3, radius: f32) -> [Vec3; 4] {
     let rel = center - eye;
     let d_c = rel.dot(b.forward);
     let (mid, half_x, half_y) = if d_c - radius < NEAR_FALLBACK_FACTOR * camera.near {
-        let d_q = camera.near * 1.001;
-        let ty = (camera.fov_y * 0.5).tan() * d_q * 1.1;
+        let d_q = camera.near * NEAR_FALLBACK_DEPTH;
+        let ty = (camera.fov_y * 0.5).tan() * d_q * NEAR_FALLBACK_MARGIN;
         (eye + b.forward * d_q, ty * camera.aspect(), ty)
     } else {
         let d_q = d_c - radius;
@@ -403,6 +493,20 @@ pub fn render_primitive(
     proxies: &[Proxy],
     camera: &Camera,
     params: &Params,
+) -> BaselineFrame {
+    render_primitive_shifted(prepared, spheres, proxies, camera, params, 0.0)
+}
+
+/// [`render_primitive`] with every ray cast's root tests moved by `disc_shift` roundings
+/// ([`Proxy::intersect_shifted`]); `0.0` is exactly [`render_primitive`]. For the GPU parity
+/// tests' alternative frames.
+pub fn render_primitive_shifted(
+    prepared: &Prepared,
+    spheres: &[([f32; 3], f32)],
+    proxies: &[Proxy],
+    camera: &Camera,
+    params: &Params,
+    disc_shift: f32,
 ) -> BaselineFrame {
     let t = Instant::now();
     let visible = visible_trees(spheres, camera, params);
@@ -459,7 +563,14 @@ pub fn render_primitive(
         }
         // Scale the ray so that t is the view depth, then clip to the near plane.
         let dir = dir / along;
-        let t = proxy.intersect(Vec3::from(inst.position), inst.scale, eye, dir, near)?;
+        let t = proxy.intersect_shifted(
+            Vec3::from(inst.position),
+            inst.scale,
+            eye,
+            dir,
+            near,
+            disc_shift,
+        )?;
         if t > far {
             return None;
         }

@@ -237,6 +237,73 @@ pub fn select_per_tree(
         .collect()
 }
 
+/// What batching did to the trees of one frame, tree by tree, against the per-tree oracle
+/// [`select_per_tree`] (SPEC §6: "count how many trees get a LOD coarser or finer than per-tree
+/// selection would give"). A tree's *commanded* LODs are those of the commands of its batch, kept
+/// only when the tree passes the draw stage's per-tree draw-distance discard (as the draw stage
+/// does); its *needed* LODs are the oracle's.
+///
+/// Because the fade weights are computed per fragment from its own view depth (E§4.4, SPEC §6),
+/// an extra command costs work (triangles, fragments) but changes no pixel: the LOD a fragment
+/// shows is the one its depth asks for. So these counts are the price of batching in **work**;
+/// its price in accuracy is measured by the sweeps' image error (e.g. `grid_size.toml`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BatchingCounts {
+    /// Trees the oracle draws (at least one LOD needed).
+    pub trees_needed: u64,
+    /// Trees drawn by the grouped selection (at least one LOD commanded).
+    pub trees_commanded: u64,
+    /// Trees the oracle draws, as billboards only, that get the full mesh (LOD0) too: drawn
+    /// *finer* than needed.
+    pub trees_finer: u64,
+    /// Trees the oracle draws, as meshes only, that get a billboard (LOD1) too: drawn *coarser*
+    /// than needed (hidden again by the per-fragment fade).
+    pub trees_coarser: u64,
+    /// Trees drawn although the oracle culls them (their batch's sphere reaches into the view or
+    /// the draw distance), with whatever LODs their batch got.
+    pub trees_outside_view: u64,
+    /// Trees missing a LOD the oracle gives them. Conservative selection makes this 0.
+    pub trees_missing_lod: u64,
+}
+
+/// Counts [`BatchingCounts`] for one frame. `spheres[i]` is tree `i`'s bounding sphere
+/// ([`crate::scene::tree_sphere`]), `indirection` the batches' tree lists that the commands'
+/// `first_instance .. + instance_count` ranges index.
+pub fn batching_counts(
+    spheres: &[([f32; 3], f32)],
+    indirection: &[u32],
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+) -> BatchingCounts {
+    let u = SelectUniform::new(camera, params);
+    // Bit 0: LOD0 commanded, bit 1: LOD1 commanded.
+    let mut commanded = vec![0u8; spheres.len()];
+    for (cmd, data) in selection.commands.iter().zip(&selection.data) {
+        let bit = if data.lod == LOD_MESH { 1 } else { 2 };
+        let range = cmd.first_instance as usize..(cmd.first_instance + cmd.instance_count) as usize;
+        for &tree in &indirection[range] {
+            if tree_within_draw_distance(&u, spheres[tree as usize].0) {
+                commanded[tree as usize] |= bit;
+            }
+        }
+    }
+    let oracle = select_per_tree(spheres, camera, params);
+    let mut c = BatchingCounts::default();
+    for (got, want) in commanded.iter().zip(&oracle) {
+        let need = want.needs();
+        let (has0, has1) = (got & 1 != 0, got & 2 != 0);
+        c.trees_needed += (need.lod0 || need.lod1) as u64;
+        c.trees_commanded += (*got != 0) as u64;
+        let drawn_by_oracle = matches!(want, Decision::Draw(_));
+        c.trees_finer += (drawn_by_oracle && has0 && !need.lod0) as u64;
+        c.trees_coarser += (drawn_by_oracle && has1 && !need.lod1) as u64;
+        c.trees_outside_view += (*got != 0 && !drawn_by_oracle) as u64;
+        c.trees_missing_lod += ((need.lod0 && !has0) || (need.lod1 && !has1)) as u64;
+    }
+    c
+}
+
 /// Per-tree selection as a baseline pipeline would run it (E§5's *Vegetation*: every tree tested
 /// alone): the work the grouped selection saves. Returns the number of trees drawn per LOD.
 pub fn count_per_tree(decisions: &[Decision]) -> [u32; 2] {

@@ -44,7 +44,7 @@ pub use camera::{Camera, CameraBasis, FrustumPlanes};
 pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
 pub use interval::{LodNeeds, ViewInterval, lod_needs, selection_margin, view_interval};
 pub use params::{AngleIndexMode, MipMode, ParamError, Params};
-pub use types::{BatchMeta, CommandData, DrawCommand, MeshMeta, SelectCounters};
+pub use types::{BatchMeta, CommandData, DrawCommand, MeshMeta, ProxyRecord, SelectCounters};
 
 /// Number of low bits of `DrawCommand::base_vertex` that carry the mesh-local vertex index; the
 /// command index sits above them (see [`DrawCommand`]). Meshes therefore hold at most 256 vertices,

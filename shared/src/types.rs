@@ -1,5 +1,5 @@
 //! GPU-visible records: batch metadata (E§4.2), draw commands and per-command data (E§4.3),
-//! per-mesh metadata (E§4.1) and selection counters.
+//! per-mesh metadata (E§4.1), selection counters and the Primitive baseline's proxy records (E§5).
 //!
 //! Keep in sync with `gpu/src/shaders/common.wgsl`. Every struct is `#[repr(C)]`, has only 4-byte
 //! fields, explicit padding, and a size assertion; WGSL storage-buffer layout of the same fields in
@@ -146,3 +146,27 @@ pub struct SelectCounters {
     pub instances: u32,
 }
 const _: () = assert!(core::mem::size_of::<SelectCounters>() == 32);
+
+/// One Primitive proxy (E§5, SPEC §9: the "sphere on top of a cylinder" baseline) per mesh, as the
+/// GPU reads it: the reference's `baselines::Proxy`, mesh-local, unit scale. 32 bytes, the
+/// reference's `PROXY_BYTES`.
+///
+/// Keep in sync with `struct ProxyRecord` in `gpu/src/shaders/primitive.wgsl` (layout checked by
+/// `gpu/tests/layout.rs`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct ProxyRecord {
+    /// Crown sphere radius.
+    pub crown_radius: f32,
+    /// Height of the crown sphere's centre above the base.
+    pub crown_z: f32,
+    /// Trunk cylinder radius.
+    pub trunk_radius: f32,
+    /// Height of the trunk's bottom.
+    pub bottom_z: f32,
+    /// Flat colour, linear RGB.
+    pub color: [f32; 3],
+    /// Explicit padding.
+    pub _pad0: u32,
+}
+const _: () = assert!(core::mem::size_of::<ProxyRecord>() == 32);

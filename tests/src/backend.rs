@@ -466,6 +466,7 @@ pub fn render_gpu(
         scene: &scene,
         textures: &textures,
         selection,
+        indirection: None,
     };
     let calls = draw.render(ctx, &inputs, camera, params, &target)?;
     let out = target.read(ctx)?;
@@ -511,5 +512,411 @@ impl Renderer for GpuRenderer {
         )
         .unwrap_or_else(|e| panic!("{}: {e}", self.name()))
         .images
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The sweeps' per-scene GPU runner (E§5; SPEC §9): our pipeline and both baselines on one
+// scene, everything uploaded once, each frame timed stage by stage.
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use forestlod_gpu::readback::read_buffer;
+use forestlod_gpu::{CullTree, GpuCull, GpuPrimitive, GpuProxies, PrimitiveInputs};
+use forestlod_reference::baselines::{
+    Proxy, proxies, render_primitive_shifted, render_vegetation, tree_spheres,
+};
+use forestlod_reference::raster::RenderTarget;
+use forestlod_shared::{ProxyRecord, SelectCounters};
+
+/// The buffers of a reference [`RenderTarget`] as [`Images`].
+pub fn images_of(target: &RenderTarget) -> Images {
+    Images {
+        width: target.width(),
+        height: target.height(),
+        color: target.color().to_vec(),
+        depth: target.depth().to_vec(),
+        lod_id: target.aux().to_vec(),
+    }
+}
+
+/// The reference Vegetation frames with the alpha-test cutoff moved by each of
+/// `±image_compare::ALPHA_TEST_SHIFTS` ([`alpha_test_alternatives`] for Vegetation).
+pub fn vegetation_alternatives(
+    prepared: &Prepared,
+    spheres: &[([f32; 3], f32)],
+    camera: &Camera,
+    params: &Params,
+) -> Vec<Images> {
+    crate::image_compare::ALPHA_TEST_SHIFTS
+        .iter()
+        .flat_map(|&d| [-d, d])
+        .map(|d| {
+            let p = Params {
+                alpha_cutoff: (params.alpha_cutoff + d).clamp(0.0, 1.0),
+                ..*params
+            };
+            images_of(&render_vegetation(prepared, spheres, camera, &p).target)
+        })
+        .collect()
+}
+
+/// The reference Primitive frames with the ray cast's root tests moved by each of
+/// `±image_compare::PRIMITIVE_DISC_SHIFTS` roundings (`Proxy::intersect_shifted`): the
+/// alternatives that classify the pixels a rounding of the discriminant decides.
+pub fn primitive_alternatives(
+    prepared: &Prepared,
+    spheres: &[([f32; 3], f32)],
+    proxies: &[Proxy],
+    camera: &Camera,
+    params: &Params,
+) -> Vec<Images> {
+    crate::image_compare::PRIMITIVE_DISC_SHIFTS
+        .iter()
+        .flat_map(|&d| [-d, d])
+        .map(|d| {
+            images_of(
+                &render_primitive_shifted(prepared, spheres, proxies, camera, params, d).target,
+            )
+        })
+        .collect()
+}
+
+/// The draw pipelines of this process's context, compiled once (fallible twin of [`gpu_draw`]).
+pub fn try_gpu_draw(ctx: &'static GpuContext) -> Result<&'static GpuDraw, GpuError> {
+    static DRAW: OnceLock<GpuDraw> = OnceLock::new();
+    if let Some(d) = DRAW.get() {
+        return Ok(d);
+    }
+    let d = GpuDraw::new(ctx)?;
+    Ok(DRAW.get_or_init(|| d))
+}
+
+/// The Primitive pipelines of this process's context, compiled once.
+pub fn gpu_primitive(ctx: &'static GpuContext) -> Result<&'static GpuPrimitive, GpuError> {
+    static PRIMITIVE: OnceLock<GpuPrimitive> = OnceLock::new();
+    if let Some(p) = PRIMITIVE.get() {
+        return Ok(p);
+    }
+    let p = GpuPrimitive::new(ctx)?;
+    Ok(PRIMITIVE.get_or_init(|| p))
+}
+
+/// Every tree's bounding sphere (`baselines::tree_spheres`, computed on the CPU) and mesh: the
+/// input of [`GpuCull`].
+pub fn cull_trees(prepared: &Prepared) -> Vec<CullTree> {
+    tree_spheres(&prepared.scene, &prepared.geometry.meshes)
+        .into_iter()
+        .zip(&prepared.scene.instances)
+        .map(|((center, radius), t)| CullTree {
+            center,
+            radius,
+            mesh: t.mesh,
+        })
+        .collect()
+}
+
+/// The reference's Primitive proxies of a prepared scene as GPU records (one per mesh).
+pub fn proxy_records(prepared: &Prepared, params: &Params) -> Vec<ProxyRecord> {
+    proxies(prepared, params.alpha_cutoff)
+        .iter()
+        .map(ProxyRecord::from)
+        .collect()
+}
+
+/// Which pipeline a [`GpuSweepScene`] renders (E§5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum GpuVariant {
+    /// Ours: `select.wgsl` with this compaction, then `draw.wgsl`.
+    Ours(forestlod_gpu::Compaction),
+    /// Every visible tree as a full mesh: `cull.wgsl`, then `draw.wgsl` on its compacted list.
+    Vegetation,
+    /// One ray-cast proxy quad per visible tree: `cull.wgsl`, then `primitive.wgsl`.
+    Primitive,
+}
+
+impl GpuVariant {
+    /// Name for reports and CSVs: `ours-stable`, `ours-atomic`, `vegetation`, `primitive`.
+    pub fn name(self) -> String {
+        match self {
+            GpuVariant::Ours(c) => format!("ours-{}", c.name()),
+            GpuVariant::Vegetation => "vegetation".into(),
+            GpuVariant::Primitive => "primitive".into(),
+        }
+    }
+}
+
+/// One frame of a [`GpuSweepScene`], timed.
+#[derive(Clone, Debug)]
+pub struct GpuTimedFrame {
+    /// Colour, depth and LOD id, read back (as [`render_gpu`] returns them).
+    pub images: Images,
+    /// Wall seconds from submit to completion (`ctx.wait`) of selection (ours) or culling
+    /// (baselines).
+    pub select_s: f64,
+    /// Wall seconds from submit to completion of the draw pass (readback excluded).
+    pub draw_s: f64,
+    /// GPU seconds of selection / culling between timestamps, where `TIMESTAMP_QUERY` is offered.
+    pub gpu_select_s: Option<f64>,
+    /// GPU seconds of the draw pass between timestamps, where `TIMESTAMP_QUERY` is offered.
+    pub gpu_draw_s: Option<f64>,
+    /// Draw commands, read back from the counters: ours and Vegetation `counters.commands`;
+    /// Primitive 1 when any tree is visible (its one `draw_indirect`), else 0, as the reference
+    /// counts it.
+    pub commands: u64,
+    /// Baselines: the visible trees (`counters.instances`, the Primitive's instance count);
+    /// ours: `None`.
+    pub trees_drawn: Option<u64>,
+}
+
+/// Timestamp queries around the two stages of a frame (as `experiments/src/bin/gpu_bench.rs`:
+/// empty compute passes that write a timestamp at their beginning).
+struct Timestamps {
+    queries: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+}
+
+impl Timestamps {
+    const COUNT: u32 = 4;
+
+    fn new(ctx: &GpuContext) -> Option<Self> {
+        if !ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY) {
+            return None;
+        }
+        Some(Self {
+            queries: ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("sweep timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: Self::COUNT,
+            }),
+            resolve: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("sweep timestamp resolve"),
+                size: 8 * Self::COUNT as u64,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+        })
+    }
+
+    fn mark(&self, encoder: &mut wgpu::CommandEncoder, index: u32) {
+        encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("timestamp"),
+            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                query_set: &self.queries,
+                beginning_of_pass_write_index: Some(index),
+                end_of_pass_write_index: None,
+            }),
+        });
+    }
+}
+
+/// One prepared scene on the GPU for the sweeps: the draw buffers, the GPU-built textures
+/// ([`gpu_textures`], with the parameters' mip mode), our selection ([`GpuSelect`]), the
+/// baselines' per-tree culling ([`GpuCull`]) and proxies, and a render target per viewport size.
+/// [`GpuSweepScene::new`] uploads everything once; [`GpuSweepScene::render`] only records, submits
+/// and reads back one frame.
+pub struct GpuSweepScene {
+    ctx: &'static GpuContext,
+    scene: DrawScene,
+    textures: DrawTextures,
+    select: GpuSelect<'static>,
+    cull: GpuCull<'static>,
+    proxies: GpuProxies,
+    draw: &'static GpuDraw,
+    primitive: &'static GpuPrimitive,
+    targets: HashMap<(u32, u32), DrawTarget>,
+    timestamps: Option<Timestamps>,
+}
+
+impl GpuSweepScene {
+    /// Uploads `prepared` (prepared with `params`; the textures are built by the GPU stages with
+    /// `params`' mip mode and alpha cutoff, the Primitive proxies are the reference's).
+    pub fn new(
+        ctx: &'static GpuContext,
+        prepared: &Prepared,
+        params: &Params,
+    ) -> Result<Self, GpuError> {
+        let data = DrawSceneData::new(prepared);
+        let scene = DrawScene::new(ctx, &data.desc(prepared))?;
+        let (mesh, billboards) = gpu_textures(ctx, prepared, params)?;
+        let textures = DrawTextures::new(&mesh, &billboards)?;
+        let select = GpuSelect::new(
+            ctx,
+            &prepared.batches.metas,
+            &prepared.geometry.meshes,
+            &prepared.geometry.billboard,
+        )?;
+        let cull = GpuCull::new(ctx, &cull_trees(prepared), &prepared.geometry.meshes)?;
+        let proxies = GpuProxies::new(ctx, &proxy_records(prepared, params));
+        Ok(Self {
+            ctx,
+            scene,
+            textures,
+            select,
+            cull,
+            proxies,
+            draw: try_gpu_draw(ctx)?,
+            primitive: gpu_primitive(ctx)?,
+            targets: HashMap::new(),
+            timestamps: Timestamps::new(ctx),
+        })
+    }
+
+    /// The baselines' culling (for tests: `GpuCull::read` after a baseline frame).
+    pub fn cull(&self) -> &GpuCull<'static> {
+        &self.cull
+    }
+
+    /// Renders one frame of `variant`: stage 1 (selection or culling) and stage 2 (the draw pass)
+    /// are recorded, submitted and waited for separately, each timed from submit to completion;
+    /// then the counters and the target are read back. `params` must be what the scene was
+    /// prepared with, apart from the per-frame fields (fade, distances, LOD levels).
+    pub fn render(
+        &mut self,
+        variant: GpuVariant,
+        camera: &Camera,
+        params: &Params,
+    ) -> Result<GpuTimedFrame, GpuError> {
+        camera.validate().map_err(|e| GpuError::Input {
+            field: "camera",
+            value: e.to_string(),
+            reason: "expected a valid camera (Camera::validate)",
+        })?;
+        params.validate().map_err(|e| GpuError::Input {
+            field: "params",
+            value: e.to_string(),
+            reason: "expected valid parameters (Params::validate)",
+        })?;
+        let key = (camera.width, camera.height);
+        if !self.targets.contains_key(&key) {
+            let target = DrawTarget::new(self.ctx, camera.width, camera.height)?;
+            self.targets.insert(key, target);
+        }
+        let ctx = self.ctx;
+        let target = &self.targets[&key];
+        let stamps = self.timestamps.as_ref();
+        let submit_timed = |encoder: wgpu::CommandEncoder| -> Result<f64, GpuError> {
+            let commands = encoder.finish();
+            let t = Instant::now();
+            ctx.queue.submit([commands]);
+            ctx.wait()?;
+            Ok(t.elapsed().as_secs_f64())
+        };
+
+        // Stage 1: selection or culling.
+        let encoder = ctx.checked("sweep select/cull", || {
+            let mut encoder = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("sweep select"),
+                });
+            if let Some(s) = stamps {
+                s.mark(&mut encoder, 0);
+            }
+            match variant {
+                GpuVariant::Ours(compaction) => {
+                    self.select.encode(&mut encoder, camera, params, compaction)
+                }
+                GpuVariant::Vegetation | GpuVariant::Primitive => {
+                    self.cull.encode(&mut encoder, camera, params)
+                }
+            }
+            if let Some(s) = stamps {
+                s.mark(&mut encoder, 1);
+            }
+            encoder
+        })?;
+        let select_s = submit_timed(encoder)?;
+
+        // Stage 2: the draw pass.
+        let encoder = ctx.checked("sweep draw", || -> Result<_, GpuError> {
+            let mut encoder = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("sweep draw"),
+                });
+            if let Some(s) = stamps {
+                s.mark(&mut encoder, 2);
+            }
+            match variant {
+                GpuVariant::Ours(_) | GpuVariant::Vegetation => {
+                    let inputs = match variant {
+                        GpuVariant::Ours(_) => DrawInputs {
+                            scene: &self.scene,
+                            textures: &self.textures,
+                            selection: self.select.buffers(),
+                            indirection: None,
+                        },
+                        _ => DrawInputs {
+                            scene: &self.scene,
+                            textures: &self.textures,
+                            selection: self.cull.buffers(),
+                            indirection: Some(self.cull.indirection()),
+                        },
+                    };
+                    self.draw
+                        .encode(ctx, &mut encoder, &inputs, camera, params, target)?;
+                }
+                GpuVariant::Primitive => {
+                    let inputs = PrimitiveInputs {
+                        scene: &self.scene,
+                        proxies: &self.proxies,
+                        indirection: self.cull.indirection(),
+                        draw_args: self.cull.draw_args(),
+                    };
+                    self.primitive
+                        .encode(ctx, &mut encoder, &inputs, camera, params, target)?;
+                }
+            }
+            if let Some(s) = stamps {
+                s.mark(&mut encoder, 3);
+                encoder.resolve_query_set(&s.queries, 0..Timestamps::COUNT, &s.resolve, 0);
+            }
+            Ok(encoder)
+        })??;
+        let draw_s = submit_timed(encoder)?;
+
+        // Readback (not timed).
+        let (gpu_select_s, gpu_draw_s) = match stamps {
+            Some(s) => {
+                let ticks: Vec<u64> = read_buffer(ctx, &s.resolve, 0, Timestamps::COUNT as usize)?;
+                let period_s = ctx.queue.get_timestamp_period() as f64 * 1e-9;
+                (
+                    Some(ticks[1].saturating_sub(ticks[0]) as f64 * period_s),
+                    Some(ticks[3].saturating_sub(ticks[2]) as f64 * period_s),
+                )
+            }
+            None => (None, None),
+        };
+        let counters_buffer = match variant {
+            GpuVariant::Ours(_) => &self.select.buffers().counters,
+            _ => &self.cull.buffers().counters,
+        };
+        let counters = read_buffer::<SelectCounters>(ctx, counters_buffer, 0, 1)?[0];
+        let (commands, trees_drawn) = match variant {
+            GpuVariant::Ours(_) => (counters.commands as u64, None),
+            GpuVariant::Vegetation => (counters.commands as u64, Some(counters.instances as u64)),
+            GpuVariant::Primitive => (
+                (counters.instances > 0) as u64,
+                Some(counters.instances as u64),
+            ),
+        };
+        let out = target.read(ctx)?;
+        Ok(GpuTimedFrame {
+            images: Images {
+                width: out.width,
+                height: out.height,
+                color: out.color,
+                depth: out.depth,
+                lod_id: out.lod_id,
+            },
+            select_s,
+            draw_s,
+            gpu_select_s,
+            gpu_draw_s,
+            commands,
+            trees_drawn,
+        })
     }
 }

@@ -25,7 +25,10 @@
 //! speck). The caller passes *alternative* reference frames rendered with the cutoff moved by each
 //! of `±`[`ALPHA_TEST_SHIFTS`] (`backend::alpha_test_alternatives`); a GPU pixel that fails against the
 //! reference but passes (same rules: tolerance, then window) against an alternative is
-//! *threshold-ambiguous*. This is checked before the edge rule and counted separately.
+//! *threshold-ambiguous*. This is checked before the edge rule and counted separately. The
+//! Primitive baseline (E§5) has no alpha test but a ray cast whose root tests `disc >= 0` cancel
+//! catastrophically far from the eye; its alternatives are the reference frames with those tests
+//! moved by each of `±`[`PRIMITIVE_DISC_SHIFTS`] roundings (`backend::primitive_alternatives`).
 //!
 //! **Colour** (sRGB8, all four channels), per pixel, first rule that applies:
 //! 1. *match*: every channel within [`COLOR_TOLERANCE`] of the reference pixel;
@@ -107,6 +110,27 @@ pub const ALPHA_TEST_EPSILON: f32 = 0.09;
 /// cutoff, while the GPU flips only those its own rounding pushes across, usually just the one
 /// nearest the cutoff; smaller rungs reproduce that.
 pub const ALPHA_TEST_SHIFTS: [f32; 3] = [0.01, 0.03, ALPHA_TEST_EPSILON];
+
+/// How many roundings of the discriminant the Primitive's alternative frames move its root tests
+/// by (`reference::baselines::Proxy::intersect_shifted`: `disc >= k · ε · m`, `m` the larger of
+/// the two products the discriminant subtracts).
+///
+/// Why 4: the discriminant `b·b - a·(|o|² - r²)` of a ray passing a proxy hundreds of metres away
+/// subtracts two products of some 5e5 m² whose difference is the proxy's `r²`: for a 0.34 m trunk
+/// at 700 m that is 2 units in the last place of `b·b`, so its hit is decided by rounding. The GPU
+/// may contract any of the multiply-adds into a fused multiply-add (one rounding fewer), which
+/// moves the result by up to about 3 roundings of `m` (`|o|²`'s two adds, the subtraction of `r²`
+/// and the outer one, each at most half an ulp, times `a ≈ 1`); 4 covers that. Measured on
+/// lavapipe: every trunk and crown pixel of `parity_baselines`' far views that differs is
+/// explained by 2. A wrong ray cast (a swapped or missing cylinder test, a wrong radius or height)
+/// moves whole trunks and crowns, metres, and still fails against every frame; close to the eye,
+/// where proxies span pixels, 4 roundings move a silhouette by far less than the ±1 px window.
+pub const PRIMITIVE_DISC_EPSILON: f32 = 4.0;
+
+/// The shifts of the Primitive's alternative frames, a ladder up to [`PRIMITIVE_DISC_EPSILON`] on
+/// each side (as [`ALPHA_TEST_SHIFTS`]: one shifted frame flips every decision within its shift,
+/// the GPU only those its own rounding pushes across).
+pub const PRIMITIVE_DISC_SHIFTS: [f32; 3] = [1.0, 2.0, PRIMITIVE_DISC_EPSILON];
 
 /// Margin around the colour range of the reference's 3x3 neighbourhood within which an edge
 /// pixel's GPU colour is edge-ambiguous (rule 5).

@@ -248,6 +248,7 @@ fn one_draw_call_and_stale_slots_past_the_count_are_ignored() {
             scene: &scene,
             textures: &textures,
             selection: select.buffers(),
+            indirection: None,
         };
         let calls = draw
             .render(ctx, &inputs, &camera, &params, &target)

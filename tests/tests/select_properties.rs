@@ -5,7 +5,8 @@ use forestlod_reference::batches::build_batches;
 use forestlod_reference::geometry::pack_geometry;
 use forestlod_reference::scene::tree_sphere;
 use forestlod_reference::select::{
-    Decision, SelectUniform, batch_decisions, select, select_per_tree, tree_within_draw_distance,
+    Decision, SelectUniform, batch_decisions, batching_counts, select, select_per_tree,
+    tree_within_draw_distance,
 };
 use forestlod_shared::{COMMAND_SHIFT, LodNeeds, Params};
 use forestlod_tests::{cameras, instances, params, scene_of, with_threads};
@@ -96,6 +97,30 @@ proptest! {
             prop_assert!(previous < Some(key));
             previous = Some(key);
         }
+    }
+
+    /// The batching counts (SPEC §6): no tree ever misses a LOD it needs (conservative), at any
+    /// grid size; and with one tree per batch, batching draws no tree finer, coarser or outside
+    /// the view. Mutation-checked: counting `has1` from LOD0 commands makes the second part fail.
+    #[test]
+    fn batching_counts_are_conservative_and_vanish_for_single_tree_batches(trees in instances(300), camera in cameras(), p in params()) {
+        let scene = scene_of(trees);
+        let geometry = pack_geometry(&scene);
+        let spheres: Vec<_> = scene.instances.iter().map(|t| tree_sphere(t, &geometry.meshes[t.mesh as usize])).collect();
+        let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
+        let s = select(&batches.metas, &geometry.meshes, &geometry.billboard, &camera, &p);
+        let c = batching_counts(&spheres, &batches.indirection, &s, &camera, &p);
+        prop_assert_eq!(c.trees_missing_lod, 0, "{:?}", c);
+        prop_assert!(c.trees_commanded >= c.trees_needed, "{:?}", c);
+        prop_assert_eq!(c.trees_commanded - c.trees_needed, c.trees_outside_view, "{:?}", c);
+
+        let p = Params { grid_size: 0.01, ..p };
+        let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
+        prop_assume!(batches.metas.iter().all(|b| b.len == 1));
+        let s = select(&batches.metas, &geometry.meshes, &geometry.billboard, &camera, &p);
+        let c = batching_counts(&spheres, &batches.indirection, &s, &camera, &p);
+        prop_assert_eq!((c.trees_finer, c.trees_coarser, c.trees_outside_view, c.trees_missing_lod), (0, 0, 0, 0), "{:?}", c);
+        prop_assert_eq!(c.trees_commanded, c.trees_needed);
     }
 
     /// Identical output with 1 and 2 rayon threads.

@@ -158,6 +158,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 scene: &gpu_scene,
                 textures: &textures,
                 selection: buffers,
+                indirection: None,
             };
             let gpu_draw = time_gpu(&|| {
                 draw.render(&ctx, &inputs, &camera, &params, &target)

@@ -151,6 +151,46 @@ fn sphere_visible(planes: array<vec4<f32>, 6>, center: vec3<f32>, radius: f32, e
     return visible;
 }
 
+// Per-sphere decision codes (low two bits), plus LOD bits for DECISION_DRAW. Keep in sync with
+// the DECISION_* consts of gpu/src/select.rs.
+const DECISION_CULLED_DISTANCE: u32 = 0u;
+const DECISION_CULLED_FRUSTUM: u32 = 1u;
+const DECISION_DRAW: u32 = 2u;
+const DECISION_KIND_MASK: u32 = 3u;
+const DECISION_LOD0: u32 = 4u;
+const DECISION_LOD1: u32 = 8u;
+
+// Twin of reference/src/select.rs `SelectUniform::decide`: the same rule for a batch
+// (select.wgsl) and for a lone tree (cull.wgsl). Cull beyond the draw distance (`lo`), then
+// outside a frustum plane, else draw with the LODs the interval needs (E§3.5, §4.3).
+fn decide_sphere(
+    center: vec3<f32>,
+    radius: f32,
+    planes: array<vec4<f32>, 6>,
+    eye: vec3<f32>,
+    forward: vec3<f32>,
+    draw_distance: f32,
+    fade_start: f32,
+    fade_end: f32,
+    lod_levels: u32,
+) -> u32 {
+    let i = view_interval(center, radius, eye, forward);
+    if i.lo > draw_distance {
+        return DECISION_CULLED_DISTANCE;
+    }
+    if !sphere_visible(planes, center, radius, eye) {
+        return DECISION_CULLED_FRUSTUM;
+    }
+    let n = lod_needs(i.lo, i.hi, fade_start, fade_end, lod_levels);
+    return DECISION_DRAW | select(0u, DECISION_LOD0, n.lod0) | select(0u, DECISION_LOD1, n.lod1);
+}
+
+// reference/src/select.rs `tree_within_draw_distance` (E§4.4's per-tree discard): the view depth
+// of a tree's bounding-sphere centre is within the draw distance.
+fn within_draw_distance(center: vec3<f32>, eye: vec3<f32>, forward: vec3<f32>, draw_distance: f32) -> bool {
+    return view_interval(center, 0.0, eye, forward).d <= draw_distance;
+}
+
 // forestlod_shared::lod_needs (E§4.3): LOD0 where some point is nearer than the band's end, LOD1
 // where some point is at or past its start; one LOD level means meshes everywhere.
 fn lod_needs(lo: f32, hi: f32, fade_start: f32, fade_end: f32, lod_levels: u32) -> LodNeeds {

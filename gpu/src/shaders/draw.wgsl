@@ -104,9 +104,9 @@ fn tree_sphere(t: DrawInstance, mesh: MeshMeta) -> TreeSphere {
     return TreeSphere(base + rotated, round_up(mesh.sphere_radius * t.scale));
 }
 
-// reference/src/select.rs `tree_within_draw_distance` (E§4.4's per-tree discard).
+// reference/src/select.rs `tree_within_draw_distance` (E§4.4's per-tree discard; common.wgsl).
 fn tree_within_draw_distance(center: vec3<f32>) -> bool {
-    return view_interval(center, 0.0, u.eye, u.forward).d <= u.draw_distance;
+    return within_draw_distance(center, u.eye, u.forward, u.draw_distance);
 }
 
 // reference `vertex_stage`.

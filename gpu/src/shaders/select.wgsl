@@ -46,13 +46,7 @@ struct SelectCountersAtomic {
     instances: atomic<u32>,
 }
 
-// Decision codes stored per batch; keep in sync with the DECISION_* consts of gpu/src/select.rs.
-const DECISION_CULLED_DISTANCE: u32 = 0u;
-const DECISION_CULLED_FRUSTUM: u32 = 1u;
-const DECISION_DRAW: u32 = 2u;
-const DECISION_KIND_MASK: u32 = 3u;
-const DECISION_LOD0: u32 = 4u;
-const DECISION_LOD1: u32 = 8u;
+// Decision codes (DECISION_*) and `decide_sphere` live in common.wgsl (shared with cull.wgsl).
 
 // Keep in sync with SELECT_WORKGROUP_SIZE / SCAN_WORKGROUP_SIZE in gpu/src/select.rs.
 const SELECT_WORKGROUP_SIZE: u32 = 64u;
@@ -69,18 +63,13 @@ const SCAN_WORKGROUP_SIZE: u32 = 256u;
 @group(0) @binding(6) var<storage, read_write> command_data: array<CommandData>;
 @group(0) @binding(7) var<storage, read_write> counters: SelectCountersAtomic;
 
-// Twin of reference SelectUniform::decide: the same rule for a batch and for a lone tree.
+// Twin of reference SelectUniform::decide for a batch's sphere (common.wgsl `decide_sphere`).
 fn decide(b: BatchMeta) -> u32 {
     let center = vec3<f32>(b.center[0], b.center[1], b.center[2]);
-    let i = view_interval(center, b.radius, u.eye, u.forward);
-    if i.lo > u.draw_distance {
-        return DECISION_CULLED_DISTANCE;
-    }
-    if !sphere_visible(u.planes, center, b.radius, u.eye) {
-        return DECISION_CULLED_FRUSTUM;
-    }
-    let n = lod_needs(i.lo, i.hi, u.fade_start, u.fade_end, u.lod_levels);
-    return DECISION_DRAW | select(0u, DECISION_LOD0, n.lod0) | select(0u, DECISION_LOD1, n.lod1);
+    return decide_sphere(
+        center, b.radius, u.planes, u.eye, u.forward, u.draw_distance, u.fade_start, u.fade_end,
+        u.lod_levels,
+    );
 }
 
 // The batch's counter contributions (the reference's compaction loop, per batch); returns the

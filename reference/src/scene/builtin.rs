@@ -420,9 +420,13 @@ fn build_mesh(species: Species, size: u32) -> TreeMesh {
         texture: Rgba8Image::new(size, size, [0, 0, 0, 0]),
     };
 
-    // Trunk: two crossed tapered quads (x-z and y-z planes).
+    // Trunk: two crossed tapered quads in the diagonal planes (45° and 135°), so that no trunk
+    // quad is coplanar with a crown card (cards lie at 0°/90° or 0°/60°/120°): coplanar
+    // overlapping quads would z-fight, and their depth ties would differ between backends.
+    // `sqrt(0.5)` is correctly rounded, so the mesh stays bit-identical everywhere.
     let bark_uv = atlas.bark.uv(size);
-    for dir in [[1.0f32, 0.0], [0.0, 1.0]] {
+    let diagonal = 0.5f32.sqrt();
+    for dir in [[diagonal, diagonal], [-diagonal, diagonal]] {
         let (rb, rt) = (shape.trunk_radius_base, shape.trunk_radius_top);
         push_quad(
             &mut mesh,

@@ -1,0 +1,541 @@
+//! Per-tree culling and compaction of the two baselines of E§5 (SPEC §9) on the GPU: the driver of
+//! `shaders/cull.wgsl`, twin of the reference's `baselines::visible_trees` (that is,
+//! `select::select_per_tree`) and of Vegetation's compaction (`baselines::vegetation_commands`).
+//!
+//! ## Contract
+//! Uploaded once per scene: every tree's bounding sphere (the reference's `baselines::tree_spheres`,
+//! computed on the CPU so both sides decide on the very same `f32`s) and mesh index ([`CullTree`]),
+//! and the meshes' packed index ranges ([`MeshMeta`]). Per frame, three dispatches whatever the
+//! tree count ([`GpuCull::encode`]):
+//! 1. per tree, the reference's `SelectUniform::decide` on the tree's own sphere (draw distance on
+//!    the interval's near end, then the six frustum planes; `common.wgsl` `decide_sphere`, the
+//!    very function `select.wgsl` runs per batch) plus the draw stage's per-tree draw-distance
+//!    discard (`tree_within_draw_distance`, E§4.4); a visible tree reserves a slot within its mesh
+//!    with one `atomicAdd`;
+//! 2. one invocation over the meshes (at most [`MAX_CULL_MESHES`]): one `DrawCommand` and
+//!    `CommandData` per mesh with visible trees, exactly as `render_vegetation` builds them (LOD0,
+//!    `fading` 0, `billboard` 0, `fade_start`/`fade_end` of the uniform, `batch` 0,
+//!    `base_vertex = i << COMMAND_SHIFT`, `first_instance` = the sum of the counts of the meshes
+//!    before it), the counters and the Primitive's [`DrawIndirectArgs`]
+//!    `{6, visible trees, 0, 0}`;
+//! 3. per visible tree, its index into the compacted indirection buffer at its mesh's offset plus
+//!    its slot.
+//!
+//! **Order.** Meshes, and so commands, come in mesh order, as in the reference. Within one mesh the
+//! trees come in the order their invocations won the `atomicAdd`, which is arbitrary (the
+//! reference's is ascending): each command's range of the indirection holds exactly the reference's
+//! trees, as a set. Only the draw order of one mesh's trees differs, which changes a pixel only
+//! where two trees' fragments tie exactly in depth. [`GpuCull::read_visible`] sorts.
+//!
+//! **Outputs.** [`GpuCull::buffers`] is a [`SelectBuffers`] (capacity: the mesh count) that
+//! `GpuDraw` draws as it draws `select`'s output, given [`GpuCull::indirection`] as
+//! `DrawInputs::indirection`: that is Vegetation on the GPU. The counters are
+//! `SelectCounters`-compatible: `batches_tested` = trees tested, `commands` (at
+//! [`SelectBuffers::COUNT_OFFSET`]) = `lod0_commands` = meshes with visible trees, `instances` =
+//! visible trees; the culled counts stay 0 (they would cost an atomic per culled tree).
+//! [`GpuCull::draw_args`] feeds the Primitive's one `draw_indirect` (`primitive.rs`).
+
+use std::num::NonZeroU64;
+
+use bytemuck::{Pod, Zeroable};
+use forestlod_shared::{Camera, MeshMeta, Params, SelectCounters};
+
+use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
+use crate::{GpuContext, GpuError, SelectBuffers};
+
+/// Invocations per workgroup of the per-tree passes. Keep in sync with `cull.wgsl`.
+pub const CULL_WORKGROUP_SIZE: u32 = 64;
+
+/// The most meshes [`GpuCull`] accepts: its command pass is one invocation looping over the meshes
+/// (llvmpipe stops any shader loop after 65,535 iterations, and a loop must not grow with the
+/// input anyway); the thesis's scenes have a handful of species.
+pub const MAX_CULL_MESHES: u32 = 4096;
+
+/// Storage buffers `cull.wgsl` binds in the compute stage.
+const STORAGE_BUFFERS: u32 = 9;
+
+/// One tree as the cull pass reads it. Keep in sync with `struct CullTree` in `cull.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct CullTree {
+    /// Bounding-sphere centre (the reference's `scene::tree_sphere`).
+    pub center: [f32; 3],
+    /// Bounding-sphere radius.
+    pub radius: f32,
+    /// Mesh index.
+    pub mesh: u32,
+}
+const _: () = assert!(size_of::<CullTree>() == 20);
+
+/// `wgpu::util::DrawIndirectArgs` (`VkDrawIndirectCommand`), field for field. Keep in sync with
+/// `struct DrawIndirectArgs` in `cull.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct DrawIndirectArgs {
+    /// Vertices per instance (6: one quad).
+    pub vertex_count: u32,
+    /// Instances (visible trees).
+    pub instance_count: u32,
+    /// First vertex (0).
+    pub first_vertex: u32,
+    /// First instance (0).
+    pub first_instance: u32,
+}
+const _: () = assert!(size_of::<DrawIndirectArgs>() == 16);
+
+/// The per-frame uniform of `cull.wgsl`. Keep in sync with `struct CullUniform` there.
+///
+/// The reference's `select::SelectUniform` plus the sizes; uniform-compatible layout.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct CullUniform {
+    /// Frustum planes `[nx, ny, nz, w]` relative to the eye (`Camera::frustum`).
+    pub planes: [[f32; 4]; 6],
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Start of the fade band, `lod1_transition - fade_width`.
+    pub fade_start: f32,
+    /// Unit view direction (`Camera::basis().forward`).
+    pub forward: [f32; 3],
+    /// End of the fade band, `lod1_transition`.
+    pub fade_end: f32,
+    /// Draw distance.
+    pub draw_distance: f32,
+    /// LOD levels (1 or 2).
+    pub lod_levels: u32,
+    /// Number of trees.
+    pub tree_count: u32,
+    /// Number of meshes.
+    pub mesh_count: u32,
+}
+const _: () = assert!(size_of::<CullUniform>() == 144);
+
+impl CullUniform {
+    /// The uniform for a camera and parameters, derived as the reference's `SelectUniform::new`.
+    pub fn new(camera: &Camera, params: &Params, tree_count: u32, mesh_count: u32) -> Self {
+        Self {
+            planes: camera.frustum().planes,
+            eye: camera.eye,
+            fade_start: params.lod1_transition - params.fade_width,
+            forward: camera.basis().forward.to_array(),
+            fade_end: params.lod1_transition,
+            draw_distance: params.draw_distance,
+            lod_levels: params.lod_levels,
+            tree_count,
+            mesh_count,
+        }
+    }
+}
+
+/// One frame's cull output, read back.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GpuCulled {
+    /// Commands and data (one per mesh with visible trees) and counters.
+    pub selection: crate::GpuSelection,
+    /// The compacted indirection, `counters.instances` tree indices, mesh by mesh (arbitrary
+    /// order within a mesh).
+    pub indirection: Vec<u32>,
+    /// The Primitive's indirect arguments.
+    pub draw_args: DrawIndirectArgs,
+}
+
+/// The compiled pipelines of `cull.wgsl`, one set per [`GpuContext`] (cached there).
+#[derive(Debug)]
+pub struct CullPipelines {
+    layout: wgpu::BindGroupLayout,
+    count: wgpu::ComputePipeline,
+    commands: wgpu::ComputePipeline,
+    scatter: wgpu::ComputePipeline,
+}
+
+impl CullPipelines {
+    /// Compiles `cull.wgsl` and creates its three pipelines.
+    pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+        ctx.checked("cull.wgsl pipelines", || {
+            let device = &ctx.device;
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("cull.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(crate::shaders::cull_source().into()),
+            });
+            let entry =
+                |binding: u32, ty: wgpu::BufferBindingType, min: u64| wgpu::BindGroupLayoutEntry {
+                    binding,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty,
+                        has_dynamic_offset: false,
+                        min_binding_size: NonZeroU64::new(min),
+                    },
+                    count: None,
+                };
+            let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("cull"),
+                entries: &[
+                    entry(
+                        0,
+                        wgpu::BufferBindingType::Uniform,
+                        size_of::<CullUniform>() as u64,
+                    ),
+                    entry(1, storage(true), 0),
+                    entry(2, storage(true), 0),
+                    entry(3, storage(false), 0),
+                    entry(4, storage(false), 0),
+                    entry(5, storage(false), 0),
+                    entry(6, storage(false), 0),
+                    entry(7, storage(false), 0),
+                    entry(8, storage(false), size_of::<SelectCounters>() as u64),
+                    entry(9, storage(false), size_of::<DrawIndirectArgs>() as u64),
+                ],
+            });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("cull"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipeline = |entry_point: &str| {
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(entry_point),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some(entry_point),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            };
+            Self {
+                count: pipeline("cull_count"),
+                commands: pipeline("cull_commands"),
+                scatter: pipeline("cull_scatter"),
+                layout,
+            }
+        })
+    }
+}
+
+/// One scene's trees on the GPU, ready to cull for any camera and parameters (module docs).
+pub struct GpuCull<'a> {
+    ctx: &'a GpuContext,
+    uniform: wgpu::Buffer,
+    mesh_counts: wgpu::Buffer,
+    indirection: wgpu::Buffer,
+    draw_args: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    out: SelectBuffers,
+    tree_count: u32,
+    mesh_count: u32,
+}
+
+impl<'a> GpuCull<'a> {
+    /// Uploads the trees and meshes (`meshes` with their packed index ranges, as the reference's
+    /// `pack_geometry` gives them). Fails on a tree whose mesh is out of range, on more than
+    /// [`MAX_CULL_MESHES`] meshes, or on an adapter with fewer than 9 storage buffers per stage.
+    pub fn new(
+        ctx: &'a GpuContext,
+        trees: &[CullTree],
+        meshes: &[MeshMeta],
+    ) -> Result<Self, GpuError> {
+        if let Some((i, t)) = trees
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.mesh as usize >= meshes.len())
+        {
+            return Err(GpuError::Input {
+                field: "tree.mesh",
+                value: format!("tree {i} mesh {} of {} meshes", t.mesh, meshes.len()),
+                reason: "expected a mesh index below the mesh count",
+            });
+        }
+        if meshes.len() > MAX_CULL_MESHES as usize {
+            return Err(GpuError::Input {
+                field: "meshes",
+                value: meshes.len().to_string(),
+                reason: "the cull pass loops over the meshes in one invocation: at most MAX_CULL_MESHES (4096)",
+            });
+        }
+        if trees.len() >= u32::MAX as usize {
+            return Err(GpuError::Input {
+                field: "trees",
+                value: trees.len().to_string(),
+                reason: "expected fewer than 2^32 - 1 trees (tree indices are u32)",
+            });
+        }
+        if ctx.limits.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
+            return Err(GpuError::Input {
+                field: "adapter limits",
+                value: format!(
+                    "{} storage buffers per shader stage",
+                    ctx.limits.max_storage_buffers_per_shader_stage
+                ),
+                reason: "cull.wgsl binds 9 storage buffers in its compute stage",
+            });
+        }
+        let pipelines = match ctx.cull_pipelines.get() {
+            Some(p) => p,
+            None => {
+                let p = CullPipelines::new(ctx)?;
+                // Another thread may have won the race; either set of pipelines works.
+                let _ = ctx.cull_pipelines.set(p);
+                ctx.cull_pipelines
+                    .get()
+                    .expect("cull pipelines were just set")
+            }
+        };
+        use wgpu::BufferUsages as U;
+        let n = trees.len() as u64;
+        let tree_buffer = upload_storage(ctx, "cull trees", trees, U::empty());
+        let mesh_buffer = upload_storage(ctx, "cull meshes", meshes, U::empty());
+        let uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("cull uniform"),
+            size: size_of::<CullUniform>() as u64,
+            usage: U::UNIFORM | U::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mesh_counts = zeroed_buffer(
+            ctx,
+            "cull mesh counts",
+            meshes.len() as u64 * 4,
+            U::STORAGE | U::COPY_SRC | U::COPY_DST,
+        );
+        let slots = zeroed_buffer(ctx, "cull slots", n * 4, U::STORAGE);
+        let indirection = zeroed_buffer(
+            ctx,
+            "cull indirection",
+            n * 4,
+            U::STORAGE | U::COPY_SRC | U::COPY_DST,
+        );
+        let draw_args = zeroed_buffer(
+            ctx,
+            "cull draw args",
+            size_of::<DrawIndirectArgs>() as u64,
+            U::STORAGE | U::INDIRECT | U::COPY_SRC | U::COPY_DST,
+        );
+        let out = SelectBuffers::with_capacity(ctx, meshes.len() as u32);
+        let bind_group = ctx.checked("cull bind group", || {
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("cull"),
+                layout: &pipelines.layout,
+                entries: &[
+                    (0, &uniform),
+                    (1, &tree_buffer),
+                    (2, &mesh_buffer),
+                    (3, &mesh_counts),
+                    (4, &slots),
+                    (5, &indirection),
+                    (6, &out.commands),
+                    (7, &out.data),
+                    (8, &out.counters),
+                    (9, &draw_args),
+                ]
+                .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                    binding,
+                    resource: buffer.as_entire_binding(),
+                }),
+            })
+        })?;
+        Ok(Self {
+            ctx,
+            uniform,
+            mesh_counts,
+            indirection,
+            draw_args,
+            bind_group,
+            out,
+            tree_count: trees.len() as u32,
+            mesh_count: meshes.len() as u32,
+        })
+    }
+
+    /// Number of trees.
+    pub fn tree_count(&self) -> u32 {
+        self.tree_count
+    }
+
+    /// Commands, data and counters for `GpuDraw` (valid after [`GpuCull::encode`] has run).
+    pub fn buffers(&self) -> &SelectBuffers {
+        &self.out
+    }
+
+    /// The compacted indirection (tree indices, mesh by mesh): `DrawInputs::indirection` for
+    /// Vegetation, the instance list of the Primitive's quads.
+    pub fn indirection(&self) -> &wgpu::Buffer {
+        &self.indirection
+    }
+
+    /// One [`DrawIndirectArgs`] `{6, visible trees, 0, 0}`: the Primitive's `draw_indirect`.
+    pub fn draw_args(&self) -> &wgpu::Buffer {
+        &self.draw_args
+    }
+
+    /// Workgroup counts `(x, y)` covering every tree with `CULL_WORKGROUP_SIZE` invocations each,
+    /// spilling into `y` beyond the per-dimension limit.
+    fn groups(&self) -> (u32, u32) {
+        let groups = self.tree_count.div_ceil(CULL_WORKGROUP_SIZE);
+        let max_x = self.ctx.limits.max_compute_workgroups_per_dimension.max(1);
+        let x = groups.min(max_x);
+        let y = if x == 0 { 0 } else { groups.div_ceil(x) };
+        (x, y)
+    }
+
+    /// Records one frame's culling into `encoder`: writes the uniform (through the queue, so it
+    /// lands before the next submit), clears the per-mesh counts, then three dispatches. `camera`
+    /// and `params` should be validated, as for the reference.
+    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, camera: &Camera, params: &Params) {
+        let uniform = CullUniform::new(camera, params, self.tree_count, self.mesh_count);
+        self.ctx
+            .queue
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
+        encoder.clear_buffer(&self.mesh_counts, 0, None);
+        let pipelines = self
+            .ctx
+            .cull_pipelines
+            .get()
+            .expect("GpuCull::new created the pipelines");
+        let (x, y) = self.groups();
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("cull"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_pipeline(&pipelines.count);
+        pass.dispatch_workgroups(x, y, 1);
+        pass.set_pipeline(&pipelines.commands);
+        pass.dispatch_workgroups(1, 1, 1);
+        pass.set_pipeline(&pipelines.scatter);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+
+    /// Runs one frame's culling and leaves the result on the GPU. Does not wait.
+    pub fn dispatch(&self, camera: &Camera, params: &Params) -> Result<(), GpuError> {
+        self.ctx.checked("cull dispatch", || {
+            let mut encoder =
+                self.ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("cull"),
+                    });
+            self.encode(&mut encoder, camera, params);
+            self.ctx.queue.submit([encoder.finish()]);
+        })
+    }
+
+    /// Reads the last frame's output back: counters, commands, data, the compacted indirection
+    /// and the indirect arguments. Blocks.
+    pub fn read(&self) -> Result<GpuCulled, GpuError> {
+        let selection = self.out.read(self.ctx)?;
+        let n = selection.counters.instances;
+        if n > self.tree_count {
+            return Err(GpuError::Input {
+                field: "counters.instances",
+                value: n.to_string(),
+                reason: "exceeds the tree count: the GPU wrote out of range",
+            });
+        }
+        Ok(GpuCulled {
+            indirection: read_buffer(self.ctx, &self.indirection, 0, n as usize)?,
+            draw_args: read_buffer::<DrawIndirectArgs>(self.ctx, &self.draw_args, 0, 1)?[0],
+            selection,
+        })
+    }
+
+    /// The visible trees of the last frame, ascending (the reference's `visible_trees`). Blocks.
+    pub fn read_visible(&self) -> Result<Vec<u32>, GpuError> {
+        let mut visible = self.read()?.indirection;
+        visible.sort_unstable();
+        Ok(visible)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use core::mem::offset_of;
+
+    /// `CullUniform`, `CullTree` and `DrawIndirectArgs` have their WGSL twins' layout (naga
+    /// reflection of the full `cull.wgsl` module, which also validates it).
+    #[test]
+    fn wgsl_layouts_match_rust() {
+        let source = crate::shaders::cull_source();
+        let module = naga::front::wgsl::parse_str(&source).expect("cull.wgsl parses");
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        )
+        .validate(&module)
+        .expect("cull.wgsl validates");
+        let check = |name: &str, fields: &[(&str, usize)], size: usize| {
+            let (_, ty) = module
+                .types
+                .iter()
+                .find(|(_, t)| t.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("struct {name} in cull.wgsl"));
+            let naga::TypeInner::Struct { members, span } = &ty.inner else {
+                panic!("{name} is not a struct")
+            };
+            assert_eq!(*span as usize, size, "{name} size");
+            let got: Vec<(&str, usize)> = members
+                .iter()
+                .map(|m| (m.name.as_deref().unwrap_or(""), m.offset as usize))
+                .collect();
+            assert_eq!(got, fields, "{name} members");
+        };
+        check(
+            "CullUniform",
+            &[
+                ("planes", offset_of!(CullUniform, planes)),
+                ("eye", offset_of!(CullUniform, eye)),
+                ("fade_start", offset_of!(CullUniform, fade_start)),
+                ("forward", offset_of!(CullUniform, forward)),
+                ("fade_end", offset_of!(CullUniform, fade_end)),
+                ("draw_distance", offset_of!(CullUniform, draw_distance)),
+                ("lod_levels", offset_of!(CullUniform, lod_levels)),
+                ("tree_count", offset_of!(CullUniform, tree_count)),
+                ("mesh_count", offset_of!(CullUniform, mesh_count)),
+            ],
+            size_of::<CullUniform>(),
+        );
+        check(
+            "CullTree",
+            &[
+                ("center", offset_of!(CullTree, center)),
+                ("radius", offset_of!(CullTree, radius)),
+                ("mesh", offset_of!(CullTree, mesh)),
+            ],
+            size_of::<CullTree>(),
+        );
+        check(
+            "DrawIndirectArgs",
+            &[
+                ("vertex_count", offset_of!(DrawIndirectArgs, vertex_count)),
+                (
+                    "instance_count",
+                    offset_of!(DrawIndirectArgs, instance_count),
+                ),
+                ("first_vertex", offset_of!(DrawIndirectArgs, first_vertex)),
+                (
+                    "first_instance",
+                    offset_of!(DrawIndirectArgs, first_instance),
+                ),
+            ],
+            size_of::<DrawIndirectArgs>(),
+        );
+    }
+
+    /// The indirect arguments are wgpu's own.
+    #[test]
+    fn draw_indirect_args_are_wgpus() {
+        let args = DrawIndirectArgs {
+            vertex_count: 6,
+            instance_count: 7,
+            first_vertex: 8,
+            first_instance: 9,
+        };
+        let theirs = wgpu::util::DrawIndirectArgs {
+            vertex_count: 6,
+            instance_count: 7,
+            first_vertex: 8,
+            first_instance: 9,
+        };
+        assert_eq!(bytemuck::bytes_of(&args), theirs.as_bytes());
+    }
+}

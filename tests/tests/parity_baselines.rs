@@ -1,0 +1,803 @@
+//! Parity of the GPU baselines of E§5 (SPEC §9) with the reference's `baselines.rs`:
+//! - **cull** (`gpu/src/shaders/cull.wgsl`): the visible set equals `baselines::visible_trees`
+//!   (the per-tree oracle `select_per_tree`) exactly, tree for tree, except for trees whose
+//!   decision sits within [`AMBIGUITY_REL`] of a threshold (classified *ambiguous*, counted and
+//!   reported); the commands equal the reference Vegetation's (`vegetation_commands`) for the GPU's
+//!   own visible set bit for bit, in order, with the counters, and, when nothing is ambiguous, the
+//!   reference's commands as a multiset of `(mesh, instance_count, index_count, first_index)`; each
+//!   command's range of the compacted indirection holds that mesh's visible trees; the Primitive's
+//!   indirect arguments are `{6, visible, 0, 0}`. Scenarios: `tiny` from the named cameras (and
+//!   yawed), the cropped `synthetic` of `parity_draw`, 64 random cameras and parameters around each
+//!   of them, and 64 random scenes of card trees with random cameras.
+//! - **images** (Vegetation through `draw.wgsl`, Primitive through `primitive.wgsl`, both rendered
+//!   by `GpuSweepScene`, the sweeps' runner): judged by `forestlod_tests::image_compare` against
+//!   `render_vegetation` / `render_primitive`, with its named tolerances and alternative frames
+//!   (Vegetation: the alpha-test cutoff moved, `ALPHA_TEST_SHIFTS`; Primitive: the ray cast's
+//!   root tests moved by a few roundings, `PRIMITIVE_DISC_SHIFTS`); scenarios from far to close,
+//!   two of them close enough for Primitive's full-screen near fallback.
+//! - the runner's own path for our pipeline (`GpuVariant::Ours`) against the reference frame.
+//!
+//! Without an adapter the tests fail with an install hint unless `FORESTLOD_ALLOW_NO_GPU=1`.
+
+use std::collections::BTreeSet;
+use std::time::Instant;
+
+use forestlod_gpu::{Compaction, CullTree, DrawIndirectArgs, GpuCull};
+use forestlod_reference::baselines::{
+    self, Proxy, primitive_quad, proxies, render_primitive, render_vegetation, tree_spheres,
+    vegetation_commands, visible_trees,
+};
+use forestlod_reference::cameras::named_camera;
+use forestlod_reference::draw::LOD_ID_MESH;
+use forestlod_reference::geometry::pack_geometry;
+use forestlod_reference::pipeline::{Prepared, prepare};
+use forestlod_reference::scene::{Scene, builtin};
+use forestlod_reference::select::SelectUniform;
+use forestlod_shared::{
+    Camera, CommandData, DrawCommand, FadeMode, MeshMeta, Params, ProxyRecord, selection_margin,
+    view_interval,
+};
+use forestlod_tests::backend::{
+    GpuSweepScene, GpuVariant, ReferenceRenderer, Renderer, alpha_test_alternatives, cull_trees,
+    gpu_context, images_of, primitive_alternatives, vegetation_alternatives,
+};
+use forestlod_tests::image_compare::{Images, compare_images, write_failure_images};
+use forestlod_tests::scenarios::tiny_params;
+use forestlod_tests::{cameras, instances, params, scene_of};
+use glam::Vec3;
+use proptest::prelude::*;
+use proptest::test_runner::{Config, TestCaseError, TestRunner};
+
+/// Relative distance to a threshold within which the GPU and the reference may cull a tree
+/// differently.
+///
+/// Why: the same as `parity_select`'s `AMBIGUITY_REL` (the same interval and plane arithmetic,
+/// `common.wgsl` `decide_sphere`, on the same `f32` spheres): the GPU compiler may contract
+/// `a * b + c` into a fused multiply-add, which moves a plane distance or an interval end by a
+/// few ulp of `|c - e|₁ + r`; 1e-5 of that is some 80 ulp, ample for any such rounding and far
+/// below what a wrong rule (a missing `+ r`, the per-tree discard on `lo` instead of the centre)
+/// moves it by.
+const AMBIGUITY_REL: f32 = 1e-5;
+
+/// Random cases per random property.
+const CASES: u32 = 64;
+
+/// Why a tree's visibility is ambiguous, or `None` when it is not near any threshold: the
+/// interval's near end against the draw distance, the centre's depth against it (the per-tree
+/// discard), and the six plane distances against `-r - m`.
+fn ambiguity(center: [f32; 3], radius: f32, u: &SelectUniform) -> Option<String> {
+    let i = view_interval(center, radius, u.eye, u.forward);
+    let rel = [
+        center[0] - u.eye[0],
+        center[1] - u.eye[1],
+        center[2] - u.eye[2],
+    ];
+    let m = selection_margin(rel, radius);
+    let magnitude = rel[0].abs() + rel[1].abs() + rel[2].abs() + radius;
+    let near = |x: f32, t: f32| (x - t).abs() <= AMBIGUITY_REL * (magnitude + t.abs());
+    if near(i.lo, u.draw_distance) {
+        return Some(format!("lo {} ≈ draw distance {}", i.lo, u.draw_distance));
+    }
+    if near(i.d, u.draw_distance) {
+        return Some(format!(
+            "centre depth {} ≈ draw distance {} (per-tree discard)",
+            i.d, u.draw_distance
+        ));
+    }
+    for (k, p) in u.frustum.planes.iter().enumerate() {
+        let distance = p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3];
+        if near(distance, -radius - m) {
+            return Some(format!("plane {k} distance {distance} ≈ {}", -radius - m));
+        }
+    }
+    None
+}
+
+/// Tallies of the cull comparisons, printed at the end.
+#[derive(Clone, Debug, Default)]
+struct CullTally {
+    cases: u32,
+    exact_cases: u32,
+    trees: u64,
+    visible: u64,
+    commands: u64,
+    ambiguous_trees: u64,
+    ambiguous_cases: u32,
+}
+
+impl std::fmt::Display for CullTally {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} cases ({} exact, {} with ambiguous trees), {} trees culled, {} visible, \
+             {} commands compared, {} ambiguous trees",
+            self.cases,
+            self.exact_cases,
+            self.ambiguous_cases,
+            self.trees,
+            self.visible,
+            self.commands,
+            self.ambiguous_trees
+        )
+    }
+}
+
+/// `(mesh, instance_count, index_count, first_index)` of each command, sorted: the reference
+/// Vegetation's commands as a multiset.
+fn command_multiset(commands: &[DrawCommand], data: &[CommandData]) -> Vec<[u32; 4]> {
+    let mut v: Vec<[u32; 4]> = commands
+        .iter()
+        .zip(data)
+        .map(|(c, d)| [d.mesh, c.instance_count, c.index_count, c.first_index])
+        .collect();
+    v.sort_unstable();
+    v
+}
+
+/// Culls one frame on the GPU and judges it against the reference (module docs).
+#[allow(clippy::too_many_arguments)]
+fn judge_cull(
+    name: &str,
+    scene: &Scene,
+    meshes: &[MeshMeta],
+    spheres: &[([f32; 3], f32)],
+    gpu: &GpuCull,
+    camera: &Camera,
+    params: &Params,
+    tally: &mut CullTally,
+) -> Result<(), String> {
+    gpu.dispatch(camera, params).map_err(|e| e.to_string())?;
+    let got = gpu.read().map_err(|e| e.to_string())?;
+    let want = visible_trees(spheres, camera, params);
+    tally.cases += 1;
+    tally.trees += spheres.len() as u64;
+    tally.visible += want.len() as u64;
+
+    let mut got_visible = got.indirection.clone();
+    got_visible.sort_unstable();
+    let unique: BTreeSet<u32> = got_visible.iter().copied().collect();
+    if unique.len() != got_visible.len() || got_visible.iter().any(|&t| t as usize >= spheres.len())
+    {
+        return Err(format!(
+            "{name}: the compacted indirection repeats a tree or names one past {}",
+            spheres.len()
+        ));
+    }
+    let want_set: BTreeSet<u32> = want.iter().copied().collect();
+    let u = SelectUniform::new(camera, params);
+    let mut ambiguous = 0;
+    for &t in unique.symmetric_difference(&want_set) {
+        let (c, r) = spheres[t as usize];
+        match ambiguity(c, r, &u) {
+            Some(why) => {
+                eprintln!(
+                    "{name}: tree {t} ambiguous ({why}): reference {}, GPU {}",
+                    want_set.contains(&t),
+                    unique.contains(&t)
+                );
+                ambiguous += 1;
+            }
+            None => {
+                return Err(format!(
+                    "{name}: tree {t} (sphere {c:?} r {r}) is {} on the GPU but {} in the \
+                     reference, and is not within {AMBIGUITY_REL} of any threshold (interval {:?})",
+                    if unique.contains(&t) {
+                        "visible"
+                    } else {
+                        "culled"
+                    },
+                    if want_set.contains(&t) {
+                        "visible"
+                    } else {
+                        "culled"
+                    },
+                    view_interval(c, r, u.eye, u.forward)
+                ));
+            }
+        }
+    }
+
+    // The commands, data and counters Vegetation builds from the GPU's own visible set: exact.
+    let (expect, _) = vegetation_commands(scene, meshes, &got_visible, camera, params);
+    if got.selection.commands != expect.commands
+        || got.selection.data != expect.data
+        || got.selection.counters != expect.counters
+    {
+        return Err(format!(
+            "{name}: commands differ from vegetation_commands of the GPU's visible set\n  GPU \
+             {:?}\n    {:?}\n    {:?}\n  ref {:?}\n    {:?}\n    {:?}",
+            got.selection.commands,
+            got.selection.data,
+            got.selection.counters,
+            expect.commands,
+            expect.data,
+            expect.counters
+        ));
+    }
+    // Each command's range holds its mesh's visible trees (a set: its order is atomic).
+    for (c, d) in got.selection.commands.iter().zip(&got.selection.data) {
+        let range = c.first_instance as usize..(c.first_instance + c.instance_count) as usize;
+        if let Some(&t) = got.indirection[range]
+            .iter()
+            .find(|&&t| scene.instances[t as usize].mesh != d.mesh)
+        {
+            return Err(format!(
+                "{name}: tree {t} of mesh {} in the range of mesh {}'s command",
+                scene.instances[t as usize].mesh, d.mesh
+            ));
+        }
+    }
+    let args = DrawIndirectArgs {
+        vertex_count: 6,
+        instance_count: got_visible.len() as u32,
+        first_vertex: 0,
+        first_instance: 0,
+    };
+    if got.draw_args != args {
+        return Err(format!(
+            "{name}: Primitive indirect arguments {:?}, expected {args:?}",
+            got.draw_args
+        ));
+    }
+    tally.commands += got.selection.commands.len() as u64;
+
+    if ambiguous == 0 {
+        if got_visible != want {
+            return Err(format!("{name}: visible sets differ"));
+        }
+        let (reference, _) = vegetation_commands(scene, meshes, &want, camera, params);
+        if command_multiset(&got.selection.commands, &got.selection.data)
+            != command_multiset(&reference.commands, &reference.data)
+        {
+            return Err(format!(
+                "{name}: commands as a multiset differ from the reference Vegetation's"
+            ));
+        }
+        tally.exact_cases += 1;
+    } else {
+        tally.ambiguous_cases += 1;
+        tally.ambiguous_trees += ambiguous;
+    }
+    Ok(())
+}
+
+/// `synthetic` cropped to the square of half-side `half` metres around its centre (as in
+/// `parity_draw`).
+fn cropped_synthetic(half: f32) -> Scene {
+    let mut scene = builtin::synthetic();
+    let [x0, y0, x1, y1] = scene.bounds;
+    let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
+    scene
+        .instances
+        .retain(|t| (t.position[0] - cx).abs() <= half && (t.position[1] - cy).abs() <= half);
+    scene.bounds = [cx - half, cy - half, cx + half, cy + half];
+    scene.name = format!("synthetic-crop{}", 2.0 * half);
+    scene
+}
+
+/// `parity_draw`'s parameters for the cropped `synthetic`.
+fn crop_params() -> Params {
+    Params {
+        grid_size: 100.0,
+        angle_count: 10,
+        texture_size: 64,
+        lod1_transition: 550.0,
+        fade_width: 150.0,
+        fade_mode: FadeMode::Alpha as u32,
+        ..Params::default()
+    }
+}
+
+/// Random cameras around a scene's footprint (eye within half a footprint of it, 0.5..400 m
+/// up, looking at a random point of it) and random per-frame parameters (draw distance often
+/// inside the footprint, so the distance cull and the per-tree discard both bite).
+fn cases_around(bounds: [f32; 4]) -> impl Strategy<Value = (Camera, Params)> {
+    let [x0, y0, x1, y1] = bounds;
+    let m = 0.5 * (x1 - x0).max(y1 - y0);
+    let camera = (
+        (x0 - m)..(x1 + m),
+        (y0 - m)..(y1 + m),
+        0.5f32..400.0,
+        x0..x1,
+        y0..y1,
+        -20.0f32..40.0,
+        20.0f32..100.0,
+        64u32..256,
+        64u32..256,
+    )
+        .prop_map(|(ex, ey, ez, tx, ty, tz, fov, w, h)| {
+            Camera::look_at([ex, ey, ez], [tx, ty, tz], fov, w, h)
+        })
+        .prop_filter("valid camera", |c| c.validate().is_ok());
+    let p = (
+        prop_oneof![0.0f32..(2.0 * m), Just(4000.0f32)],
+        0.0f32..2000.0,
+        0.0f32..500.0,
+        1u32..=2,
+    )
+        .prop_map(|(d, t, w, l)| Params {
+            draw_distance: d,
+            lod1_transition: t,
+            fade_width: w,
+            lod_levels: l,
+            ..Params::default()
+        });
+    (camera, p)
+}
+
+/// Runs `cases` random cases through `body`, panicking with proptest's (shrunk) failure.
+fn run_random<S: Strategy>(
+    what: &str,
+    strategy: S,
+    mut body: impl FnMut(S::Value) -> Result<(), String>,
+) where
+    S::Value: std::fmt::Debug,
+{
+    let mut runner = TestRunner::new(Config {
+        cases: CASES,
+        failure_persistence: None,
+        ..Config::default()
+    });
+    let body = std::cell::RefCell::new(&mut body);
+    if let Err(e) = runner.run(&strategy, |value| {
+        (body.borrow_mut())(value).map_err(TestCaseError::fail)
+    }) {
+        panic!("{what}: {e}");
+    }
+}
+
+#[test]
+fn gpu_cull_matches_per_tree_culling() {
+    let Some(ctx) = gpu_context() else { return };
+    let started = Instant::now();
+    let mut failures = Vec::new();
+    let mut tally = CullTally::default();
+    let tiny = builtin::tiny();
+    let crop = cropped_synthetic(300.0);
+    for (scene, p, size) in [
+        (&tiny, tiny_params(FadeMode::Alpha), 96),
+        (&crop, crop_params(), 160),
+    ] {
+        let geometry = pack_geometry(scene);
+        let spheres = tree_spheres(scene, &geometry.meshes);
+        let trees: Vec<CullTree> = spheres
+            .iter()
+            .zip(&scene.instances)
+            .map(|(&(center, radius), t)| CullTree {
+                center,
+                radius,
+                mesh: t.mesh,
+            })
+            .collect();
+        let gpu = GpuCull::new(ctx, &trees, &geometry.meshes).expect("GpuCull::new");
+        // The named cameras of parity_draw, yawed, and the draw distance pulled in.
+        for name in ["medium", "close", "far"] {
+            for yaw in [0.0, 40.0, 200.0] {
+                for draw_distance in [p.draw_distance, 150.0] {
+                    let camera = named_camera(name, scene, yaw, size, size).unwrap();
+                    let params = Params { draw_distance, ..p };
+                    let case = format!("{}-{name}-yaw{yaw}-dd{draw_distance}", scene.name);
+                    if let Err(e) = judge_cull(
+                        &case,
+                        scene,
+                        &geometry.meshes,
+                        &spheres,
+                        &gpu,
+                        &camera,
+                        &params,
+                        &mut tally,
+                    ) {
+                        failures.push(e);
+                    }
+                }
+            }
+        }
+        // Random cameras and parameters around the scene.
+        run_random(
+            &format!("{} random cameras", scene.name),
+            cases_around(scene.bounds),
+            |(camera, params)| {
+                judge_cull(
+                    &format!("{} random", scene.name),
+                    scene,
+                    &geometry.meshes,
+                    &spheres,
+                    &gpu,
+                    &camera,
+                    &params,
+                    &mut tally,
+                )
+            },
+        );
+    }
+    // Random scenes of card trees, random cameras (parity_select's generators).
+    run_random(
+        "random scenes",
+        (instances(300), cameras(), params()),
+        |(trees, camera, params)| {
+            let scene = scene_of(trees);
+            let geometry = pack_geometry(&scene);
+            let spheres = tree_spheres(&scene, &geometry.meshes);
+            let cull: Vec<CullTree> = spheres
+                .iter()
+                .zip(&scene.instances)
+                .map(|(&(center, radius), t)| CullTree {
+                    center,
+                    radius,
+                    mesh: t.mesh,
+                })
+                .collect();
+            let gpu = GpuCull::new(ctx, &cull, &geometry.meshes).map_err(|e| e.to_string())?;
+            judge_cull(
+                "random scene",
+                &scene,
+                &geometry.meshes,
+                &spheres,
+                &gpu,
+                &camera,
+                &params,
+                &mut tally,
+            )
+        },
+    );
+    println!(
+        "cull parity: {tally} in {:.2} s",
+        started.elapsed().as_secs_f64()
+    );
+    assert!(tally.cases >= 64 + 36, "too few cases ran: {}", tally.cases);
+    assert!(
+        failures.is_empty(),
+        "cull parity failed:\n{}",
+        failures.join("\n")
+    );
+}
+
+/// One frame of the image comparisons.
+struct ImageScenario {
+    name: String,
+    prepared_key: usize,
+    camera: Camera,
+    params: Params,
+    /// The scenario is there for Primitive's near fallback: some visible tree must take it.
+    near_fallback: bool,
+}
+
+/// Visible trees whose Primitive quad is the full-screen near fallback (the reference's
+/// `primitive_quad` condition).
+fn near_fallback_trees(
+    prepared: &Prepared,
+    proxy_list: &[Proxy],
+    visible: &[u32],
+    camera: &Camera,
+) -> usize {
+    let b = camera.basis();
+    visible
+        .iter()
+        .filter(|&&t| {
+            let inst = &prepared.scene.instances[t as usize];
+            let proxy = &proxy_list[inst.mesh as usize];
+            let center = Vec3::from(inst.position) + Vec3::Z * proxy.center_z() * inst.scale;
+            let radius = proxy.bounding_radius() * inst.scale;
+            let d_c = (center - Vec3::from(camera.eye)).dot(b.forward);
+            d_c - radius < baselines::NEAR_FALLBACK_FACTOR * camera.near
+        })
+        .count()
+}
+
+fn image_scenarios() -> (Vec<Prepared>, Vec<ImageScenario>) {
+    let mut prepared = Vec::new();
+    let mut out = Vec::new();
+    let tiny = builtin::tiny();
+    let p = tiny_params(FadeMode::Alpha);
+    prepared.push(prepare(tiny.clone(), &p).expect("prepare tiny"));
+    for (name, yaw) in [
+        ("medium", 0.0),
+        ("medium", 40.0),
+        ("close", 0.0),
+        ("far", 0.0),
+    ] {
+        out.push(ImageScenario {
+            name: format!("tiny-{name}-yaw{yaw}"),
+            prepared_key: 0,
+            camera: named_camera(name, &tiny, yaw, 96, 96).unwrap(),
+            params: p,
+            near_fallback: false,
+        });
+    }
+    out.push(ImageScenario {
+        name: "tiny-medium-draw-distance-300".into(),
+        prepared_key: 0,
+        camera: named_camera("medium", &tiny, 0.0, 96, 96).unwrap(),
+        params: Params {
+            draw_distance: 300.0,
+            ..p
+        },
+        near_fallback: false,
+    });
+    let crop = cropped_synthetic(300.0);
+    prepared.push(prepare(crop.clone(), &crop_params()).expect("prepare crop"));
+    for (name, size) in [("medium", 160), ("close", 128)] {
+        out.push(ImageScenario {
+            name: format!("{}-{name}", crop.name),
+            prepared_key: 1,
+            camera: named_camera(name, &crop, 0.0, size, size).unwrap(),
+            params: crop_params(),
+            near_fallback: false,
+        });
+    }
+    // `pair` (a spruce at x = -6, an oak at x = 6) from inside their bounding spheres.
+    let pair = builtin::pair();
+    let pair_params = Params {
+        texture_size: 64,
+        ..Params::default()
+    };
+    prepared.push(prepare(pair, &pair_params).expect("prepare pair"));
+    out.push(ImageScenario {
+        name: "pair-near-spruce-crown".into(),
+        prepared_key: 2,
+        camera: Camera::look_at([-11.0, -3.0, 9.0], [-6.0, 0.0, 8.0], 60.0, 96, 96),
+        params: pair_params,
+        near_fallback: true,
+    });
+    out.push(ImageScenario {
+        name: "pair-near-oak-trunk".into(),
+        prepared_key: 2,
+        camera: Camera::look_at([1.0, -2.5, 1.5], [6.0, 0.0, 3.0], 70.0, 96, 96),
+        params: pair_params,
+        near_fallback: true,
+    });
+    (prepared, out)
+}
+
+/// Judges `got` against `want`, prints the report, notes its maxima into `max` (interior colour
+/// difference, interior depth ulps, depth difference) and returns the failure line, if any.
+fn judge_image(
+    name: &str,
+    got: &Images,
+    want: &Images,
+    alternatives: &[Images],
+    camera: &Camera,
+    max: &mut (u8, u32, f32),
+) -> Option<String> {
+    let report = compare_images(name, got, want, alternatives, camera);
+    println!("{report}");
+    *max = (
+        max.0.max(report.color_max_interior_diff),
+        max.1.max(report.depth_max_interior_ulps),
+        max.2.max(report.depth_max_diff),
+    );
+    if report.passed() {
+        None
+    } else {
+        let dir = write_failure_images(&report, got, want);
+        Some(format!(
+            "{name}: {} (images in {})",
+            report.failures().join("; "),
+            dir.display()
+        ))
+    }
+}
+
+#[test]
+fn gpu_baseline_images_match_the_reference() {
+    let Some(ctx) = gpu_context() else { return };
+    let started = Instant::now();
+    let (prepared, scenarios) = image_scenarios();
+    let mut sweeps: Vec<GpuSweepScene> = prepared
+        .iter()
+        .zip([
+            tiny_params(FadeMode::Alpha),
+            crop_params(),
+            Params {
+                texture_size: 64,
+                ..Params::default()
+            },
+        ])
+        .map(|(p, params)| GpuSweepScene::new(ctx, p, &params).expect("GpuSweepScene::new"))
+        .collect();
+    let mut failures = Vec::new();
+    let (mut max_vegetation, mut max_primitive) = ((0u8, 0u32, 0.0f32), (0u8, 0u32, 0.0f32));
+    let mut fallback_scenarios = 0;
+    for s in &scenarios {
+        let p = &prepared[s.prepared_key];
+        let sweep = &mut sweeps[s.prepared_key];
+        let spheres = tree_spheres(&p.scene, &p.geometry.meshes);
+        let proxy_list = proxies(p, s.params.alpha_cutoff);
+
+        // Vegetation.
+        let want = render_vegetation(p, &spheres, &s.camera, &s.params);
+        let alternatives = vegetation_alternatives(p, &spheres, &s.camera, &s.params);
+        let got = sweep
+            .render(GpuVariant::Vegetation, &s.camera, &s.params)
+            .expect("Vegetation frame");
+        assert_eq!(
+            got.trees_drawn,
+            Some(want.visible.len() as u64),
+            "{}: Vegetation trees drawn",
+            s.name
+        );
+        assert_eq!(
+            got.commands, want.commands,
+            "{}: Vegetation commands",
+            s.name
+        );
+        if let Some(f) = judge_image(
+            &format!("{}/vegetation", s.name),
+            &got.images,
+            &images_of(&want.target),
+            &alternatives,
+            &s.camera,
+            &mut max_vegetation,
+        ) {
+            failures.push(f);
+        }
+
+        // Primitive.
+        let want = render_primitive(p, &spheres, &proxy_list, &s.camera, &s.params);
+        let fallbacks = near_fallback_trees(p, &proxy_list, &want.visible, &s.camera);
+        if s.near_fallback {
+            assert!(
+                fallbacks > 0,
+                "{}: no visible tree takes the near fallback",
+                s.name
+            );
+            assert!(
+                want.target.aux().contains(&LOD_ID_MESH),
+                "{}: the reference shows no proxy",
+                s.name
+            );
+            fallback_scenarios += 1;
+        }
+        let got = sweep
+            .render(GpuVariant::Primitive, &s.camera, &s.params)
+            .expect("Primitive frame");
+        assert_eq!(
+            got.trees_drawn,
+            Some(want.visible.len() as u64),
+            "{}: Primitive trees drawn",
+            s.name
+        );
+        assert_eq!(
+            got.commands, want.commands,
+            "{}: Primitive commands",
+            s.name
+        );
+        let name = format!("{}/primitive ({fallbacks} near-fallback quads)", s.name);
+        let alternatives = primitive_alternatives(p, &spheres, &proxy_list, &s.camera, &s.params);
+        if let Some(f) = judge_image(
+            &name,
+            &got.images,
+            &images_of(&want.target),
+            &alternatives,
+            &s.camera,
+            &mut max_primitive,
+        ) {
+            failures.push(f);
+        }
+        println!(
+            "  ({}: Vegetation and Primitive, GPU select {:.2} ms, draw {:.2} ms)",
+            s.name,
+            got.select_s * 1e3,
+            got.draw_s * 1e3
+        );
+    }
+    println!(
+        "baseline images: {} scenarios x 2 baselines ({fallback_scenarios} with the near fallback) \
+         in {:.1} s",
+        scenarios.len(),
+        started.elapsed().as_secs_f64()
+    );
+    for (what, max) in [("Vegetation", max_vegetation), ("Primitive", max_primitive)] {
+        println!(
+            "  {what}: max interior colour diff {}, max interior depth diff {} ulp, max depth \
+             diff {:.3e}",
+            max.0, max.1, max.2
+        );
+    }
+    assert!(fallback_scenarios >= 2);
+    assert!(
+        failures.is_empty(),
+        "baseline image parity failed:\n{}",
+        failures.join("\n")
+    );
+}
+
+/// The sweeps' runner draws our pipeline like the reference, with the reference's command count,
+/// and reports its timings.
+#[test]
+fn sweep_runner_renders_ours_like_the_reference() {
+    let Some(ctx) = gpu_context() else { return };
+    let tiny = builtin::tiny();
+    let p = tiny_params(FadeMode::Alpha);
+    let prepared = prepare(tiny.clone(), &p).expect("prepare tiny");
+    let camera = named_camera("medium", &tiny, 0.0, 96, 96).unwrap();
+    let want = ReferenceRenderer.render(&prepared, &camera, &p);
+    let alternatives = alpha_test_alternatives(&prepared, &camera, &p);
+    let commands = prepared.select(&camera, &p).commands.len() as u64;
+    let mut sweep = GpuSweepScene::new(ctx, &prepared, &p).expect("GpuSweepScene::new");
+    let timestamps = ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY);
+    let mut failures = Vec::new();
+    for compaction in Compaction::ALL {
+        let variant = GpuVariant::Ours(compaction);
+        let frame = sweep.render(variant, &camera, &p).expect("frame");
+        assert_eq!(frame.commands, commands, "{}", variant.name());
+        assert_eq!(frame.trees_drawn, None);
+        assert!(frame.select_s > 0.0 && frame.draw_s > 0.0);
+        assert_eq!(frame.gpu_select_s.is_some(), timestamps);
+        assert_eq!(frame.gpu_draw_s.is_some(), timestamps);
+        println!(
+            "{}: select {:.2} ms (GPU {:?}), draw {:.2} ms (GPU {:?})",
+            variant.name(),
+            frame.select_s * 1e3,
+            frame.gpu_select_s.map(|s| s * 1e3),
+            frame.draw_s * 1e3,
+            frame.gpu_draw_s.map(|s| s * 1e3)
+        );
+        if let Some(f) = judge_image(
+            &format!("sweep-runner/{}", variant.name()),
+            &frame.images,
+            &want,
+            &alternatives,
+            &camera,
+            &mut (0, 0, 0.0),
+        ) {
+            failures.push(f);
+        }
+    }
+    // The cull buffers the baselines leave behind agree with the runner's own tree list.
+    let frame = sweep
+        .render(GpuVariant::Vegetation, &camera, &p)
+        .expect("frame");
+    let visible = sweep.cull().read_visible().expect("read_visible");
+    assert_eq!(frame.trees_drawn, Some(visible.len() as u64));
+    assert_eq!(cull_trees(&prepared).len(), prepared.scene.instances.len());
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The constants the GPU Primitive repeats from the reference (it may not depend on it), and the
+/// proxy record.
+#[test]
+fn primitive_constants_agree_with_the_reference() {
+    use forestlod_gpu::primitive as gpu;
+    assert_eq!(gpu::NEAR_FALLBACK_FACTOR, baselines::NEAR_FALLBACK_FACTOR);
+    assert_eq!(gpu::NEAR_FALLBACK_DEPTH, baselines::NEAR_FALLBACK_DEPTH);
+    assert_eq!(gpu::NEAR_FALLBACK_MARGIN, baselines::NEAR_FALLBACK_MARGIN);
+    assert_eq!(gpu::PROXY_BOUND_SCALE, baselines::PROXY_BOUND_SCALE);
+    assert_eq!(
+        size_of::<ProxyRecord>() as u64,
+        baselines::PROXY_BYTES,
+        "PROXY_BYTES"
+    );
+    let proxy = Proxy {
+        crown_radius: 3.0,
+        crown_z: 15.0,
+        trunk_radius: 0.3,
+        bottom_z: -0.5,
+        color: [0.1, 0.2, 0.3],
+    };
+    assert_eq!(
+        ProxyRecord::from(&proxy),
+        ProxyRecord {
+            crown_radius: 3.0,
+            crown_z: 15.0,
+            trunk_radius: 0.3,
+            bottom_z: -0.5,
+            color: [0.1, 0.2, 0.3],
+            _pad0: 0,
+        }
+    );
+    // The quad the GPU's uniform describes for the fallback is the reference's.
+    let camera = Camera::look_at([0.0, 0.0, 2.0], [10.0, 3.0, 2.0], 60.0, 160, 90);
+    let u = gpu::PrimitiveUniform::new(&camera);
+    let q = primitive_quad(&camera, Vec3::new(0.5, 0.0, 2.0), 3.0);
+    let b = camera.basis();
+    let mid = Vec3::from(camera.eye) + b.forward * u.fallback_depth;
+    assert_eq!(
+        q[0],
+        mid - Vec3::from(u.right) * u.fallback_half_x - Vec3::from(u.up) * u.fallback_half_y
+    );
+    assert_eq!(
+        q[2],
+        mid + Vec3::from(u.right) * u.fallback_half_x + Vec3::from(u.up) * u.fallback_half_y
+    );
+}
