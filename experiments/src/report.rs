@@ -255,7 +255,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
     for (k, s) in &summaries {
         let _ = writeln!(
             out,
-            "| {k} | {} | {} | {} | {} | {} | {} / {} | {} | {} | {:.2} | {:.2} | {:.4} | {:.4} | {:.4} | {:.4} |",
+            "| {k} | {} | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {:.4} | {:.4} | {:.4} | {:.4} |",
             s.frames,
             ms(s.frame_s),
             ms(s.select_s),
@@ -265,7 +265,11 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             big(s.trees_coarser),
             big(s.triangles),
             big(s.fragments),
-            s.overdraw,
+            if s.overdraw.is_nan() {
+                "-".to_string()
+            } else {
+                format!("{:.2}", s.overdraw)
+            },
             s.memory_bytes / 1e6,
             s.flip_mean,
             s.flip_p95,

@@ -51,7 +51,7 @@ use crate::metrics::{Accuracy, accuracy, error_image, per_lod_error_maps};
 use crate::plot::{Axes, Series, Style, bar_plot, xy_plot};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 9] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 10] = [
     ("camera360", include_str!("../sweeps/camera360.toml")),
     ("distance", include_str!("../sweeps/distance.toml")),
     ("grid_size", include_str!("../sweeps/grid_size.toml")),
@@ -64,6 +64,7 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 9] = [
     ("mip_mode", include_str!("../sweeps/mip_mode.toml")),
     ("angle_index", include_str!("../sweeps/angle_index.toml")),
     ("compaction", include_str!("../sweeps/compaction.toml")),
+    ("grid_stress", include_str!("../sweeps/grid_stress.toml")),
 ];
 
 /// Variant names accepted in `variants`: ours (stable compaction on the GPU), ours with the
@@ -541,32 +542,17 @@ impl SweepSpec {
                 "expected at least one camera",
             ));
         }
-        for v in &self.variants {
-            if !VARIANTS.contains(&v.as_str()) {
-                return Err(InputError::new(
-                    file,
-                    "variants",
-                    v,
-                    format!("expected one of {}", VARIANTS.join(", ")),
-                ));
+        // Non-empty lists of known names.
+        for (field, list, known) in [
+            ("variants", &self.variants, &VARIANTS[..]),
+            ("backends", &self.backends, &BACKENDS[..]),
+        ] {
+            let expected = format!("expected one of {}", known.join(", "));
+            if list.is_empty() {
+                return Err(InputError::new(file, field, "[]", expected));
             }
-        }
-        if self.backends.is_empty() {
-            return Err(InputError::new(
-                file,
-                "backends",
-                "[]",
-                "expected at least one of reference, gpu",
-            ));
-        }
-        for b in &self.backends {
-            if !BACKENDS.contains(&b.as_str()) {
-                return Err(InputError::new(
-                    file,
-                    "backends",
-                    b,
-                    format!("expected one of {}", BACKENDS.join(", ")),
-                ));
+            if let Some(bad) = list.iter().find(|v| !known.contains(&v.as_str())) {
+                return Err(InputError::new(file, field, bad, expected));
             }
         }
         if self.variants.iter().any(|v| v == "ours-atomic")
@@ -1849,6 +1835,24 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("fast"), "{e}");
+        let e = SweepSpec::parse(
+            "name = 'x'\ntitle = 't'\nscenes = ['tiny']\nbackends = ['cuda']\n[[cameras]]\nname = 'far'\n",
+            "f.toml",
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("cuda"), "{e}");
+        let e = SweepSpec::parse(
+            "name = 'x'\ntitle = 't'\nscenes = ['tiny']\nbackends = []\n[[cameras]]\nname = 'far'\n",
+            "f.toml",
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("backends"), "{e}");
+        let e = SweepSpec::parse(
+            "name = 'x'\ntitle = 't'\nscenes = ['tiny']\nvariants = ['ours-atomic']\n[[cameras]]\nname = 'far'\n",
+            "f.toml",
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("ours-atomic"), "{e}");
     }
 
     #[test]

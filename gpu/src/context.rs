@@ -6,6 +6,11 @@
 //! optional feature the pipeline can use when the adapter offers it ([`WANTED_FEATURES`]) and
 //! takes the adapter's own limits. Tests get their context through [`gpu_or_explain`], which fails
 //! with an install hint when no adapter exists.
+//!
+//! Crate-internal helpers hold the pipeline boilerplate the stage drivers share: `buffer_entry`
+//! (one buffer binding of a bind-group layout), `compute_pipelines` (a stage's WGSL module, its one
+//! bind-group layout and a compute pipeline per entry point) and `cached_pipelines` (a stage's
+//! pipelines compiled once per context).
 
 use std::sync::OnceLock;
 
@@ -200,6 +205,85 @@ impl GpuContext {
             None => Ok(value),
         }
     }
+}
+
+/// A bind-group layout entry for a buffer without dynamic offset: `binding`, seen from
+/// `visibility`, of type `ty`, with `min_binding_size` bytes at least (0: no minimum, for
+/// runtime-sized arrays; wgpu then checks the size at draw or dispatch time instead of at bind
+/// group creation). Entries with dynamic offsets, textures and samplers are written out where
+/// they are used.
+pub(crate) fn buffer_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+    ty: wgpu::BufferBindingType,
+    min_binding_size: u64,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: wgpu::BufferSize::new(min_binding_size),
+        },
+        count: None,
+    }
+}
+
+/// Compiles one compute stage: the WGSL module `source` (labelled `"{label}.wgsl"`), a bind-group
+/// layout of `entries` and a pipeline layout of that one group (both labelled `label`), and one
+/// pipeline per name of `entry_points` (each labelled with its entry point), in that order. Every
+/// pipeline of the stage shares the layout, so one bind group serves all its dispatches.
+///
+/// wgpu reports a WGSL or layout error through error scopes, not through the return value: call
+/// this inside [`GpuContext::checked`], which turns it into [`GpuError::Validation`].
+pub(crate) fn compute_pipelines<const N: usize>(
+    device: &wgpu::Device,
+    label: &str,
+    source: &str,
+    entries: &[wgpu::BindGroupLayoutEntry],
+    entry_points: [&str; N],
+) -> (wgpu::BindGroupLayout, [wgpu::ComputePipeline; N]) {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(&format!("{label}.wgsl")),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries,
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let pipelines = entry_points.map(|entry_point| {
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry_point),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some(entry_point),
+            compilation_options: Default::default(),
+            cache: None,
+        })
+    });
+    (layout, pipelines)
+}
+
+/// The pipelines in `cell` (one of [`GpuContext`]'s caches), compiled by `create` on first use.
+/// Concurrent first uses may each compile a set; the first one stored wins and the others are
+/// dropped (every set works alike). A failed `create` stores nothing and returns its error, so a
+/// later call tries again.
+pub(crate) fn cached_pipelines<T>(
+    cell: &OnceLock<T>,
+    create: impl FnOnce() -> Result<T, GpuError>,
+) -> Result<&T, GpuError> {
+    if let Some(pipelines) = cell.get() {
+        return Ok(pipelines);
+    }
+    let pipelines = create()?;
+    let _ = cell.set(pipelines);
+    Ok(cell.get().expect("the pipelines were just set"))
 }
 
 /// The context for a GPU test. Without an adapter it **panics** with [`NO_GPU_HINT`], unless the

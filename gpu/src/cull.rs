@@ -35,11 +35,10 @@
 //! visible trees; the culled counts stay 0 (they would cost an atomic per culled tree).
 //! [`GpuCull::draw_args`] feeds the Primitive's one `draw_indirect` (`primitive.rs`).
 
-use std::num::NonZeroU64;
-
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MeshMeta, Params, SelectCounters};
 
+use crate::context::{buffer_entry, cached_pipelines, compute_pipelines};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError, SelectBuffers};
 
@@ -152,62 +151,33 @@ impl CullPipelines {
     /// Compiles `cull.wgsl` and creates its three pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("cull.wgsl pipelines", || {
-            let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("cull.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(crate::shaders::cull_source().into()),
-            });
-            let entry =
-                |binding: u32, ty: wgpu::BufferBindingType, min: u64| wgpu::BindGroupLayoutEntry {
-                    binding,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty,
-                        has_dynamic_offset: false,
-                        min_binding_size: NonZeroU64::new(min),
-                    },
-                    count: None,
-                };
-            let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("cull"),
-                entries: &[
-                    entry(
-                        0,
-                        wgpu::BufferBindingType::Uniform,
-                        size_of::<CullUniform>() as u64,
-                    ),
-                    entry(1, storage(true), 0),
-                    entry(2, storage(true), 0),
-                    entry(3, storage(false), 0),
-                    entry(4, storage(false), 0),
-                    entry(5, storage(false), 0),
-                    entry(6, storage(false), 0),
-                    entry(7, storage(false), 0),
-                    entry(8, storage(false), size_of::<SelectCounters>() as u64),
-                    entry(9, storage(false), size_of::<DrawIndirectArgs>() as u64),
+            use wgpu::BufferBindingType as B;
+            let buffer =
+                |binding, ty, min| buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty, min);
+            let storage = |read_only| B::Storage { read_only };
+            let (layout, [count, commands, scatter]) = compute_pipelines(
+                &ctx.device,
+                "cull",
+                &crate::shaders::cull_source(),
+                &[
+                    buffer(0, B::Uniform, size_of::<CullUniform>() as u64),
+                    buffer(1, storage(true), 0),
+                    buffer(2, storage(true), 0),
+                    buffer(3, storage(false), 0),
+                    buffer(4, storage(false), 0),
+                    buffer(5, storage(false), 0),
+                    buffer(6, storage(false), 0),
+                    buffer(7, storage(false), 0),
+                    buffer(8, storage(false), size_of::<SelectCounters>() as u64),
+                    buffer(9, storage(false), size_of::<DrawIndirectArgs>() as u64),
                 ],
-            });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("cull"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let pipeline = |entry_point: &str| {
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry_point),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some(entry_point),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            };
+                ["cull_count", "cull_commands", "cull_scatter"],
+            );
             Self {
-                count: pipeline("cull_count"),
-                commands: pipeline("cull_commands"),
-                scatter: pipeline("cull_scatter"),
                 layout,
+                count,
+                commands,
+                scatter,
             }
         })
     }
@@ -270,27 +240,17 @@ impl<'a> GpuCull<'a> {
                 reason: "cull.wgsl binds 9 storage buffers in its compute stage",
             });
         }
-        let pipelines = match ctx.cull_pipelines.get() {
-            Some(p) => p,
-            None => {
-                let p = CullPipelines::new(ctx)?;
-                // Another thread may have won the race; either set of pipelines works.
-                let _ = ctx.cull_pipelines.set(p);
-                ctx.cull_pipelines
-                    .get()
-                    .expect("cull pipelines were just set")
-            }
-        };
+        let pipelines = cached_pipelines(&ctx.cull_pipelines, || CullPipelines::new(ctx))?;
         use wgpu::BufferUsages as U;
         let n = trees.len() as u64;
         let tree_buffer = upload_storage(ctx, "cull trees", trees, U::empty());
         let mesh_buffer = upload_storage(ctx, "cull meshes", meshes, U::empty());
-        let uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("cull uniform"),
-            size: size_of::<CullUniform>() as u64,
-            usage: U::UNIFORM | U::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let uniform = zeroed_buffer(
+            ctx,
+            "cull uniform",
+            size_of::<CullUniform>() as u64,
+            U::UNIFORM | U::COPY_DST,
+        );
         let mesh_counts = zeroed_buffer(
             ctx,
             "cull mesh counts",
@@ -449,37 +409,16 @@ impl<'a> GpuCull<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
     use core::mem::offset_of;
 
     /// `CullUniform`, `CullTree` and `DrawIndirectArgs` have their WGSL twins' layout (naga
     /// reflection of the full `cull.wgsl` module, which also validates it).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let source = crate::shaders::cull_source();
-        let module = naga::front::wgsl::parse_str(&source).expect("cull.wgsl parses");
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::default(),
-        )
-        .validate(&module)
-        .expect("cull.wgsl validates");
-        let check = |name: &str, fields: &[(&str, usize)], size: usize| {
-            let (_, ty) = module
-                .types
-                .iter()
-                .find(|(_, t)| t.name.as_deref() == Some(name))
-                .unwrap_or_else(|| panic!("struct {name} in cull.wgsl"));
-            let naga::TypeInner::Struct { members, span } = &ty.inner else {
-                panic!("{name} is not a struct")
-            };
-            assert_eq!(*span as usize, size, "{name} size");
-            let got: Vec<(&str, usize)> = members
-                .iter()
-                .map(|m| (m.name.as_deref().unwrap_or(""), m.offset as usize))
-                .collect();
-            assert_eq!(got, fields, "{name} members");
-        };
-        check(
+        let module = validate_wgsl(&crate::shaders::cull_source());
+        assert_wgsl_struct(
+            &module,
             "CullUniform",
             &[
                 ("planes", offset_of!(CullUniform, planes)),
@@ -494,7 +433,8 @@ mod tests {
             ],
             size_of::<CullUniform>(),
         );
-        check(
+        assert_wgsl_struct(
+            &module,
             "CullTree",
             &[
                 ("center", offset_of!(CullTree, center)),
@@ -503,7 +443,8 @@ mod tests {
             ],
             size_of::<CullTree>(),
         );
-        check(
+        assert_wgsl_struct(
+            &module,
             "DrawIndirectArgs",
             &[
                 ("vertex_count", offset_of!(DrawIndirectArgs, vertex_count)),

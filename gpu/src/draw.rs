@@ -36,12 +36,11 @@
 //! approximate `log2` for λ. None of these is a rule difference; each is classified in the
 //! comparison, not hidden by a wider tolerance.
 
-use std::num::NonZeroU64;
-
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MAX_COMMANDS, MAX_MESH_VERTICES, MeshMeta, Params};
 use wgpu::util::DeviceExt;
 
+use crate::context::buffer_entry;
 use crate::readback::{read_texture, upload_storage};
 use crate::{GpuContext, GpuError, SelectBuffers};
 
@@ -986,16 +985,6 @@ impl GpuDraw {
                 source: wgpu::ShaderSource::Wgsl(crate::shaders::draw_source().into()),
             });
             use wgpu::ShaderStages as S;
-            let buffer = |binding, visibility, ty, min: u64| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility,
-                ty: wgpu::BindingType::Buffer {
-                    ty,
-                    has_dynamic_offset: false,
-                    min_binding_size: NonZeroU64::new(min),
-                },
-                count: None,
-            };
             let storage = wgpu::BufferBindingType::Storage { read_only: true };
             let texture = |binding| wgpu::BindGroupLayoutEntry {
                 binding,
@@ -1010,18 +999,18 @@ impl GpuDraw {
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("draw"),
                 entries: &[
-                    buffer(
+                    buffer_entry(
                         0,
                         S::VERTEX_FRAGMENT,
                         wgpu::BufferBindingType::Uniform,
                         size_of::<DrawUniform>() as u64,
                     ),
-                    buffer(1, S::VERTEX, storage, 0),
-                    buffer(2, S::VERTEX, storage, 0),
-                    buffer(3, S::VERTEX, storage, 0),
-                    buffer(4, S::VERTEX, storage, 0),
-                    buffer(5, S::VERTEX_FRAGMENT, storage, 0),
-                    buffer(
+                    buffer_entry(1, S::VERTEX, storage, 0),
+                    buffer_entry(2, S::VERTEX, storage, 0),
+                    buffer_entry(3, S::VERTEX, storage, 0),
+                    buffer_entry(4, S::VERTEX, storage, 0),
+                    buffer_entry(5, S::VERTEX_FRAGMENT, storage, 0),
+                    buffer_entry(
                         6,
                         S::VERTEX,
                         storage,
@@ -1251,9 +1240,20 @@ impl GpuDraw {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use core::mem::offset_of;
+
+    /// `DrawInstance`'s members and their offsets, which its twins in `draw.wgsl` and
+    /// `primitive.wgsl` must both have.
+    pub(crate) fn draw_instance_fields() -> [(&'static str, usize); 4] {
+        [
+            ("position", offset_of!(DrawInstance, position)),
+            ("yaw", offset_of!(DrawInstance, yaw)),
+            ("scale", offset_of!(DrawInstance, scale)),
+            ("mesh", offset_of!(DrawInstance, mesh)),
+        ]
+    }
 
     /// `DrawUniform`, `DrawVertex` and `DrawInstance` have their WGSL twins' layout (naga
     /// reflection of the full `draw.wgsl` module, which also validates it).
@@ -1319,12 +1319,7 @@ mod tests {
         );
         check(
             "DrawInstance",
-            &[
-                ("position", offset_of!(DrawInstance, position)),
-                ("yaw", offset_of!(DrawInstance, yaw)),
-                ("scale", offset_of!(DrawInstance, scale)),
-                ("mesh", offset_of!(DrawInstance, mesh)),
-            ],
+            &draw_instance_fields(),
             size_of::<DrawInstance>(),
         );
     }

@@ -70,6 +70,7 @@ use std::sync::OnceLock;
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::MipMode;
 
+use crate::context::{buffer_entry, compute_pipelines};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -513,38 +514,31 @@ struct MipsPipelines {
 impl MipsPipelines {
     fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("mips.wgsl pipelines", || {
-            let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("mips.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(crate::shaders::mips_source().into()),
-            });
-            let buffer = |binding: u32, ty: wgpu::BufferBindingType, dynamic: bool, min: u64| {
-                wgpu::BindGroupLayoutEntry {
-                    binding,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty,
-                        has_dynamic_offset: dynamic,
-                        min_binding_size: NonZeroU64::new(min),
+            use wgpu::BufferBindingType as B;
+            let buffer =
+                |binding, ty, min| buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty, min);
+            let storage = |read_only| B::Storage { read_only };
+            let (layout, pipelines) = compute_pipelines(
+                &ctx.device,
+                "mips",
+                &crate::shaders::mips_source(),
+                &[
+                    // One uniform slot per level, picked by dynamic offset.
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 0,
+                        visibility: wgpu::ShaderStages::COMPUTE,
+                        ty: wgpu::BindingType::Buffer {
+                            ty: B::Uniform,
+                            has_dynamic_offset: true,
+                            min_binding_size: NonZeroU64::new(size_of::<MipsUniform>() as u64),
+                        },
+                        count: None,
                     },
-                    count: None,
-                }
-            };
-            let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("mips"),
-                entries: &[
-                    buffer(
-                        0,
-                        wgpu::BufferBindingType::Uniform,
-                        true,
-                        size_of::<MipsUniform>() as u64,
-                    ),
-                    buffer(1, storage(true), false, (TABLE_LEN * 4) as u64),
-                    buffer(2, storage(true), false, 16),
-                    buffer(3, storage(false), false, 16),
-                    buffer(4, storage(false), false, size_of::<MipLevelStats>() as u64),
-                    buffer(5, storage(false), false, 4),
+                    buffer(1, storage(true), (TABLE_LEN * 4) as u64),
+                    buffer(2, storage(true), 16),
+                    buffer(3, storage(false), 16),
+                    buffer(4, storage(false), size_of::<MipLevelStats>() as u64),
+                    buffer(5, storage(false), 4),
                     wgpu::BindGroupLayoutEntry {
                         binding: 6,
                         visibility: wgpu::ShaderStages::COMPUTE,
@@ -555,32 +549,33 @@ impl MipsPipelines {
                         },
                         count: None,
                     },
-                    buffer(7, storage(false), false, size_of::<CoverageState>() as u64),
+                    buffer(7, storage(false), size_of::<CoverageState>() as u64),
                 ],
-            });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("mips"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let pipeline = |entry_point: &str| {
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry_point),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some(entry_point),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            };
+                [
+                    "mips_decode",
+                    "mips_downsample",
+                    "mips_adjust",
+                    "mips_coverage_count",
+                    "mips_coverage_step",
+                    "mips_finalize",
+                ],
+            );
+            let [
+                decode,
+                downsample,
+                adjust,
+                coverage_count,
+                coverage_step,
+                finalize,
+            ] = pipelines;
             Self {
-                decode: pipeline("mips_decode"),
-                downsample: pipeline("mips_downsample"),
-                adjust: pipeline("mips_adjust"),
-                coverage_count: pipeline("mips_coverage_count"),
-                coverage_step: pipeline("mips_coverage_step"),
-                finalize: pipeline("mips_finalize"),
                 layout,
+                decode,
+                downsample,
+                adjust,
+                coverage_count,
+                coverage_step,
+                finalize,
             }
         })
     }
@@ -1123,6 +1118,31 @@ pub(crate) mod tests {
                 _ => None,
             })
             .unwrap_or_else(|| panic!("WGSL has no struct {name}"))
+    }
+
+    /// Asserts that the WGSL struct `name` of `module` has exactly the members `fields`, as
+    /// `(name, byte offset)` in declaration order, and the span `size`: its Rust twin's
+    /// `offset_of!`s and `size_of`.
+    pub(crate) fn assert_wgsl_struct(
+        module: &naga::Module,
+        name: &str,
+        fields: &[(&str, usize)],
+        size: usize,
+    ) {
+        let (_, ty) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("WGSL has no struct {name}"));
+        let naga::TypeInner::Struct { members, span } = &ty.inner else {
+            panic!("{name} is not a struct")
+        };
+        assert_eq!(*span as usize, size, "{name} size");
+        let got: Vec<(&str, usize)> = members
+            .iter()
+            .map(|m| (m.name.as_deref().unwrap_or(""), m.offset as usize))
+            .collect();
+        assert_eq!(got, fields, "{name} members");
     }
 
     #[test]

@@ -35,11 +35,10 @@
 //! in the reference (its early test uses the quad's depth, which never exceeds the ray-cast one),
 //! which keeps and drops the same fragments.
 
-use std::num::NonZeroU64;
-
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, ProxyRecord};
 
+use crate::context::buffer_entry;
 use crate::draw::{
     DrawScene, DrawTarget, DrawUniform, begin_target_pass, depth_stencil_state, primitive_state,
     target_states, terrain_pipeline,
@@ -191,36 +190,26 @@ impl GpuPrimitive {
                 source: wgpu::ShaderSource::Wgsl(crate::shaders::draw_source().into()),
             });
             use wgpu::ShaderStages as S;
-            let buffer = |binding, visibility, ty, min: u64| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility,
-                ty: wgpu::BindingType::Buffer {
-                    ty,
-                    has_dynamic_offset: false,
-                    min_binding_size: NonZeroU64::new(min),
-                },
-                count: None,
-            };
             let storage = wgpu::BufferBindingType::Storage { read_only: true };
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("primitive"),
                 entries: &[
-                    buffer(
+                    buffer_entry(
                         0,
                         S::VERTEX_FRAGMENT,
                         wgpu::BufferBindingType::Uniform,
                         size_of::<PrimitiveUniform>() as u64,
                     ),
-                    buffer(1, S::VERTEX_FRAGMENT, storage, 0),
-                    buffer(2, S::VERTEX, storage, 0),
-                    buffer(3, S::VERTEX_FRAGMENT, storage, 0),
+                    buffer_entry(1, S::VERTEX_FRAGMENT, storage, 0),
+                    buffer_entry(2, S::VERTEX, storage, 0),
+                    buffer_entry(3, S::VERTEX_FRAGMENT, storage, 0),
                 ],
             });
             // The terrain entry points of draw.wgsl read only binding 0, its DrawUniform.
             let terrain_layout =
                 device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some("primitive terrain"),
-                    entries: &[buffer(
+                    entries: &[buffer_entry(
                         0,
                         S::VERTEX_FRAGMENT,
                         wgpu::BufferBindingType::Uniform,
@@ -388,6 +377,8 @@ mod tests {
     use super::*;
     use crate::DrawInstance;
     use crate::draw::LOD_ID_MESH;
+    use crate::draw::tests::draw_instance_fields;
+    use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
     use core::mem::offset_of;
 
     /// `PrimitiveUniform` and `DrawInstance` have their WGSL twins' layout in `primitive.wgsl`
@@ -395,31 +386,9 @@ mod tests {
     /// shared records in `gpu/tests/layout.rs`).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let source = crate::shaders::primitive_source();
-        let module = naga::front::wgsl::parse_str(&source).expect("primitive.wgsl parses");
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::default(),
-        )
-        .validate(&module)
-        .expect("primitive.wgsl validates");
-        let check = |name: &str, fields: &[(&str, usize)], size: usize| {
-            let (_, ty) = module
-                .types
-                .iter()
-                .find(|(_, t)| t.name.as_deref() == Some(name))
-                .unwrap_or_else(|| panic!("struct {name} in primitive.wgsl"));
-            let naga::TypeInner::Struct { members, span } = &ty.inner else {
-                panic!("{name} is not a struct")
-            };
-            assert_eq!(*span as usize, size, "{name} size");
-            let got: Vec<(&str, usize)> = members
-                .iter()
-                .map(|m| (m.name.as_deref().unwrap_or(""), m.offset as usize))
-                .collect();
-            assert_eq!(got, fields, "{name} members");
-        };
-        check(
+        let module = validate_wgsl(&crate::shaders::primitive_source());
+        assert_wgsl_struct(
+            &module,
             "PrimitiveUniform",
             &[
                 ("view_proj", offset_of!(PrimitiveUniform, view_proj)),
@@ -450,14 +419,10 @@ mod tests {
             ],
             size_of::<PrimitiveUniform>(),
         );
-        check(
+        assert_wgsl_struct(
+            &module,
             "DrawInstance",
-            &[
-                ("position", offset_of!(DrawInstance, position)),
-                ("yaw", offset_of!(DrawInstance, yaw)),
-                ("scale", offset_of!(DrawInstance, scale)),
-                ("mesh", offset_of!(DrawInstance, mesh)),
-            ],
+            &draw_instance_fields(),
             size_of::<DrawInstance>(),
         );
         assert_eq!(LOD_ID_MESH, 1, "primitive.wgsl's LOD_ID_MESH");

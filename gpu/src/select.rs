@@ -25,14 +25,13 @@
 //! The draw stage can also take the reference's output instead ([`SelectBuffers::from_cpu`]), to
 //! test it in isolation (`--stage-from-cpu`).
 
-use std::num::NonZeroU64;
-
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{
     BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, MAX_COMMANDS, MeshMeta, Params,
     SelectCounters,
 };
 
+use crate::context::{buffer_entry, cached_pipelines, compute_pipelines};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -265,61 +264,37 @@ impl SelectPipelines {
     /// Compiles `select.wgsl` and creates its four pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("select.wgsl pipelines", || {
-            let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("select.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(crate::shaders::select_source().into()),
-            });
-            let entry =
-                |binding: u32, ty: wgpu::BufferBindingType, min: u64| wgpu::BindGroupLayoutEntry {
-                    binding,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty,
-                        has_dynamic_offset: false,
-                        min_binding_size: NonZeroU64::new(min),
-                    },
-                    count: None,
-                };
-            let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("select"),
-                entries: &[
-                    entry(
-                        0,
-                        wgpu::BufferBindingType::Uniform,
-                        size_of::<SelectUniform>() as u64,
-                    ),
-                    entry(1, storage(true), 0),
-                    entry(2, storage(true), 0),
-                    entry(3, storage(false), 0),
-                    entry(4, storage(false), 0),
-                    entry(5, storage(false), 0),
-                    entry(6, storage(false), 0),
-                    entry(7, storage(false), size_of::<SelectCounters>() as u64),
+            use wgpu::BufferBindingType as B;
+            let buffer =
+                |binding, ty, min| buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty, min);
+            let storage = |read_only| B::Storage { read_only };
+            let (layout, [decide, scan, write, atomic]) = compute_pipelines(
+                &ctx.device,
+                "select",
+                &crate::shaders::select_source(),
+                &[
+                    buffer(0, B::Uniform, size_of::<SelectUniform>() as u64),
+                    buffer(1, storage(true), 0),
+                    buffer(2, storage(true), 0),
+                    buffer(3, storage(false), 0),
+                    buffer(4, storage(false), 0),
+                    buffer(5, storage(false), 0),
+                    buffer(6, storage(false), 0),
+                    buffer(7, storage(false), size_of::<SelectCounters>() as u64),
                 ],
-            });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("select"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let pipeline = |entry_point: &str| {
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry_point),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some(entry_point),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            };
+                [
+                    "select_decide",
+                    "select_scan",
+                    "select_write",
+                    "select_atomic",
+                ],
+            );
             Self {
-                decide: pipeline("select_decide"),
-                scan: pipeline("select_scan"),
-                write: pipeline("select_write"),
-                atomic: pipeline("select_atomic"),
                 layout,
+                decide,
+                scan,
+                write,
+                atomic,
             }
         })
     }
@@ -367,27 +342,17 @@ impl<'a> GpuSelect<'a> {
                 reason: "two commands per batch exceed MAX_COMMANDS (base_vertex is an i32)",
             });
         }
-        let pipelines = match ctx.select_pipelines.get() {
-            Some(p) => p,
-            None => {
-                let p = SelectPipelines::new(ctx)?;
-                // Another thread may have won the race; either set of pipelines works.
-                let _ = ctx.select_pipelines.set(p);
-                ctx.select_pipelines
-                    .get()
-                    .expect("select pipelines were just set")
-            }
-        };
+        let pipelines = cached_pipelines(&ctx.select_pipelines, || SelectPipelines::new(ctx))?;
         use wgpu::BufferUsages as U;
         let n = batches.len() as u64;
         let batch_buffer = upload_storage(ctx, "select batches", batches, U::empty());
         let mesh_buffer = upload_storage(ctx, "select meshes", meshes, U::empty());
-        let uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("select uniform"),
-            size: size_of::<SelectUniform>() as u64,
-            usage: U::UNIFORM | U::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let uniform = zeroed_buffer(
+            ctx,
+            "select uniform",
+            size_of::<SelectUniform>() as u64,
+            U::UNIFORM | U::COPY_DST,
+        );
         let decisions = zeroed_buffer(ctx, "select decisions", n * 4, U::STORAGE | U::COPY_SRC);
         let offsets = zeroed_buffer(ctx, "select offsets", n * 4, U::STORAGE | U::COPY_SRC);
         let out = SelectBuffers::with_capacity(ctx, capacity as u32);
