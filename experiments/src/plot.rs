@@ -14,7 +14,7 @@ pub const WIDTH: u32 = 880;
 /// Plot height in pixels.
 pub const HEIGHT: u32 = 520;
 const LEFT: f32 = 90.0;
-const RIGHT: f32 = 210.0;
+const RIGHT: f32 = 250.0;
 const TOP: f32 = 40.0;
 const BOTTOM: f32 = 60.0;
 
@@ -351,7 +351,15 @@ fn legend(pixmap: &mut Pixmap, labels: &[String], markers: bool) {
         } else if let Some(r) = Rect::from_xywh(x, y, 12.0, 9.0) {
             pixmap.fill_rect(r, &paint(c), Transform::identity(), None);
         }
-        let short: String = label.chars().take(22).collect();
+        // Cut long labels (e.g. `select vegetation (reference)`) to the legend's width, marking
+        // the cut with `~`, so that no label runs off the image.
+        let room = pixmap.width() as f32 - (x + 18.0) - 4.0;
+        let mut short = label.clone();
+        while text_width(&short, 1) > room && short.chars().count() > 1 {
+            short.pop();
+            short.pop();
+            short.push('~');
+        }
         draw_text(pixmap, &short, x + 18.0, y, 1, [20, 20, 20]);
     }
 }

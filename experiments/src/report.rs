@@ -23,6 +23,11 @@ pub struct ReportArgs {
     /// The folder `forestlod sweep --out` wrote.
     #[arg(long)]
     pub run: PathBuf,
+    /// Redraw every sweep's plots from its CSV first (after a change to the plots; sweeps
+    /// written before `sweep.json` recorded the spec must be built-in sweeps run without
+    /// overrides).
+    #[arg(long)]
+    pub replot: bool,
 }
 
 /// Means of one group of rows.
@@ -528,8 +533,46 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
     Ok(path)
 }
 
+/// Redraws the plots of every `DIR/*/sweep.json` from its CSV and records them in the manifest;
+/// returns how many sweeps were redrawn.
+pub fn replot(run: &Path) -> Result<usize, InputError> {
+    let err = |p: &Path, e: &dyn std::fmt::Display| {
+        InputError::new(p.display().to_string(), "replot", "", e.to_string())
+    };
+    let mut n = 0;
+    for entry in std::fs::read_dir(run).map_err(|e| err(run, &e))? {
+        let dir = entry.map_err(|e| err(run, &e))?.path();
+        let mpath = dir.join("sweep.json");
+        if !mpath.is_file() {
+            continue;
+        }
+        let text = std::fs::read_to_string(&mpath).map_err(|e| err(&mpath, &e))?;
+        let mut m: Manifest = serde_json::from_str(&text).map_err(|e| err(&mpath, &e))?;
+        let spec = match &m.spec {
+            Some(spec) => spec.clone(),
+            None => {
+                let spec = crate::sweep::resolve(Some(&m.name))?
+                    .pop()
+                    .expect("resolve returns one spec for a name");
+                if m.quick { spec.quick() } else { spec }
+            }
+        };
+        let rows = read_rows(&dir.join(&m.csv))?;
+        m.plots = crate::sweep::write_plots(&spec, &rows, &dir)?;
+        m.spec = Some(spec);
+        let json = serde_json::to_string_pretty(&m).map_err(|e| err(&mpath, &e))?;
+        std::fs::write(&mpath, json).map_err(|e| err(&mpath, &e))?;
+        n += 1;
+    }
+    Ok(n)
+}
+
 /// `forestlod report`.
 pub fn run(args: &ReportArgs) -> Result<(), Box<dyn std::error::Error>> {
+    if args.replot {
+        let n = replot(&args.run)?;
+        println!("redrew the plots of {n} sweep(s)");
+    }
     let path = write_report(&args.run)?;
     println!("wrote {}", path.display());
     Ok(())

@@ -403,6 +403,10 @@ pub struct Manifest {
     pub ground_truth_bvh: Vec<(String, usize, f64)>,
     /// Ground-truth rays traced.
     pub ground_truth_rays: u64,
+    /// The sweep as it ran (quick mode and command-line overrides applied), so that
+    /// `forestlod report --replot` can redraw the plots from the CSV.
+    #[serde(default)]
+    pub spec: Option<SweepSpec>,
 }
 
 /// Applies one parameter to `p`: `grid_size`, `angle_count` (or `angles`), `texture_size`,
@@ -1063,6 +1067,7 @@ impl Runner {
             wall_seconds: start.elapsed().as_secs_f64(),
             ground_truth_bvh: bvh_info,
             ground_truth_rays: self.rays - rays_before,
+            spec: Some(spec.clone()),
         };
         let mpath = dir.join("sweep.json");
         std::fs::write(&mpath, serde_json::to_string_pretty(&manifest)?)
@@ -1349,7 +1354,7 @@ fn series_of(row: &Row, sets: &HashMap<String, String>, variants: usize) -> Stri
 }
 
 /// Writes the sweep's plots; returns `(relative path, caption)` pairs.
-fn write_plots(
+pub fn write_plots(
     spec: &SweepSpec,
     rows: &[Row],
     dir: &Path,

@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use forestlod_experiments::report::{read_rows, write_report};
+use forestlod_experiments::report::{read_rows, replot, write_report};
 use forestlod_experiments::sweep::{
     BUILTIN_SWEEPS, Manifest, SweepArgs, SweepSpec, configure, run,
 };
@@ -104,6 +104,12 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
             }
         }
     }
+    // Plots can be redrawn from the CSVs alone (`forestlod report --replot`).
+    let sweeps = std::fs::read_dir(&out)
+        .unwrap()
+        .filter(|e| e.as_ref().unwrap().path().join("sweep.json").is_file())
+        .count();
+    assert_eq!(replot(&out).expect("the plots are redrawn"), sweeps);
     let report = write_report(&out).expect("the report is written");
     let text = std::fs::read_to_string(&report).unwrap();
     for (name, _) in BUILTIN_SWEEPS {
