@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use forestlod_reference::InputError;
 use forestlod_reference::scene::{Scene, builtin, load};
-use forestlod_shared::{AngleIndexMode, FadeMode, MipMode, Params};
+use forestlod_shared::{AngleIndexMode, FadeMode, MipMode, Params, TreeCull};
 
 /// Which scene to use.
 #[derive(Args, Clone, Debug)]
@@ -67,6 +67,9 @@ pub struct ParamArgs {
     /// Billboard layer index: nearest, eq31-clamped.
     #[arg(long, default_value = "nearest")]
     pub angle_index: String,
+    /// Per-tree culling after selection (`refine`, beyond the thesis): none, lod0, all.
+    #[arg(long, default_value = "none")]
+    pub tree_cull: String,
 }
 
 fn unknown(field: &str, value: &str, expected: &[&str]) -> InputError {
@@ -102,6 +105,16 @@ impl ParamArgs {
                     &AngleIndexMode::ALL.map(AngleIndexMode::name),
                 )
             })?;
+        let tree_cull = TreeCull::ALL
+            .into_iter()
+            .find(|m| m.name() == self.tree_cull)
+            .ok_or_else(|| {
+                unknown(
+                    "tree-cull",
+                    &self.tree_cull,
+                    &TreeCull::ALL.map(TreeCull::name),
+                )
+            })?;
         let p = Params {
             grid_size: self.grid_size,
             angle_count: self.angles,
@@ -113,6 +126,7 @@ impl ParamArgs {
             fade_mode: fade as u32,
             mip_mode: mip as u32,
             angle_index_mode: angle as u32,
+            tree_cull: tree_cull as u32,
             ..Params::default()
         };
         p.validate()?;

@@ -118,8 +118,11 @@ pub fn metrics(
             "grid_size": args.params.grid_size, "angles": args.params.angles, "texture_size": args.params.texture_size,
             "lod_levels": args.params.lod_levels, "transition": args.params.transition, "fade_width": args.params.fade_width,
             "draw_distance": args.params.draw_distance, "fade_mode": args.params.fade_mode, "mip_mode": args.params.mip_mode,
-            "angle_index": args.params.angle_index,
+            "angle_index": args.params.angle_index, "tree_cull": args.params.tree_cull,
         },
+        "refine": frame.refined.as_ref().map(|r| json!({
+            "trees_tested": r.trees_tested, "trees_kept": r.trees_kept,
+        })),
         "times_seconds": {
             "scene": scene_seconds, "prepare": prepared.timings, "frame": frame.timings,
         },

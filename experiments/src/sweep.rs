@@ -41,7 +41,7 @@ use forestlod_reference::scene::{Scene, builtin, load};
 use forestlod_reference::select::{BatchingCounts, batching_counts};
 use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::{
-    AngleIndexMode, Camera, CommandData, DrawCommand, FadeMode, MipMode, Params,
+    AngleIndexMode, Camera, CommandData, DrawCommand, FadeMode, MipMode, Params, TreeCull,
 };
 use forestlod_tests::backend::{GpuSweepScene, GpuVariant};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -51,7 +51,7 @@ use crate::metrics::{Accuracy, accuracy, error_image, per_lod_error_maps};
 use crate::plot::{Axes, Series, Style, bar_plot, xy_plot};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 10] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 11] = [
     ("camera360", include_str!("../sweeps/camera360.toml")),
     ("distance", include_str!("../sweeps/distance.toml")),
     ("grid_size", include_str!("../sweeps/grid_size.toml")),
@@ -65,6 +65,7 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 10] = [
     ("angle_index", include_str!("../sweeps/angle_index.toml")),
     ("compaction", include_str!("../sweeps/compaction.toml")),
     ("grid_stress", include_str!("../sweeps/grid_stress.toml")),
+    ("tree_cull", include_str!("../sweeps/tree_cull.toml")),
 ];
 
 /// Variant names accepted in `variants`: ours (stable compaction on the GPU), ours with the
@@ -275,6 +276,9 @@ pub struct Row {
     pub mip_mode: String,
     /// Angle index mode name.
     pub angle_index: String,
+    /// Per-tree culling after selection (`none`, `lod0`, `all`).
+    #[serde(default)]
+    pub tree_cull: String,
     /// Image size.
     pub width: u32,
     /// Image size.
@@ -467,12 +471,19 @@ pub fn set_param(
                 .ok_or_else(|| bad("expected nearest or eq31-clamped"))?
                 as u32
         }
+        "tree_cull" => {
+            let n = name_of()?;
+            p.tree_cull = TreeCull::ALL
+                .into_iter()
+                .find(|m| m.name() == n)
+                .ok_or_else(|| bad("expected none, lod0 or all"))? as u32
+        }
         _ => {
             return Err(InputError::new(
                 file,
                 "param name",
                 name,
-                "unknown parameter; expected grid_size, angle_count, texture_size, lod_levels, lod1_transition, fade_width, draw_distance, alpha_cutoff, fade_mode, mip_mode or angle_index",
+                "unknown parameter; expected grid_size, angle_count, texture_size, lod_levels, lod1_transition, fade_width, draw_distance, alpha_cutoff, fade_mode, mip_mode, angle_index or tree_cull",
             ));
         }
     }
@@ -993,6 +1004,11 @@ impl Runner {
                                     .map(AngleIndexMode::name)
                                     .unwrap_or("?")
                                     .into(),
+                                tree_cull: p
+                                    .tree_culling()
+                                    .map(TreeCull::name)
+                                    .unwrap_or("?")
+                                    .into(),
                                 width: spec.width,
                                 height: spec.height,
                                 select_s: vf.select_s,
@@ -1085,6 +1101,17 @@ struct Frame<'a> {
     params: &'a Params,
 }
 
+/// Bytes ours adds to the scene data: E Eq. 4.1's terms as allocated, plus the `refine` stage's
+/// `3n`-entry indirection array when it runs (`reference/src/refine.rs`).
+fn ours_memory(prepared: &Prepared, params: &Params) -> u64 {
+    let refine = if params.tree_culling().is_ok_and(|m| m != TreeCull::None) {
+        3 * prepared.batches.indirection.len() as u64 * 4
+    } else {
+        0
+    };
+    prepared.memory.total + refine
+}
+
 fn unknown_variant(variant: &str) -> InputError {
     InputError::new(
         "<sweep>",
@@ -1110,18 +1137,20 @@ fn render_variant(variant: &str, f: &Frame, repeats: u32) -> Result<VariantFrame
             "ours" => {
                 let frame = prepared.render(camera, params)?;
                 let c = frame.selection.counters;
-                let trees = trees_drawn_by_selection(prepared, &frame.selection, camera, params);
-                let batching = batching_counts(
-                    spheres,
-                    &prepared.batches.indirection,
+                let indirection = frame.indirection(prepared);
+                let trees = trees_drawn_by_selection(
+                    prepared,
                     &frame.selection,
+                    indirection,
                     camera,
                     params,
                 );
+                let batching =
+                    batching_counts(spheres, indirection, &frame.selection, camera, params);
                 let s = frame.drawn.tree_stats;
                 let target = frame.drawn.target;
                 VariantFrame {
-                    select_s: frame.timings.select,
+                    select_s: frame.timings.select + frame.timings.refine,
                     draw_s: frame.timings.draw,
                     gpu_select_s: None,
                     gpu_draw_s: None,
@@ -1132,7 +1161,7 @@ fn render_variant(variant: &str, f: &Frame, repeats: u32) -> Result<VariantFrame
                     triangles: Some(s.triangles_in),
                     fragments: Some(s.fragments_shaded),
                     fragments_written: Some(s.fragments_written),
-                    memory_bytes: prepared.memory.total,
+                    memory_bytes: ours_memory(prepared, params),
                     color: target.color_image(),
                     aux: target.aux().to_vec(),
                 }
@@ -1200,20 +1229,18 @@ fn render_gpu_variant(
         let g = gs.render(gpu_variant, camera, params)?;
         let (batches_tested, trees_drawn, batching, memory_bytes) = match gpu_variant {
             GpuVariant::Ours(_) => {
-                let selection = prepared.select(camera, params);
-                let trees = trees_drawn_by_selection(prepared, &selection, camera, params);
-                let batching = batching_counts(
-                    spheres,
-                    &prepared.batches.indirection,
-                    &selection,
-                    camera,
-                    params,
-                );
+                let (selection, refined) = prepared.select_refined(camera, params);
+                let indirection = refined
+                    .as_ref()
+                    .map_or(&prepared.batches.indirection[..], |r| &r.indirection[..]);
+                let trees =
+                    trees_drawn_by_selection(prepared, &selection, indirection, camera, params);
+                let batching = batching_counts(spheres, indirection, &selection, camera, params);
                 (
                     prepared.batches.metas.len() as u64,
                     trees.len() as u64,
                     batching,
-                    prepared.memory.total,
+                    ours_memory(prepared, params),
                 )
             }
             GpuVariant::Vegetation | GpuVariant::Primitive => {

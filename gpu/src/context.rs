@@ -90,6 +90,8 @@ pub struct GpuContext {
     pub(crate) select_pipelines: OnceLock<crate::select::SelectPipelines>,
     /// Compiled `cull` pipelines, created on first use and shared by every [`crate::GpuCull`].
     pub(crate) cull_pipelines: OnceLock<crate::cull::CullPipelines>,
+    /// Compiled `refine` pipeline, created on first use and shared by every [`crate::GpuRefine`].
+    pub(crate) refine_pipelines: OnceLock<crate::refine::RefinePipelines>,
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -152,6 +154,7 @@ impl GpuContext {
             limits,
             select_pipelines: OnceLock::new(),
             cull_pipelines: OnceLock::new(),
+            refine_pipelines: OnceLock::new(),
         })
     }
 
@@ -185,6 +188,33 @@ impl GpuContext {
             .poll(wgpu::PollType::wait_indefinitely())
             .map(|_| ())
             .map_err(|e| GpuError::Poll(e.to_string()))
+    }
+
+    /// Records commands into a fresh encoder labelled `label` with `record` and submits them, all
+    /// inside [`GpuContext::checked`] naming `what`. Does not wait.
+    pub(crate) fn submit<T>(
+        &self,
+        what: &str,
+        label: &str,
+        record: impl FnOnce(&mut wgpu::CommandEncoder) -> T,
+    ) -> Result<T, GpuError> {
+        self.checked(what, || {
+            let mut encoder = self
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+            let value = record(&mut encoder);
+            self.queue.submit([encoder.finish()]);
+            value
+        })
+    }
+
+    /// Workgroup counts `(x, y)` of a dispatch of `groups` workgroups, spilling into `y` beyond
+    /// the per-dimension limit (`x · y ≥ groups`; the shaders skip the excess).
+    pub(crate) fn workgroup_grid(&self, groups: u32) -> (u32, u32) {
+        let max_x = self.limits.max_compute_workgroups_per_dimension.max(1);
+        let x = groups.min(max_x);
+        let y = if x == 0 { 0 } else { groups.div_ceil(x) };
+        (x, y)
     }
 
     /// Runs `f` inside a validation + out-of-memory error scope and turns a caught error into

@@ -53,7 +53,8 @@ pub const MAX_CULL_MESHES: u32 = 4096;
 /// Storage buffers `cull.wgsl` binds in the compute stage.
 const STORAGE_BUFFERS: u32 = 9;
 
-/// One tree as the cull pass reads it. Keep in sync with `struct CullTree` in `cull.wgsl`.
+/// One tree as the cull and refine passes read it. Keep in sync with `struct CullTree` in
+/// `common.wgsl` (`gpu/tests/layout.rs` checks the layout).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct CullTree {
@@ -331,10 +332,7 @@ impl<'a> GpuCull<'a> {
     /// spilling into `y` beyond the per-dimension limit.
     fn groups(&self) -> (u32, u32) {
         let groups = self.tree_count.div_ceil(CULL_WORKGROUP_SIZE);
-        let max_x = self.ctx.limits.max_compute_workgroups_per_dimension.max(1);
-        let x = groups.min(max_x);
-        let y = if x == 0 { 0 } else { groups.div_ceil(x) };
-        (x, y)
+        self.ctx.workgroup_grid(groups)
     }
 
     /// Records one frame's culling into `encoder`: writes the uniform (through the queue, so it
@@ -367,15 +365,8 @@ impl<'a> GpuCull<'a> {
 
     /// Runs one frame's culling and leaves the result on the GPU. Does not wait.
     pub fn dispatch(&self, camera: &Camera, params: &Params) -> Result<(), GpuError> {
-        self.ctx.checked("cull dispatch", || {
-            let mut encoder =
-                self.ctx
-                    .device
-                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                        label: Some("cull"),
-                    });
-            self.encode(&mut encoder, camera, params);
-            self.ctx.queue.submit([encoder.finish()]);
+        self.ctx.submit("cull dispatch", "cull", |encoder| {
+            self.encode(encoder, camera, params)
         })
     }
 
@@ -412,8 +403,9 @@ mod tests {
     use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
     use core::mem::offset_of;
 
-    /// `CullUniform`, `CullTree` and `DrawIndirectArgs` have their WGSL twins' layout (naga
-    /// reflection of the full `cull.wgsl` module, which also validates it).
+    /// `CullUniform` and `DrawIndirectArgs` have their WGSL twins' layout (naga reflection of the
+    /// full `cull.wgsl` module, which also validates it; `CullTree`, in `common.wgsl`, is checked
+    /// by `gpu/tests/layout.rs`).
     #[test]
     fn wgsl_layouts_match_rust() {
         let module = validate_wgsl(&crate::shaders::cull_source());
@@ -432,16 +424,6 @@ mod tests {
                 ("mesh_count", offset_of!(CullUniform, mesh_count)),
             ],
             size_of::<CullUniform>(),
-        );
-        assert_wgsl_struct(
-            &module,
-            "CullTree",
-            &[
-                ("center", offset_of!(CullTree, center)),
-                ("radius", offset_of!(CullTree, radius)),
-                ("mesh", offset_of!(CullTree, mesh)),
-            ],
-            size_of::<CullTree>(),
         );
         assert_wgsl_struct(
             &module,

@@ -14,6 +14,7 @@
 //! | draw execution | [`draw`] | `shaders/draw.wgsl` | E§3.3.1, §4.4; SPEC §5.5 |
 //! | baselines' per-tree culling | [`cull`] | `shaders/cull.wgsl` | E§5; SPEC §9 |
 //! | Primitive baseline's ray-cast quads | [`primitive`] | `shaders/primitive.wgsl` | E§5; SPEC §9 |
+//! | per-tree refinement of the selected commands (beyond the thesis) | [`refine`] | `shaders/refine.wgsl` | E§3.5, §7 |
 //!
 //! What this crate owns:
 //! - [`GpuContext`]: adapter and device selection (any Vulkan adapter, lavapipe included), the
@@ -22,7 +23,8 @@
 //! - [`readback`]: uploading `Pod` slices and reading buffers and texture levels back;
 //! - [`shaders`]: the WGSL sources, with `common.wgsl` mirroring `forestlod-shared`'s `Pod` structs
 //!   field for field (a naga reflection test checks every offset);
-//! - the stage drivers ([`select`], [`bake`], [`mips`], [`draw`], [`cull`], [`primitive`]).
+//! - the stage drivers ([`select`], [`bake`], [`mips`], [`draw`], [`cull`], [`primitive`],
+//!   [`refine`]).
 //!
 //! What it must not depend on: `forestlod-reference`. The oracle and its twin meet only in the
 //! `tests` crate, so a bug cannot leak from one into the other through shared code; the only code
@@ -40,6 +42,7 @@ pub mod draw;
 pub mod mips;
 pub mod primitive;
 pub mod readback;
+pub mod refine;
 pub mod select;
 pub mod shaders;
 
@@ -53,4 +56,5 @@ pub use draw::{
 };
 pub use mips::{GpuMips, MipArray, MipLevelStats, MipTexels};
 pub use primitive::{GpuPrimitive, GpuProxies, PrimitiveInputs};
+pub use refine::{GpuRefine, GpuRefined, RefineCounters};
 pub use select::{Compaction, GpuSelect, GpuSelection, SelectBuffers, SelectUniform};

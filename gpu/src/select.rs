@@ -402,10 +402,7 @@ impl<'a> GpuSelect<'a> {
     /// each, spilling into `y` beyond the per-dimension limit.
     fn groups(&self) -> (u32, u32) {
         let groups = self.batch_count.div_ceil(SELECT_WORKGROUP_SIZE);
-        let max_x = self.ctx.limits.max_compute_workgroups_per_dimension.max(1);
-        let x = groups.min(max_x);
-        let y = if x == 0 { 0 } else { groups.div_ceil(x) };
-        (x, y)
+        self.ctx.workgroup_grid(groups)
     }
 
     /// Records one frame's selection into `encoder`: writes the uniform (through the queue, so it
@@ -464,15 +461,8 @@ impl<'a> GpuSelect<'a> {
         params: &Params,
         compaction: Compaction,
     ) -> Result<&SelectBuffers, GpuError> {
-        self.ctx.checked("select dispatch", || {
-            let mut encoder =
-                self.ctx
-                    .device
-                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                        label: Some("select"),
-                    });
-            self.encode(&mut encoder, camera, params, compaction);
-            self.ctx.queue.submit([encoder.finish()]);
+        self.ctx.submit("select dispatch", "select", |encoder| {
+            self.encode(encoder, camera, params, compaction)
         })?;
         Ok(&self.out)
     }

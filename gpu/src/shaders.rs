@@ -54,3 +54,12 @@ pub const PRIMITIVE_WGSL: &str = include_str!("shaders/primitive.wgsl");
 pub fn primitive_source() -> String {
     with_common(PRIMITIVE_WGSL)
 }
+
+/// The `refine` stage's own source (without [`COMMON_WGSL`]): per-tree refinement of the
+/// selected commands (beyond the thesis).
+pub const REFINE_WGSL: &str = include_str!("shaders/refine.wgsl");
+
+/// The full `refine` module source.
+pub fn refine_source() -> String {
+    with_common(REFINE_WGSL)
+}

@@ -7,8 +7,8 @@
 
 use core::mem::{offset_of, size_of};
 
-use forestlod_gpu::SelectUniform;
 use forestlod_gpu::shaders::{COMMON_WGSL, cull_source, primitive_source, select_source};
+use forestlod_gpu::{CullTree, SelectUniform};
 use forestlod_shared::{
     BatchMeta, Camera, CommandData, DrawCommand, MeshMeta, Params, ProxyRecord, SelectCounters,
 };
@@ -44,7 +44,7 @@ fn rust_layouts() -> Vec<RustLayout> {
             mip_mode,
             angle_index_mode,
             alpha_cutoff,
-            _pad0
+            tree_cull
         }),
         rust_layout!(Camera {
             eye,
@@ -104,6 +104,11 @@ fn rust_layouts() -> Vec<RustLayout> {
             lod1_commands,
             transition_batches,
             instances
+        }),
+        rust_layout!(CullTree {
+            center,
+            radius,
+            mesh
         }),
         rust_layout!(SelectUniform {
             planes,
@@ -197,7 +202,7 @@ fn wgsl_structs_match_their_rust_twins() {
             rust.size
         );
     }
-    assert_eq!(checked, 9);
+    assert_eq!(checked, 10);
 }
 
 #[test]

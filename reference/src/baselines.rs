@@ -50,7 +50,6 @@ use forestlod_shared::{
 };
 use glam::{Vec3, Vec4};
 
-use crate::batches::Batches;
 use crate::draw::{
     DrawResources, LOD_ID_BACKGROUND, LOD_ID_MESH, LOD_ID_TERRAIN, SKY_SRGB, draw_frame,
     terrain_triangles,
@@ -149,11 +148,13 @@ pub fn visible_trees(spheres: &[([f32; 3], f32)], camera: &Camera, params: &Para
         .collect()
 }
 
-/// The trees our grouped pipeline draws in a frame: every tree of every command's batch that
-/// passes the draw stage's per-tree draw-distance discard, ascending and without repeats.
+/// The trees our grouped pipeline draws in a frame: every tree of every command's instance range
+/// in `indirection` (the batches', or the `refine` stage's: [`crate::pipeline::Frame::indirection`])
+/// that passes the draw stage's per-tree draw-distance discard, ascending and without repeats.
 pub fn trees_drawn_by_selection(
     prepared: &Prepared,
     selection: &Selection,
+    indirection: &[u32],
     camera: &Camera,
     params: &Params,
 ) -> Vec<u32> {
@@ -162,8 +163,7 @@ pub fn trees_drawn_by_selection(
         .commands
         .iter()
         .flat_map(|c| {
-            prepared.batches.indirection
-                [c.first_instance as usize..(c.first_instance + c.instance_count) as usize]
+            indirection[c.first_instance as usize..(c.first_instance + c.instance_count) as usize]
                 .iter()
                 .copied()
         })
@@ -252,15 +252,10 @@ pub fn render_vegetation(
     );
     let select_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let batches = Batches {
-        metas: Vec::new(),
-        indirection,
-        grid_size: prepared.batches.grid_size,
-    };
     let res = DrawResources {
         scene: &prepared.scene,
         geometry: &prepared.geometry,
-        batches: &batches,
+        indirection: &indirection,
         mesh_textures: &prepared.mesh_textures,
         billboards: &prepared.billboards,
     };
@@ -280,6 +275,7 @@ pub fn render_vegetation(
         commands,
         timings: FrameTimings {
             select: select_seconds,
+            refine: 0.0,
             draw: draw_seconds,
         },
     }
@@ -595,6 +591,7 @@ pub fn render_primitive_shifted(
         visible,
         timings: FrameTimings {
             select: select_seconds,
+            refine: 0.0,
             draw: draw_seconds,
         },
     }

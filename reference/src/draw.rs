@@ -38,7 +38,6 @@ use forestlod_shared::{
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::bake::BakedBillboards;
-use crate::batches::Batches;
 use crate::geometry::PackedGeometry;
 use crate::raster::{
     ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, RenderTarget, Triangle, Vertex,
@@ -82,8 +81,9 @@ pub struct DrawResources<'a> {
     pub scene: &'a Scene,
     /// Packed vertex and index buffers.
     pub geometry: &'a PackedGeometry,
-    /// Batches and the indirection array.
-    pub batches: &'a Batches,
+    /// The indirection array the commands' instance ranges index: the batches' (E§4.2), or the
+    /// `refine` stage's or a baseline's.
+    pub indirection: &'a [u32],
     /// Mesh textures with mips, in mesh order.
     pub mesh_textures: &'a [Texture],
     /// Billboard array texture.
@@ -133,7 +133,7 @@ pub fn vertex_stage(
     let command = vertex_index >> COMMAND_SHIFT;
     let local = vertex_index & (MAX_MESH_VERTICES - 1);
     let data = &selection.data[command as usize];
-    let tree_index = res.batches.indirection[instance_index as usize] as usize;
+    let tree_index = res.indirection[instance_index as usize] as usize;
     let t = &res.scene.instances[tree_index];
     let mesh_meta = &res.geometry.meshes[t.mesh as usize];
     let (sphere_center, sphere_radius) = tree_sphere(t, mesh_meta);

@@ -41,6 +41,7 @@ pub mod output;
 pub mod pipeline;
 pub mod precision;
 pub mod raster;
+pub mod refine;
 pub mod sampler;
 pub mod scene;
 pub mod select;

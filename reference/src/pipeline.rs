@@ -15,8 +15,9 @@ use crate::bake::{BakedBillboards, bake, mesh_textures};
 use crate::batches::{Batches, MemoryReport, build_batches, memory_report};
 use crate::draw::{DrawResources, DrawnFrame, draw_frame};
 use crate::geometry::{PackedGeometry, pack_geometry};
+use crate::refine::{Refined, refine};
 use crate::sampler::Texture;
-use crate::scene::Scene;
+use crate::scene::{Scene, tree_sphere};
 use crate::select::{Selection, select};
 
 /// Seconds spent in each slow-path stage.
@@ -46,6 +47,8 @@ pub struct Prepared {
     pub billboards: BakedBillboards,
     /// Memory beside E Eq. 4.1.
     pub memory: MemoryReport,
+    /// Every tree's bounding sphere ([`tree_sphere`]), the input of the `refine` stage.
+    pub tree_spheres: Vec<([f32; 3], f32)>,
     /// Slow-path timings.
     pub timings: PrepareTimings,
 }
@@ -73,6 +76,14 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
         scene.meshes.len(),
         params,
     );
+    let tree_spheres = {
+        use rayon::prelude::*;
+        scene
+            .instances
+            .par_iter()
+            .map(|t| tree_sphere(t, &geometry.meshes[t.mesh as usize]))
+            .collect()
+    };
     Ok(Prepared {
         scene,
         geometry,
@@ -80,6 +91,7 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
         mesh_textures: textures,
         billboards,
         memory,
+        tree_spheres,
         timings,
     })
 }
@@ -89,18 +101,34 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
 pub struct FrameTimings {
     /// Selection and command generation (E§4.3).
     pub select: f64,
+    /// Per-tree refinement of the commands (`refine`, [`Params::tree_cull`]); 0 when off.
+    pub refine: f64,
     /// Draw execution (E§4.4), ground included.
     pub draw: f64,
 }
 
 /// One rendered frame.
 pub struct Frame {
-    /// What selection emitted.
+    /// What selection emitted, refined when [`Params::tree_cull`] asks for it (the commands
+    /// then index [`Frame::refined`]'s indirection).
     pub selection: Selection,
+    /// The `refine` stage's output, when it ran.
+    pub refined: Option<Refined>,
     /// The drawn buffers and counters.
     pub drawn: DrawnFrame,
     /// Stage timings.
     pub timings: FrameTimings,
+}
+
+impl Frame {
+    /// The indirection array the frame's commands index: the refined one when `refine` ran,
+    /// else the batches'.
+    pub fn indirection<'a>(&'a self, prepared: &'a Prepared) -> &'a [u32] {
+        match &self.refined {
+            Some(r) => &r.indirection,
+            None => &prepared.batches.indirection,
+        }
+    }
 }
 
 impl Prepared {
@@ -109,7 +137,7 @@ impl Prepared {
         DrawResources {
             scene: &self.scene,
             geometry: &self.geometry,
-            batches: &self.batches,
+            indirection: &self.batches.indirection,
             mesh_textures: &self.mesh_textures,
             billboards: &self.billboards,
         }
@@ -126,21 +154,61 @@ impl Prepared {
         )
     }
 
+    /// Selection, then `refine` when `params.tree_cull` asks for it (untimed; for experiments and
+    /// tests that need the commands without drawing). `params` must be valid.
+    pub fn select_refined(&self, camera: &Camera, params: &Params) -> (Selection, Option<Refined>) {
+        let mut selection = self.select(camera, params);
+        let refined = self.refine(&mut selection, camera, params);
+        (selection, refined)
+    }
+
+    /// The `refine` stage on `selection` when `params.tree_cull` is not `none`.
+    fn refine(
+        &self,
+        selection: &mut Selection,
+        camera: &Camera,
+        params: &Params,
+    ) -> Option<Refined> {
+        (params.tree_culling().ok()? != forestlod_shared::TreeCull::None).then(|| {
+            refine(
+                selection,
+                &self.batches.indirection,
+                &self.tree_spheres,
+                camera,
+                params,
+            )
+        })
+    }
+
     /// The per-frame path: selection, then draw. The camera is validated first.
     pub fn render(&self, camera: &Camera, params: &Params) -> Result<Frame, InputError> {
         camera.validate()?;
         params.validate()?;
         let t = Instant::now();
-        let selection = self.select(camera, params);
+        let mut selection = self.select(camera, params);
         let select_seconds = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let drawn = draw_frame(&self.resources(), &selection, camera, params);
+        let refined = self.refine(&mut selection, camera, params);
+        let refine_seconds = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let drawn = match &refined {
+            None => draw_frame(&self.resources(), &selection, camera, params),
+            Some(r) => {
+                let res = DrawResources {
+                    indirection: &r.indirection,
+                    ..self.resources()
+                };
+                draw_frame(&res, &selection, camera, params)
+            }
+        };
         let draw_seconds = t.elapsed().as_secs_f64();
         Ok(Frame {
             selection,
+            refined,
             drawn,
             timings: FrameTimings {
                 select: select_seconds,
+                refine: refine_seconds,
                 draw: draw_seconds,
             },
         })

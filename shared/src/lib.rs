@@ -43,7 +43,7 @@ pub use billboard::{BillboardExtent, billboard_extent, dither_threshold};
 pub use camera::{Camera, CameraBasis, FrustumPlanes};
 pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
 pub use interval::{LodNeeds, ViewInterval, lod_needs, selection_margin, view_interval};
-pub use params::{AngleIndexMode, MipMode, ParamError, Params};
+pub use params::{AngleIndexMode, MipMode, ParamError, Params, TreeCull};
 pub use types::{BatchMeta, CommandData, DrawCommand, MeshMeta, ProxyRecord, SelectCounters};
 
 /// Number of low bits of `DrawCommand::base_vertex` that carry the mesh-local vertex index; the

@@ -65,6 +65,48 @@ impl AngleIndexMode {
     }
 }
 
+/// Per-tree culling after batch selection (the `refine` stage, `reference/src/refine.rs`): beyond
+/// the thesis. Grouped selection (E§3.5) draws every tree of a batch that touches the view; at 10x
+/// density and 500 m cells that is hundreds of thousands of trees outside the frustum or in the
+/// wrong LOD (`experiments/results/README.md`). `refine` tests each tree of the chosen commands
+/// alone (the per-tree oracle's rule) and keeps the ones that need the command's LOD.
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TreeCull {
+    /// The thesis: no per-tree test; a command draws its whole batch.
+    None = 0,
+    /// Refine LOD0 (mesh) commands only: the near trees, few, and the expensive ones.
+    Lod0 = 1,
+    /// Refine every command: the per-tree oracle's trees exactly, at per-tree culling cost for
+    /// the trees of selected batches.
+    All = 2,
+}
+
+impl TreeCull {
+    /// Every mode, in id order.
+    pub const ALL: [TreeCull; 3] = [TreeCull::None, TreeCull::Lod0, TreeCull::All];
+    /// The mode with this id, if any.
+    pub fn from_id(id: u32) -> Option<Self> {
+        Self::ALL.get(id as usize).copied()
+    }
+    /// Name used on the command line and in CSVs.
+    pub fn name(self) -> &'static str {
+        match self {
+            TreeCull::None => "none",
+            TreeCull::Lod0 => "lod0",
+            TreeCull::All => "all",
+        }
+    }
+    /// Whether commands of `lod` (`LOD_MESH` or `LOD_BILLBOARD`) are refined.
+    pub fn refines(self, lod: u32) -> bool {
+        match self {
+            TreeCull::None => false,
+            TreeCull::Lod0 => lod == crate::LOD_MESH,
+            TreeCull::All => true,
+        }
+    }
+}
+
 /// All tunable parameters of the pipeline. Distances in metres.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
@@ -96,8 +138,8 @@ pub struct Params {
     pub angle_index_mode: u32,
     /// Alpha-test reference: fragments with alpha below it are discarded (SPEC §5.5).
     pub alpha_cutoff: f32,
-    /// Explicit padding to a multiple of 16 bytes for uniform buffers.
-    pub _pad0: u32,
+    /// [`TreeCull`] as `u32`. Default `None` (the thesis). Also pads the struct to 48 bytes.
+    pub tree_cull: u32,
 }
 const _: () = assert!(core::mem::size_of::<Params>() == 48);
 
@@ -115,7 +157,7 @@ impl Default for Params {
             mip_mode: MipMode::AlphaAware as u32,
             angle_index_mode: AngleIndexMode::Nearest as u32,
             alpha_cutoff: 0.5,
-            _pad0: 0,
+            tree_cull: TreeCull::None as u32,
         }
     }
 }
@@ -193,6 +235,17 @@ impl Params {
         })
     }
 
+    /// Per-tree culling mode, validated.
+    pub fn tree_culling(&self) -> Result<TreeCull, ParamError> {
+        TreeCull::from_id(self.tree_cull).ok_or_else(|| {
+            err(
+                "tree_cull",
+                self.tree_cull,
+                "expected 0 (none), 1 (lod0) or 2 (all)",
+            )
+        })
+    }
+
     /// Number of mip levels of a billboard layer, `log2(r) + 1` (r = 1 has one level).
     pub fn mip_level_count(&self) -> u32 {
         self.texture_size.max(1).ilog2() + 1
@@ -260,6 +313,7 @@ impl Params {
         self.fade()?;
         self.mips()?;
         self.angle_mode()?;
+        self.tree_culling()?;
         finite_in(
             "alpha_cutoff",
             self.alpha_cutoff,

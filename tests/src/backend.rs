@@ -153,12 +153,15 @@ pub fn gpu_backends() -> Vec<GpuBackend> {
 // The draw stage (SPEC §5.5, §8): one frame rendered by the reference or by the GPU twin.
 
 use forestlod_gpu::draw::{DrawCalls, DrawTarget, GpuDraw, MipLevel};
+use forestlod_gpu::readback::upload_storage;
 use forestlod_gpu::{
     BakeMesh, DrawInputs, DrawInstance, DrawScene, DrawSceneDesc, DrawTextures, DrawVertex,
-    GpuBake, GpuError, terrain_vertices, upload_texture_array,
+    GpuBake, GpuError, GpuRefine, terrain_vertices, upload_texture_array,
 };
 use forestlod_reference::pipeline::Prepared;
+use forestlod_reference::refine::refine;
 use forestlod_reference::sampler::Texture;
+use forestlod_shared::TreeCull;
 
 use crate::image_compare::Images;
 
@@ -427,8 +430,10 @@ pub fn gpu_textures(
 }
 
 /// Renders one frame on the GPU, reading the buffers back: `select.wgsl` (stable compaction) or
-/// the reference's selection, the GPU stages' textures ([`gpu_textures`]) or the reference's,
-/// then `draw.wgsl`. `draw` holds the compiled pipelines (see [`gpu_draw`]).
+/// the reference's selection, then, when `params.tree_cull` is not `none`, `refine.wgsl` on the
+/// GPU's selection or the reference's `refine` on its own (its `3n` indirection uploaded), the
+/// GPU stages' textures ([`gpu_textures`]) or the reference's, then `draw.wgsl`. `draw` holds the
+/// compiled pipelines (see [`gpu_draw`]).
 pub fn render_gpu(
     ctx: &GpuContext,
     draw: &GpuDraw,
@@ -446,13 +451,38 @@ pub fn render_gpu(
     };
     let textures = DrawTextures::new(&mesh, &billboards)?;
     let target = DrawTarget::new(ctx, camera.width, camera.height)?;
+    let refining = params.tree_cull != TreeCull::None as u32;
     let gpu_select;
     let cpu_buffers;
-    let selection = if from_cpu.select {
-        let s = prepared.select(camera, params);
+    let gpu_refine;
+    let cpu_indirection;
+    let (selection, indirection) = if from_cpu.select {
+        // The reference's selection, refined by the reference when `tree_cull` asks for it.
+        let mut s = prepared.select(camera, params);
+        let refined = refining.then(|| {
+            refine(
+                &mut s,
+                &prepared.batches.indirection,
+                &prepared.tree_spheres,
+                camera,
+                params,
+            )
+        });
         cpu_buffers =
             forestlod_gpu::SelectBuffers::from_cpu(ctx, &s.commands, &s.data, &s.counters)?;
-        &cpu_buffers
+        let indirection = match refined {
+            Some(r) => {
+                cpu_indirection = upload_storage(
+                    ctx,
+                    "refined indirection (cpu)",
+                    &r.indirection,
+                    wgpu::BufferUsages::empty(),
+                );
+                Some(&cpu_indirection)
+            }
+            None => None,
+        };
+        (&cpu_buffers, indirection)
     } else {
         gpu_select = GpuSelect::new(
             ctx,
@@ -460,13 +490,21 @@ pub fn render_gpu(
             &prepared.geometry.meshes,
             &prepared.geometry.billboard,
         )?;
-        gpu_select.dispatch(camera, params, Compaction::Stable)?
+        let selection = gpu_select.dispatch(camera, params, Compaction::Stable)?;
+        let indirection = if refining {
+            gpu_refine = GpuRefine::new(ctx, &cull_trees(prepared), &prepared.batches.indirection)?;
+            gpu_refine.dispatch(selection, camera, params)?;
+            Some(gpu_refine.indirection())
+        } else {
+            None
+        };
+        (selection, indirection)
     };
     let inputs = DrawInputs {
         scene: &scene,
         textures: &textures,
         selection,
-        indirection: None,
+        indirection,
     };
     let calls = draw.render(ctx, &inputs, camera, params, &target)?;
     let out = target.read(ctx)?;
@@ -528,6 +566,7 @@ use forestlod_reference::baselines::{
     Proxy, proxies, render_primitive_shifted, render_vegetation, tree_spheres,
 };
 use forestlod_reference::raster::RenderTarget;
+use forestlod_reference::scene::Scene;
 use forestlod_shared::{ProxyRecord, SelectCounters};
 
 /// The buffers of a reference [`RenderTarget`] as [`Images`].
@@ -606,10 +645,17 @@ pub fn gpu_primitive(ctx: &'static GpuContext) -> Result<&'static GpuPrimitive, 
 /// Every tree's bounding sphere (`baselines::tree_spheres`, computed on the CPU) and mesh: the
 /// input of [`GpuCull`].
 pub fn cull_trees(prepared: &Prepared) -> Vec<CullTree> {
-    tree_spheres(&prepared.scene, &prepared.geometry.meshes)
-        .into_iter()
-        .zip(&prepared.scene.instances)
-        .map(|((center, radius), t)| CullTree {
+    let spheres = tree_spheres(&prepared.scene, &prepared.geometry.meshes);
+    cull_trees_of(&prepared.scene, &spheres)
+}
+
+/// The [`GpuCull`] / `GpuRefine` input of `scene`'s trees from their bounding spheres (as
+/// `baselines::tree_spheres` computes them, one per instance).
+pub fn cull_trees_of(scene: &Scene, spheres: &[([f32; 3], f32)]) -> Vec<CullTree> {
+    spheres
+        .iter()
+        .zip(&scene.instances)
+        .map(|(&(center, radius), t)| CullTree {
             center,
             radius,
             mesh: t.mesh,
@@ -652,12 +698,13 @@ impl GpuVariant {
 pub struct GpuTimedFrame {
     /// Colour, depth and LOD id, read back (as [`render_gpu`] returns them).
     pub images: Images,
-    /// Wall seconds from submit to completion (`ctx.wait`) of selection (ours) or culling
-    /// (baselines).
+    /// Wall seconds from submit to completion (`ctx.wait`) of selection (ours, with `refine`
+    /// when `params.tree_cull` asks for it) or culling (baselines).
     pub select_s: f64,
     /// Wall seconds from submit to completion of the draw pass (readback excluded).
     pub draw_s: f64,
-    /// GPU seconds of selection / culling between timestamps, where `TIMESTAMP_QUERY` is offered.
+    /// GPU seconds of selection (with `refine` where it runs) / culling between timestamps, where
+    /// `TIMESTAMP_QUERY` is offered.
     pub gpu_select_s: Option<f64>,
     /// GPU seconds of the draw pass between timestamps, where `TIMESTAMP_QUERY` is offered.
     pub gpu_draw_s: Option<f64>,
@@ -712,8 +759,9 @@ impl Timestamps {
 }
 
 /// One prepared scene on the GPU for the sweeps: the draw buffers, the GPU-built textures
-/// ([`gpu_textures`], with the parameters' mip mode), our selection ([`GpuSelect`]), the
-/// baselines' per-tree culling ([`GpuCull`]) and proxies, and a render target per viewport size.
+/// ([`gpu_textures`], with the parameters' mip mode), our selection ([`GpuSelect`]) and its
+/// per-tree refinement ([`GpuRefine`], run when `params.tree_cull` asks for it), the baselines'
+/// per-tree culling ([`GpuCull`]) and proxies, and a render target per viewport size.
 /// [`GpuSweepScene::new`] uploads everything once; [`GpuSweepScene::render`] only records, submits
 /// and reads back one frame.
 pub struct GpuSweepScene {
@@ -721,6 +769,7 @@ pub struct GpuSweepScene {
     scene: DrawScene,
     textures: DrawTextures,
     select: GpuSelect<'static>,
+    refine: GpuRefine<'static>,
     cull: GpuCull<'static>,
     proxies: GpuProxies,
     draw: &'static GpuDraw,
@@ -747,13 +796,16 @@ impl GpuSweepScene {
             &prepared.geometry.meshes,
             &prepared.geometry.billboard,
         )?;
-        let cull = GpuCull::new(ctx, &cull_trees(prepared), &prepared.geometry.meshes)?;
+        let trees = cull_trees(prepared);
+        let refine = GpuRefine::new(ctx, &trees, &prepared.batches.indirection)?;
+        let cull = GpuCull::new(ctx, &trees, &prepared.geometry.meshes)?;
         let proxies = GpuProxies::new(ctx, &proxy_records(prepared, params));
         Ok(Self {
             ctx,
             scene,
             textures,
             select,
+            refine,
             cull,
             proxies,
             draw: try_gpu_draw(ctx)?,
@@ -768,10 +820,24 @@ impl GpuSweepScene {
         &self.cull
     }
 
-    /// Renders one frame of `variant`: stage 1 (selection or culling) and stage 2 (the draw pass)
-    /// are recorded, submitted and waited for separately, each timed from submit to completion;
-    /// then the counters and the target are read back. `params` must be what the scene was
-    /// prepared with, apart from the per-frame fields (fade, distances, LOD levels).
+    /// Our selection's buffers (for tests: `SelectBuffers::read` after a frame of ours; refined
+    /// in place when `params.tree_cull` was not `none`).
+    pub fn selection(&self) -> &forestlod_gpu::SelectBuffers {
+        self.select.buffers()
+    }
+
+    /// Our per-tree refinement (for tests: `GpuRefine::read` after a frame of ours with
+    /// `params.tree_cull` not `none`).
+    pub fn refine(&self) -> &GpuRefine<'static> {
+        &self.refine
+    }
+
+    /// Renders one frame of `variant`: stage 1 (selection or culling; for ours with
+    /// `params.tree_cull` not `none`, selection then `refine.wgsl`, in the same submit) and
+    /// stage 2 (the draw pass, of the refined commands and indirection where refined) are
+    /// recorded, submitted and waited for separately, each timed from submit to completion; then
+    /// the counters and the target are read back. `params` must be what the scene was prepared
+    /// with, apart from the per-frame fields (fade, distances, LOD levels, tree culling).
     pub fn render(
         &mut self,
         variant: GpuVariant,
@@ -794,6 +860,7 @@ impl GpuSweepScene {
             self.targets.insert(key, target);
         }
         let ctx = self.ctx;
+        let refining = params.tree_cull != TreeCull::None as u32;
         let target = &self.targets[&key];
         let stamps = self.timestamps.as_ref();
         let submit_timed = |encoder: wgpu::CommandEncoder| -> Result<f64, GpuError> {
@@ -816,7 +883,11 @@ impl GpuSweepScene {
             }
             match variant {
                 GpuVariant::Ours(compaction) => {
-                    self.select.encode(&mut encoder, camera, params, compaction)
+                    self.select.encode(&mut encoder, camera, params, compaction);
+                    if refining {
+                        self.refine
+                            .encode(&mut encoder, self.select.buffers(), camera, params);
+                    }
                 }
                 GpuVariant::Vegetation | GpuVariant::Primitive => {
                     self.cull.encode(&mut encoder, camera, params)
@@ -846,7 +917,7 @@ impl GpuSweepScene {
                             scene: &self.scene,
                             textures: &self.textures,
                             selection: self.select.buffers(),
-                            indirection: None,
+                            indirection: refining.then(|| self.refine.indirection()),
                         },
                         _ => DrawInputs {
                             scene: &self.scene,

@@ -744,6 +744,48 @@ pub fn write_failure_images(report: &ImageReport, gpu: &Images, reference: &Imag
     dir
 }
 
+/// Maxima over the frames of one path: interior colour difference, interior depth ulps, depth
+/// difference.
+pub type MaxDiffs = (u8, u32, f32);
+
+/// Judges `got` against `want` ([`compare_images`]), prints the report, notes its maxima into
+/// `max` and returns the failure line (with where the failure images went), if any.
+pub fn judge_image(
+    name: &str,
+    got: &Images,
+    want: &Images,
+    alternatives: &[Images],
+    camera: &Camera,
+    max: &mut MaxDiffs,
+) -> Option<String> {
+    let report = compare_images(name, got, want, alternatives, camera);
+    println!("{report}");
+    *max = (
+        max.0.max(report.color_max_interior_diff),
+        max.1.max(report.depth_max_interior_ulps),
+        max.2.max(report.depth_max_diff),
+    );
+    if report.passed() {
+        None
+    } else {
+        let dir = write_failure_images(&report, got, want);
+        Some(format!(
+            "{name}: {} (images in {})",
+            report.failures().join("; "),
+            dir.display()
+        ))
+    }
+}
+
+/// Prints the maxima `max` of the path `what`, indented under the reports.
+pub fn print_max_diffs(what: &str, max: &MaxDiffs) {
+    println!(
+        "  {what}: max interior colour diff {}, max interior depth diff {} ulp, max depth diff \
+         {:.3e}",
+        max.0, max.1, max.2
+    );
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -8,9 +8,11 @@ pub mod scenarios;
 pub mod texel_compare;
 
 use forestlod_reference::scene::{Instance, Scene, Terrain, TreeMesh};
+use forestlod_reference::select::SelectUniform;
 use forestlod_reference::texture::Rgba8Image;
-use forestlod_shared::{Camera, Params};
+use forestlod_shared::{Camera, Params, selection_margin, view_interval};
 use proptest::prelude::*;
+use proptest::test_runner::{Config, TestCaseError, TestRunner};
 
 /// A crossed-card tree of `height` metres and crown half-width `half_width`: 4 triangles.
 pub fn card_tree(name: &str, height: f32, half_width: f32) -> TreeMesh {
@@ -125,6 +127,108 @@ pub fn cameras() -> impl Strategy<Value = Camera> {
             c.forward = forward;
             c
         })
+}
+
+/// Random cameras around a scene's footprint `bounds` (`[x0, y0, x1, y1]`): the eye within half a
+/// footprint of it, 0.5..400 m up, looking at a random point of it (-20..40 m high); field of view
+/// 20°..100°, 64..256 pixels a side; only valid cameras.
+pub fn cameras_around(bounds: [f32; 4]) -> impl Strategy<Value = Camera> {
+    let [x0, y0, x1, y1] = bounds;
+    let m = 0.5 * (x1 - x0).max(y1 - y0);
+    (
+        (x0 - m)..(x1 + m),
+        (y0 - m)..(y1 + m),
+        0.5f32..400.0,
+        x0..x1,
+        y0..y1,
+        -20.0f32..40.0,
+        20.0f32..100.0,
+        64u32..256,
+        64u32..256,
+    )
+        .prop_map(|(ex, ey, ez, tx, ty, tz, fov, w, h)| {
+            Camera::look_at([ex, ey, ez], [tx, ty, tz], fov, w, h)
+        })
+        .prop_filter("valid camera", |c| c.validate().is_ok())
+}
+
+/// Runs `cases` random cases of `strategy` through `body`, panicking with proptest's (shrunk)
+/// failure, prefixed by `what`.
+pub fn run_cases<S: Strategy>(
+    what: &str,
+    cases: u32,
+    strategy: S,
+    mut body: impl FnMut(S::Value) -> Result<(), String>,
+) where
+    S::Value: std::fmt::Debug,
+{
+    let mut runner = TestRunner::new(Config {
+        cases,
+        failure_persistence: None,
+        ..Config::default()
+    });
+    let body = std::cell::RefCell::new(&mut body);
+    if let Err(e) = runner.run(&strategy, |value| {
+        (body.borrow_mut())(value).map_err(TestCaseError::fail)
+    }) {
+        panic!("{what}: {e}");
+    }
+}
+
+/// Which thresholds [`threshold_ambiguity`] checks besides the interval's near end against the
+/// draw distance and the six plane distances.
+#[derive(Clone, Copy, Debug)]
+pub struct Thresholds {
+    /// The centre's depth against the draw distance (the per-tree discard).
+    pub centre_depth: bool,
+    /// The interval's ends against the fade band (which LODs it needs), with two LOD levels.
+    pub fade_band: bool,
+}
+
+/// Why the selection decision for the sphere (`center`, `radius`) is ambiguous under `u`, or
+/// `None` when it is not near any threshold: a distance is near a threshold when it lies within
+/// `rel` of `|c - e|₁ + r + |threshold|` of it (the rounding a fused multiply-add may move it
+/// by). Checked in order: the interval's near end against the draw distance, the centre's depth
+/// against it (with `checks.centre_depth`), the interval's ends against the fade band (with
+/// `checks.fade_band` and two LOD levels) and the six plane distances against `-r - m`.
+pub fn threshold_ambiguity(
+    center: [f32; 3],
+    radius: f32,
+    u: &SelectUniform,
+    rel: f32,
+    checks: Thresholds,
+) -> Option<String> {
+    let i = view_interval(center, radius, u.eye, u.forward);
+    let d = [
+        center[0] - u.eye[0],
+        center[1] - u.eye[1],
+        center[2] - u.eye[2],
+    ];
+    let m = selection_margin(d, radius);
+    let magnitude = d[0].abs() + d[1].abs() + d[2].abs() + radius;
+    let near = |x: f32, t: f32| (x - t).abs() <= rel * (magnitude + t.abs());
+    if near(i.lo, u.draw_distance) {
+        return Some(format!("lo {} ≈ draw distance {}", i.lo, u.draw_distance));
+    }
+    if checks.centre_depth && near(i.d, u.draw_distance) {
+        return Some(format!(
+            "centre depth {} ≈ draw distance {} (per-tree discard)",
+            i.d, u.draw_distance
+        ));
+    }
+    if checks.fade_band && u.lod_levels >= 2 && near(i.lo, u.fade_end) {
+        return Some(format!("lo {} ≈ fade end {}", i.lo, u.fade_end));
+    }
+    if checks.fade_band && u.lod_levels >= 2 && near(i.hi, u.fade_start) {
+        return Some(format!("hi {} ≈ fade start {}", i.hi, u.fade_start));
+    }
+    for (k, p) in u.frustum.planes.iter().enumerate() {
+        let distance = p[0] * d[0] + p[1] * d[1] + p[2] * d[2] + p[3];
+        if near(distance, -radius - m) {
+            return Some(format!("plane {k} distance {distance} ≈ {}", -radius - m));
+        }
+    }
+    None
 }
 
 /// Random valid parameters: grid 1 m..5 km, transition 0..2 km, fade 0..500 m, draw distance

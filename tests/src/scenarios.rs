@@ -4,6 +4,7 @@
 //! goldens.
 
 use forestlod_reference::cameras::named_camera;
+use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::{Scene, builtin};
 use forestlod_shared::{Camera, FadeMode, Params};
 
@@ -74,4 +75,90 @@ pub fn golden_scenarios() -> Vec<Scenario> {
         params: tiny_params(FadeMode::Alpha),
     });
     out
+}
+
+/// `synthetic` cropped to the square of half-side `half` metres around its centre (its trees,
+/// meshes and terrain unchanged), so a software rasterizer renders it quickly.
+pub fn cropped_synthetic(half: f32) -> Scene {
+    let mut scene = builtin::synthetic();
+    let [x0, y0, x1, y1] = scene.bounds;
+    let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
+    scene
+        .instances
+        .retain(|t| (t.position[0] - cx).abs() <= half && (t.position[1] - cy).abs() <= half);
+    scene.bounds = [cx - half, cy - half, cx + half, cy + half];
+    scene.name = format!("synthetic-crop{}", 2.0 * half);
+    scene
+}
+
+/// Parameters for the cropped `synthetic`: 100 m cells, transition at 550 m with a 150 m band, so
+/// the `medium` view (trees 200..800 m away) holds LOD0, the band and LOD1.
+pub fn crop_params(fade: FadeMode) -> Params {
+    Params {
+        grid_size: 100.0,
+        angle_count: 10,
+        texture_size: 64,
+        lod1_transition: 550.0,
+        fade_width: 150.0,
+        fade_mode: fade as u32,
+        ..Params::default()
+    }
+}
+
+/// One frame of a prepared scene to render and compare.
+#[derive(Clone, Debug)]
+pub struct FrameScenario {
+    /// Report name.
+    pub name: String,
+    /// Index of the prepared scene it renders.
+    pub prepared_key: usize,
+    /// The camera.
+    pub camera: Camera,
+    /// The parameters.
+    pub params: Params,
+}
+
+/// The image scenarios of the GPU baselines and refinement: `tiny` (prepared key 0, alpha fade)
+/// from `medium` at yaws 0° and 40°, `close` and `far`, then from `medium` once for each of
+/// `tiny_medium` (name suffix, parameters), then the cropped `synthetic` of 600 m (key 1) from
+/// `medium` (160²) and `close` (128²).
+pub fn tiny_and_crop_frames(tiny_medium: &[(&str, Params)]) -> (Vec<Prepared>, Vec<FrameScenario>) {
+    let mut prepared = Vec::new();
+    let mut out = Vec::new();
+    let tiny = builtin::tiny();
+    let p = tiny_params(FadeMode::Alpha);
+    prepared.push(prepare(tiny.clone(), &p).expect("prepare tiny"));
+    for (name, yaw) in [
+        ("medium", 0.0),
+        ("medium", 40.0),
+        ("close", 0.0),
+        ("far", 0.0),
+    ] {
+        out.push(FrameScenario {
+            name: format!("tiny-{name}-yaw{yaw}"),
+            prepared_key: 0,
+            camera: named_camera(name, &tiny, yaw, 96, 96).unwrap(),
+            params: p,
+        });
+    }
+    for (suffix, params) in tiny_medium {
+        out.push(FrameScenario {
+            name: format!("tiny-medium-{suffix}"),
+            prepared_key: 0,
+            camera: named_camera("medium", &tiny, 0.0, 96, 96).unwrap(),
+            params: *params,
+        });
+    }
+    let crop = cropped_synthetic(300.0);
+    let crop_p = crop_params(FadeMode::Alpha);
+    prepared.push(prepare(crop.clone(), &crop_p).expect("prepare crop"));
+    for (name, size) in [("medium", 160), ("close", 128)] {
+        out.push(FrameScenario {
+            name: format!("{}-{name}", crop.name),
+            prepared_key: 1,
+            camera: named_camera(name, &crop, 0.0, size, size).unwrap(),
+            params: crop_p,
+        });
+    }
+    (prepared, out)
 }

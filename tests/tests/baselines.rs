@@ -69,7 +69,13 @@ fn with_one_tree_per_batch_every_variant_draws_the_per_tree_visible_set() {
     for (name, yaw) in poses() {
         let camera = named_camera(name, &prepared.scene, yaw, SIZE.0, SIZE.1).unwrap();
         let ours = prepared.render(&camera, &params).unwrap();
-        let drawn = trees_drawn_by_selection(&prepared, &ours.selection, &camera, &params);
+        let drawn = trees_drawn_by_selection(
+            &prepared,
+            &ours.selection,
+            ours.indirection(&prepared),
+            &camera,
+            &params,
+        );
         let veg = render_vegetation(&prepared, &spheres, &camera, &params);
         let prim = render_primitive(&prepared, &spheres, &proxy_list, &camera, &params);
         assert_eq!(drawn, veg.visible, "{name} yaw {yaw}: ours vs Vegetation");
@@ -127,7 +133,13 @@ fn ours_is_conservative_and_its_coverage_matches_vegetation() {
         for (name, yaw) in poses() {
             let camera = named_camera(name, &prepared.scene, yaw, SIZE.0, SIZE.1).unwrap();
             let ours = prepared.render(&camera, &params).unwrap();
-            let drawn = trees_drawn_by_selection(&prepared, &ours.selection, &camera, &params);
+            let drawn = trees_drawn_by_selection(
+                &prepared,
+                &ours.selection,
+                ours.indirection(&prepared),
+                &camera,
+                &params,
+            );
             let veg = render_vegetation(&prepared, &spheres, &camera, &params);
             for t in &veg.visible {
                 assert!(

@@ -22,7 +22,7 @@
 use std::collections::BTreeSet;
 use std::time::Instant;
 
-use forestlod_gpu::{Compaction, CullTree, DrawIndirectArgs, GpuCull};
+use forestlod_gpu::{Compaction, DrawIndirectArgs, GpuCull};
 use forestlod_reference::baselines::{
     self, Proxy, primitive_quad, proxies, render_primitive, render_vegetation, tree_spheres,
     vegetation_commands, visible_trees,
@@ -34,19 +34,22 @@ use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::{Scene, builtin};
 use forestlod_reference::select::SelectUniform;
 use forestlod_shared::{
-    Camera, CommandData, DrawCommand, FadeMode, MeshMeta, Params, ProxyRecord, selection_margin,
-    view_interval,
+    Camera, CommandData, DrawCommand, FadeMode, MeshMeta, Params, ProxyRecord, view_interval,
 };
 use forestlod_tests::backend::{
     GpuSweepScene, GpuVariant, ReferenceRenderer, Renderer, alpha_test_alternatives, cull_trees,
-    gpu_context, images_of, primitive_alternatives, vegetation_alternatives,
+    cull_trees_of, gpu_context, images_of, primitive_alternatives, vegetation_alternatives,
 };
-use forestlod_tests::image_compare::{Images, compare_images, write_failure_images};
-use forestlod_tests::scenarios::tiny_params;
-use forestlod_tests::{cameras, instances, params, scene_of};
+use forestlod_tests::image_compare::{MaxDiffs, judge_image, print_max_diffs};
+use forestlod_tests::scenarios::{
+    crop_params, cropped_synthetic, tiny_and_crop_frames, tiny_params,
+};
+use forestlod_tests::{
+    Thresholds, cameras, cameras_around, instances, params, run_cases, scene_of,
+    threshold_ambiguity,
+};
 use glam::Vec3;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, TestCaseError, TestRunner};
 
 /// Relative distance to a threshold within which the GPU and the reference may cull a tree
 /// differently.
@@ -66,31 +69,11 @@ const CASES: u32 = 64;
 /// interval's near end against the draw distance, the centre's depth against it (the per-tree
 /// discard), and the six plane distances against `-r - m`.
 fn ambiguity(center: [f32; 3], radius: f32, u: &SelectUniform) -> Option<String> {
-    let i = view_interval(center, radius, u.eye, u.forward);
-    let rel = [
-        center[0] - u.eye[0],
-        center[1] - u.eye[1],
-        center[2] - u.eye[2],
-    ];
-    let m = selection_margin(rel, radius);
-    let magnitude = rel[0].abs() + rel[1].abs() + rel[2].abs() + radius;
-    let near = |x: f32, t: f32| (x - t).abs() <= AMBIGUITY_REL * (magnitude + t.abs());
-    if near(i.lo, u.draw_distance) {
-        return Some(format!("lo {} ≈ draw distance {}", i.lo, u.draw_distance));
-    }
-    if near(i.d, u.draw_distance) {
-        return Some(format!(
-            "centre depth {} ≈ draw distance {} (per-tree discard)",
-            i.d, u.draw_distance
-        ));
-    }
-    for (k, p) in u.frustum.planes.iter().enumerate() {
-        let distance = p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3];
-        if near(distance, -radius - m) {
-            return Some(format!("plane {k} distance {distance} ≈ {}", -radius - m));
-        }
-    }
-    None
+    let checks = Thresholds {
+        centre_depth: true,
+        fade_band: false,
+    };
+    threshold_ambiguity(center, radius, u, AMBIGUITY_REL, checks)
 }
 
 /// Tallies of the cull comparisons, printed at the end.
@@ -261,54 +244,12 @@ fn judge_cull(
     Ok(())
 }
 
-/// `synthetic` cropped to the square of half-side `half` metres around its centre (as in
-/// `parity_draw`).
-fn cropped_synthetic(half: f32) -> Scene {
-    let mut scene = builtin::synthetic();
-    let [x0, y0, x1, y1] = scene.bounds;
-    let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
-    scene
-        .instances
-        .retain(|t| (t.position[0] - cx).abs() <= half && (t.position[1] - cy).abs() <= half);
-    scene.bounds = [cx - half, cy - half, cx + half, cy + half];
-    scene.name = format!("synthetic-crop{}", 2.0 * half);
-    scene
-}
-
-/// `parity_draw`'s parameters for the cropped `synthetic`.
-fn crop_params() -> Params {
-    Params {
-        grid_size: 100.0,
-        angle_count: 10,
-        texture_size: 64,
-        lod1_transition: 550.0,
-        fade_width: 150.0,
-        fade_mode: FadeMode::Alpha as u32,
-        ..Params::default()
-    }
-}
-
 /// Random cameras around a scene's footprint (eye within half a footprint of it, 0.5..400 m
 /// up, looking at a random point of it) and random per-frame parameters (draw distance often
 /// inside the footprint, so the distance cull and the per-tree discard both bite).
 fn cases_around(bounds: [f32; 4]) -> impl Strategy<Value = (Camera, Params)> {
     let [x0, y0, x1, y1] = bounds;
     let m = 0.5 * (x1 - x0).max(y1 - y0);
-    let camera = (
-        (x0 - m)..(x1 + m),
-        (y0 - m)..(y1 + m),
-        0.5f32..400.0,
-        x0..x1,
-        y0..y1,
-        -20.0f32..40.0,
-        20.0f32..100.0,
-        64u32..256,
-        64u32..256,
-    )
-        .prop_map(|(ex, ey, ez, tx, ty, tz, fov, w, h)| {
-            Camera::look_at([ex, ey, ez], [tx, ty, tz], fov, w, h)
-        })
-        .prop_filter("valid camera", |c| c.validate().is_ok());
     let p = (
         prop_oneof![0.0f32..(2.0 * m), Just(4000.0f32)],
         0.0f32..2000.0,
@@ -322,28 +263,7 @@ fn cases_around(bounds: [f32; 4]) -> impl Strategy<Value = (Camera, Params)> {
             lod_levels: l,
             ..Params::default()
         });
-    (camera, p)
-}
-
-/// Runs `cases` random cases through `body`, panicking with proptest's (shrunk) failure.
-fn run_random<S: Strategy>(
-    what: &str,
-    strategy: S,
-    mut body: impl FnMut(S::Value) -> Result<(), String>,
-) where
-    S::Value: std::fmt::Debug,
-{
-    let mut runner = TestRunner::new(Config {
-        cases: CASES,
-        failure_persistence: None,
-        ..Config::default()
-    });
-    let body = std::cell::RefCell::new(&mut body);
-    if let Err(e) = runner.run(&strategy, |value| {
-        (body.borrow_mut())(value).map_err(TestCaseError::fail)
-    }) {
-        panic!("{what}: {e}");
-    }
+    (cameras_around(bounds), p)
 }
 
 #[test]
@@ -356,19 +276,11 @@ fn gpu_cull_matches_per_tree_culling() {
     let crop = cropped_synthetic(300.0);
     for (scene, p, size) in [
         (&tiny, tiny_params(FadeMode::Alpha), 96),
-        (&crop, crop_params(), 160),
+        (&crop, crop_params(FadeMode::Alpha), 160),
     ] {
         let geometry = pack_geometry(scene);
         let spheres = tree_spheres(scene, &geometry.meshes);
-        let trees: Vec<CullTree> = spheres
-            .iter()
-            .zip(&scene.instances)
-            .map(|(&(center, radius), t)| CullTree {
-                center,
-                radius,
-                mesh: t.mesh,
-            })
-            .collect();
+        let trees = cull_trees_of(scene, &spheres);
         let gpu = GpuCull::new(ctx, &trees, &geometry.meshes).expect("GpuCull::new");
         // The named cameras of parity_draw, yawed, and the draw distance pulled in.
         for name in ["medium", "close", "far"] {
@@ -393,8 +305,9 @@ fn gpu_cull_matches_per_tree_culling() {
             }
         }
         // Random cameras and parameters around the scene.
-        run_random(
+        run_cases(
             &format!("{} random cameras", scene.name),
+            CASES,
             cases_around(scene.bounds),
             |(camera, params)| {
                 judge_cull(
@@ -411,22 +324,15 @@ fn gpu_cull_matches_per_tree_culling() {
         );
     }
     // Random scenes of card trees, random cameras (parity_select's generators).
-    run_random(
+    run_cases(
         "random scenes",
+        CASES,
         (instances(300), cameras(), params()),
         |(trees, camera, params)| {
             let scene = scene_of(trees);
             let geometry = pack_geometry(&scene);
             let spheres = tree_spheres(&scene, &geometry.meshes);
-            let cull: Vec<CullTree> = spheres
-                .iter()
-                .zip(&scene.instances)
-                .map(|(&(center, radius), t)| CullTree {
-                    center,
-                    radius,
-                    mesh: t.mesh,
-                })
-                .collect();
+            let cull = cull_trees_of(&scene, &spheres);
             let gpu = GpuCull::new(ctx, &cull, &geometry.meshes).map_err(|e| e.to_string())?;
             judge_cull(
                 "random scene",
@@ -484,47 +390,25 @@ fn near_fallback_trees(
         .count()
 }
 
+/// The shared `tiny` and cropped `synthetic` frames (the draw distance pulled in to 300 m), and
+/// `pair` from inside its trees' bounding spheres for Primitive's near fallback.
 fn image_scenarios() -> (Vec<Prepared>, Vec<ImageScenario>) {
-    let mut prepared = Vec::new();
-    let mut out = Vec::new();
-    let tiny = builtin::tiny();
     let p = tiny_params(FadeMode::Alpha);
-    prepared.push(prepare(tiny.clone(), &p).expect("prepare tiny"));
-    for (name, yaw) in [
-        ("medium", 0.0),
-        ("medium", 40.0),
-        ("close", 0.0),
-        ("far", 0.0),
-    ] {
-        out.push(ImageScenario {
-            name: format!("tiny-{name}-yaw{yaw}"),
-            prepared_key: 0,
-            camera: named_camera(name, &tiny, yaw, 96, 96).unwrap(),
-            params: p,
+    let dd300 = Params {
+        draw_distance: 300.0,
+        ..p
+    };
+    let (mut prepared, frames) = tiny_and_crop_frames(&[("draw-distance-300", dd300)]);
+    let mut out: Vec<ImageScenario> = frames
+        .into_iter()
+        .map(|f| ImageScenario {
+            name: f.name,
+            prepared_key: f.prepared_key,
+            camera: f.camera,
+            params: f.params,
             near_fallback: false,
-        });
-    }
-    out.push(ImageScenario {
-        name: "tiny-medium-draw-distance-300".into(),
-        prepared_key: 0,
-        camera: named_camera("medium", &tiny, 0.0, 96, 96).unwrap(),
-        params: Params {
-            draw_distance: 300.0,
-            ..p
-        },
-        near_fallback: false,
-    });
-    let crop = cropped_synthetic(300.0);
-    prepared.push(prepare(crop.clone(), &crop_params()).expect("prepare crop"));
-    for (name, size) in [("medium", 160), ("close", 128)] {
-        out.push(ImageScenario {
-            name: format!("{}-{name}", crop.name),
-            prepared_key: 1,
-            camera: named_camera(name, &crop, 0.0, size, size).unwrap(),
-            params: crop_params(),
-            near_fallback: false,
-        });
-    }
+        })
+        .collect();
     // `pair` (a spruce at x = -6, an oak at x = 6) from inside their bounding spheres.
     let pair = builtin::pair();
     let pair_params = Params {
@@ -549,35 +433,6 @@ fn image_scenarios() -> (Vec<Prepared>, Vec<ImageScenario>) {
     (prepared, out)
 }
 
-/// Judges `got` against `want`, prints the report, notes its maxima into `max` (interior colour
-/// difference, interior depth ulps, depth difference) and returns the failure line, if any.
-fn judge_image(
-    name: &str,
-    got: &Images,
-    want: &Images,
-    alternatives: &[Images],
-    camera: &Camera,
-    max: &mut (u8, u32, f32),
-) -> Option<String> {
-    let report = compare_images(name, got, want, alternatives, camera);
-    println!("{report}");
-    *max = (
-        max.0.max(report.color_max_interior_diff),
-        max.1.max(report.depth_max_interior_ulps),
-        max.2.max(report.depth_max_diff),
-    );
-    if report.passed() {
-        None
-    } else {
-        let dir = write_failure_images(&report, got, want);
-        Some(format!(
-            "{name}: {} (images in {})",
-            report.failures().join("; "),
-            dir.display()
-        ))
-    }
-}
-
 #[test]
 fn gpu_baseline_images_match_the_reference() {
     let Some(ctx) = gpu_context() else { return };
@@ -587,7 +442,7 @@ fn gpu_baseline_images_match_the_reference() {
         .iter()
         .zip([
             tiny_params(FadeMode::Alpha),
-            crop_params(),
+            crop_params(FadeMode::Alpha),
             Params {
                 texture_size: 64,
                 ..Params::default()
@@ -596,7 +451,7 @@ fn gpu_baseline_images_match_the_reference() {
         .map(|(p, params)| GpuSweepScene::new(ctx, p, &params).expect("GpuSweepScene::new"))
         .collect();
     let mut failures = Vec::new();
-    let (mut max_vegetation, mut max_primitive) = ((0u8, 0u32, 0.0f32), (0u8, 0u32, 0.0f32));
+    let (mut max_vegetation, mut max_primitive): (MaxDiffs, MaxDiffs) = Default::default();
     let mut fallback_scenarios = 0;
     for s in &scenarios {
         let p = &prepared[s.prepared_key];
@@ -687,13 +542,8 @@ fn gpu_baseline_images_match_the_reference() {
         scenarios.len(),
         started.elapsed().as_secs_f64()
     );
-    for (what, max) in [("Vegetation", max_vegetation), ("Primitive", max_primitive)] {
-        println!(
-            "  {what}: max interior colour diff {}, max interior depth diff {} ulp, max depth \
-             diff {:.3e}",
-            max.0, max.1, max.2
-        );
-    }
+    print_max_diffs("Vegetation", &max_vegetation);
+    print_max_diffs("Primitive", &max_primitive);
     assert!(fallback_scenarios >= 2);
     assert!(
         failures.is_empty(),

@@ -24,50 +24,16 @@ use std::time::Instant;
 use forestlod_gpu::draw::{DrawTarget, GpuDraw, IndirectMode};
 use forestlod_gpu::{Compaction, DrawInputs, DrawScene, DrawTextures, GpuSelect};
 use forestlod_reference::pipeline::{Prepared, prepare};
-use forestlod_reference::scene::{Scene, builtin};
+use forestlod_reference::scene::builtin;
 use forestlod_shared::{Camera, FadeMode, Params};
 use forestlod_tests::backend::{
     DrawSceneData, GpuRenderer, ReferenceRenderer, Renderer, StagesFromCpu,
     alpha_test_alternatives, gpu_context, gpu_draw, render_gpu, upload_reference_textures,
 };
 use forestlod_tests::image_compare::{Images, compare_images, write_failure_images};
-use forestlod_tests::scenarios::{golden_scenarios, tiny_params};
-
-/// One frame to render with every backend.
-struct DrawScenario {
-    name: String,
-    prepared_key: usize,
-    camera: Camera,
-    params: Params,
-}
-
-/// `synthetic` cropped to the square of half-side `half` metres around its centre (its trees,
-/// meshes and terrain unchanged), so a software rasterizer renders it quickly.
-fn cropped_synthetic(half: f32) -> Scene {
-    let mut scene = builtin::synthetic();
-    let [x0, y0, x1, y1] = scene.bounds;
-    let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
-    scene
-        .instances
-        .retain(|t| (t.position[0] - cx).abs() <= half && (t.position[1] - cy).abs() <= half);
-    scene.bounds = [cx - half, cy - half, cx + half, cy + half];
-    scene.name = format!("synthetic-crop{}", 2.0 * half);
-    scene
-}
-
-/// Parameters for the cropped `synthetic`: 100 m cells, transition at 550 m with a 150 m band, so
-/// the `medium` view (trees 200..800 m away) holds LOD0, the band and LOD1.
-fn crop_params(fade: FadeMode) -> Params {
-    Params {
-        grid_size: 100.0,
-        angle_count: 10,
-        texture_size: 64,
-        lod1_transition: 550.0,
-        fade_width: 150.0,
-        fade_mode: fade as u32,
-        ..Params::default()
-    }
-}
+use forestlod_tests::scenarios::{
+    FrameScenario, crop_params, cropped_synthetic, golden_scenarios, tiny_params,
+};
 
 /// `pair` as billboards only: transition 0, no band (E Fig. 5.7 "no LOD0").
 fn billboard_params() -> Params {
@@ -83,7 +49,7 @@ fn billboard_params() -> Params {
 }
 
 /// Every scenario, with the prepared scenes they share.
-fn scenarios() -> (Vec<Prepared>, Vec<DrawScenario>) {
+fn scenarios() -> (Vec<Prepared>, Vec<FrameScenario>) {
     let mut prepared = Vec::new();
     let mut out = Vec::new();
     // The golden scenarios share `tiny` but differ in fade mode: `prepare` depends on params only
@@ -94,7 +60,7 @@ fn scenarios() -> (Vec<Prepared>, Vec<DrawScenario>) {
     for s in golden_scenarios() {
         assert_eq!(s.scene, "tiny", "golden scenarios are on tiny");
         let camera = s.camera(&tiny);
-        out.push(DrawScenario {
+        out.push(FrameScenario {
             name: s.name.clone(),
             prepared_key: 0,
             camera,
@@ -112,7 +78,7 @@ fn scenarios() -> (Vec<Prepared>, Vec<DrawScenario>) {
         let camera =
             forestlod_reference::cameras::named_camera(camera_name, &crop, 0.0, size, size)
                 .expect("named camera");
-        out.push(DrawScenario {
+        out.push(FrameScenario {
             name: format!("{}-{camera_name}-{}", crop.name, fade.name()),
             prepared_key: 1,
             camera,
@@ -121,7 +87,7 @@ fn scenarios() -> (Vec<Prepared>, Vec<DrawScenario>) {
     }
     let pair = builtin::pair();
     prepared.push(prepare(pair, &billboard_params()).expect("prepare pair"));
-    out.push(DrawScenario {
+    out.push(FrameScenario {
         name: "pair-billboards-elevation31".into(),
         prepared_key: 2,
         camera: Camera::look_at([0.0, -50.0, 30.0], [0.0, 0.0, 8.0], 40.0, 128, 128),

@@ -25,12 +25,12 @@ use forestlod_reference::scene::Instance;
 use forestlod_reference::select::{Decision, SelectUniform, select};
 use forestlod_shared::{
     BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, LOD_MESH, MeshMeta, Params,
-    SelectCounters, selection_margin, view_interval,
+    SelectCounters, view_interval,
 };
 use forestlod_tests::backend::{
     BackendSelection, GpuBackend, ReferenceBackend, SelectBackend, gpu_backends, gpu_context,
 };
-use forestlod_tests::{cameras, instances, params, scene_of};
+use forestlod_tests::{Thresholds, cameras, instances, params, scene_of, threshold_ambiguity};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
 
@@ -66,31 +66,11 @@ struct Tally {
 
 /// Why a batch's decision is ambiguous, or `None` when it is not near any threshold.
 fn ambiguity(b: &BatchMeta, u: &SelectUniform) -> Option<String> {
-    let i = view_interval(b.center, b.radius, u.eye, u.forward);
-    let rel = [
-        b.center[0] - u.eye[0],
-        b.center[1] - u.eye[1],
-        b.center[2] - u.eye[2],
-    ];
-    let m = selection_margin(rel, b.radius);
-    let magnitude = rel[0].abs() + rel[1].abs() + rel[2].abs() + b.radius;
-    let near = |x: f32, t: f32| (x - t).abs() <= AMBIGUITY_REL * (magnitude + t.abs());
-    if near(i.lo, u.draw_distance) {
-        return Some(format!("lo {} ≈ draw distance {}", i.lo, u.draw_distance));
-    }
-    if u.lod_levels >= 2 && near(i.lo, u.fade_end) {
-        return Some(format!("lo {} ≈ fade end {}", i.lo, u.fade_end));
-    }
-    if u.lod_levels >= 2 && near(i.hi, u.fade_start) {
-        return Some(format!("hi {} ≈ fade start {}", i.hi, u.fade_start));
-    }
-    for (k, p) in u.frustum.planes.iter().enumerate() {
-        let distance = p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3];
-        if near(distance, -b.radius - m) {
-            return Some(format!("plane {k} distance {distance} ≈ {}", -b.radius - m));
-        }
-    }
-    None
+    let checks = Thresholds {
+        centre_depth: false,
+        fade_band: true,
+    };
+    threshold_ambiguity(b.center, b.radius, u, AMBIGUITY_REL, checks)
 }
 
 /// Comparable key of a command and its data, `base_vertex` masked off (for multisets).

@@ -188,6 +188,7 @@ fn prepared_like(base: &Prepared, scene: Scene, membership: &Batches) -> Prepare
         mesh_textures: base.mesh_textures.clone(),
         billboards: base.billboards.clone(),
         memory: base.memory.clone(),
+        tree_spheres: spheres,
         timings: Default::default(),
     }
 }

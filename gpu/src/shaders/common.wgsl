@@ -35,7 +35,7 @@ struct Params {
     mip_mode: u32,
     angle_index_mode: u32,
     alpha_cutoff: f32,
-    _pad0: u32,
+    tree_cull: u32,
 }
 
 // Keep in sync with forestlod_shared::Camera (shared/src/camera.rs).
@@ -108,6 +108,15 @@ struct SelectCounters {
     lod1_commands: u32,
     transition_batches: u32,
     instances: u32,
+}
+
+// One tree's bounding sphere and mesh, the per-tree input of cull.wgsl and refine.wgsl (not in
+// forestlod-shared: the GPU crate's own). Keep in sync with forestlod_gpu::cull::CullTree
+// (gpu/src/cull.rs).
+struct CullTree {
+    center: array<f32, 3>,
+    radius: f32,
+    mesh: u32,
 }
 
 // Keep in sync with forestlod_shared::ViewInterval (shared/src/interval.rs).

@@ -28,13 +28,6 @@ struct CullUniform {
     mesh_count: u32,
 }
 
-// Keep in sync with forestlod_gpu::cull::CullTree (gpu/src/cull.rs).
-struct CullTree {
-    center: array<f32, 3>,
-    radius: f32,
-    mesh: u32,
-}
-
 // Keep in sync with forestlod_gpu::cull::DrawIndirectArgs (wgpu::util::DrawIndirectArgs).
 struct DrawIndirectArgs {
     vertex_count: u32,

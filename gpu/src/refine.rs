@@ -1,0 +1,403 @@
+//! Per-tree refinement of the selected commands on the GPU, beyond the thesis (its future work,
+//! "tighter culling", E§7, on top of grouped selection, E§3.5): the driver of
+//! `shaders/refine.wgsl`, twin of `reference/src/refine.rs` (`refine`, `refine_command`).
+//!
+//! ## Contract
+//! Uploaded once per scene ([`GpuRefine::new`]): every tree's bounding sphere ([`CullTree`], the
+//! reference's `tree_sphere`, computed on the CPU so both sides decide on the very same `f32`s; the
+//! mesh field is not read) and an indirection buffer of `3n` entries whose last third,
+//! `[2n, 3n)`, is a copy of the batch indirection of `n` trees. Per frame, after `select`
+//! ([`GpuRefine::encode`], one dispatch of `capacity` workgroups of [`REFINE_WORKGROUP_SIZE`]
+//! invocations, one per command slot of the [`SelectBuffers`]: constant CPU work whatever the trees
+//! and batches), command `i < counters.commands` of LOD `L = data[i].lod` whose batch starts at
+//! `off = first_instance`:
+//! - when `params.tree_cull` refines `L` (`TreeCull::refines`): keeps, **in batch order**, the
+//!   trees of its batch whose own sphere is decided *Draw* with LOD `L` needed (`decide_sphere`,
+//!   the selection rule, the per-tree oracle's) and whose centre passes the draw stage's per-tree
+//!   draw-distance discard; writes them to `L·n + off + k` (`k = 0..`, a stable compaction: a
+//!   workgroup exclusive scan per chunk of 64 trees plus a running carry) and rewrites the command
+//!   to `first_instance = L·n + off`, `instance_count = kept`;
+//! - otherwise points it at the copy: `first_instance = 2n + off`, count unchanged.
+//!
+//! The commands are rewritten **in place** in the selection's buffers, so `GpuDraw` draws them as
+//! before, given `DrawInputs { indirection: Some(refine.indirection()), .. }`.
+//!
+//! ## Invariants
+//! - Equal to the reference bit for bit (commands, the used ranges of the indirection, in order,
+//!   and the counters [`RefineCounters`] = the reference's `Refined::trees_tested` /
+//!   `trees_kept`), up to trees whose decision sits within ε of a threshold, where the GPU may
+//!   round differently (fused multiply-add; `tests/tests/parity_refine.rs` classifies them).
+//! - Commands are never removed or reordered: `counters`, `base_vertex`, the index ranges and the
+//!   data stay the selection's.
+//! - Encode it **once** per selection: it reads `first_instance` as the batch offset, which it
+//!   overwrites. Entries of `[0, 2n)` outside the ranges of this frame's refined commands hold
+//!   stale values of earlier frames (nothing reads them).
+//! - With `TreeCull::None` callers do not run it (the draw reads the batch indirection); if run
+//!   anyway it points every command at the copy, which draws the same trees.
+//! - llvmpipe stops any shader loop after 65,535 iterations: the chunk loop runs
+//!   `ceil(batch length / 64)` times, so [`GpuRefine::new`] accepts at most [`MAX_REFINE_TREES`]
+//!   trees (a batch holds at most all of them); the scan within a chunk is unrolled.
+
+use bytemuck::{Pod, Zeroable};
+use forestlod_shared::{Camera, Params, SelectCounters};
+
+use crate::context::{buffer_entry, cached_pipelines, compute_pipelines};
+use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
+use crate::{CullTree, GpuContext, GpuError, GpuSelection, SelectBuffers};
+
+/// Invocations per workgroup (one workgroup per command slot). Keep in sync with `refine.wgsl`,
+/// whose unrolled scan assumes 64.
+pub const REFINE_WORKGROUP_SIZE: u32 = 64;
+
+/// The most trees [`GpuRefine`] accepts: `65535 * 64`, so that no batch makes the chunk loop run
+/// past llvmpipe's 65,535 iterations (module docs); 3n indices then fit a `u32` as well.
+pub const MAX_REFINE_TREES: u32 = 65_535 * REFINE_WORKGROUP_SIZE;
+
+/// The per-frame uniform of `refine.wgsl`. Keep in sync with `struct RefineUniform` there.
+///
+/// The reference's `select::SelectUniform` plus the tree count and the mode; uniform-compatible
+/// layout (`vec4` planes, each `vec3` followed by an `f32`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct RefineUniform {
+    /// Frustum planes `[nx, ny, nz, w]` relative to the eye (`Camera::frustum`).
+    pub planes: [[f32; 4]; 6],
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Start of the fade band, `lod1_transition - fade_width`.
+    pub fade_start: f32,
+    /// Unit view direction (`Camera::basis().forward`).
+    pub forward: [f32; 3],
+    /// End of the fade band, `lod1_transition`.
+    pub fade_end: f32,
+    /// Draw distance.
+    pub draw_distance: f32,
+    /// LOD levels (1 or 2).
+    pub lod_levels: u32,
+    /// Number of trees `n` (the batch indirection's length).
+    pub tree_count: u32,
+    /// `forestlod_shared::TreeCull` as `u32` (`params.tree_cull`).
+    pub tree_cull: u32,
+}
+const _: () = assert!(size_of::<RefineUniform>() == 144);
+
+impl RefineUniform {
+    /// The uniform for a camera and parameters, derived as the reference's `SelectUniform::new`.
+    pub fn new(camera: &Camera, params: &Params, tree_count: u32) -> Self {
+        Self {
+            planes: camera.frustum().planes,
+            eye: camera.eye,
+            fade_start: params.lod1_transition - params.fade_width,
+            forward: camera.basis().forward.to_array(),
+            fade_end: params.lod1_transition,
+            draw_distance: params.draw_distance,
+            lod_levels: params.lod_levels,
+            tree_count,
+            tree_cull: params.tree_cull,
+        }
+    }
+}
+
+/// What `refine` counts per frame (the reference's `Refined::trees_tested` / `trees_kept`). Keep
+/// in sync with `struct RefineCounters` in `refine.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct RefineCounters {
+    /// Trees tested one by one: the instances of the refined commands before refinement.
+    pub trees_tested: u32,
+    /// Trees kept by the refined commands.
+    pub trees_kept: u32,
+}
+const _: () = assert!(size_of::<RefineCounters>() == 8);
+
+/// One frame's refined selection, read back.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GpuRefined {
+    /// The rewritten commands, their (unchanged) data and the selection's counters.
+    pub selection: GpuSelection,
+    /// The whole `3n` indirection (module docs; entries outside this frame's refined ranges and
+    /// the copy are stale).
+    pub indirection: Vec<u32>,
+    /// Trees tested and kept.
+    pub counters: RefineCounters,
+}
+
+/// The compiled pipeline of `refine.wgsl`, one per [`GpuContext`] (cached there).
+#[derive(Debug)]
+pub struct RefinePipelines {
+    layout: wgpu::BindGroupLayout,
+    refine: wgpu::ComputePipeline,
+}
+
+impl RefinePipelines {
+    /// Compiles `refine.wgsl` and creates its pipeline.
+    pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+        ctx.checked("refine.wgsl pipelines", || {
+            use wgpu::BufferBindingType as B;
+            let buffer =
+                |binding, ty, min| buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty, min);
+            let storage = |read_only| B::Storage { read_only };
+            let (layout, [refine]) = compute_pipelines(
+                &ctx.device,
+                "refine",
+                &crate::shaders::refine_source(),
+                &[
+                    buffer(0, B::Uniform, size_of::<RefineUniform>() as u64),
+                    buffer(1, storage(true), 0),
+                    buffer(2, storage(false), 0),
+                    buffer(3, storage(false), 0),
+                    buffer(4, storage(true), 0),
+                    buffer(5, storage(true), size_of::<SelectCounters>() as u64),
+                    buffer(6, storage(false), size_of::<RefineCounters>() as u64),
+                ],
+                ["refine"],
+            );
+            Self { layout, refine }
+        })
+    }
+}
+
+/// One scene's tree spheres and batch indirection on the GPU, ready to refine any selection of it
+/// (module docs).
+pub struct GpuRefine<'a> {
+    ctx: &'a GpuContext,
+    uniform: wgpu::Buffer,
+    trees: wgpu::Buffer,
+    indirection: wgpu::Buffer,
+    counters: wgpu::Buffer,
+    tree_count: u32,
+}
+
+impl<'a> GpuRefine<'a> {
+    /// Uploads the trees' spheres (`trees[t]` for tree `t`) and the `3n` indirection with the batch
+    /// indirection (`n` tree indices) copied into `[2n, 3n)`. Fails on more than
+    /// [`MAX_REFINE_TREES`] entries, on an indirection entry that names no tree, or when the
+    /// indirection is longer than the tree list.
+    pub fn new(
+        ctx: &'a GpuContext,
+        trees: &[CullTree],
+        batch_indirection: &[u32],
+    ) -> Result<Self, GpuError> {
+        let n = batch_indirection.len();
+        if n > MAX_REFINE_TREES as usize {
+            return Err(GpuError::Input {
+                field: "batch indirection",
+                value: n.to_string(),
+                reason: "at most MAX_REFINE_TREES (65535 * 64) trees: a larger batch would run refine.wgsl's chunk loop past llvmpipe's 65,535 iterations",
+            });
+        }
+        if n > trees.len() {
+            return Err(GpuError::Input {
+                field: "batch indirection",
+                value: format!("{n} entries for {} trees", trees.len()),
+                reason: "expected at most one entry per tree",
+            });
+        }
+        if let Some((i, t)) = batch_indirection
+            .iter()
+            .enumerate()
+            .find(|(_, t)| **t as usize >= trees.len())
+        {
+            return Err(GpuError::Input {
+                field: "batch indirection",
+                value: format!("entry {i} = tree {t} of {} trees", trees.len()),
+                reason: "expected tree indices below the tree count",
+            });
+        }
+        cached_pipelines(&ctx.refine_pipelines, || RefinePipelines::new(ctx))?;
+        use wgpu::BufferUsages as U;
+        let mut all = vec![0u32; 3 * n];
+        all[2 * n..].copy_from_slice(batch_indirection);
+        Ok(Self {
+            ctx,
+            uniform: zeroed_buffer(
+                ctx,
+                "refine uniform",
+                size_of::<RefineUniform>() as u64,
+                U::UNIFORM | U::COPY_DST,
+            ),
+            trees: upload_storage(ctx, "refine trees", trees, U::empty()),
+            indirection: upload_storage(ctx, "refine indirection", &all, U::empty()),
+            counters: zeroed_buffer(
+                ctx,
+                "refine counters",
+                size_of::<RefineCounters>() as u64,
+                U::STORAGE | U::COPY_SRC | U::COPY_DST,
+            ),
+            tree_count: n as u32,
+        })
+    }
+
+    /// Number of trees `n` of the batch indirection.
+    pub fn tree_count(&self) -> u32 {
+        self.tree_count
+    }
+
+    /// The `3n` indirection the refined commands index: `DrawInputs::indirection`.
+    pub fn indirection(&self) -> &wgpu::Buffer {
+        &self.indirection
+    }
+
+    /// One [`RefineCounters`] (trees tested and kept by the last frame).
+    pub fn counters(&self) -> &wgpu::Buffer {
+        &self.counters
+    }
+
+    /// Workgroup counts `(x, y)`: one workgroup per command slot of `capacity`, spilling into `y`
+    /// beyond the per-dimension limit.
+    fn groups(&self, capacity: u32) -> (u32, u32) {
+        self.ctx.workgroup_grid(capacity)
+    }
+
+    /// Records one frame's refinement of `selection` (written by `select` in an earlier pass or
+    /// submit of the same frame) into `encoder`: writes the uniform (through the queue, so it
+    /// lands before the next submit), clears the counters, then one dispatch of
+    /// `selection.capacity` workgroups. Rewrites the commands in place: encode it once per
+    /// selection. `camera` and `params` should be validated, as for the reference.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        selection: &SelectBuffers,
+        camera: &Camera,
+        params: &Params,
+    ) {
+        let uniform = RefineUniform::new(camera, params, self.tree_count);
+        self.ctx
+            .queue
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
+        encoder.clear_buffer(&self.counters, 0, None);
+        let pipelines = self
+            .ctx
+            .refine_pipelines
+            .get()
+            .expect("GpuRefine::new created the pipelines");
+        let bind_group = self
+            .ctx
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("refine"),
+                layout: &pipelines.layout,
+                entries: &[
+                    (0, &self.uniform),
+                    (1, &self.trees),
+                    (2, &self.indirection),
+                    (3, &selection.commands),
+                    (4, &selection.data),
+                    (5, &selection.counters),
+                    (6, &self.counters),
+                ]
+                .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                    binding,
+                    resource: buffer.as_entire_binding(),
+                }),
+            });
+        let (x, y) = self.groups(selection.capacity);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("refine"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.set_pipeline(&pipelines.refine);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+
+    /// Refines `selection` for one frame and leaves the result on the GPU. Does not wait.
+    pub fn dispatch(
+        &self,
+        selection: &SelectBuffers,
+        camera: &Camera,
+        params: &Params,
+    ) -> Result<(), GpuError> {
+        self.ctx.submit("refine dispatch", "refine", |encoder| {
+            self.encode(encoder, selection, camera, params)
+        })
+    }
+
+    /// Reads the refined selection (`selection`, as refined by the last [`GpuRefine::encode`]),
+    /// the whole `3n` indirection and the counters back. Blocks.
+    pub fn read(&self, selection: &SelectBuffers) -> Result<GpuRefined, GpuError> {
+        Ok(GpuRefined {
+            selection: selection.read(self.ctx)?,
+            indirection: read_buffer(self.ctx, &self.indirection, 0, 3 * self.tree_count as usize)?,
+            counters: read_buffer::<RefineCounters>(self.ctx, &self.counters, 0, 1)?[0],
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
+    use core::mem::offset_of;
+
+    /// `RefineUniform` and `RefineCounters` have their WGSL twins' layout (naga reflection of the
+    /// full `refine.wgsl` module, which also validates it; `CullTree`, in `common.wgsl`, is
+    /// checked by `gpu/tests/layout.rs`).
+    #[test]
+    fn wgsl_layouts_match_rust() {
+        let module = validate_wgsl(&crate::shaders::refine_source());
+        assert_wgsl_struct(
+            &module,
+            "RefineUniform",
+            &[
+                ("planes", offset_of!(RefineUniform, planes)),
+                ("eye", offset_of!(RefineUniform, eye)),
+                ("fade_start", offset_of!(RefineUniform, fade_start)),
+                ("forward", offset_of!(RefineUniform, forward)),
+                ("fade_end", offset_of!(RefineUniform, fade_end)),
+                ("draw_distance", offset_of!(RefineUniform, draw_distance)),
+                ("lod_levels", offset_of!(RefineUniform, lod_levels)),
+                ("tree_count", offset_of!(RefineUniform, tree_count)),
+                ("tree_cull", offset_of!(RefineUniform, tree_cull)),
+            ],
+            size_of::<RefineUniform>(),
+        );
+        assert_wgsl_struct(
+            &module,
+            "RefineCounters",
+            &[
+                ("trees_tested", offset_of!(RefineCounters, trees_tested)),
+                ("trees_kept", offset_of!(RefineCounters, trees_kept)),
+            ],
+            size_of::<RefineCounters>(),
+        );
+    }
+
+    /// The shader's `TreeCull` ids and workgroup size are the Rust ones.
+    #[test]
+    fn wgsl_constants_match_rust() {
+        use forestlod_shared::TreeCull;
+        let src = crate::shaders::REFINE_WGSL;
+        for (name, id) in [
+            ("TREE_CULL_NONE", TreeCull::None as u32),
+            ("TREE_CULL_LOD0", TreeCull::Lod0 as u32),
+            ("TREE_CULL_ALL", TreeCull::All as u32),
+            ("REFINE_WORKGROUP_SIZE", REFINE_WORKGROUP_SIZE),
+        ] {
+            let line = format!("const {name}: u32 = {id}u;");
+            assert!(src.contains(&line), "refine.wgsl lacks `{line}`");
+        }
+    }
+
+    /// The uniform is derived as the reference's `SelectUniform::new` (same fields, same order of
+    /// operations), with the tree count and the mode.
+    #[test]
+    fn uniform_of_camera_and_params() {
+        let camera = Camera::look_at([1.0, 2.0, 3.0], [50.0, 20.0, 0.0], 60.0, 64, 48);
+        let params = Params {
+            tree_cull: forestlod_shared::TreeCull::Lod0 as u32,
+            ..Params::default()
+        };
+        let u = RefineUniform::new(&camera, &params, 7);
+        assert_eq!(u.planes, camera.frustum().planes);
+        assert_eq!(u.forward, camera.basis().forward.to_array());
+        assert_eq!(
+            (u.fade_start, u.fade_end),
+            (
+                params.lod1_transition - params.fade_width,
+                params.lod1_transition
+            )
+        );
+        assert_eq!((u.tree_count, u.tree_cull, u.lod_levels), (7, 1, 2));
+    }
+}
