@@ -56,5 +56,5 @@ pub use draw::{
 };
 pub use mips::{GpuMips, MipArray, MipLevelStats, MipTexels};
 pub use primitive::{GpuPrimitive, GpuProxies, PrimitiveInputs};
-pub use refine::{GpuRefine, GpuRefined, RefineCounters};
+pub use refine::{GpuRefine, GpuRefined, RefineCounters, RefineDispatch};
 pub use select::{Compaction, GpuSelect, GpuSelection, SelectBuffers, SelectUniform};

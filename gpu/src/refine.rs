@@ -7,20 +7,41 @@
 //! reference's `tree_sphere`, computed on the CPU so both sides decide on the very same `f32`s; the
 //! mesh field is not read) and an indirection buffer of `3n` entries whose last third,
 //! `[2n, 3n)`, is a copy of the batch indirection of `n` trees. Per frame, after `select`
-//! ([`GpuRefine::encode`], one dispatch of `capacity` workgroups of [`REFINE_WORKGROUP_SIZE`]
-//! invocations, one per command slot of the [`SelectBuffers`]: constant CPU work whatever the trees
-//! and batches), command `i < counters.commands` of LOD `L = data[i].lod` whose batch starts at
+//! ([`GpuRefine::encode`]: six dispatches, below, whatever the trees and batches: constant CPU
+//! work), command `i < counters.commands` of LOD `L = data[i].lod` whose batch starts at
 //! `off = first_instance`:
 //! - when `params.tree_cull` refines `L` (`TreeCull::refines`): keeps, **in batch order**, the
 //!   trees of its batch whose own sphere is decided *Draw* with LOD `L` needed (`decide_sphere`,
 //!   the selection rule, the per-tree oracle's) and whose centre passes the draw stage's per-tree
-//!   draw-distance discard; writes them to `L·n + off + k` (`k = 0..`, a stable compaction: a
-//!   workgroup exclusive scan per chunk of 64 trees plus a running carry) and rewrites the command
-//!   to `first_instance = L·n + off`, `instance_count = kept`;
+//!   draw-distance discard; writes them to `L·n + off + k` (`k = 0..`, a stable compaction) and
+//!   rewrites the command to `first_instance = L·n + off`, `instance_count = kept`;
 //! - otherwise points it at the copy: `first_instance = 2n + off`, count unchanged.
 //!
 //! The commands are rewritten **in place** in the selection's buffers, so `GpuDraw` draws them as
 //! before, given `DrawInputs { indirection: Some(refine.indirection()), .. }`.
+//!
+//! ## Passes
+//! Chunk-parallel, so that a few large batches do not serialize (one workgroup per command
+//! walking its batch took 54–188 ms on llvmpipe for the stress scene's ~18k-tree batches):
+//! 1. `refine_prepare` (one invocation per command slot of the [`SelectBuffers`]' capacity): the
+//!    largest chunk count `ceil(len / 64)` of the refined commands;
+//! 2. `refine_args` (one invocation): from it and `counters.commands`, the grid of passes 3 and 5,
+//!    one invocation per (chunk of [`REFINE_WORKGROUP_SIZE`] trees, slot), copied to an
+//!    indirect-argument buffer (so neither the command count nor the batch lengths need to be
+//!    known on the CPU: [`GpuRefine::new`] only has the batch indirection);
+//! 3. `refine_count`: each invocation tests its chunk's trees in a loop of at most 64 and stores
+//!    how many it keeps in a `4n`-entry scratch buffer, at the command's own range
+//!    `L·2n + 2·off ..` (at most `2·len` entries, disjoint across (batch, LOD) pairs);
+//! 4. `refine_scan` (one invocation per slot): the exclusive prefix of the command's chunk
+//!    counts in place, and their total;
+//! 5. `refine_write`: each invocation repeats its tests in the same order and writes its kept
+//!    trees from the chunk's prefix on;
+//! 6. `refine_finalize` (one invocation per slot): rewrites the command and adds to the
+//!    counters.
+//!
+//! No pass uses workgroup memory or barriers: llvmpipe runs a workgroup with barriers as
+//! coroutines, and one workgroup per chunk with a workgroup scan measured 270–610 ms on the stress
+//! scene, several times the serial walk it was to replace.
 //!
 //! ## Invariants
 //! - Equal to the reference bit for bit (commands, the used ranges of the indirection, in order,
@@ -34,9 +55,10 @@
 //!   stale values of earlier frames (nothing reads them).
 //! - With `TreeCull::None` callers do not run it (the draw reads the batch indirection); if run
 //!   anyway it points every command at the copy, which draws the same trees.
-//! - llvmpipe stops any shader loop after 65,535 iterations: the chunk loop runs
-//!   `ceil(batch length / 64)` times, so [`GpuRefine::new`] accepts at most [`MAX_REFINE_TREES`]
-//!   trees (a batch holds at most all of them); the scan within a chunk is unrolled.
+//! - llvmpipe stops any shader loop after 65,535 iterations: pass 4's loop over a command's
+//!   chunks runs `ceil(batch length / 64)` times, so [`GpuRefine::new`] accepts at most
+//!   [`MAX_REFINE_TREES`] trees (a batch holds at most all of them); the loops over a chunk's
+//!   trees (passes 3 and 5) run at most 64 times.
 
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, SelectCounters};
@@ -45,18 +67,18 @@ use crate::context::{buffer_entry, cached_pipelines, compute_pipelines};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{CullTree, GpuContext, GpuError, GpuSelection, SelectBuffers};
 
-/// Invocations per workgroup (one workgroup per command slot). Keep in sync with `refine.wgsl`,
-/// whose unrolled scan assumes 64.
+/// Invocations per workgroup, and trees per chunk. Keep in sync with `refine.wgsl`.
 pub const REFINE_WORKGROUP_SIZE: u32 = 64;
 
-/// The most trees [`GpuRefine`] accepts: `65535 * 64`, so that no batch makes the chunk loop run
-/// past llvmpipe's 65,535 iterations (module docs); 3n indices then fit a `u32` as well.
+/// The most trees [`GpuRefine`] accepts: `65535 * 64`, so that no batch makes the chunk-prefix
+/// loop run past llvmpipe's 65,535 iterations (module docs); 4n indices then fit a `u32` as well.
 pub const MAX_REFINE_TREES: u32 = 65_535 * REFINE_WORKGROUP_SIZE;
 
 /// The per-frame uniform of `refine.wgsl`. Keep in sync with `struct RefineUniform` there.
 ///
-/// The reference's `select::SelectUniform` plus the tree count and the mode; uniform-compatible
-/// layout (`vec4` planes, each `vec3` followed by an `f32`).
+/// The reference's `select::SelectUniform` plus the tree count, the mode and the device's
+/// per-dimension workgroup limit; uniform-compatible layout (`vec4` planes, each `vec3` followed
+/// by an `f32`, padded to a multiple of 16 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct RefineUniform {
@@ -78,11 +100,21 @@ pub struct RefineUniform {
     pub tree_count: u32,
     /// `forestlod_shared::TreeCull` as `u32` (`params.tree_cull`).
     pub tree_cull: u32,
+    /// The device's `max_compute_workgroups_per_dimension` (caps the slot rows of the grid).
+    pub max_workgroups: u32,
+    /// Explicit padding.
+    pub _pad0: u32,
+    /// Explicit padding.
+    pub _pad1: u32,
+    /// Explicit padding.
+    pub _pad2: u32,
 }
-const _: () = assert!(size_of::<RefineUniform>() == 144);
+const _: () = assert!(size_of::<RefineUniform>() == 160);
 
 impl RefineUniform {
-    /// The uniform for a camera and parameters, derived as the reference's `SelectUniform::new`.
+    /// The uniform for a camera and parameters, derived as the reference's `SelectUniform::new`
+    /// (`max_workgroups` is 65,535, WebGPU's default limit: [`GpuRefine::encode`] sets the
+    /// device's).
     pub fn new(camera: &Camera, params: &Params, tree_count: u32) -> Self {
         Self {
             planes: camera.frustum().planes,
@@ -94,6 +126,10 @@ impl RefineUniform {
             lod_levels: params.lod_levels,
             tree_count,
             tree_cull: params.tree_cull,
+            max_workgroups: 65_535,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         }
     }
 }
@@ -110,6 +146,23 @@ pub struct RefineCounters {
 }
 const _: () = assert!(size_of::<RefineCounters>() == 8);
 
+/// The grid of the count and write passes (`x, y, z`, an indirect dispatch's arguments) and the
+/// largest chunk count it derives from (module docs). Keep in sync with `struct RefineDispatch`
+/// in `refine.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct RefineDispatch {
+    /// Workgroups along `x`: `ceil(max_chunks / 64)`, one invocation per chunk.
+    pub x: u32,
+    /// Workgroups along `y`: command slots, at most the per-dimension limit.
+    pub y: u32,
+    /// Workgroups along `z`: rows of `y` slots.
+    pub z: u32,
+    /// The largest `ceil(len / 64)` of the refined commands.
+    pub max_chunks: u32,
+}
+const _: () = assert!(size_of::<RefineDispatch>() == 16);
+
 /// One frame's refined selection, read back.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GpuRefined {
@@ -122,22 +175,28 @@ pub struct GpuRefined {
     pub counters: RefineCounters,
 }
 
-/// The compiled pipeline of `refine.wgsl`, one per [`GpuContext`] (cached there).
+/// The compiled pipelines of `refine.wgsl` (one per pass), one set per [`GpuContext`] (cached
+/// there).
 #[derive(Debug)]
 pub struct RefinePipelines {
     layout: wgpu::BindGroupLayout,
-    refine: wgpu::ComputePipeline,
+    prepare: wgpu::ComputePipeline,
+    args: wgpu::ComputePipeline,
+    count: wgpu::ComputePipeline,
+    scan: wgpu::ComputePipeline,
+    write: wgpu::ComputePipeline,
+    finalize: wgpu::ComputePipeline,
 }
 
 impl RefinePipelines {
-    /// Compiles `refine.wgsl` and creates its pipeline.
+    /// Compiles `refine.wgsl` and creates its pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("refine.wgsl pipelines", || {
             use wgpu::BufferBindingType as B;
             let buffer =
                 |binding, ty, min| buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty, min);
             let storage = |read_only| B::Storage { read_only };
-            let (layout, [refine]) = compute_pipelines(
+            let (layout, [prepare, args, count, scan, write, finalize]) = compute_pipelines(
                 &ctx.device,
                 "refine",
                 &crate::shaders::refine_source(),
@@ -149,10 +208,27 @@ impl RefinePipelines {
                     buffer(4, storage(true), 0),
                     buffer(5, storage(true), size_of::<SelectCounters>() as u64),
                     buffer(6, storage(false), size_of::<RefineCounters>() as u64),
+                    buffer(7, storage(false), 0),
+                    buffer(8, storage(false), size_of::<RefineDispatch>() as u64),
                 ],
-                ["refine"],
+                [
+                    "refine_prepare",
+                    "refine_args",
+                    "refine_count",
+                    "refine_scan",
+                    "refine_write",
+                    "refine_finalize",
+                ],
             );
-            Self { layout, refine }
+            Self {
+                layout,
+                prepare,
+                args,
+                count,
+                scan,
+                write,
+                finalize,
+            }
         })
     }
 }
@@ -165,14 +241,18 @@ pub struct GpuRefine<'a> {
     trees: wgpu::Buffer,
     indirection: wgpu::Buffer,
     counters: wgpu::Buffer,
+    chunk_counts: wgpu::Buffer,
+    dispatch: wgpu::Buffer,
+    dispatch_args: wgpu::Buffer,
     tree_count: u32,
 }
 
 impl<'a> GpuRefine<'a> {
     /// Uploads the trees' spheres (`trees[t]` for tree `t`) and the `3n` indirection with the batch
     /// indirection (`n` tree indices) copied into `[2n, 3n)`. Fails on more than
-    /// [`MAX_REFINE_TREES`] entries, on an indirection entry that names no tree, or when the
-    /// indirection is longer than the tree list.
+    /// [`MAX_REFINE_TREES`] entries, on an indirection entry that names no tree, when the
+    /// indirection is longer than the tree list, or when the `4n`-entry chunk scratch buffer
+    /// exceeds the device's storage binding or buffer size.
     pub fn new(
         ctx: &'a GpuContext,
         trees: &[CullTree],
@@ -204,6 +284,20 @@ impl<'a> GpuRefine<'a> {
                 reason: "expected tree indices below the tree count",
             });
         }
+        let chunk_bytes = 4 * n as u64 * size_of::<u32>() as u64;
+        let max_bytes = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
+        if chunk_bytes > max_bytes {
+            return Err(GpuError::Input {
+                field: "batch indirection",
+                value: format!(
+                    "{n} trees: a chunk scratch buffer of 4n u32 = {chunk_bytes} bytes, over the device's {max_bytes}"
+                ),
+                reason: "refine.wgsl's chunk counts must fit one storage binding",
+            });
+        }
         cached_pipelines(&ctx.refine_pipelines, || RefinePipelines::new(ctx))?;
         use wgpu::BufferUsages as U;
         let mut all = vec![0u32; 3 * n];
@@ -224,6 +318,19 @@ impl<'a> GpuRefine<'a> {
                 size_of::<RefineCounters>() as u64,
                 U::STORAGE | U::COPY_SRC | U::COPY_DST,
             ),
+            chunk_counts: zeroed_buffer(ctx, "refine chunk counts", chunk_bytes, U::STORAGE),
+            dispatch: zeroed_buffer(
+                ctx,
+                "refine dispatch",
+                size_of::<RefineDispatch>() as u64,
+                U::STORAGE | U::COPY_SRC | U::COPY_DST,
+            ),
+            dispatch_args: zeroed_buffer(
+                ctx,
+                "refine dispatch args",
+                size_of::<RefineDispatch>() as u64,
+                U::INDIRECT | U::COPY_DST,
+            ),
             tree_count: n as u32,
         })
     }
@@ -243,17 +350,19 @@ impl<'a> GpuRefine<'a> {
         &self.counters
     }
 
-    /// Workgroup counts `(x, y)`: one workgroup per command slot of `capacity`, spilling into `y`
-    /// beyond the per-dimension limit.
-    fn groups(&self, capacity: u32) -> (u32, u32) {
-        self.ctx.workgroup_grid(capacity)
+    /// Workgroup counts `(x, y)` of the per-slot passes: one invocation per command slot of
+    /// `capacity`, spilling into `y` beyond the per-dimension limit.
+    fn slot_groups(&self, capacity: u32) -> (u32, u32) {
+        self.ctx
+            .workgroup_grid(capacity.div_ceil(REFINE_WORKGROUP_SIZE))
     }
 
     /// Records one frame's refinement of `selection` (written by `select` in an earlier pass or
     /// submit of the same frame) into `encoder`: writes the uniform (through the queue, so it
-    /// lands before the next submit), clears the counters, then one dispatch of
-    /// `selection.capacity` workgroups. Rewrites the commands in place: encode it once per
-    /// selection. `camera` and `params` should be validated, as for the reference.
+    /// lands before the next submit), clears the counters, then the six dispatches of the module
+    /// docs (two of them indirect, sized on the GPU) in two compute passes around one copy.
+    /// Rewrites the commands in place: encode it once per selection. `camera` and `params` should
+    /// be validated, as for the reference.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -261,11 +370,15 @@ impl<'a> GpuRefine<'a> {
         camera: &Camera,
         params: &Params,
     ) {
-        let uniform = RefineUniform::new(camera, params, self.tree_count);
+        let uniform = RefineUniform {
+            max_workgroups: self.ctx.limits.max_compute_workgroups_per_dimension,
+            ..RefineUniform::new(camera, params, self.tree_count)
+        };
         self.ctx
             .queue
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
         encoder.clear_buffer(&self.counters, 0, None);
+        encoder.clear_buffer(&self.dispatch, 0, None);
         let pipelines = self
             .ctx
             .refine_pipelines
@@ -285,19 +398,47 @@ impl<'a> GpuRefine<'a> {
                     (4, &selection.data),
                     (5, &selection.counters),
                     (6, &self.counters),
+                    (7, &self.chunk_counts),
+                    (8, &self.dispatch),
                 ]
                 .map(|(binding, buffer)| wgpu::BindGroupEntry {
                     binding,
                     resource: buffer.as_entire_binding(),
                 }),
             });
-        let (x, y) = self.groups(selection.capacity);
+        let (x, y) = self.slot_groups(selection.capacity);
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("refine grid"),
+                timestamp_writes: None,
+            });
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.set_pipeline(&pipelines.prepare);
+            pass.dispatch_workgroups(x, y, 1);
+            pass.set_pipeline(&pipelines.args);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+        // The grid leaves the bound storage buffer for an INDIRECT-only one (a buffer cannot be
+        // both in the same dispatch).
+        encoder.copy_buffer_to_buffer(
+            &self.dispatch,
+            0,
+            &self.dispatch_args,
+            0,
+            size_of::<RefineDispatch>() as u64,
+        );
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("refine"),
             timestamp_writes: None,
         });
         pass.set_bind_group(0, &bind_group, &[]);
-        pass.set_pipeline(&pipelines.refine);
+        pass.set_pipeline(&pipelines.count);
+        pass.dispatch_workgroups_indirect(&self.dispatch_args, 0);
+        pass.set_pipeline(&pipelines.scan);
+        pass.dispatch_workgroups(x, y, 1);
+        pass.set_pipeline(&pipelines.write);
+        pass.dispatch_workgroups_indirect(&self.dispatch_args, 0);
+        pass.set_pipeline(&pipelines.finalize);
         pass.dispatch_workgroups(x, y, 1);
     }
 
@@ -330,7 +471,7 @@ mod tests {
     use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
     use core::mem::offset_of;
 
-    /// `RefineUniform` and `RefineCounters` have their WGSL twins' layout (naga reflection of the
+    /// `RefineUniform`, `RefineCounters` and `RefineDispatch` have their WGSL twins' layout (naga reflection of the
     /// full `refine.wgsl` module, which also validates it; `CullTree`, in `common.wgsl`, is
     /// checked by `gpu/tests/layout.rs`).
     #[test]
@@ -349,6 +490,10 @@ mod tests {
                 ("lod_levels", offset_of!(RefineUniform, lod_levels)),
                 ("tree_count", offset_of!(RefineUniform, tree_count)),
                 ("tree_cull", offset_of!(RefineUniform, tree_cull)),
+                ("max_workgroups", offset_of!(RefineUniform, max_workgroups)),
+                ("_pad0", offset_of!(RefineUniform, _pad0)),
+                ("_pad1", offset_of!(RefineUniform, _pad1)),
+                ("_pad2", offset_of!(RefineUniform, _pad2)),
             ],
             size_of::<RefineUniform>(),
         );
@@ -360,6 +505,17 @@ mod tests {
                 ("trees_kept", offset_of!(RefineCounters, trees_kept)),
             ],
             size_of::<RefineCounters>(),
+        );
+        assert_wgsl_struct(
+            &module,
+            "RefineDispatch",
+            &[
+                ("x", offset_of!(RefineDispatch, x)),
+                ("y", offset_of!(RefineDispatch, y)),
+                ("z", offset_of!(RefineDispatch, z)),
+                ("max_chunks", offset_of!(RefineDispatch, max_chunks)),
+            ],
+            size_of::<RefineDispatch>(),
         );
     }
 

@@ -1,25 +1,39 @@
 // refine.wgsl: per-tree refinement of the selected commands, beyond the thesis (its future work,
 // "tighter culling", E§7; grouped selection E§3.5). The GPU twin of reference/src/refine.rs
-// (`refine_command` is the body of one workgroup here), driven by gpu/src/refine.rs; common.wgsl
-// is prepended.
+// (`refine_command` is split here over one invocation per chunk of 64 trees of a command), driven
+// by gpu/src/refine.rs; common.wgsl is prepended.
 //
-// One dispatch of one workgroup (REFINE_WORKGROUP_SIZE invocations) per command slot of the
-// select buffers; slots at or past `counters.commands` exit at once. Command `slot` (as `select`
-// wrote it: `first_instance` = its batch's offset `off`, `instance_count` = the batch's length,
-// `command_data[slot].lod` = L) is
-// - refined when `u.tree_cull` refines L (TREE_CULL_ALL, or TREE_CULL_LOD0 and L = LOD_MESH): the
-//   workgroup walks the batch's trees in chunks of REFINE_WORKGROUP_SIZE (read from the static
-//   copy of the batch indirection at `2n + off`), keeps those whose own sphere is decided Draw
-//   with LOD L needed (`decide_sphere`, the selection rule) and whose centre is within the draw distance
-//   (`within_draw_distance`), and writes them IN BATCH ORDER to `L·n + off + k` (a workgroup
-//   exclusive scan of the keep flags per chunk plus a running carry: a stable compaction); then
-//   invocation 0 rewrites the command: `first_instance = L·n + off`, `instance_count = kept`;
+// Command `slot < counters.commands` (as `select` wrote it: `first_instance` = its batch's offset
+// `off`, `instance_count` = the batch's length `len`, `command_data[slot].lod` = L) is
+// - refined when `u.tree_cull` refines L (TREE_CULL_ALL, or TREE_CULL_LOD0 and L = LOD_MESH): it
+//   keeps the trees of its batch (read from the static copy of the batch indirection at
+//   `2n + off`) whose own sphere is decided Draw with LOD L needed (`decide_sphere`, the
+//   selection rule) and whose centre is within the draw distance (`within_draw_distance`), and
+//   writes them IN BATCH ORDER to `L·n + off + k` (a stable compaction); the command becomes
+//   `first_instance = L·n + off`, `instance_count = kept`;
 // - otherwise pointed at the static copy: `first_instance = 2n + off`, count unchanged.
 // Commands are never removed; base_vertex, the index range and the data stay as they are.
 //
-// Loops: the chunk loop runs ceil(len / 64) times (a batch of 20k trees: ~300 iterations; llvmpipe
-// stops any loop after 65,535 iterations, hence MAX_REFINE_TREES on the CPU side); the scan within
-// a chunk is unrolled (log2(64) = 6 steps), so no loop's trip count grows with anything else.
+// Passes, in this order (gpu/src/refine.rs encodes them; every loop is bounded as noted, since
+// llvmpipe stops any loop after 65,535 iterations):
+// 1. `refine_prepare`, one invocation per slot: the largest chunk count `ceil(len / 64)` of the
+//    refined commands (atomicMax into `dispatch.max_chunks`, cleared before).
+// 2. `refine_args`, one invocation: the indirect grid of passes 3 and 5,
+//    `(ceil(max_chunks / 64), y, z)` with `y·z >= counters.commands` slots (y capped at the
+//    per-dimension limit `u.max_workgroups`); the driver copies it to the indirect-argument buffer.
+// 3. `refine_count`, one invocation per (chunk `wid.x·64 + lid`, slot `wid.z·groups.y + wid.y`):
+//    slots past the command count, unrefined commands and chunks past the command's own exit; the
+//    others test their (up to) 64 trees in a loop of at most 64 iterations and store the chunk's
+//    kept count in `chunk_counts[L·2n + 2·off + chunk]`. No workgroup memory and no barrier:
+//    llvmpipe runs a workgroup with barriers as coroutines, whose set-up per workgroup made one
+//    workgroup per chunk (with a workgroup scan) ~10x slower than the serial walk it replaced.
+// 4. `refine_scan`, one invocation per slot: exclusive prefix over its `ceil(len / 64)` chunk
+//    counts in place (a loop of at most 65,535 iterations: n <= MAX_REFINE_TREES = 65535·64), the
+//    total after them at `L·2n + 2·off + chunks` (its `chunks + 1 <= 2·len` entries are the
+//    command's own: the ranges of distinct (batch, LOD) pairs are disjoint).
+// 5. `refine_write`, the grid of pass 3: the same tests in the same order, each kept tree written
+//    to `L·n + off + chunk prefix + rank in chunk`.
+// 6. `refine_finalize`, one invocation per slot: rewrites the command and adds to the counters.
 
 // Keep in sync with forestlod_gpu::refine::RefineUniform (gpu/src/refine.rs). Derived on the CPU
 // exactly as reference::select::SelectUniform::new derives its own.
@@ -33,6 +47,10 @@ struct RefineUniform {
     lod_levels: u32,
     tree_count: u32,
     tree_cull: u32,
+    max_workgroups: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // Keep in sync with forestlod_gpu::refine::RefineCounters (gpu/src/refine.rs): the reference's
@@ -42,7 +60,16 @@ struct RefineCounters {
     trees_kept: atomic<u32>,
 }
 
-// Keep in sync with REFINE_WORKGROUP_SIZE in gpu/src/refine.rs (the unrolled scan assumes 64).
+// The indirect grid of the count and write passes, and the largest chunk count it is derived
+// from. Keep in sync with forestlod_gpu::refine::RefineDispatch (gpu/src/refine.rs).
+struct RefineDispatch {
+    x: u32,
+    y: u32,
+    z: u32,
+    max_chunks: atomic<u32>,
+}
+
+// Keep in sync with REFINE_WORKGROUP_SIZE in gpu/src/refine.rs; also the trees per chunk.
 const REFINE_WORKGROUP_SIZE: u32 = 64u;
 // Keep in sync with forestlod_shared::TreeCull (shared/src/params.rs).
 const TREE_CULL_NONE: u32 = 0u;
@@ -58,12 +85,10 @@ const TREE_CULL_ALL: u32 = 2u;
 @group(0) @binding(4) var<storage, read> command_data: array<CommandData>;
 @group(0) @binding(5) var<storage, read> counters: SelectCounters;
 @group(0) @binding(6) var<storage, read_write> refine_counters: RefineCounters;
-
-var<workgroup> scan: array<u32, REFINE_WORKGROUP_SIZE>;
-// The command's (first_instance, instance_count) as select wrote them, read by invocation 0.
-var<workgroup> wg_range: vec2<u32>;
-// Trees kept by the current chunk (its inclusive scan's last element).
-var<workgroup> wg_chunk_kept: u32;
+// 4n entries: per LOD L and command of batch offset `off`, `[L·2n + 2·off, + chunks]` the chunk
+// counts (pass 3), then their exclusive prefixes and the total (pass 4).
+@group(0) @binding(7) var<storage, read_write> chunk_counts: array<u32>;
+@group(0) @binding(8) var<storage, read_write> dispatch: RefineDispatch;
 
 // forestlod_shared::TreeCull::refines.
 fn refines(mode: u32, lod: u32) -> bool {
@@ -87,76 +112,179 @@ fn tree_needs(tree: u32, lod: u32) -> bool {
         && within_draw_distance(center, u.eye, u.forward, u.draw_distance);
 }
 
-// One Hillis-Steele step of the inclusive scan of `scan` (called in uniform control flow).
-fn scan_step(lid: u32, step: u32) {
-    var add = 0u;
-    if lid >= step {
-        add = scan[lid - step];
-    }
-    workgroupBarrier();
-    scan[lid] = scan[lid] + add;
-    workgroupBarrier();
+// Chunks of 64 trees of a batch of `len` trees.
+fn chunk_count(len: u32) -> u32 {
+    return (len + REFINE_WORKGROUP_SIZE - 1u) / REFINE_WORKGROUP_SIZE;
 }
 
+// Start of the command's entries in `chunk_counts` (module header).
+fn chunk_base(lod: u32, off: u32) -> u32 {
+    return lod * 2u * u.tree_count + 2u * off;
+}
+
+// The slot of a one-invocation-per-slot pass (`ceil(capacity / 64)` workgroups, spilling into y).
+fn slot_of(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> u32 {
+    return (wid.y * groups.x + wid.x) * REFINE_WORKGROUP_SIZE + lid;
+}
+
+// Pass 1: the largest chunk count of the refined commands.
 @compute @workgroup_size(REFINE_WORKGROUP_SIZE)
-fn refine(
+fn refine_prepare(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    // Uniform across the workgroup: the slot, the count (read-only storage), the LOD and mode.
-    let slot = wid.y * groups.x + wid.x;
+    let slot = slot_of(wid, groups, lid);
+    if slot >= counters.commands || !refines(u.tree_cull, command_data[slot].lod) {
+        return;
+    }
+    atomicMax(&dispatch.max_chunks, chunk_count(commands[slot].instance_count));
+}
+
+// Pass 2: the grid of the count and write passes (x: workgroups of 64 chunks, y·z: slots).
+@compute @workgroup_size(1)
+fn refine_args() {
+    let chunks = atomicLoad(&dispatch.max_chunks);
+    let slots = counters.commands;
+    if chunks == 0u || slots == 0u {
+        dispatch.x = 0u;
+        dispatch.y = 0u;
+        dispatch.z = 0u;
+        return;
+    }
+    let y = min(slots, u.max_workgroups);
+    dispatch.x = (chunks + REFINE_WORKGROUP_SIZE - 1u) / REFINE_WORKGROUP_SIZE;
+    dispatch.y = y;
+    dispatch.z = (slots + y - 1u) / y;
+}
+
+// The invocation's chunk of a refined command: `(off, len)` and the chunk index, or `ok = false`
+// when the invocation has nothing to do.
+struct Chunk {
+    ok: bool,
+    lod: u32,
+    off: u32,
+    len: u32,
+    chunk: u32,
+}
+
+fn invocation_chunk(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> Chunk {
+    var c = Chunk(false, 0u, 0u, 0u, wid.x * REFINE_WORKGROUP_SIZE + lid);
+    let slot = wid.z * groups.y + wid.y;
+    if slot >= counters.commands {
+        return c;
+    }
+    c.lod = command_data[slot].lod;
+    if !refines(u.tree_cull, c.lod) {
+        return c;
+    }
+    let command = commands[slot];
+    c.off = command.first_instance;
+    c.len = command.instance_count;
+    c.ok = c.chunk < chunk_count(c.len);
+    return c;
+}
+
+// Pass 3: each chunk's kept count (a loop of at most 64 iterations).
+@compute @workgroup_size(REFINE_WORKGROUP_SIZE)
+fn refine_count(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let c = invocation_chunk(wid, groups, lid);
+    if !c.ok {
+        return;
+    }
+    let src = 2u * u.tree_count + c.off;
+    let first = c.chunk * REFINE_WORKGROUP_SIZE;
+    let end = min(first + REFINE_WORKGROUP_SIZE, c.len);
+    var kept = 0u;
+    for (var j = first; j < end; j++) {
+        kept += u32(tree_needs(indirection[src + j], c.lod));
+    }
+    chunk_counts[chunk_base(c.lod, c.off) + c.chunk] = kept;
+}
+
+// Pass 4: per refined command, the exclusive prefix of its chunk counts and their total.
+@compute @workgroup_size(REFINE_WORKGROUP_SIZE)
+fn refine_scan(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let slot = slot_of(wid, groups, lid);
+    if slot >= counters.commands {
+        return;
+    }
+    let lod = command_data[slot].lod;
+    if !refines(u.tree_cull, lod) {
+        return;
+    }
+    let command = commands[slot];
+    let chunks = chunk_count(command.instance_count);
+    if chunks == 0u {
+        return;
+    }
+    let base = chunk_base(lod, command.first_instance);
+    var sum = 0u;
+    for (var k = 0u; k < chunks; k++) {
+        let count = chunk_counts[base + k];
+        chunk_counts[base + k] = sum;
+        sum += count;
+    }
+    chunk_counts[base + chunks] = sum;
+}
+
+// Pass 5: the kept trees, in batch order (the same loop as pass 3).
+@compute @workgroup_size(REFINE_WORKGROUP_SIZE)
+fn refine_write(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let c = invocation_chunk(wid, groups, lid);
+    if !c.ok {
+        return;
+    }
+    let src = 2u * u.tree_count + c.off;
+    let first = c.chunk * REFINE_WORKGROUP_SIZE;
+    let end = min(first + REFINE_WORKGROUP_SIZE, c.len);
+    var k = c.lod * u.tree_count + c.off + chunk_counts[chunk_base(c.lod, c.off) + c.chunk];
+    for (var j = first; j < end; j++) {
+        let tree = indirection[src + j];
+        if tree_needs(tree, c.lod) {
+            indirection[k] = tree;
+            k++;
+        }
+    }
+}
+
+// Pass 6: the commands rewritten, the counters.
+@compute @workgroup_size(REFINE_WORKGROUP_SIZE)
+fn refine_finalize(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let slot = slot_of(wid, groups, lid);
     if slot >= counters.commands {
         return;
     }
     let n = u.tree_count;
     let lod = command_data[slot].lod;
+    let off = commands[slot].first_instance;
     if !refines(u.tree_cull, lod) {
-        if lid == 0u {
-            commands[slot].first_instance = 2u * n + commands[slot].first_instance;
-        }
+        commands[slot].first_instance = 2u * n + off;
         return;
     }
-    if lid == 0u {
-        let c = commands[slot];
-        wg_range = vec2<u32>(c.first_instance, c.instance_count);
-    }
-    let range = workgroupUniformLoad(&wg_range);
-    let off = range.x;
-    let len = range.y;
-    let src = 2u * n + off;
-    let dst = lod * n + off;
+    let len = commands[slot].instance_count;
     var kept = 0u;
-    let chunks = (len + REFINE_WORKGROUP_SIZE - 1u) / REFINE_WORKGROUP_SIZE;
-    for (var c = 0u; c < chunks; c++) {
-        let j = c * REFINE_WORKGROUP_SIZE + lid;
-        var tree = 0u;
-        var keep = 0u;
-        if j < len {
-            tree = indirection[src + j];
-            keep = u32(tree_needs(tree, lod));
-        }
-        scan[lid] = keep;
-        workgroupBarrier();
-        scan_step(lid, 1u);
-        scan_step(lid, 2u);
-        scan_step(lid, 4u);
-        scan_step(lid, 8u);
-        scan_step(lid, 16u);
-        scan_step(lid, 32u);
-        // scan[lid] is now the inclusive prefix: this tree's rank among the chunk's kept ones.
-        if keep != 0u {
-            indirection[dst + kept + scan[lid] - 1u] = tree;
-        }
-        if lid == REFINE_WORKGROUP_SIZE - 1u {
-            wg_chunk_kept = scan[lid];
-        }
-        kept += workgroupUniformLoad(&wg_chunk_kept);
+    if len != 0u {
+        kept = chunk_counts[chunk_base(lod, off) + chunk_count(len)];
     }
-    if lid == 0u {
-        commands[slot].first_instance = dst;
-        commands[slot].instance_count = kept;
-        atomicAdd(&refine_counters.trees_tested, len);
-        atomicAdd(&refine_counters.trees_kept, kept);
-    }
+    commands[slot].first_instance = lod * n + off;
+    commands[slot].instance_count = kept;
+    atomicAdd(&refine_counters.trees_tested, len);
+    atomicAdd(&refine_counters.trees_kept, kept);
 }
