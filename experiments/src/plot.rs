@@ -14,7 +14,7 @@ pub const WIDTH: u32 = 880;
 /// Plot height in pixels.
 pub const HEIGHT: u32 = 520;
 const LEFT: f32 = 90.0;
-const RIGHT: f32 = 250.0;
+const RIGHT: f32 = 300.0;
 const TOP: f32 = 40.0;
 const BOTTOM: f32 = 60.0;
 

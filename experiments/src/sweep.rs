@@ -1396,7 +1396,11 @@ pub fn write_plots(
         sets.iter().map(|s| (s.label.clone(), s.x)).collect();
     // With several backends a series is a (variant, backend) pair: relabel the variant.
     let (rows, variants): (Vec<Row>, Vec<String>) = if spec.backends.len() > 1 {
-        let label = |v: &str, b: &str| format!("{v} ({b})");
+        // Short backend names keep legends readable: `ours ref`, `vegetation gpu`.
+        let label = |v: &str, b: &str| {
+            let b = if b == "reference" { "ref" } else { b };
+            format!("{v} {b}")
+        };
         (
             rows.iter()
                 .map(|r| Row {
