@@ -1853,42 +1853,27 @@ mod tests {
 
     #[test]
     fn bad_sweeps_are_named() {
-        let e = SweepSpec::parse(
-            "name = 'x'\ntitle = 't'\nscenes = ['tiny']\n[[cameras]]\nname = 'sideways'\n",
-            "f.toml",
-        )
-        .unwrap_err();
-        assert!(e.to_string().contains("sideways"), "{e}");
-        let e = SweepSpec::parse(
-            "name = 'x'\ntitle = 't'\nscenes = ['tiny']\n[[cameras]]\nname = 'far'\n[[axes]]\nparam = 'grid_size'\nvalues = [-1]\n",
-            "f.toml",
-        )
-        .unwrap_err();
-        assert!(e.to_string().contains("grid_size"), "{e}");
-        let e = SweepSpec::parse(
-            "name = 'x'\ntitle = 't'\nscenes = ['tiny']\nvariants = ['fast']\n[[cameras]]\nname = 'far'\n",
-            "f.toml",
-        )
-        .unwrap_err();
-        assert!(e.to_string().contains("fast"), "{e}");
-        let e = SweepSpec::parse(
-            "name = 'x'\ntitle = 't'\nscenes = ['tiny']\nbackends = ['cuda']\n[[cameras]]\nname = 'far'\n",
-            "f.toml",
-        )
-        .unwrap_err();
-        assert!(e.to_string().contains("cuda"), "{e}");
-        let e = SweepSpec::parse(
-            "name = 'x'\ntitle = 't'\nscenes = ['tiny']\nbackends = []\n[[cameras]]\nname = 'far'\n",
-            "f.toml",
-        )
-        .unwrap_err();
-        assert!(e.to_string().contains("backends"), "{e}");
-        let e = SweepSpec::parse(
-            "name = 'x'\ntitle = 't'\nscenes = ['tiny']\nvariants = ['ours-atomic']\n[[cameras]]\nname = 'far'\n",
-            "f.toml",
-        )
-        .unwrap_err();
-        assert!(e.to_string().contains("ours-atomic"), "{e}");
+        // (file body after the common head, the text the error must name)
+        let head = "name = 'x'\ntitle = 't'\nscenes = ['tiny']\n";
+        let far = "[[cameras]]\nname = 'far'\n";
+        for (body, named) in [
+            ("[[cameras]]\nname = 'sideways'\n".to_string(), "sideways"),
+            (
+                format!("{far}[[axes]]\nparam = 'grid_size'\nvalues = [-1]\n"),
+                "grid_size",
+            ),
+            (format!("variants = ['fast']\n{far}"), "fast"),
+            (format!("backends = ['cuda']\n{far}"), "cuda"),
+            (format!("backends = []\n{far}"), "backends"),
+            (format!("variants = ['ours-atomic']\n{far}"), "ours-atomic"),
+            (
+                format!("{far}[[axes]]\nparam = 'tree_cull'\nvalues = ['some']\n"),
+                "tree_cull",
+            ),
+        ] {
+            let e = SweepSpec::parse(&format!("{head}{body}"), "f.toml").unwrap_err();
+            assert!(e.to_string().contains(named), "{named}: {e}");
+        }
     }
 
     #[test]
