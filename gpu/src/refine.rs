@@ -39,9 +39,9 @@
 //! 6. `refine_finalize` (one invocation per slot): rewrites the command and adds to the
 //!    counters.
 //!
-//! No pass uses workgroup memory or barriers: llvmpipe runs a workgroup with barriers as
-//! coroutines, and one workgroup per chunk with a workgroup scan measured 270–610 ms on the stress
-//! scene, several times the serial walk it was to replace.
+//! No pass uses workgroup memory or barriers: one workgroup per chunk with a workgroup scan
+//! measured 270–610 ms on the stress scene under llvmpipe, several times the serial walk it was to
+//! replace (not profiled; workgroups with barriers appear to carry a high fixed cost there).
 //!
 //! ## Invariants
 //! - Equal to the reference bit for bit (commands, the used ranges of the indirection, in order,

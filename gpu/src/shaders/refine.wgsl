@@ -25,8 +25,8 @@
 //    slots past the command count, unrefined commands and chunks past the command's own exit; the
 //    others test their (up to) 64 trees in a loop of at most 64 iterations and store the chunk's
 //    kept count in `chunk_counts[L·2n + 2·off + chunk]`. No workgroup memory and no barrier:
-//    llvmpipe runs a workgroup with barriers as coroutines, whose set-up per workgroup made one
-//    workgroup per chunk (with a workgroup scan) ~10x slower than the serial walk it replaced.
+//    one workgroup per chunk with a workgroup scan measured 5-9x slower than the serial walk it
+//    replaced under llvmpipe (not profiled; barriers appear to carry a high fixed cost there).
 // 4. `refine_scan`, one invocation per slot: exclusive prefix over its `ceil(len / 64)` chunk
 //    counts in place (a loop of at most 65,535 iterations: n <= MAX_REFINE_TREES = 65535·64), the
 //    total after them at `L·2n + 2·off + chunks` (its `chunks + 1 <= 2·len` entries are the
