@@ -439,7 +439,17 @@ fn write_outputs(
 /// A few human-readable lines from the metrics.
 pub fn summary_text(m: &serde_json::Value) -> String {
     let f = |path: &str| m.pointer(path).cloned().unwrap_or_default();
-    format!(
+    let refine = match m.pointer("/refine").filter(|r| !r.is_null()) {
+        Some(r) => format!(
+            "refine (--tree-cull {}): {} trees tested one by one, {} kept, {:.4} s\n",
+            f("/params/tree_cull").as_str().unwrap_or("?"),
+            r["trees_tested"],
+            r["trees_kept"],
+            f("/times_seconds/frame/refine").as_f64().unwrap_or(0.0),
+        ),
+        None => String::new(),
+    };
+    let text = format!(
         "forestlod reference render: scene {} ({} trees, {} batches), camera {} at {}x{}\n\
          selection: {} commands ({} LOD0, {} LOD1), {} batches in the fade band, {} culled by distance, {} by frustum\n\
          draw: {} triangles, {} fragments written (overdraw {:.2}), {} trees beyond the draw distance\n\
@@ -471,5 +481,6 @@ pub fn summary_text(m: &serde_json::Value) -> String {
         f("/times_seconds/frame/draw").as_f64().unwrap_or(0.0),
         f("/memory_bytes/total"),
         f("/memory_bytes/eq41"),
-    )
+    );
+    text + &refine
 }
