@@ -1611,55 +1611,52 @@ pub fn write_plots(
                         .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
                     lo > 0.0 && hi / lo > 20.0
                 };
-                // Select and draw time against the parameter (E Fig. 5.5a / 5.6).
-                let mut series = Vec::new();
-                for (pass, y) in [
-                    ("select", (|r: &Row| r.select_s * 1e3) as fn(&Row) -> f64),
-                    ("draw", |r: &Row| r.draw_s * 1e3),
-                    ("frame", |r: &Row| r.frame_s * 1e3),
-                ] {
-                    for mut s in group(&all, &y, &x, true) {
-                        s.label = format!("{pass} {}", s.label);
-                        series.push(s);
-                    }
-                }
-                let axes = Axes {
-                    title: format!("{}: mean pass times vs {param}", spec.name),
-                    x_label: format!("{param}{}", if log_x { " (log)" } else { "" }),
-                    y_label: "mean time [ms]".into(),
-                    log_x,
-                    log_y: false,
-                };
-                plot(
-                    "runtime.png",
-                    format!(
-                        "Mean select, draw and frame time against `{param}` (thesis-style, E Fig. 5.5–5.6)."
+                // Select and draw time, then the errors, against the parameter (E Fig. 5.5a / 5.6).
+                type Metric = (&'static str, fn(&Row) -> f64);
+                let times: [Metric; 3] = [
+                    ("select", |r| r.select_s * 1e3),
+                    ("draw", |r| r.draw_s * 1e3),
+                    ("frame", |r| r.frame_s * 1e3),
+                ];
+                let errors: [Metric; 3] = [
+                    ("FLIP mean", |r| r.flip_mean),
+                    ("FLIP p95", |r| r.flip_p95),
+                    ("coverage err", |r| r.coverage_error),
+                ];
+                for (file, title, y_label, caption, metrics) in [
+                    (
+                        "runtime.png",
+                        "mean pass times",
+                        "mean time [ms]",
+                        format!(
+                            "Mean select, draw and frame time against `{param}` (thesis-style, E Fig. 5.5–5.6)."
+                        ),
+                        times,
                     ),
-                    &|p| xy_plot(p, &axes, &series, Style::Lines),
-                )?;
-                let mut series = Vec::new();
-                for (what, y) in [
-                    ("FLIP mean", (|r: &Row| r.flip_mean) as fn(&Row) -> f64),
-                    ("FLIP p95", |r: &Row| r.flip_p95),
-                    ("coverage err", |r: &Row| r.coverage_error),
+                    (
+                        "accuracy.png",
+                        "accuracy",
+                        "error vs ground truth",
+                        format!("Mean FLIP, FLIP p95 and coverage error against `{param}`."),
+                        errors,
+                    ),
                 ] {
-                    for mut s in group(&all, &y, &x, true) {
-                        s.label = format!("{what} {}", s.label);
-                        series.push(s);
+                    let mut series = Vec::new();
+                    for (what, y) in metrics {
+                        for mut s in group(&all, &y, &x, true) {
+                            s.label = format!("{what} {}", s.label);
+                            series.push(s);
+                        }
                     }
+                    let axes = Axes {
+                        title: format!("{}: {title} vs {param}", spec.name),
+                        x_label: format!("{param}{}", if log_x { " (log)" } else { "" }),
+                        y_label: y_label.into(),
+                        log_x,
+                        log_y: false,
+                    };
+                    plot(file, caption, &|p| xy_plot(p, &axes, &series, Style::Lines))?;
                 }
-                let axes = Axes {
-                    title: format!("{}: accuracy vs {param}", spec.name),
-                    x_label: format!("{param}{}", if log_x { " (log)" } else { "" }),
-                    y_label: "error vs ground truth".into(),
-                    log_x,
-                    log_y: false,
-                };
-                plot(
-                    "accuracy.png",
-                    format!("Mean FLIP, FLIP p95 and coverage error against `{param}`."),
-                    &|p| xy_plot(p, &axes, &series, Style::Lines),
-                )?;
             } else {
                 // Categorical settings: grouped bars (E Fig. 5.7).
                 let labels: Vec<String> = sets.iter().map(|s| s.label.clone()).collect();

@@ -842,28 +842,52 @@ pub(crate) fn terrain_pipeline(
     layout: &wgpu::PipelineLayout,
 ) -> wgpu::RenderPipeline {
     let terrain_attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3];
-    let terrain_targets = target_states(None);
+    target_pipeline(
+        device,
+        "draw terrain",
+        layout,
+        module,
+        ("terrain_vertex", "terrain_fragment"),
+        &[Some(wgpu::VertexBufferLayout {
+            array_stride: size_of::<TerrainVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &terrain_attributes,
+        })],
+        None,
+    )
+}
+
+/// A render pipeline into the three [`DrawTarget`] attachments with the shared states
+/// ([`primitive_state`], [`depth_stencil_state`], [`target_states`] with `blend` on colour):
+/// what the ground, the trees and the Primitive quads differ in is only their entry points,
+/// vertex buffers and colour blend.
+pub(crate) fn target_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    (vertex, fragment): (&str, &str),
+    buffers: &[Option<wgpu::VertexBufferLayout>],
+    blend: Option<wgpu::BlendState>,
+) -> wgpu::RenderPipeline {
+    let targets = target_states(blend);
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("draw terrain"),
+        label: Some(label),
         layout: Some(layout),
         vertex: wgpu::VertexState {
             module,
-            entry_point: Some("terrain_vertex"),
+            entry_point: Some(vertex),
             compilation_options: Default::default(),
-            buffers: &[Some(wgpu::VertexBufferLayout {
-                array_stride: size_of::<TerrainVertex>() as u64,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &terrain_attributes,
-            })],
+            buffers,
         },
         primitive: primitive_state(),
         depth_stencil: Some(depth_stencil_state()),
         multisample: Default::default(),
         fragment: Some(wgpu::FragmentState {
             module,
-            entry_point: Some("terrain_fragment"),
+            entry_point: Some(fragment),
             compilation_options: Default::default(),
-            targets: &terrain_targets,
+            targets: &targets,
         }),
         multiview_mask: None,
         cache: None,
@@ -1044,28 +1068,15 @@ impl GpuDraw {
                     operation: wgpu::BlendOperation::Add,
                 },
             };
-            let tree_targets = target_states(Some(source_over));
-            let trees = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("draw trees"),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("tree_vertex"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: primitive_state(),
-                depth_stencil: Some(depth_stencil_state()),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("tree_fragment"),
-                    compilation_options: Default::default(),
-                    targets: &tree_targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            let trees = target_pipeline(
+                device,
+                "draw trees",
+                &pipeline_layout,
+                &module,
+                ("tree_vertex", "tree_fragment"),
+                &[],
+                Some(source_over),
+            );
             let terrain = terrain_pipeline(device, &module, &pipeline_layout);
             // Reference `Sampler::TRILINEAR`: clamp-to-edge, no bias, default LOD clamps.
             let sampler = device.create_sampler(&wgpu::SamplerDescriptor {

@@ -40,8 +40,7 @@ use forestlod_shared::{Camera, Params, ProxyRecord};
 
 use crate::context::buffer_entry;
 use crate::draw::{
-    DrawScene, DrawTarget, DrawUniform, begin_target_pass, depth_stencil_state, primitive_state,
-    target_states, terrain_pipeline,
+    DrawScene, DrawTarget, DrawUniform, begin_target_pass, target_pipeline, terrain_pipeline,
 };
 use crate::readback::upload_storage;
 use crate::{GpuContext, GpuError};
@@ -229,28 +228,15 @@ impl GpuPrimitive {
                 &draw_module,
                 &pipeline_layout("primitive terrain", &terrain_layout),
             );
-            let targets = target_states(None);
-            let quads = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("primitive quads"),
-                layout: Some(&quad_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("primitive_vertex"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: primitive_state(),
-                depth_stencil: Some(depth_stencil_state()),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("primitive_fragment"),
-                    compilation_options: Default::default(),
-                    targets: &targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            let quads = target_pipeline(
+                device,
+                "primitive quads",
+                &quad_layout,
+                &module,
+                ("primitive_vertex", "primitive_fragment"),
+                &[],
+                None,
+            );
             let uniform_buffer = |label, size| {
                 device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some(label),

@@ -244,14 +244,7 @@ impl Renderer for ReferenceRenderer {
     }
     fn render(&self, prepared: &Prepared, camera: &Camera, params: &Params) -> Images {
         let frame = prepared.render(camera, params).expect("reference render");
-        let t = &frame.drawn.target;
-        Images {
-            width: t.width(),
-            height: t.height(),
-            color: t.color().to_vec(),
-            depth: t.depth().to_vec(),
-            lod_id: t.aux().to_vec(),
-        }
+        images_of(&frame.drawn.target)
     }
 }
 
