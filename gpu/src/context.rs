@@ -1,10 +1,12 @@
 //! The wgpu adapter, device and queue every stage runs on (SPEC §8: CI has no GPU and runs on
 //! Mesa's lavapipe, a Vulkan adapter of device type `Cpu`).
 //!
-//! [`GpuContext::new`] asks for a Vulkan adapter first (preferring a high-performance one, but
-//! accepting CPU adapters such as lavapipe's "llvmpipe"), then for any backend. It enables each
-//! optional feature the pipeline can use when the adapter offers it ([`WANTED_FEATURES`]) and
-//! takes the adapter's own limits. Tests get their context through [`gpu_or_explain`], which fails
+//! [`GpuContext::new`] checks every adapter of every backend against what the pipeline needs
+//! ([`REQUIRED_FEATURES`], [`REQUIRED_DOWNLEVEL`], [`REQUIRED_STORAGE_BUFFERS_PER_STAGE`]) and takes
+//! the best suitable one (discrete before integrated before CPU adapters such as lavapipe's
+//! "llvmpipe"; Vulkan first), saying in one line why each other adapter was passed over. It
+//! enables each optional feature the pipeline can use when the adapter offers it
+//! ([`WANTED_FEATURES`]) and takes the adapter's own limits. Tests get their context through [`gpu_or_explain`], which fails
 //! with an install hint when no adapter exists.
 //!
 //! Crate-internal helpers hold the pipeline boilerplate the stage drivers share: `buffer_entry`
@@ -18,7 +20,7 @@ use std::sync::OnceLock;
 pub const ALLOW_NO_GPU_ENV: &str = "FORESTLOD_ALLOW_NO_GPU";
 
 /// What a test prints (and panics with) when no adapter exists.
-pub const NO_GPU_HINT: &str = "no GPU adapter found: install Mesa's lavapipe (`apt-get install -y --no-install-recommends mesa-vulkan-drivers libvulkan1`) or set FORESTLOD_ALLOW_NO_GPU=1 to skip GPU tests";
+pub const NO_GPU_HINT: &str = "no GPU adapter that can run the pipeline: install Mesa's lavapipe (`apt-get install -y --no-install-recommends mesa-vulkan-drivers libvulkan1`) or set FORESTLOD_ALLOW_NO_GPU=1 to skip GPU tests";
 
 /// Optional features requested when the adapter offers them:
 /// - `MULTI_DRAW_INDIRECT_COUNT`: the draw stage takes its command count from the `select`
@@ -32,11 +34,54 @@ pub const WANTED_FEATURES: wgpu::Features = wgpu::Features::MULTI_DRAW_INDIRECT_
     .union(wgpu::Features::TIMESTAMP_QUERY)
     .union(wgpu::Features::FLOAT32_FILTERABLE);
 
+/// Features the pipeline cannot run without: the draw stage finds a batch's trees through
+/// `first_instance` of its indirect draws (E§4.4), which wgpu ignores without this feature.
+pub const REQUIRED_FEATURES: wgpu::Features = wgpu::Features::INDIRECT_FIRST_INSTANCE;
+
+/// Downlevel capabilities every stage relies on (all present on any Vulkan 1.1 or Metal or D3D12
+/// adapter; wgpu's GL backend lacks some, which is why it used to fail half-way through a frame):
+/// compute shaders (select, cull, refine, bake, mips), indirect execution and base vertex (the
+/// draw of selected commands), storage buffers read by vertex and fragment stages (`draw.wgsl`),
+/// per-target blend state (the colour target blends, the LOD-id target cannot) and texture view
+/// formats (the billboard array is written through an `Rgba8Unorm` view of an sRGB texture).
+pub const REQUIRED_DOWNLEVEL: wgpu::DownlevelFlags = wgpu::DownlevelFlags::COMPUTE_SHADERS
+    .union(wgpu::DownlevelFlags::INDIRECT_EXECUTION)
+    .union(wgpu::DownlevelFlags::BASE_VERTEX)
+    .union(wgpu::DownlevelFlags::VERTEX_STORAGE)
+    .union(wgpu::DownlevelFlags::FRAGMENT_STORAGE)
+    .union(wgpu::DownlevelFlags::INDEPENDENT_BLEND)
+    .union(wgpu::DownlevelFlags::VIEW_FORMATS);
+
+/// Storage buffers the busiest compute stage binds (`cull.wgsl`: 9).
+pub const REQUIRED_STORAGE_BUFFERS_PER_STAGE: u32 = 9;
+
+/// Why `adapter` cannot run the pipeline (missing features, downlevel flags or limits, one line),
+/// or `None` when it can.
+pub fn adapter_shortfall(adapter: &wgpu::Adapter) -> Option<String> {
+    let mut missing = Vec::new();
+    let features = REQUIRED_FEATURES - adapter.features();
+    missing.extend(features.iter_names().map(|(n, _)| format!("feature {n}")));
+    let downlevel = adapter.get_downlevel_capabilities();
+    let flags = REQUIRED_DOWNLEVEL - downlevel.flags;
+    missing.extend(
+        flags
+            .iter_names()
+            .map(|(n, _)| format!("downlevel flag {n}")),
+    );
+    let storage = adapter.limits().max_storage_buffers_per_shader_stage;
+    if storage < REQUIRED_STORAGE_BUFFERS_PER_STAGE {
+        missing.push(format!(
+            "{storage} storage buffers per shader stage (needs {REQUIRED_STORAGE_BUFFERS_PER_STAGE})"
+        ));
+    }
+    (!missing.is_empty()).then(|| format!("lacks {}", missing.join(", ")))
+}
+
 /// Everything that can go wrong talking to the GPU.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
-    /// No adapter on any backend.
-    #[error("{NO_GPU_HINT} (wgpu: {0})")]
+    /// No adapter that can run the pipeline on any backend (the reasons, one line).
+    #[error("{NO_GPU_HINT} ({0})")]
     NoAdapter(String),
     /// The adapter refused to create a device.
     #[error("the adapter {adapter:?} refused to create a device: {reason}")]
@@ -86,6 +131,8 @@ pub struct GpuContext {
     pub features: wgpu::Features,
     /// The device limits (the adapter's own).
     pub limits: wgpu::Limits,
+    /// One line per adapter [`GpuContext::new`] found but could not use, with the reason.
+    pub passed_over: Vec<String>,
     /// Compiled `select` pipelines, created on first use and shared by every [`crate::GpuSelect`].
     pub(crate) select_pipelines: OnceLock<crate::select::SelectPipelines>,
     /// Compiled `cull` pipelines, created on first use and shared by every [`crate::GpuCull`].
@@ -104,28 +151,52 @@ impl std::fmt::Debug for GpuContext {
 }
 
 impl GpuContext {
-    /// Picks an adapter (Vulkan first, then any backend; high performance preferred, CPU adapters
-    /// accepted) and creates a device with every offered feature of [`WANTED_FEATURES`] and the
-    /// adapter's limits. Blocks (wgpu's futures are driven by `pollster`).
+    /// Picks an adapter and creates a device with every offered feature of [`WANTED_FEATURES`]
+    /// and the adapter's limits. Blocks (wgpu's futures are driven by `pollster`).
+    ///
+    /// Every adapter of every backend is checked against what the pipeline needs
+    /// ([`adapter_shortfall`]); among those that can run it, a discrete GPU beats an integrated,
+    /// virtual, then CPU one (lavapipe's "llvmpipe"), and Vulkan beats other backends at equal
+    /// type. Each adapter passed over is named with its reason in [`GpuContext::passed_over`],
+    /// one line each. With none suitable the error names every adapter and what it lacks.
+    /// `WGPU_BACKEND` and friends still restrict the backends, as everywhere in wgpu.
     pub fn new() -> Result<Self, GpuError> {
-        let mut last_error = String::from("no backend tried");
-        for backends in [wgpu::Backends::VULKAN, wgpu::Backends::all()] {
-            let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
-            desc.backends = backends;
-            // WGPU_BACKEND and friends still override, as everywhere in wgpu.
-            let instance = wgpu::Instance::new(desc.with_env());
-            let options = wgpu::RequestAdapterOptions {
-                power_preference: wgpu::PowerPreference::HighPerformance,
-                force_fallback_adapter: false,
-                compatible_surface: None,
-                apply_limit_buckets: false,
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = wgpu::Backends::all();
+        let instance = wgpu::Instance::new(desc.with_env());
+        let mut adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        let rank = |a: &wgpu::Adapter| {
+            let info = a.get_info();
+            let kind = match info.device_type {
+                wgpu::DeviceType::DiscreteGpu => 0,
+                wgpu::DeviceType::IntegratedGpu => 1,
+                wgpu::DeviceType::VirtualGpu => 2,
+                wgpu::DeviceType::Cpu => 3,
+                wgpu::DeviceType::Other => 4,
             };
-            match pollster::block_on(instance.request_adapter(&options)) {
-                Ok(adapter) => return Self::from_adapter(adapter),
-                Err(e) => last_error = e.to_string(),
+            (kind, info.backend != wgpu::Backend::Vulkan)
+        };
+        adapters.sort_by_key(rank);
+        let mut passed_over = Vec::new();
+        for adapter in adapters {
+            let info = adapter.get_info();
+            match adapter_shortfall(&adapter) {
+                None => {
+                    let mut ctx = Self::from_adapter(adapter)?;
+                    ctx.passed_over = passed_over;
+                    return Ok(ctx);
+                }
+                Some(why) => passed_over.push(format!(
+                    "passed over GPU adapter {} ({:?}, {:?}): {why}",
+                    info.name, info.backend, info.device_type
+                )),
             }
         }
-        Err(GpuError::NoAdapter(last_error))
+        Err(GpuError::NoAdapter(if passed_over.is_empty() {
+            "wgpu found no adapter on any backend".to_string()
+        } else {
+            passed_over.join("; ")
+        }))
     }
 
     /// Creates the device on a chosen adapter (see [`GpuContext::new`]).
@@ -152,6 +223,7 @@ impl GpuContext {
             info,
             features,
             limits,
+            passed_over: Vec::new(),
             select_pipelines: OnceLock::new(),
             cull_pipelines: OnceLock::new(),
             refine_pipelines: OnceLock::new(),
@@ -300,6 +372,29 @@ pub(crate) fn compute_pipelines<const N: usize>(
     (layout, pipelines)
 }
 
+/// A fresh `UNIFORM` buffer holding `value`, for one recorded frame.
+///
+/// Stage drivers never keep a uniform buffer of their own behind `&self` and rewrite it through
+/// the queue: `queue.write_buffer` lands at the next submit *of any thread*, so two threads that
+/// record frames with one driver would each draw with whichever camera was written last (the race
+/// behind a flaky parity test, issue 10). A per-call buffer, bound into the per-call bind group,
+/// makes that impossible by construction; it costs one small allocation per frame (wgpu keeps it
+/// alive until the command buffer that uses it has run).
+pub(crate) fn frame_uniform<T: bytemuck::Pod>(
+    ctx: &GpuContext,
+    label: &str,
+    value: &T,
+) -> wgpu::Buffer {
+    wgpu::util::DeviceExt::create_buffer_init(
+        &ctx.device,
+        &wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::bytes_of(value),
+            usage: wgpu::BufferUsages::UNIFORM,
+        },
+    )
+}
+
 /// The pipelines in `cell` (one of [`GpuContext`]'s caches), compiled by `create` on first use.
 /// Concurrent first uses may each compile a set; the first one stored wins and the others are
 /// dropped (every set works alike). A failed `create` stores nothing and returns its error, so a
@@ -322,7 +417,12 @@ pub(crate) fn cached_pipelines<T>(
 /// Mesa warnings) is the caller's business.
 pub fn gpu_or_explain() -> Option<GpuContext> {
     match GpuContext::new() {
-        Ok(ctx) => Some(ctx),
+        Ok(ctx) => {
+            for line in &ctx.passed_over {
+                eprintln!("{line}");
+            }
+            Some(ctx)
+        }
         Err(e) => {
             if std::env::var(ALLOW_NO_GPU_ENV).is_ok_and(|v| v == "1") {
                 eprintln!("skipping GPU test: {e} ({ALLOW_NO_GPU_ENV}=1)");

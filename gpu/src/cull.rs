@@ -338,7 +338,7 @@ impl<'a> GpuCull<'a> {
     /// Records one frame's culling into `encoder`: writes the uniform (through the queue, so it
     /// lands before the next submit), clears the per-mesh counts, then three dispatches. `camera`
     /// and `params` should be validated, as for the reference.
-    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, camera: &Camera, params: &Params) {
+    pub fn encode(&mut self, encoder: &mut wgpu::CommandEncoder, camera: &Camera, params: &Params) {
         let uniform = CullUniform::new(camera, params, self.tree_count, self.mesh_count);
         self.ctx
             .queue
@@ -364,8 +364,9 @@ impl<'a> GpuCull<'a> {
     }
 
     /// Runs one frame's culling and leaves the result on the GPU. Does not wait.
-    pub fn dispatch(&self, camera: &Camera, params: &Params) -> Result<(), GpuError> {
-        self.ctx.submit("cull dispatch", "cull", |encoder| {
+    pub fn dispatch(&mut self, camera: &Camera, params: &Params) -> Result<(), GpuError> {
+        let ctx = self.ctx;
+        ctx.submit("cull dispatch", "cull", |encoder| {
             self.encode(encoder, camera, params)
         })
     }

@@ -40,7 +40,7 @@ use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MAX_COMMANDS, MAX_MESH_VERTICES, MeshMeta, Params};
 use wgpu::util::DeviceExt;
 
-use crate::context::buffer_entry;
+use crate::context::{buffer_entry, frame_uniform};
 use crate::readback::{read_texture, upload_storage};
 use crate::{GpuContext, GpuError, SelectBuffers};
 
@@ -961,7 +961,6 @@ pub struct GpuDraw {
     trees: wgpu::RenderPipeline,
     terrain: wgpu::RenderPipeline,
     sampler: wgpu::Sampler,
-    uniform: wgpu::Buffer,
     mode: IndirectMode,
 }
 
@@ -1086,18 +1085,11 @@ impl GpuDraw {
                 mipmap_filter: wgpu::MipmapFilterMode::Linear,
                 ..Default::default()
             });
-            let uniform = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("draw uniform"),
-                size: size_of::<DrawUniform>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
             Self {
                 layout,
                 trees,
                 terrain,
                 sampler,
-                uniform,
                 mode,
             }
         })
@@ -1108,8 +1100,9 @@ impl GpuDraw {
         self.mode
     }
 
-    /// Records one frame's pass into `encoder` (the uniform goes through the queue, so it lands
-    /// before the next submit). `camera` and `params` should be validated, as for the reference.
+    /// Records one frame's pass into `encoder`. The frame's uniform is a fresh buffer bound into
+    /// this call's bind group ([`frame_uniform`]), so frames recorded from several threads with
+    /// one `GpuDraw` never see each other's camera. `camera` and `params` should be validated, as for the reference.
     /// Errors: textures with fewer layers than the meshes (and `K` angles) need, or selection
     /// buffers larger than `base_vertex` can address.
     pub fn encode(
@@ -1150,16 +1143,18 @@ impl GpuDraw {
                 reason: "expected at most MAX_COMMANDS (base_vertex is an i32)",
             });
         }
-        let uniform = DrawUniform::new(camera, params, scene.billboard_first_vertex);
-        ctx.queue
-            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
+        let uniform = frame_uniform(
+            ctx,
+            "draw uniform",
+            &DrawUniform::new(camera, params, scene.billboard_first_vertex),
+        );
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("draw"),
             layout: &self.layout,
             entries: &[
                 wgpu::BindGroupEntry {
                     binding: 0,
-                    resource: self.uniform.as_entire_binding(),
+                    resource: uniform.as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
                     binding: 1,

@@ -26,6 +26,22 @@
 //! - the stage drivers ([`select`], [`bake`], [`mips`], [`draw`], [`cull`], [`primitive`],
 //!   [`refine`]).
 //!
+//! **Rule: no per-frame state behind `&self`.** `queue.write_buffer` lands at the next submit of
+//! *any* thread, so a driver that rewrites a buffer it owns from a `&self` method lets two threads
+//! record two frames into one buffer, and one frame is drawn with the other's camera (this was the
+//! flake of issue 10: a `GpuDraw` shared by two tests through a static). Two shapes are allowed:
+//! - drivers that hold only compiled pipelines ([`GpuDraw`], [`GpuPrimitive`], [`GpuBake`],
+//!   [`GpuMips`]) are `Sync` and take `&self`; every per-frame buffer (uniforms, outputs) is
+//!   created by the call itself (`context::frame_uniform`) or lives in a per-call or per-target
+//!   object the caller owns ([`DrawTarget`]);
+//! - drivers that own per-scene outputs the frame writes ([`GpuSelect`], [`GpuCull`],
+//!   [`GpuRefine`]) take `&mut self` to record a frame, and a stage that rewrites another stage's
+//!   output takes it as `&mut` ([`GpuSelect::buffers_mut`]), so the borrow checker forbids two
+//!   frames in flight on one object. Reads (`read`, `buffers`) take `&self`.
+//!
+//! `tests/tests/parity_threads.rs` renders different scenarios from several threads on one context
+//! with shared drivers and asserts each frame equals its single-thread twin.
+//!
 //! What it must not depend on: `forestlod-reference`. The oracle and its twin meet only in the
 //! `tests` crate, so a bug cannot leak from one into the other through shared code; the only code
 //! both sides share is `forestlod-shared` (types and scalar formulas).
@@ -47,7 +63,10 @@ pub mod select;
 pub mod shaders;
 
 pub use bake::{BakeMesh, GpuBake, GpuBaked};
-pub use context::{ALLOW_NO_GPU_ENV, GpuContext, GpuError, NO_GPU_HINT, gpu_or_explain};
+pub use context::{
+    ALLOW_NO_GPU_ENV, GpuContext, GpuError, NO_GPU_HINT, REQUIRED_DOWNLEVEL, REQUIRED_FEATURES,
+    adapter_shortfall, gpu_or_explain,
+};
 pub use cull::{CullTree, DrawIndirectArgs, GpuCull, GpuCulled};
 pub use draw::{
     DrawCalls, DrawInputs, DrawInstance, DrawScene, DrawSceneDesc, DrawTarget, DrawTextures,

@@ -38,7 +38,7 @@
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, ProxyRecord};
 
-use crate::context::buffer_entry;
+use crate::context::{buffer_entry, frame_uniform};
 use crate::draw::{
     DrawScene, DrawTarget, DrawUniform, begin_target_pass, target_pipeline, terrain_pipeline,
 };
@@ -171,8 +171,6 @@ pub struct GpuPrimitive {
     terrain_layout: wgpu::BindGroupLayout,
     quads: wgpu::RenderPipeline,
     terrain: wgpu::RenderPipeline,
-    uniform: wgpu::Buffer,
-    terrain_uniform: wgpu::Buffer,
 }
 
 impl GpuPrimitive {
@@ -237,30 +235,17 @@ impl GpuPrimitive {
                 &[],
                 None,
             );
-            let uniform_buffer = |label, size| {
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some(label),
-                    size,
-                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                })
-            };
             Self {
                 layout,
                 terrain_layout,
                 quads,
                 terrain,
-                uniform: uniform_buffer("primitive uniform", size_of::<PrimitiveUniform>() as u64),
-                terrain_uniform: uniform_buffer(
-                    "primitive terrain uniform",
-                    size_of::<DrawUniform>() as u64,
-                ),
             }
         })
     }
 
-    /// Records one frame's pass into `encoder` (the uniforms go through the queue, so they land
-    /// before the next submit): clear, ground, then every visible tree's quad with one
+    /// Records one frame's pass into `encoder` (its uniforms are fresh buffers of this call,
+    /// [`frame_uniform`], so threads sharing one `GpuPrimitive` never mix cameras): clear, ground, then every visible tree's quad with one
     /// `draw_indirect`. `camera` and `params` should be validated. Errors: fewer proxies than the
     /// scene has meshes.
     pub fn encode(
@@ -289,25 +274,17 @@ impl GpuPrimitive {
                 reason: "expected one proxy per mesh",
             });
         }
-        ctx.queue.write_buffer(
-            &self.uniform,
-            0,
-            bytemuck::bytes_of(&PrimitiveUniform::new(camera)),
-        );
-        ctx.queue.write_buffer(
-            &self.terrain_uniform,
-            0,
-            bytemuck::bytes_of(&DrawUniform::new(
-                camera,
-                params,
-                scene.billboard_first_vertex,
-            )),
+        let uniform = frame_uniform(ctx, "primitive uniform", &PrimitiveUniform::new(camera));
+        let terrain_uniform = frame_uniform(
+            ctx,
+            "primitive terrain uniform",
+            &DrawUniform::new(camera, params, scene.billboard_first_vertex),
         );
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("primitive"),
             layout: &self.layout,
             entries: &[
-                (0, &self.uniform),
+                (0, &uniform),
                 (1, &scene.instances),
                 (2, indirection),
                 (3, &proxies.buffer),
@@ -322,7 +299,7 @@ impl GpuPrimitive {
             layout: &self.terrain_layout,
             entries: &[wgpu::BindGroupEntry {
                 binding: 0,
-                resource: self.terrain_uniform.as_entire_binding(),
+                resource: terrain_uniform.as_entire_binding(),
             }],
         });
         let mut pass = begin_target_pass(encoder, target, "primitive");

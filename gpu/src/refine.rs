@@ -364,9 +364,9 @@ impl<'a> GpuRefine<'a> {
     /// Rewrites the commands in place: encode it once per selection. `camera` and `params` should
     /// be validated, as for the reference.
     pub fn encode(
-        &self,
+        &mut self,
         encoder: &mut wgpu::CommandEncoder,
-        selection: &SelectBuffers,
+        selection: &mut SelectBuffers,
         camera: &Camera,
         params: &Params,
     ) {
@@ -444,12 +444,13 @@ impl<'a> GpuRefine<'a> {
 
     /// Refines `selection` for one frame and leaves the result on the GPU. Does not wait.
     pub fn dispatch(
-        &self,
-        selection: &SelectBuffers,
+        &mut self,
+        selection: &mut SelectBuffers,
         camera: &Camera,
         params: &Params,
     ) -> Result<(), GpuError> {
-        self.ctx.submit("refine dispatch", "refine", |encoder| {
+        let ctx = self.ctx;
+        ctx.submit("refine dispatch", "refine", |encoder| {
             self.encode(encoder, selection, camera, params)
         })
     }

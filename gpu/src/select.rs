@@ -398,6 +398,12 @@ impl<'a> GpuSelect<'a> {
         &self.out
     }
 
+    /// The output buffers, for a later stage of the same frame that rewrites them in place
+    /// ([`crate::GpuRefine::encode`]); exclusive, so no other frame can be selecting into them.
+    pub fn buffers_mut(&mut self) -> &mut SelectBuffers {
+        &mut self.out
+    }
+
     /// Workgroup counts `(x, y)` covering every batch with `SELECT_WORKGROUP_SIZE` invocations
     /// each, spilling into `y` beyond the per-dimension limit.
     fn groups(&self) -> (u32, u32) {
@@ -409,7 +415,7 @@ impl<'a> GpuSelect<'a> {
     /// lands before the next submit), clears the counters, then three dispatches (stable) or one
     /// (atomic). `camera` and `params` should be validated, as for the reference.
     pub fn encode(
-        &self,
+        &mut self,
         encoder: &mut wgpu::CommandEncoder,
         camera: &Camera,
         params: &Params,
@@ -456,12 +462,13 @@ impl<'a> GpuSelect<'a> {
     /// Runs one frame's selection and leaves the result on the GPU ([`GpuSelect::buffers`]) for
     /// the draw stage. Does not wait.
     pub fn dispatch(
-        &self,
+        &mut self,
         camera: &Camera,
         params: &Params,
         compaction: Compaction,
     ) -> Result<&SelectBuffers, GpuError> {
-        self.ctx.submit("select dispatch", "select", |encoder| {
+        let ctx = self.ctx;
+        ctx.submit("select dispatch", "select", |encoder| {
             self.encode(encoder, camera, params, compaction)
         })?;
         Ok(&self.out)
@@ -469,7 +476,7 @@ impl<'a> GpuSelect<'a> {
 
     /// Runs one frame's selection and reads the result back. Blocks.
     pub fn run(
-        &self,
+        &mut self,
         camera: &Camera,
         params: &Params,
         compaction: Compaction,

@@ -102,7 +102,7 @@ impl SelectBackend for GpuBackend {
         camera: &Camera,
         params: &Params,
     ) -> BackendSelection {
-        let gpu = GpuSelect::new(self.ctx, batches, meshes, billboard).expect("GpuSelect::new");
+        let mut gpu = GpuSelect::new(self.ctx, batches, meshes, billboard).expect("GpuSelect::new");
         let out = gpu
             .run(camera, params, self.compaction)
             .expect("GpuSelect::run");
@@ -445,9 +445,9 @@ pub fn render_gpu(
     let textures = DrawTextures::new(&mesh, &billboards)?;
     let target = DrawTarget::new(ctx, camera.width, camera.height)?;
     let refining = params.tree_cull != TreeCull::None as u32;
-    let gpu_select;
+    let mut gpu_select;
     let cpu_buffers;
-    let gpu_refine;
+    let mut gpu_refine;
     let cpu_indirection;
     let (selection, indirection) = if from_cpu.select {
         // The reference's selection, refined by the reference when `tree_cull` asks for it.
@@ -483,15 +483,15 @@ pub fn render_gpu(
             &prepared.geometry.meshes,
             &prepared.geometry.billboard,
         )?;
-        let selection = gpu_select.dispatch(camera, params, Compaction::Stable)?;
+        gpu_select.dispatch(camera, params, Compaction::Stable)?;
         let indirection = if refining {
             gpu_refine = GpuRefine::new(ctx, &cull_trees(prepared), &prepared.batches.indirection)?;
-            gpu_refine.dispatch(selection, camera, params)?;
+            gpu_refine.dispatch(gpu_select.buffers_mut(), camera, params)?;
             Some(gpu_refine.indirection())
         } else {
             None
         };
-        (selection, indirection)
+        (gpu_select.buffers(), indirection)
     };
     let inputs = DrawInputs {
         scene: &scene,
@@ -879,7 +879,7 @@ impl GpuSweepScene {
                     self.select.encode(&mut encoder, camera, params, compaction);
                     if refining {
                         self.refine
-                            .encode(&mut encoder, self.select.buffers(), camera, params);
+                            .encode(&mut encoder, self.select.buffers_mut(), camera, params);
                     }
                 }
                 GpuVariant::Vegetation | GpuVariant::Primitive => {

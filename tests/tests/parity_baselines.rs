@@ -124,7 +124,7 @@ fn judge_cull(
     scene: &Scene,
     meshes: &[MeshMeta],
     spheres: &[([f32; 3], f32)],
-    gpu: &GpuCull,
+    gpu: &mut GpuCull,
     camera: &Camera,
     params: &Params,
     tally: &mut CullTally,
@@ -281,7 +281,7 @@ fn gpu_cull_matches_per_tree_culling() {
         let geometry = pack_geometry(scene);
         let spheres = tree_spheres(scene, &geometry.meshes);
         let trees = cull_trees_of(scene, &spheres);
-        let gpu = GpuCull::new(ctx, &trees, &geometry.meshes).expect("GpuCull::new");
+        let mut gpu = GpuCull::new(ctx, &trees, &geometry.meshes).expect("GpuCull::new");
         // The named cameras of parity_draw, yawed, and the draw distance pulled in.
         for name in ["medium", "close", "far"] {
             for yaw in [0.0, 40.0, 200.0] {
@@ -294,7 +294,7 @@ fn gpu_cull_matches_per_tree_culling() {
                         scene,
                         &geometry.meshes,
                         &spheres,
-                        &gpu,
+                        &mut gpu,
                         &camera,
                         &params,
                         &mut tally,
@@ -315,7 +315,7 @@ fn gpu_cull_matches_per_tree_culling() {
                     scene,
                     &geometry.meshes,
                     &spheres,
-                    &gpu,
+                    &mut gpu,
                     &camera,
                     &params,
                     &mut tally,
@@ -333,13 +333,13 @@ fn gpu_cull_matches_per_tree_culling() {
             let geometry = pack_geometry(&scene);
             let spheres = tree_spheres(&scene, &geometry.meshes);
             let cull = cull_trees_of(&scene, &spheres);
-            let gpu = GpuCull::new(ctx, &cull, &geometry.meshes).map_err(|e| e.to_string())?;
+            let mut gpu = GpuCull::new(ctx, &cull, &geometry.meshes).map_err(|e| e.to_string())?;
             judge_cull(
                 "random scene",
                 &scene,
                 &geometry.meshes,
                 &spheres,
-                &gpu,
+                &mut gpu,
                 &camera,
                 &params,
                 &mut tally,

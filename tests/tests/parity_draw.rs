@@ -187,7 +187,7 @@ fn one_draw_call_and_stale_slots_past_the_count_are_ignored() {
     let scene = DrawScene::new(ctx, &data.desc(&prepared)).unwrap();
     let (mesh, billboards) = upload_reference_textures(ctx, &prepared).unwrap();
     let textures = DrawTextures::new(&mesh, &billboards).unwrap();
-    let select = GpuSelect::new(
+    let mut select = GpuSelect::new(
         ctx,
         &prepared.batches.metas,
         &prepared.geometry.meshes,

@@ -382,7 +382,7 @@ fn judge(
 fn check_frame(
     ctx: &'static GpuContext,
     name: &str,
-    b: &Batched,
+    b: &mut Batched,
     camera: &Camera,
     params: &Params,
     tally: &mut Tally,
@@ -391,14 +391,14 @@ fn check_frame(
     let g = b.geometry;
     let reference = select(&b.batches.metas, &g.meshes, &g.billboard, camera, params);
     // 1. The reference's selection: refine.wgsl alone.
-    let buffers = SelectBuffers::from_cpu(
+    let mut buffers = SelectBuffers::from_cpu(
         ctx,
         &reference.commands,
         &reference.data,
         &reference.counters,
     )
     .map_err(e)?;
-    b.refine.dispatch(&buffers, camera, params).map_err(e)?;
+    b.refine.dispatch(&mut buffers, camera, params).map_err(e)?;
     let got = b.refine.read(&buffers).map_err(e)?;
     judge(
         &format!("{name}/cpu-selection"),
@@ -423,7 +423,7 @@ fn check_frame(
             tally.selection_differs += 1;
         }
         b.refine
-            .dispatch(b.select.buffers(), camera, params)
+            .dispatch(b.select.buffers_mut(), camera, params)
             .map_err(e)?;
         let got = b.refine.read(b.select.buffers()).map_err(e)?;
         judge(
@@ -485,11 +485,11 @@ fn gpu_refine_matches_the_reference() {
         let geometry = pack_geometry(scene);
         let spheres = tree_spheres(scene, &geometry.meshes);
         let trees = cull_trees_of(scene, &spheres);
-        let batched: Vec<Batched> = grids
+        let mut batched: Vec<Batched> = grids
             .iter()
             .map(|&g| Batched::new(ctx, scene, &geometry, &spheres, &trees, g).expect("batches"))
             .collect();
-        for (b, grid) in batched.iter().zip(grids) {
+        for (b, grid) in batched.iter_mut().zip(grids) {
             for name in ["medium", "close", "far"] {
                 for yaw in [0.0, 40.0, 200.0] {
                     for draw_distance in [p.draw_distance, 150.0] {
@@ -528,7 +528,7 @@ fn gpu_refine_matches_the_reference() {
                 check_frame(
                     ctx,
                     &format!("{} random", scene.name),
-                    &batched[g],
+                    &mut batched[g],
                     &camera,
                     &params,
                     &mut tally,
@@ -550,8 +550,8 @@ fn gpu_refine_matches_the_reference() {
             let geometry = pack_geometry(&scene);
             let spheres = tree_spheres(&scene, &geometry.meshes);
             let trees = cull_trees_of(&scene, &spheres);
-            let b = Batched::new(ctx, &scene, &geometry, &spheres, &trees, params.grid_size)?;
-            check_frame(ctx, "random scene", &b, &camera, &params, &mut tally)
+            let mut b = Batched::new(ctx, &scene, &geometry, &spheres, &trees, params.grid_size)?;
+            check_frame(ctx, "random scene", &mut b, &camera, &params, &mut tally)
         },
     );
     println!(
@@ -587,11 +587,13 @@ fn tree_cull_none_points_every_command_at_the_copy() {
     let geometry = pack_geometry(&tiny);
     let spheres = tree_spheres(&tiny, &geometry.meshes);
     let trees = cull_trees_of(&tiny, &spheres);
-    let b = Batched::new(ctx, &tiny, &geometry, &spheres, &trees, p.grid_size).unwrap();
+    let mut b = Batched::new(ctx, &tiny, &geometry, &spheres, &trees, p.grid_size).unwrap();
     let camera = named_camera("medium", &tiny, 0.0, 96, 96).unwrap();
     let s = b.select.run(&camera, &p, Compaction::Stable).unwrap();
     assert!(!s.commands.is_empty());
-    b.refine.dispatch(b.select.buffers(), &camera, &p).unwrap();
+    b.refine
+        .dispatch(b.select.buffers_mut(), &camera, &p)
+        .unwrap();
     let got = b.refine.read(b.select.buffers()).unwrap();
     let n = b.batches.indirection.len() as u32;
     for (c, o) in got.selection.commands.iter().zip(&s.commands) {

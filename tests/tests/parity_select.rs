@@ -470,7 +470,7 @@ fn zero_batches_select_nothing() {
         ..empty_mesh_meta()
     };
     let camera = Camera::look_at([0.0, 0.0, 5.0], [100.0, 0.0, 5.0], 60.0, 64, 64);
-    let gpu = GpuSelect::new(ctx, &[], &[], &billboard).unwrap();
+    let mut gpu = GpuSelect::new(ctx, &[], &[], &billboard).unwrap();
     for compaction in Compaction::ALL {
         let s = gpu.run(&camera, &Params::default(), compaction).unwrap();
         assert!(s.commands.is_empty() && s.data.is_empty(), "{compaction:?}");

@@ -47,7 +47,7 @@ struct Args {
 /// compute passes before and after them; `None` without `TIMESTAMP_QUERY`.
 fn timestamped(
     ctx: &GpuContext,
-    record: &dyn Fn(&mut wgpu::CommandEncoder) -> Result<(), forestlod_gpu::GpuError>,
+    record: &mut dyn FnMut(&mut wgpu::CommandEncoder) -> Result<(), forestlod_gpu::GpuError>,
 ) -> Result<Option<f64>, Box<dyn std::error::Error>> {
     if !ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY) {
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
@@ -122,7 +122,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let (mesh, billboards) = gpu_textures(&ctx, &prepared, &params)?;
         let textures = DrawTextures::new(&mesh, &billboards)?;
         let target = DrawTarget::new(&ctx, args.width, args.height)?;
-        let select = GpuSelect::new(
+        let mut select = GpuSelect::new(
             &ctx,
             &prepared.batches.metas,
             &prepared.geometry.meshes,
@@ -130,7 +130,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )?;
         for camera_name in ["far", "medium", "close"] {
             let camera = named_camera(camera_name, &prepared.scene, 0.0, args.width, args.height)?;
-            let time_gpu = |f: &dyn Fn() -> Result<(), forestlod_gpu::GpuError>| -> Result<f64, Box<dyn std::error::Error>> {
+            let time_gpu = |f: &mut dyn FnMut() -> Result<(), forestlod_gpu::GpuError>| -> Result<f64, Box<dyn std::error::Error>> {
                 let mut times = Vec::new();
                 for rep in 0..=args.reps {
                     let t = Instant::now();
@@ -142,16 +142,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
                 Ok(median(times))
             };
-            let select_atomic = time_gpu(&|| {
+            let select_atomic = time_gpu(&mut || {
                 select
                     .dispatch(&camera, &params, Compaction::Atomic)
                     .map(|_| ())
             })?;
-            let select_stable = time_gpu(&|| {
+            let select_stable = time_gpu(&mut || {
                 select
                     .dispatch(&camera, &params, Compaction::Stable)
                     .map(|_| ())
             })?;
+            let mut ts_select = Vec::new();
+            for _ in 0..=args.reps {
+                ts_select.push(timestamped(&ctx, &mut |e| {
+                    select.encode(e, &camera, &params, Compaction::Stable);
+                    Ok(())
+                })?);
+            }
+            // The draw pass of the last (stable) selection: `select` is borrowed for reading
+            // from here on (a frame in flight can't be selected into: `encode` takes `&mut`).
             let buffers = select.dispatch(&camera, &params, Compaction::Stable)?;
             ctx.wait()?;
             let inputs = DrawInputs {
@@ -160,18 +169,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 selection: buffers,
                 indirection: None,
             };
-            let gpu_draw = time_gpu(&|| {
+            let gpu_draw = time_gpu(&mut || {
                 draw.render(&ctx, &inputs, &camera, &params, &target)
                     .map(|_| ())
             })?;
-            let mut ts_select = Vec::new();
             let mut ts_draw = Vec::new();
             for _ in 0..=args.reps {
-                ts_select.push(timestamped(&ctx, &|e| {
-                    select.encode(e, &camera, &params, Compaction::Stable);
-                    Ok(())
-                })?);
-                ts_draw.push(timestamped(&ctx, &|e| {
+                ts_draw.push(timestamped(&ctx, &mut |e| {
                     draw.encode(&ctx, e, &inputs, &camera, &params, &target)
                         .map(|_| ())
                 })?);
