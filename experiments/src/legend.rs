@@ -3,7 +3,9 @@
 //! `font8x8` bitmap font.
 //!
 //! - `lod.png`, `gpu_lod.png`: the LOD colours of E Fig. 3.1 ([`with_lod_legend`]);
-//! - `parity_classes.png`: the colour classes of the parity verdict ([`with_class_legend`]);
+//! - `parity_classes.png`: the colour classes of the parity verdict ([`with_class_legend`]:
+//!   match, match within the ±1 px window, ambiguous (edge, alpha-test threshold or depth tie),
+//!   mismatch);
 //! - `diff.png`: `max |GPU - reference|` over R, G, B through a colour scale, with the scale bar
 //!   ([`difference_heatmap`], [`with_diff_scale`]).
 //!
@@ -140,11 +142,11 @@ pub fn with_lod_legend(image: &Rgba8Image) -> Rgba8Image {
 pub fn with_class_legend(image: &Rgba8Image) -> Rgba8Image {
     with_swatch_legend(
         image,
-        "GPU vs reference colour:",
+        "GPU colour vs reference:",
         &[
             (CLASS_COLORS[0], "match"),
             (CLASS_COLORS[1], "match within 1 px"),
-            (CLASS_COLORS[2], "ambiguous (edge/threshold/depth tie)"),
+            (CLASS_COLORS[2], "ambiguous"),
             (CLASS_COLORS[3], "mismatch"),
         ],
     )
@@ -194,7 +196,7 @@ pub fn difference_heatmap(width: u32, height: u32, a: &[[u8; 4]], b: &[[u8; 4]])
 pub fn with_diff_scale(image: &Rgba8Image) -> Rgba8Image {
     let s = text_scale(image.width);
     let pad = 4 * s;
-    let title = "max |GPU - reference| over R,G,B (8-bit levels):";
+    let title = "max abs(GPU - reference) over R,G,B, 8-bit levels:";
     let bar_w = 128 * s;
     let label_h = 8 * s;
     let total = text_width(title, s) + 3 * pad + bar_w + text_width(">=32", s);
