@@ -5,6 +5,8 @@
 //! command line and assembling [`forestlod_shared::Params`] from flags, each with the one-line
 //! errors the brief asks for (field and value, never a panic).
 
+pub mod camera;
+pub mod legend;
 pub mod metrics;
 pub mod options;
 pub mod plot;

@@ -6,15 +6,19 @@
 //! - `forestlod sweep [FILE] --out DIR [--quick]`: the speed–accuracy sweeps
 //!   (`experiments/sweeps/README.md`); `forestlod report --run DIR` summarizes them.
 //!
-//! Every error is one line naming the field and the value, with exit code 1 (2 for usage errors).
+//! Every error is one line naming the field and the value, with exit code 1; command-line usage
+//! errors exit with 1 too, so that the main job's codes 2-4 keep their meaning
+//! ([`forestlod_experiments::render::exit_code`]: 2 GPU parity failed, 3 GPU error, 4 GPU parity
+//! skipped for want of an adapter).
 
 use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::{Parser, Subcommand};
+use forestlod_experiments::camera::{CameraArgs, no_tree_warning};
 use forestlod_experiments::options::{ParamArgs, SceneArgs};
+use forestlod_experiments::render::{EXIT_CODES_HELP, exit_code};
 use forestlod_reference::batches::{build_batches, memory_report};
-use forestlod_reference::cameras::named_camera;
 use forestlod_reference::geometry::pack_geometry;
 use forestlod_reference::scene::tree_sphere;
 use forestlod_reference::select::{count_per_tree, select, select_per_tree};
@@ -23,7 +27,8 @@ use forestlod_reference::select::{count_per_tree, select, select_per_tree};
 #[command(
     name = "forestlod",
     version,
-    about = "Grouped-LOD forest rendering: CPU reference, experiments and tools"
+    about = "Grouped-LOD forest rendering: CPU reference, experiments and tools",
+    after_help = EXIT_CODES_HELP
 )]
 struct Cli {
     /// With no subcommand: the main job, `render` with its defaults.
@@ -34,6 +39,7 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// The main job: render one frame with the reference and write images, metrics and a summary.
+    #[command(after_help = EXIT_CODES_HELP)]
     Render(forestlod_experiments::render::RenderArgs),
     /// Facts about a scene.
     Scene {
@@ -53,12 +59,8 @@ enum Command {
         scene: SceneArgs,
         #[command(flatten)]
         params: ParamArgs,
-        /// Named camera: far, medium, close (E§5.0.1).
-        #[arg(long, default_value = "medium")]
-        camera: String,
-        /// Horizontal rotation of the camera, degrees.
-        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-        yaw: f32,
+        #[command(flatten)]
+        camera: CameraArgs,
         /// How many commands to list.
         #[arg(long, default_value_t = 10)]
         list: usize,
@@ -163,14 +165,13 @@ fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
 fn select_frame(
     scene: &SceneArgs,
     params: &ParamArgs,
-    camera: &str,
-    yaw: f32,
+    camera: &CameraArgs,
     list: usize,
 ) -> Result<()> {
     let params = params.params()?;
+    camera.free()?;
     let scene = scene.load()?;
-    let camera = named_camera(camera, &scene, yaw, 1280, 720)?;
-    camera.validate()?;
+    let camera = camera.camera(&scene, 1280, 720)?;
     let geometry = pack_geometry(&scene);
     let batches = build_batches(&scene, &geometry.meshes, params.grid_size)?;
     let start = Instant::now();
@@ -237,6 +238,9 @@ fn select_frame(
     if selection.commands.len() > list {
         println!("  ... {} more (--list N)", selection.commands.len() - list);
     }
+    if let Some(warning) = no_tree_warning(&scene, c.commands, None) {
+        eprintln!("{warning}");
+    }
     Ok(())
 }
 
@@ -271,8 +275,56 @@ fn gpu_info() -> Result<()> {
     Ok(())
 }
 
+/// Restores the default action of SIGPIPE (Rust ignores it, so a closed pipe turns every print
+/// into a panic): `forestlod ... | head` then ends quietly, as other command-line tools do.
+fn quiet_broken_pipe() {
+    #[cfg(unix)]
+    // SAFETY: called first thing in `main`, before any thread exists; SIG_DFL is a valid action.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
+/// Mesa's Vulkan drivers warn on every start when `XDG_RUNTIME_DIR` is unset; give them a private
+/// folder (removed at exit) before any wgpu instance exists. Returns the folder to remove.
+fn private_runtime_dir() -> Option<std::path::PathBuf> {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
+        return None;
+    }
+    let dir = std::env::temp_dir().join(format!("forestlod-runtime-{}", std::process::id()));
+    let mut builder = std::fs::DirBuilder::new();
+    #[cfg(unix)]
+    std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
+    builder.create(&dir).ok()?;
+    // SAFETY: called at the start of `main`, before any other thread exists.
+    unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
+    Some(dir)
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    quiet_broken_pipe();
+    let runtime_dir = private_runtime_dir();
+    let code = run();
+    if let Some(dir) = runtime_dir {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+    ExitCode::from(code)
+}
+
+fn run() -> u8 {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            // --help and --version print to stdout and succeed; usage errors are bad input (1),
+            // not clap's 2, which is the main job's "GPU parity failed".
+            return if e.use_stderr() {
+                exit_code::BAD_INPUT
+            } else {
+                exit_code::SUCCESS
+            };
+        }
+    };
     let result = match &cli.command {
         None => forestlod_experiments::render::run(&Default::default()),
         Some(Command::Render(args)) => forestlod_experiments::render::run(args),
@@ -283,23 +335,29 @@ fn main() -> ExitCode {
                     params,
                     json,
                 },
-        }) => scene_info(scene, params, *json),
+        }) => scene_info(scene, params, *json).map(|()| exit_code::SUCCESS),
         Some(Command::Select {
             scene,
             params,
             camera,
-            yaw,
             list,
-        }) => select_frame(scene, params, camera, *yaw, *list),
-        Some(Command::GpuInfo) => gpu_info(),
-        Some(Command::Sweep(args)) => forestlod_experiments::sweep::run(args),
-        Some(Command::Report(args)) => forestlod_experiments::report::run(args),
+        }) => select_frame(scene, params, camera, *list).map(|()| exit_code::SUCCESS),
+        Some(Command::GpuInfo) => gpu_info().map(|()| exit_code::SUCCESS),
+        Some(Command::Sweep(args)) => {
+            forestlod_experiments::sweep::run(args).map(|()| exit_code::SUCCESS)
+        }
+        Some(Command::Report(args)) => {
+            forestlod_experiments::report::run(args).map(|()| exit_code::SUCCESS)
+        }
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
+            eprintln!(
+                "error: {}",
+                forestlod_experiments::render::one_line(&e.to_string())
+            );
+            exit_code::BAD_INPUT
         }
     }
 }

@@ -8,11 +8,19 @@
 //! judged against the reference with `forestlod_tests::image_compare` (SPEC §8): `gpu_color.png`,
 //! `gpu_lod.png` and `diff.png` are written beside the reference's images, and the metrics and the
 //! summary gain a `parity` section (adapter, maximum differences per buffer, mismatch and
-//! ambiguity counts, FLIP mean). Without an adapter the summary says `GPU: no adapter` and the job
-//! still succeeds; a parity failure is reported, not turned into an error.
+//! ambiguity counts, FLIP mean).
 //!
-//! Everything is computed before anything is written, so a failure leaves the output folder as it
-//! was.
+//! The exit code is the verdict ([`exit_code`]): 0 only when every part succeeded and GPU parity
+//! passed (or `--no-gpu` asked for no GPU frame); 1 bad input or I/O error, 2 GPU parity failed,
+//! 3 GPU error, 4 GPU parity skipped because no suitable adapter exists. The reference outputs,
+//! `metrics.json` and `summary.txt` are written in every case but 1, and the last line printed is
+//! the verdict.
+//!
+//! `--out` is checked before any work (an existing folder, or a creatable path, that we can write
+//! in). Everything is computed before anything is written, into a staging folder moved into place
+//! at the end, so a failure leaves the output folder as it was; after a successful run it holds
+//! exactly this run's outputs: the known output files ([`OUTPUT_FILES`]) an earlier run left and
+//! this one did not write are removed, other files are never touched.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -20,9 +28,9 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use forestlod_reference::InputError;
 use forestlod_reference::bake::contact_sheet;
-use forestlod_reference::cameras::named_camera;
 use forestlod_reference::output::{depth_preview, lod_id_image, write_depth_exr, write_png};
 use forestlod_reference::pipeline::{Frame, Prepared, prepare};
+use forestlod_reference::texture::Rgba8Image;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
@@ -30,10 +38,54 @@ use forestlod_gpu::{GpuContext, GpuDraw};
 use forestlod_shared::{Camera, Params};
 use forestlod_tests::backend::{StagesFromCpu, alpha_test_alternatives, render_gpu};
 use forestlod_tests::image_compare::{
-    ClassCounts, ImageReport, Images, class_image, compare_images, difference_image,
+    ClassCounts, ImageReport, Images, class_image, compare_images,
 };
 
+use crate::camera::{CameraArgs, no_tree_warning};
+use crate::legend::{difference_heatmap, with_class_legend, with_diff_scale, with_lod_legend};
 use crate::options::{ParamArgs, SceneArgs};
+
+/// Exit codes of the main job (`forestlod render`, and `forestlod` with no subcommand).
+pub mod exit_code {
+    /// Every part succeeded and GPU parity passed, or `--no-gpu` asked for no GPU frame.
+    pub const SUCCESS: u8 = 0;
+    /// Bad input (flags, scene files, `--out`) or an I/O error; command-line usage errors too.
+    pub const BAD_INPUT: u8 = 1;
+    /// The GPU frame differs from the reference beyond the parity tolerances.
+    pub const PARITY_FAILED: u8 = 2;
+    /// wgpu failed while rendering the GPU frame.
+    pub const GPU_ERROR: u8 = 3;
+    /// No suitable GPU adapter: the reference outputs were written, parity was not judged.
+    pub const GPU_SKIPPED: u8 = 4;
+}
+
+/// The exit-code table as `--help` shows it.
+pub const EXIT_CODES_HELP: &str = "Exit codes of the main job (render, or no subcommand):
+  0  every part succeeded and GPU parity passed (or --no-gpu)
+  1  bad input or I/O error (also command-line usage errors)
+  2  GPU parity failed
+  3  GPU error (wgpu failed during the GPU frame)
+  4  GPU parity skipped: no suitable GPU adapter (scripts/install-deps installs Mesa's lavapipe)
+Codes 2-4 still write the reference outputs, metrics.json and summary.txt.";
+
+/// Every file the main job may write into `--out`; an earlier run's copies that this run does not
+/// write are removed.
+pub const OUTPUT_FILES: [&str; 11] = [
+    "color.png",
+    "depth.exr",
+    "depth_preview.png",
+    "lod.png",
+    "atlas.png",
+    "gpu_color.png",
+    "gpu_lod.png",
+    "diff.png",
+    "parity_classes.png",
+    "metrics.json",
+    "summary.txt",
+];
+
+/// How the summary ends when wgpu finds no suitable adapter.
+pub const INSTALL_HINT: &str = "install Mesa's lavapipe with scripts/install-deps (or apt-get install mesa-vulkan-drivers libvulkan1), or pass --no-gpu";
 
 /// Options of the main job.
 #[derive(Args, Clone, Debug)]
@@ -42,19 +94,16 @@ pub struct RenderArgs {
     pub scene: SceneArgs,
     #[command(flatten)]
     pub params: ParamArgs,
-    /// Named camera: far, medium, close (E§5.0.1).
-    #[arg(long, default_value = "medium")]
-    pub camera: String,
-    /// Horizontal rotation of the camera, degrees.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub yaw: f32,
+    #[command(flatten)]
+    pub camera: CameraArgs,
     /// Image width in pixels.
     #[arg(long, default_value_t = 1280)]
     pub width: u32,
     /// Image height in pixels.
     #[arg(long, default_value_t = 720)]
     pub height: u32,
-    /// Output folder (created if missing).
+    /// Output folder (created if missing; checked before any work). After a run it holds exactly
+    /// this run's outputs: stale outputs of an earlier run are removed, other files kept.
     #[arg(long, default_value = "out")]
     pub out: PathBuf,
     /// GPU stages that take their input from the reference twin instead of the GPU stage before
@@ -62,7 +111,7 @@ pub struct RenderArgs {
     /// (sample the reference's mesh mips and billboard bake), or `none` (all on the GPU).
     #[arg(long, default_value = "none")]
     pub stage_from_cpu: String,
-    /// Skip the GPU twin even when an adapter exists.
+    /// Skip the GPU twin even when an adapter exists (exit code 0 without a parity verdict).
     #[arg(long)]
     pub no_gpu: bool,
 }
@@ -112,7 +161,7 @@ pub fn metrics(
     let c = frame.selection.counters;
     json!({
         "scene": prepared.scene.name,
-        "camera": args.camera, "yaw_degrees": args.yaw,
+        "camera": args.camera.label(), "yaw_degrees": args.camera.yaw, "view": args.camera.json(),
         "viewport": [args.width, args.height],
         "params": {
             "grid_size": args.params.grid_size, "angles": args.params.angles, "texture_size": args.params.texture_size,
@@ -146,7 +195,9 @@ pub fn metrics(
 
 /// What the GPU side of the main job produced.
 pub enum GpuOutcome {
-    /// No adapter (or `--no-gpu`): the reason, for the summary.
+    /// `--no-gpu`: no GPU frame was asked for.
+    NotRequested,
+    /// No suitable adapter: wgpu's reason, on one line.
     Skipped(String),
     /// The GPU ran but failed (a wgpu error): the message.
     Failed {
@@ -186,12 +237,18 @@ pub fn gpu_frame(
 ) -> GpuOutcome {
     let ctx = match GpuContext::new() {
         Ok(ctx) => ctx,
-        Err(e) => return GpuOutcome::Skipped(format!("no adapter ({e})")),
+        Err(e) => {
+            // The tests' hint (install, or FORESTLOD_ALLOW_NO_GPU) is not the main job's.
+            let reason = e
+                .to_string()
+                .replace(forestlod_gpu::NO_GPU_HINT, "no GPU adapter found");
+            return GpuOutcome::Skipped(one_line(&reason));
+        }
     };
-    let adapter = ctx.describe();
+    let adapter = one_line(&ctx.describe());
     let failed = |e: String| GpuOutcome::Failed {
         adapter: adapter.clone(),
-        error: e,
+        error: one_line(&e),
     };
     let t = Instant::now();
     let draw = match GpuDraw::new(&ctx) {
@@ -235,7 +292,8 @@ fn counts_json(c: &ClassCounts) -> serde_json::Value {
 pub fn parity_json(outcome: &GpuOutcome) -> serde_json::Value {
     use forestlod_tests::image_compare as ic;
     match outcome {
-        GpuOutcome::Skipped(why) => json!({ "gpu": why }),
+        GpuOutcome::NotRequested => json!({ "gpu": "not requested (--no-gpu)" }),
+        GpuOutcome::Skipped(why) => json!({ "gpu": "skipped", "reason": why }),
         GpuOutcome::Failed { adapter, error } => json!({ "adapter": adapter, "error": error }),
         GpuOutcome::Rendered(g) => {
             let r = &g.report;
@@ -275,18 +333,13 @@ pub fn parity_json(outcome: &GpuOutcome) -> serde_json::Value {
 /// The summary lines of the GPU side.
 pub fn parity_text(outcome: &GpuOutcome) -> String {
     match outcome {
-        GpuOutcome::Skipped(why) => format!("GPU: {why}\n"),
-        GpuOutcome::Failed { adapter, error } => format!("GPU ({adapter}): failed: {error}\n"),
+        GpuOutcome::NotRequested | GpuOutcome::Skipped(_) => String::new(),
+        GpuOutcome::Failed { adapter, .. } => format!("GPU: {adapter}\n"),
         GpuOutcome::Rendered(g) => {
             let r = &g.report;
-            let verdict = if r.passed() {
-                "PASSED".to_string()
-            } else {
-                format!("FAILED ({})", r.failures().join("; "))
-            };
             format!(
                 "GPU: {} ({} s, stages from the reference: {}, {} CPU draw call(s) for all trees via {})\n\
-                 parity {verdict}: FLIP mean {:.4}; colour max diff {} ({} after the ±1 px window, {} on interior pixels), \
+                 parity: FLIP mean {:.4}; colour max diff {} ({} after the ±1 px window, {} on interior pixels), \
                  {} mismatches, {} ambiguous; depth max diff {:.2e} ({} ulp interior), {} mismatches; \
                  LOD id {} mismatches, {} ambiguous (mismatch budget {} per buffer)\n",
                 g.adapter,
@@ -311,8 +364,105 @@ pub fn parity_text(outcome: &GpuOutcome) -> String {
     }
 }
 
-/// The main job.
-pub fn run(args: &RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
+/// `s` on one line: every run of whitespace (newlines included) becomes one space.
+pub fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+impl GpuOutcome {
+    /// The main job's exit code for this outcome ([`exit_code`]).
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            GpuOutcome::NotRequested => exit_code::SUCCESS,
+            GpuOutcome::Skipped(_) => exit_code::GPU_SKIPPED,
+            GpuOutcome::Failed { .. } => exit_code::GPU_ERROR,
+            GpuOutcome::Rendered(g) if g.report.passed() => exit_code::SUCCESS,
+            GpuOutcome::Rendered(_) => exit_code::PARITY_FAILED,
+        }
+    }
+
+    /// The verdict: the last line the main job prints and the last line of `summary.txt`.
+    pub fn verdict(&self) -> String {
+        let line = match self {
+            GpuOutcome::NotRequested => "GPU parity not judged: --no-gpu".to_string(),
+            GpuOutcome::Skipped(why) => format!("GPU parity skipped: {why}; {INSTALL_HINT}"),
+            GpuOutcome::Failed { error, .. } => format!("GPU error: {error}"),
+            GpuOutcome::Rendered(g) => {
+                let r = &g.report;
+                let counts = format!(
+                    "FLIP mean {:.4}; mismatches colour {}, depth {}, LOD id {} (budget {} per buffer)",
+                    r.flip_mean,
+                    r.color.mismatches,
+                    r.depth.mismatches,
+                    r.lod_id.mismatches,
+                    r.compound_budget()
+                );
+                if r.passed() {
+                    format!("GPU parity PASSED: {counts}")
+                } else {
+                    format!("GPU parity FAILED: {}; {counts}", r.failures().join("; "))
+                }
+            }
+        };
+        format!("{} [exit {}]", one_line(&line), self.exit_code())
+    }
+}
+
+/// Checks `--out` before any work: an existing folder must be a folder we can create files in;
+/// a missing one must be creatable (its nearest existing ancestor a folder we can write in).
+/// Nothing is left behind (a probe file is created and removed). The error names `--out`, the
+/// path and the operating system's reason.
+pub fn check_out(out: &Path) -> Result<(), InputError> {
+    let fail = |at: &Path, e: std::io::Error| {
+        let at = if at == out {
+            String::new()
+        } else {
+            format!("{}: ", at.display())
+        };
+        InputError::new(
+            "<command line>",
+            "--out",
+            out.display(),
+            format!("cannot be used as the output folder: {at}{e}"),
+        )
+    };
+    let mut dir = out;
+    loop {
+        match std::fs::metadata(dir) {
+            Ok(m) if m.is_dir() => break,
+            Ok(_) => {
+                // A file: reading it as a folder gives the operating system's reason.
+                let e = std::fs::read_dir(dir).err().unwrap_or_else(|| {
+                    std::io::Error::new(std::io::ErrorKind::NotADirectory, "not a directory")
+                });
+                return Err(fail(dir, e));
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                dir = match dir.parent() {
+                    Some(p) if !p.as_os_str().is_empty() => p,
+                    _ => Path::new("."),
+                };
+            }
+            Err(e) => return Err(fail(dir, e)),
+        }
+    }
+    let probe = dir.join(format!(".forestlod-write-probe-{}", std::process::id()));
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+    {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => Err(fail(dir, e)),
+    }
+}
+
+/// The main job: returns its exit code ([`exit_code`]); `Err` is bad input or an I/O error.
+pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
+    check_out(&args.out)?;
     let params = args.params.params()?;
     let from_cpu = StagesFromCpu::parse(&args.stage_from_cpu).map_err(|e| {
         InputError::new(
@@ -322,10 +472,10 @@ pub fn run(args: &RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
             e,
         )
     })?;
+    args.camera.free()?;
     let (scene, scene_seconds) = stage("loading scene", || args.scene.load());
     let scene = scene?;
-    let camera = named_camera(&args.camera, &scene, args.yaw, args.width, args.height)?;
-    camera.validate()?;
+    let camera = args.camera.camera(&scene, args.width, args.height)?;
     let (prepared, _) = stage("batches, mips and billboard bake", || {
         prepare(scene, &params)
     });
@@ -334,90 +484,99 @@ pub fn run(args: &RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
         prepared.render(&camera, &params)
     });
     let frame = frame?;
+    if let Some(warning) = no_tree_warning(
+        &prepared.scene,
+        frame.selection.counters.commands,
+        Some(frame.drawn.tree_stats.fragments_written),
+    ) {
+        eprintln!("{warning}");
+    }
 
     let gpu = if args.no_gpu {
-        GpuOutcome::Skipped("skipped (--no-gpu)".into())
+        GpuOutcome::NotRequested
     } else {
-        let name = format!("{}-{}", prepared.scene.name, args.camera);
+        let name = format!("{}-{}", prepared.scene.name, args.camera.label());
         let (outcome, _) = stage("GPU twin (select + draw) and parity", || {
             gpu_frame(&prepared, &frame, &camera, &params, from_cpu, &name)
         });
         outcome
     };
+    let verdict = gpu.verdict();
+    let code = gpu.exit_code();
 
     let mut metrics = metrics(&prepared, &frame, args, scene_seconds);
     metrics["parity"] = parity_json(&gpu);
+    metrics["verdict"] = json!({ "line": verdict, "exit_code": code });
     let target = &frame.drawn.target;
     let (w, h) = (target.width(), target.height());
-    let summary = format!("{}{}", summary_text(&metrics), parity_text(&gpu));
-    write_outputs(&args.out, |dir| {
-        write_png(&dir.join("color.png"), &target.color_image())?;
-        write_depth_exr(&dir.join("depth.exr"), w, h, target.depth())?;
-        write_png(
-            &dir.join("depth_preview.png"),
-            &depth_preview(w, h, target.depth()),
-        )?;
-        write_png(&dir.join("lod.png"), &lod_id_image(w, h, target.aux()))?;
-        write_png(
-            &dir.join("atlas.png"),
-            &contact_sheet(&prepared.billboards, prepared.scene.meshes.len()),
-        )?;
-        if let GpuOutcome::Rendered(g) = &gpu {
-            let reference = Images {
-                width: w,
-                height: h,
-                color: target.color().to_vec(),
-                depth: Vec::new(),
-                lod_id: Vec::new(),
+    let details = format!("{}{}", summary_text(&metrics), parity_text(&gpu));
+    let mut written: Vec<&str> = Vec::new();
+    write_outputs(
+        &args.out,
+        |dir, written| {
+            let mut png = |name: &'static str, image: &Rgba8Image| {
+                written.push(name);
+                write_png(&dir.join(name), image)
             };
-            write_png(&dir.join("gpu_color.png"), &g.images.color_image())?;
-            write_png(&dir.join("gpu_lod.png"), &g.images.lod_image())?;
-            write_png(&dir.join("parity_classes.png"), &class_image(&g.report))?;
-            write_png(
-                &dir.join("diff.png"),
-                &difference_image(&g.images, &reference),
+            png("color.png", &target.color_image())?;
+            png("depth_preview.png", &depth_preview(w, h, target.depth()))?;
+            png(
+                "lod.png",
+                &with_lod_legend(&lod_id_image(w, h, target.aux())),
             )?;
-        }
-        std::fs::write(
-            dir.join("metrics.json"),
-            serde_json::to_string_pretty(&metrics).unwrap_or_default(),
-        )
-        .map_err(|e| {
-            InputError::new(
-                dir.join("metrics.json").display().to_string(),
-                "write",
-                "",
-                e.to_string(),
-            )
-        })?;
-        std::fs::write(dir.join("summary.txt"), &summary).map_err(|e| {
-            InputError::new(
-                dir.join("summary.txt").display().to_string(),
-                "write",
-                "",
-                e.to_string(),
-            )
-        })?;
-        Ok(())
-    })?;
-    print!("{summary}");
-    let gpu_files = if matches!(gpu, GpuOutcome::Rendered(_)) {
-        "gpu_color.png, gpu_lod.png, diff.png, parity_classes.png, "
-    } else {
-        ""
-    };
-    println!(
-        "wrote color.png, depth.exr, depth_preview.png, lod.png, atlas.png, {gpu_files}metrics.json, summary.txt to {}",
-        args.out.display()
-    );
-    Ok(())
+            png(
+                "atlas.png",
+                &contact_sheet(&prepared.billboards, prepared.scene.meshes.len()),
+            )?;
+            if let GpuOutcome::Rendered(g) = &gpu {
+                png("gpu_color.png", &g.images.color_image())?;
+                png("gpu_lod.png", &with_lod_legend(&g.images.lod_image()))?;
+                png(
+                    "parity_classes.png",
+                    &with_class_legend(&class_image(&g.report)),
+                )?;
+                png(
+                    "diff.png",
+                    &with_diff_scale(&difference_heatmap(w, h, &g.images.color, target.color())),
+                )?;
+            }
+            written.push("depth.exr");
+            write_depth_exr(&dir.join("depth.exr"), w, h, target.depth())?;
+            for (name, text) in [
+                (
+                    "metrics.json",
+                    serde_json::to_string_pretty(&metrics).unwrap_or_default(),
+                ),
+                ("summary.txt", format!("{details}{verdict}\n")),
+            ] {
+                written.push(name);
+                std::fs::write(dir.join(name), text).map_err(|e| {
+                    InputError::new(
+                        dir.join(name).display().to_string(),
+                        "write",
+                        "",
+                        e.to_string(),
+                    )
+                })?;
+            }
+            Ok(())
+        },
+        &mut written,
+    )?;
+    print!("{details}");
+    println!("wrote {} to {}", written.join(", "), args.out.display());
+    println!("{verdict}");
+    Ok(code)
 }
 
 /// Writes into a fresh sibling temp folder, then moves the files into `out`: a failure midway
-/// leaves `out` untouched.
-fn write_outputs(
+/// leaves `out` untouched. `write` records the names it wrote (each one of [`OUTPUT_FILES`]);
+/// afterwards the outputs of [`OUTPUT_FILES`] it did not write are removed from `out` (stale files
+/// of an earlier run), and nothing else is touched.
+fn write_outputs<'a>(
     out: &Path,
-    write: impl FnOnce(&Path) -> Result<(), InputError>,
+    write: impl FnOnce(&Path, &mut Vec<&'a str>) -> Result<(), InputError>,
+    written: &mut Vec<&'a str>,
 ) -> Result<(), InputError> {
     let err = |p: &Path, e: std::io::Error| {
         InputError::new(p.display().to_string(), "output folder", "", e.to_string())
@@ -425,15 +584,22 @@ fn write_outputs(
     std::fs::create_dir_all(out).map_err(|e| err(out, e))?;
     let staging = out.join(format!(".staging-{}", std::process::id()));
     std::fs::create_dir_all(&staging).map_err(|e| err(&staging, e))?;
-    let result = write(&staging);
-    if result.is_ok() {
-        for entry in std::fs::read_dir(&staging).map_err(|e| err(&staging, e))? {
-            let entry = entry.map_err(|e| err(&staging, e))?;
-            std::fs::rename(entry.path(), out.join(entry.file_name())).map_err(|e| err(out, e))?;
+    let result = write(&staging, written);
+    let moved = result.and_then(|()| {
+        for name in written.iter() {
+            debug_assert!(OUTPUT_FILES.contains(name), "{name} not in OUTPUT_FILES");
+            std::fs::rename(staging.join(name), out.join(name)).map_err(|e| err(out, e))?;
         }
-    }
+        for stale in OUTPUT_FILES.iter().filter(|n| !written.contains(n)) {
+            let path = out.join(stale);
+            if path.symlink_metadata().is_ok_and(|m| m.is_file()) {
+                std::fs::remove_file(&path).map_err(|e| err(&path, e))?;
+            }
+        }
+        Ok(())
+    });
     let _ = std::fs::remove_dir_all(&staging);
-    result
+    moved
 }
 
 /// A few human-readable lines from the metrics.
@@ -483,4 +649,82 @@ pub fn summary_text(m: &serde_json::Value) -> String {
         f("/memory_bytes/eq41"),
     );
     text + &refine
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use forestlod_reference::draw::LOD_ID_TERRAIN;
+
+    /// A GPU outcome whose colour differs from the reference's in `bad` of 16x16 pixels.
+    fn rendered(bad: usize) -> GpuOutcome {
+        let (w, h) = (16u32, 16u32);
+        let n = (w * h) as usize;
+        let reference = Images {
+            width: w,
+            height: h,
+            color: vec![[90, 90, 90, 255]; n],
+            depth: vec![0.5; n],
+            lod_id: vec![LOD_ID_TERRAIN; n],
+        };
+        let mut gpu = reference.clone();
+        for i in 0..bad {
+            gpu.color[(i * 37) % n] = [255, 0, 255, 255];
+        }
+        let camera = Camera::look_at([0.0, 0.0, 10.0], [100.0, 0.0, 0.0], 60.0, w, h);
+        let report = compare_images("unit", &gpu, &reference, &[], &camera);
+        GpuOutcome::Rendered(Box::new(GpuRender {
+            adapter: "test".into(),
+            images: gpu,
+            report,
+            calls: forestlod_gpu::DrawCalls {
+                terrain: 1,
+                trees: 1,
+                mode: forestlod_gpu::IndirectMode::Count,
+                max_commands: 0,
+            },
+            from_cpu: StagesFromCpu::default(),
+            seconds: 0.0,
+        }))
+    }
+
+    #[test]
+    fn exit_codes_follow_the_outcome() {
+        let passed = rendered(0);
+        let failed = rendered(200);
+        for (outcome, code, start) in [
+            (&GpuOutcome::NotRequested, 0, "GPU parity not judged"),
+            (
+                &GpuOutcome::Skipped("no adapter\n  (wgpu: none)".into()),
+                4,
+                "GPU parity skipped: ",
+            ),
+            (
+                &GpuOutcome::Failed {
+                    adapter: "a".into(),
+                    error: "Validation Error\n\nCaused by:\n  bad".into(),
+                },
+                3,
+                "GPU error: ",
+            ),
+            (&passed, 0, "GPU parity PASSED"),
+            (&failed, 2, "GPU parity FAILED"),
+        ] {
+            assert_eq!(outcome.exit_code(), code);
+            let v = outcome.verdict();
+            assert!(v.starts_with(start), "{v}");
+            assert!(v.ends_with(&format!("[exit {code}]")), "{v}");
+            assert!(!v.contains('\n'), "{v:?}");
+            assert!(!parity_text(outcome).contains("skipped"));
+        }
+        assert_eq!(
+            exit_code::GPU_SKIPPED,
+            GpuOutcome::Skipped(String::new()).exit_code()
+        );
+    }
+
+    #[test]
+    fn one_line_collapses_newlines() {
+        assert_eq!(one_line("a\n\n  b\r\nc "), "a b c");
+    }
 }

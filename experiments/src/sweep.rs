@@ -581,6 +581,14 @@ impl SweepSpec {
             ));
         }
         for c in &self.cameras {
+            if c.yaw_steps == Some(0) {
+                return Err(InputError::new(
+                    file,
+                    "cameras.yaw_steps",
+                    0,
+                    "expected at least 1 yaw step",
+                ));
+            }
             if c.name == "distance" {
                 if c.distances.as_ref().is_none_or(|d| d.is_empty()) {
                     return Err(InputError::new(
@@ -742,7 +750,8 @@ impl SweepSpec {
                     });
                 }
             } else {
-                let steps = c.yaw_steps.unwrap_or(1).max(1);
+                // `validate` rejects `yaw_steps = 0`.
+                let steps = c.yaw_steps.unwrap_or(1);
                 for i in 0..steps {
                     out.push(Pose {
                         camera: c.name.clone(),
@@ -1764,13 +1773,29 @@ pub const GPU_ONLY_VARIANTS: [&str; 1] = ["ours-atomic"];
 /// validated. `None` when nothing is left to run: `--backend reference` on a sweep of GPU-only
 /// variants (the dropped variants are named on stderr).
 pub fn configure(spec: SweepSpec, args: &SweepArgs) -> Result<Option<SweepSpec>, InputError> {
+    // Zero would be clamped or make an empty sweep: name the flag instead.
+    for (flag, value) in [
+        ("--repeats", args.repeats),
+        ("--yaw-steps", args.yaw_steps),
+        ("--width", args.width),
+        ("--height", args.height),
+    ] {
+        if value == Some(0) {
+            return Err(InputError::new(
+                "<command line>",
+                flag,
+                0,
+                "expected at least 1",
+            ));
+        }
+    }
     let mut spec = if args.quick { spec.quick() } else { spec };
     if let Some(s) = &args.scene {
         spec.scenes = vec![s.clone()];
     }
     spec.width = args.width.unwrap_or(spec.width);
     spec.height = args.height.unwrap_or(spec.height);
-    spec.repeats = args.repeats.unwrap_or(spec.repeats).max(1);
+    spec.repeats = args.repeats.unwrap_or(spec.repeats);
     if let Some(b) = &args.backend {
         spec.backends = b.split(',').map(|s| s.trim().to_string()).collect();
         if !spec.backends.iter().any(|b| b == "gpu") {
@@ -1805,16 +1830,19 @@ pub fn configure(spec: SweepSpec, args: &SweepArgs) -> Result<Option<SweepSpec>,
 
 /// `forestlod sweep`.
 pub fn run(args: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
-    let specs = resolve(args.file.as_deref())?;
+    // Every sweep is configured (and so validated) before anything runs or is written.
+    let mut specs = Vec::new();
+    for spec in resolve(args.file.as_deref())? {
+        let name = spec.name.clone();
+        match configure(spec, args)? {
+            Some(spec) => specs.push(spec),
+            None => eprintln!("sweep {name}: nothing to run on the chosen backends"),
+        }
+    }
     std::fs::create_dir_all(&args.out).map_err(|e| io_err(&args.out, e))?;
     let mut runner = Runner::default();
     let start = Instant::now();
     for spec in specs {
-        let name = spec.name.clone();
-        let Some(spec) = configure(spec, args)? else {
-            eprintln!("sweep {name}: nothing to run on the chosen backends");
-            continue;
-        };
         let m = runner.run_sweep(&spec, args.quick, &args.out)?;
         println!(
             "sweep {}: {} frames in {:.1} s -> {}",
@@ -1866,6 +1894,10 @@ mod tests {
             (
                 format!("{far}[[axes]]\nparam = 'tree_cull'\nvalues = ['some']\n"),
                 "tree_cull",
+            ),
+            (
+                "[[cameras]]\nname = 'far'\nyaw_steps = 0\n".to_string(),
+                "cameras.yaw_steps",
             ),
         ] {
             let e = SweepSpec::parse(&format!("{head}{body}"), "f.toml").unwrap_err();

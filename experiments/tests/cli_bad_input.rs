@@ -567,3 +567,72 @@ fn a_good_obj_scene_renders() {
     );
     assert!(out.join("color.png").is_file() && out.join("metrics.json").is_file());
 }
+
+// ---------------------------------------------------------------------------------------------
+// Sweep flags that would be clamped, and the free camera
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn sweep_zero_flags_are_rejected_not_clamped() {
+    let dir = case_dir("sweep-zero");
+    let sweep_out = dir.join("sweep-out");
+    let sweep_out = sweep_out.to_str().unwrap();
+    for flag in ["--repeats", "--yaw-steps", "--width", "--height"] {
+        assert_rejected(
+            &dir,
+            &[
+                "sweep",
+                "camera360",
+                "--quick",
+                "--out",
+                sweep_out,
+                flag,
+                "0",
+            ],
+            &[flag, "\"0\"", "expected at least 1"],
+        );
+        assert!(
+            !Path::new(sweep_out).exists(),
+            "{flag} 0: the sweep output folder was created"
+        );
+    }
+    // A sweep file's `yaw_steps = 0` too.
+    write(
+        &dir,
+        "zero.toml",
+        "name = 'zero'\ntitle = 't'\nscenes = ['tiny']\n[[cameras]]\nname = 'far'\nyaw_steps = 0\n",
+    );
+    assert_rejected(
+        &dir,
+        &["sweep", "zero.toml", "--out", sweep_out],
+        &["zero.toml", "cameras.yaw_steps", "\"0\""],
+    );
+}
+
+#[test]
+fn bad_free_cameras() {
+    let dir = case_dir("free-camera");
+    for (eye, look, fov, flag, value) in [
+        ("1,2", "0,0,0", None, "--eye", "1,2"),
+        ("1,2,nan", "0,0,0", None, "--eye", "1,2,nan"),
+        ("1,2,inf", "0,0,0", None, "--eye", "1,2,inf"),
+        ("1,2,3", "a,b,c", None, "--look-at", "a,b,c"),
+        ("1,2,3", "1,2,3", None, "--look-at", "1,2,3"),
+        ("0,0,100", "0,0,0", None, "--look-at", "0,0,0"),
+        ("0,0,100", "0,0,200", None, "--look-at", "0,0,200"),
+        ("0,0,100", "50,0,0", Some("0"), "--fov", "0"),
+        ("0,0,100", "50,0,0", Some("180"), "--fov", "180"),
+        ("0,0,100", "50,0,0", Some("-10"), "--fov", "-10"),
+        ("0,0,100", "50,0,0", Some("nan"), "--fov", "NaN"),
+    ] {
+        let eye = format!("--eye={eye}");
+        let look = format!("--look-at={look}");
+        for sub in ["render", "select"] {
+            let mut args = vec![sub, "--scene", "single", &eye, &look];
+            if let Some(f) = fov {
+                args.extend(["--fov", f]);
+            }
+            assert_rejected(&dir, &args, &[flag, &format!("{value:?}")]);
+        }
+    }
+}

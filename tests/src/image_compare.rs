@@ -704,14 +704,18 @@ pub fn difference_image(a: &Images, b: &Images) -> Rgba8Image {
     }
 }
 
+/// The colours of [`class_image`], indexed by [`ImageReport::color_classes`]: black match, yellow
+/// window, blue ambiguous, red mismatch.
+pub const CLASS_COLORS: [[u8; 4]; 4] = [
+    [0, 0, 0, 255],
+    [200, 200, 0, 255],
+    [40, 80, 255, 255],
+    [255, 0, 0, 255],
+];
+
 /// The colour classes as an image: black match, yellow window, blue ambiguous, red mismatch.
 pub fn class_image(report: &ImageReport) -> Rgba8Image {
-    const COLORS: [[u8; 4]; 4] = [
-        [0, 0, 0, 255],
-        [200, 200, 0, 255],
-        [40, 80, 255, 255],
-        [255, 0, 0, 255],
-    ];
+    const COLORS: [[u8; 4]; 4] = CLASS_COLORS;
     Rgba8Image {
         width: report.width,
         height: report.height,
