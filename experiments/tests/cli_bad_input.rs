@@ -575,7 +575,11 @@ fn a_good_obj_scene_renders() {
 
 /// A scene file naming `good.csv` and one OBJ/glTF species per `(mesh, texture)`.
 fn species_scene(dir: &Path, name: &str, species: &[(&str, &str)]) -> String {
-    write(dir, "good.csv", format!("{HEADER}1,2,3,0,1,0\n4,5,6,0.5,1.2,0\n"));
+    write(
+        dir,
+        "good.csv",
+        format!("{HEADER}1,2,3,0,1,0\n4,5,6,0.5,1.2,0\n"),
+    );
     let mut text = String::from("instances = \"good.csv\"\n");
     for (i, (mesh, texture)) in species.iter().enumerate() {
         text.push_str(&format!(
@@ -592,7 +596,11 @@ fn species_textures_of_different_sizes() {
     write(&dir, "card.obj", GOOD_OBJ);
     write(&dir, "t8.png", good_png(&dir, 8));
     write(&dir, "t16.png", good_png(&dir, 16));
-    let scene = species_scene(&dir, "s.toml", &[("card.obj", "t8.png"), ("card.obj", "t16.png")]);
+    let scene = species_scene(
+        &dir,
+        "s.toml",
+        &[("card.obj", "t8.png"), ("card.obj", "t16.png")],
+    );
     assert_rejected(
         &dir,
         &["render", "--scene", &scene],
@@ -609,7 +617,11 @@ fn species_textures_of_different_sizes() {
 fn errors_in_named_files_show_the_chain() {
     let dir = case_dir("chain");
     write(&dir, "t.png", good_png(&dir, 8));
-    write(&dir, "oak.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 99/1\n");
+    write(
+        &dir,
+        "oak.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 99/1\n",
+    );
     let scene = species_scene(&dir, "forest.toml", &[("oak.obj", "t.png")]);
     assert_rejected(
         &dir,
@@ -662,12 +674,23 @@ fn scene_files_naming_files_outside_their_folder() {
         assert_rejected(
             &dir,
             &["render", "--scene", "scene/link.toml"],
-            &["link.toml", "species[0].mesh", "\"link.obj\"", "outside the scene file's folder"],
+            &[
+                "link.toml",
+                "species[0].mesh",
+                "\"link.obj\"",
+                "outside the scene file's folder",
+            ],
         );
     }
     // With the flag, the same scene loads.
     let output = Command::new(env!("CARGO_BIN_EXE_forestlod"))
-        .args(["scene", "info", "--scene", "scene/up.toml", "--allow-outside-paths"])
+        .args([
+            "scene",
+            "info",
+            "--scene",
+            "scene/up.toml",
+            "--allow-outside-paths",
+        ])
         .current_dir(&dir)
         .output()
         .unwrap();
@@ -764,7 +787,11 @@ fn base64(bytes: &[u8]) -> String {
     const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::new();
     for chunk in bytes.chunks(3) {
-        let b = [chunk[0], *chunk.get(1).unwrap_or(&0), *chunk.get(2).unwrap_or(&0)];
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
         let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
         for k in 0..4 {
             if k <= chunk.len() {
@@ -779,7 +806,12 @@ fn base64(bytes: &[u8]) -> String {
 
 /// A glTF 2.0 card (Y up, 2 m tall) with an embedded base64 buffer, `indices` and `mode`.
 fn gltf_card(indices: &[u16], mode: u32) -> String {
-    let positions: [[f32; 3]; 4] = [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 2.0, 0.0], [-1.0, 2.0, 0.0]];
+    let positions: [[f32; 3]; 4] = [
+        [-1.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 2.0, 0.0],
+        [-1.0, 2.0, 0.0],
+    ];
     let uvs: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
     let mut buf: Vec<u8> = Vec::new();
     for c in positions.iter().flatten().chain(uvs.iter().flatten()) {
@@ -814,14 +846,18 @@ fn bad_gltf_meshes() {
     assert_rejected(
         &dir,
         &["render", "--scene", &scene],
-        &["error: range.toml: line 4, column 8, field species[0].mesh = \"range.gltf\": range.gltf: mesh 0, primitive 0, indices element 5: value \"9\": index out of range (4 vertices)"],
+        &[
+            "error: range.toml: line 4, column 8, field species[0].mesh = \"range.gltf\": range.gltf: mesh 0, primitive 0, indices element 5: value \"9\": index out of range (4 vertices)",
+        ],
     );
     write(&dir, "strip.gltf", gltf_card(&[0, 1, 2, 3], 5));
     let scene = species_scene(&dir, "strip.toml", &[("strip.gltf", "t.png")]);
     assert_rejected(
         &dir,
         &["render", "--scene", &scene],
-        &["strip.gltf: mesh 0, primitive 0, mode: value \"TRIANGLE_STRIP (5)\": expected a triangle list"],
+        &[
+            "strip.gltf: mesh 0, primitive 0, mode: value \"TRIANGLE_STRIP (5)\": expected a triangle list",
+        ],
     );
     write(&dir, "cut.gltf", &gltf_card(&[0, 1, 2], 4)[..200]);
     let scene = species_scene(&dir, "cut.toml", &[("cut.gltf", "t.png")]);
@@ -840,7 +876,9 @@ fn a_good_gltf_scene_renders() {
     let scene = species_scene(&dir, "s.toml", &[("card.gltf", "t.png")]);
     let out = dir.join("out");
     let output = Command::new(env!("CARGO_BIN_EXE_forestlod"))
-        .args(["render", "--scene", &scene, "--camera", "close", "--width", "32", "--height", "32"])
+        .args([
+            "render", "--scene", &scene, "--camera", "close", "--width", "32", "--height", "32",
+        ])
         .args(["--texture-size", "16", "--out", out.to_str().unwrap()])
         .current_dir(&dir)
         .output()
@@ -861,14 +899,24 @@ fn long_file_content_is_echoed_as_a_short_marked_excerpt() {
     assert_rejected(
         &dir,
         &["render", "--instances", "long.csv"],
-        &["long.csv: line 2, column species", &format!("value \"{}…\"", "q".repeat(40))],
+        &[
+            "long.csv: line 2, column species",
+            &format!("value \"{}…\"", "q".repeat(40)),
+        ],
     );
     write(&dir, "t.png", good_png(&dir, 8));
-    write(&dir, "long.obj", format!("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/1 {long}\n"));
+    write(
+        &dir,
+        "long.obj",
+        format!("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/1 {long}\n"),
+    );
     let scene = species_scene(&dir, "s.toml", &[("long.obj", "t.png")]);
     assert_rejected(
         &dir,
         &["render", "--scene", &scene],
-        &["long.obj: line 5, face", &format!("value \"{}…\"", "q".repeat(40))],
+        &[
+            "long.obj: line 5, face",
+            &format!("value \"{}…\"", "q".repeat(40)),
+        ],
     );
 }

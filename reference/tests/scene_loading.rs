@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use forestlod_reference::scene::Terrain;
 use forestlod_reference::scene::builtin::{self, Species};
 use forestlod_reference::scene::load::{
-    LoadOptions, UpAxis, decode_png_texture, load_path_with, load_scene_file_with, load_instances_csv, load_instances_with_builtin_species,
-    load_obj_mesh, load_path, load_scene_file, parse_instances_csv, parse_obj_mesh,
-    parse_scene_file,
+    LoadOptions, UpAxis, decode_png_texture, load_instances_csv,
+    load_instances_with_builtin_species, load_obj_mesh, load_path, load_path_with, load_scene_file,
+    load_scene_file_with, parse_instances_csv, parse_obj_mesh, parse_scene_file,
 };
 use forestlod_reference::texture::Rgba8Image;
 use proptest::prelude::*;
@@ -852,9 +852,17 @@ fn species_textures_must_share_species_0s_size() {
     write(&dir, "card.obj", CARD_TREE_Y_UP);
     write(&dir, "small.png", rgba_png(8, 8));
     write(&dir, "big.png", rgba_png(16, 16));
-    let ok = species_scene(&dir, "ok.toml", &[("card.obj", "small.png"), ("card.obj", "small.png")]);
+    let ok = species_scene(
+        &dir,
+        "ok.toml",
+        &[("card.obj", "small.png"), ("card.obj", "small.png")],
+    );
     assert_eq!(load_scene_file(&ok).unwrap().meshes.len(), 2);
-    let bad = species_scene(&dir, "bad.toml", &[("card.obj", "small.png"), ("card.obj", "big.png")]);
+    let bad = species_scene(
+        &dir,
+        "bad.toml",
+        &[("card.obj", "small.png"), ("card.obj", "big.png")],
+    );
     let e = load_scene_file(&bad).unwrap_err().to_string();
     assert_mentions(
         &e,
@@ -873,15 +881,29 @@ fn species_textures_must_share_species_0s_size() {
         "mixed.toml",
         "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nbuiltin = \"oak\"\n[[species]]\nname = \"b\"\nmesh = \"card.obj\"\ntexture = \"small.png\"\n",
     );
-    let e = load_scene_file(&dir.join("mixed.toml")).unwrap_err().to_string();
-    assert_mentions(&e, &["mixed.toml", "species[1].texture", "8x8", "built-in \"oak\" is 128x128"]);
+    let e = load_scene_file(&dir.join("mixed.toml"))
+        .unwrap_err()
+        .to_string();
+    assert_mentions(
+        &e,
+        &[
+            "mixed.toml",
+            "species[1].texture",
+            "8x8",
+            "built-in \"oak\" is 128x128",
+        ],
+    );
 }
 
 #[test]
 fn errors_in_named_files_print_the_chain_from_the_scene_file() {
     let dir = temp_dir("chain");
     write(&dir, "t.png", rgba_png(8, 8));
-    write(&dir, "bad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 99/1\n");
+    write(
+        &dir,
+        "bad.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 99/1\n",
+    );
     let scene = species_scene(&dir, "forest.toml", &[("bad.obj", "t.png")]);
     let e = load_scene_file(&scene).unwrap_err();
     assert_eq!(e.chain.len(), 1, "{e}");
@@ -893,19 +915,37 @@ fn errors_in_named_files_print_the_chain_from_the_scene_file() {
         )),
         "{shown}"
     );
-    assert_mentions(&shown, &["bad.obj: line 5, face: value \"99/1\"", "out of range"]);
+    assert_mentions(
+        &shown,
+        &["bad.obj: line 5, face: value \"99/1\"", "out of range"],
+    );
     // The texture's chain, the CSV's chain.
-    write(&dir, "rgb.png", png(image::ExtendedColorType::Rgb8, 3, 8, 8));
+    write(
+        &dir,
+        "rgb.png",
+        png(image::ExtendedColorType::Rgb8, 3, 8, 8),
+    );
     write(&dir, "card.obj", CARD_TREE_Y_UP);
     let scene = species_scene(&dir, "tex.toml", &[("card.obj", "rgb.png")]);
     let e = load_scene_file(&scene).unwrap_err().to_string();
-    assert_mentions(&e, &["field species[0].texture = \"rgb.png\": ", "rgb.png: colour type"]);
-    write(&dir, "nan.csv", format!("{HEADER}1,2,nan,0,1,0\n"));
-    write(&dir, "csv.toml", "instances = \"nan.csv\"\n");
-    let e = load_scene_file(&dir.join("csv.toml")).unwrap_err().to_string();
     assert_mentions(
         &e,
-        &["csv.toml: line 1, column 13, field instances = \"nan.csv\": ", "nan.csv: line 2, column z"],
+        &[
+            "field species[0].texture = \"rgb.png\": ",
+            "rgb.png: colour type",
+        ],
+    );
+    write(&dir, "nan.csv", format!("{HEADER}1,2,nan,0,1,0\n"));
+    write(&dir, "csv.toml", "instances = \"nan.csv\"\n");
+    let e = load_scene_file(&dir.join("csv.toml"))
+        .unwrap_err()
+        .to_string();
+    assert_mentions(
+        &e,
+        &[
+            "csv.toml: line 1, column 13, field instances = \"nan.csv\": ",
+            "nan.csv: line 2, column z",
+        ],
     );
 }
 
@@ -931,7 +971,14 @@ fn scene_files_may_name_only_files_under_their_folder_unless_allowed() {
     let e = load_scene_file(&scene).unwrap_err().to_string();
     assert_mentions(
         &e,
-        &["up.toml", "line 4", "species[0].mesh", "\"../card.obj\"", "outside the scene file's folder", "--allow-outside-paths"],
+        &[
+            "up.toml",
+            "line 4",
+            "species[0].mesh",
+            "\"../card.obj\"",
+            "outside the scene file's folder",
+            "--allow-outside-paths",
+        ],
     );
     assert!(load_scene_file_with(&scene, &allow).is_ok());
     assert!(load_path_with(&scene, &allow).is_ok());
@@ -939,7 +986,14 @@ fn scene_files_may_name_only_files_under_their_folder_unless_allowed() {
     let abs = dir.join("outside.csv").display().to_string();
     let scene = write(&sub, "abs.toml", format!("instances = {abs:?}\n"));
     let e = load_scene_file(&scene).unwrap_err().to_string();
-    assert_mentions(&e, &["abs.toml", "field instances", "outside the scene file's folder"]);
+    assert_mentions(
+        &e,
+        &[
+            "abs.toml",
+            "field instances",
+            "outside the scene file's folder",
+        ],
+    );
     assert!(load_scene_file_with(&scene, &allow).is_ok());
     // A symbolic link inside the folder that points out of it.
     #[cfg(unix)]
@@ -952,31 +1006,53 @@ fn scene_files_may_name_only_files_under_their_folder_unless_allowed() {
             "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"link.obj\"\ntexture = \"t.png\"\n",
         );
         let e = load_scene_file(&scene).unwrap_err().to_string();
-        assert_mentions(&e, &["link.toml", "\"link.obj\"", "outside the scene file's folder"]);
+        assert_mentions(
+            &e,
+            &[
+                "link.toml",
+                "\"link.obj\"",
+                "outside the scene file's folder",
+            ],
+        );
         assert!(load_scene_file_with(&scene, &allow).is_ok());
     }
     // Inside, through `..` that comes back: fine.
-    let scene = write(
-        &sub,
-        "back.toml",
-        "instances = \"../scene/t.csv\"\n",
-    );
+    let scene = write(&sub, "back.toml", "instances = \"../scene/t.csv\"\n");
     assert!(load_scene_file(&scene).is_ok());
 }
 
 #[test]
 fn png_colour_types_are_named_as_the_file_has_them() {
     for (color, channels, shown) in [
-        (image::ExtendedColorType::Rgb8, 3, "RGB, 8-bit, no transparency"),
-        (image::ExtendedColorType::L8, 1, "grey, 8-bit, no transparency"),
+        (
+            image::ExtendedColorType::Rgb8,
+            3,
+            "RGB, 8-bit, no transparency",
+        ),
+        (
+            image::ExtendedColorType::L8,
+            1,
+            "grey, 8-bit, no transparency",
+        ),
         (image::ExtendedColorType::La8, 2, "grey+alpha, 8-bit"),
         (image::ExtendedColorType::Rgba16, 8, "RGBA, 16-bit"),
-        (image::ExtendedColorType::L16, 2, "grey, 16-bit, no transparency"),
+        (
+            image::ExtendedColorType::L16,
+            2,
+            "grey, 16-bit, no transparency",
+        ),
     ] {
         let e = decode_png_texture(&png(color, channels, 4, 4), "t.png")
             .unwrap_err()
             .to_string();
-        assert_mentions(&e, &["t.png: colour type", &format!("value \"{shown}\""), "expected RGBA, 8-bit"]);
+        assert_mentions(
+            &e,
+            &[
+                "t.png: colour type",
+                &format!("value \"{shown}\""),
+                "expected RGBA, 8-bit",
+            ],
+        );
         assert!(!e.contains("Rgb") && !e.contains("L8"), "{e}");
     }
 }
@@ -985,7 +1061,8 @@ fn png_colour_types_are_named_as_the_file_has_them() {
 fn concave_polygons_are_ear_clipped_and_bad_ones_rejected() {
     let tex = || Rgba8Image::new(4, 4, [1, 2, 3, 255]);
     // An L-shaped hexagon (area 3) in the x/z plane; a fan from vertex 0 would leave it.
-    let l_shape = "v 0 0 0\nv 2 0 0\nv 2 0 1\nv 1 0 1\nv 1 0 2\nv 0 0 2\nvt 0 0\nf 1/1 2/1 3/1 4/1 5/1 6/1\n";
+    let l_shape =
+        "v 0 0 0\nv 2 0 0\nv 2 0 1\nv 1 0 1\nv 1 0 2\nv 0 0 2\nvt 0 0\nf 1/1 2/1 3/1 4/1 5/1 6/1\n";
     let m = parse_obj_mesh("l", l_shape.as_bytes(), "l.obj", UpAxis::Z, tex()).unwrap();
     assert_eq!(m.indices.len(), 12);
     let area: f32 = m
@@ -1001,7 +1078,10 @@ fn concave_polygons_are_ear_clipped_and_bad_ones_rejected() {
     // Every triangle lies inside the L: its centroid is not in the missing square (1,2)x(1,2).
     for t in m.indices.chunks(3) {
         let c = [0, 2].map(|k| t.iter().map(|&i| m.positions[i as usize][k]).sum::<f32>() / 3.0);
-        assert!(!(c[0] > 1.0 && c[1] > 1.0), "triangle {t:?} outside the polygon");
+        assert!(
+            !(c[0] > 1.0 && c[1] > 1.0),
+            "triangle {t:?} outside the polygon"
+        );
     }
     // A convex quad keeps the fan (0,1,2),(0,2,3), exactly as before.
     let quad = "v -1 0 0\nv 1 0 0\nv 1 0 2\nv -1 0 2\nvt 0 0\nf 1/1 2/1 3/1 4/1\n";
@@ -1025,7 +1105,11 @@ fn base64(bytes: &[u8]) -> String {
     const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::new();
     for chunk in bytes.chunks(3) {
-        let b = [chunk[0], *chunk.get(1).unwrap_or(&0), *chunk.get(2).unwrap_or(&0)];
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
         let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
         for k in 0..4 {
             if k <= chunk.len() {
@@ -1079,7 +1163,12 @@ fn gltf_json(positions: &[[f32; 3]], uvs: &[[f32; 2]], indices: &[u16], mode: u3
 }
 
 /// A card, Y up as glTF has it: 2 m tall.
-const CARD_POSITIONS: [[f32; 3]; 4] = [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 2.0, 0.0], [-1.0, 2.0, 0.0]];
+const CARD_POSITIONS: [[f32; 3]; 4] = [
+    [-1.0, 0.0, 0.0],
+    [1.0, 0.0, 0.0],
+    [1.0, 2.0, 0.0],
+    [-1.0, 2.0, 0.0],
+];
 const CARD_UVS: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
 
 #[test]
@@ -1112,18 +1201,27 @@ fn gltf_meshes_load_and_bad_ones_are_rejected() {
     glb.extend_from_slice(&json_bytes);
     write(&dir, "card.glb", glb);
     let scene = species_scene(&dir, "glb.toml", &[("card.glb", "t.png")]);
-    assert_eq!(load_scene_file(&scene).unwrap().meshes[0].positions, m.positions);
+    assert_eq!(
+        load_scene_file(&scene).unwrap().meshes[0].positions,
+        m.positions
+    );
 
     let cases: Vec<(&str, String, Vec<&str>)> = vec![
         (
             "range.gltf",
             gltf_json(&CARD_POSITIONS, &CARD_UVS, &[0, 1, 9], 4),
-            vec!["range.gltf: mesh 0, primitive 0, indices element 2: value \"9\"", "out of range (4 vertices)"],
+            vec![
+                "range.gltf: mesh 0, primitive 0, indices element 2: value \"9\"",
+                "out of range (4 vertices)",
+            ],
         ),
         (
             "lines.gltf",
             gltf_json(&CARD_POSITIONS, &CARD_UVS, &[0, 1, 2], 1),
-            vec!["lines.gltf: mesh 0, primitive 0, mode: value \"LINES (1)\"", "triangle list"],
+            vec![
+                "lines.gltf: mesh 0, primitive 0, mode: value \"LINES (1)\"",
+                "triangle list",
+            ],
         ),
         (
             "nan.gltf",
@@ -1133,12 +1231,20 @@ fn gltf_meshes_load_and_bad_ones_are_rejected() {
                 &[0, 1, 2],
                 4,
             ),
-            vec!["nan.gltf: mesh 0, primitive 0, POSITION element 0", "NaN", "finite"],
+            vec![
+                "nan.gltf: mesh 0, primitive 0, POSITION element 0",
+                "NaN",
+                "finite",
+            ],
         ),
         (
             "uvs.gltf",
             gltf_json(&CARD_POSITIONS, &CARD_UVS[..3], &[0, 1, 2], 4),
-            vec!["uvs.gltf", "TEXCOORD_0", "3 texture coordinates for 4 vertices"],
+            vec![
+                "uvs.gltf",
+                "TEXCOORD_0",
+                "3 texture coordinates for 4 vertices",
+            ],
         ),
         (
             "json.gltf",
@@ -1148,7 +1254,10 @@ fn gltf_meshes_load_and_bad_ones_are_rejected() {
         (
             "nomesh.gltf",
             "{\"asset\": {\"version\": \"2.0\"}}".into(),
-            vec!["nomesh.gltf: meshes: value \"0 meshes\"", "exactly one mesh"],
+            vec![
+                "nomesh.gltf: meshes: value \"0 meshes\"",
+                "exactly one mesh",
+            ],
         ),
     ];
     for (name, text, expect) in &cases {
@@ -1174,12 +1283,24 @@ fn errors_echo_at_most_a_short_marked_excerpt_of_file_content() {
         .to_string();
     assert_mentions(&e, &[&format!("\"{}…\"", "z".repeat(40))]);
     assert!(!e.contains(&"z".repeat(41)), "{e}");
-    write(&dir, "long.toml", format!("instances = \"t.csv\"\norigin = \"{long}\"\n"));
-    let e = load_scene_file(&dir.join("long.toml")).unwrap_err().to_string();
-    assert!(!e.contains(&"z".repeat(41)) && e.contains('…'), "{e}");
-    write(&dir, "long.obj", format!("v 1 2 {long}\n"));
-    let e = parse_obj_mesh("t", format!("o {long}\nv 1 2 3\n").as_bytes(), "o.obj", UpAxis::Z, Rgba8Image::new(1, 1, [0; 4]))
+    write(
+        &dir,
+        "long.toml",
+        format!("instances = \"t.csv\"\norigin = \"{long}\"\n"),
+    );
+    let e = load_scene_file(&dir.join("long.toml"))
         .unwrap_err()
         .to_string();
+    assert!(!e.contains(&"z".repeat(41)) && e.contains('…'), "{e}");
+    write(&dir, "long.obj", format!("v 1 2 {long}\n"));
+    let e = parse_obj_mesh(
+        "t",
+        format!("o {long}\nv 1 2 3\n").as_bytes(),
+        "o.obj",
+        UpAxis::Z,
+        Rgba8Image::new(1, 1, [0; 4]),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(!e.contains(&"z".repeat(41)), "{e}");
 }

@@ -66,7 +66,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::builtin::{Species, species_meshes};
-use super::{Instance, Scene, Terrain, TreeMesh};
+use super::{Instance, MAX_TREE_TRIANGLES, Scene, Terrain, TreeMesh};
 use crate::InputError;
 use crate::error::{cut, excerpt};
 use crate::texture::Rgba8Image;
@@ -621,13 +621,9 @@ fn load_species(
                 let image = load_png_texture(&texture_path).map_err(|e| e.within(&texture_link))?;
                 let mesh_file = label(&mesh_path);
                 let mesh = match kind {
-                    MeshKind::Obj => parse_obj_mesh(
-                        name,
-                        &bytes,
-                        &mesh_file,
-                        s.up.unwrap_or(UpAxis::Z),
-                        image,
-                    ),
+                    MeshKind::Obj => {
+                        parse_obj_mesh(name, &bytes, &mesh_file, s.up.unwrap_or(UpAxis::Z), image)
+                    }
                     MeshKind::Gltf => {
                         let buffers = GltfBuffers {
                             folder: scene_folder(&mesh_path),
@@ -645,7 +641,10 @@ fn load_species(
                     }
                 }
                 .map_err(|e| e.within(&mesh_link))?;
-                (mesh, (texture_at, format!("texture {}", excerpt(t.get_ref()))))
+                (
+                    mesh,
+                    (texture_at, format!("texture {}", excerpt(t.get_ref()))),
+                )
             }
             (None, Some(m), None) => {
                 return Err(InputError::new(
@@ -1734,7 +1733,8 @@ pub fn parse_gltf_mesh(
     for node in document.nodes() {
         if node.mesh().is_some() {
             let m = node.transform().matrix();
-            let identity = (0..4).all(|c| (0..4).all(|r| m[c][r] == if c == r { 1.0 } else { 0.0 }));
+            let identity =
+                (0..4).all(|c| (0..4).all(|r| m[c][r] == if c == r { 1.0 } else { 0.0 }));
             if !identity {
                 let (t, r, sc) = node.transform().decomposed();
                 return Err(err(
@@ -1743,7 +1743,8 @@ pub fn parse_gltf_mesh(
                         "translation {} {} {}, rotation {} {} {} {}, scale {} {} {}",
                         t[0], t[1], t[2], r[0], r[1], r[2], r[3], sc[0], sc[1], sc[2]
                     ),
-                    "expected no transform on the mesh's node (apply transforms before export)".into(),
+                    "expected no transform on the mesh's node (apply transforms before export)"
+                        .into(),
                 ));
             }
         }
@@ -1761,18 +1762,20 @@ pub fn parse_gltf_mesh(
                 )
             })?,
             gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
-                let payload = uri
-                    .split_once(";base64,")
-                    .map(|(_, b)| b)
-                    .ok_or_else(|| {
-                        err(
-                            at.clone(),
-                            cut(uri),
-                            "expected a base64 data URI (data:application/octet-stream;base64,...)".into(),
-                        )
-                    })?;
+                let payload = uri.split_once(";base64,").map(|(_, b)| b).ok_or_else(|| {
+                    err(
+                        at.clone(),
+                        cut(uri),
+                        "expected a base64 data URI (data:application/octet-stream;base64,...)"
+                            .into(),
+                    )
+                })?;
                 decode_base64(payload).ok_or_else(|| {
-                    err(at.clone(), cut(uri), "invalid base64 in the data URI".into())
+                    err(
+                        at.clone(),
+                        cut(uri),
+                        "invalid base64 in the data URI".into(),
+                    )
                 })?
             }
             gltf::buffer::Source::Uri(uri) => {
@@ -1825,15 +1828,21 @@ pub fn parse_gltf_mesh(
         }
         let base = mesh.positions.len();
         let positions = primitive.get(&gltf::Semantic::Positions).ok_or_else(|| {
-            err(format!("{prim_at}, attributes"), "no POSITION".into(), "expected a POSITION attribute".into())
-        })?;
-        let uvs = primitive.get(&gltf::Semantic::TexCoords(0)).ok_or_else(|| {
             err(
                 format!("{prim_at}, attributes"),
-                "no TEXCOORD_0".into(),
-                "expected texture coordinates (TEXCOORD_0) for every vertex".into(),
+                "no POSITION".into(),
+                "expected a POSITION attribute".into(),
             )
         })?;
+        let uvs = primitive
+            .get(&gltf::Semantic::TexCoords(0))
+            .ok_or_else(|| {
+                err(
+                    format!("{prim_at}, attributes"),
+                    "no TEXCOORD_0".into(),
+                    "expected texture coordinates (TEXCOORD_0) for every vertex".into(),
+                )
+            })?;
         let count = positions.count();
         if base + count > forestlod_shared::MAX_MESH_VERTICES as usize {
             return Err(err(
@@ -1852,7 +1861,13 @@ pub fn parse_gltf_mesh(
                 "expected one texture coordinate per vertex".into(),
             ));
         }
-        let p = read_accessor(&positions, &data, file, &format!("{prim_at}, POSITION"), AccessorUse::Position)?;
+        let p = read_accessor(
+            &positions,
+            &data,
+            file,
+            &format!("{prim_at}, POSITION"),
+            AccessorUse::Position,
+        )?;
         for (i, v) in p.chunks_exact(3).enumerate() {
             if v.iter().any(|c| !c.is_finite()) {
                 return Err(err(
@@ -1867,7 +1882,13 @@ pub fn parse_gltf_mesh(
                 UpAxis::Y => [v[0], -v[2], v[1]],
             });
         }
-        let t = read_accessor(&uvs, &data, file, &format!("{prim_at}, TEXCOORD_0"), AccessorUse::TexCoord)?;
+        let t = read_accessor(
+            &uvs,
+            &data,
+            file,
+            &format!("{prim_at}, TEXCOORD_0"),
+            AccessorUse::TexCoord,
+        )?;
         for (i, uv) in t.chunks_exact(2).enumerate() {
             if uv.iter().any(|c| !c.is_finite()) {
                 return Err(err(
@@ -1887,10 +1908,16 @@ pub fn parse_gltf_mesh(
                         format!("expected at most {MAX_TREE_TRIANGLES} triangles per tree (E§3.1)"),
                     ));
                 }
-                read_accessor(&indices, &data, file, &format!("{prim_at}, indices"), AccessorUse::Index)?
-                    .into_iter()
-                    .map(|i| i as u32)
-                    .collect()
+                read_accessor(
+                    &indices,
+                    &data,
+                    file,
+                    &format!("{prim_at}, indices"),
+                    AccessorUse::Index,
+                )?
+                .into_iter()
+                .map(|i| i as u32)
+                .collect()
             }
             None => (0..count as u32).collect(),
         };
@@ -1939,7 +1966,11 @@ fn read_accessor(
 ) -> Result<Vec<f64>, InputError> {
     use gltf::accessor::{DataType, Dimensions};
     let err = |value: String, reason: &str| InputError::new(file, at, value, reason);
-    let (dims, ty, normalized) = (accessor.dimensions(), accessor.data_type(), accessor.normalized());
+    let (dims, ty, normalized) = (
+        accessor.dimensions(),
+        accessor.data_type(),
+        accessor.normalized(),
+    );
     let ok = match usage {
         AccessorUse::Position => dims == Dimensions::Vec3 && ty == DataType::F32,
         AccessorUse::TexCoord => {
@@ -1975,7 +2006,9 @@ fn read_accessor(
     if !ok {
         let expected = match usage {
             AccessorUse::Position => "expected float VEC3 positions",
-            AccessorUse::TexCoord => "expected VEC2 texture coordinates of float, or normalized unsigned byte/short",
+            AccessorUse::TexCoord => {
+                "expected VEC2 texture coordinates of float, or normalized unsigned byte/short"
+            }
             AccessorUse::Index => "expected unsigned byte, short or int indices",
         };
         return Err(err(kind, expected));
@@ -1990,9 +2023,12 @@ fn read_accessor(
             "expected between 1 and a tree's few hundred elements",
         ));
     }
-    let view = accessor
-        .view()
-        .ok_or_else(|| err("no bufferView".into(), "expected an accessor with data (a bufferView)"))?;
+    let view = accessor.view().ok_or_else(|| {
+        err(
+            "no bufferView".into(),
+            "expected an accessor with data (a bufferView)",
+        )
+    })?;
     let component = match ty {
         DataType::I8 | DataType::U8 => 1usize,
         DataType::I16 | DataType::U16 => 2,
@@ -2002,13 +2038,23 @@ fn read_accessor(
     let element = component * width;
     let stride = view.stride().unwrap_or(element);
     if stride < element {
-        return Err(err(format!("byteStride {stride}"), "expected a stride of at least one element"));
+        return Err(err(
+            format!("byteStride {stride}"),
+            "expected a stride of at least one element",
+        ));
     }
-    let buffer = data.get(view.buffer().index()).map_or(&[][..], Vec::as_slice);
+    let buffer = data
+        .get(view.buffer().index())
+        .map_or(&[][..], Vec::as_slice);
     let view_end = view.offset().checked_add(view.length());
     let Some(view_bytes) = view_end.and_then(|end| buffer.get(view.offset()..end)) else {
         return Err(err(
-            format!("bufferView {} bytes {}+{}", view.index(), view.offset(), view.length()),
+            format!(
+                "bufferView {} bytes {}+{}",
+                view.index(),
+                view.offset(),
+                view.length()
+            ),
             "bufferView out of its buffer's data",
         ));
     };
@@ -2018,7 +2064,10 @@ fn read_accessor(
         .filter(|&end| end <= view_bytes.len());
     if needed.is_none() {
         return Err(err(
-            format!("byteOffset {} count {count} stride {stride}", accessor.offset()),
+            format!(
+                "byteOffset {} count {count} stride {stride}",
+                accessor.offset()
+            ),
             "accessor out of its bufferView",
         ));
     }
