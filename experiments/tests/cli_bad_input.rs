@@ -820,7 +820,7 @@ fn gltf_card(indices: &[u16], mode: u32) -> String {
     for i in indices {
         buf.extend_from_slice(&i.to_le_bytes());
     }
-    while buf.len() % 4 != 0 {
+    while !buf.len().is_multiple_of(4) {
         buf.push(0);
     }
     format!(

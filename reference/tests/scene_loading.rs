@@ -1141,7 +1141,7 @@ fn gltf_json(positions: &[[f32; 3]], uvs: &[[f32; 2]], indices: &[u16], mode: u3
     for i in indices {
         buf.extend_from_slice(&i.to_le_bytes());
     }
-    while buf.len() % 4 != 0 {
+    while !buf.len().is_multiple_of(4) {
         buf.push(0);
     }
     format!(
@@ -1190,7 +1190,7 @@ fn gltf_meshes_load_and_bad_ones_are_rejected() {
     // The same mesh through a .glb holding the JSON and a binary chunk.
     let json = gltf_json(&CARD_POSITIONS, &CARD_UVS, &[0, 1, 2, 0, 2, 3], 4);
     let mut json_bytes = json.into_bytes();
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let mut glb = b"glTF".to_vec();

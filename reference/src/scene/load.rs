@@ -262,19 +262,19 @@ fn confine(
     if options.allow_outside_paths {
         return Ok(path);
     }
-    if let (Ok(root), Ok(target)) = (root.canonicalize(), path.canonicalize()) {
-        if !target.starts_with(&root) {
-            return Err(InputError::new(
-                file,
-                position,
-                named,
-                format!(
-                    "resolves to {}, outside the scene file's folder {}: move the file under that folder, or allow it (--allow-outside-paths)",
-                    target.display(),
-                    root.display()
-                ),
-            ));
-        }
+    if let (Ok(root), Ok(target)) = (root.canonicalize(), path.canonicalize())
+        && !target.starts_with(&root)
+    {
+        return Err(InputError::new(
+            file,
+            position,
+            named,
+            format!(
+                "resolves to {}, outside the scene file's folder {}: move the file under that folder, or allow it (--allow-outside-paths)",
+                target.display(),
+                root.display()
+            ),
+        ));
     }
     Ok(path)
 }
@@ -1921,7 +1921,7 @@ pub fn parse_gltf_mesh(
             }
             None => (0..count as u32).collect(),
         };
-        if local.len() % 3 != 0 {
+        if !local.len().is_multiple_of(3) {
             return Err(err(
                 format!("{prim_at}, indices"),
                 format!("{} indices", local.len()),
