@@ -361,7 +361,7 @@ fn bad_scene_files_give_errors_naming_file_line_field_and_value() {
         (
             "rgb.toml",
             "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"card.obj\"\ntexture = \"rgb.png\"\n".into(),
-            vec!["rgb.png", "colour type", "\"RGB, 8-bit\"", "expected RGBA, 8-bit"],
+            vec!["rgb.png", "colour type", "value \"RGB, 8-bit, no transparency\"", "expected RGBA, 8-bit"],
         ),
         (
             "odd.toml",

@@ -1423,14 +1423,36 @@ pub fn triangulate_polygon(points: &[[f64; 3]]) -> Result<Vec<[usize; 3]>, Strin
         }
     }
     let size = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
-    let length = (normal[0].powi(2) + normal[1].powi(2) + normal[2].powi(2)).sqrt();
-    if size == 0.0 || length <= 1.0e-9 * size * size {
-        return Err("zero-area polygon".into());
-    }
-    let nrm = normal.map(|c| c / length);
-    let centroid = [0, 1, 2].map(|k| points.iter().map(|p| p[k]).sum::<f64>() / n as f64);
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let cross3 = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    // The plane: through vertex 0, the vertex farthest from it and the vertex farthest from that
+    // line (robust even where the vector area vanishes, as for a symmetric bow tie).
+    let a = points[0];
+    let far = points
+        .iter()
+        .copied()
+        .max_by(|p, q| dot(sub(*p, a), sub(*p, a)).total_cmp(&dot(sub(*q, a), sub(*q, a))))
+        .unwrap_or(a);
+    let spread = points
+        .iter()
+        .map(|p| cross3(sub(far, a), sub(*p, a)))
+        .max_by(|p, q| dot(*p, *p).total_cmp(&dot(*q, *q)))
+        .unwrap_or([0.0; 3]);
+    let spread_length = dot(spread, spread).sqrt();
+    if size == 0.0 || spread_length <= 1.0e-9 * size * size {
+        return Err("zero-area polygon (its vertices are on one line)".into());
+    }
+    // Oriented with the polygon's winding (the vector area) where it has one.
+    let sign = if dot(spread, normal) < 0.0 { -1.0 } else { 1.0 };
+    let nrm = spread.map(|c| sign * c / spread_length);
+    let centroid = [0, 1, 2].map(|k| points.iter().map(|p| p[k]).sum::<f64>() / n as f64);
     for p in points {
         let off = dot(sub(*p, centroid), nrm).abs();
         if off > 1.0e-3 * size {
@@ -1444,13 +1466,6 @@ pub fn triangulate_polygon(points: &[[f64; 3]]) -> Result<Vec<[usize; 3]>, Strin
         [1.0, 0.0, 0.0]
     } else {
         [0.0, 1.0, 0.0]
-    };
-    let cross3 = |a: [f64; 3], b: [f64; 3]| {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
     };
     let u = cross3(helper, nrm);
     let ul = dot(u, u).sqrt();
@@ -1511,6 +1526,10 @@ pub fn triangulate_polygon(points: &[[f64; 3]]) -> Result<Vec<[usize; 3]>, Strin
                 ));
             }
         }
+    }
+    let area = dot(normal, nrm);
+    if area <= 1.0e-9 * size * size {
+        return Err("zero-area polygon".into());
     }
     let convex = (0..n).all(|i| orient(flat[i], flat[(i + 1) % n], flat[(i + 2) % n]) >= -eps);
     if convex {
@@ -2456,7 +2475,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("t.png") && e.contains("colour type") && e.contains("Rgb8"),
+            e.contains("t.png") && e.contains("colour type") && e.contains("RGB, 8-bit"),
             "{e}"
         );
         let e = decode_png_texture(&png(image::ExtendedColorType::L8, 8, 8), "t.png")
