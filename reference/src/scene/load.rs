@@ -226,12 +226,10 @@ pub fn parse_scene_file(bytes: &[u8], path: &Path) -> Result<Scene, InputError> 
     parse_scene_file_with(bytes, path, &LoadOptions::default())
 }
 
-/// The scene file's folder as relative paths start from it (`.` for a bare file name).
+/// The scene file's folder as relative paths start from it (empty for a bare file name, so that
+/// named files keep the names they were given in errors).
 fn scene_folder(path: &Path) -> &Path {
-    match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    }
+    path.parent().unwrap_or(Path::new(""))
 }
 
 /// Where a path named in a scene file points: `base.join(named)`, checked to lie under `base`
@@ -262,6 +260,11 @@ fn confine(
     if options.allow_outside_paths {
         return Ok(path);
     }
+    let root = if root.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        root
+    };
     if let (Ok(root), Ok(target)) = (root.canonicalize(), path.canonicalize())
         && !target.starts_with(&root)
     {
