@@ -17,17 +17,51 @@ pub struct SceneArgs {
     /// overrides --scene.
     #[arg(long)]
     pub instances: Option<PathBuf>,
+    /// Let a scene file name files (instances, meshes, textures, glTF buffers) outside its own
+    /// folder; by default every named file must lie under it after resolving `..` and symlinks.
+    #[arg(long)]
+    pub allow_outside_paths: bool,
 }
 
 impl SceneArgs {
-    /// Loads the scene, validated.
+    /// Loads the scene, validated. `--scene` with a `.csv`, `.obj`, `.gltf` or `.glb` path is an
+    /// error saying what to use instead.
     pub fn load(&self) -> Result<Scene, InputError> {
         if let Some(csv) = &self.instances {
             return load::load_instances_with_builtin_species(csv);
         }
         let path = Path::new(&self.scene);
+        let extension = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match extension.as_deref() {
+            Some("csv") => {
+                return Err(InputError::new(
+                    "<command line>",
+                    "--scene",
+                    &self.scene,
+                    format!(
+                        "a CSV instance table is not a scene file: use --instances {} (built-in species), or name it from a scene TOML file (instances = \"{}\")",
+                        self.scene, self.scene
+                    ),
+                ));
+            }
+            Some("obj" | "gltf" | "glb") => {
+                return Err(InputError::new(
+                    "<command line>",
+                    "--scene",
+                    &self.scene,
+                    load::minimal_scene_hint(&self.scene),
+                ));
+            }
+            _ => {}
+        }
+        let options = load::LoadOptions {
+            allow_outside_paths: self.allow_outside_paths,
+        };
         if self.scene.ends_with(".toml") || path.is_file() {
-            load::load_scene_file(path)
+            load::load_scene_file_with(path, &options)
         } else {
             builtin::by_name(&self.scene)
         }

@@ -569,6 +569,359 @@ fn a_good_obj_scene_renders() {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Issue 10 ("failures that fail"): texture sizes, error chains, path confinement, mesh files
+// given as --scene, PNG colour types, polygons, glTF, long content
+// ---------------------------------------------------------------------------------------------
+
+/// A scene file naming `good.csv` and one OBJ/glTF species per `(mesh, texture)`.
+fn species_scene(dir: &Path, name: &str, species: &[(&str, &str)]) -> String {
+    write(
+        dir,
+        "good.csv",
+        format!("{HEADER}1,2,3,0,1,0\n4,5,6,0.5,1.2,0\n"),
+    );
+    let mut text = String::from("instances = \"good.csv\"\n");
+    for (i, (mesh, texture)) in species.iter().enumerate() {
+        text.push_str(&format!(
+            "[[species]]\nname = \"s{i}\"\nmesh = \"{mesh}\"\ntexture = \"{texture}\"\n"
+        ));
+    }
+    write(dir, name, text);
+    name.to_string()
+}
+
+#[test]
+fn species_textures_of_different_sizes() {
+    let dir = case_dir("texture-sizes");
+    write(&dir, "card.obj", GOOD_OBJ);
+    write(&dir, "t8.png", good_png(&dir, 8));
+    write(&dir, "t16.png", good_png(&dir, 16));
+    let scene = species_scene(
+        &dir,
+        "s.toml",
+        &[("card.obj", "t8.png"), ("card.obj", "t16.png")],
+    );
+    assert_rejected(
+        &dir,
+        &["render", "--scene", &scene],
+        &[
+            "error: s.toml: line 9, column 11, field species[1].texture: value \"16x16\"",
+            "texture \"t16.png\" is 16x16",
+            "species[0] texture \"t8.png\" is 8x8",
+            "square size",
+        ],
+    );
+}
+
+#[test]
+fn errors_in_named_files_show_the_chain() {
+    let dir = case_dir("chain");
+    write(&dir, "t.png", good_png(&dir, 8));
+    write(
+        &dir,
+        "oak.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 99/1\n",
+    );
+    let scene = species_scene(&dir, "forest.toml", &[("oak.obj", "t.png")]);
+    assert_rejected(
+        &dir,
+        &["render", "--scene", &scene],
+        &[
+            "error: forest.toml: line 4, column 8, field species[0].mesh = \"oak.obj\": oak.obj: line 5, face: value \"99/1\": vertex index out of range",
+        ],
+    );
+    write(&dir, "bad.csv", format!("{HEADER}1,2,3,0,-2,0\n"));
+    write(&dir, "csv.toml", "instances = \"bad.csv\"\n");
+    assert_rejected(
+        &dir,
+        &["scene", "info", "--scene", "csv.toml"],
+        &[
+            "error: csv.toml: line 1, column 13, field instances = \"bad.csv\": bad.csv: line 2, column scale: value \"-2\"",
+        ],
+    );
+}
+
+#[test]
+fn scene_files_naming_files_outside_their_folder() {
+    let dir = case_dir("outside");
+    let sub = dir.join("scene");
+    std::fs::create_dir_all(&sub).unwrap();
+    write(&dir, "card.obj", GOOD_OBJ);
+    write(&sub, "t.png", good_png(&dir, 8));
+    write(&sub, "good.csv", format!("{HEADER}1,2,3,0,1,0\n"));
+    write(
+        &sub,
+        "up.toml",
+        "instances = \"good.csv\"\n[[species]]\nname = \"a\"\nmesh = \"../card.obj\"\ntexture = \"t.png\"\n",
+    );
+    assert_rejected(
+        &dir,
+        &["render", "--scene", "scene/up.toml"],
+        &[
+            "scene/up.toml: line 4, column 8, field species[0].mesh: value \"../card.obj\": resolves to",
+            "outside the scene file's folder",
+            "--allow-outside-paths",
+        ],
+    );
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(dir.join("card.obj"), sub.join("link.obj")).unwrap();
+        write(
+            &sub,
+            "link.toml",
+            "instances = \"good.csv\"\n[[species]]\nname = \"a\"\nmesh = \"link.obj\"\ntexture = \"t.png\"\n",
+        );
+        assert_rejected(
+            &dir,
+            &["render", "--scene", "scene/link.toml"],
+            &[
+                "link.toml",
+                "species[0].mesh",
+                "\"link.obj\"",
+                "outside the scene file's folder",
+            ],
+        );
+    }
+    // With the flag, the same scene loads.
+    let output = Command::new(env!("CARGO_BIN_EXE_forestlod"))
+        .args([
+            "scene",
+            "info",
+            "--scene",
+            "scene/up.toml",
+            "--allow-outside-paths",
+        ])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
+
+#[test]
+fn scene_flag_given_a_csv_or_a_mesh_says_what_to_use() {
+    let dir = case_dir("scene-kind");
+    write(&dir, "trees.csv", format!("{HEADER}1,2,3,0,1,oak\n"));
+    write(&dir, "tree.obj", GOOD_OBJ);
+    assert_rejected(
+        &dir,
+        &["render", "--scene", "trees.csv"],
+        &["--scene: value \"trees.csv\"", "use --instances trees.csv"],
+    );
+    for mesh in ["tree.obj", "tree.gltf", "tree.glb"] {
+        assert_rejected(
+            &dir,
+            &["render", "--scene", mesh],
+            &[
+                &format!("--scene: value \"{mesh}\""),
+                "scene TOML file",
+                "instances = \"trees.csv\" | [[species]] | name = \"tree\"",
+                &format!("mesh = \"{mesh}\" | texture = \"tree.png\""),
+            ],
+        );
+    }
+}
+
+#[test]
+fn png_colour_types_are_named() {
+    let dir = case_dir("png-colour");
+    write(&dir, "card.obj", GOOD_OBJ);
+    for (i, (colour_type, shown)) in [
+        (2u8, "RGB, 8-bit, no transparency"),
+        (0, "grey, 8-bit, no transparency"),
+        (4, "grey+alpha, 8-bit"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let name = format!("c{colour_type}.png");
+        write(&dir, &name, patched_png(&dir, 4, 4, colour_type));
+        let scene = species_scene(&dir, &format!("s{i}.toml"), &[("card.obj", &name)]);
+        assert_rejected(
+            &dir,
+            &["render", "--scene", &scene],
+            &[
+                &format!("{name}: colour type: value \"{shown}\""),
+                "expected RGBA, 8-bit",
+            ],
+        );
+    }
+}
+
+#[test]
+fn bad_obj_polygons() {
+    let dir = case_dir("polygons");
+    write(&dir, "t.png", good_png(&dir, 8));
+    write(
+        &dir,
+        "bow.obj",
+        "v 0 0 0\nv 1 0 1\nv 1 0 0\nv 0 0 1\nvt 0 0\nf 1/1 2/1 3/1 4/1\n",
+    );
+    let scene = species_scene(&dir, "bow.toml", &[("bow.obj", "t.png")]);
+    assert_rejected(
+        &dir,
+        &["render", "--scene", &scene],
+        &[
+            "field species[0].mesh = \"bow.obj\": bow.obj: line 6, face: value \"4 vertices: 1 2 3 4\"",
+            "self-intersecting",
+        ],
+    );
+    write(
+        &dir,
+        "bent.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 1 1\nv 0 0 1\nvt 0 0\nf 1/1 2/1 3/1 4/1\n",
+    );
+    let scene = species_scene(&dir, "bent.toml", &[("bent.obj", "t.png")]);
+    assert_rejected(
+        &dir,
+        &["render", "--scene", &scene],
+        &["bent.obj: line 6, face", "non-planar"],
+    );
+}
+
+/// Standard base64 with padding.
+fn base64(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// A glTF 2.0 card (Y up, 2 m tall) with an embedded base64 buffer, `indices` and `mode`.
+fn gltf_card(indices: &[u16], mode: u32) -> String {
+    let positions: [[f32; 3]; 4] = [
+        [-1.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 2.0, 0.0],
+        [-1.0, 2.0, 0.0],
+    ];
+    let uvs: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
+    let mut buf: Vec<u8> = Vec::new();
+    for c in positions.iter().flatten().chain(uvs.iter().flatten()) {
+        buf.extend_from_slice(&c.to_le_bytes());
+    }
+    for i in indices {
+        buf.extend_from_slice(&i.to_le_bytes());
+    }
+    while !buf.len().is_multiple_of(4) {
+        buf.push(0);
+    }
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},
+"buffers":[{{"byteLength":{len},"uri":"data:application/octet-stream;base64,{b64}"}}],
+"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},{{"buffer":0,"byteOffset":80,"byteLength":{il}}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,0],"max":[1,2,0]}},{{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},{{"bufferView":2,"componentType":5123,"count":{ni},"type":"SCALAR"}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"mode":{mode}}}]}}],
+"nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#,
+        len = buf.len(),
+        b64 = base64(&buf),
+        il = indices.len() * 2,
+        ni = indices.len(),
+    )
+}
+
+#[test]
+fn bad_gltf_meshes() {
+    let dir = case_dir("gltf");
+    write(&dir, "t.png", good_png(&dir, 8));
+    write(&dir, "range.gltf", gltf_card(&[0, 1, 2, 0, 2, 9], 4));
+    let scene = species_scene(&dir, "range.toml", &[("range.gltf", "t.png")]);
+    assert_rejected(
+        &dir,
+        &["render", "--scene", &scene],
+        &[
+            "error: range.toml: line 4, column 8, field species[0].mesh = \"range.gltf\": range.gltf: mesh 0, primitive 0, indices element 5: value \"9\": index out of range (4 vertices)",
+        ],
+    );
+    write(&dir, "strip.gltf", gltf_card(&[0, 1, 2, 3], 5));
+    let scene = species_scene(&dir, "strip.toml", &[("strip.gltf", "t.png")]);
+    assert_rejected(
+        &dir,
+        &["render", "--scene", &scene],
+        &[
+            "strip.gltf: mesh 0, primitive 0, mode: value \"TRIANGLE_STRIP (5)\": expected a triangle list",
+        ],
+    );
+    write(&dir, "cut.gltf", &gltf_card(&[0, 1, 2], 4)[..200]);
+    let scene = species_scene(&dir, "cut.toml", &[("cut.gltf", "t.png")]);
+    assert_rejected(
+        &dir,
+        &["render", "--scene", &scene],
+        &["cut.gltf: file", "invalid glTF 2.0"],
+    );
+}
+
+#[test]
+fn a_good_gltf_scene_renders() {
+    let dir = case_dir("good-gltf");
+    write(&dir, "card.gltf", gltf_card(&[0, 1, 2, 0, 2, 3], 4));
+    write(&dir, "t.png", good_png(&dir, 8));
+    let scene = species_scene(&dir, "s.toml", &[("card.gltf", "t.png")]);
+    let out = dir.join("out");
+    let output = Command::new(env!("CARGO_BIN_EXE_forestlod"))
+        .args([
+            "render", "--scene", &scene, "--camera", "close", "--width", "32", "--height", "32",
+        ])
+        .args(["--texture-size", "16", "--out", out.to_str().unwrap()])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(out.join("color.png").is_file());
+}
+
+#[test]
+fn long_file_content_is_echoed_as_a_short_marked_excerpt() {
+    let dir = case_dir("excerpt");
+    let long = "q".repeat(10_000);
+    write(&dir, "long.csv", format!("{HEADER}1,2,3,0,1,{long}\n"));
+    assert_rejected(
+        &dir,
+        &["render", "--instances", "long.csv"],
+        &[
+            "long.csv: line 2, column species",
+            &format!("value \"{}…\"", "q".repeat(40)),
+        ],
+    );
+    write(&dir, "t.png", good_png(&dir, 8));
+    write(
+        &dir,
+        "long.obj",
+        format!("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/1 {long}\n"),
+    );
+    let scene = species_scene(&dir, "s.toml", &[("long.obj", "t.png")]);
+    assert_rejected(
+        &dir,
+        &["render", "--scene", &scene],
+        &[
+            "long.obj: line 5, face",
+            &format!("value \"{}…\"", "q".repeat(40)),
+        ],
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
 // Sweep flags that would be clamped, and the free camera
 // ---------------------------------------------------------------------------------------------
 

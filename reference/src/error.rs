@@ -1,44 +1,81 @@
 //! Errors for bad input: every one names the file, the position in it (line, field or index), the
 //! offending value and what was expected, on one line (brief: "Bad input").
+//!
+//! An error in a file reached through another (a mesh named by a scene file) carries a **chain**:
+//! the links that led to the file, outermost first, each `file: position = value`. It prints as
+//! `forest.toml: line 9, column 8, field species[1].mesh = "oak.obj": oak.obj: line 12, face:
+//! value "99/1": vertex index out of range ...`.
+//!
+//! No error echoes more than [`MAX_EXCERPT_CHARS`] characters of a file's content: values are cut
+//! and marked `…` ([`excerpt`]), and printed quoted with control characters escaped, so an error
+//! is always one line.
 
 use std::fmt;
+
+/// Most characters of a value (file content) an error echoes; longer ones are cut and marked `…`.
+pub const MAX_EXCERPT_CHARS: usize = 40;
 
 /// Bad input found while loading or validating a scene, an instance table, a mesh or a texture.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct InputError {
+    /// How the file was reached, outermost first: e.g. `forest.toml: line 9, column 8, field
+    /// species[1].mesh = "oak.obj"`. Empty for a file given directly.
+    pub chain: Vec<String>,
     /// File the value came from, or a pseudo-name such as `<built-in synthetic>` or `<params>`.
     pub file: String,
     /// Where in the file: `line 12, column scale`, `field meshes[2].texture`, `vertex 7`...
     pub position: String,
-    /// The offending value, formatted (truncated to 80 characters).
+    /// The offending value, formatted (cut to [`MAX_EXCERPT_CHARS`] characters, marked `…`).
     pub value: String,
     /// What was expected.
     pub reason: String,
 }
 
+/// `text` cut to [`MAX_EXCERPT_CHARS`] characters, with `…` appended when cut (not quoted).
+pub fn cut(text: &str) -> String {
+    if text.chars().count() > MAX_EXCERPT_CHARS {
+        text.chars().take(MAX_EXCERPT_CHARS).collect::<String>() + "…"
+    } else {
+        text.to_string()
+    }
+}
+
+/// `text` as an error shows file content: cut ([`cut`]), then quoted with control characters
+/// escaped (so it stays on one line).
+pub fn excerpt(text: &str) -> String {
+    format!("{:?}", cut(text))
+}
+
 impl InputError {
-    /// Builds an error; long values are cut to 80 characters with an ellipsis.
+    /// Builds an error; long values are cut to [`MAX_EXCERPT_CHARS`] characters, marked `…`.
     pub fn new(
         file: impl Into<String>,
         position: impl Into<String>,
         value: impl fmt::Display,
         reason: impl Into<String>,
     ) -> Self {
-        let mut value = value.to_string();
-        if value.chars().count() > 80 {
-            value = value.chars().take(77).collect::<String>() + "...";
-        }
         Self {
+            chain: Vec::new(),
             file: file.into(),
             position: position.into(),
-            value,
+            value: cut(&value.to_string()),
             reason: reason.into(),
         }
+    }
+
+    /// The same error reached through `link` (e.g. `scene.toml: line 4, column 8, field
+    /// species[0].mesh = "oak.obj"`), which becomes the chain's outermost link.
+    pub fn within(mut self, link: impl Into<String>) -> Self {
+        self.chain.insert(0, link.into());
+        self
     }
 }
 
 impl fmt::Display for InputError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for link in &self.chain {
+            write!(f, "{link}: ")?;
+        }
         write!(
             f,
             "{}: {}: value {:?}: {}",
@@ -52,5 +89,29 @@ impl std::error::Error for InputError {}
 impl From<forestlod_shared::ParamError> for InputError {
     fn from(e: forestlod_shared::ParamError) -> Self {
         InputError::new("<params>", format!("field {}", e.field), e.value, e.reason)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn values_are_cut_and_marked_and_chains_print_outermost_first() {
+        let long = "x".repeat(100);
+        let e = InputError::new("a.obj", "line 3", &long, "bad");
+        assert_eq!(e.value, format!("{}…", "x".repeat(MAX_EXCERPT_CHARS)));
+        let e = e
+            .within("s.toml: field species[0].mesh = \"a.obj\"")
+            .within("outer");
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "outer: s.toml: field species[0].mesh = \"a.obj\": a.obj: line 3: value \"{}…\": bad",
+                "x".repeat(MAX_EXCERPT_CHARS)
+            )
+        );
+        assert_eq!(excerpt("a\nb"), "\"a\\nb\"");
+        assert_eq!(cut("short"), "short");
     }
 }

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use forestlod_reference::scene::Terrain;
 use forestlod_reference::scene::builtin::{self, Species};
 use forestlod_reference::scene::load::{
-    UpAxis, decode_png_texture, load_instances_csv, load_instances_with_builtin_species,
-    load_obj_mesh, load_path, load_scene_file, parse_instances_csv, parse_obj_mesh,
-    parse_scene_file,
+    LoadOptions, UpAxis, decode_png_texture, load_instances_csv,
+    load_instances_with_builtin_species, load_obj_mesh, load_path, load_path_with, load_scene_file,
+    load_scene_file_with, parse_instances_csv, parse_obj_mesh, parse_scene_file,
 };
 use forestlod_reference::texture::Rgba8Image;
 use proptest::prelude::*;
@@ -79,7 +79,12 @@ fn assert_mentions(e: &str, parts: &[&str]) {
 fn scene_file_with_builtin_and_obj_species_loads() {
     let dir = temp_dir("good");
     write(&dir, "card.obj", CARD_TREE_Y_UP);
-    write(&dir, "card.png", rgba_png(16, 16));
+    // Every species texture has species 0's size: the built-in spruce's.
+    write(
+        &dir,
+        "card.png",
+        rgba_png(builtin::TEXTURE_SIZE, builtin::TEXTURE_SIZE),
+    );
     write(
         &dir,
         "trees.csv",
@@ -113,7 +118,7 @@ fn scene_file_with_builtin_and_obj_species_loads() {
     assert_eq!(scene.meshes[1].indices.len(), 12);
     // Y-up OBJ: the card's top (OBJ y = 8) becomes z = 8.
     assert!(scene.meshes[1].positions.iter().any(|p| p[2] == 8.0));
-    assert_eq!(scene.meshes[1].texture.width, 16);
+    assert_eq!(scene.meshes[1].texture.width, builtin::TEXTURE_SIZE);
     // Default origin: centre of the bounding box, rounded to whole metres.
     assert_eq!(scene.origin, [500050.0, 5300025.0, 205.0]);
     assert_eq!(scene.instances.len(), 3);
@@ -356,7 +361,7 @@ fn bad_scene_files_give_errors_naming_file_line_field_and_value() {
         (
             "rgb.toml",
             "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"card.obj\"\ntexture = \"rgb.png\"\n".into(),
-            vec!["rgb.png", "colour type", "Rgb8"],
+            vec!["rgb.png", "colour type", "value \"RGB, 8-bit, no transparency\"", "expected RGBA, 8-bit"],
         ),
         (
             "odd.toml",
@@ -376,7 +381,13 @@ fn bad_scene_files_give_errors_naming_file_line_field_and_value() {
         (
             "obj_index.toml",
             "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"bad_index.obj\"\ntexture = \"rgba.png\"\n".into(),
-            vec!["bad_index.obj", "line 5", "9/1", "out of range"],
+            vec![
+                "obj_index.toml: line 4, column 8, field species[0].mesh = \"bad_index.obj\": ",
+                "bad_index.obj",
+                "line 5",
+                "9/1",
+                "out of range",
+            ],
         ),
         (
             "both.toml",
@@ -816,4 +827,480 @@ proptest! {
             Err(e) => prop_assert!(!e.to_string().contains('\n'), "one-line error: {e}"),
         }
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Issue 10 ("failures that fail"): texture sizes, error chains, path confinement, PNG colour
+// types, concave polygons, glTF meshes.
+// ---------------------------------------------------------------------------------------------
+
+/// A scene file with one OBJ species per `(mesh, texture)`, instances in `t.csv`.
+fn species_scene(dir: &Path, name: &str, species: &[(&str, &str)]) -> PathBuf {
+    let mut text = String::from("instances = \"t.csv\"\n");
+    for (i, (mesh, texture)) in species.iter().enumerate() {
+        text.push_str(&format!(
+            "[[species]]\nname = \"s{i}\"\nmesh = \"{mesh}\"\ntexture = \"{texture}\"\n"
+        ));
+    }
+    write(dir, "t.csv", format!("{HEADER}1,2,3,0,1,0\n"));
+    write(dir, name, text)
+}
+
+#[test]
+fn species_textures_must_share_species_0s_size() {
+    let dir = temp_dir("texsize");
+    write(&dir, "card.obj", CARD_TREE_Y_UP);
+    write(&dir, "small.png", rgba_png(8, 8));
+    write(&dir, "big.png", rgba_png(16, 16));
+    let ok = species_scene(
+        &dir,
+        "ok.toml",
+        &[("card.obj", "small.png"), ("card.obj", "small.png")],
+    );
+    assert_eq!(load_scene_file(&ok).unwrap().meshes.len(), 2);
+    let bad = species_scene(
+        &dir,
+        "bad.toml",
+        &[("card.obj", "small.png"), ("card.obj", "big.png")],
+    );
+    let e = load_scene_file(&bad).unwrap_err().to_string();
+    assert_mentions(
+        &e,
+        &[
+            "bad.toml",
+            "line 9",
+            "species[1].texture",
+            "\"big.png\" is 16x16",
+            "species[0] texture \"small.png\" is 8x8",
+            "square size",
+        ],
+    );
+    // A built-in species (128²) beside a smaller user texture.
+    write(
+        &dir,
+        "mixed.toml",
+        "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nbuiltin = \"oak\"\n[[species]]\nname = \"b\"\nmesh = \"card.obj\"\ntexture = \"small.png\"\n",
+    );
+    let e = load_scene_file(&dir.join("mixed.toml"))
+        .unwrap_err()
+        .to_string();
+    assert_mentions(
+        &e,
+        &[
+            "mixed.toml",
+            "species[1].texture",
+            "8x8",
+            "built-in \"oak\" is 128x128",
+        ],
+    );
+}
+
+#[test]
+fn errors_in_named_files_print_the_chain_from_the_scene_file() {
+    let dir = temp_dir("chain");
+    write(&dir, "t.png", rgba_png(8, 8));
+    write(
+        &dir,
+        "bad.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 99/1\n",
+    );
+    let scene = species_scene(&dir, "forest.toml", &[("bad.obj", "t.png")]);
+    let e = load_scene_file(&scene).unwrap_err();
+    assert_eq!(e.chain.len(), 1, "{e}");
+    let shown = e.to_string();
+    let scene_label = scene.display().to_string();
+    assert!(
+        shown.starts_with(&format!(
+            "{scene_label}: line 4, column 8, field species[0].mesh = \"bad.obj\": "
+        )),
+        "{shown}"
+    );
+    assert_mentions(
+        &shown,
+        &["bad.obj: line 5, face: value \"99/1\"", "out of range"],
+    );
+    // The texture's chain, the CSV's chain.
+    write(
+        &dir,
+        "rgb.png",
+        png(image::ExtendedColorType::Rgb8, 3, 8, 8),
+    );
+    write(&dir, "card.obj", CARD_TREE_Y_UP);
+    let scene = species_scene(&dir, "tex.toml", &[("card.obj", "rgb.png")]);
+    let e = load_scene_file(&scene).unwrap_err().to_string();
+    assert_mentions(
+        &e,
+        &[
+            "field species[0].texture = \"rgb.png\": ",
+            "rgb.png: colour type",
+        ],
+    );
+    write(&dir, "nan.csv", format!("{HEADER}1,2,nan,0,1,0\n"));
+    write(&dir, "csv.toml", "instances = \"nan.csv\"\n");
+    let e = load_scene_file(&dir.join("csv.toml"))
+        .unwrap_err()
+        .to_string();
+    assert_mentions(
+        &e,
+        &[
+            "csv.toml: line 1, column 13, field instances = \"nan.csv\": ",
+            "nan.csv: line 2, column z",
+        ],
+    );
+}
+
+#[test]
+fn scene_files_may_name_only_files_under_their_folder_unless_allowed() {
+    let dir = temp_dir("confine");
+    let sub = dir.join("scene");
+    std::fs::create_dir_all(&sub).unwrap();
+    write(&dir, "card.obj", CARD_TREE_Y_UP);
+    write(&dir, "t.png", rgba_png(8, 8));
+    write(&sub, "t.png", rgba_png(8, 8));
+    write(&dir, "outside.csv", format!("{HEADER}1,2,3,0,1,0\n"));
+    write(&sub, "t.csv", format!("{HEADER}1,2,3,0,1,0\n"));
+    let allow = LoadOptions {
+        allow_outside_paths: true,
+    };
+    // `..` out of the folder.
+    let scene = write(
+        &sub,
+        "up.toml",
+        "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"../card.obj\"\ntexture = \"t.png\"\n",
+    );
+    let e = load_scene_file(&scene).unwrap_err().to_string();
+    assert_mentions(
+        &e,
+        &[
+            "up.toml",
+            "line 4",
+            "species[0].mesh",
+            "\"../card.obj\"",
+            "outside the scene file's folder",
+            "--allow-outside-paths",
+        ],
+    );
+    assert!(load_scene_file_with(&scene, &allow).is_ok());
+    assert!(load_path_with(&scene, &allow).is_ok());
+    // An absolute path, and the instance table.
+    let abs = dir.join("outside.csv").display().to_string();
+    let scene = write(&sub, "abs.toml", format!("instances = {abs:?}\n"));
+    let e = load_scene_file(&scene).unwrap_err().to_string();
+    assert_mentions(
+        &e,
+        &[
+            "abs.toml",
+            "field instances",
+            "outside the scene file's folder",
+        ],
+    );
+    assert!(load_scene_file_with(&scene, &allow).is_ok());
+    // A symbolic link inside the folder that points out of it.
+    #[cfg(unix)]
+    {
+        let _ = std::fs::remove_file(sub.join("link.obj"));
+        std::os::unix::fs::symlink(dir.join("card.obj"), sub.join("link.obj")).unwrap();
+        let scene = write(
+            &sub,
+            "link.toml",
+            "instances = \"t.csv\"\n[[species]]\nname = \"a\"\nmesh = \"link.obj\"\ntexture = \"t.png\"\n",
+        );
+        let e = load_scene_file(&scene).unwrap_err().to_string();
+        assert_mentions(
+            &e,
+            &[
+                "link.toml",
+                "\"link.obj\"",
+                "outside the scene file's folder",
+            ],
+        );
+        assert!(load_scene_file_with(&scene, &allow).is_ok());
+    }
+    // Inside, through `..` that comes back: fine.
+    let scene = write(&sub, "back.toml", "instances = \"../scene/t.csv\"\n");
+    assert!(load_scene_file(&scene).is_ok());
+}
+
+#[test]
+fn png_colour_types_are_named_as_the_file_has_them() {
+    for (color, channels, shown) in [
+        (
+            image::ExtendedColorType::Rgb8,
+            3,
+            "RGB, 8-bit, no transparency",
+        ),
+        (
+            image::ExtendedColorType::L8,
+            1,
+            "grey, 8-bit, no transparency",
+        ),
+        (image::ExtendedColorType::La8, 2, "grey+alpha, 8-bit"),
+        (image::ExtendedColorType::Rgba16, 8, "RGBA, 16-bit"),
+        (
+            image::ExtendedColorType::L16,
+            2,
+            "grey, 16-bit, no transparency",
+        ),
+    ] {
+        let e = decode_png_texture(&png(color, channels, 4, 4), "t.png")
+            .unwrap_err()
+            .to_string();
+        assert_mentions(
+            &e,
+            &[
+                "t.png: colour type",
+                &format!("value \"{shown}\""),
+                "expected RGBA, 8-bit",
+            ],
+        );
+        assert!(!e.contains("Rgb") && !e.contains("L8"), "{e}");
+    }
+}
+
+#[test]
+fn concave_polygons_are_ear_clipped_and_bad_ones_rejected() {
+    let tex = || Rgba8Image::new(4, 4, [1, 2, 3, 255]);
+    // An L-shaped hexagon (area 3) in the x/z plane; a fan from vertex 0 would leave it.
+    let l_shape =
+        "v 0 0 0\nv 2 0 0\nv 2 0 1\nv 1 0 1\nv 1 0 2\nv 0 0 2\nvt 0 0\nf 1/1 2/1 3/1 4/1 5/1 6/1\n";
+    let m = parse_obj_mesh("l", l_shape.as_bytes(), "l.obj", UpAxis::Z, tex()).unwrap();
+    assert_eq!(m.indices.len(), 12);
+    let area: f32 = m
+        .indices
+        .chunks(3)
+        .map(|t| {
+            let [a, b, c] = [0, 1, 2].map(|k| m.positions[t[k] as usize]);
+            // Signed area in the x/z plane: the polygon's winding is kept.
+            0.5 * ((b[0] - a[0]) * (c[2] - a[2]) - (c[0] - a[0]) * (b[2] - a[2]))
+        })
+        .sum();
+    assert!((area - 3.0).abs() < 1e-5, "area {area}");
+    // Every triangle lies inside the L: its centroid is not in the missing square (1,2)x(1,2).
+    for t in m.indices.chunks(3) {
+        let c = [0, 2].map(|k| t.iter().map(|&i| m.positions[i as usize][k]).sum::<f32>() / 3.0);
+        assert!(
+            !(c[0] > 1.0 && c[1] > 1.0),
+            "triangle {t:?} outside the polygon"
+        );
+    }
+    // A convex quad keeps the fan (0,1,2),(0,2,3), exactly as before.
+    let quad = "v -1 0 0\nv 1 0 0\nv 1 0 2\nv -1 0 2\nvt 0 0\nf 1/1 2/1 3/1 4/1\n";
+    let m = parse_obj_mesh("q", quad.as_bytes(), "q.obj", UpAxis::Z, tex()).unwrap();
+    assert_eq!(m.indices, [0, 1, 2, 0, 2, 3]);
+    let bad = |text: &str| {
+        parse_obj_mesh("b", text.as_bytes(), "b.obj", UpAxis::Z, tex())
+            .unwrap_err()
+            .to_string()
+    };
+    let e = bad("v 0 0 0\nv 1 0 1\nv 1 0 0\nv 0 0 1\nvt 0 0\nf 1/1 2/1 3/1 4/1\n");
+    assert_mentions(&e, &["b.obj", "line 6, face", "self-intersecting"]);
+    let e = bad("v 0 0 0\nv 1 0 0\nv 1 1 1\nv 0 0 1\nvt 0 0\n# c\nf 1/1 2/1 3/1 4/1\n");
+    assert_mentions(&e, &["line 7, face", "non-planar"]);
+    let e = bad("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nvt 0 0\nf 1/1 2/1 3/1 4/1\n");
+    assert_mentions(&e, &["line 6, face", "zero-area"]);
+}
+
+/// Standard base64 with padding.
+fn base64(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// A glTF 2.0 JSON file with one embedded base64 buffer: `positions` (float VEC3), `uvs` (float
+/// VEC2), `indices` (unsigned short), primitive `mode`.
+fn gltf_json(positions: &[[f32; 3]], uvs: &[[f32; 2]], indices: &[u16], mode: u32) -> String {
+    let mut buf: Vec<u8> = Vec::new();
+    for p in positions {
+        for c in p {
+            buf.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    let uv_at = buf.len();
+    for t in uvs {
+        for c in t {
+            buf.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    let index_at = buf.len();
+    for i in indices {
+        buf.extend_from_slice(&i.to_le_bytes());
+    }
+    while !buf.len().is_multiple_of(4) {
+        buf.push(0);
+    }
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},
+"buffers":[{{"byteLength":{len},"uri":"data:application/octet-stream;base64,{b64}"}}],
+"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{pl}}},{{"buffer":0,"byteOffset":{uv_at},"byteLength":{tl}}},{{"buffer":0,"byteOffset":{index_at},"byteLength":{il}}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":{n},"type":"VEC3","min":[-1,-1,-1],"max":[1,1,1]}},{{"bufferView":1,"componentType":5126,"count":{nt},"type":"VEC2"}},{{"bufferView":2,"componentType":5123,"count":{ni},"type":"SCALAR"}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"mode":{mode}}}]}}],
+"nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#,
+        len = buf.len(),
+        b64 = base64(&buf),
+        pl = uv_at,
+        tl = index_at - uv_at,
+        il = indices.len() * 2,
+        n = positions.len(),
+        nt = uvs.len(),
+        ni = indices.len(),
+    )
+}
+
+/// A card, Y up as glTF has it: 2 m tall.
+const CARD_POSITIONS: [[f32; 3]; 4] = [
+    [-1.0, 0.0, 0.0],
+    [1.0, 0.0, 0.0],
+    [1.0, 2.0, 0.0],
+    [-1.0, 2.0, 0.0],
+];
+const CARD_UVS: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
+
+#[test]
+fn gltf_meshes_load_and_bad_ones_are_rejected() {
+    let dir = temp_dir("gltf");
+    write(&dir, "t.png", rgba_png(8, 8));
+    write(
+        &dir,
+        "card.gltf",
+        gltf_json(&CARD_POSITIONS, &CARD_UVS, &[0, 1, 2, 0, 2, 3], 4),
+    );
+    let scene = species_scene(&dir, "s.toml", &[("card.gltf", "t.png")]);
+    let s = load_scene_file(&scene).unwrap();
+    let m = &s.meshes[0];
+    assert_eq!(m.indices, [0, 1, 2, 0, 2, 3]);
+    // glTF is Y up: (1, 2, 0) becomes (1, 0, 2); UVs are top-left already.
+    assert_eq!(m.positions[2], [1.0, 0.0, 2.0]);
+    assert_eq!(m.uvs[2], [1.0, 0.0]);
+    // The same mesh through a .glb holding the JSON and a binary chunk.
+    let json = gltf_json(&CARD_POSITIONS, &CARD_UVS, &[0, 1, 2, 0, 2, 3], 4);
+    let mut json_bytes = json.into_bytes();
+    while !json_bytes.len().is_multiple_of(4) {
+        json_bytes.push(b' ');
+    }
+    let mut glb = b"glTF".to_vec();
+    glb.extend_from_slice(&2u32.to_le_bytes());
+    glb.extend_from_slice(&((12 + 8 + json_bytes.len()) as u32).to_le_bytes());
+    glb.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
+    glb.extend_from_slice(b"JSON");
+    glb.extend_from_slice(&json_bytes);
+    write(&dir, "card.glb", glb);
+    let scene = species_scene(&dir, "glb.toml", &[("card.glb", "t.png")]);
+    assert_eq!(
+        load_scene_file(&scene).unwrap().meshes[0].positions,
+        m.positions
+    );
+
+    let cases: Vec<(&str, String, Vec<&str>)> = vec![
+        (
+            "range.gltf",
+            gltf_json(&CARD_POSITIONS, &CARD_UVS, &[0, 1, 9], 4),
+            vec![
+                "range.gltf: mesh 0, primitive 0, indices element 2: value \"9\"",
+                "out of range (4 vertices)",
+            ],
+        ),
+        (
+            "lines.gltf",
+            gltf_json(&CARD_POSITIONS, &CARD_UVS, &[0, 1, 2], 1),
+            vec![
+                "lines.gltf: mesh 0, primitive 0, mode: value \"LINES (1)\"",
+                "triangle list",
+            ],
+        ),
+        (
+            "nan.gltf",
+            gltf_json(
+                &[[0.0, f32::NAN, 0.0], [1.0, 0.0, 0.0], [1.0, 2.0, 0.0]],
+                &CARD_UVS[..3],
+                &[0, 1, 2],
+                4,
+            ),
+            vec![
+                "nan.gltf: mesh 0, primitive 0, POSITION element 0",
+                "NaN",
+                "finite",
+            ],
+        ),
+        (
+            "uvs.gltf",
+            gltf_json(&CARD_POSITIONS, &CARD_UVS[..3], &[0, 1, 2], 4),
+            vec![
+                "uvs.gltf",
+                "TEXCOORD_0",
+                "3 texture coordinates for 4 vertices",
+            ],
+        ),
+        (
+            "json.gltf",
+            "{\"asset\": {\"version\": \"2.0\"}, \"meshes\": [".into(),
+            vec!["json.gltf: file", "invalid glTF 2.0"],
+        ),
+        (
+            "nomesh.gltf",
+            "{\"asset\": {\"version\": \"2.0\"}}".into(),
+            vec![
+                "nomesh.gltf: meshes: value \"0 meshes\"",
+                "exactly one mesh",
+            ],
+        ),
+    ];
+    for (name, text, expect) in &cases {
+        write(&dir, name, text);
+        let scene = species_scene(&dir, &format!("{name}.toml"), &[(name, "t.png")]);
+        let e = load_scene_file(&scene).unwrap_err().to_string();
+        assert_mentions(&e, &[&format!("field species[0].mesh = \"{name}\": ")]);
+        assert_mentions(&e, expect);
+        assert_eq!(e.lines().count(), 1, "{e}");
+    }
+    // A mesh file where a scene is expected says what to write.
+    let e = load_path(&dir.join("card.gltf")).unwrap_err().to_string();
+    assert_mentions(&e, &["card.gltf", "[[species]]", "mesh = "]);
+}
+
+#[test]
+fn errors_echo_at_most_a_short_marked_excerpt_of_file_content() {
+    let dir = temp_dir("excerpt");
+    let long = "z".repeat(5000);
+    write(&dir, "long.csv", format!("{HEADER}1,2,3,0,1,{long}\n"));
+    let e = load_instances_with_builtin_species(&dir.join("long.csv"))
+        .unwrap_err()
+        .to_string();
+    assert_mentions(&e, &[&format!("\"{}…\"", "z".repeat(40))]);
+    assert!(!e.contains(&"z".repeat(41)), "{e}");
+    write(
+        &dir,
+        "long.toml",
+        format!("instances = \"t.csv\"\norigin = \"{long}\"\n"),
+    );
+    let e = load_scene_file(&dir.join("long.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(!e.contains(&"z".repeat(41)) && e.contains('…'), "{e}");
+    write(&dir, "long.obj", format!("v 1 2 {long}\n"));
+    let e = parse_obj_mesh(
+        "t",
+        format!("o {long}\nv 1 2 3\n").as_bytes(),
+        "o.obj",
+        UpAxis::Z,
+        Rgba8Image::new(1, 1, [0; 4]),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(!e.contains(&"z".repeat(41)), "{e}");
 }

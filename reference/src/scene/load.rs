@@ -14,9 +14,18 @@
 //!   differences to it, so every `f32` stays small. Default origin: the centre of the instances'
 //!   bounding box rounded to whole metres.
 //! - **Meshes** are < 20-triangle trees (E§3.1) with one texture: a built-in procedural species
-//!   ([`super::builtin::Species`]) or an OBJ file (loaded by `tobj`, triangulated, all objects
-//!   merged) with an 8-bit RGBA PNG. OBJ texture coordinates have `v` up; they are flipped to the
-//!   top-left convention of [`TreeMesh::uvs`]. glTF is not supported yet.
+//!   ([`super::builtin::Species`]), an OBJ file (loaded by `tobj`, polygons triangulated in their
+//!   plane by [`triangulate_polygon`], all objects merged) or a glTF 2.0 file (`.gltf`/`.glb`,
+//!   [`parse_gltf_mesh`]), with an 8-bit RGBA PNG. OBJ texture coordinates have `v` up; they are
+//!   flipped to the top-left convention of [`TreeMesh::uvs`] (glTF's already are top-left).
+//! - **One texture size**: every species texture must have species 0's square size (the GPU draw
+//!   stage samples all mesh textures from one array texture, `gpu/src/draw.rs`
+//!   `upload_texture_array`); built-in species are [`super::builtin::TEXTURE_SIZE`]².
+//! - **Files under the scene's folder**: a scene file may only name files under its own folder
+//!   (after resolving `..` and symbolic links) unless [`LoadOptions::allow_outside_paths`].
+//! - **Error chains**: an error in a file named by the scene file is reported through the naming
+//!   field ([`InputError::within`]): `forest.toml: line 4, column 8, field species[0].mesh =
+//!   "oak.obj": oak.obj: line 5, face: value "99/1": ...`.
 //!
 //! # Scene file (TOML)
 //! ```toml
@@ -35,9 +44,10 @@
 //!
 //! [[species]]
 //! name = "oak"
-//! mesh = "oak.obj"                       # ... or an OBJ file and an RGBA PNG,
+//! mesh = "oak.obj"                       # ... or an OBJ/glTF file and an RGBA PNG,
 //! texture = "oak.png"                    # relative to the scene file
-//! up = "y"                               # optional: the OBJ's up axis, "z" (default) or "y"
+//! up = "y"                               # optional: the mesh's up axis, "z" or "y"
+//!                                        # (default: "z" for OBJ, "y" for glTF)
 //! ```
 //! Unknown keys are errors. Species order gives the mesh indices.
 //!
@@ -49,15 +59,16 @@
 
 use std::collections::HashMap;
 use std::io::{BufRead, Cursor, Read};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use image::ImageDecoder;
 use serde::Deserialize;
 use toml::Spanned;
 
 use super::builtin::{Species, species_meshes};
-use super::{Instance, Scene, Terrain, TreeMesh};
+use super::{Instance, MAX_TREE_TRIANGLES, Scene, Terrain, TreeMesh};
 use crate::InputError;
+use crate::error::{cut, excerpt};
 use crate::texture::Rgba8Image;
 
 /// Most rows an instance table may have.
@@ -183,21 +194,138 @@ struct SpeciesFile {
     builtin: Option<Spanned<String>>,
     mesh: Option<Spanned<String>>,
     texture: Option<Spanned<String>>,
-    #[serde(default)]
-    up: UpAxis,
+    up: Option<UpAxis>,
+}
+
+/// How a scene file may name other files.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Allow the files a scene file names (instances, meshes, textures, glTF buffers) to lie
+    /// outside the scene file's folder (after resolving `..` and symbolic links). Off by default:
+    /// a scene file from elsewhere cannot make the loader read arbitrary files (the CLI's
+    /// `--allow-outside-paths`).
+    pub allow_outside_paths: bool,
 }
 
 /// Loads a scene file (module docs: TOML scene file, CSV instances, meshes) and everything it
-/// names, validated.
+/// names, validated, with the default [`LoadOptions`] (every named file under the scene's folder).
 pub fn load_scene_file(path: &Path) -> Result<Scene, InputError> {
+    load_scene_file_with(path, &LoadOptions::default())
+}
+
+/// [`load_scene_file`] with `options`.
+pub fn load_scene_file_with(path: &Path, options: &LoadOptions) -> Result<Scene, InputError> {
     let bytes = read_limited(path, MAX_SCENE_FILE_BYTES)?;
-    parse_scene_file(&bytes, path)
+    parse_scene_file_with(&bytes, path, options)
 }
 
 /// Parses `bytes` as the contents of the scene file at `path`; `path` gives the error label, the
 /// default name (its stem) and the directory that relative paths start from. Loads the files it
-/// names.
+/// names, with the default [`LoadOptions`].
 pub fn parse_scene_file(bytes: &[u8], path: &Path) -> Result<Scene, InputError> {
+    parse_scene_file_with(bytes, path, &LoadOptions::default())
+}
+
+/// The scene file's folder as relative paths start from it (empty for a bare file name, so that
+/// named files keep the names they were given in errors).
+fn scene_folder(path: &Path) -> &Path {
+    path.parent().unwrap_or(Path::new(""))
+}
+
+/// Where a path named in a scene file points: `base.join(named)`, checked to lie under `base`
+/// (after resolving `..` and symbolic links) unless `options` allow otherwise. A path that does
+/// not resolve (a missing file) is returned as is: reading it reports it. `link` is the naming
+/// field (`scene.toml: line 2, column 13, field instances`).
+fn resolve_named(
+    base: &Path,
+    named: &str,
+    options: &LoadOptions,
+    file: &str,
+    position: &str,
+) -> Result<PathBuf, InputError> {
+    confine(base, base.join(named), named, options, file, position)
+}
+
+/// `path` (written `named` in `file` at `position`) if it lies under `root` after resolving `..`
+/// and symbolic links, or `options` allow files outside; a path that does not resolve is
+/// returned as is (reading it reports it).
+fn confine(
+    root: &Path,
+    path: PathBuf,
+    named: &str,
+    options: &LoadOptions,
+    file: &str,
+    position: &str,
+) -> Result<PathBuf, InputError> {
+    if options.allow_outside_paths {
+        return Ok(path);
+    }
+    let root = if root.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        root
+    };
+    if let (Ok(root), Ok(target)) = (root.canonicalize(), path.canonicalize())
+        && !target.starts_with(&root)
+    {
+        return Err(InputError::new(
+            file,
+            position,
+            named,
+            format!(
+                "resolves to {}, outside the scene file's folder {}: move the file under that folder, or allow it (--allow-outside-paths)",
+                target.display(),
+                root.display()
+            ),
+        ));
+    }
+    Ok(path)
+}
+
+/// Shortens every double-quoted part of a parser's message to [`crate::error::MAX_EXCERPT_CHARS`]
+/// characters (marked `…`) and puts it on one line: messages such as TOML's `invalid type: string
+/// "..."` quote the file's content.
+fn cut_quoted(message: &str) -> String {
+    let mut out = String::new();
+    let mut inside = false;
+    let mut escaped = false;
+    let mut count = 0;
+    for c in message.trim().chars() {
+        let c = if c == '\n' || c == '\r' { ' ' } else { c };
+        if !inside {
+            out.push(c);
+            if c == '"' {
+                inside = true;
+                count = 0;
+            }
+            continue;
+        }
+        if !escaped && c == '"' {
+            if count > crate::error::MAX_EXCERPT_CHARS {
+                out.push('…');
+            }
+            out.push(c);
+            inside = false;
+            continue;
+        }
+        escaped = !escaped && c == '\\';
+        count += 1;
+        if count <= crate::error::MAX_EXCERPT_CHARS {
+            out.push(c);
+        }
+    }
+    if inside && count > crate::error::MAX_EXCERPT_CHARS {
+        out.push('…');
+    }
+    out
+}
+
+/// [`parse_scene_file`] with `options`.
+pub fn parse_scene_file_with(
+    bytes: &[u8],
+    path: &Path,
+    options: &LoadOptions,
+) -> Result<Scene, InputError> {
     let file = label(path);
     let text = std::str::from_utf8(bytes).map_err(|e| {
         InputError::new(
@@ -232,10 +360,10 @@ pub fn parse_scene_file(bytes: &[u8], path: &Path) -> Result<Scene, InputError> 
             &file,
             position,
             value,
-            format!("invalid scene file: {}", e.message().trim()),
+            format!("invalid scene file: {}", cut_quoted(e.message())),
         )
     })?;
-    let base = path.parent().unwrap_or(Path::new("."));
+    let base = scene_folder(path);
 
     let name = match &parsed.name {
         Some(n) => {
@@ -280,20 +408,31 @@ pub fn parse_scene_file(bytes: &[u8], path: &Path) -> Result<Scene, InputError> 
 
     let meshes = match &parsed.species {
         None => species_meshes(),
-        Some(list) => load_species(list, &file, text, base)?,
+        Some(list) => load_species(list, &file, text, base, options)?,
     };
     let names: Vec<String> = meshes.iter().map(|m| m.name.clone()).collect();
 
-    let instances_path = base.join(parsed.instances.get_ref());
+    let instances_at = at(parsed.instances.span(), "instances");
     if parsed.instances.get_ref().trim().is_empty() {
         return Err(InputError::new(
             &file,
-            at(parsed.instances.span(), "instances"),
+            instances_at,
             parsed.instances.get_ref(),
             "expected the path of a CSV instance table",
         ));
     }
-    let rows = load_instances_csv(&instances_path, &names)?;
+    let instances_path = resolve_named(
+        base,
+        parsed.instances.get_ref(),
+        options,
+        &file,
+        &instances_at,
+    )?;
+    let link = format!(
+        "{file}: {instances_at} = {}",
+        excerpt(parsed.instances.get_ref())
+    );
+    let rows = load_instances_csv(&instances_path, &names).map_err(|e| e.within(&link))?;
     validated(
         build_scene(
             name,
@@ -302,7 +441,8 @@ pub fn parse_scene_file(bytes: &[u8], path: &Path) -> Result<Scene, InputError> 
             origin,
             terrain,
             &label(&instances_path),
-        )?,
+        )
+        .map_err(|e| e.within(&link))?,
         &file,
     )
 }
@@ -398,6 +538,7 @@ fn load_species(
     file: &str,
     text: &str,
     base: &Path,
+    options: &LoadOptions,
 ) -> Result<Vec<TreeMesh>, InputError> {
     let at = |span: std::ops::Range<usize>, field: String| {
         let (line, col) = line_col(text, span.start);
@@ -420,6 +561,9 @@ fn load_species(
         ));
     }
     let mut meshes: Vec<TreeMesh> = Vec::with_capacity(list.len());
+    // Where each mesh's texture came from, for the texture-size rule: (position of the naming
+    // field, description such as `texture "a.png"` or `built-in "spruce"`).
+    let mut texture_sources: Vec<(String, String)> = Vec::with_capacity(list.len());
     for (i, entry) in list.iter().enumerate() {
         let s = entry.get_ref();
         let name = s.name.get_ref();
@@ -439,7 +583,7 @@ fn load_species(
                 "duplicate species name",
             ));
         }
-        let mesh = match (&s.builtin, &s.mesh, &s.texture) {
+        let (mesh, source) = match (&s.builtin, &s.mesh, &s.texture) {
             (Some(b), None, None) => {
                 let species = Species::from_name(b.get_ref()).ok_or_else(|| {
                     InputError::new(
@@ -454,10 +598,56 @@ fn load_species(
                 })?;
                 let mut mesh = species.mesh();
                 mesh.name = name.clone();
-                mesh
+                let source = (
+                    at(b.span(), format!("species[{i}].builtin")),
+                    format!("built-in {}", excerpt(b.get_ref())),
+                );
+                (mesh, source)
             }
             (None, Some(m), Some(t)) => {
-                load_obj_mesh(name, &base.join(m.get_ref()), &base.join(t.get_ref()), s.up)?
+                let mesh_at = at(m.span(), format!("species[{i}].mesh"));
+                let texture_at = at(t.span(), format!("species[{i}].texture"));
+                let kind = MeshKind::of(Path::new(m.get_ref())).ok_or_else(|| {
+                    InputError::new(
+                        file,
+                        &mesh_at,
+                        m.get_ref(),
+                        "expected a mesh file ending in .obj, .gltf or .glb",
+                    )
+                })?;
+                let mesh_path = resolve_named(base, m.get_ref(), options, file, &mesh_at)?;
+                let texture_path = resolve_named(base, t.get_ref(), options, file, &texture_at)?;
+                let mesh_link = format!("{file}: {mesh_at} = {}", excerpt(m.get_ref()));
+                let texture_link = format!("{file}: {texture_at} = {}", excerpt(t.get_ref()));
+                let bytes = read_limited(&mesh_path, MAX_MESH_FILE_BYTES)
+                    .map_err(|e| e.within(&mesh_link))?;
+                let image = load_png_texture(&texture_path).map_err(|e| e.within(&texture_link))?;
+                let mesh_file = label(&mesh_path);
+                let mesh = match kind {
+                    MeshKind::Obj => {
+                        parse_obj_mesh(name, &bytes, &mesh_file, s.up.unwrap_or(UpAxis::Z), image)
+                    }
+                    MeshKind::Gltf => {
+                        let buffers = GltfBuffers {
+                            folder: scene_folder(&mesh_path),
+                            root: base,
+                            options,
+                        };
+                        parse_gltf_mesh(
+                            name,
+                            &bytes,
+                            &mesh_file,
+                            s.up.unwrap_or(UpAxis::Y),
+                            image,
+                            &buffers,
+                        )
+                    }
+                }
+                .map_err(|e| e.within(&mesh_link))?;
+                (
+                    mesh,
+                    (texture_at, format!("texture {}", excerpt(t.get_ref()))),
+                )
             }
             (None, Some(m), None) => {
                 return Err(InputError::new(
@@ -484,9 +674,54 @@ fn load_species(
                 ));
             }
         };
+        // The GPU draw stage samples every mesh texture from one array texture, so all must have
+        // species 0's (square) size (`gpu/src/draw.rs`, `upload_texture_array`).
+        if let Some(first) = meshes.first() {
+            let (w0, h0) = (first.texture.width, first.texture.height);
+            let (w, h) = (mesh.texture.width, mesh.texture.height);
+            if (w, h) != (w0, h0) {
+                return Err(InputError::new(
+                    file,
+                    &source.0,
+                    format!("{w}x{h}"),
+                    format!(
+                        "species[{i}] {} is {w}x{h} but species[0] {} is {w0}x{h0}: every species texture must have species 0's square size (the GPU draws all mesh textures from one texture array; built-in species are {}x{})",
+                        source.1,
+                        texture_sources[0].1,
+                        super::builtin::TEXTURE_SIZE,
+                        super::builtin::TEXTURE_SIZE
+                    ),
+                ));
+            }
+        }
         meshes.push(mesh);
+        texture_sources.push(source);
     }
     Ok(meshes)
+}
+
+/// The mesh file formats a scene file may name, by extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum MeshKind {
+    /// Wavefront OBJ (`.obj`).
+    Obj,
+    /// glTF 2.0, JSON (`.gltf`) or binary (`.glb`).
+    Gltf,
+}
+
+impl MeshKind {
+    fn of(path: &Path) -> Option<Self> {
+        match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
+            Some("obj") => Some(Self::Obj),
+            Some("gltf" | "glb") => Some(Self::Gltf),
+            _ => None,
+        }
+    }
 }
 
 /// Terrain as declared, before the origin is known.
@@ -739,7 +974,7 @@ fn parse_instances_csv_limited<R: Read>(
                     let mut known = species_names
                         .iter()
                         .take(8)
-                        .cloned()
+                        .map(|n| cut(n))
                         .collect::<Vec<_>>()
                         .join(", ");
                     if species_names.len() > 8 {
@@ -948,17 +1183,46 @@ pub fn load_instances_with_builtin_species(csv: &Path) -> Result<Scene, InputErr
     )
 }
 
+/// A scene file naming one mesh, as a one-line hint: what to write when someone hands a mesh file
+/// where a scene is expected.
+pub fn minimal_scene_hint(mesh: &str) -> String {
+    let stem = Path::new(mesh)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "tree".into());
+    format!(
+        "a mesh is named from a scene TOML file; write e.g. scene.toml with the lines: instances = \"trees.csv\" | [[species]] | name = {} | mesh = {} | texture = \"{}.png\" (see the README, \"Scene files\")",
+        excerpt(&stem),
+        excerpt(mesh),
+        cut(&stem)
+    )
+}
+
 /// Loads `path` by its extension: `.toml` as a scene file ([`load_scene_file`]), `.csv` as a bare
-/// instance table with the built-in species ([`load_instances_with_builtin_species`]).
+/// instance table with the built-in species ([`load_instances_with_builtin_species`]); a mesh
+/// file (`.obj`, `.gltf`, `.glb`) is an error showing the minimal scene file that names it.
 pub fn load_path(path: &Path) -> Result<Scene, InputError> {
+    load_path_with(path, &LoadOptions::default())
+}
+
+/// [`load_path`] with `options`.
+pub fn load_path_with(path: &Path, options: &LoadOptions) -> Result<Scene, InputError> {
     match path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .as_deref()
     {
-        Some("toml") => load_scene_file(path),
+        Some("toml") => load_scene_file_with(path, options),
         Some("csv") => load_instances_with_builtin_species(path),
+        Some("obj" | "gltf" | "glb") => Err(InputError::new(
+            label(path),
+            "file extension",
+            path.extension()
+                .map(|e| e.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            minimal_scene_hint(&label(path)),
+        )),
         _ => Err(InputError::new(
             label(path),
             "file extension",
@@ -989,8 +1253,11 @@ pub fn load_obj_mesh(
 }
 
 /// Parses OBJ `bytes` (`file` names them in errors) into a tree mesh with `texture`. Every object
-/// and group is merged; faces are triangulated as fans; points and lines are ignored; materials are
-/// ignored. Every vertex needs a texture coordinate (`f v/vt`).
+/// and group is merged; points and lines are ignored; materials are ignored. Every vertex needs a
+/// texture coordinate (`f v/vt`). Faces with more than three vertices are triangulated in their
+/// plane ([`triangulate_polygon`]): convex ones as fans from their first vertex (as before),
+/// concave ones by ear clipping; non-planar, self-intersecting and zero-area polygons are errors
+/// naming the face's line.
 pub fn parse_obj_mesh(
     name: &str,
     bytes: &[u8],
@@ -1006,11 +1273,13 @@ pub fn parse_obj_mesh(
             "expected UTF-8 text (OBJ)",
         )
     })?;
-    prescan_obj(text, file)?;
+    let face_lines = prescan_obj(text, file)?;
     // tobj's optional `merging`/`reordering` features add fields: keep the struct update.
+    // Faces are kept whole (`triangulate: false`): tobj would fan-triangulate concave polygons
+    // wrongly. Vertices come out in the same order either way.
     #[allow(clippy::needless_update)]
     let options = tobj::LoadOptions {
-        triangulate: true,
+        triangulate: false,
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
@@ -1028,13 +1297,15 @@ pub fn parse_obj_mesh(
         indices: Vec::new(),
         texture,
     };
+    // Faces (of 3 or more vertices) seen so far, over all models: indexes `face_lines`.
+    let mut face_number = 0usize;
     for model in &models {
         let m = &model.mesh;
         let count = m.positions.len() / 3;
         if m.texcoords.len() != 2 * count {
             return Err(InputError::new(
                 file,
-                format!("object {:?}", model.name),
+                format!("object {}", excerpt(&model.name)),
                 format!(
                     "{} texture coordinates for {count} vertices",
                     m.texcoords.len() / 2
@@ -1061,19 +1332,249 @@ pub fn parse_obj_mesh(
             });
             mesh.uvs.push([t[0], 1.0 - t[1]]);
         }
-        // base + index < MAX_MESH_VERTICES (checked above) fits in u32.
-        mesh.indices
-            .extend(m.indices.iter().map(|&i| base as u32 + i));
+        let mut next = 0usize;
+        let mut face_in_model = 0usize;
+        while next < m.indices.len() {
+            let arity = if m.face_arities.is_empty() {
+                3
+            } else {
+                match m.face_arities.get(face_in_model) {
+                    Some(&a) => a as usize,
+                    None => break,
+                }
+            };
+            face_in_model += 1;
+            let Some(face) = m.indices.get(next..next + arity) else {
+                break;
+            };
+            next += arity;
+            face_number += 1;
+            let at = || match face_lines.get(face_number - 1) {
+                Some(line) => format!("line {line}, face"),
+                None => format!("face {face_number}"),
+            };
+            // base + index < MAX_MESH_VERTICES (checked above) fits in u32.
+            let global = |k: usize| base as u32 + face[k];
+            if arity == 3 {
+                mesh.indices.extend([global(0), global(1), global(2)]);
+                continue;
+            }
+            if arity > MAX_TREE_TRIANGLES + 2 {
+                return Err(InputError::new(
+                    file,
+                    at(),
+                    format!("{arity} vertices"),
+                    format!(
+                        "a polygon of {arity} vertices makes {} triangles: expected at most {MAX_TREE_TRIANGLES} triangles per tree (E§3.1)",
+                        arity - 2
+                    ),
+                ));
+            }
+            let points: Vec<[f64; 3]> = face
+                .iter()
+                .map(|&i| {
+                    let p = &m.positions[3 * i as usize..3 * i as usize + 3];
+                    [p[0] as f64, p[1] as f64, p[2] as f64]
+                })
+                .collect();
+            let triangles = triangulate_polygon(&points).map_err(|reason| {
+                let tokens = face
+                    .iter()
+                    .map(|i| (i + 1).to_string())
+                    .collect::<Vec<_>>()
+                    .join(" ");
+                InputError::new(
+                    file,
+                    at(),
+                    format!("{arity} vertices: {tokens}"),
+                    format!("{reason}: split the polygon into triangles or convex polygons"),
+                )
+            })?;
+            for t in triangles {
+                mesh.indices.extend(t.map(global));
+            }
+        }
     }
     mesh.validate(file)?;
     Ok(mesh)
 }
 
+/// Triangulates a polygon of `points` (4 or more, in order) in its own plane. Returns triangles
+/// as indices into `points`, in the polygon's winding:
+/// - a convex polygon gives the fan from vertex 0, `(0, k, k + 1)` (what fan triangulation, and
+///   this loader before, always gave);
+/// - a concave simple polygon is ear-clipped;
+/// - a zero-area, non-planar (a vertex off the best plane by more than 1e-3 of the polygon's
+///   size) or self-intersecting polygon is an error (the reason is returned).
+pub fn triangulate_polygon(points: &[[f64; 3]]) -> Result<Vec<[usize; 3]>, String> {
+    let n = points.len();
+    let fan = || (1..n - 1).map(|k| [0, k, k + 1]).collect::<Vec<_>>();
+    // Newell's normal: twice the vector area, robust for concave polygons.
+    let mut normal = [0.0f64; 3];
+    for i in 0..n {
+        let (a, b) = (points[i], points[(i + 1) % n]);
+        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let size = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let cross3 = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    // The plane: through vertex 0, the vertex farthest from it and the vertex farthest from that
+    // line (robust even where the vector area vanishes, as for a symmetric bow tie).
+    let a = points[0];
+    let far = points
+        .iter()
+        .copied()
+        .max_by(|p, q| dot(sub(*p, a), sub(*p, a)).total_cmp(&dot(sub(*q, a), sub(*q, a))))
+        .unwrap_or(a);
+    let spread = points
+        .iter()
+        .map(|p| cross3(sub(far, a), sub(*p, a)))
+        .max_by(|p, q| dot(*p, *p).total_cmp(&dot(*q, *q)))
+        .unwrap_or([0.0; 3]);
+    let spread_length = dot(spread, spread).sqrt();
+    if size == 0.0 || spread_length <= 1.0e-9 * size * size {
+        return Err("zero-area polygon (its vertices are on one line)".into());
+    }
+    // Oriented with the polygon's winding (the vector area) where it has one.
+    let sign = if dot(spread, normal) < 0.0 { -1.0 } else { 1.0 };
+    let nrm = spread.map(|c| sign * c / spread_length);
+    let centroid = [0, 1, 2].map(|k| points.iter().map(|p| p[k]).sum::<f64>() / n as f64);
+    for p in points {
+        let off = dot(sub(*p, centroid), nrm).abs();
+        if off > 1.0e-3 * size {
+            return Err(format!(
+                "non-planar polygon (a vertex is {off:.3e} off its plane, size {size:.3e})"
+            ));
+        }
+    }
+    // A 2D frame (u, v) in the plane with u x v = normal: the polygon winds counter-clockwise.
+    let helper = if nrm[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let u = cross3(helper, nrm);
+    let ul = dot(u, u).sqrt();
+    let u = u.map(|c| c / ul);
+    let v = cross3(nrm, u);
+    let flat: Vec<[f64; 2]> = points
+        .iter()
+        .map(|p| {
+            let d = sub(*p, centroid);
+            [dot(d, u), dot(d, v)]
+        })
+        .collect();
+    let eps = 1.0e-12 * size * size;
+    let orient = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+    };
+    // Simple: no two non-adjacent edges meet (touching counts).
+    let on_segment = |a: [f64; 2], b: [f64; 2], p: [f64; 2]| {
+        p[0] >= a[0].min(b[0]) - 1e-12 * size
+            && p[0] <= a[0].max(b[0]) + 1e-12 * size
+            && p[1] >= a[1].min(b[1]) - 1e-12 * size
+            && p[1] <= a[1].max(b[1]) + 1e-12 * size
+    };
+    let segments_meet = |a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]| {
+        let (o1, o2) = (orient(a, b, c), orient(a, b, d));
+        let (o3, o4) = (orient(c, d, a), orient(c, d, b));
+        let side = |o: f64| {
+            if o > eps {
+                1
+            } else if o < -eps {
+                -1
+            } else {
+                0
+            }
+        };
+        let (s1, s2, s3, s4) = (side(o1), side(o2), side(o3), side(o4));
+        if s1 * s2 < 0 && s3 * s4 < 0 {
+            return true;
+        }
+        (s1 == 0 && on_segment(a, b, c))
+            || (s2 == 0 && on_segment(a, b, d))
+            || (s3 == 0 && on_segment(c, d, a))
+            || (s4 == 0 && on_segment(c, d, b))
+    };
+    for i in 0..n {
+        for j in i + 1..n {
+            let adjacent = j == i + 1 || (i == 0 && j == n - 1);
+            if adjacent {
+                continue;
+            }
+            if segments_meet(flat[i], flat[(i + 1) % n], flat[j], flat[(j + 1) % n]) {
+                return Err(format!(
+                    "self-intersecting polygon (edges {}-{} and {}-{} meet)",
+                    i + 1,
+                    (i + 1) % n + 1,
+                    j + 1,
+                    (j + 1) % n + 1
+                ));
+            }
+        }
+    }
+    let area = dot(normal, nrm);
+    if area <= 1.0e-9 * size * size {
+        return Err("zero-area polygon".into());
+    }
+    let convex = (0..n).all(|i| orient(flat[i], flat[(i + 1) % n], flat[(i + 2) % n]) >= -eps);
+    if convex {
+        return Ok(fan());
+    }
+    // Ear clipping: cut off a convex corner whose triangle holds no other vertex, until three are
+    // left.
+    let mut left: Vec<usize> = (0..n).collect();
+    let mut triangles = Vec::with_capacity(n - 2);
+    while left.len() > 3 {
+        let m = left.len();
+        let ear = (0..m).find(|&k| {
+            let (a, b, c) = (left[(k + m - 1) % m], left[k], left[(k + 1) % m]);
+            if orient(flat[a], flat[b], flat[c]) <= eps {
+                return false;
+            }
+            left.iter().all(|&q| {
+                q == a
+                    || q == b
+                    || q == c
+                    || orient(flat[a], flat[b], flat[q]) < -eps
+                    || orient(flat[b], flat[c], flat[q]) < -eps
+                    || orient(flat[c], flat[a], flat[q]) < -eps
+            })
+        });
+        let Some(k) = ear else {
+            return Err("polygon cannot be triangulated (no ear found)".into());
+        };
+        triangles.push([left[(k + m - 1) % m], left[k], left[(k + 1) % m]]);
+        left.remove(k);
+    }
+    triangles.push([left[0], left[1], left[2]]);
+    Ok(triangles)
+}
+
 /// Checks what `tobj` does not report with a line number: numbers in `v`/`vt` lines, and that every
 /// face index is a non-zero integer naming an already-declared `v`/`vt`/`vn` (negative indices count
-/// back). Guarantees `tobj` only ever sees in-range indices.
-fn prescan_obj(text: &str, file: &str) -> Result<(), InputError> {
+/// back). Guarantees `tobj` only ever sees in-range indices. Returns the 1-based line of every
+/// face of three or more vertices, in order (`tobj` keeps faces in file order).
+fn prescan_obj(text: &str, file: &str) -> Result<Vec<usize>, InputError> {
     let mut counts = [0usize; 3]; // v, vt, vn
+    let mut face_lines = Vec::new();
     for (n, raw_line) in text.lines().enumerate() {
         let line = n + 1;
         let mut words = raw_line.split_whitespace();
@@ -1107,6 +1608,9 @@ fn prescan_obj(text: &str, file: &str) -> Result<(), InputError> {
                 counts[k] += 1;
             }
             "f" | "l" => {
+                if keyword == "f" && words.clone().count() >= 3 {
+                    face_lines.push(line);
+                }
                 for token in words {
                     let parts: Vec<&str> = token.split('/').collect();
                     if parts.len() > 3 {
@@ -1142,13 +1646,518 @@ fn prescan_obj(text: &str, file: &str) -> Result<(), InputError> {
             _ => {}
         }
     }
-    Ok(())
+    Ok(face_lines)
+}
+
+/// Where a glTF file's external buffers (`"uri": "tree.bin"`) are read from: `folder` (the glTF
+/// file's), confined to `root` (the scene file's folder) unless `options` allow otherwise.
+#[derive(Clone, Copy, Debug)]
+pub struct GltfBuffers<'a> {
+    /// The glTF file's folder; buffer URIs are relative to it.
+    pub folder: &'a Path,
+    /// The folder every file must lie under (the scene file's).
+    pub root: &'a Path,
+    /// Whether files outside `root` are allowed.
+    pub options: &'a LoadOptions,
+}
+
+/// Loads a glTF 2.0 tree mesh (`.gltf` or `.glb`, [`parse_gltf_mesh`]) named `name` with the RGBA
+/// PNG `texture`; `up` is the file's up axis (glTF's own is +Y). External buffers may lie
+/// anywhere under the glTF file's folder.
+pub fn load_gltf_mesh(
+    name: &str,
+    gltf: &Path,
+    texture: &Path,
+    up: UpAxis,
+) -> Result<TreeMesh, InputError> {
+    let bytes = read_limited(gltf, MAX_MESH_FILE_BYTES)?;
+    let image = load_png_texture(texture)?;
+    let folder = scene_folder(gltf);
+    let options = LoadOptions::default();
+    let buffers = GltfBuffers {
+        folder,
+        root: folder,
+        options: &options,
+    };
+    parse_gltf_mesh(name, &bytes, &label(gltf), up, image, &buffers)
+}
+
+/// Decodes standard base64 (RFC 4648, `=` padding optional); `None` on any other character.
+fn decode_base64(text: &str) -> Option<Vec<u8>> {
+    let mut out = Vec::with_capacity(text.len() / 4 * 3);
+    let (mut acc, mut bits) = (0u32, 0u32);
+    let text = text.trim_end_matches('=');
+    for c in text.bytes() {
+        let v = match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' => 62,
+            b'/' => 63,
+            _ => return None,
+        } as u32;
+        acc = (acc << 6) | v;
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+            acc &= (1 << bits) - 1;
+        }
+    }
+    Some(out)
+}
+
+/// Parses glTF 2.0 `bytes` (JSON `.gltf` or binary `.glb`; `file` names them in errors) into a
+/// tree mesh with `texture`, the way a tree needs it and no further:
+/// - exactly one mesh; every primitive of it is merged; each must be a triangle list
+///   (`mode` 4) with `POSITION` (float VEC3) and `TEXCOORD_0` (float, or normalized unsigned
+///   byte/short VEC2), and optional `indices` (unsigned byte/short/int); sparse accessors are not
+///   supported;
+/// - a node that uses the mesh must have the identity transform (apply transforms before
+///   export): the mesh is taken in its own coordinates, converted from `up` (glTF's +Y by
+///   default) to Z up;
+/// - buffers come from the GLB's binary chunk, a base64 `data:` URI, or a file relative to
+///   the glTF file ([`GltfBuffers`]);
+/// - materials and the file's own images are ignored: the scene file's `texture` is the mesh's
+///   texture (glTF's UV origin is the top-left, as [`TreeMesh::uvs`]).
+///
+/// Positions must be finite, indices in range, at most 19 triangles and 256 vertices; every
+/// failure names the file, the mesh/primitive/attribute and the value.
+pub fn parse_gltf_mesh(
+    name: &str,
+    bytes: &[u8],
+    file: &str,
+    up: UpAxis,
+    texture: Rgba8Image,
+    buffers: &GltfBuffers,
+) -> Result<TreeMesh, InputError> {
+    let err = |position: String, value: String, reason: String| {
+        InputError::new(file, position, value, reason)
+    };
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| {
+        let message = e.to_string().replace(['\n', '\r'], " ");
+        err(
+            "file".into(),
+            format!("{} bytes", bytes.len()),
+            format!("invalid glTF 2.0: {}", cut_quoted(&message)),
+        )
+    })?;
+    let document = &gltf.document;
+    let meshes: Vec<gltf::Mesh> = document.meshes().collect();
+    if meshes.len() != 1 {
+        return Err(err(
+            "meshes".into(),
+            format!("{} meshes", meshes.len()),
+            "expected exactly one mesh (a tree)".into(),
+        ));
+    }
+    let gmesh = &meshes[0];
+    for node in document.nodes() {
+        if node.mesh().is_some() {
+            let m = node.transform().matrix();
+            let identity =
+                (0..4).all(|c| (0..4).all(|r| m[c][r] == if c == r { 1.0 } else { 0.0 }));
+            if !identity {
+                let (t, r, sc) = node.transform().decomposed();
+                return Err(err(
+                    format!("node {}, transform", node.index()),
+                    format!(
+                        "translation {} {} {}, rotation {} {} {} {}, scale {} {} {}",
+                        t[0], t[1], t[2], r[0], r[1], r[2], r[3], sc[0], sc[1], sc[2]
+                    ),
+                    "expected no transform on the mesh's node (apply transforms before export)"
+                        .into(),
+                ));
+            }
+        }
+    }
+    // Buffer contents, by buffer index.
+    let mut data: Vec<Vec<u8>> = Vec::new();
+    for buffer in document.buffers() {
+        let at = format!("buffer {}", buffer.index());
+        let bytes = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
+                err(
+                    at.clone(),
+                    "no binary chunk".into(),
+                    "expected the GLB's binary chunk (a .gltf file needs a uri)".into(),
+                )
+            })?,
+            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                let payload = uri.split_once(";base64,").map(|(_, b)| b).ok_or_else(|| {
+                    err(
+                        at.clone(),
+                        cut(uri),
+                        "expected a base64 data URI (data:application/octet-stream;base64,...)"
+                            .into(),
+                    )
+                })?;
+                decode_base64(payload).ok_or_else(|| {
+                    err(
+                        at.clone(),
+                        cut(uri),
+                        "invalid base64 in the data URI".into(),
+                    )
+                })?
+            }
+            gltf::buffer::Source::Uri(uri) => {
+                let path = confine(
+                    buffers.root,
+                    buffers.folder.join(uri),
+                    uri,
+                    buffers.options,
+                    file,
+                    &format!("{at}, uri"),
+                )?;
+                read_limited(&path, MAX_MESH_FILE_BYTES)
+                    .map_err(|e| e.within(format!("{file}: {at}, uri = {}", excerpt(uri))))?
+            }
+        };
+        if bytes.len() < buffer.length() {
+            return Err(err(
+                at,
+                format!("{} bytes", bytes.len()),
+                format!("expected byteLength {} bytes of data", buffer.length()),
+            ));
+        }
+        data.push(bytes);
+    }
+    let mut mesh = TreeMesh {
+        name: name.to_string(),
+        positions: Vec::new(),
+        uvs: Vec::new(),
+        indices: Vec::new(),
+        texture,
+    };
+    let mesh_at = format!("mesh {}", gmesh.index());
+    for primitive in gmesh.primitives() {
+        let prim_at = format!("{mesh_at}, primitive {}", primitive.index());
+        if primitive.mode() != gltf::mesh::Mode::Triangles {
+            return Err(err(
+                format!("{prim_at}, mode"),
+                match primitive.mode() {
+                    gltf::mesh::Mode::Points => "POINTS (0)",
+                    gltf::mesh::Mode::Lines => "LINES (1)",
+                    gltf::mesh::Mode::LineLoop => "LINE_LOOP (2)",
+                    gltf::mesh::Mode::LineStrip => "LINE_STRIP (3)",
+                    gltf::mesh::Mode::Triangles => "TRIANGLES (4)",
+                    gltf::mesh::Mode::TriangleStrip => "TRIANGLE_STRIP (5)",
+                    gltf::mesh::Mode::TriangleFan => "TRIANGLE_FAN (6)",
+                }
+                .to_string(),
+                "expected a triangle list (mode 4, TRIANGLES)".into(),
+            ));
+        }
+        let base = mesh.positions.len();
+        let positions = primitive.get(&gltf::Semantic::Positions).ok_or_else(|| {
+            err(
+                format!("{prim_at}, attributes"),
+                "no POSITION".into(),
+                "expected a POSITION attribute".into(),
+            )
+        })?;
+        let uvs = primitive
+            .get(&gltf::Semantic::TexCoords(0))
+            .ok_or_else(|| {
+                err(
+                    format!("{prim_at}, attributes"),
+                    "no TEXCOORD_0".into(),
+                    "expected texture coordinates (TEXCOORD_0) for every vertex".into(),
+                )
+            })?;
+        let count = positions.count();
+        if base + count > forestlod_shared::MAX_MESH_VERTICES as usize {
+            return Err(err(
+                "vertex count".into(),
+                (base + count).to_string(),
+                format!(
+                    "expected at most {} vertices per tree mesh",
+                    forestlod_shared::MAX_MESH_VERTICES
+                ),
+            ));
+        }
+        if uvs.count() != count {
+            return Err(err(
+                format!("{prim_at}, TEXCOORD_0"),
+                format!("{} texture coordinates for {count} vertices", uvs.count()),
+                "expected one texture coordinate per vertex".into(),
+            ));
+        }
+        let p = read_accessor(
+            &positions,
+            &data,
+            file,
+            &format!("{prim_at}, POSITION"),
+            AccessorUse::Position,
+        )?;
+        for (i, v) in p.chunks_exact(3).enumerate() {
+            if v.iter().any(|c| !c.is_finite()) {
+                return Err(err(
+                    format!("{prim_at}, POSITION element {i}"),
+                    format!("({}, {}, {})", v[0], v[1], v[2]),
+                    "expected finite coordinates".into(),
+                ));
+            }
+            let v = [v[0] as f32, v[1] as f32, v[2] as f32];
+            mesh.positions.push(match up {
+                UpAxis::Z => v,
+                UpAxis::Y => [v[0], -v[2], v[1]],
+            });
+        }
+        let t = read_accessor(
+            &uvs,
+            &data,
+            file,
+            &format!("{prim_at}, TEXCOORD_0"),
+            AccessorUse::TexCoord,
+        )?;
+        for (i, uv) in t.chunks_exact(2).enumerate() {
+            if uv.iter().any(|c| !c.is_finite()) {
+                return Err(err(
+                    format!("{prim_at}, TEXCOORD_0 element {i}"),
+                    format!("({}, {})", uv[0], uv[1]),
+                    "expected finite texture coordinates".into(),
+                ));
+            }
+            mesh.uvs.push([uv[0] as f32, uv[1] as f32]);
+        }
+        let local: Vec<u32> = match primitive.indices() {
+            Some(indices) => {
+                if indices.count() > 3 * MAX_TREE_TRIANGLES {
+                    return Err(err(
+                        format!("{prim_at}, indices"),
+                        format!("{} indices", indices.count()),
+                        format!("expected at most {MAX_TREE_TRIANGLES} triangles per tree (E§3.1)"),
+                    ));
+                }
+                read_accessor(
+                    &indices,
+                    &data,
+                    file,
+                    &format!("{prim_at}, indices"),
+                    AccessorUse::Index,
+                )?
+                .into_iter()
+                .map(|i| i as u32)
+                .collect()
+            }
+            None => (0..count as u32).collect(),
+        };
+        if !local.len().is_multiple_of(3) {
+            return Err(err(
+                format!("{prim_at}, indices"),
+                format!("{} indices", local.len()),
+                "expected a multiple of 3 (a triangle list)".into(),
+            ));
+        }
+        for (k, &i) in local.iter().enumerate() {
+            if i as usize >= count {
+                return Err(err(
+                    format!("{prim_at}, indices element {k}"),
+                    i.to_string(),
+                    format!("index out of range ({count} vertices)"),
+                ));
+            }
+            // base + i < MAX_MESH_VERTICES (checked above) fits in u32.
+            mesh.indices.push(base as u32 + i);
+        }
+    }
+    mesh.validate(file)?;
+    Ok(mesh)
+}
+
+/// What an accessor is read as, which decides the types it may have.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum AccessorUse {
+    /// `POSITION`: float VEC3.
+    Position,
+    /// `TEXCOORD_0`: VEC2 of float, or normalized unsigned byte or short.
+    TexCoord,
+    /// `indices`: SCALAR unsigned byte, short or int.
+    Index,
+}
+
+/// Reads every component of `accessor` as `f64` (bounds-checked against the buffer data; no
+/// arithmetic can overflow: counts are limited first).
+fn read_accessor(
+    accessor: &gltf::Accessor,
+    data: &[Vec<u8>],
+    file: &str,
+    at: &str,
+    usage: AccessorUse,
+) -> Result<Vec<f64>, InputError> {
+    use gltf::accessor::{DataType, Dimensions};
+    let err = |value: String, reason: &str| InputError::new(file, at, value, reason);
+    let (dims, ty, normalized) = (
+        accessor.dimensions(),
+        accessor.data_type(),
+        accessor.normalized(),
+    );
+    let ok = match usage {
+        AccessorUse::Position => dims == Dimensions::Vec3 && ty == DataType::F32,
+        AccessorUse::TexCoord => {
+            dims == Dimensions::Vec2
+                && (ty == DataType::F32
+                    || (normalized && matches!(ty, DataType::U8 | DataType::U16)))
+        }
+        AccessorUse::Index => {
+            dims == Dimensions::Scalar && matches!(ty, DataType::U8 | DataType::U16 | DataType::U32)
+        }
+    };
+    let kind = format!(
+        "{}{} {}",
+        if normalized { "normalized " } else { "" },
+        match ty {
+            DataType::I8 => "byte",
+            DataType::U8 => "unsigned byte",
+            DataType::I16 => "short",
+            DataType::U16 => "unsigned short",
+            DataType::U32 => "unsigned int",
+            DataType::F32 => "float",
+        },
+        match dims {
+            Dimensions::Scalar => "SCALAR",
+            Dimensions::Vec2 => "VEC2",
+            Dimensions::Vec3 => "VEC3",
+            Dimensions::Vec4 => "VEC4",
+            Dimensions::Mat2 => "MAT2",
+            Dimensions::Mat3 => "MAT3",
+            Dimensions::Mat4 => "MAT4",
+        }
+    );
+    if !ok {
+        let expected = match usage {
+            AccessorUse::Position => "expected float VEC3 positions",
+            AccessorUse::TexCoord => {
+                "expected VEC2 texture coordinates of float, or normalized unsigned byte/short"
+            }
+            AccessorUse::Index => "expected unsigned byte, short or int indices",
+        };
+        return Err(err(kind, expected));
+    }
+    if accessor.sparse().is_some() {
+        return Err(err("sparse".into(), "sparse accessors are not supported"));
+    }
+    let count = accessor.count();
+    if count == 0 || count > 4 * forestlod_shared::MAX_MESH_VERTICES as usize {
+        return Err(err(
+            format!("count {count}"),
+            "expected between 1 and a tree's few hundred elements",
+        ));
+    }
+    let view = accessor.view().ok_or_else(|| {
+        err(
+            "no bufferView".into(),
+            "expected an accessor with data (a bufferView)",
+        )
+    })?;
+    let component = match ty {
+        DataType::I8 | DataType::U8 => 1usize,
+        DataType::I16 | DataType::U16 => 2,
+        DataType::U32 | DataType::F32 => 4,
+    };
+    let width = dims.multiplicity();
+    let element = component * width;
+    let stride = view.stride().unwrap_or(element);
+    if stride < element {
+        return Err(err(
+            format!("byteStride {stride}"),
+            "expected a stride of at least one element",
+        ));
+    }
+    let buffer = data
+        .get(view.buffer().index())
+        .map_or(&[][..], Vec::as_slice);
+    let view_end = view.offset().checked_add(view.length());
+    let Some(view_bytes) = view_end.and_then(|end| buffer.get(view.offset()..end)) else {
+        return Err(err(
+            format!(
+                "bufferView {} bytes {}+{}",
+                view.index(),
+                view.offset(),
+                view.length()
+            ),
+            "bufferView out of its buffer's data",
+        ));
+    };
+    let needed = accessor
+        .offset()
+        .checked_add(stride * (count - 1) + element)
+        .filter(|&end| end <= view_bytes.len());
+    if needed.is_none() {
+        return Err(err(
+            format!(
+                "byteOffset {} count {count} stride {stride}",
+                accessor.offset()
+            ),
+            "accessor out of its bufferView",
+        ));
+    }
+    let mut out = Vec::with_capacity(count * width);
+    for i in 0..count {
+        let start = accessor.offset() + i * stride;
+        for c in 0..width {
+            let b = &view_bytes[start + c * component..start + (c + 1) * component];
+            let v = match ty {
+                DataType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
+                DataType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
+                DataType::U16 => {
+                    let v = u16::from_le_bytes([b[0], b[1]]) as f64;
+                    if normalized { v / 65535.0 } else { v }
+                }
+                DataType::U8 => {
+                    let v = b[0] as f64;
+                    if normalized { v / 255.0 } else { v }
+                }
+                // Excluded above.
+                DataType::I8 | DataType::I16 => 0.0,
+            };
+            out.push(v);
+        }
+    }
+    Ok(out)
 }
 
 /// Loads an 8-bit RGBA PNG texture ([`decode_png_texture`]).
 pub fn load_png_texture(path: &Path) -> Result<Rgba8Image, InputError> {
     let bytes = read_limited(path, MAX_TEXTURE_FILE_BYTES)?;
     decode_png_texture(&bytes, &label(path))
+}
+
+/// The colour type and bit depth a PNG's header declares, in words: `RGB, 8-bit`, `palette,
+/// 4-bit, no transparency`, `grey+alpha, 16-bit`... (`bytes` has been accepted by the decoder, so
+/// its IHDR chunk is where the PNG standard puts it.)
+fn png_colour_type_name(bytes: &[u8]) -> String {
+    let (Some(&depth), Some(&colour)) = (bytes.get(24), bytes.get(25)) else {
+        return "unknown".into();
+    };
+    let name = match colour {
+        0 => "grey",
+        2 => "RGB",
+        3 => "palette",
+        4 => "grey+alpha",
+        6 => "RGBA",
+        _ => return format!("colour type {colour}, {depth}-bit"),
+    };
+    // A palette or grey/RGB image may carry its transparency in a tRNS chunk.
+    // (It comes before the first IDAT; walk the chunks up to there.)
+    let mut has_trns = false;
+    let mut at = 8usize;
+    while let Some(header) = bytes.get(at..at + 8) {
+        let length = u32::from_be_bytes([header[0], header[1], header[2], header[3]]) as usize;
+        match &header[4..8] {
+            b"tRNS" => has_trns = true,
+            b"IDAT" => break,
+            _ => {}
+        }
+        at = at.saturating_add(length).saturating_add(12);
+    }
+    let transparency = match (colour, has_trns) {
+        (0 | 2 | 3, false) => ", no transparency",
+        (0 | 2 | 3, true) => ", with tRNS transparency",
+        _ => "",
+    };
+    format!("{name}, {depth}-bit{transparency}")
 }
 
 /// Decodes PNG `bytes` (`file` names them in errors) as a texture: the image must decode to 8-bit
@@ -1163,8 +2172,8 @@ pub fn decode_png_texture(bytes: &[u8], file: &str) -> Result<Rgba8Image, InputE
         return Err(InputError::new(
             file,
             "colour type",
-            format!("{:?}", decoder.original_color_type()),
-            "expected 8-bit RGBA (straight alpha)",
+            png_colour_type_name(bytes),
+            "expected RGBA, 8-bit (PNG colour type 6, straight alpha) or a palette with transparency (tRNS): re-export the texture as 8-bit RGBA",
         ));
     }
     for (what, side) in [("width", width), ("height", height)] {
@@ -1469,7 +2478,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("t.png") && e.contains("colour type") && e.contains("Rgb8"),
+            e.contains("t.png") && e.contains("colour type") && e.contains("RGB, 8-bit"),
             "{e}"
         );
         let e = decode_png_texture(&png(image::ExtendedColorType::L8, 8, 8), "t.png")

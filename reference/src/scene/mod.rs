@@ -134,7 +134,7 @@ impl TreeMesh {
 
     /// Checks the mesh's own invariants, naming the first violation.
     pub fn validate(&self, file: &str) -> Result<(), InputError> {
-        let at = |what: String| format!("mesh {:?}, {what}", self.name);
+        let at = |what: String| format!("mesh {}, {what}", crate::error::excerpt(&self.name));
         if self.positions.is_empty() || self.indices.is_empty() {
             return Err(InputError::new(
                 file,
