@@ -249,6 +249,9 @@ fn select_frame(
 fn gpu_info() -> Result<()> {
     match forestlod_gpu::GpuContext::new() {
         Ok(ctx) => {
+            for line in &ctx.passed_over {
+                println!("{line}");
+            }
             let info = &ctx.info;
             println!("adapter: {}", info.name);
             println!("backend: {:?}", info.backend);

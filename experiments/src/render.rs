@@ -236,14 +236,18 @@ pub fn gpu_frame(
     name: &str,
 ) -> GpuOutcome {
     let ctx = match GpuContext::new() {
-        Ok(ctx) => ctx,
-        Err(e) => {
-            // The tests' hint (install, or FORESTLOD_ALLOW_NO_GPU) is not the main job's.
-            let reason = e
-                .to_string()
-                .replace(forestlod_gpu::NO_GPU_HINT, "no GPU adapter found");
-            return GpuOutcome::Skipped(one_line(&reason));
+        Ok(ctx) => {
+            // Adapters that cannot run the pipeline (wgpu's GL backend, say), one line each.
+            for line in &ctx.passed_over {
+                eprintln!("{}", one_line(line));
+            }
+            ctx
         }
+        // The tests' hint (install, or FORESTLOD_ALLOW_NO_GPU) is not the main job's.
+        Err(forestlod_gpu::GpuError::NoAdapter(why)) => {
+            return GpuOutcome::Skipped(one_line(&format!("no suitable GPU adapter ({why})")));
+        }
+        Err(e) => return GpuOutcome::Skipped(one_line(&e.to_string())),
     };
     let adapter = one_line(&ctx.describe());
     let failed = |e: String| GpuOutcome::Failed {
