@@ -1060,9 +1060,10 @@ fn png_colour_types_are_named_as_the_file_has_them() {
 #[test]
 fn concave_polygons_are_ear_clipped_and_bad_ones_rejected() {
     let tex = || Rgba8Image::new(4, 4, [1, 2, 3, 255]);
-    // An L-shaped hexagon (area 3) in the x/z plane; a fan from vertex 0 would leave it.
+    // An L-shaped hexagon (area 3) in the x/z plane, starting beside its reflex corner: the fan
+    // from vertex 0 would cover the missing square.
     let l_shape =
-        "v 0 0 0\nv 2 0 0\nv 2 0 1\nv 1 0 1\nv 1 0 2\nv 0 0 2\nvt 0 0\nf 1/1 2/1 3/1 4/1 5/1 6/1\n";
+        "v 2 0 1\nv 1 0 1\nv 1 0 2\nv 0 0 2\nv 0 0 0\nv 2 0 0\nvt 0 0\nf 1/1 2/1 3/1 4/1 5/1 6/1\n";
     let m = parse_obj_mesh("l", l_shape.as_bytes(), "l.obj", UpAxis::Z, tex()).unwrap();
     assert_eq!(m.indices.len(), 12);
     let area: f32 = m
