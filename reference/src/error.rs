@@ -12,6 +12,9 @@
 
 use std::fmt;
 
+/// The pseudo-file of errors in command-line flags.
+pub const COMMAND_LINE: &str = "<command line>";
+
 /// Most characters of a value (file content) an error echoes; longer ones are cut and marked `…`.
 pub const MAX_EXCERPT_CHARS: usize = 40;
 
@@ -47,18 +50,26 @@ pub fn excerpt(text: &str) -> String {
 }
 
 impl InputError {
-    /// Builds an error; long values are cut to [`MAX_EXCERPT_CHARS`] characters, marked `…`.
+    /// Builds an error; long values are cut to [`MAX_EXCERPT_CHARS`] characters, marked `…`,
+    /// except those of [`COMMAND_LINE`]: what the user typed (an `--out` path, say) is echoed
+    /// whole, since it is not file content and a cut path cannot be checked.
     pub fn new(
         file: impl Into<String>,
         position: impl Into<String>,
         value: impl fmt::Display,
         reason: impl Into<String>,
     ) -> Self {
+        let file = file.into();
+        let value = value.to_string();
         Self {
             chain: Vec::new(),
-            file: file.into(),
+            value: if file == COMMAND_LINE {
+                value
+            } else {
+                cut(&value)
+            },
+            file,
             position: position.into(),
-            value: cut(&value.to_string()),
             reason: reason.into(),
         }
     }
@@ -113,5 +124,7 @@ mod tests {
         );
         assert_eq!(excerpt("a\nb"), "\"a\\nb\"");
         assert_eq!(cut("short"), "short");
+        let e = InputError::new(COMMAND_LINE, "--out", &long, "bad");
+        assert_eq!(e.value, long, "command-line values are echoed whole");
     }
 }
