@@ -10,15 +10,15 @@
 //!   ([`difference_heatmap`], [`with_diff_scale`]).
 //!
 //! The images the golden and parity tests compare come from other functions
-//! (`forestlod_reference::output::lod_id_image`, `forestlod_tests::image_compare::class_image`);
+//! (`forestlod_reference::output::lod_id_image`, `forestlod_harness::image_compare::class_image`);
 //! these only extend copies of them.
 
+use forestlod_harness::image_compare::CLASS_COLORS;
 use forestlod_reference::draw::{
     LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION,
     lod_id_color,
 };
 use forestlod_reference::texture::Rgba8Image;
-use forestlod_tests::image_compare::CLASS_COLORS;
 
 const STRIP_BACKGROUND: [u8; 4] = [40, 40, 44, 255];
 const TEXT: [u8; 4] = [235, 235, 235, 255];

@@ -5,7 +5,7 @@
 //! When wgpu finds an adapter (`forestlod_gpu::GpuContext::new`), the same frame is also rendered
 //! by the GPU twin (`gpu/src/shaders/select.wgsl` then `draw.wgsl`; `--stage-from-cpu` chooses
 //! which GPU stages take their input from the reference instead, as vello's `force_gpu_from`) and
-//! judged against the reference with `forestlod_tests::image_compare` (SPEC §8): `gpu_color.png`,
+//! judged against the reference with `forestlod_harness::image_compare` (SPEC §8): `gpu_color.png`,
 //! `gpu_lod.png` and `diff.png` are written beside the reference's images, and the metrics and the
 //! summary gain a `parity` section (adapter, maximum differences per buffer, mismatch and
 //! ambiguity counts, FLIP mean).
@@ -35,11 +35,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use forestlod_gpu::{GpuContext, GpuDraw};
-use forestlod_shared::{Camera, Params};
-use forestlod_tests::backend::{StagesFromCpu, alpha_test_alternatives, render_gpu};
-use forestlod_tests::image_compare::{
+use forestlod_harness::backend::{StagesFromCpu, alpha_test_alternatives, render_gpu};
+use forestlod_harness::image_compare::{
     ClassCounts, ImageReport, Images, class_image, compare_images,
 };
+use forestlod_shared::{Camera, Params};
 
 use crate::camera::{CameraArgs, no_tree_warning};
 use crate::legend::{difference_heatmap, with_class_legend, with_diff_scale, with_lod_legend};
@@ -294,7 +294,7 @@ fn counts_json(c: &ClassCounts) -> serde_json::Value {
 
 /// The `parity` object of the metrics JSON.
 pub fn parity_json(outcome: &GpuOutcome) -> serde_json::Value {
-    use forestlod_tests::image_compare as ic;
+    use forestlod_harness::image_compare as ic;
     match outcome {
         GpuOutcome::NotRequested => json!({ "gpu": "not requested (--no-gpu)" }),
         GpuOutcome::Skipped(why) => json!({ "gpu": "skipped", "reason": why }),

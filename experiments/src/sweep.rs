@@ -15,7 +15,7 @@
 //!
 //! Every variant runs on the backends the file names (`backends = ["reference", "gpu"]`, or
 //! `--backend`): the reference (CPU) rasterizer, or the wgpu twin through
-//! [`forestlod_tests::backend::GpuSweepScene`] (GPU selection or per-tree culling, the GPU-baked
+//! [`forestlod_harness::backend::GpuSweepScene`] (GPU selection or per-tree culling, the GPU-baked
 //! textures, `draw.wgsl` / `primitive.wgsl`). Timings are wall-clock seconds, the minimum over
 //! `repeats` renders of a frame: CPU time on the reference, submit-to-completion on the GPU (plus
 //! timestamp-query times where the adapter has them). Ratios are only meaningful between rows of
@@ -28,6 +28,7 @@ use std::time::Instant;
 
 use clap::Args;
 use forestlod_gpu::{Compaction, GpuContext, GpuError};
+use forestlod_harness::backend::{GpuSweepScene, GpuVariant};
 use forestlod_reference::InputError;
 use forestlod_reference::baselines::{
     INSTANCE_INDEX_BYTES, PROXY_BYTES, Proxy, proxies, render_primitive, render_vegetation,
@@ -43,7 +44,6 @@ use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::{
     AngleIndexMode, Camera, CommandData, DrawCommand, FadeMode, MipMode, Params, TreeCull,
 };
-use forestlod_tests::backend::{GpuSweepScene, GpuVariant};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 

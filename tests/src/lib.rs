@@ -2,10 +2,7 @@
 //! parameters as proptest strategies, built without the procedural generators so the properties
 //! exercise the selection rules alone.
 
-pub mod backend;
-pub mod image_compare;
 pub mod scenarios;
-pub mod texel_compare;
 
 use forestlod_reference::scene::{Instance, Scene, Terrain, TreeMesh};
 use forestlod_reference::select::SelectUniform;

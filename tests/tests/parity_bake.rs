@@ -2,7 +2,7 @@
 //! (`reference/src/bake.rs`, `bake_layer`), SPEC §5.1 and §8: level 0 of every layer of the five
 //! built-in species at K = 10, r = 64 and r = 128.
 //!
-//! One test body ([`check_bake`]) runs both backends of `forestlod_tests::texel_compare` and
+//! One test body ([`check_bake`]) runs both backends of `forestlod_harness::texel_compare` and
 //! judges every pixel of the GPU's layers against the reference's. A pixel may differ only where
 //! the two are allowed to disagree, and each such pixel is classified and counted (SPEC §8,
 //! dEQP-style), from the reference's own projected triangles (`bake_clip`):
@@ -41,16 +41,16 @@
 use std::time::Instant;
 
 use forestlod_gpu::GpuError;
+use forestlod_harness::texel_compare::{
+    BakeBackend, GpuBakeBackend, MipsBackend, ReferenceBake, ReferenceMips, TexelTally, bake_mesh,
+    channel_diff, gpu_bake,
+};
 use forestlod_reference::bake::bake_clip;
 use forestlod_reference::sampler::Texture;
 use forestlod_reference::scene::TreeMesh;
 use forestlod_reference::scene::builtin::species_meshes;
 use forestlod_reference::texture::{Rgba8Image, linear_to_srgb, unorm8};
 use forestlod_shared::{MeshMeta, MipMode, Params, bake_elevation};
-use forestlod_tests::texel_compare::{
-    BakeBackend, GpuBakeBackend, MipsBackend, ReferenceBake, ReferenceMips, TexelTally, bake_mesh,
-    channel_diff, gpu_bake,
-};
 
 /// Per-channel tolerance for pixels in no ambiguity class.
 ///

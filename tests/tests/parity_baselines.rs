@@ -10,7 +10,7 @@
 //!   yawed), the cropped `synthetic` of `parity_draw`, 64 random cameras and parameters around each
 //!   of them, and 64 random scenes of card trees with random cameras.
 //! - **images** (Vegetation through `draw.wgsl`, Primitive through `primitive.wgsl`, both rendered
-//!   by `GpuSweepScene`, the sweeps' runner): judged by `forestlod_tests::image_compare` against
+//!   by `GpuSweepScene`, the sweeps' runner): judged by `forestlod_harness::image_compare` against
 //!   `render_vegetation` / `render_primitive`, with its named tolerances and alternative frames
 //!   (Vegetation: the alpha-test cutoff moved, `ALPHA_TEST_SHIFTS`; Primitive: the ray cast's
 //!   root tests moved by a few roundings, `PRIMITIVE_DISC_SHIFTS`); scenarios from far to close,
@@ -23,6 +23,11 @@ use std::collections::BTreeSet;
 use std::time::Instant;
 
 use forestlod_gpu::{Compaction, DrawIndirectArgs, GpuCull};
+use forestlod_harness::backend::{
+    GpuSweepScene, GpuVariant, ReferenceRenderer, Renderer, alpha_test_alternatives, cull_trees,
+    cull_trees_of, gpu_context, images_of, primitive_alternatives, vegetation_alternatives,
+};
+use forestlod_harness::image_compare::{MaxDiffs, judge_image, print_max_diffs};
 use forestlod_reference::baselines::{
     self, Proxy, primitive_quad, proxies, render_primitive, render_vegetation, tree_spheres,
     vegetation_commands, visible_trees,
@@ -36,11 +41,6 @@ use forestlod_reference::select::SelectUniform;
 use forestlod_shared::{
     Camera, CommandData, DrawCommand, FadeMode, MeshMeta, Params, ProxyRecord, view_interval,
 };
-use forestlod_tests::backend::{
-    GpuSweepScene, GpuVariant, ReferenceRenderer, Renderer, alpha_test_alternatives, cull_trees,
-    cull_trees_of, gpu_context, images_of, primitive_alternatives, vegetation_alternatives,
-};
-use forestlod_tests::image_compare::{MaxDiffs, judge_image, print_max_diffs};
 use forestlod_tests::scenarios::{
     crop_params, cropped_synthetic, tiny_and_crop_frames, tiny_params,
 };

@@ -1,6 +1,6 @@
 //! Parity of the GPU `draw` stage (`gpu/src/shaders/draw.wgsl`) with the reference
 //! (`reference/src/draw.rs`), SPEC §5.5 and §8: one test body per scenario, run by every
-//! backend of `forestlod_tests::backend` and judged by `forestlod_tests::image_compare` against
+//! backend of `forestlod_harness::backend` and judged by `forestlod_harness::image_compare` against
 //! the reference frame.
 //!
 //! Backends:
@@ -23,14 +23,14 @@ use std::time::Instant;
 
 use forestlod_gpu::draw::{DrawTarget, GpuDraw, IndirectMode};
 use forestlod_gpu::{Compaction, DrawInputs, DrawScene, DrawTextures, GpuSelect};
-use forestlod_reference::pipeline::{Prepared, prepare};
-use forestlod_reference::scene::builtin;
-use forestlod_shared::{Camera, FadeMode, Params};
-use forestlod_tests::backend::{
+use forestlod_harness::backend::{
     DrawSceneData, GpuRenderer, ReferenceRenderer, Renderer, StagesFromCpu,
     alpha_test_alternatives, gpu_context, gpu_draw, render_gpu, upload_reference_textures,
 };
-use forestlod_tests::image_compare::{Images, compare_images, write_failure_images};
+use forestlod_harness::image_compare::{Images, compare_images, write_failure_images};
+use forestlod_reference::pipeline::{Prepared, prepare};
+use forestlod_reference::scene::builtin;
+use forestlod_shared::{Camera, FadeMode, Params};
 use forestlod_tests::scenarios::{
     FrameScenario, crop_params, cropped_synthetic, golden_scenarios, tiny_params,
 };

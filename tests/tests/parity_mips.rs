@@ -3,7 +3,7 @@
 //! CoveragePreserving, every level of every layer, degenerate cases included.
 //!
 //! One test body ([`check`]) runs the reference and the GPU backends of
-//! `forestlod_tests::texel_compare` on the same level-0 layers (the GPU gets them uploaded from the
+//! `forestlod_harness::texel_compare` on the same level-0 layers (the GPU gets them uploaded from the
 //! CPU: the "bisect one stage" hook) and judges the GPU against the reference:
 //! - every texel of every level within [`TEXEL_TOLERANCE`] per channel; the count of differing
 //!   texels and the largest difference are reported per mode;
@@ -30,14 +30,14 @@ use forestlod_gpu::mips::{
     TABLE_SRGB_DECODE, TABLE_SRGB_ENCODE, TABLE_UNORM_DECODE, TABLE_UNORM_ENCODE, encode_byte,
     mip_tables,
 };
+use forestlod_harness::texel_compare::{
+    BakeBackend, GpuMipsBackend, LevelOut, MipsBackend, ReferenceBake, ReferenceMips, TexelTally,
+    gpu_bake,
+};
 use forestlod_reference::mips::AlphaAdjust;
 use forestlod_reference::scene::builtin::species_meshes;
 use forestlod_reference::texture::{Rgba8Image, linear_to_srgb, srgb_to_linear, unorm8};
 use forestlod_shared::MipMode;
-use forestlod_tests::texel_compare::{
-    BakeBackend, GpuMipsBackend, LevelOut, MipsBackend, ReferenceBake, ReferenceMips, TexelTally,
-    gpu_bake,
-};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
 

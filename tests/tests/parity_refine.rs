@@ -19,7 +19,7 @@
 //!   (`GpuSweepScene`, `GpuVariant::Ours` with both compactions, GPU textures) and by the main
 //!   job's `render_gpu` (selection from the GPU, refined by `refine.wgsl`, and from the CPU,
 //!   refined by the reference, with its `3n` indirection uploaded) against the reference frame
-//!   (`Prepared::render`, which honours `tree_cull`), judged by `forestlod_tests::image_compare`
+//!   (`Prepared::render`, which honours `tree_cull`), judged by `forestlod_harness::image_compare`
 //!   with its named tolerances and alternative frames.
 //!
 //! Without an adapter the tests fail with an install hint unless `FORESTLOD_ALLOW_NO_GPU=1`.
@@ -31,6 +31,11 @@ use forestlod_gpu::{
     Compaction, CullTree, GpuContext, GpuRefine, GpuRefined, GpuSelect, RefineCounters,
     SelectBuffers,
 };
+use forestlod_harness::backend::{
+    GpuSweepScene, GpuVariant, StagesFromCpu, alpha_test_alternatives, cull_trees_of, gpu_context,
+    gpu_draw, images_of, render_gpu,
+};
+use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
 use forestlod_reference::baselines::tree_spheres;
 use forestlod_reference::batches::{Batches, build_batches};
 use forestlod_reference::cameras::named_camera;
@@ -40,11 +45,6 @@ use forestlod_reference::refine::refine;
 use forestlod_reference::scene::{Scene, builtin};
 use forestlod_reference::select::{SelectUniform, Selection, select, select_per_tree};
 use forestlod_shared::{Camera, FadeMode, LOD_MESH, Params, TreeCull, view_interval};
-use forestlod_tests::backend::{
-    GpuSweepScene, GpuVariant, StagesFromCpu, alpha_test_alternatives, cull_trees_of, gpu_context,
-    gpu_draw, images_of, render_gpu,
-};
-use forestlod_tests::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
 use forestlod_tests::scenarios::{
     FrameScenario, crop_params, cropped_synthetic, tiny_and_crop_frames, tiny_params,
 };

@@ -1,7 +1,7 @@
 //! Parity of the GPU `select` stage (`gpu/src/shaders/select.wgsl`) with the reference
 //! (`reference/src/select.rs`), SPEC §5.4 and §8, on random scenes, cameras and parameters.
 //!
-//! One test body runs every backend of `forestlod_tests::backend` and judges it against the
+//! One test body runs every backend of `forestlod_harness::backend` and judges it against the
 //! reference:
 //! - **stable** compaction must equal the reference exactly: commands, data and counters, in order;
 //! - **atomic** compaction (E§4.3) must equal it as a multiset once `base_vertex` is masked off,
@@ -19,6 +19,9 @@ use std::collections::BTreeSet;
 use std::time::Instant;
 
 use forestlod_gpu::{Compaction, GpuSelect, SelectBuffers};
+use forestlod_harness::backend::{
+    BackendSelection, GpuBackend, ReferenceBackend, SelectBackend, gpu_backends, gpu_context,
+};
 use forestlod_reference::batches::build_batches;
 use forestlod_reference::geometry::pack_geometry;
 use forestlod_reference::scene::Instance;
@@ -26,9 +29,6 @@ use forestlod_reference::select::{Decision, SelectUniform, select};
 use forestlod_shared::{
     BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, LOD_MESH, MeshMeta, Params,
     SelectCounters, view_interval,
-};
-use forestlod_tests::backend::{
-    BackendSelection, GpuBackend, ReferenceBackend, SelectBackend, gpu_backends, gpu_context,
 };
 use forestlod_tests::{Thresholds, cameras, instances, params, scene_of, threshold_ambiguity};
 use proptest::prelude::*;

@@ -15,14 +15,14 @@
 
 use std::sync::Barrier;
 
+use forestlod_harness::backend::{
+    GpuSweepScene, GpuVariant, StagesFromCpu, gpu_context, gpu_draw, render_gpu,
+};
+use forestlod_harness::image_compare::Images;
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::builtin;
 use forestlod_shared::{Camera, FadeMode, Params};
-use forestlod_tests::backend::{
-    GpuSweepScene, GpuVariant, StagesFromCpu, gpu_context, gpu_draw, render_gpu,
-};
-use forestlod_tests::image_compare::Images;
 use forestlod_tests::scenarios::{crop_params, cropped_synthetic, tiny_params};
 
 /// Rounds each thread renders its scenario (each round must equal the single-thread frame).

@@ -1,6 +1,6 @@
 //! How the adapter computes the implicit level of detail (SPEC §8): the reference samples with
 //! the exact `λ = log2(max(|∂uv/∂x|, |∂uv/∂y|))` (`reference/src/sampler.rs`); the GPU's λ is
-//! measured here, so the tolerances of `forestlod_tests::image_compare` that depend on it rest
+//! measured here, so the tolerances of `forestlod_harness::image_compare` that depend on it rest
 //! on data, not on a guess.
 //!
 //! A full-screen triangle samples a 256² texture whose level `k` has red `255 · (k mod 2)` and
@@ -10,7 +10,7 @@
 
 use std::f32::consts::FRAC_1_SQRT_2;
 
-use forestlod_tests::backend::gpu_context;
+use forestlod_harness::backend::gpu_context;
 
 /// Largest |λ_GPU − λ_exact| accepted: 1/16. Measured on lavapipe (Mesa 22.3.6, LLVM 15): max
 /// 0.047, mean 0.031 over 195 derivative matrices (as if λ kept 4 fractional bits). The image

@@ -17,10 +17,10 @@ use clap::Parser;
 use forestlod_experiments::options::ParamArgs;
 use forestlod_gpu::draw::{DrawInputs, DrawScene, DrawTarget, DrawTextures};
 use forestlod_gpu::{Compaction, GpuContext, GpuDraw, GpuSelect};
+use forestlod_harness::backend::{DrawSceneData, gpu_textures};
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
-use forestlod_tests::backend::{DrawSceneData, gpu_textures};
 
 #[derive(Parser, Debug)]
 struct Args {

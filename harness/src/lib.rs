@@ -1,0 +1,25 @@
+//! # forestlod-harness: run a stage or a frame on every backend and judge it
+//!
+//! The crate between the two twins (`forestlod-reference`, `forestlod-gpu`) and the programs that
+//! compare them (the `forestlod` CLI in `experiments/`, the test suites in `tests/`). It owns:
+//! - [`backend`]: the reference-to-GPU bridge (a prepared scene's buffers and textures converted to
+//!   the GPU's types), frame orchestration on the GPU (`render_gpu`, the sweep runner's
+//!   `GpuSweepScene`), `StagesFromCpu` (which GPU stages take the reference's output, the CLI's
+//!   `--stage-from-cpu`), and the select and render backend traits ("one test body, several
+//!   backends", SPEC §8);
+//! - [`texel_compare`]: the mips and bake backends and the RGBA8 texel tally (SPEC §5.1, §5.2);
+//! - [`image_compare`]: the image parity classes, every tolerance a named constant (SPEC §8).
+//!
+//! Rules:
+//! - nothing here depends on a test framework (no proptest): the shipped CLI links this crate, and
+//!   nothing shipped links `forestlod-tests`;
+//! - the reference and the GPU twin meet here and in the tests only, never in each other;
+//! - a GPU object shared between threads holds no per-frame state behind `&self` (the rule of
+//!   `forestlod-gpu`); objects that own per-frame state here (`GpuSweepScene`) take `&mut self`.
+//!
+//! Rejected design: keeping these modules in `forestlod-tests` and letting the CLI depend on it
+//! (the state before issue 11) made the shipped binary link proptest and the test scaffolding.
+
+pub mod backend;
+pub mod image_compare;
+pub mod texel_compare;
