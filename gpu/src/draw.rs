@@ -53,23 +53,12 @@ pub const LOD_ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 /// Format of the textures [`upload_texture_array`] creates (sRGB RGBA8, SPEC §3).
 pub const TEXTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
-/// LOD-id of background pixels. Keep in sync with `reference/src/draw.rs`.
-pub const LOD_ID_BACKGROUND: u32 = 0;
-/// LOD-id of full meshes (green in E Fig. 3.1). Keep in sync with `draw.wgsl`.
-pub const LOD_ID_MESH: u32 = 1;
-/// LOD-id of billboards (blue).
-pub const LOD_ID_BILLBOARD: u32 = 2;
-/// LOD-id of fragments of a fading command strictly inside the band (red).
-pub const LOD_ID_TRANSITION: u32 = 3;
-/// LOD-id of the ground.
-pub const LOD_ID_TERRAIN: u32 = 4;
-
-/// Sky colour (sRGB8), the clear colour. Keep in sync with `reference::draw::SKY_SRGB`.
-pub const SKY_SRGB: [u8; 3] = [168, 198, 226];
-/// Cells per side of the ground grid. Keep in sync with `reference::draw::TERRAIN_CELLS`.
-pub const TERRAIN_CELLS: u32 = 64;
-/// Ground margin beyond the footprint, metres. Keep in sync with `reference::draw::TERRAIN_MARGIN`.
-pub const TERRAIN_MARGIN: f32 = 2000.0;
+// The LOD-id codes (mirrored in `draw.wgsl`), the sky colour and the ground grid are the
+// reference's own, from `forestlod_shared::{color, terrain}`; re-exported at their old paths.
+pub use forestlod_shared::{
+    LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION, SKY_SRGB,
+    TERRAIN_CELLS, TERRAIN_MARGIN,
+};
 
 /// One vertex of the shared vertex buffer: the reference's `geometry::PackedVertex`, field for
 /// field. Keep in sync with `struct DrawVertex` in `draw.wgsl`.
@@ -154,60 +143,16 @@ impl DrawUniform {
     }
 }
 
-/// sRGB byte to linear light: the exact curve in `f64`, rounded once to `f32` (as the
-/// reference's `texture::srgb_to_linear` table).
-fn srgb_to_linear(c: u8) -> f32 {
-    let c = c as f64 / 255.0;
-    (if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }) as f32
-}
-
-/// Ground colour (linear RGB) at a height: the reference's `ground_color`.
-fn ground_color(z: f32) -> [f32; 3] {
-    let t = ((z + 30.0) / 60.0).clamp(0.0, 1.0);
-    let lo = [96u8, 110, 70];
-    let hi = [140u8, 132, 96];
-    core::array::from_fn(|c| srgb_to_linear(lo[c]) * (1.0 - t) + srgb_to_linear(hi[c]) * t)
-}
-
-/// The ground grid as a triangle list in world space, the twin of the reference's
-/// `terrain_triangles` (same grid, same vertex order, same colours): [`TERRAIN_CELLS`]² cells
-/// over the footprint `bounds = [min_x, min_y, max_x, max_y]` plus [`TERRAIN_MARGIN`], following
-/// `height(x, y)` (the scene's terrain), sunk 0.05 m.
+/// The ground grid as a triangle list in world space: [`forestlod_shared::terrain_grid`] (the
+/// reference's `terrain_triangles` before projection: same grid, same vertex order, same colours),
+/// [`TERRAIN_CELLS`]² cells over the footprint `bounds = [min_x, min_y, max_x, max_y]` plus
+/// [`TERRAIN_MARGIN`], following `height(x, y)` (the scene's terrain), sunk 0.05 m.
 pub fn terrain_vertices(bounds: [f32; 4], height: impl Fn(f32, f32) -> f32) -> Vec<TerrainVertex> {
-    let [x0, y0, x1, y1] = bounds;
-    let (x0, y0, x1, y1) = (
-        x0 - TERRAIN_MARGIN,
-        y0 - TERRAIN_MARGIN,
-        x1 + TERRAIN_MARGIN,
-        y1 + TERRAIN_MARGIN,
-    );
-    let n = TERRAIN_CELLS;
-    let vertex = |i: u32, j: u32| {
-        let x = x0 + (x1 - x0) * i as f32 / n as f32;
-        let y = y0 + (y1 - y0) * j as f32 / n as f32;
-        let z = height(x, y) - 0.05;
-        TerrainVertex {
-            position: [x, y, z],
-            color: ground_color(z),
-        }
-    };
-    let mut out = Vec::with_capacity((n * n * 6) as usize);
-    for j in 0..n {
-        for i in 0..n {
-            let (a, b, c, d) = (
-                vertex(i, j),
-                vertex(i + 1, j),
-                vertex(i + 1, j + 1),
-                vertex(i, j + 1),
-            );
-            out.extend_from_slice(&[a, b, c, a, c, d]);
-        }
-    }
-    out
+    forestlod_shared::terrain_grid(bounds, height)
+        .into_iter()
+        .flatten()
+        .map(|(position, color)| TerrainVertex { position, color })
+        .collect()
 }
 
 /// One mip level of one layer, for [`upload_texture_array`]: sRGB RGBA8 texels, row-major from
@@ -907,7 +852,7 @@ pub(crate) fn begin_target_pass<'e>(
         view(&target.depth),
         view(&target.lod_id),
     );
-    let sky = SKY_SRGB.map(|c| srgb_to_linear(c) as f64);
+    let sky = SKY_SRGB.map(|c| forestlod_shared::srgb_to_linear(c) as f64);
     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some(label),
         color_attachments: &[
@@ -1337,7 +1282,5 @@ pub(crate) mod tests {
         assert_eq!(v[0].position, [-TERRAIN_MARGIN, -TERRAIN_MARGIN, 0.95]);
         let last = v.last().unwrap().position;
         assert_eq!(last[1], 100.0 + TERRAIN_MARGIN);
-        assert_eq!(srgb_to_linear(255), 1.0);
-        assert_eq!(srgb_to_linear(0), 0.0);
     }
 }

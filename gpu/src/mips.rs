@@ -124,42 +124,13 @@ pub const TABLE_LEN: usize = 1024;
 /// Output rows are padded to this many texels (256 bytes, `COPY_BYTES_PER_ROW_ALIGNMENT`).
 const OUT_ROW_ALIGN_TEXELS: u32 = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT / 4;
 
-/// Linear light of an sRGB byte: the exact curve in `f64`, rounded once to `f32`. Keep in sync
-/// with `reference::texture::srgb_to_linear` (the parity tests compare every byte).
-pub fn srgb_to_linear_exact(c: u8) -> f32 {
-    let c = f64::from(c) / 255.0;
-    (if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }) as f32
-}
-
-/// An sRGB byte from linear light: clamp to `[0, 1]` (NaN to 0), the inverse curve in `f64`,
-/// round to nearest. Keep in sync with `reference::texture::linear_to_srgb`.
-#[allow(
-    clippy::manual_clamp,
-    reason = "max-then-min maps NaN to 0, as the reference does"
-)]
-pub fn linear_to_srgb_exact(l: f32) -> u8 {
-    let l = f64::from(l).max(0.0).min(1.0);
-    let s = if l <= 0.0031308 {
-        l * 12.92
-    } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0 + 0.5).floor() as u8
-}
-
-/// A UNORM byte from `[0, 1]` (clamped, NaN to 0), rounding to nearest. Keep in sync with
-/// `reference::texture::unorm8`.
-#[allow(
-    clippy::manual_clamp,
-    reason = "max-then-min maps NaN to 0, as the reference does"
-)]
-pub fn unorm8_exact(v: f32) -> u8 {
-    (v.max(0.0).min(1.0) * 255.0 + 0.5).floor() as u8
-}
+// The sRGB codec and UNORM quantization the tables encode are the reference's own
+// (`forestlod_shared::color`: exact curve in `f64`, rounded once; clamp with NaN to 0, round to
+// nearest), re-exported under the names this module always gave them.
+pub use forestlod_shared::color::{
+    linear_to_srgb as linear_to_srgb_exact, srgb_to_linear as srgb_to_linear_exact,
+    unorm8 as unorm8_exact,
+};
 
 /// Smallest non-negative `f32` in `[0, 1]` that `encode` maps to `b` or more (`encode` must be
 /// non-decreasing on `[0, 1]` and map 1 to 255), by bisection over the bit patterns.

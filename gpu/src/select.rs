@@ -40,19 +40,13 @@ pub const SELECT_WORKGROUP_SIZE: u32 = 64;
 /// Invocations of the single scan workgroup. Keep in sync with `select.wgsl`.
 pub const SCAN_WORKGROUP_SIZE: u32 = 256;
 
-/// Per-batch (and, in `cull`, per-tree) decision code (low two bits): culled beyond the draw
-/// distance. The `DECISION_*` codes are kept in sync with `common.wgsl`.
-pub const DECISION_CULLED_DISTANCE: u32 = 0;
-/// Per-batch decision code: culled outside the frustum.
-pub const DECISION_CULLED_FRUSTUM: u32 = 1;
-/// Per-batch decision code: drawn, with [`DECISION_LOD0`] / [`DECISION_LOD1`] bits.
-pub const DECISION_DRAW: u32 = 2;
-/// Mask of the decision kind.
-pub const DECISION_KIND_MASK: u32 = 3;
-/// Decision bit: the batch needs LOD0.
-pub const DECISION_LOD0: u32 = 4;
-/// Decision bit: the batch needs LOD1.
-pub const DECISION_LOD1: u32 = 8;
+/// Per-batch (and, in `cull`, per-tree) decision codes: defined with
+/// [`forestlod_shared::Decision`] (`Decision::code` / `Decision::from_code`), mirrored in
+/// `common.wgsl`; re-exported at their old paths.
+pub use forestlod_shared::{
+    DECISION_CULLED_DISTANCE, DECISION_CULLED_FRUSTUM, DECISION_DRAW, DECISION_KIND_MASK,
+    DECISION_LOD0, DECISION_LOD1,
+};
 
 /// Which compaction writes the commands (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

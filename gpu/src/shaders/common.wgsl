@@ -161,7 +161,7 @@ fn sphere_visible(planes: array<vec4<f32>, 6>, center: vec3<f32>, radius: f32, e
 }
 
 // Per-sphere decision codes (low two bits), plus LOD bits for DECISION_DRAW. Keep in sync with
-// the DECISION_* consts of gpu/src/select.rs.
+// the DECISION_* consts of shared/src/view.rs (forestlod_shared::Decision::code).
 const DECISION_CULLED_DISTANCE: u32 = 0u;
 const DECISION_CULLED_FRUSTUM: u32 = 1u;
 const DECISION_DRAW: u32 = 2u;
