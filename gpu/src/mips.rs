@@ -65,12 +65,12 @@
 //! 4096² layer 7 s and 22 s; the reference 0.4-0.8 s and 2-3 s.
 
 use std::num::NonZeroU64;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::MipMode;
 
-use crate::context::{buffer_entry, compute_pipelines};
+use crate::context::{StagePipelines, buffer_entry, compute_pipelines};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -482,8 +482,8 @@ struct MipsPipelines {
     finalize: wgpu::ComputePipeline,
 }
 
-impl MipsPipelines {
-    fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+impl StagePipelines for MipsPipelines {
+    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("mips.wgsl pipelines", || {
             use wgpu::BufferBindingType as B;
             let buffer =
@@ -556,7 +556,7 @@ impl MipsPipelines {
 #[derive(Debug)]
 pub struct GpuMips<'a> {
     ctx: &'a GpuContext,
-    pipelines: MipsPipelines,
+    pipelines: Arc<MipsPipelines>,
 }
 
 /// A billboard array texture with its full mip chains, and what the mips stage recorded.
@@ -761,7 +761,7 @@ impl<'a> GpuMips<'a> {
     pub fn new(ctx: &'a GpuContext) -> Result<Self, GpuError> {
         Ok(Self {
             ctx,
-            pipelines: MipsPipelines::new(ctx)?,
+            pipelines: ctx.pipelines::<MipsPipelines>()?,
         })
     }
 
@@ -1094,6 +1094,35 @@ pub(crate) mod tests {
     /// Asserts that the WGSL struct `name` of `module` has exactly the members `fields`, as
     /// `(name, byte offset)` in declaration order, and the span `size`: its Rust twin's
     /// `offset_of!`s and `size_of`.
+    /// `module`'s `ViewUniform` and `FrustumPlanes` have the layout of
+    /// `forestlod_shared::{ViewUniform, FrustumPlanes}` (the stage uniforms embed them).
+    pub(crate) fn assert_view_uniform(module: &naga::Module) {
+        use core::mem::offset_of;
+        use forestlod_shared::{FrustumPlanes, ViewUniform};
+        assert_wgsl_struct(
+            module,
+            "FrustumPlanes",
+            &[("planes", offset_of!(FrustumPlanes, planes))],
+            size_of::<FrustumPlanes>(),
+        );
+        assert_wgsl_struct(
+            module,
+            "ViewUniform",
+            &[
+                ("frustum", offset_of!(ViewUniform, frustum)),
+                ("eye", offset_of!(ViewUniform, eye)),
+                ("fade_start", offset_of!(ViewUniform, fade_start)),
+                ("forward", offset_of!(ViewUniform, forward)),
+                ("fade_end", offset_of!(ViewUniform, fade_end)),
+                ("draw_distance", offset_of!(ViewUniform, draw_distance)),
+                ("lod_levels", offset_of!(ViewUniform, lod_levels)),
+                ("_pad0", offset_of!(ViewUniform, _pad0)),
+                ("_pad1", offset_of!(ViewUniform, _pad1)),
+            ],
+            size_of::<ViewUniform>(),
+        );
+    }
+
     pub(crate) fn assert_wgsl_struct(
         module: &naga::Module,
         name: &str,
