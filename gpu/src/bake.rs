@@ -42,6 +42,7 @@
 //! Everywhere else the layers agree within ±1 per channel (the sRGB encodes round apart).
 
 use std::num::NonZeroU64;
+use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{
@@ -49,6 +50,7 @@ use forestlod_shared::{
 };
 use wgpu::util::DeviceExt;
 
+use crate::context::StagePipelines;
 use crate::mips::{BILLBOARD_FORMAT, GpuMips, MipArray, create_billboard_texture};
 use crate::{GpuContext, GpuError};
 
@@ -253,8 +255,8 @@ struct BakePipelines {
     sampler: wgpu::Sampler,
 }
 
-impl BakePipelines {
-    fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+impl StagePipelines for BakePipelines {
+    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("bake.wgsl pipeline", || {
             let device = &ctx.device;
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -370,7 +372,7 @@ impl BakePipelines {
 #[derive(Debug)]
 pub struct GpuBake<'a> {
     mips: GpuMips<'a>,
-    pipelines: BakePipelines,
+    pipelines: Arc<BakePipelines>,
 }
 
 impl<'a> GpuBake<'a> {
@@ -378,7 +380,7 @@ impl<'a> GpuBake<'a> {
     pub fn new(ctx: &'a GpuContext) -> Result<Self, GpuError> {
         Ok(Self {
             mips: GpuMips::new(ctx)?,
-            pipelines: BakePipelines::new(ctx)?,
+            pipelines: ctx.pipelines::<BakePipelines>()?,
         })
     }
 

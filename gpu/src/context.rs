@@ -11,10 +11,15 @@
 //!
 //! Crate-internal helpers hold the pipeline boilerplate the stage drivers share: `buffer_entry`
 //! (one buffer binding of a bind-group layout), `compute_pipelines` (a stage's WGSL module, its one
-//! bind-group layout and a compute pipeline per entry point) and `cached_pipelines` (a stage's
-//! pipelines compiled once per context).
+//! bind-group layout and a compute pipeline per entry point).
+//!
+//! **One pipeline cache.** Every stage's compiled pipelines (a type implementing
+//! [`StagePipelines`]) are created once per context on first use and shared by every driver of
+//! that stage ([`GpuContext::pipelines`]), keyed by the type: this module names no stage.
 
-use std::sync::OnceLock;
+use std::any::{Any, TypeId};
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 
 /// The environment variable that lets GPU tests skip (instead of fail) without an adapter.
 pub const ALLOW_NO_GPU_ENV: &str = "FORESTLOD_ALLOW_NO_GPU";
@@ -133,12 +138,8 @@ pub struct GpuContext {
     pub limits: wgpu::Limits,
     /// One line per adapter [`GpuContext::new`] found but could not use, with the reason.
     pub passed_over: Vec<String>,
-    /// Compiled `select` pipelines, created on first use and shared by every [`crate::GpuSelect`].
-    pub(crate) select_pipelines: OnceLock<crate::select::SelectPipelines>,
-    /// Compiled `cull` pipelines, created on first use and shared by every [`crate::GpuCull`].
-    pub(crate) cull_pipelines: OnceLock<crate::cull::CullPipelines>,
-    /// Compiled `refine` pipeline, created on first use and shared by every [`crate::GpuRefine`].
-    pub(crate) refine_pipelines: OnceLock<crate::refine::RefinePipelines>,
+    /// Every stage's compiled pipelines, by type ([`GpuContext::pipelines`]).
+    pipelines: Mutex<HashMap<TypeId, Arc<dyn Any + Send + Sync>>>,
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -224,10 +225,31 @@ impl GpuContext {
             features,
             limits,
             passed_over: Vec::new(),
-            select_pipelines: OnceLock::new(),
-            cull_pipelines: OnceLock::new(),
-            refine_pipelines: OnceLock::new(),
+            pipelines: Mutex::new(HashMap::new()),
         })
+    }
+
+    /// The compiled pipelines of stage `T`, created by [`StagePipelines::create`] on first use
+    /// and shared by every later caller (every driver of the stage on this context). Concurrent
+    /// first uses may each compile a set; the first one stored wins and the others are dropped
+    /// (every set works alike). A failed `create` stores nothing and returns its error, so a later
+    /// call tries again. The lock is not held while compiling.
+    pub fn pipelines<T: StagePipelines>(&self) -> Result<Arc<T>, GpuError> {
+        let key = TypeId::of::<T>();
+        let cached = |map: &HashMap<TypeId, Arc<dyn Any + Send + Sync>>| {
+            map.get(&key).map(|p| {
+                Arc::clone(p)
+                    .downcast::<T>()
+                    .expect("the cache stores each type under its own TypeId")
+            })
+        };
+        if let Some(p) = cached(&self.pipelines.lock().unwrap_or_else(|e| e.into_inner())) {
+            return Ok(p);
+        }
+        let created: Arc<dyn Any + Send + Sync> = Arc::new(T::create(self)?);
+        let mut map = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        map.entry(key).or_insert(created);
+        Ok(cached(&map).expect("just stored"))
     }
 
     /// One line for logs: name, backend, device type and the enabled optional features.
@@ -395,20 +417,11 @@ pub(crate) fn frame_uniform<T: bytemuck::Pod>(
     )
 }
 
-/// The pipelines in `cell` (one of [`GpuContext`]'s caches), compiled by `create` on first use.
-/// Concurrent first uses may each compile a set; the first one stored wins and the others are
-/// dropped (every set works alike). A failed `create` stores nothing and returns its error, so a
-/// later call tries again.
-pub(crate) fn cached_pipelines<T>(
-    cell: &OnceLock<T>,
-    create: impl FnOnce() -> Result<T, GpuError>,
-) -> Result<&T, GpuError> {
-    if let Some(pipelines) = cell.get() {
-        return Ok(pipelines);
-    }
-    let pipelines = create()?;
-    let _ = cell.set(pipelines);
-    Ok(cell.get().expect("the pipelines were just set"))
+/// A stage's compiled pipelines (bind-group layouts, pipelines, samplers: nothing per frame),
+/// created once per [`GpuContext`] and cached there ([`GpuContext::pipelines`]).
+pub trait StagePipelines: Any + Send + Sync + Sized {
+    /// Compiles the stage's WGSL and creates its pipelines on `ctx`'s device.
+    fn create(ctx: &GpuContext) -> Result<Self, GpuError>;
 }
 
 /// The context for a GPU test. Without an adapter it **panics** with [`NO_GPU_HINT`], unless the

@@ -35,10 +35,12 @@
 //! visible trees; the culled counts stay 0 (they would cost an atomic per culled tree).
 //! [`GpuCull::draw_args`] feeds the Primitive's one `draw_indirect` (`primitive.rs`).
 
-use bytemuck::{Pod, Zeroable};
-use forestlod_shared::{Camera, MeshMeta, Params, SelectCounters};
+use std::sync::Arc;
 
-use crate::context::{buffer_entry, cached_pipelines, compute_pipelines};
+use bytemuck::{Pod, Zeroable};
+use forestlod_shared::{Camera, MeshMeta, Params, SelectCounters, ViewUniform};
+
+use crate::context::{StagePipelines, buffer_entry, compute_pipelines};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError, SelectBuffers};
 
@@ -85,44 +87,33 @@ const _: () = assert!(size_of::<DrawIndirectArgs>() == 16);
 
 /// The per-frame uniform of `cull.wgsl`. Keep in sync with `struct CullUniform` there.
 ///
-/// The reference's `select::SelectUniform` plus the sizes; uniform-compatible layout.
+/// The shared view constants ([`ViewUniform`], the reference's `select::SelectUniform`) plus the
+/// sizes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct CullUniform {
-    /// Frustum planes `[nx, ny, nz, w]` relative to the eye (`Camera::frustum`).
-    pub planes: [[f32; 4]; 6],
-    /// Eye position.
-    pub eye: [f32; 3],
-    /// Start of the fade band, `lod1_transition - fade_width`.
-    pub fade_start: f32,
-    /// Unit view direction (`Camera::basis().forward`).
-    pub forward: [f32; 3],
-    /// End of the fade band, `lod1_transition`.
-    pub fade_end: f32,
-    /// Draw distance.
-    pub draw_distance: f32,
-    /// LOD levels (1 or 2).
-    pub lod_levels: u32,
+    /// Eye, forward, frustum, fade band, draw distance, LOD levels ([`ViewUniform::new`]).
+    pub view: ViewUniform,
     /// Number of trees.
     pub tree_count: u32,
     /// Number of meshes.
     pub mesh_count: u32,
+    /// Explicit padding.
+    pub _pad0: u32,
+    /// Explicit padding.
+    pub _pad1: u32,
 }
-const _: () = assert!(size_of::<CullUniform>() == 144);
+const _: () = assert!(size_of::<CullUniform>() == 160);
 
 impl CullUniform {
-    /// The uniform for a camera and parameters, derived as the reference's `SelectUniform::new`.
+    /// The uniform for a camera and parameters ([`ViewUniform::new`], as the reference's).
     pub fn new(camera: &Camera, params: &Params, tree_count: u32, mesh_count: u32) -> Self {
         Self {
-            planes: camera.frustum().planes,
-            eye: camera.eye,
-            fade_start: params.lod1_transition - params.fade_width,
-            forward: camera.basis().forward.to_array(),
-            fade_end: params.lod1_transition,
-            draw_distance: params.draw_distance,
-            lod_levels: params.lod_levels,
+            view: ViewUniform::new(camera, params),
             tree_count,
             mesh_count,
+            _pad0: 0,
+            _pad1: 0,
         }
     }
 }
@@ -148,9 +139,9 @@ pub struct CullPipelines {
     scatter: wgpu::ComputePipeline,
 }
 
-impl CullPipelines {
+impl StagePipelines for CullPipelines {
     /// Compiles `cull.wgsl` and creates its three pipelines.
-    pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("cull.wgsl pipelines", || {
             use wgpu::BufferBindingType as B;
             let buffer =
@@ -187,6 +178,8 @@ impl CullPipelines {
 /// One scene's trees on the GPU, ready to cull for any camera and parameters (module docs).
 pub struct GpuCull<'a> {
     ctx: &'a GpuContext,
+    /// The stage's pipelines, from the context's cache.
+    pipelines: Arc<CullPipelines>,
     uniform: wgpu::Buffer,
     mesh_counts: wgpu::Buffer,
     indirection: wgpu::Buffer,
@@ -241,7 +234,7 @@ impl<'a> GpuCull<'a> {
                 reason: "cull.wgsl binds 9 storage buffers in its compute stage",
             });
         }
-        let pipelines = cached_pipelines(&ctx.cull_pipelines, || CullPipelines::new(ctx))?;
+        let pipelines = ctx.pipelines::<CullPipelines>()?;
         use wgpu::BufferUsages as U;
         let n = trees.len() as u64;
         let tree_buffer = upload_storage(ctx, "cull trees", trees, U::empty());
@@ -296,6 +289,7 @@ impl<'a> GpuCull<'a> {
         })?;
         Ok(Self {
             ctx,
+            pipelines: pipelines.clone(),
             uniform,
             mesh_counts,
             indirection,
@@ -344,11 +338,7 @@ impl<'a> GpuCull<'a> {
             .queue
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
         encoder.clear_buffer(&self.mesh_counts, 0, None);
-        let pipelines = self
-            .ctx
-            .cull_pipelines
-            .get()
-            .expect("GpuCull::new created the pipelines");
+        let pipelines = &self.pipelines;
         let (x, y) = self.groups();
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("cull"),
@@ -404,7 +394,7 @@ mod tests {
     use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
     use core::mem::offset_of;
 
-    /// `CullUniform` and `DrawIndirectArgs` have their WGSL twins' layout (naga reflection of the
+    /// `CullUniform` (with its `ViewUniform`) and `DrawIndirectArgs` have their WGSL twins' layout (naga reflection of the
     /// full `cull.wgsl` module, which also validates it; `CullTree`, in `common.wgsl`, is checked
     /// by `gpu/tests/layout.rs`).
     #[test]
@@ -414,18 +404,15 @@ mod tests {
             &module,
             "CullUniform",
             &[
-                ("planes", offset_of!(CullUniform, planes)),
-                ("eye", offset_of!(CullUniform, eye)),
-                ("fade_start", offset_of!(CullUniform, fade_start)),
-                ("forward", offset_of!(CullUniform, forward)),
-                ("fade_end", offset_of!(CullUniform, fade_end)),
-                ("draw_distance", offset_of!(CullUniform, draw_distance)),
-                ("lod_levels", offset_of!(CullUniform, lod_levels)),
+                ("view", offset_of!(CullUniform, view)),
                 ("tree_count", offset_of!(CullUniform, tree_count)),
                 ("mesh_count", offset_of!(CullUniform, mesh_count)),
+                ("_pad0", offset_of!(CullUniform, _pad0)),
+                ("_pad1", offset_of!(CullUniform, _pad1)),
             ],
             size_of::<CullUniform>(),
         );
+        crate::mips::tests::assert_view_uniform(&module);
         assert_wgsl_struct(
             &module,
             "DrawIndirectArgs",

@@ -36,11 +36,13 @@
 //! approximate `log2` for λ. None of these is a rule difference; each is classified in the
 //! comparison, not hidden by a wider tolerance.
 
+use std::sync::Arc;
+
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MAX_COMMANDS, MAX_MESH_VERTICES, MeshMeta, Params};
 use wgpu::util::DeviceExt;
 
-use crate::context::{buffer_entry, frame_uniform};
+use crate::context::{StagePipelines, buffer_entry, frame_uniform};
 use crate::readback::{read_texture, upload_storage};
 use crate::{GpuContext, GpuError, SelectBuffers};
 
@@ -53,23 +55,12 @@ pub const LOD_ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 /// Format of the textures [`upload_texture_array`] creates (sRGB RGBA8, SPEC §3).
 pub const TEXTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
-/// LOD-id of background pixels. Keep in sync with `reference/src/draw.rs`.
-pub const LOD_ID_BACKGROUND: u32 = 0;
-/// LOD-id of full meshes (green in E Fig. 3.1). Keep in sync with `draw.wgsl`.
-pub const LOD_ID_MESH: u32 = 1;
-/// LOD-id of billboards (blue).
-pub const LOD_ID_BILLBOARD: u32 = 2;
-/// LOD-id of fragments of a fading command strictly inside the band (red).
-pub const LOD_ID_TRANSITION: u32 = 3;
-/// LOD-id of the ground.
-pub const LOD_ID_TERRAIN: u32 = 4;
-
-/// Sky colour (sRGB8), the clear colour. Keep in sync with `reference::draw::SKY_SRGB`.
-pub const SKY_SRGB: [u8; 3] = [168, 198, 226];
-/// Cells per side of the ground grid. Keep in sync with `reference::draw::TERRAIN_CELLS`.
-pub const TERRAIN_CELLS: u32 = 64;
-/// Ground margin beyond the footprint, metres. Keep in sync with `reference::draw::TERRAIN_MARGIN`.
-pub const TERRAIN_MARGIN: f32 = 2000.0;
+// The LOD-id codes (mirrored in `draw.wgsl`), the sky colour and the ground grid are the
+// reference's own, from `forestlod_shared::{color, terrain}`; re-exported at their old paths.
+pub use forestlod_shared::{
+    LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION, SKY_SRGB,
+    TERRAIN_CELLS, TERRAIN_MARGIN,
+};
 
 /// One vertex of the shared vertex buffer: the reference's `geometry::PackedVertex`, field for
 /// field. Keep in sync with `struct DrawVertex` in `draw.wgsl`.
@@ -154,60 +145,16 @@ impl DrawUniform {
     }
 }
 
-/// sRGB byte to linear light: the exact curve in `f64`, rounded once to `f32` (as the
-/// reference's `texture::srgb_to_linear` table).
-fn srgb_to_linear(c: u8) -> f32 {
-    let c = c as f64 / 255.0;
-    (if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }) as f32
-}
-
-/// Ground colour (linear RGB) at a height: the reference's `ground_color`.
-fn ground_color(z: f32) -> [f32; 3] {
-    let t = ((z + 30.0) / 60.0).clamp(0.0, 1.0);
-    let lo = [96u8, 110, 70];
-    let hi = [140u8, 132, 96];
-    core::array::from_fn(|c| srgb_to_linear(lo[c]) * (1.0 - t) + srgb_to_linear(hi[c]) * t)
-}
-
-/// The ground grid as a triangle list in world space, the twin of the reference's
-/// `terrain_triangles` (same grid, same vertex order, same colours): [`TERRAIN_CELLS`]² cells
-/// over the footprint `bounds = [min_x, min_y, max_x, max_y]` plus [`TERRAIN_MARGIN`], following
-/// `height(x, y)` (the scene's terrain), sunk 0.05 m.
+/// The ground grid as a triangle list in world space: [`forestlod_shared::terrain_grid`] (the
+/// reference's `terrain_triangles` before projection: same grid, same vertex order, same colours),
+/// [`TERRAIN_CELLS`]² cells over the footprint `bounds = [min_x, min_y, max_x, max_y]` plus
+/// [`TERRAIN_MARGIN`], following `height(x, y)` (the scene's terrain), sunk 0.05 m.
 pub fn terrain_vertices(bounds: [f32; 4], height: impl Fn(f32, f32) -> f32) -> Vec<TerrainVertex> {
-    let [x0, y0, x1, y1] = bounds;
-    let (x0, y0, x1, y1) = (
-        x0 - TERRAIN_MARGIN,
-        y0 - TERRAIN_MARGIN,
-        x1 + TERRAIN_MARGIN,
-        y1 + TERRAIN_MARGIN,
-    );
-    let n = TERRAIN_CELLS;
-    let vertex = |i: u32, j: u32| {
-        let x = x0 + (x1 - x0) * i as f32 / n as f32;
-        let y = y0 + (y1 - y0) * j as f32 / n as f32;
-        let z = height(x, y) - 0.05;
-        TerrainVertex {
-            position: [x, y, z],
-            color: ground_color(z),
-        }
-    };
-    let mut out = Vec::with_capacity((n * n * 6) as usize);
-    for j in 0..n {
-        for i in 0..n {
-            let (a, b, c, d) = (
-                vertex(i, j),
-                vertex(i + 1, j),
-                vertex(i + 1, j + 1),
-                vertex(i, j + 1),
-            );
-            out.extend_from_slice(&[a, b, c, a, c, d]);
-        }
-    }
-    out
+    forestlod_shared::terrain_grid(bounds, height)
+        .into_iter()
+        .flatten()
+        .map(|(position, color)| TerrainVertex { position, color })
+        .collect()
 }
 
 /// One mip level of one layer, for [`upload_texture_array`]: sRGB RGBA8 texels, row-major from
@@ -634,18 +581,10 @@ impl DrawTarget {
         })
     }
 
-    /// The depth buffer through a compute pass (`textureLoad` into a storage buffer).
+    /// The depth buffer through a compute pass (`shaders/depth_copy.wgsl`: `textureLoad` into a
+    /// storage buffer), with the context's [`DepthCopyPipelines`].
     fn read_depth_by_compute(&self, ctx: &GpuContext) -> Result<Vec<f32>, GpuError> {
-        const SOURCE: &str = "
-            @group(0) @binding(0) var depth_texture: texture_2d<f32>;
-            @group(0) @binding(1) var<storage, read_write> out: array<f32>;
-            @compute @workgroup_size(8, 8)
-            fn copy_depth(@builtin(global_invocation_id) id: vec3<u32>) {
-                let size = textureDimensions(depth_texture);
-                if id.x < size.x && id.y < size.y {
-                    out[id.y * size.x + id.x] = textureLoad(depth_texture, vec2<i32>(id.xy), 0).x;
-                }
-            }";
+        let pipelines = ctx.pipelines::<DepthCopyPipelines>()?;
         let n = self.width as u64 * self.height as u64;
         let buffer = crate::readback::zeroed_buffer(
             ctx,
@@ -654,65 +593,13 @@ impl DrawTarget {
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         );
         ctx.checked("depth copy by compute", || {
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("copy_depth"),
-                    source: wgpu::ShaderSource::Wgsl(SOURCE.into()),
-                });
-            // A depth texture binds as unfilterable float (GLSL has no `textureLoad` of depth
-            // textures, but loads from a float view).
-            let layout = ctx
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("copy_depth"),
-                    entries: &[
-                        wgpu::BindGroupLayoutEntry {
-                            binding: 0,
-                            visibility: wgpu::ShaderStages::COMPUTE,
-                            ty: wgpu::BindingType::Texture {
-                                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                                view_dimension: wgpu::TextureViewDimension::D2,
-                                multisampled: false,
-                            },
-                            count: None,
-                        },
-                        wgpu::BindGroupLayoutEntry {
-                            binding: 1,
-                            visibility: wgpu::ShaderStages::COMPUTE,
-                            ty: wgpu::BindingType::Buffer {
-                                ty: wgpu::BufferBindingType::Storage { read_only: false },
-                                has_dynamic_offset: false,
-                                min_binding_size: None,
-                            },
-                            count: None,
-                        },
-                    ],
-                });
-            let pipeline_layout =
-                ctx.device
-                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                        label: Some("copy_depth"),
-                        bind_group_layouts: &[Some(&layout)],
-                        immediate_size: 0,
-                    });
-            let pipeline = ctx
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("copy_depth"),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some("copy_depth"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
             let view = self.depth.create_view(&wgpu::TextureViewDescriptor {
                 aspect: wgpu::TextureAspect::DepthOnly,
                 ..Default::default()
             });
             let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("copy_depth"),
-                layout: &layout,
+                layout: &pipelines.layout,
                 entries: &[
                     wgpu::BindGroupEntry {
                         binding: 0,
@@ -734,13 +621,76 @@ impl DrawTarget {
                     label: Some("copy_depth"),
                     timestamp_writes: None,
                 });
-                pass.set_pipeline(&pipeline);
+                pass.set_pipeline(&pipelines.pipeline);
                 pass.set_bind_group(0, &bind_group, &[]);
                 pass.dispatch_workgroups(self.width.div_ceil(8), self.height.div_ceil(8), 1);
             }
             ctx.queue.submit([encoder.finish()]);
         })?;
         crate::readback::read_buffer(ctx, &buffer, 0, n as usize)
+    }
+}
+
+/// The compiled `depth_copy.wgsl` pipeline, one per [`GpuContext`] (cached there).
+#[derive(Debug)]
+pub struct DepthCopyPipelines {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl StagePipelines for DepthCopyPipelines {
+    /// Compiles `depth_copy.wgsl`: a depth texture (bound as unfilterable float: GLSL has no
+    /// `textureLoad` of depth textures, but loads from a float view) and the output buffer.
+    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
+        ctx.checked("depth_copy.wgsl pipeline", || {
+            let module = ctx
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("depth_copy.wgsl"),
+                    source: wgpu::ShaderSource::Wgsl(crate::shaders::DEPTH_COPY_WGSL.into()),
+                });
+            let layout = ctx
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("copy_depth"),
+                    entries: &[
+                        wgpu::BindGroupLayoutEntry {
+                            binding: 0,
+                            visibility: wgpu::ShaderStages::COMPUTE,
+                            ty: wgpu::BindingType::Texture {
+                                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                                view_dimension: wgpu::TextureViewDimension::D2,
+                                multisampled: false,
+                            },
+                            count: None,
+                        },
+                        buffer_entry(
+                            1,
+                            wgpu::ShaderStages::COMPUTE,
+                            wgpu::BufferBindingType::Storage { read_only: false },
+                            0,
+                        ),
+                    ],
+                });
+            let pipeline_layout =
+                ctx.device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("copy_depth"),
+                        bind_group_layouts: &[Some(&layout)],
+                        immediate_size: 0,
+                    });
+            let pipeline = ctx
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("copy_depth"),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some("copy_depth"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+            Self { layout, pipeline }
+        })
     }
 }
 
@@ -907,7 +857,7 @@ pub(crate) fn begin_target_pass<'e>(
         view(&target.depth),
         view(&target.lod_id),
     );
-    let sky = SKY_SRGB.map(|c| srgb_to_linear(c) as f64);
+    let sky = SKY_SRGB.map(|c| forestlod_shared::srgb_to_linear(c) as f64);
     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some(label),
         color_attachments: &[
@@ -954,18 +904,26 @@ pub(crate) fn begin_target_pass<'e>(
     })
 }
 
-/// The compiled draw pipelines of one device.
+/// The compiled `draw.wgsl` pipelines, one set per [`GpuContext`] (cached there).
 #[derive(Debug)]
-pub struct GpuDraw {
+pub struct DrawPipelines {
     layout: wgpu::BindGroupLayout,
     trees: wgpu::RenderPipeline,
     terrain: wgpu::RenderPipeline,
     sampler: wgpu::Sampler,
+}
+
+/// The draw stage of one device: the context's [`DrawPipelines`] and how it issues the tree
+/// commands. Holds no per-frame state (`&self`, `Sync`).
+#[derive(Debug)]
+pub struct GpuDraw {
+    pipelines: Arc<DrawPipelines>,
     mode: IndirectMode,
 }
 
 impl GpuDraw {
-    /// Compiles `draw.wgsl`. Fails with [`GpuError::Input`] when the device lacks
+    /// Takes the context's compiled `draw.wgsl` pipelines (compiling them on first use,
+    /// [`GpuContext::pipelines`]). Fails with [`GpuError::Input`] when the device lacks
     /// `INDIRECT_FIRST_INSTANCE` (the draw stage cannot find a batch's trees without it).
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
         let mode = if ctx
@@ -1001,6 +959,21 @@ impl GpuDraw {
                 reason: "the draw stage needs first_instance in indirect draws (it is each batch's offset into the indirection array, E§4.4)",
             });
         }
+        Ok(Self {
+            pipelines: ctx.pipelines::<DrawPipelines>()?,
+            mode,
+        })
+    }
+
+    /// How this device issues the tree commands.
+    pub fn indirect_mode(&self) -> IndirectMode {
+        self.mode
+    }
+}
+
+impl StagePipelines for DrawPipelines {
+    /// Compiles `draw.wgsl`: the tree and ground pipelines and the trilinear sampler.
+    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("draw.wgsl pipelines", || {
             let device = &ctx.device;
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -1090,16 +1063,12 @@ impl GpuDraw {
                 trees,
                 terrain,
                 sampler,
-                mode,
             }
         })
     }
+}
 
-    /// How this device issues the tree commands.
-    pub fn indirect_mode(&self) -> IndirectMode {
-        self.mode
-    }
-
+impl GpuDraw {
     /// Records one frame's pass into `encoder`. The frame's uniform is a fresh buffer bound into
     /// this call's bind group ([`frame_uniform`]), so frames recorded from several threads with
     /// one `GpuDraw` never see each other's camera. `camera` and `params` should be validated, as for the reference.
@@ -1150,7 +1119,7 @@ impl GpuDraw {
         );
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("draw"),
-            layout: &self.layout,
+            layout: &self.pipelines.layout,
             entries: &[
                 wgpu::BindGroupEntry {
                     binding: 0,
@@ -1192,16 +1161,16 @@ impl GpuDraw {
                 },
                 wgpu::BindGroupEntry {
                     binding: 9,
-                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                    resource: wgpu::BindingResource::Sampler(&self.pipelines.sampler),
                 },
             ],
         });
         let mut pass = begin_target_pass(encoder, target, "draw");
         pass.set_bind_group(0, &bind_group, &[]);
-        pass.set_pipeline(&self.terrain);
+        pass.set_pipeline(&self.pipelines.terrain);
         pass.set_vertex_buffer(0, scene.terrain.slice(..));
         pass.draw(0..scene.terrain_vertex_count, 0..1);
-        pass.set_pipeline(&self.trees);
+        pass.set_pipeline(&self.pipelines.trees);
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
         match self.mode {
             IndirectMode::Count => pass.multi_draw_indexed_indirect_count(
@@ -1249,6 +1218,12 @@ impl GpuDraw {
 pub(crate) mod tests {
     use super::*;
     use core::mem::offset_of;
+
+    /// `depth_copy.wgsl` parses and validates (naga), standalone as the driver compiles it.
+    #[test]
+    fn depth_copy_wgsl_validates() {
+        crate::mips::tests::validate_wgsl(crate::shaders::DEPTH_COPY_WGSL);
+    }
 
     /// `DrawInstance`'s members and their offsets, which its twins in `draw.wgsl` and
     /// `primitive.wgsl` must both have.
@@ -1337,7 +1312,5 @@ pub(crate) mod tests {
         assert_eq!(v[0].position, [-TERRAIN_MARGIN, -TERRAIN_MARGIN, 0.95]);
         let last = v.last().unwrap().position;
         assert_eq!(last[1], 100.0 + TERRAIN_MARGIN);
-        assert_eq!(srgb_to_linear(255), 1.0);
-        assert_eq!(srgb_to_linear(0), 0.0);
     }
 }

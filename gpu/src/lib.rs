@@ -20,6 +20,10 @@
 //! - [`GpuContext`]: adapter and device selection (any Vulkan adapter, lavapipe included), the
 //!   optional features the pipeline uses, and the context a test gets or is told how to get
 //!   ([`gpu_or_explain`]);
+//! - the one pipeline cache: every stage's compiled pipelines (a [`StagePipelines`] type:
+//!   `SelectPipelines`, `CullPipelines`, `RefinePipelines`, `DrawPipelines`,
+//!   `PrimitivePipelines`, `MipsPipelines`, `BakePipelines`, `DepthCopyPipelines`) are compiled
+//!   once per context on first use and shared by every driver ([`GpuContext::pipelines`]);
 //! - [`readback`]: uploading `Pod` slices and reading buffers and texture levels back;
 //! - [`shaders`]: the WGSL sources, with `common.wgsl` mirroring `forestlod-shared`'s `Pod` structs
 //!   field for field (a naga reflection test checks every offset);
@@ -30,8 +34,9 @@
 //! *any* thread, so a driver that rewrites a buffer it owns from a `&self` method lets two threads
 //! record two frames into one buffer, and one frame is drawn with the other's camera (this was the
 //! flake of issue 10: a `GpuDraw` shared by two tests through a static). Two shapes are allowed:
-//! - drivers that hold only compiled pipelines ([`GpuDraw`], [`GpuPrimitive`], [`GpuBake`],
-//!   [`GpuMips`]) are `Sync` and take `&self`; every per-frame buffer (uniforms, outputs) is
+//! - drivers that hold only compiled pipelines (shared `Arc`s from the context's cache, which
+//!   holds nothing per frame: [`GpuDraw`], [`GpuPrimitive`], [`GpuBake`], [`GpuMips`]) are `Sync`
+//!   and take `&self`; every per-frame buffer (uniforms, outputs) is
 //!   created by the call itself (`context::frame_uniform`) or lives in a per-call or per-target
 //!   object the caller owns ([`DrawTarget`]);
 //! - drivers that own per-scene outputs the frame writes ([`GpuSelect`], [`GpuCull`],
@@ -65,7 +70,7 @@ pub mod shaders;
 pub use bake::{BakeMesh, GpuBake, GpuBaked};
 pub use context::{
     ALLOW_NO_GPU_ENV, GpuContext, GpuError, NO_GPU_HINT, REQUIRED_DOWNLEVEL, REQUIRED_FEATURES,
-    adapter_shortfall, gpu_or_explain,
+    StagePipelines, adapter_shortfall, gpu_or_explain,
 };
 pub use cull::{CullTree, DrawIndirectArgs, GpuCull, GpuCulled};
 pub use draw::{

@@ -65,12 +65,12 @@
 //! 4096² layer 7 s and 22 s; the reference 0.4-0.8 s and 2-3 s.
 
 use std::num::NonZeroU64;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::MipMode;
 
-use crate::context::{buffer_entry, compute_pipelines};
+use crate::context::{StagePipelines, buffer_entry, compute_pipelines};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -124,42 +124,13 @@ pub const TABLE_LEN: usize = 1024;
 /// Output rows are padded to this many texels (256 bytes, `COPY_BYTES_PER_ROW_ALIGNMENT`).
 const OUT_ROW_ALIGN_TEXELS: u32 = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT / 4;
 
-/// Linear light of an sRGB byte: the exact curve in `f64`, rounded once to `f32`. Keep in sync
-/// with `reference::texture::srgb_to_linear` (the parity tests compare every byte).
-pub fn srgb_to_linear_exact(c: u8) -> f32 {
-    let c = f64::from(c) / 255.0;
-    (if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }) as f32
-}
-
-/// An sRGB byte from linear light: clamp to `[0, 1]` (NaN to 0), the inverse curve in `f64`,
-/// round to nearest. Keep in sync with `reference::texture::linear_to_srgb`.
-#[allow(
-    clippy::manual_clamp,
-    reason = "max-then-min maps NaN to 0, as the reference does"
-)]
-pub fn linear_to_srgb_exact(l: f32) -> u8 {
-    let l = f64::from(l).max(0.0).min(1.0);
-    let s = if l <= 0.0031308 {
-        l * 12.92
-    } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0 + 0.5).floor() as u8
-}
-
-/// A UNORM byte from `[0, 1]` (clamped, NaN to 0), rounding to nearest. Keep in sync with
-/// `reference::texture::unorm8`.
-#[allow(
-    clippy::manual_clamp,
-    reason = "max-then-min maps NaN to 0, as the reference does"
-)]
-pub fn unorm8_exact(v: f32) -> u8 {
-    (v.max(0.0).min(1.0) * 255.0 + 0.5).floor() as u8
-}
+// The sRGB codec and UNORM quantization the tables encode are the reference's own
+// (`forestlod_shared::color`: exact curve in `f64`, rounded once; clamp with NaN to 0, round to
+// nearest), re-exported under the names this module always gave them.
+pub use forestlod_shared::color::{
+    linear_to_srgb as linear_to_srgb_exact, srgb_to_linear as srgb_to_linear_exact,
+    unorm8 as unorm8_exact,
+};
 
 /// Smallest non-negative `f32` in `[0, 1]` that `encode` maps to `b` or more (`encode` must be
 /// non-decreasing on `[0, 1]` and map 1 to 255), by bisection over the bit patterns.
@@ -511,8 +482,8 @@ struct MipsPipelines {
     finalize: wgpu::ComputePipeline,
 }
 
-impl MipsPipelines {
-    fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+impl StagePipelines for MipsPipelines {
+    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("mips.wgsl pipelines", || {
             use wgpu::BufferBindingType as B;
             let buffer =
@@ -585,7 +556,7 @@ impl MipsPipelines {
 #[derive(Debug)]
 pub struct GpuMips<'a> {
     ctx: &'a GpuContext,
-    pipelines: MipsPipelines,
+    pipelines: Arc<MipsPipelines>,
 }
 
 /// A billboard array texture with its full mip chains, and what the mips stage recorded.
@@ -790,7 +761,7 @@ impl<'a> GpuMips<'a> {
     pub fn new(ctx: &'a GpuContext) -> Result<Self, GpuError> {
         Ok(Self {
             ctx,
-            pipelines: MipsPipelines::new(ctx)?,
+            pipelines: ctx.pipelines::<MipsPipelines>()?,
         })
     }
 
@@ -1123,6 +1094,35 @@ pub(crate) mod tests {
     /// Asserts that the WGSL struct `name` of `module` has exactly the members `fields`, as
     /// `(name, byte offset)` in declaration order, and the span `size`: its Rust twin's
     /// `offset_of!`s and `size_of`.
+    /// `module`'s `ViewUniform` and `FrustumPlanes` have the layout of
+    /// `forestlod_shared::{ViewUniform, FrustumPlanes}` (the stage uniforms embed them).
+    pub(crate) fn assert_view_uniform(module: &naga::Module) {
+        use core::mem::offset_of;
+        use forestlod_shared::{FrustumPlanes, ViewUniform};
+        assert_wgsl_struct(
+            module,
+            "FrustumPlanes",
+            &[("planes", offset_of!(FrustumPlanes, planes))],
+            size_of::<FrustumPlanes>(),
+        );
+        assert_wgsl_struct(
+            module,
+            "ViewUniform",
+            &[
+                ("frustum", offset_of!(ViewUniform, frustum)),
+                ("eye", offset_of!(ViewUniform, eye)),
+                ("fade_start", offset_of!(ViewUniform, fade_start)),
+                ("forward", offset_of!(ViewUniform, forward)),
+                ("fade_end", offset_of!(ViewUniform, fade_end)),
+                ("draw_distance", offset_of!(ViewUniform, draw_distance)),
+                ("lod_levels", offset_of!(ViewUniform, lod_levels)),
+                ("_pad0", offset_of!(ViewUniform, _pad0)),
+                ("_pad1", offset_of!(ViewUniform, _pad1)),
+            ],
+            size_of::<ViewUniform>(),
+        );
+    }
+
     pub(crate) fn assert_wgsl_struct(
         module: &naga::Module,
         name: &str,

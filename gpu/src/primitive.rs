@@ -35,10 +35,12 @@
 //! in the reference (its early test uses the quad's depth, which never exceeds the ray-cast one),
 //! which keeps and drops the same fragments.
 
+use std::sync::Arc;
+
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, ProxyRecord};
 
-use crate::context::{buffer_entry, frame_uniform};
+use crate::context::{StagePipelines, buffer_entry, frame_uniform};
 use crate::draw::{
     DrawScene, DrawTarget, DrawUniform, begin_target_pass, target_pipeline, terrain_pipeline,
 };
@@ -164,18 +166,34 @@ pub struct PrimitiveInputs<'a> {
     pub draw_args: &'a wgpu::Buffer,
 }
 
-/// The compiled Primitive pipelines of one device.
+/// The compiled Primitive pipelines, one set per [`GpuContext`] (cached there).
 #[derive(Debug)]
-pub struct GpuPrimitive {
+pub struct PrimitivePipelines {
     layout: wgpu::BindGroupLayout,
     terrain_layout: wgpu::BindGroupLayout,
     quads: wgpu::RenderPipeline,
     terrain: wgpu::RenderPipeline,
 }
 
+/// The Primitive baseline's draw on one device: the context's [`PrimitivePipelines`]. Holds no
+/// per-frame state (`&self`, `Sync`).
+#[derive(Debug)]
+pub struct GpuPrimitive {
+    pipelines: Arc<PrimitivePipelines>,
+}
+
 impl GpuPrimitive {
-    /// Compiles `primitive.wgsl` and the ground of `draw.wgsl`.
+    /// Takes the context's compiled `primitive.wgsl` pipelines (compiling them on first use).
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+        Ok(Self {
+            pipelines: ctx.pipelines::<PrimitivePipelines>()?,
+        })
+    }
+}
+
+impl StagePipelines for PrimitivePipelines {
+    /// Compiles `primitive.wgsl` and the ground of `draw.wgsl`.
+    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("primitive.wgsl pipelines", || {
             let device = &ctx.device;
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -243,7 +261,9 @@ impl GpuPrimitive {
             }
         })
     }
+}
 
+impl GpuPrimitive {
     /// Records one frame's pass into `encoder` (its uniforms are fresh buffers of this call,
     /// [`frame_uniform`], so threads sharing one `GpuPrimitive` never mix cameras): clear, ground, then every visible tree's quad with one
     /// `draw_indirect`. `camera` and `params` should be validated. Errors: fewer proxies than the
@@ -282,7 +302,7 @@ impl GpuPrimitive {
         );
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("primitive"),
-            layout: &self.layout,
+            layout: &self.pipelines.layout,
             entries: &[
                 (0, &uniform),
                 (1, &scene.instances),
@@ -296,18 +316,18 @@ impl GpuPrimitive {
         });
         let terrain_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("primitive terrain"),
-            layout: &self.terrain_layout,
+            layout: &self.pipelines.terrain_layout,
             entries: &[wgpu::BindGroupEntry {
                 binding: 0,
                 resource: terrain_uniform.as_entire_binding(),
             }],
         });
         let mut pass = begin_target_pass(encoder, target, "primitive");
-        pass.set_pipeline(&self.terrain);
+        pass.set_pipeline(&self.pipelines.terrain);
         pass.set_bind_group(0, &terrain_group, &[]);
         pass.set_vertex_buffer(0, scene.terrain.slice(..));
         pass.draw(0..scene.terrain_vertex_count, 0..1);
-        pass.set_pipeline(&self.quads);
+        pass.set_pipeline(&self.pipelines.quads);
         pass.set_bind_group(0, &bind_group, &[]);
         pass.draw_indirect(draw_args, 0);
         Ok(())

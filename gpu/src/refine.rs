@@ -60,10 +60,12 @@
 //!   [`MAX_REFINE_TREES`] trees (a batch holds at most all of them); the loops over a chunk's
 //!   trees (passes 3 and 5) run at most 64 times.
 
-use bytemuck::{Pod, Zeroable};
-use forestlod_shared::{Camera, Params, SelectCounters};
+use std::sync::Arc;
 
-use crate::context::{buffer_entry, cached_pipelines, compute_pipelines};
+use bytemuck::{Pod, Zeroable};
+use forestlod_shared::{Camera, Params, SelectCounters, ViewUniform};
+
+use crate::context::{StagePipelines, buffer_entry, compute_pipelines};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{CullTree, GpuContext, GpuError, GpuSelection, SelectBuffers};
 
@@ -76,26 +78,13 @@ pub const MAX_REFINE_TREES: u32 = 65_535 * REFINE_WORKGROUP_SIZE;
 
 /// The per-frame uniform of `refine.wgsl`. Keep in sync with `struct RefineUniform` there.
 ///
-/// The reference's `select::SelectUniform` plus the tree count, the mode and the device's
-/// per-dimension workgroup limit; uniform-compatible layout (`vec4` planes, each `vec3` followed
-/// by an `f32`, padded to a multiple of 16 bytes).
+/// The shared view constants ([`ViewUniform`], the reference's `select::SelectUniform`) plus the
+/// tree count, the mode and the device's per-dimension workgroup limit.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct RefineUniform {
-    /// Frustum planes `[nx, ny, nz, w]` relative to the eye (`Camera::frustum`).
-    pub planes: [[f32; 4]; 6],
-    /// Eye position.
-    pub eye: [f32; 3],
-    /// Start of the fade band, `lod1_transition - fade_width`.
-    pub fade_start: f32,
-    /// Unit view direction (`Camera::basis().forward`).
-    pub forward: [f32; 3],
-    /// End of the fade band, `lod1_transition`.
-    pub fade_end: f32,
-    /// Draw distance.
-    pub draw_distance: f32,
-    /// LOD levels (1 or 2).
-    pub lod_levels: u32,
+    /// Eye, forward, frustum, fade band, draw distance, LOD levels ([`ViewUniform::new`]).
+    pub view: ViewUniform,
     /// Number of trees `n` (the batch indirection's length).
     pub tree_count: u32,
     /// `forestlod_shared::TreeCull` as `u32` (`params.tree_cull`).
@@ -104,32 +93,20 @@ pub struct RefineUniform {
     pub max_workgroups: u32,
     /// Explicit padding.
     pub _pad0: u32,
-    /// Explicit padding.
-    pub _pad1: u32,
-    /// Explicit padding.
-    pub _pad2: u32,
 }
 const _: () = assert!(size_of::<RefineUniform>() == 160);
 
 impl RefineUniform {
-    /// The uniform for a camera and parameters, derived as the reference's `SelectUniform::new`
+    /// The uniform for a camera and parameters ([`ViewUniform::new`], as the reference's)
     /// (`max_workgroups` is 65,535, WebGPU's default limit: [`GpuRefine::encode`] sets the
     /// device's).
     pub fn new(camera: &Camera, params: &Params, tree_count: u32) -> Self {
         Self {
-            planes: camera.frustum().planes,
-            eye: camera.eye,
-            fade_start: params.lod1_transition - params.fade_width,
-            forward: camera.basis().forward.to_array(),
-            fade_end: params.lod1_transition,
-            draw_distance: params.draw_distance,
-            lod_levels: params.lod_levels,
+            view: ViewUniform::new(camera, params),
             tree_count,
             tree_cull: params.tree_cull,
             max_workgroups: 65_535,
             _pad0: 0,
-            _pad1: 0,
-            _pad2: 0,
         }
     }
 }
@@ -188,9 +165,9 @@ pub struct RefinePipelines {
     finalize: wgpu::ComputePipeline,
 }
 
-impl RefinePipelines {
+impl StagePipelines for RefinePipelines {
     /// Compiles `refine.wgsl` and creates its pipelines.
-    pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("refine.wgsl pipelines", || {
             use wgpu::BufferBindingType as B;
             let buffer =
@@ -237,6 +214,8 @@ impl RefinePipelines {
 /// (module docs).
 pub struct GpuRefine<'a> {
     ctx: &'a GpuContext,
+    /// The stage's pipelines, from the context's cache.
+    pipelines: Arc<RefinePipelines>,
     uniform: wgpu::Buffer,
     trees: wgpu::Buffer,
     indirection: wgpu::Buffer,
@@ -298,12 +277,13 @@ impl<'a> GpuRefine<'a> {
                 reason: "refine.wgsl's chunk counts must fit one storage binding",
             });
         }
-        cached_pipelines(&ctx.refine_pipelines, || RefinePipelines::new(ctx))?;
+        let pipelines = ctx.pipelines::<RefinePipelines>()?;
         use wgpu::BufferUsages as U;
         let mut all = vec![0u32; 3 * n];
         all[2 * n..].copy_from_slice(batch_indirection);
         Ok(Self {
             ctx,
+            pipelines: pipelines.clone(),
             uniform: zeroed_buffer(
                 ctx,
                 "refine uniform",
@@ -379,11 +359,7 @@ impl<'a> GpuRefine<'a> {
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
         encoder.clear_buffer(&self.counters, 0, None);
         encoder.clear_buffer(&self.dispatch, 0, None);
-        let pipelines = self
-            .ctx
-            .refine_pipelines
-            .get()
-            .expect("GpuRefine::new created the pipelines");
+        let pipelines = &self.pipelines;
         let bind_group = self
             .ctx
             .device
@@ -472,7 +448,7 @@ mod tests {
     use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
     use core::mem::offset_of;
 
-    /// `RefineUniform`, `RefineCounters` and `RefineDispatch` have their WGSL twins' layout (naga reflection of the
+    /// `RefineUniform` (with its `ViewUniform`), `RefineCounters` and `RefineDispatch` have their WGSL twins' layout (naga reflection of the
     /// full `refine.wgsl` module, which also validates it; `CullTree`, in `common.wgsl`, is
     /// checked by `gpu/tests/layout.rs`).
     #[test]
@@ -482,22 +458,15 @@ mod tests {
             &module,
             "RefineUniform",
             &[
-                ("planes", offset_of!(RefineUniform, planes)),
-                ("eye", offset_of!(RefineUniform, eye)),
-                ("fade_start", offset_of!(RefineUniform, fade_start)),
-                ("forward", offset_of!(RefineUniform, forward)),
-                ("fade_end", offset_of!(RefineUniform, fade_end)),
-                ("draw_distance", offset_of!(RefineUniform, draw_distance)),
-                ("lod_levels", offset_of!(RefineUniform, lod_levels)),
+                ("view", offset_of!(RefineUniform, view)),
                 ("tree_count", offset_of!(RefineUniform, tree_count)),
                 ("tree_cull", offset_of!(RefineUniform, tree_cull)),
                 ("max_workgroups", offset_of!(RefineUniform, max_workgroups)),
                 ("_pad0", offset_of!(RefineUniform, _pad0)),
-                ("_pad1", offset_of!(RefineUniform, _pad1)),
-                ("_pad2", offset_of!(RefineUniform, _pad2)),
             ],
             size_of::<RefineUniform>(),
         );
+        crate::mips::tests::assert_view_uniform(&module);
         assert_wgsl_struct(
             &module,
             "RefineCounters",
@@ -546,15 +515,16 @@ mod tests {
             ..Params::default()
         };
         let u = RefineUniform::new(&camera, &params, 7);
-        assert_eq!(u.planes, camera.frustum().planes);
-        assert_eq!(u.forward, camera.basis().forward.to_array());
+        assert_eq!(u.view, ViewUniform::new(&camera, &params));
+        assert_eq!(u.view.frustum.planes, camera.frustum().planes);
+        assert_eq!(u.view.forward, camera.basis().forward.to_array());
         assert_eq!(
-            (u.fade_start, u.fade_end),
+            (u.view.fade_start, u.view.fade_end),
             (
                 params.lod1_transition - params.fade_width,
                 params.lod1_transition
             )
         );
-        assert_eq!((u.tree_count, u.tree_cull, u.lod_levels), (7, 1, 2));
+        assert_eq!((u.tree_count, u.tree_cull, u.view.lod_levels), (7, 1, 2));
     }
 }

@@ -19,19 +19,21 @@
 //!
 //! Either way the CPU records O(1) dispatches per frame whatever the batch count (batches beyond
 //! `65535 * 64` spill into a second dispatch dimension, not into more dispatches). The per-frame
-//! constants are derived on the CPU exactly as `reference::select::SelectUniform::new` derives them
+//! constants are derived on the CPU by the reference's own `forestlod_shared::ViewUniform::new`
 //! (eye, unit forward, frustum planes, fade band), so only the per-batch arithmetic runs on the GPU.
 //!
 //! The draw stage can also take the reference's output instead ([`SelectBuffers::from_cpu`]), to
 //! test it in isolation (`--stage-from-cpu`).
 
+use std::sync::Arc;
+
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{
     BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, MAX_COMMANDS, MeshMeta, Params,
-    SelectCounters,
+    SelectCounters, ViewUniform,
 };
 
-use crate::context::{buffer_entry, cached_pipelines, compute_pipelines};
+use crate::context::{StagePipelines, buffer_entry, compute_pipelines};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -40,19 +42,13 @@ pub const SELECT_WORKGROUP_SIZE: u32 = 64;
 /// Invocations of the single scan workgroup. Keep in sync with `select.wgsl`.
 pub const SCAN_WORKGROUP_SIZE: u32 = 256;
 
-/// Per-batch (and, in `cull`, per-tree) decision code (low two bits): culled beyond the draw
-/// distance. The `DECISION_*` codes are kept in sync with `common.wgsl`.
-pub const DECISION_CULLED_DISTANCE: u32 = 0;
-/// Per-batch decision code: culled outside the frustum.
-pub const DECISION_CULLED_FRUSTUM: u32 = 1;
-/// Per-batch decision code: drawn, with [`DECISION_LOD0`] / [`DECISION_LOD1`] bits.
-pub const DECISION_DRAW: u32 = 2;
-/// Mask of the decision kind.
-pub const DECISION_KIND_MASK: u32 = 3;
-/// Decision bit: the batch needs LOD0.
-pub const DECISION_LOD0: u32 = 4;
-/// Decision bit: the batch needs LOD1.
-pub const DECISION_LOD1: u32 = 8;
+/// Per-batch (and, in `cull`, per-tree) decision codes: defined with
+/// [`forestlod_shared::Decision`] (`Decision::code` / `Decision::from_code`), mirrored in
+/// `common.wgsl`; re-exported at their old paths.
+pub use forestlod_shared::{
+    DECISION_CULLED_DISTANCE, DECISION_CULLED_FRUSTUM, DECISION_DRAW, DECISION_KIND_MASK,
+    DECISION_LOD0, DECISION_LOD1,
+};
 
 /// Which compaction writes the commands (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -77,25 +73,13 @@ impl Compaction {
 
 /// The per-frame uniform of `select.wgsl`. Keep in sync with `struct SelectUniform` there.
 ///
-/// The GPU twin of `reference::select::SelectUniform` plus the sizes and the billboard range the
-/// shader needs; uniform-compatible layout (`vec4` planes, each `vec3` followed by an `f32`).
+/// The shared view constants ([`ViewUniform`], the reference's `select::SelectUniform`) plus the
+/// sizes and the billboard range the shader needs.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct SelectUniform {
-    /// Frustum planes `[nx, ny, nz, w]` relative to the eye (`Camera::frustum`).
-    pub planes: [[f32; 4]; 6],
-    /// Eye position.
-    pub eye: [f32; 3],
-    /// Start of the fade band, `lod1_transition - fade_width`.
-    pub fade_start: f32,
-    /// Unit view direction (`Camera::basis().forward`).
-    pub forward: [f32; 3],
-    /// End of the fade band, `lod1_transition`.
-    pub fade_end: f32,
-    /// Draw distance.
-    pub draw_distance: f32,
-    /// LOD levels (1 or 2).
-    pub lod_levels: u32,
+    /// Eye, forward, frustum, fade band, draw distance, LOD levels ([`ViewUniform::new`]).
+    pub view: ViewUniform,
     /// Number of batches.
     pub batch_count: u32,
     /// Number of meshes.
@@ -104,15 +88,11 @@ pub struct SelectUniform {
     pub billboard_first_index: u32,
     /// Index count of the billboard quad.
     pub billboard_index_count: u32,
-    /// Explicit padding.
-    pub _pad0: u32,
-    /// Explicit padding.
-    pub _pad1: u32,
 }
 const _: () = assert!(size_of::<SelectUniform>() == 160);
 
 impl SelectUniform {
-    /// The uniform for a camera and parameters, derived as the reference derives its own.
+    /// The uniform for a camera and parameters ([`ViewUniform::new`], as the reference's).
     pub fn new(
         camera: &Camera,
         params: &Params,
@@ -121,19 +101,11 @@ impl SelectUniform {
         billboard: &MeshMeta,
     ) -> Self {
         Self {
-            planes: camera.frustum().planes,
-            eye: camera.eye,
-            fade_start: params.lod1_transition - params.fade_width,
-            forward: camera.basis().forward.to_array(),
-            fade_end: params.lod1_transition,
-            draw_distance: params.draw_distance,
-            lod_levels: params.lod_levels,
+            view: ViewUniform::new(camera, params),
             batch_count,
             mesh_count,
             billboard_first_index: billboard.first_index,
             billboard_index_count: billboard.index_count,
-            _pad0: 0,
-            _pad1: 0,
         }
     }
 }
@@ -260,9 +232,9 @@ pub struct SelectPipelines {
     atomic: wgpu::ComputePipeline,
 }
 
-impl SelectPipelines {
+impl StagePipelines for SelectPipelines {
     /// Compiles `select.wgsl` and creates its four pipelines.
-    pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("select.wgsl pipelines", || {
             use wgpu::BufferBindingType as B;
             let buffer =
@@ -303,6 +275,8 @@ impl SelectPipelines {
 /// One scene's batches on the GPU, ready to select for any camera and parameters.
 pub struct GpuSelect<'a> {
     ctx: &'a GpuContext,
+    /// The stage's pipelines, from the context's cache.
+    pipelines: Arc<SelectPipelines>,
     uniform: wgpu::Buffer,
     decisions: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
@@ -342,7 +316,7 @@ impl<'a> GpuSelect<'a> {
                 reason: "two commands per batch exceed MAX_COMMANDS (base_vertex is an i32)",
             });
         }
-        let pipelines = cached_pipelines(&ctx.select_pipelines, || SelectPipelines::new(ctx))?;
+        let pipelines = ctx.pipelines::<SelectPipelines>()?;
         use wgpu::BufferUsages as U;
         let n = batches.len() as u64;
         let batch_buffer = upload_storage(ctx, "select batches", batches, U::empty());
@@ -378,6 +352,7 @@ impl<'a> GpuSelect<'a> {
         })?;
         Ok(Self {
             ctx,
+            pipelines: pipelines.clone(),
             uniform,
             decisions,
             bind_group,
@@ -432,11 +407,7 @@ impl<'a> GpuSelect<'a> {
             .queue
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
         encoder.clear_buffer(&self.out.counters, 0, None);
-        let pipelines = self
-            .ctx
-            .select_pipelines
-            .get()
-            .expect("GpuSelect::new created the pipelines");
+        let pipelines = &self.pipelines;
         let (x, y) = self.groups();
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("select"),

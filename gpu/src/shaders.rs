@@ -63,3 +63,7 @@ pub const REFINE_WGSL: &str = include_str!("shaders/refine.wgsl");
 pub fn refine_source() -> String {
     with_common(REFINE_WGSL)
 }
+
+/// The depth read-back by compute (`DrawTarget::read`), standalone: [`COMMON_WGSL`] is not
+/// prepended.
+pub const DEPTH_COPY_WGSL: &str = include_str!("shaders/depth_copy.wgsl");

@@ -3,14 +3,16 @@
 //! member at the same byte offset, every struct the same size. Checked with naga's reflection (the
 //! offsets naga computes are the ones wgpu's backends use), so a drifting field fails here rather
 //! than as garbage in a parity test. Also validates the modules, including that `Params`, `Camera`
-//! and `SelectUniform` are legal in the uniform address space.
+//! and `SelectUniform` (with the `ViewUniform` every selection-like stage embeds) are legal in the
+//! uniform address space.
 
 use core::mem::{offset_of, size_of};
 
 use forestlod_gpu::shaders::{COMMON_WGSL, cull_source, primitive_source, select_source};
 use forestlod_gpu::{CullTree, SelectUniform};
 use forestlod_shared::{
-    BatchMeta, Camera, CommandData, DrawCommand, MeshMeta, Params, ProxyRecord, SelectCounters,
+    BatchMeta, Camera, CommandData, DrawCommand, FrustumPlanes, MeshMeta, Params, ProxyRecord,
+    SelectCounters, ViewUniform,
 };
 
 /// A Rust struct's layout: `(field, offset)` in declaration order, and its size.
@@ -110,20 +112,24 @@ fn rust_layouts() -> Vec<RustLayout> {
             radius,
             mesh
         }),
-        rust_layout!(SelectUniform {
-            planes,
+        rust_layout!(FrustumPlanes { planes }),
+        rust_layout!(ViewUniform {
+            frustum,
             eye,
             fade_start,
             forward,
             fade_end,
             draw_distance,
             lod_levels,
+            _pad0,
+            _pad1
+        }),
+        rust_layout!(SelectUniform {
+            view,
             batch_count,
             mesh_count,
             billboard_first_index,
-            billboard_index_count,
-            _pad0,
-            _pad1
+            billboard_index_count
         }),
     ]
 }
@@ -202,7 +208,7 @@ fn wgsl_structs_match_their_rust_twins() {
             rust.size
         );
     }
-    assert_eq!(checked, 10);
+    assert_eq!(checked, 12);
 }
 
 #[test]

@@ -47,19 +47,12 @@ use crate::scene::{Scene, tree_sphere};
 use crate::select::{SelectUniform, Selection, tree_within_draw_distance};
 use crate::texture::srgb_to_linear;
 
-/// LOD-id of background pixels.
-pub const LOD_ID_BACKGROUND: u32 = 0;
-/// LOD-id of full meshes (green in E Fig. 3.1).
-pub const LOD_ID_MESH: u32 = 1;
-/// LOD-id of billboards (blue).
-pub const LOD_ID_BILLBOARD: u32 = 2;
-/// LOD-id of fading fragments in the transition band (red).
-pub const LOD_ID_TRANSITION: u32 = 3;
-/// LOD-id of the ground.
-pub const LOD_ID_TERRAIN: u32 = 4;
-
-/// Sky colour (sRGB8), the clear colour of every frame.
-pub const SKY_SRGB: [u8; 3] = [168, 198, 226];
+// The LOD-id codes, the sky colour and the ground grid are shared with the GPU twin
+// (`forestlod_shared::{color, terrain}`); re-exported where the reference's users find them.
+pub use forestlod_shared::{
+    LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION, SKY_SRGB,
+    TERRAIN_CELLS, TERRAIN_MARGIN, ground_color,
+};
 
 /// Varyings of the tree pipeline: `u, v, view depth, texture layer, command index`.
 pub const TREE_VARYINGS: usize = 5;
@@ -264,52 +257,18 @@ impl TreeShader<'_> {
     }
 }
 
-/// Ground colour at a height, a muted green-brown ramp between two sRGB8 colours, returned in
-/// linear light (the ground's vertex colour; the ray-traced ground truth uses it too).
-pub fn ground_color(z: f32) -> [f32; 3] {
-    let t = ((z + 30.0) / 60.0).clamp(0.0, 1.0);
-    let lo = [96u8, 110, 70];
-    let hi = [140u8, 132, 96];
-    core::array::from_fn(|c| srgb_to_linear(lo[c]) * (1.0 - t) + srgb_to_linear(hi[c]) * t)
-}
-
-/// Cells per side of the ground grid.
-pub const TERRAIN_CELLS: u32 = 64;
-/// How far the ground extends beyond the scene's footprint, metres.
-pub const TERRAIN_MARGIN: f32 = 2000.0;
-
-/// The ground: a `TERRAIN_CELLS`² grid over the footprint plus [`TERRAIN_MARGIN`], following
-/// the terrain height, sunk 0.05 m so tree bases are not z-fighting it. Varyings: linear RGB.
+/// The ground ([`forestlod_shared::terrain_grid`]: a `TERRAIN_CELLS`² grid over the footprint
+/// plus [`TERRAIN_MARGIN`], following the terrain height, sunk 0.05 m so tree bases are not
+/// z-fighting it), projected by `view_proj`. Varyings: linear RGB.
 pub fn terrain_triangles(scene: &Scene, view_proj: &Mat4) -> Vec<Triangle<3>> {
-    let [x0, y0, x1, y1] = scene.bounds;
-    let (x0, y0, x1, y1) = (
-        x0 - TERRAIN_MARGIN,
-        y0 - TERRAIN_MARGIN,
-        x1 + TERRAIN_MARGIN,
-        y1 + TERRAIN_MARGIN,
-    );
-    let n = TERRAIN_CELLS;
-    let vertex = |i: u32, j: u32| {
-        let x = x0 + (x1 - x0) * i as f32 / n as f32;
-        let y = y0 + (y1 - y0) * j as f32 / n as f32;
-        let z = scene.terrain.height(x, y) - 0.05;
-        let clip = *view_proj * Vec4::new(x, y, z, 1.0);
-        Vertex::new(clip.to_array(), ground_color(z))
+    let project = |(p, color): ([f32; 3], [f32; 3])| {
+        let clip = *view_proj * Vec4::new(p[0], p[1], p[2], 1.0);
+        Vertex::new(clip.to_array(), color)
     };
-    let mut out = Vec::with_capacity((n * n * 2) as usize);
-    for j in 0..n {
-        for i in 0..n {
-            let (a, b, c, d) = (
-                vertex(i, j),
-                vertex(i + 1, j),
-                vertex(i + 1, j + 1),
-                vertex(i, j + 1),
-            );
-            out.push([a, b, c]);
-            out.push([a, c, d]);
-        }
-    }
-    out
+    forestlod_shared::terrain_grid(scene.bounds, |x, y| scene.terrain.height(x, y))
+        .into_iter()
+        .map(|t| t.map(project))
+        .collect()
 }
 
 /// The result of drawing one frame.

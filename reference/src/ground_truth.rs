@@ -9,7 +9,7 @@
 //!     (`p = base + Rz(yaw) · scale · local`, the same `f32` operations in the same order), one
 //!     triangle per mesh triangle per tree, double-sided;
 //!   - ground triangles are [`crate::draw::terrain_triangles`]' grid ([`TERRAIN_CELLS`]² cells
-//!     over the footprint plus [`TERRAIN_MARGIN`], sunk 0.05 m) in world space, with the vertex
+//!     over the footprint plus [`TERRAIN_MARGIN`](crate::draw::TERRAIN_MARGIN), sunk 0.05 m) in world space, with the vertex
 //!     colours of [`crate::draw::ground_color`] interpolated barycentrically (what the rasterizer's
 //!     perspective-correct varyings compute);
 //!   - beyond both, the sky colour [`SKY_SRGB`].
@@ -45,7 +45,7 @@ use obvhs::triangle::Triangle as BvhTriangle;
 use rayon::prelude::*;
 
 use crate::InputError;
-use crate::draw::{SKY_SRGB, TERRAIN_CELLS, TERRAIN_MARGIN, ground_color};
+use crate::draw::{SKY_SRGB, TERRAIN_CELLS};
 use crate::sampler::Texture;
 use crate::scene::Scene;
 use crate::texture::{Rgba8Image, linear_to_srgb, srgb_to_linear};
@@ -174,20 +174,10 @@ fn lerp3<const N: usize>(c: &[[f32; N]; 3], u: f32, v: f32) -> [f32; N] {
 }
 
 /// World-space vertices of the ground grid, as [`crate::draw::terrain_triangles`] builds them
-/// before projection: `(position, linear colour)` of grid vertex `(i, j)`.
+/// before projection: `(position, linear colour)` of grid vertex `(i, j)`
+/// ([`forestlod_shared::terrain_vertex`]).
 pub fn terrain_vertex(scene: &Scene, i: u32, j: u32) -> ([f32; 3], [f32; 3]) {
-    let [x0, y0, x1, y1] = scene.bounds;
-    let (x0, y0, x1, y1) = (
-        x0 - TERRAIN_MARGIN,
-        y0 - TERRAIN_MARGIN,
-        x1 + TERRAIN_MARGIN,
-        y1 + TERRAIN_MARGIN,
-    );
-    let n = TERRAIN_CELLS;
-    let x = x0 + (x1 - x0) * i as f32 / n as f32;
-    let y = y0 + (y1 - y0) * j as f32 / n as f32;
-    let z = scene.terrain.height(x, y) - 0.05;
-    ([x, y, z], ground_color(z))
+    forestlod_shared::terrain_vertex(scene.bounds, &|x, y| scene.terrain.height(x, y), i, j)
 }
 
 impl GroundTruthScene {

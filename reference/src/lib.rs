@@ -23,11 +23,6 @@
 //! (rayon) only ever splits work into pieces whose results are combined in a fixed order, so the
 //! output is bit-identical for any thread count.
 
-#![expect(
-    clippy::manual_clamp,
-    reason = "`x.max(lo).min(hi)` maps NaN to `lo` on purpose (NaN-free outputs, SPEC §7); `clamp` would propagate NaN"
-)]
-
 pub mod bake;
 pub mod baselines;
 pub mod batches;

@@ -26,8 +26,8 @@
 //! - **Deterministic**: identical output for any rayon thread count.
 
 use forestlod_shared::{
-    BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, FrustumPlanes, LOD_BILLBOARD,
-    LOD_MESH, LodNeeds, MeshMeta, Params, SelectCounters, lod_needs, view_interval,
+    BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, LOD_BILLBOARD, LOD_MESH, MeshMeta,
+    Params, SelectCounters, ViewUniform, view_interval,
 };
 use rayon::prelude::*;
 
@@ -42,79 +42,15 @@ pub struct Selection {
     pub counters: SelectCounters,
 }
 
-/// Why a batch (or a tree, in the oracle) was not drawn, or which LODs it needs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Decision {
-    /// Wholly beyond the draw distance.
-    CulledDistance,
-    /// Wholly outside the view frustum.
-    CulledFrustum,
-    /// Drawn with these LODs.
-    Draw(LodNeeds),
-}
-
-impl Decision {
-    /// The LODs drawn (none when culled).
-    pub fn needs(self) -> LodNeeds {
-        match self {
-            Decision::Draw(n) => n,
-            _ => LodNeeds::default(),
-        }
-    }
-}
+/// The per-sphere decision ([`forestlod_shared::Decision`], with its `DECISION_*` codes): defined
+/// in `forestlod-shared` next to the rule that makes it, re-exported here.
+pub use forestlod_shared::Decision;
 
 /// Per-frame constants of selection, derived once from the camera and parameters (the uniform of
-/// the compute shader).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SelectUniform {
-    /// Eye position.
-    pub eye: [f32; 3],
-    /// Unit view direction.
-    pub forward: [f32; 3],
-    /// Frustum planes.
-    pub frustum: FrustumPlanes,
-    /// Start of the fade band, `lod1_transition - fade_width`.
-    pub fade_start: f32,
-    /// End of the fade band, `lod1_transition`.
-    pub fade_end: f32,
-    /// Draw distance.
-    pub draw_distance: f32,
-    /// LOD levels (1 or 2).
-    pub lod_levels: u32,
-}
-
-impl SelectUniform {
-    /// The uniform for a validated camera and validated parameters.
-    pub fn new(camera: &Camera, params: &Params) -> Self {
-        Self {
-            eye: camera.eye,
-            forward: camera.basis().forward.to_array(),
-            frustum: camera.frustum(),
-            fade_start: params.lod1_transition - params.fade_width,
-            fade_end: params.lod1_transition,
-            draw_distance: params.draw_distance,
-            lod_levels: params.lod_levels,
-        }
-    }
-
-    /// The decision for one bounding sphere: the same rule for a batch and for a lone tree.
-    pub fn decide(&self, center: [f32; 3], radius: f32) -> Decision {
-        let i = view_interval(center, radius, self.eye, self.forward);
-        if i.lo > self.draw_distance {
-            Decision::CulledDistance
-        } else if !self.frustum.sphere_visible(center, radius, self.eye) {
-            Decision::CulledFrustum
-        } else {
-            Decision::Draw(lod_needs(
-                i.lo,
-                i.hi,
-                self.fade_start,
-                self.fade_end,
-                self.lod_levels,
-            ))
-        }
-    }
-}
+/// the compute shader): [`forestlod_shared::ViewUniform`], whose [`ViewUniform::new`] is the one
+/// place the fade band is derived and whose [`ViewUniform::decide`] is the selection rule (the
+/// same for a batch and for a lone tree). The name is kept for the reference's users.
+pub type SelectUniform = ViewUniform;
 
 /// Whether one tree is drawn by the draw stage's per-tree draw-distance discard (E§4.4): its
 /// bounding-sphere centre's view depth is within the draw distance.

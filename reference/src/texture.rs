@@ -5,8 +5,6 @@
 //! table); encoding rounds to nearest after the inverse function. Both match what a GPU's
 //! `Rgba8UnormSrgb` format does to within the ±1 per channel that parity allows (SPEC §8).
 
-use std::sync::OnceLock;
-
 /// An RGBA8 image, row-major from the top-left texel, sRGB colour, straight alpha (linear).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Rgba8Image {
@@ -97,54 +95,7 @@ impl LinearImage {
     }
 }
 
-fn decode_table() -> &'static [f32; 256] {
-    static TABLE: OnceLock<[f32; 256]> = OnceLock::new();
-    TABLE.get_or_init(|| {
-        let mut t = [0.0f32; 256];
-        for (i, v) in t.iter_mut().enumerate() {
-            let c = i as f64 / 255.0;
-            *v = if c <= 0.04045 {
-                c / 12.92
-            } else {
-                ((c + 0.055) / 1.055).powf(2.4)
-            } as f32;
-        }
-        t
-    })
-}
-
-/// sRGB-encoded byte to linear light in `[0, 1]`.
-pub fn srgb_to_linear(c: u8) -> f32 {
-    decode_table()[c as usize]
-}
-
-/// Linear light to an sRGB-encoded byte, clamping to `[0, 1]` and rounding to nearest; NaN gives 0.
-pub fn linear_to_srgb(l: f32) -> u8 {
-    let l = (l as f64).max(0.0).min(1.0);
-    let s = if l <= 0.0031308 {
-        l * 12.92
-    } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0 + 0.5).floor() as u8
-}
-
-/// Linear `[0, 1]` value to a UNORM byte, rounding to nearest; NaN gives 0.
-pub fn unorm8(v: f32) -> u8 {
-    (v.max(0.0).min(1.0) * 255.0 + 0.5).floor() as u8
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn srgb_round_trips_every_byte() {
-        for c in 0..=255u8 {
-            assert_eq!(linear_to_srgb(srgb_to_linear(c)), c);
-        }
-        assert_eq!(linear_to_srgb(f32::NAN), 0);
-        assert_eq!(unorm8(f32::NAN), 0);
-        assert_eq!(unorm8(2.0), 255);
-    }
-}
+/// The sRGB codec and UNORM quantization live in `forestlod-shared` (one definition for both
+/// renderers); re-exported here, where the reference's texture code always found them.
+pub use forestlod_shared::color::{linear_to_srgb, srgb_to_linear, unorm8};
+// Their round-trip test lives with them (`shared/src/color.rs`).

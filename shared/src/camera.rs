@@ -44,8 +44,10 @@ pub struct CameraBasis {
 }
 
 /// Six inward-facing planes `(n, w)` with unit `n`: a point `p` is inside when `n · (p - eye) + w >= 0`.
-/// Order: left, right, bottom, top, near, far.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Order: left, right, bottom, top, near, far. `Pod`, so [`crate::ViewUniform`] can embed it
+/// (mirrored by `struct FrustumPlanes` in `gpu/src/shaders/common.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct FrustumPlanes {
     /// Planes as `[nx, ny, nz, w]`, relative to the eye.
     pub planes: [[f32; 4]; 6],

@@ -31,20 +31,34 @@
 pub mod angle;
 pub mod billboard;
 pub mod camera;
+pub mod color;
 pub mod fade;
 pub mod interval;
 pub mod params;
+pub mod terrain;
 pub mod types;
+pub mod view;
 
 pub use angle::{
     angle_index, angle_index_eq31, angle_index_eq31_clamped, angle_index_for, bake_elevation,
 };
 pub use billboard::{BillboardExtent, billboard_extent, dither_threshold};
 pub use camera::{Camera, CameraBasis, FrustumPlanes};
+pub use color::{
+    LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION, SKY_SRGB,
+    linear_to_srgb, srgb_to_linear, unorm8,
+};
 pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
 pub use interval::{LodNeeds, ViewInterval, lod_needs, selection_margin, view_interval};
 pub use params::{AngleIndexMode, MipMode, ParamError, Params, TreeCull};
+pub use terrain::{
+    TERRAIN_CELLS, TERRAIN_MARGIN, TERRAIN_SINK, ground_color, terrain_grid, terrain_vertex,
+};
 pub use types::{BatchMeta, CommandData, DrawCommand, MeshMeta, ProxyRecord, SelectCounters};
+pub use view::{
+    DECISION_CULLED_DISTANCE, DECISION_CULLED_FRUSTUM, DECISION_DRAW, DECISION_KIND_MASK,
+    DECISION_LOD0, DECISION_LOD1, Decision, ViewUniform,
+};
 
 /// Number of low bits of `DrawCommand::base_vertex` that carry the mesh-local vertex index; the
 /// command index sits above them (see [`DrawCommand`]). Meshes therefore hold at most 256 vertices,

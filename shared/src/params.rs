@@ -204,6 +204,12 @@ fn err(field: &'static str, value: impl fmt::Display, reason: &'static str) -> P
 }
 
 impl Params {
+    /// Start of the fade band, `lod1_transition - fade_width` (its end is `lod1_transition`).
+    /// The one place the band's start is derived in `f32` ([`crate::ViewUniform::new`] uses it).
+    pub fn fade_start(&self) -> f32 {
+        self.lod1_transition - self.fade_width
+    }
+
     /// Fade mode, validated.
     pub fn fade(&self) -> Result<crate::FadeMode, ParamError> {
         crate::FadeMode::from_id(self.fade_mode).ok_or_else(|| {

@@ -161,7 +161,7 @@ fn sphere_visible(planes: array<vec4<f32>, 6>, center: vec3<f32>, radius: f32, e
 }
 
 // Per-sphere decision codes (low two bits), plus LOD bits for DECISION_DRAW. Keep in sync with
-// the DECISION_* consts of gpu/src/select.rs.
+// the DECISION_* consts of shared/src/view.rs (forestlod_shared::Decision::code).
 const DECISION_CULLED_DISTANCE: u32 = 0u;
 const DECISION_CULLED_FRUSTUM: u32 = 1u;
 const DECISION_DRAW: u32 = 2u;
@@ -169,7 +169,27 @@ const DECISION_KIND_MASK: u32 = 3u;
 const DECISION_LOD0: u32 = 4u;
 const DECISION_LOD1: u32 = 8u;
 
-// Twin of reference/src/select.rs `SelectUniform::decide`: the same rule for a batch
+// Keep in sync with forestlod_shared::FrustumPlanes (shared/src/camera.rs).
+struct FrustumPlanes {
+    planes: array<vec4<f32>, 6>,
+}
+
+// Keep in sync with forestlod_shared::ViewUniform (shared/src/view.rs): the per-frame view
+// constants every selection-like stage's uniform embeds as its first member (select, cull,
+// refine), derived on the CPU once by `ViewUniform::new`.
+struct ViewUniform {
+    frustum: FrustumPlanes,
+    eye: vec3<f32>,
+    fade_start: f32,
+    forward: vec3<f32>,
+    fade_end: f32,
+    draw_distance: f32,
+    lod_levels: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// Twin of forestlod_shared::ViewUniform::decide: the same rule for a batch
 // (select.wgsl) and for a lone tree (cull.wgsl). Cull beyond the draw distance (`lo`), then
 // outside a frustum plane, else draw with the LODs the interval needs (E§3.5, §4.3).
 fn decide_sphere(
@@ -192,6 +212,14 @@ fn decide_sphere(
     }
     let n = lod_needs(i.lo, i.hi, fade_start, fade_end, lod_levels);
     return DECISION_DRAW | select(0u, DECISION_LOD0, n.lod0) | select(0u, DECISION_LOD1, n.lod1);
+}
+
+// `decide_sphere` under the view constants `v` (forestlod_shared::ViewUniform::decide).
+fn decide_view(center: vec3<f32>, radius: f32, v: ViewUniform) -> u32 {
+    return decide_sphere(
+        center, radius, v.frustum.planes, v.eye, v.forward, v.draw_distance, v.fade_start,
+        v.fade_end, v.lod_levels,
+    );
 }
 
 // reference/src/select.rs `tree_within_draw_distance` (E§4.4's per-tree discard): the view depth

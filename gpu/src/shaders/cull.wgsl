@@ -14,18 +14,15 @@
 // - `cull_scatter`, one invocation per tree: the visible tree's index at its mesh's first slot
 //   plus its own slot.
 
-// Keep in sync with forestlod_gpu::cull::CullUniform (gpu/src/cull.rs). Derived on the CPU exactly
-// as reference::select::SelectUniform::new derives its own.
+// Keep in sync with forestlod_gpu::cull::CullUniform (gpu/src/cull.rs): the shared view constants
+// (common.wgsl `ViewUniform`, derived on the CPU by forestlod_shared::ViewUniform::new, the
+// reference's own) plus this stage's sizes.
 struct CullUniform {
-    planes: array<vec4<f32>, 6>,
-    eye: vec3<f32>,
-    fade_start: f32,
-    forward: vec3<f32>,
-    fade_end: f32,
-    draw_distance: f32,
-    lod_levels: u32,
+    view: ViewUniform,
     tree_count: u32,
     mesh_count: u32,
+    _pad0: u32,
+    _pad1: u32,
 }
 
 // Keep in sync with forestlod_gpu::cull::DrawIndirectArgs (wgpu::util::DrawIndirectArgs).
@@ -66,12 +63,9 @@ fn tree_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
 // tree's sphere alone, then discard it when its centre lies beyond the draw distance.
 fn tree_visible(t: CullTree) -> bool {
     let center = vec3<f32>(t.center[0], t.center[1], t.center[2]);
-    let decision = decide_sphere(
-        center, t.radius, u.planes, u.eye, u.forward, u.draw_distance, u.fade_start, u.fade_end,
-        u.lod_levels,
-    );
+    let decision = decide_view(center, t.radius, u.view);
     return (decision & DECISION_KIND_MASK) == DECISION_DRAW
-        && within_draw_distance(center, u.eye, u.forward, u.draw_distance);
+        && within_draw_distance(center, u.view.eye, u.view.forward, u.view.draw_distance);
 }
 
 @compute @workgroup_size(CULL_WORKGROUP_SIZE)
@@ -100,7 +94,7 @@ fn cull_commands() {
         if count > 0u {
             let mesh = meshes[m];
             commands[n] = DrawCommand(mesh.index_count, count, mesh.first_index, i32(n << COMMAND_SHIFT), offset);
-            command_data[n] = CommandData(u.fade_start, u.fade_end, 0u, m, LOD_MESH, 0u, 0u, 0u);
+            command_data[n] = CommandData(u.view.fade_start, u.view.fade_end, 0u, m, LOD_MESH, 0u, 0u, 0u);
             n += 1u;
         }
         offset += count;

@@ -35,22 +35,15 @@
 //    to `L·n + off + chunk prefix + rank in chunk`.
 // 6. `refine_finalize`, one invocation per slot: rewrites the command and adds to the counters.
 
-// Keep in sync with forestlod_gpu::refine::RefineUniform (gpu/src/refine.rs). Derived on the CPU
-// exactly as reference::select::SelectUniform::new derives its own.
+// Keep in sync with forestlod_gpu::refine::RefineUniform (gpu/src/refine.rs): the shared view constants
+// (common.wgsl `ViewUniform`, derived on the CPU by forestlod_shared::ViewUniform::new, the
+// reference's own) plus this stage's sizes.
 struct RefineUniform {
-    planes: array<vec4<f32>, 6>,
-    eye: vec3<f32>,
-    fade_start: f32,
-    forward: vec3<f32>,
-    fade_end: f32,
-    draw_distance: f32,
-    lod_levels: u32,
+    view: ViewUniform,
     tree_count: u32,
     tree_cull: u32,
     max_workgroups: u32,
     _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
 }
 
 // Keep in sync with forestlod_gpu::refine::RefineCounters (gpu/src/refine.rs): the reference's
@@ -100,16 +93,13 @@ fn refines(mode: u32, lod: u32) -> bool {
 fn tree_needs(tree: u32, lod: u32) -> bool {
     let t = trees[tree];
     let center = vec3<f32>(t.center[0], t.center[1], t.center[2]);
-    let decision = decide_sphere(
-        center, t.radius, u.planes, u.eye, u.forward, u.draw_distance, u.fade_start, u.fade_end,
-        u.lod_levels,
-    );
+    let decision = decide_view(center, t.radius, u.view);
     if (decision & DECISION_KIND_MASK) != DECISION_DRAW {
         return false;
     }
     let bit = select(DECISION_LOD1, DECISION_LOD0, lod == LOD_MESH);
     return (decision & bit) != 0u
-        && within_draw_distance(center, u.eye, u.forward, u.draw_distance);
+        && within_draw_distance(center, u.view.eye, u.view.forward, u.view.draw_distance);
 }
 
 // Chunks of 64 trees of a batch of `len` trees.

@@ -16,22 +16,15 @@
 //   LOD1 of one batch stay adjacent).
 // In both, command `slot` gets `base_vertex = slot << COMMAND_SHIFT`.
 
-// Keep in sync with forestlod_gpu::select::SelectUniform (gpu/src/select.rs). The CPU derives it
-// once per frame exactly as reference::select::SelectUniform::new does.
+// Keep in sync with forestlod_gpu::select::SelectUniform (gpu/src/select.rs): the shared view constants
+// (common.wgsl `ViewUniform`, derived on the CPU by forestlod_shared::ViewUniform::new, the
+// reference's own) plus this stage's sizes.
 struct SelectUniform {
-    planes: array<vec4<f32>, 6>,
-    eye: vec3<f32>,
-    fade_start: f32,
-    forward: vec3<f32>,
-    fade_end: f32,
-    draw_distance: f32,
-    lod_levels: u32,
+    view: ViewUniform,
     batch_count: u32,
     mesh_count: u32,
     billboard_first_index: u32,
     billboard_index_count: u32,
-    _pad0: u32,
-    _pad1: u32,
 }
 
 // SelectCounters with atomic members: the same layout (8 x u32).
@@ -66,10 +59,7 @@ const SCAN_WORKGROUP_SIZE: u32 = 256u;
 // Twin of reference SelectUniform::decide for a batch's sphere (common.wgsl `decide_sphere`).
 fn decide(b: BatchMeta) -> u32 {
     let center = vec3<f32>(b.center[0], b.center[1], b.center[2]);
-    return decide_sphere(
-        center, b.radius, u.planes, u.eye, u.forward, u.draw_distance, u.fade_start, u.fade_end,
-        u.lod_levels,
-    );
+    return decide_view(center, b.radius, u.view);
 }
 
 // The batch's counter contributions (the reference's compaction loop, per batch); returns the
@@ -122,7 +112,7 @@ fn emit(slot: u32, index: u32, b: BatchMeta, lod: u32, fading: bool) {
     }
     commands[slot] = DrawCommand(index_count, b.len, first_index, i32(slot << COMMAND_SHIFT), b.offset);
     command_data[slot] = CommandData(
-        u.fade_start, u.fade_end, index, b.mesh, lod, u32(lod == LOD_BILLBOARD), u32(fading), 0u
+        u.view.fade_start, u.view.fade_end, index, b.mesh, lod, u32(lod == LOD_BILLBOARD), u32(fading), 0u
     );
 }
 

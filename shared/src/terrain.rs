@@ -1,0 +1,89 @@
+//! The ground both renderers draw (and the ray-traced ground truth intersects): a
+//! [`TERRAIN_CELLS`]² grid over the scene's footprint plus [`TERRAIN_MARGIN`], following the
+//! terrain height, sunk [`TERRAIN_SINK`] so tree bases do not z-fight it, coloured by
+//! [`ground_color`] (linear RGB vertex colours).
+//!
+//! ## Contract
+//! [`terrain_vertex`] is grid vertex `(i, j)`, `0 <= i, j <= TERRAIN_CELLS`; [`terrain_grid`] the
+//! triangle list every side draws, cell by cell (row `j` outer, column `i` inner), each cell
+//! `(a, b, c), (a, c, d)` with `a = (i, j)`, `b = (i + 1, j)`, `c = (i + 1, j + 1)`,
+//! `d = (i, j + 1)`. The reference projects it on the CPU (`reference::draw::terrain_triangles`),
+//! the GPU uploads it in world space (`gpu::draw::terrain_vertices`).
+
+use crate::color::srgb_to_linear;
+
+/// Cells per side of the ground grid.
+pub const TERRAIN_CELLS: u32 = 64;
+/// How far the ground extends beyond the scene's footprint, metres.
+pub const TERRAIN_MARGIN: f32 = 2000.0;
+/// How far the ground is sunk below the terrain height, metres.
+pub const TERRAIN_SINK: f32 = 0.05;
+
+/// Ground colour at a height, a muted green-brown ramp between two sRGB8 colours, returned in
+/// linear light (the ground's vertex colour).
+pub fn ground_color(z: f32) -> [f32; 3] {
+    let t = ((z + 30.0) / 60.0).clamp(0.0, 1.0);
+    let lo = [96u8, 110, 70];
+    let hi = [140u8, 132, 96];
+    core::array::from_fn(|c| srgb_to_linear(lo[c]) * (1.0 - t) + srgb_to_linear(hi[c]) * t)
+}
+
+/// Grid vertex `(i, j)` over the footprint `bounds = [min_x, min_y, max_x, max_y]` (plus the
+/// margin), on the terrain `height(x, y)`: `(position, linear colour)`.
+pub fn terrain_vertex(
+    bounds: [f32; 4],
+    height: &impl Fn(f32, f32) -> f32,
+    i: u32,
+    j: u32,
+) -> ([f32; 3], [f32; 3]) {
+    let [x0, y0, x1, y1] = bounds;
+    let (x0, y0, x1, y1) = (
+        x0 - TERRAIN_MARGIN,
+        y0 - TERRAIN_MARGIN,
+        x1 + TERRAIN_MARGIN,
+        y1 + TERRAIN_MARGIN,
+    );
+    let n = TERRAIN_CELLS;
+    let x = x0 + (x1 - x0) * i as f32 / n as f32;
+    let y = y0 + (y1 - y0) * j as f32 / n as f32;
+    let z = height(x, y) - TERRAIN_SINK;
+    ([x, y, z], ground_color(z))
+}
+
+/// The ground's triangles in draw order (module docs), each vertex `(position, linear colour)`.
+pub fn terrain_grid(
+    bounds: [f32; 4],
+    height: impl Fn(f32, f32) -> f32,
+) -> Vec<[([f32; 3], [f32; 3]); 3]> {
+    let n = TERRAIN_CELLS;
+    let vertex = |i, j| terrain_vertex(bounds, &height, i, j);
+    let mut out = Vec::with_capacity((n * n * 2) as usize);
+    for j in 0..n {
+        for i in 0..n {
+            let (a, b, c, d) = (
+                vertex(i, j),
+                vertex(i + 1, j),
+                vertex(i + 1, j + 1),
+                vertex(i, j + 1),
+            );
+            out.push([a, b, c]);
+            out.push([a, c, d]);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_covers_the_footprint_plus_margin() {
+        let g = terrain_grid([0.0, 0.0, 100.0, 100.0], |_, _| 1.0);
+        assert_eq!(g.len(), (TERRAIN_CELLS * TERRAIN_CELLS * 2) as usize);
+        assert_eq!(g[0][0].0, [-TERRAIN_MARGIN, -TERRAIN_MARGIN, 0.95]);
+        let last = g.last().unwrap()[1].0;
+        assert_eq!(last[0], 100.0 + TERRAIN_MARGIN);
+        assert_eq!(last[1], 100.0 + TERRAIN_MARGIN);
+    }
+}
