@@ -5,7 +5,10 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use forestlod_reference::InputError;
 use forestlod_reference::scene::{Scene, builtin, load};
-use forestlod_shared::{AngleIndexMode, FadeMode, MipMode, Params, TreeCull};
+use std::collections::BTreeMap;
+
+use forestlod_reference::error::COMMAND_LINE;
+use forestlod_shared::{PARAMS, Params};
 
 /// Which scene to use.
 #[derive(Args, Clone, Debug)]
@@ -68,101 +71,70 @@ impl SceneArgs {
     }
 }
 
-/// Pipeline parameters; every flag defaults to the thesis value (E§4.5.1, E§5.0.2).
-#[derive(Args, Clone, Debug)]
+/// Pipeline parameters: one flag per entry of the parameter table
+/// ([`forestlod_shared::registry::PARAMS`]), each defaulting to `Params::default()` (the thesis
+/// values, E§4.5.1, E§5.0.2, with the fade mode `dither-sequential`). The flags are generated
+/// from the table (`clap::Args` by hand), so a parameter added there is a flag here with no edit.
+#[derive(Clone, Debug, Default)]
 pub struct ParamArgs {
-    /// Batch grid cell size, metres.
-    #[arg(long, default_value_t = Params::default().grid_size, allow_negative_numbers = true)]
-    pub grid_size: f32,
-    /// Number of billboard elevation angles K.
-    #[arg(long, default_value_t = Params::default().angle_count)]
-    pub angles: u32,
-    /// Billboard texture side r (a power of two).
-    #[arg(long, default_value_t = Params::default().texture_size)]
-    pub texture_size: u32,
-    /// LOD levels: 1 (meshes only) or 2.
-    #[arg(long, default_value_t = Params::default().lod_levels)]
-    pub lod_levels: u32,
-    /// View depth where billboards have fully replaced meshes, metres.
-    #[arg(long, default_value_t = Params::default().lod1_transition, allow_negative_numbers = true)]
-    pub transition: f32,
-    /// Width of the fade band ending at the transition, metres.
-    #[arg(long, default_value_t = Params::default().fade_width, allow_negative_numbers = true)]
-    pub fade_width: f32,
-    /// Draw distance, metres.
-    #[arg(long, default_value_t = Params::default().draw_distance, allow_negative_numbers = true)]
-    pub draw_distance: f32,
-    /// Fade mode: none, alpha (E§4.4), dither, dither-sequential (G§4, the default).
-    #[arg(long, default_value = "dither-sequential")]
-    pub fade_mode: String,
-    /// Mip mode: alpha-aware, box, coverage.
-    #[arg(long, default_value = "alpha-aware")]
-    pub mip_mode: String,
-    /// Billboard layer index: nearest, eq31-clamped.
-    #[arg(long, default_value = "nearest")]
-    pub angle_index: String,
-    /// Per-tree culling after selection (`refine`, beyond the thesis): none, lod0, all.
-    #[arg(long, default_value = "none")]
-    pub tree_cull: String,
+    /// The flags' texts by canonical parameter name (every parameter: defaults filled in).
+    values: BTreeMap<&'static str, String>,
 }
 
-fn unknown(field: &str, value: &str, expected: &[&str]) -> InputError {
-    InputError::new(
-        "<command line>",
-        format!("--{field}"),
-        value,
-        format!("expected one of {}", expected.join(", ")),
-    )
+impl clap::FromArgMatches for ParamArgs {
+    fn from_arg_matches(matches: &clap::ArgMatches) -> Result<Self, clap::Error> {
+        let mut args = Self::default();
+        args.update_from_arg_matches(matches)?;
+        Ok(args)
+    }
+    fn update_from_arg_matches(&mut self, matches: &clap::ArgMatches) -> Result<(), clap::Error> {
+        for spec in &PARAMS {
+            if let Some(text) = matches.get_one::<String>(spec.name) {
+                self.values.insert(spec.name, text.clone());
+            }
+        }
+        Ok(())
+    }
+}
+
+impl clap::Args for ParamArgs {
+    fn augment_args(cmd: clap::Command) -> clap::Command {
+        let defaults = Params::default();
+        PARAMS.iter().fold(cmd, |cmd, spec| {
+            // clap keeps `&'static str`s; the defaults are formatted once per process.
+            let default: &'static str = Box::leak(spec.format(&defaults).into_boxed_str());
+            cmd.arg(
+                clap::Arg::new(spec.name)
+                    .long(spec.flag)
+                    .help(spec.help)
+                    .default_value(default)
+                    .allow_negative_numbers(true),
+            )
+        })
+    }
+    fn augment_args_for_update(cmd: clap::Command) -> clap::Command {
+        Self::augment_args(cmd)
+    }
 }
 
 impl ParamArgs {
-    /// The validated parameters.
+    /// The text given for (or defaulted to) a parameter's flag, by canonical name.
+    pub fn text(&self, name: &str) -> Option<&str> {
+        self.values.get(name).map(String::as_str)
+    }
+
+    /// The validated parameters. A value that does not parse names its flag (`--fade-mode`); one
+    /// that parses but is out of range names the field (`Params::validate`).
     pub fn params(&self) -> Result<Params, InputError> {
-        let fade = FadeMode::from_name(&self.fade_mode).ok_or_else(|| {
-            unknown(
-                "fade-mode",
-                &self.fade_mode,
-                &FadeMode::ALL.map(FadeMode::name),
-            )
-        })?;
-        let mip = MipMode::ALL
-            .into_iter()
-            .find(|m| m.name() == self.mip_mode)
-            .ok_or_else(|| unknown("mip-mode", &self.mip_mode, &MipMode::ALL.map(MipMode::name)))?;
-        let angle = AngleIndexMode::ALL
-            .into_iter()
-            .find(|m| m.name() == self.angle_index)
-            .ok_or_else(|| {
-                unknown(
-                    "angle-index",
-                    &self.angle_index,
-                    &AngleIndexMode::ALL.map(AngleIndexMode::name),
-                )
-            })?;
-        let tree_cull = TreeCull::ALL
-            .into_iter()
-            .find(|m| m.name() == self.tree_cull)
-            .ok_or_else(|| {
-                unknown(
-                    "tree-cull",
-                    &self.tree_cull,
-                    &TreeCull::ALL.map(TreeCull::name),
-                )
-            })?;
-        let p = Params {
-            grid_size: self.grid_size,
-            angle_count: self.angles,
-            texture_size: self.texture_size,
-            lod_levels: self.lod_levels,
-            lod1_transition: self.transition,
-            fade_width: self.fade_width,
-            draw_distance: self.draw_distance,
-            fade_mode: fade as u32,
-            mip_mode: mip as u32,
-            angle_index_mode: angle as u32,
-            tree_cull: tree_cull as u32,
-            ..Params::default()
-        };
+        let mut p = Params::default();
+        for spec in &PARAMS {
+            if let Some(text) = self.values.get(spec.name) {
+                let value = spec.parse(text).map_err(|e| {
+                    InputError::new(COMMAND_LINE, format!("--{}", spec.flag), text, e.expected)
+                })?;
+                (spec.set)(&mut p, value);
+            }
+        }
         p.validate()?;
         Ok(p)
     }

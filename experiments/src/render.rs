@@ -148,11 +148,31 @@ fn stage<T>(message: &str, f: impl FnOnce() -> T) -> (T, f64) {
     (out, seconds)
 }
 
+/// Every parameter of the parameter table ([`forestlod_shared::registry::PARAMS`]) under its
+/// flag's underscore form: numbers as numbers, modes by name.
+pub fn params_json(params: &Params) -> serde_json::Value {
+    use forestlod_shared::ParamKind;
+    forestlod_shared::PARAMS
+        .iter()
+        .map(|spec| {
+            let v = (spec.get)(params);
+            let value = match spec.kind {
+                ParamKind::Float => json!(v as f32),
+                ParamKind::Uint => json!(v as u32),
+                ParamKind::Choice(_) => json!(spec.format(params)),
+            };
+            (spec.key(), value)
+        })
+        .collect::<serde_json::Map<_, _>>()
+        .into()
+}
+
 /// The metrics JSON of one frame.
 pub fn metrics(
     prepared: &Prepared,
     frame: &Frame,
     args: &RenderArgs,
+    params: &Params,
     scene_seconds: f64,
 ) -> serde_json::Value {
     let drawn = &frame.drawn;
@@ -163,12 +183,7 @@ pub fn metrics(
         "scene": prepared.scene.name,
         "camera": args.camera.label(), "yaw_degrees": args.camera.yaw, "view": args.camera.json(),
         "viewport": [args.width, args.height],
-        "params": {
-            "grid_size": args.params.grid_size, "angles": args.params.angles, "texture_size": args.params.texture_size,
-            "lod_levels": args.params.lod_levels, "transition": args.params.transition, "fade_width": args.params.fade_width,
-            "draw_distance": args.params.draw_distance, "fade_mode": args.params.fade_mode, "mip_mode": args.params.mip_mode,
-            "angle_index": args.params.angle_index, "tree_cull": args.params.tree_cull,
-        },
+        "params": params_json(params),
         "refine": frame.refined.as_ref().map(|r| json!({
             "trees_tested": r.trees_tested, "trees_kept": r.trees_kept,
         })),
@@ -508,7 +523,7 @@ pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
     let verdict = gpu.verdict();
     let code = gpu.exit_code();
 
-    let mut metrics = metrics(&prepared, &frame, args, scene_seconds);
+    let mut metrics = metrics(&prepared, &frame, args, &params, scene_seconds);
     metrics["parity"] = parity_json(&gpu);
     metrics["verdict"] = json!({ "line": verdict, "exit_code": code });
     let target = &frame.drawn.target;

@@ -413,80 +413,38 @@ pub struct Manifest {
     pub spec: Option<SweepSpec>,
 }
 
-/// Applies one parameter to `p`: `grid_size`, `angle_count` (or `angles`), `texture_size`,
-/// `lod_levels`, `lod1_transition` (or `transition`), `fade_width`, `draw_distance`, `fade_mode`,
-/// `mip_mode`, `angle_index` (or `angle_index_mode`), `alpha_cutoff`. Modes take their names.
+/// Applies one parameter to `p`: any key of the parameter table
+/// ([`forestlod_shared::registry::PARAMS`]: canonical names, flags and aliases). Numbers take TOML
+/// numbers, modes take their names. Adding a parameter needs no edit here.
 pub fn set_param(
     p: &mut Params,
     name: &str,
     value: &toml::Value,
     file: &str,
 ) -> Result<(), InputError> {
-    let bad = |reason: &str| InputError::new(file, format!("param {name}"), value, reason);
-    let num = || -> Result<f64, InputError> {
-        match value {
-            toml::Value::Integer(i) => Ok(*i as f64),
-            toml::Value::Float(f) => Ok(*f),
-            _ => Err(bad("expected a number")),
-        }
+    let Some(spec) = forestlod_shared::param(name) else {
+        return Err(InputError::new(
+            file,
+            "param name",
+            name,
+            format!(
+                "unknown parameter; expected {}",
+                forestlod_shared::registry::param_names().join(", ")
+            ),
+        ));
     };
-    let uint = || -> Result<u32, InputError> {
-        match value {
-            toml::Value::Integer(i) if *i >= 0 && *i <= u32::MAX as i64 => Ok(*i as u32),
-            _ => Err(bad("expected a non-negative integer")),
+    let parsed = match value {
+        toml::Value::Integer(i) => spec.from_number(*i as f64),
+        toml::Value::Float(f) => spec.from_number(*f),
+        toml::Value::String(s) if matches!(spec.kind, forestlod_shared::ParamKind::Choice(_)) => {
+            spec.parse(s)
         }
-    };
-    let name_of = || -> Result<&str, InputError> {
-        value
-            .as_str()
-            .ok_or_else(|| bad("expected a name (string)"))
-    };
-    match name {
-        "grid_size" => p.grid_size = num()? as f32,
-        "angle_count" | "angles" => p.angle_count = uint()?,
-        "texture_size" => p.texture_size = uint()?,
-        "lod_levels" => p.lod_levels = uint()?,
-        "lod1_transition" | "transition" => p.lod1_transition = num()? as f32,
-        "fade_width" => p.fade_width = num()? as f32,
-        "draw_distance" => p.draw_distance = num()? as f32,
-        "alpha_cutoff" => p.alpha_cutoff = num()? as f32,
-        "fade_mode" => {
-            p.fade_mode = FadeMode::from_name(name_of()?)
-                .ok_or_else(|| bad("expected none, alpha, dither or dither-sequential"))?
-                as u32
-        }
-        "mip_mode" => {
-            let n = name_of()?;
-            p.mip_mode = MipMode::ALL
-                .into_iter()
-                .find(|m| m.name() == n)
-                .ok_or_else(|| bad("expected alpha-aware, box or coverage"))?
-                as u32
-        }
-        "angle_index" | "angle_index_mode" => {
-            let n = name_of()?;
-            p.angle_index_mode = AngleIndexMode::ALL
-                .into_iter()
-                .find(|m| m.name() == n)
-                .ok_or_else(|| bad("expected nearest or eq31-clamped"))?
-                as u32
-        }
-        "tree_cull" => {
-            let n = name_of()?;
-            p.tree_cull = TreeCull::ALL
-                .into_iter()
-                .find(|m| m.name() == n)
-                .ok_or_else(|| bad("expected none, lod0 or all"))? as u32
-        }
-        _ => {
-            return Err(InputError::new(
-                file,
-                "param name",
-                name,
-                "unknown parameter; expected grid_size, angle_count, texture_size, lod_levels, lod1_transition, fade_width, draw_distance, alpha_cutoff, fade_mode, mip_mode, angle_index or tree_cull",
-            ));
-        }
+        _ => Err(forestlod_shared::registry::ParseError {
+            expected: spec.expected(),
+        }),
     }
+    .map_err(|e| InputError::new(file, format!("param {name}"), value, e.expected))?;
+    (spec.set)(p, parsed);
     Ok(())
 }
 

@@ -35,6 +35,7 @@ pub mod color;
 pub mod fade;
 pub mod interval;
 pub mod params;
+pub mod registry;
 pub mod terrain;
 pub mod types;
 pub mod view;
@@ -51,6 +52,7 @@ pub use color::{
 pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
 pub use interval::{LodNeeds, ViewInterval, lod_needs, selection_margin, view_interval};
 pub use params::{AngleIndexMode, MipMode, ParamError, Params, TreeCull};
+pub use registry::{PARAMS, ParamKind, ParamSpec, param};
 pub use terrain::{
     TERRAIN_CELLS, TERRAIN_MARGIN, TERRAIN_SINK, ground_color, terrain_grid, terrain_vertex,
 };
