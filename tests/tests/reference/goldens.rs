@@ -1,7 +1,7 @@
 //! Golden images (SPEC §8): the reference renders every scenario of
 //! `forestlod_tests::scenarios` and compares colour (PNG), LOD-id (PNG) and depth (EXR) with the
-//! files in `goldens/`. `BLESS=1 cargo test -p forestlod-tests --test goldens` rewrites them; a
-//! failure writes the actual images and a difference image to `target/test-failures/goldens/`.
+//! files in `goldens/`. `BLESS=1 cargo test -p forestlod-tests --test reference goldens::` rewrites
+//! them; a failure writes the actual images and a difference image to `target/test-failures/goldens/`.
 
 use std::path::{Path, PathBuf};
 

@@ -61,7 +61,7 @@ use forestlod_shared::{MeshMeta, MipMode, Params, bake_elevation};
 const COLOR_TOLERANCE: u8 = 1;
 
 /// Per-channel tolerance of the mips stage run on the GPU's baked layers (as in
-/// `parity_mips.rs`): quantization is exact on both sides, the alpha-weighted colour may round a
+/// `parity/mips.rs`): quantization is exact on both sides, the alpha-weighted colour may round a
 /// few ulp apart and land one byte away.
 const MIP_TEXEL_TOLERANCE: u8 = 1;
 

@@ -7,7 +7,7 @@
 //!   reference's commands as a multiset of `(mesh, instance_count, index_count, first_index)`; each
 //!   command's range of the compacted indirection holds that mesh's visible trees; the Primitive's
 //!   indirect arguments are `{6, visible, 0, 0}`. Scenarios: `tiny` from the named cameras (and
-//!   yawed), the cropped `synthetic` of `parity_draw`, 64 random cameras and parameters around each
+//!   yawed), the cropped `synthetic` of `parity::draw`, 64 random cameras and parameters around each
 //!   of them, and 64 random scenes of card trees with random cameras.
 //! - **images** (Vegetation through `draw.wgsl`, Primitive through `primitive.wgsl`, both rendered
 //!   by `GpuSweepScene`, the sweeps' runner): judged by `forestlod_harness::image_compare` against
@@ -54,7 +54,7 @@ use proptest::prelude::*;
 /// Relative distance to a threshold within which the GPU and the reference may cull a tree
 /// differently.
 ///
-/// Why: the same as `parity_select`'s `AMBIGUITY_REL` (the same interval and plane arithmetic,
+/// Why: the same as `parity::select`'s `AMBIGUITY_REL` (the same interval and plane arithmetic,
 /// `common.wgsl` `decide_sphere`, on the same `f32` spheres): the GPU compiler may contract
 /// `a * b + c` into a fused multiply-add, which moves a plane distance or an interval end by a
 /// few ulp of `|c - e|₁ + r`; 1e-5 of that is some 80 ulp, ample for any such rounding and far
@@ -323,7 +323,7 @@ fn gpu_cull_matches_per_tree_culling() {
             },
         );
     }
-    // Random scenes of card trees, random cameras (parity_select's generators).
+    // Random scenes of card trees, random cameras (`parity::select`'s generators).
     run_cases(
         "random scenes",
         CASES,

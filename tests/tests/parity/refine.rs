@@ -8,13 +8,13 @@
 //!   their spare capacity) judged against the reference's `refine` of that same selection. Trees
 //!   whose decision sits within [`AMBIGUITY_REL`] of a threshold are classified *ambiguous*
 //!   (counted, reported) instead of failing. Scenes: `tiny` and the cropped `synthetic` of
-//!   `parity_draw`, each at three grid sizes (down to one batch of every tree: hundreds of scan
+//!   `parity::draw`, each at three grid sizes (down to one batch of every tree: hundreds of scan
 //!   chunks), from the named cameras at three yaws, `tree_cull` `lod0` and `all`, the draw
 //!   distance as given and pulled in to 150 m; 64 random cameras and parameters around each
 //!   scene; 64 random scenes of card trees with random cameras.
 //! - **oracle**: under `all`, the (tree, LOD) pairs the GPU draws (refining the reference's
 //!   selection) are the per-tree oracle's (`select::select_per_tree`), up to ambiguous trees; the
-//!   exact property on the reference side lives in `refine_properties.rs`.
+//!   exact property on the reference side lives in `properties/refine_properties.rs`.
 //! - **images**: frames with `tree_cull` `lod0` and `all` rendered by the sweeps' runner
 //!   (`GpuSweepScene`, `GpuVariant::Ours` with both compactions, GPU textures) and by the main
 //!   job's `render_gpu` (selection from the GPU, refined by `refine.wgsl`, and from the CPU,
@@ -57,7 +57,7 @@ use proptest::prelude::*;
 /// Relative distance to a threshold within which the GPU and the reference may keep a tree
 /// differently.
 ///
-/// Why: the same as `parity_select`'s and `parity_baselines`' `AMBIGUITY_REL` (the same interval
+/// Why: the same as `parity::select`'s and `parity::baselines`' `AMBIGUITY_REL` (the same interval
 /// and plane arithmetic, `common.wgsl` `decide_sphere` and `within_draw_distance`, on the same
 /// `f32` spheres): the GPU compiler may contract `a * b + c` into a fused multiply-add, which
 /// moves an interval end, the centre's depth or a plane distance by a few ulp of `|c - e|₁ + r`;
@@ -95,7 +95,7 @@ struct Tally {
     trees_kept: u64,
     ambiguous_trees: u64,
     /// GPU-selection cases whose selection differed from the reference's (ambiguous batches,
-    /// judged by `parity_select`); refine is still judged against the reference's `refine` of
+    /// judged by `parity::select`); refine is still judged against the reference's `refine` of
     /// the GPU's own selection.
     selection_differs: u32,
     /// Cases where the oracle (per-tree) comparison ran.
@@ -440,7 +440,7 @@ fn check_frame(
     Ok(())
 }
 
-/// Random cameras around a scene's footprint (as `parity_baselines`) with random per-frame
+/// Random cameras around a scene's footprint (as `parity::baselines`) with random per-frame
 /// parameters, a refinement mode and one of the prepared grid sizes.
 fn cases_around(bounds: [f32; 4], grids: usize) -> impl Strategy<Value = (Camera, Params, usize)> {
     let [x0, y0, x1, y1] = bounds;
@@ -536,7 +536,7 @@ fn gpu_refine_matches_the_reference() {
             },
         );
     }
-    // Random scenes of card trees, random cameras and parameters (parity_select's generators).
+    // Random scenes of card trees, random cameras and parameters (`parity::select`'s generators).
     run_cases(
         "random scenes",
         CASES,

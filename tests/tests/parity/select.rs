@@ -493,7 +493,8 @@ fn empty_mesh_meta() -> MeshMeta {
     }
 }
 
-/// The hand-checked scene of `select_properties::straddling_batches_emit_both_lods` on the GPU:
+/// The hand-checked scene of `properties::select_properties::straddling_batches_emit_both_lods`
+/// on the GPU:
 /// batch 0 LOD0 only, batch 1 straddles the band and gets both LODs with `fading` set.
 #[test]
 fn straddling_batches_emit_both_lods_on_the_gpu() {

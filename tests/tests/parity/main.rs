@@ -1,0 +1,21 @@
+//! Parity: everything that needs a GPU adapter (wgpu; lavapipe in CI), one test binary so the
+//! suite links once instead of once per stage. Each module checks one GPU stage or concern
+//! against the reference pipeline:
+//! - [`select`], [`refine`], [`draw`], [`mips`], [`bake`]: the GPU twin of each reference stage;
+//! - [`baselines`]: the GPU Vegetation and Primitive baselines against the reference's;
+//! - [`threads`]: frames recorded from several threads on one context equal single-thread ones;
+//! - [`sampler_lod`]: the adapter's implicit level of detail, measured (the data behind the
+//!   tolerances of `forestlod_harness::image_compare`).
+//!
+//! Run one module with `cargo test -p forestlod-tests --test parity <module>::`. Statics that
+//! each file once had to itself (GPU contexts and objects) are now shared by the modules; the GPU
+//! objects hold no per-frame state behind `&self` (`gpu/src/lib.rs`), so sharing is race-free.
+
+mod bake;
+mod baselines;
+mod draw;
+mod mips;
+mod refine;
+mod sampler_lod;
+mod select;
+mod threads;

@@ -1,0 +1,14 @@
+//! Properties of the reference pipeline (CPU only), one test binary: random scenes, cameras and
+//! parameters checked against oracles, and the numerical extremes.
+//! - [`select_properties`]: grouped selection against the per-tree oracle;
+//! - [`refine_properties`]: the `refine` stage against the per-tree oracle, refined frames
+//!   against unrefined ones;
+//! - [`extremes`]: the numerical-extremes catalogue of SPEC §7.
+//!
+//! Run one module with `cargo test -p forestlod-tests --test properties <module>::`. proptest
+//! keeps its regressions next to the source file of each property
+//! (`select_properties.proptest-regressions` beside `select_properties.rs`).
+
+mod extremes;
+mod refine_properties;
+mod select_properties;

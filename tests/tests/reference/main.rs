@@ -1,0 +1,11 @@
+//! The reference against external ground: stored images and other implementations, one test
+//! binary (CPU only).
+//! - [`goldens`]: the reference against the golden images in `goldens/`;
+//! - [`baselines`]: the reference baselines (Vegetation, Primitive) see the same trees as ours;
+//! - [`embree_crosscheck`]: obvhs, behind the ground truth, agrees with Embree (embreex).
+//!
+//! Run one module with `cargo test -p forestlod-tests --test reference <module>::`.
+
+mod baselines;
+mod embree_crosscheck;
+mod goldens;
