@@ -4,7 +4,7 @@ triangles").
 
 Usage: check.py FILE
 
-FILE is written by the Rust side (tests/tests/embree_crosscheck.rs): every triangle of a scene as the
+FILE is written by the Rust side (tests/tests/reference/embree_crosscheck.rs): every triangle of a scene as the
 ground truth traces it, a set of rays, and obvhs's nearest hit for each (geometric query: no alpha
 test, every triangle opaque and double-sided). This script loads the same triangles into Embree 4 (via
 the embreex wheel), casts the same rays and compares.

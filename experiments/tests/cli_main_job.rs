@@ -239,6 +239,31 @@ fn gpu_skipped_exits_4_with_one_line_and_the_reference_outputs() {
     assert!(!m["parity"]["reason"].as_str().unwrap().contains('\n'));
 }
 
+/// An adapter that cannot run the pipeline is passed over, never half-used: wgpu's GL backend
+/// (Mesa's llvmpipe through EGL, installed beside lavapipe) lacks the `VIEW_FORMATS` downlevel
+/// flag the billboard bake needs. Before the adapter check it was picked and failed mid-frame
+/// (exit 3, a six-line wgpu message); now the run is skipped with the reason (exit 4). Where the
+/// machine has no GL driver at all, wgpu finds no adapter and the run is skipped too.
+#[test]
+fn an_adapter_that_cannot_run_the_pipeline_is_passed_over() {
+    let dir = case_dir("gl-only");
+    let out = dir.join("out");
+    let o = render_tiny(&out, &[], &[("WGPU_BACKEND", Some("gl"))]);
+    let stdout = text(&o.stdout);
+    let stderr = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(4), "{stdout}{stderr}");
+    let line = last_line(&stdout);
+    assert!(line.starts_with("GPU parity skipped: "), "{line:?}");
+    if line.contains("(Gl, ") {
+        assert!(
+            line.contains("passed over GPU adapter")
+                && line.contains("lacks downlevel flag VIEW_FORMATS"),
+            "the reason names the adapter and what it lacks: {line:?}"
+        );
+    }
+    assert_eq!(files(&out), set(&REFERENCE_FILES));
+}
+
 #[test]
 fn gpu_run_passes_with_exit_0_and_legended_images() {
     let dir = case_dir("gpu");

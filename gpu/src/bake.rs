@@ -28,7 +28,7 @@
 //! them (to test mips alone); [`GpuBaked::from_cpu_chains`] takes the reference's full chains
 //! (so the draw stage can run on CPU textures).
 //!
-//! ## Where the twins may differ (SPEC §8; measured by `tests/tests/parity_bake.rs`)
+//! ## Where the twins may differ (SPEC §8; measured by `tests/tests/parity/bake.rs`)
 //! - Coverage: a pixel centre within the 8-bit subpixel ambiguity of an edge.
 //! - Interpolation: the reference interpolates varyings and depth from the *snapped* vertices
 //!   (`reference/src/raster.rs`, step 6); lavapipe evidently interpolates from the unsnapped

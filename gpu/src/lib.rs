@@ -44,7 +44,7 @@
 //!   output takes it as `&mut` ([`GpuSelect::buffers_mut`]), so the borrow checker forbids two
 //!   frames in flight on one object. Reads (`read`, `buffers`) take `&self`.
 //!
-//! `tests/tests/parity_threads.rs` renders different scenarios from several threads on one context
+//! `tests/tests/parity/threads.rs` renders different scenarios from several threads on one context
 //! with shared drivers and asserts each frame equals its single-thread twin.
 //!
 //! What it must not depend on: `forestlod-reference`. The oracle and its twin meet only in the

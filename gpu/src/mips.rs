@@ -54,7 +54,7 @@
 //! `· 0.25` only, so raw alpha, its ranges and all coverage counts (hence the coverage scales)
 //! equal the reference's exactly; colour and the remap may differ by a few ulp (WGSL division is
 //! within 2.5 ulp; `a · b + c` may be fused), which the ±1-per-channel parity of SPEC §8 covers.
-//! Measured on lavapipe (`tests/tests/parity_mips.rs`): ranges, adjustments, scales and counts
+//! Measured on lavapipe (`tests/tests/parity/mips.rs`): ranges, adjustments, scales and counts
 //! bit-identical, texels identical but for a rare colour byte one step apart.
 //!
 //! ## Cost

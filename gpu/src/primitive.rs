@@ -22,7 +22,7 @@
 //! derived on the CPU ([`PrimitiveUniform::new`]), so the GPU evaluates only the per-tree and
 //! per-fragment arithmetic.
 //!
-//! ## Where the GPU may differ (judged by `tests/tests/parity_baselines.rs`)
+//! ## Where the GPU may differ (judged by `tests/tests/parity/baselines.rs`)
 //! The world position on the quad is interpolated by the rasterizer (`f32` plane equations on
 //! lavapipe, `f64` barycentrics in the reference), so each fragment's ray direction differs in
 //! the last bits; the ray cast's `t`, and so the depth, follows it, which matters only where the

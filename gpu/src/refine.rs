@@ -47,7 +47,7 @@
 //! - Equal to the reference bit for bit (commands, the used ranges of the indirection, in order,
 //!   and the counters [`RefineCounters`] = the reference's `Refined::trees_tested` /
 //!   `trees_kept`), up to trees whose decision sits within ε of a threshold, where the GPU may
-//!   round differently (fused multiply-add; `tests/tests/parity_refine.rs` classifies them).
+//!   round differently (fused multiply-add; `tests/tests/parity/refine.rs` classifies them).
 //! - Commands are never removed or reordered: `counters`, `base_vertex`, the index ranges and the
 //!   data stay the selection's.
 //! - Encode it **once** per selection: it reads `first_instance` as the batch offset, which it

@@ -95,7 +95,7 @@ pub const COLOR_TOLERANCE: u8 = 8;
 /// How far the alternative reference frames move the alpha-test cutoff (module docs).
 ///
 /// Why 0.09: the GPU's implicit level of detail is not the reference's exact `log2`: measured on
-/// lavapipe by `tests/tests/sampler_lod.rs`, `|λ_GPU - λ_exact|` reaches 0.047 (mean 0.031, as if
+/// lavapipe by `tests/tests/parity/sampler_lod.rs`, `|λ_GPU - λ_exact|` reaches 0.047 (mean 0.031, as if
 /// λ kept 4 fractional bits: at most 1/16). The trilinear blend factor `frac(λ)` inherits it, so a
 /// filtered alpha moves by up to 1/16 of the alpha step between two adjacent mip levels, which
 /// near a crown's silhouette or an atlas border is up to 1: 0.0625. On top come 8-bit subtexel

@@ -1,6 +1,6 @@
 //! RGBA8 texel comparison and the "one test body, several backends" adapters of the `mips` and
-//! `bake` stages (SPEC §5.1, §5.2, §8), used by `tests/tests/parity_mips.rs` and
-//! `tests/tests/parity_bake.rs`.
+//! `bake` stages (SPEC §5.1, §5.2, §8), used by `tests/tests/parity/mips.rs` and
+//! `tests/tests/parity/bake.rs`.
 //!
 //! - [`TexelTally`] counts texels compared, differing and beyond a tolerance, and keeps the largest
 //!   per-channel difference and the first offender, so every parity test can report "how many,

@@ -35,7 +35,7 @@
 //! ## GPU twins
 //! `gpu/src/cull.rs` (per-tree culling and Vegetation's compaction, [`vegetation_commands`]) and
 //! `gpu/src/primitive.rs` (the Primitive's quads and ray cast, one [`ProxyRecord`] per mesh),
-//! judged by `tests/tests/parity_baselines.rs`.
+//! judged by `tests/tests/parity/baselines.rs`.
 //!
 //! ## Counters
 //! Both report the trees tested (every tree: the per-tree culling work), trees drawn, commands,

@@ -3,7 +3,7 @@
 //! against f32 and against camera-relative f32, and report the disagreement rates").
 //!
 //! Not a pipeline stage: a measuring instrument for `experiments/src/bin/large_coords.rs` and the
-//! test `large_coordinates_relative_f32_agrees_with_f64` in `tests/tests/extremes.rs`.
+//! test `large_coordinates_relative_f32_agrees_with_f64` in `tests/tests/properties/extremes.rs`.
 //!
 //! ## The three precisions
 //! - **f64** ([`ViewF64::decide`]): tree and batch spheres and the eye in `f64` world coordinates,

@@ -31,7 +31,7 @@
 //! and `base_vertex` stay the selection's, and the draw stage needs no change beyond reading the
 //! refined array. With [`TreeCull::None`] the stage does not run.
 //!
-//! ## Invariants (tested in `tests/tests/refine_properties.rs` and `parity_refine.rs`)
+//! ## Invariants (tested in `tests/tests/properties/refine_properties.rs` and `parity_refine.rs`)
 //! - **Exact under `all`**: the (tree, LOD) pairs drawn equal the per-tree oracle's
 //!   ([`crate::select::select_per_tree`]): selection is conservative, so no tree the oracle draws
 //!   is in a culled batch.

@@ -17,7 +17,7 @@
 //! [`forestlod_shared::DrawCommand`]). The GPU's atomic-counter variant may emit them in any order;
 //! its output equals this one as a multiset once `base_vertex` is masked off.
 //!
-//! ## Invariants (property-tested in `tests/tests/select_properties.rs`)
+//! ## Invariants (property-tested in `tests/tests/properties/select_properties.rs`)
 //! - **Conservative**: for every tree, every LOD that tree needs by its own interval has a command
 //!   for its batch, and no tree that passes the per-tree frustum and draw-distance test has its
 //!   batch culled.
