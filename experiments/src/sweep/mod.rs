@@ -1,0 +1,297 @@
+//! `forestlod sweep`: measure the speed–accuracy trade (SPEC §1, §10; E§5).
+//!
+//! A sweep is a small TOML file (format in `experiments/sweeps/README.md`): scenes, cameras (named
+//! 360° sweeps or a distance path), which parameters take which values, and which variants run
+//! (`ours`, `vegetation`, `primitive`: SPEC §9, [`forestlod_reference::baselines`]). For every
+//! frame it records cost (select / draw / frame seconds, work counters, memory, and how many trees
+//! batching drew finer or coarser than per-tree selection would: SPEC §6) and accuracy against the ray-traced ground truth
+//! ([`forestlod_reference::ground_truth`], [`crate::metrics`]), writes one CSV row per frame, and
+//! plots cost against accuracy plus thesis-style runtime plots (E Fig. 5.1–5.7) as PNGs.
+//!
+//! Built-in sweeps are the files under `experiments/sweeps/`, embedded in the binary
+//! ([`BUILTIN_SWEEPS`]). `--quick` applies each file's `[quick]` table (small scene, small images,
+//! few steps): `forestlod sweep --quick --out DIR` runs all of them, the CI smoke test of the whole
+//! experiment machinery.
+//!
+//! Every variant runs on the backends the file names (`backends = ["reference", "gpu"]`, or
+//! `--backend`): the reference (CPU) rasterizer, or the wgpu twin through
+//! [`forestlod_harness::backend::GpuSweepScene`] (GPU selection or per-tree culling, the GPU-baked
+//! textures, `draw.wgsl` / `primitive.wgsl`). Timings are wall-clock seconds, the minimum over
+//! `repeats` renders of a frame: CPU time on the reference, submit-to-completion on the GPU (plus
+//! timestamp-query times where the adapter has them). Ratios are only meaningful between rows of
+//! one backend. Ground-truth images are rendered once per scene and camera pose and shared by
+//! every variant, backend and parameter set.
+//!
+//! Layout: [`spec`] (the TOML file, its validation, parameter sets and poses), [`variant`] (the
+//! typed variants and backends), [`rows`] (CSV row, saved images, `sweep.json` manifest),
+//! [`runner`] (renders every frame of a sweep), [`plots`] (the PNG plots); this file is the CLI
+//! glue (`forestlod sweep`: [`SweepArgs`], [`resolve`], [`configure`], [`run`]).
+
+mod plots;
+mod rows;
+mod runner;
+mod spec;
+mod variant;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+use forestlod_reference::InputError;
+
+pub use plots::write_plots;
+pub use rows::{FrameImages, Manifest, Row};
+pub use runner::Runner;
+use runner::io_err;
+pub use spec::{
+    AxisSpec, CameraSpec, DISTANCE_PATH_BASE_HEIGHT_M, DISTANCE_PATH_CLIMB,
+    DISTANCE_PATH_LOOK_AHEAD_M, ParamSet, Pose, QuickSpec, SettingSpec, SweepSpec, distance_camera,
+    set_param,
+};
+pub use variant::{Backend, ReferenceRenderer, Variant};
+
+/// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
+pub const BUILTIN_SWEEPS: [(&str, &str); 11] = [
+    ("camera360", include_str!("../../sweeps/camera360.toml")),
+    ("distance", include_str!("../../sweeps/distance.toml")),
+    ("grid_size", include_str!("../../sweeps/grid_size.toml")),
+    (
+        "angles_texture",
+        include_str!("../../sweeps/angles_texture.toml"),
+    ),
+    (
+        "lod_settings",
+        include_str!("../../sweeps/lod_settings.toml"),
+    ),
+    ("fade_mode", include_str!("../../sweeps/fade_mode.toml")),
+    ("mip_mode", include_str!("../../sweeps/mip_mode.toml")),
+    ("angle_index", include_str!("../../sweeps/angle_index.toml")),
+    ("compaction", include_str!("../../sweeps/compaction.toml")),
+    ("grid_stress", include_str!("../../sweeps/grid_stress.toml")),
+    ("tree_cull", include_str!("../../sweeps/tree_cull.toml")),
+];
+
+/// Options of `forestlod sweep`.
+#[derive(Args, Clone, Debug)]
+pub struct SweepArgs {
+    /// A sweep TOML file or a built-in sweep name; all built-in sweeps when omitted.
+    pub file: Option<String>,
+    /// Output folder: one sub-folder per sweep.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Apply each sweep's `[quick]` table: small scene, small images, few steps.
+    #[arg(long)]
+    pub quick: bool,
+    /// Replace the sweep's scene list with this one scene (built-in name or scene file).
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// Replace the image width.
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Replace the image height.
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Replace the yaw steps of every 360° camera.
+    #[arg(long)]
+    pub yaw_steps: Option<u32>,
+    /// Replace the number of timed renders per frame (the minimum is kept).
+    #[arg(long)]
+    pub repeats: Option<u32>,
+    /// Replace the backends: `reference`, `gpu`, or both comma-separated (`reference,gpu`).
+    #[arg(long)]
+    pub backend: Option<String>,
+}
+
+/// Resolves the sweeps `forestlod sweep` runs: a file, a built-in name, or every built-in.
+pub fn resolve(file: Option<&str>) -> Result<Vec<SweepSpec>, InputError> {
+    match file {
+        None => BUILTIN_SWEEPS
+            .iter()
+            .map(|(name, text)| SweepSpec::parse(text, &format!("<built-in sweep {name}>")))
+            .collect(),
+        Some(f) => {
+            if let Some((name, text)) = BUILTIN_SWEEPS.iter().find(|(n, _)| *n == f) {
+                return Ok(vec![SweepSpec::parse(
+                    text,
+                    &format!("<built-in sweep {name}>"),
+                )?]);
+            }
+            let text = std::fs::read_to_string(f).map_err(|e| {
+                InputError::new(
+                    f,
+                    "read",
+                    "",
+                    format!(
+                        "{e}; expected a sweep TOML file or a built-in sweep name ({})",
+                        BUILTIN_SWEEPS.map(|(n, _)| n).join(", ")
+                    ),
+                )
+            })?;
+            Ok(vec![SweepSpec::parse(&text, f)?])
+        }
+    }
+}
+/// A sweep as `forestlod sweep` runs it: `--quick` and the command-line overrides applied, then
+/// validated. `None` when nothing is left to run: `--backend reference` on a sweep of GPU-only
+/// variants (the dropped variants are named on stderr).
+pub fn configure(spec: SweepSpec, args: &SweepArgs) -> Result<Option<SweepSpec>, InputError> {
+    // Zero would be clamped or make an empty sweep: name the flag instead.
+    for (flag, value) in [
+        ("--repeats", args.repeats),
+        ("--yaw-steps", args.yaw_steps),
+        ("--width", args.width),
+        ("--height", args.height),
+    ] {
+        if value == Some(0) {
+            return Err(InputError::new(
+                "<command line>",
+                flag,
+                0,
+                "expected at least 1",
+            ));
+        }
+    }
+    let mut spec = if args.quick { spec.quick() } else { spec };
+    if let Some(s) = &args.scene {
+        spec.scenes = vec![s.clone()];
+    }
+    spec.width = args.width.unwrap_or(spec.width);
+    spec.height = args.height.unwrap_or(spec.height);
+    spec.repeats = args.repeats.unwrap_or(spec.repeats);
+    if let Some(b) = &args.backend {
+        spec.backends = b.split(',').map(|s| s.trim().to_string()).collect();
+        if !spec
+            .backends
+            .iter()
+            .any(|b| Backend::parse(b) == Ok(Backend::Gpu))
+        {
+            let (gpu_only, keep): (Vec<String>, Vec<String>) = spec
+                .variants
+                .iter()
+                .cloned()
+                .partition(|v| Variant::parse(v).is_ok_and(Variant::gpu_only));
+            if !gpu_only.is_empty() {
+                eprintln!(
+                    "sweep {}: variant(s) {} need the gpu backend; not run with --backend {b}",
+                    spec.name,
+                    gpu_only.join(", ")
+                );
+            }
+            spec.variants = keep;
+            if spec.variants.is_empty() {
+                return Ok(None);
+            }
+        }
+    }
+    if let Some(n) = args.yaw_steps {
+        for c in &mut spec.cameras {
+            if c.name != "distance" {
+                c.yaw_steps = Some(n);
+            }
+        }
+    }
+    spec.validate(&format!("<sweep {}>", spec.name))?;
+    Ok(Some(spec))
+}
+
+/// `forestlod sweep`.
+pub fn run(args: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
+    // Every sweep is configured (and so validated) before anything runs or is written.
+    let mut specs = Vec::new();
+    for spec in resolve(args.file.as_deref())? {
+        let name = spec.name.clone();
+        match configure(spec, args)? {
+            Some(spec) => specs.push(spec),
+            None => eprintln!("sweep {name}: nothing to run on the chosen backends"),
+        }
+    }
+    std::fs::create_dir_all(&args.out).map_err(|e| io_err(&args.out, e))?;
+    let mut runner = Runner::default();
+    let start = Instant::now();
+    for spec in specs {
+        let m = runner.run_sweep(&spec, args.quick, &args.out)?;
+        println!(
+            "sweep {}: {} frames in {:.1} s -> {}",
+            m.name,
+            m.frames,
+            m.wall_seconds,
+            args.out.join(&m.name).join(&m.csv).display()
+        );
+    }
+    println!(
+        "all sweeps: {:.1} s; `forestlod report --run {}` writes the report",
+        start.elapsed().as_secs_f64(),
+        args.out.display()
+    );
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use forestlod_shared::FadeMode;
+
+    use super::*;
+
+    #[test]
+    fn every_builtin_sweep_parses_in_both_modes() {
+        for (name, text) in BUILTIN_SWEEPS {
+            let spec = SweepSpec::parse(text, name).unwrap();
+            assert_eq!(spec.name, name);
+            assert!(!spec.param_sets(name).unwrap().is_empty());
+            let quick = spec.quick();
+            quick.validate(name).unwrap();
+            assert!(!quick.poses().is_empty());
+        }
+    }
+
+    #[test]
+    fn bad_sweeps_are_named() {
+        // (file body after the common head, the text the error must name)
+        let head = "name = 'x'\ntitle = 't'\nscenes = ['tiny']\n";
+        let far = "[[cameras]]\nname = 'far'\n";
+        for (body, named) in [
+            ("[[cameras]]\nname = 'sideways'\n".to_string(), "sideways"),
+            (
+                format!("{far}[[axes]]\nparam = 'grid_size'\nvalues = [-1]\n"),
+                "grid_size",
+            ),
+            (format!("variants = ['fast']\n{far}"), "fast"),
+            (format!("backends = ['cuda']\n{far}"), "cuda"),
+            (format!("backends = []\n{far}"), "backends"),
+            (format!("variants = ['ours-atomic']\n{far}"), "ours-atomic"),
+            (
+                format!("{far}[[axes]]\nparam = 'tree_cull'\nvalues = ['some']\n"),
+                "tree_cull",
+            ),
+            (
+                "[[cameras]]\nname = 'far'\nyaw_steps = 0\n".to_string(),
+                "cameras.yaw_steps",
+            ),
+        ] {
+            let e = SweepSpec::parse(&format!("{head}{body}"), "f.toml").unwrap_err();
+            assert!(e.to_string().contains(named), "{named}: {e}");
+        }
+    }
+
+    #[test]
+    fn axes_multiply_and_settings_apply() {
+        let spec = SweepSpec::parse(
+            "name = 'x'\ntitle = 't'\nscenes = ['tiny']\nx_axis = 'angle_count'\n[[cameras]]\nname = 'far'\nyaw_steps = 4\n\
+             [[axes]]\nparam = 'angle_count'\nvalues = [2, 10]\n[[axes]]\nparam = 'texture_size'\nvalues = [32, 64, 128]\n\
+             [[settings]]\nlabel = 'a'\n[[settings]]\nlabel = 'b'\nfade_mode = 'alpha'\n",
+            "f.toml",
+        )
+        .unwrap();
+        let sets = spec.param_sets("f").unwrap();
+        assert_eq!(sets.len(), 2 * 2 * 3);
+        assert!(
+            sets.iter().any(
+                |s| s.params.fade_mode == FadeMode::Alpha as u32 && s.params.texture_size == 64
+            )
+        );
+        assert_eq!(sets[0].x, Some(2.0));
+        assert_eq!(sets[0].series, "a texture_size=32");
+        let yaws: Vec<f32> = spec.poses().iter().map(|p| p.yaw_deg).collect();
+        assert_eq!(yaws, [0.0, 90.0, 180.0, 270.0]);
+    }
+}

@@ -1,0 +1,379 @@
+//! The sweep's PNG plots from its rows ([`write_plots`]): cost against accuracy and the
+//! thesis-style runtime plots (E Fig. 5.1–5.7). Reads only the spec and the rows, so
+//! `forestlod report --replot` redraws them from a CSV. Series are variants (or variant–backend
+//! pairs when several backends ran), split further by the parameter sets' series labels.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+
+use forestlod_reference::InputError;
+
+use crate::plot::{Axes, Series, Style, bar_plot, xy_plot};
+
+use super::rows::Row;
+use super::runner::io_err;
+use super::spec::SweepSpec;
+use super::variant::Backend;
+
+fn mean(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    if n == 0 { f64::NAN } else { s / n as f64 }
+}
+
+/// Series label of a row: the variant, plus the parameter set's series label when there is one.
+fn series_of(row: &Row, sets: &HashMap<String, String>, variants: usize) -> String {
+    let series = sets.get(&row.setting).cloned().unwrap_or_default();
+    match (variants > 1, series.is_empty()) {
+        (true, true) => row.variant.clone(),
+        (true, false) => format!("{} {series}", row.variant),
+        (false, true) => row.variant.clone(),
+        (false, false) => series,
+    }
+}
+
+/// Writes the sweep's plots; returns `(relative path, caption)` pairs.
+pub fn write_plots(
+    spec: &SweepSpec,
+    rows: &[Row],
+    dir: &Path,
+) -> Result<Vec<(String, String)>, InputError> {
+    let file = format!("<sweep {}>", spec.name);
+    let sets = spec.param_sets(&file)?;
+    let series_by_label: HashMap<String, String> = sets
+        .iter()
+        .map(|s| (s.label.clone(), s.series.clone()))
+        .collect();
+    let x_by_label: HashMap<String, Option<f64>> =
+        sets.iter().map(|s| (s.label.clone(), s.x)).collect();
+    // With several backends a series is a (variant, backend) pair: relabel the variant.
+    let (rows, variants): (Vec<Row>, Vec<String>) = if spec.backends.len() > 1 {
+        // Short backend names keep legends readable: `ours ref`, `vegetation gpu`.
+        let label = |v: &str, b: &str| {
+            let b = Backend::parse(b).map_or(b, |b| b.short_name());
+            format!("{v} {b}")
+        };
+        (
+            rows.iter()
+                .map(|r| Row {
+                    variant: label(&r.variant, &r.backend),
+                    ..r.clone()
+                })
+                .collect(),
+            spec.backends
+                .iter()
+                .flat_map(|b| spec.variants.iter().map(move |v| label(v, b)))
+                .collect(),
+        )
+    } else {
+        (rows.to_vec(), spec.variants.clone())
+    };
+    let rows = &rows[..];
+    let nv = variants.len();
+    let backend_label = if spec.backends.len() > 1 {
+        "reference CPU and GPU backends".to_string()
+    } else if spec.backend_list(&file)?.contains(&Backend::Gpu) {
+        "GPU backend".to_string()
+    } else {
+        "reference CPU backend".to_string()
+    };
+    let mut out = Vec::new();
+    let mut plot = |name: &str,
+                    caption: String,
+                    f: &dyn Fn(&Path) -> std::io::Result<()>|
+     -> Result<(), InputError> {
+        let path = dir.join(name);
+        f(&path).map_err(|e| io_err(&path, e))?;
+        out.push((name.to_string(), caption));
+        Ok(())
+    };
+    // Group rows into series, keeping first-seen order.
+    let group = |rows: &[&Row],
+                 y: &dyn Fn(&Row) -> f64,
+                 x: &dyn Fn(&Row) -> f64,
+                 avg: bool|
+     -> Vec<Series> {
+        let mut order: Vec<String> = Vec::new();
+        let mut pts: HashMap<String, Vec<(f64, f64)>> = HashMap::new();
+        for r in rows {
+            let s = series_of(r, &series_by_label, nv);
+            if !pts.contains_key(&s) {
+                order.push(s.clone());
+            }
+            pts.entry(s).or_default().push((x(r), y(r)));
+        }
+        order
+            .into_iter()
+            .map(|label| {
+                let mut points = pts.remove(&label).unwrap_or_default();
+                if avg {
+                    let mut by_x: BTreeMap<u64, Vec<f64>> = BTreeMap::new();
+                    for (x, y) in &points {
+                        by_x.entry(x.to_bits()).or_default().push(*y);
+                    }
+                    points = by_x
+                        .into_iter()
+                        .map(|(x, ys)| (f64::from_bits(x), mean(ys.into_iter())))
+                        .collect();
+                }
+                Series { label, points }
+            })
+            .collect()
+    };
+    let all: Vec<&Row> = rows.iter().collect();
+    // 1. Cost against accuracy, every frame.
+    for (name, ylabel, y) in [
+        (
+            "cost_vs_flip.png",
+            "FLIP mean vs ground truth",
+            (|r: &Row| r.flip_mean) as fn(&Row) -> f64,
+        ),
+        (
+            "cost_vs_coverage.png",
+            "coverage error (fraction of pixels)",
+            |r: &Row| r.coverage_error,
+        ),
+    ] {
+        let series = group(&all, &y, &|r: &Row| r.frame_s, false);
+        let axes = Axes {
+            title: format!("{}: cost vs accuracy", spec.name),
+            x_label: format!("frame time [s] ({backend_label}, log)"),
+            y_label: ylabel.into(),
+            log_x: true,
+            log_y: false,
+        };
+        plot(
+            name,
+            format!("Every frame: frame time against {ylabel}, one colour per variant / setting."),
+            &|p| xy_plot(p, &axes, &series, Style::Scatter),
+        )?;
+    }
+    // 2. Thesis-style runtime plots.
+    match spec.x_axis.as_str() {
+        "yaw" => {
+            let cameras: Vec<String> = {
+                let mut c: Vec<String> = rows.iter().map(|r| r.camera.clone()).collect();
+                c.dedup();
+                let mut seen = Vec::new();
+                for x in c {
+                    if !seen.contains(&x) {
+                        seen.push(x);
+                    }
+                }
+                seen
+            };
+            for cam in &cameras {
+                let rs: Vec<&Row> = rows.iter().filter(|r| &r.camera == cam).collect();
+                let series = group(&rs, &|r| r.frame_s * 1e3, &|r| r.yaw_deg as f64, true);
+                let axes = Axes {
+                    title: format!("{}: {cam} benchmark runtime over 360 deg", spec.name),
+                    x_label: "camera yaw [deg]".into(),
+                    y_label: "frame time [ms]".into(),
+                    log_x: false,
+                    log_y: false,
+                };
+                plot(
+                    &format!("runtime_{cam}.png"),
+                    format!("Runtime over the 360° sweep of camera `{cam}` (E Fig. 5.1–5.3 b)."),
+                    &|p| xy_plot(p, &axes, &series, Style::Lines),
+                )?;
+                // Mean time of each pass per variant (E Fig. 5.1c).
+                let values: Vec<Vec<f64>> = variants
+                    .iter()
+                    .map(|v| {
+                        let vr: Vec<&&Row> = rs.iter().filter(|r| &r.variant == v).collect();
+                        vec![
+                            mean(vr.iter().map(|r| r.select_s * 1e3)),
+                            mean(vr.iter().map(|r| r.draw_s * 1e3)),
+                        ]
+                    })
+                    .collect();
+                let axes = Axes {
+                    title: format!("{}: {cam} mean pass times", spec.name),
+                    x_label: "variant".into(),
+                    y_label: "mean time [ms]".into(),
+                    log_x: false,
+                    log_y: false,
+                };
+                plot(
+                    &format!("passes_{cam}.png"),
+                    format!(
+                        "Mean time of each pass for camera `{cam}` (E Fig. 5.1–5.3 c): select = selection or per-tree culling, draw = rasterization."
+                    ),
+                    &|p| {
+                        bar_plot(
+                            p,
+                            &axes,
+                            &variants,
+                            &["select".into(), "draw".into()],
+                            &values,
+                        )
+                    },
+                )?;
+            }
+        }
+        "distance" => {
+            for (name, ylabel, y, cap) in [
+                (
+                    "runtime_distance.png",
+                    "frame time [ms]",
+                    (|r: &Row| r.frame_s * 1e3) as fn(&Row) -> f64,
+                    "Runtime along the distance path (E Fig. 5.4).",
+                ),
+                (
+                    "accuracy_distance.png",
+                    "FLIP mean",
+                    |r: &Row| r.flip_mean,
+                    "FLIP mean along the distance path.",
+                ),
+                (
+                    "coverage_distance.png",
+                    "coverage error",
+                    |r: &Row| r.coverage_error,
+                    "Coverage error along the distance path.",
+                ),
+            ] {
+                let series = group(&all, &y, &|r| r.distance_m as f64, true);
+                let axes = Axes {
+                    title: format!("{}: {ylabel} vs distance", spec.name),
+                    x_label: "camera distance from the forest centre [m]".into(),
+                    y_label: ylabel.into(),
+                    log_x: false,
+                    log_y: false,
+                };
+                plot(name, cap.into(), &|p| {
+                    xy_plot(p, &axes, &series, Style::Lines)
+                })?;
+            }
+        }
+        param => {
+            let numeric = sets.iter().all(|s| s.x.is_some());
+            if numeric {
+                let x = |r: &Row| {
+                    x_by_label
+                        .get(&r.setting)
+                        .copied()
+                        .flatten()
+                        .unwrap_or(f64::NAN)
+                };
+                let log_x = {
+                    let xs: Vec<f64> = sets.iter().filter_map(|s| s.x).collect();
+                    let (lo, hi) = xs
+                        .iter()
+                        .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
+                    lo > 0.0 && hi / lo > 20.0
+                };
+                // Select and draw time, then the errors, against the parameter (E Fig. 5.5a / 5.6).
+                type Metric = (&'static str, fn(&Row) -> f64);
+                let times: [Metric; 3] = [
+                    ("select", |r| r.select_s * 1e3),
+                    ("draw", |r| r.draw_s * 1e3),
+                    ("frame", |r| r.frame_s * 1e3),
+                ];
+                let errors: [Metric; 3] = [
+                    ("FLIP mean", |r| r.flip_mean),
+                    ("FLIP p95", |r| r.flip_p95),
+                    ("coverage err", |r| r.coverage_error),
+                ];
+                for (file, title, y_label, caption, metrics) in [
+                    (
+                        "runtime.png",
+                        "mean pass times",
+                        "mean time [ms]",
+                        format!(
+                            "Mean select, draw and frame time against `{param}` (thesis-style, E Fig. 5.5–5.6)."
+                        ),
+                        times,
+                    ),
+                    (
+                        "accuracy.png",
+                        "accuracy",
+                        "error vs ground truth",
+                        format!("Mean FLIP, FLIP p95 and coverage error against `{param}`."),
+                        errors,
+                    ),
+                ] {
+                    let mut series = Vec::new();
+                    for (what, y) in metrics {
+                        for mut s in group(&all, &y, &x, true) {
+                            s.label = format!("{what} {}", s.label);
+                            series.push(s);
+                        }
+                    }
+                    let axes = Axes {
+                        title: format!("{}: {title} vs {param}", spec.name),
+                        x_label: format!("{param}{}", if log_x { " (log)" } else { "" }),
+                        y_label: y_label.into(),
+                        log_x,
+                        log_y: false,
+                    };
+                    plot(file, caption, &|p| xy_plot(p, &axes, &series, Style::Lines))?;
+                }
+            } else {
+                // Categorical settings: grouped bars (E Fig. 5.7).
+                let labels: Vec<String> = sets.iter().map(|s| s.label.clone()).collect();
+                let passes: Vec<Vec<f64>> = labels
+                    .iter()
+                    .map(|l| {
+                        let rs: Vec<&Row> = rows.iter().filter(|r| &r.setting == l).collect();
+                        vec![
+                            mean(rs.iter().map(|r| r.select_s * 1e3)),
+                            mean(rs.iter().map(|r| r.draw_s * 1e3)),
+                        ]
+                    })
+                    .collect();
+                let axes = Axes {
+                    title: format!("{}: mean pass times", spec.name),
+                    x_label: "setting".into(),
+                    y_label: "mean time [ms]".into(),
+                    log_x: false,
+                    log_y: false,
+                };
+                plot(
+                    "runtime.png",
+                    "Mean select and draw time per setting (thesis-style, E Fig. 5.7).".into(),
+                    &|p| {
+                        bar_plot(
+                            p,
+                            &axes,
+                            &labels,
+                            &["select".into(), "draw".into()],
+                            &passes,
+                        )
+                    },
+                )?;
+                let acc: Vec<Vec<f64>> = labels
+                    .iter()
+                    .map(|l| {
+                        let rs: Vec<&Row> = rows.iter().filter(|r| &r.setting == l).collect();
+                        vec![
+                            mean(rs.iter().map(|r| r.flip_mean)),
+                            mean(rs.iter().map(|r| r.flip_p95)),
+                            mean(rs.iter().map(|r| r.coverage_error)),
+                        ]
+                    })
+                    .collect();
+                let axes = Axes {
+                    title: format!("{}: accuracy per setting", spec.name),
+                    x_label: "setting".into(),
+                    y_label: "error vs ground truth".into(),
+                    log_x: false,
+                    log_y: false,
+                };
+                plot(
+                    "accuracy.png",
+                    "Mean FLIP, FLIP p95 and coverage error per setting.".into(),
+                    &|p| {
+                        bar_plot(
+                            p,
+                            &axes,
+                            &labels,
+                            &["FLIP mean".into(), "FLIP p95".into(), "coverage err".into()],
+                            &acc,
+                        )
+                    },
+                )?;
+            }
+        }
+    }
+    Ok(out)
+}

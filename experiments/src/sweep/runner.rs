@@ -1,0 +1,603 @@
+//! Runs a sweep: for every scene, parameter set, pose, backend and variant, renders the frame
+//! ([`render_variant`] on the reference, [`render_gpu_variant`] on the wgpu twin), scores it
+//! against the shared ground-truth image, and writes the CSV, images, plots and manifest.
+//! [`Runner`] keeps the scene, its ground-truth BVH and images, and the GPU context across sweeps.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::time::Instant;
+
+use forestlod_gpu::{GpuContext, GpuError};
+use forestlod_harness::backend::{GpuSweepScene, GpuVariant};
+use forestlod_reference::InputError;
+use forestlod_reference::baselines::{
+    INSTANCE_INDEX_BYTES, PROXY_BYTES, Proxy, proxies, render_primitive, render_vegetation,
+    tree_spheres, trees_drawn_by_selection,
+};
+use forestlod_reference::cameras::named_camera;
+use forestlod_reference::ground_truth::{GroundTruthImage, GroundTruthScene};
+use forestlod_reference::output::{lod_id_image, write_png};
+use forestlod_reference::pipeline::{Prepared, prepare};
+use forestlod_reference::scene::{Scene, builtin, load};
+use forestlod_reference::select::{BatchingCounts, batching_counts};
+use forestlod_reference::texture::Rgba8Image;
+use forestlod_shared::{
+    AngleIndexMode, Camera, CommandData, DrawCommand, FadeMode, MipMode, Params, TreeCull,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::metrics::{Accuracy, accuracy, error_image, per_lod_error_maps};
+
+use super::plots::write_plots;
+use super::rows::{FrameImages, Manifest, Row};
+use super::spec::{ParamSet, Pose, SweepSpec, distance_camera};
+use super::variant::{Backend, ReferenceRenderer, Variant};
+
+fn load_scene(name: &str) -> Result<Scene, InputError> {
+    let path = Path::new(name);
+    if name.ends_with(".toml") || path.is_file() {
+        load::load_scene_file(path)
+    } else {
+        builtin::by_name(name)
+    }
+}
+
+pub(super) fn io_err(path: &Path, e: impl std::fmt::Display) -> InputError {
+    InputError::new(path.display().to_string(), "write", "", e.to_string())
+}
+
+/// What one variant produced for one frame.
+struct VariantFrame {
+    color: Rgba8Image,
+    aux: Vec<u32>,
+    select_s: f64,
+    draw_s: f64,
+    gpu_select_s: Option<f64>,
+    gpu_draw_s: Option<f64>,
+    batches_tested: u64,
+    commands: u64,
+    trees_drawn: u64,
+    batching: BatchingCounts,
+    triangles: Option<u64>,
+    fragments: Option<u64>,
+    fragments_written: Option<u64>,
+    memory_bytes: u64,
+}
+
+impl VariantFrame {
+    /// Keeps the minimum of each time over repeats (the work and images are the same).
+    fn keep_fastest(mut self, other: VariantFrame) -> Self {
+        let min_opt = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        self.select_s = self.select_s.min(other.select_s);
+        self.draw_s = self.draw_s.min(other.draw_s);
+        self.gpu_select_s = min_opt(self.gpu_select_s, other.gpu_select_s);
+        self.gpu_draw_s = min_opt(self.gpu_draw_s, other.gpu_draw_s);
+        self
+    }
+}
+
+/// Per-scene state kept across sweeps of one run: the scene and its ground-truth BVH, the
+/// ground-truth images already rendered, and the GPU context once a sweep asks for it.
+#[derive(Default)]
+pub struct Runner {
+    scene: Option<(String, Scene, GroundTruthScene)>,
+    images: HashMap<String, GroundTruthImage>,
+    rays: u64,
+    gpu: Option<&'static GpuContext>,
+}
+
+impl Runner {
+    fn scene(
+        &mut self,
+        name: &str,
+        alpha_cutoff: f32,
+    ) -> Result<(&Scene, &GroundTruthScene), InputError> {
+        let key = format!("{name}@{alpha_cutoff}");
+        if self.scene.as_ref().is_none_or(|(k, ..)| *k != key) {
+            self.scene = None; // free the previous BVH first
+            let scene = load_scene(name)?;
+            let gt = GroundTruthScene::build(&scene, alpha_cutoff)?;
+            self.scene = Some((key, scene, gt));
+        }
+        let (_, s, g) = self.scene.as_ref().expect("just set");
+        Ok((s, g))
+    }
+
+    /// The GPU context, created on first use (an error with the install hint when there is no
+    /// adapter: the GPU backend was asked for, so it is not skipped).
+    fn gpu(&mut self) -> Result<&'static GpuContext, GpuError> {
+        if let Some(ctx) = self.gpu {
+            return Ok(ctx);
+        }
+        let ctx: &'static GpuContext = Box::leak(Box::new(GpuContext::new()?));
+        self.gpu = Some(ctx);
+        Ok(ctx)
+    }
+
+    /// Runs one sweep into `out/<name>/`.
+    pub fn run_sweep(
+        &mut self,
+        spec: &SweepSpec,
+        quick: bool,
+        out: &Path,
+    ) -> Result<Manifest, Box<dyn std::error::Error>> {
+        let start = Instant::now();
+        let file = format!("<sweep {}>", spec.name);
+        let sets = spec.param_sets(&file)?;
+        let poses = spec.poses();
+        let dir = out.join(&spec.name);
+        let img_dir = dir.join("img");
+        std::fs::create_dir_all(&img_dir).map_err(|e| io_err(&img_dir, e))?;
+        let variants = spec.variant_list(&file)?;
+        let backends = spec.backend_list(&file)?;
+        let use_gpu = backends.contains(&Backend::Gpu);
+        let gpu_ctx = if use_gpu { Some(self.gpu()?) } else { None };
+        let frames = spec.scenes.len()
+            * sets.len()
+            * poses.len()
+            * spec.variants.len()
+            * spec.backends.len();
+        let bar = ProgressBar::new(frames as u64);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{msg:>16} [{bar:30}] {pos}/{len} frames [{elapsed} / ~{duration}]",
+            )
+            .expect("static template")
+            .progress_chars("=> "),
+        );
+        bar.set_message(spec.name.clone());
+        let alpha_cutoff = sets.first().map(|s| s.params.alpha_cutoff).unwrap_or(0.5);
+        let mut rows = Vec::new();
+        let mut images = Vec::new();
+        let mut bvh_info = Vec::new();
+        let rays_before = self.rays;
+        for scene_name in &spec.scenes {
+            self.scene(scene_name, alpha_cutoff)?;
+            let (_, scene, gt_scene) = self.scene.as_ref().expect("loaded");
+            bvh_info.push((
+                scene.name.clone(),
+                gt_scene.triangle_count(),
+                gt_scene.build_seconds(),
+            ));
+            for set in &sets {
+                let prepared = prepare(scene.clone(), &set.params)?;
+                let spheres = tree_spheres(&prepared.scene, &prepared.geometry.meshes);
+                let baselines = variants.iter().any(|v| v.is_baseline());
+                let proxy_list: Vec<Proxy> = if baselines {
+                    proxies(&prepared, set.params.alpha_cutoff)
+                } else {
+                    Vec::new()
+                };
+                // The GPU side of this parameter set: buffers uploaded and textures baked once.
+                let mut gpu_scene = match gpu_ctx {
+                    Some(ctx) => Some(GpuSweepScene::new(ctx, &prepared, &set.params)?),
+                    None => None,
+                };
+                let mut gpu_warm = false;
+                for pose in &poses {
+                    let camera = if pose.camera == "distance" {
+                        distance_camera(scene, pose.distance_m, spec.width, spec.height)
+                    } else {
+                        named_camera(&pose.camera, scene, pose.yaw_deg, spec.width, spec.height)?
+                    };
+                    camera.validate().map_err(InputError::from)?;
+                    let key = format!(
+                        "{}|{}|{}|{}|{}x{}|{}",
+                        scene.name,
+                        pose.camera,
+                        pose.yaw_deg,
+                        pose.distance_m,
+                        spec.width,
+                        spec.height,
+                        spec.samples
+                    );
+                    if !self.images.contains_key(&key) {
+                        let img = gt_scene.render(&camera, spec.samples);
+                        self.rays += img.rays;
+                        self.images.insert(key.clone(), img);
+                    }
+                    let gt = &self.images[&key];
+                    for &backend in &backends {
+                        for &variant in &variants {
+                            let frame = Frame {
+                                prepared: &prepared,
+                                spheres: &spheres,
+                                proxies: &proxy_list,
+                                camera: &camera,
+                                params: &set.params,
+                            };
+                            let vf = if backend == Backend::Gpu {
+                                let gs = gpu_scene.as_mut().expect("created when use_gpu");
+                                if !gpu_warm {
+                                    // First frame of a parameter set: pipelines, bind groups and
+                                    // lavapipe's shader JIT warm up outside the timed renders.
+                                    render_gpu_variant(gs, variant, &frame, 1)?;
+                                    gpu_warm = true;
+                                }
+                                render_gpu_variant(gs, variant, &frame, spec.repeats)?
+                            } else {
+                                render_variant(variant, &frame, spec.repeats)?
+                            };
+                            let (acc, map) = accuracy(gt, &vf.color, &vf.aux);
+                            let pixels = (spec.width as u64 * spec.height as u64).max(1);
+                            let p = &set.params;
+                            rows.push(Row {
+                                sweep: spec.name.clone(),
+                                scene: scene.name.clone(),
+                                camera: pose.camera.clone(),
+                                yaw_deg: pose.yaw_deg,
+                                distance_m: pose.distance_m,
+                                variant: variant.name().into(),
+                                backend: backend.name().into(),
+                                setting: set.label.clone(),
+                                grid_size: p.grid_size,
+                                angle_count: p.angle_count,
+                                texture_size: p.texture_size,
+                                lod_levels: p.lod_levels,
+                                lod1_transition: p.lod1_transition,
+                                fade_width: p.fade_width,
+                                draw_distance: p.draw_distance,
+                                fade_mode: p.fade().map(FadeMode::name).unwrap_or("?").into(),
+                                mip_mode: p.mips().map(MipMode::name).unwrap_or("?").into(),
+                                angle_index: p
+                                    .angle_mode()
+                                    .map(AngleIndexMode::name)
+                                    .unwrap_or("?")
+                                    .into(),
+                                tree_cull: p
+                                    .tree_culling()
+                                    .map(TreeCull::name)
+                                    .unwrap_or("?")
+                                    .into(),
+                                width: spec.width,
+                                height: spec.height,
+                                select_s: vf.select_s,
+                                draw_s: vf.draw_s,
+                                frame_s: vf.select_s + vf.draw_s,
+                                gpu_select_s: vf.gpu_select_s,
+                                gpu_draw_s: vf.gpu_draw_s,
+                                batches_tested: vf.batches_tested,
+                                commands: vf.commands,
+                                trees_drawn: vf.trees_drawn,
+                                trees_finer: vf.batching.trees_finer,
+                                trees_coarser: vf.batching.trees_coarser,
+                                trees_outside_view: vf.batching.trees_outside_view,
+                                trees_missing_lod: vf.batching.trees_missing_lod,
+                                triangles: vf.triangles,
+                                fragments: vf.fragments,
+                                fragments_written: vf.fragments_written,
+                                overdraw: vf.fragments_written.map(|f| f as f64 / pixels as f64),
+                                memory_bytes: vf.memory_bytes,
+                                flip_mean: acc.flip_mean,
+                                flip_p95: acc.flip_p95,
+                                flip_p99: acc.flip_p99,
+                                coverage_error: acc.coverage_error,
+                                gt_tree_fraction: acc.gt_tree_fraction,
+                                tree_fraction: acc.tree_fraction,
+                            });
+                            if pose.save_images {
+                                images.push(save_frame_images(
+                                    &dir,
+                                    scene,
+                                    pose,
+                                    (variant, backend),
+                                    set,
+                                    gt,
+                                    (&vf.color, &vf.aux),
+                                    &map,
+                                    acc,
+                                )?);
+                            }
+                            bar.inc(1);
+                        }
+                    }
+                }
+            }
+        }
+        bar.finish();
+        let csv_name = format!("{}.csv", spec.name);
+        let csv_path = dir.join(&csv_name);
+        let mut w = csv::Writer::from_path(&csv_path).map_err(|e| io_err(&csv_path, e))?;
+        for r in &rows {
+            w.serialize(r).map_err(|e| io_err(&csv_path, e))?;
+        }
+        w.flush().map_err(|e| io_err(&csv_path, e))?;
+        let plots = write_plots(spec, &rows, &dir)?;
+        let manifest = Manifest {
+            name: spec.name.clone(),
+            title: spec.title.clone(),
+            description: spec.description.clone(),
+            quick,
+            x_axis: spec.x_axis.clone(),
+            scenes: spec.scenes.clone(),
+            variants: spec.variants.clone(),
+            backends: spec.backends.clone(),
+            gpu_adapter: gpu_ctx.map(GpuContext::describe),
+            width: spec.width,
+            height: spec.height,
+            ground_truth_spp: spec.samples * spec.samples,
+            frames: rows.len(),
+            csv: csv_name,
+            plots,
+            images,
+            wall_seconds: start.elapsed().as_secs_f64(),
+            ground_truth_bvh: bvh_info,
+            ground_truth_rays: self.rays - rays_before,
+            spec: Some(spec.clone()),
+        };
+        let mpath = dir.join("sweep.json");
+        std::fs::write(&mpath, serde_json::to_string_pretty(&manifest)?)
+            .map_err(|e| io_err(&mpath, e))?;
+        Ok(manifest)
+    }
+}
+
+/// One frame's inputs, shared by every variant and backend.
+struct Frame<'a> {
+    prepared: &'a Prepared,
+    spheres: &'a [([f32; 3], f32)],
+    proxies: &'a [Proxy],
+    camera: &'a Camera,
+    params: &'a Params,
+}
+
+/// Bytes ours adds to the scene data: E Eq. 4.1's terms as allocated, plus the `refine` stage's
+/// `3n`-entry indirection array when it runs (`reference/src/refine.rs`).
+fn ours_memory(prepared: &Prepared, params: &Params) -> u64 {
+    let refine = if params.tree_culling().is_ok_and(|m| m != TreeCull::None) {
+        3 * prepared.batches.indirection.len() as u64 * 4
+    } else {
+        0
+    };
+    prepared.memory.total + refine
+}
+
+/// A variant the reference cannot render (validation rejects it before anything runs).
+fn unknown_variant(variant: Variant) -> InputError {
+    InputError::new("<sweep>", "variant", variant.name(), Variant::expected())
+}
+
+/// Renders one variant on the reference backend, `repeats` times, keeping the minimum select
+/// and draw times.
+fn render_variant(variant: Variant, f: &Frame, repeats: u32) -> Result<VariantFrame, InputError> {
+    let Frame {
+        prepared,
+        spheres,
+        proxies: proxy_list,
+        camera,
+        params,
+    } = *f;
+    let mut best: Option<VariantFrame> = None;
+    for _ in 0..repeats.max(1) {
+        let vf = match variant.reference_renderer() {
+            Some(ReferenceRenderer::Ours) => {
+                let frame = prepared.render(camera, params)?;
+                let c = frame.selection.counters;
+                let indirection = frame.indirection(prepared);
+                let trees = trees_drawn_by_selection(
+                    prepared,
+                    &frame.selection,
+                    indirection,
+                    camera,
+                    params,
+                );
+                let batching =
+                    batching_counts(spheres, indirection, &frame.selection, camera, params);
+                let s = frame.drawn.tree_stats;
+                let target = frame.drawn.target;
+                VariantFrame {
+                    select_s: frame.timings.select + frame.timings.refine,
+                    draw_s: frame.timings.draw,
+                    gpu_select_s: None,
+                    gpu_draw_s: None,
+                    batches_tested: c.batches_tested as u64,
+                    commands: c.commands as u64,
+                    trees_drawn: trees.len() as u64,
+                    batching,
+                    triangles: Some(s.triangles_in),
+                    fragments: Some(s.fragments_shaded),
+                    fragments_written: Some(s.fragments_written),
+                    memory_bytes: ours_memory(prepared, params),
+                    color: target.color_image(),
+                    aux: target.aux().to_vec(),
+                }
+            }
+            Some(renderer @ (ReferenceRenderer::Vegetation | ReferenceRenderer::Primitive)) => {
+                let f = if renderer == ReferenceRenderer::Vegetation {
+                    render_vegetation(prepared, spheres, camera, params)
+                } else {
+                    render_primitive(prepared, spheres, proxy_list, camera, params)
+                };
+                let s = f.tree_stats;
+                VariantFrame {
+                    select_s: f.timings.select,
+                    draw_s: f.timings.draw,
+                    gpu_select_s: None,
+                    gpu_draw_s: None,
+                    batches_tested: f.trees_tested,
+                    commands: f.commands,
+                    trees_drawn: f.visible.len() as u64,
+                    batching: BatchingCounts::default(),
+                    triangles: Some(s.triangles_in),
+                    fragments: Some(s.fragments_shaded),
+                    fragments_written: Some(s.fragments_written),
+                    memory_bytes: f.memory_bytes,
+                    color: f.target.color_image(),
+                    aux: f.target.aux().to_vec(),
+                }
+            }
+            None => return Err(unknown_variant(variant)),
+        };
+        best = Some(match best {
+            None => vf,
+            Some(b) => b.keep_fastest(vf),
+        });
+    }
+    Ok(best.expect("at least one repeat"))
+}
+
+/// Renders one variant on the GPU backend ([`GpuSweepScene`]), `repeats` times, keeping the
+/// minimum times. Work counters the GPU does not report (trees drawn by ours, the batching
+/// counts) come from the reference's selection of the same frame, which the parity tests prove
+/// equal to the GPU's (`tests/tests/parity_select.rs`); triangles and fragments stay empty.
+fn render_gpu_variant(
+    gs: &mut GpuSweepScene,
+    variant: Variant,
+    f: &Frame,
+    repeats: u32,
+) -> Result<VariantFrame, Box<dyn std::error::Error>> {
+    let Frame {
+        prepared,
+        spheres,
+        proxies: proxy_list,
+        camera,
+        params,
+    } = *f;
+    let gpu_variant = variant.gpu_variant();
+    let mut best: Option<VariantFrame> = None;
+    for _ in 0..repeats.max(1) {
+        let g = gs.render(gpu_variant, camera, params)?;
+        let (batches_tested, trees_drawn, batching, memory_bytes) = match gpu_variant {
+            GpuVariant::Ours(_) => {
+                let (selection, refined) = prepared.select_refined(camera, params);
+                let indirection = refined
+                    .as_ref()
+                    .map_or(&prepared.batches.indirection[..], |r| &r.indirection[..]);
+                let trees =
+                    trees_drawn_by_selection(prepared, &selection, indirection, camera, params);
+                let batching = batching_counts(spheres, indirection, &selection, camera, params);
+                (
+                    prepared.batches.metas.len() as u64,
+                    trees.len() as u64,
+                    batching,
+                    ours_memory(prepared, params),
+                )
+            }
+            GpuVariant::Vegetation | GpuVariant::Primitive => {
+                let visible = g.trees_drawn.unwrap_or(0);
+                // The reference baselines' accounting (reference/src/baselines.rs).
+                let extra = if gpu_variant == GpuVariant::Vegetation {
+                    g.commands * (size_of::<DrawCommand>() + size_of::<CommandData>()) as u64
+                } else {
+                    proxy_list.len() as u64 * PROXY_BYTES
+                };
+                (
+                    spheres.len() as u64,
+                    visible,
+                    BatchingCounts::default(),
+                    visible * INSTANCE_INDEX_BYTES + extra,
+                )
+            }
+        };
+        let vf = VariantFrame {
+            color: Rgba8Image {
+                width: g.images.width,
+                height: g.images.height,
+                texels: g.images.color,
+            },
+            aux: g.images.lod_id,
+            select_s: g.select_s,
+            draw_s: g.draw_s,
+            gpu_select_s: g.gpu_select_s,
+            gpu_draw_s: g.gpu_draw_s,
+            batches_tested,
+            commands: g.commands,
+            trees_drawn,
+            batching,
+            triangles: None,
+            fragments: None,
+            fragments_written: None,
+            memory_bytes,
+        };
+        best = Some(match best {
+            None => vf,
+            Some(b) => b.keep_fastest(vf),
+        });
+    }
+    Ok(best.expect("at least one repeat"))
+}
+
+fn slug(s: &str) -> String {
+    let mut out: String = s
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '.' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    while out.contains("__") {
+        out = out.replace("__", "_");
+    }
+    out.trim_matches('_').to_string()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn save_frame_images(
+    dir: &Path,
+    scene: &Scene,
+    pose: &Pose,
+    (variant, backend): (Variant, Backend),
+    set: &ParamSet,
+    gt: &GroundTruthImage,
+    (color, aux): (&Rgba8Image, &[u32]),
+    map: &[f32],
+    acc: Accuracy,
+) -> Result<FrameImages, InputError> {
+    let pose_slug = if pose.camera == "distance" {
+        format!("{}_{}_d{}", scene.name, pose.camera, pose.distance_m)
+    } else {
+        format!("{}_{}_y{}", scene.name, pose.camera, pose.yaw_deg)
+    };
+    let stem = slug(&format!(
+        "{pose_slug}_{}_{}_{}",
+        variant.name(),
+        backend.name(),
+        set.label
+    ));
+    let (w, h) = (color.width, color.height);
+    let rel = |name: String| format!("img/{name}");
+    let gt_path = rel(format!("{}_gt.png", slug(&pose_slug)));
+    let gt_class = rel(format!("{}_gt_class.png", slug(&pose_slug)));
+    if !dir.join(&gt_path).is_file() {
+        write_png(&dir.join(&gt_path), &gt.srgb)?;
+        write_png(&dir.join(&gt_class), &gt.class_image())?;
+    }
+    let color_path = rel(format!("{stem}_color.png"));
+    let lod = rel(format!("{stem}_lod.png"));
+    let flip = rel(format!("{stem}_flip.png"));
+    write_png(&dir.join(&color_path), color)?;
+    write_png(&dir.join(&lod), &lod_id_image(w, h, aux))?;
+    write_png(&dir.join(&flip), &error_image(map, w, h))?;
+    let mut per_lod = Vec::new();
+    if variant.is_ours() {
+        for m in per_lod_error_maps(map, aux, w, h) {
+            if m.pixels == 0 {
+                continue;
+            }
+            let p = rel(format!("{stem}_flip_{}.png", m.label));
+            write_png(&dir.join(&p), &m.image)?;
+            per_lod.push((m.label.to_string(), p, m.flip_mean, m.pixels));
+        }
+    }
+    Ok(FrameImages {
+        camera: pose.camera.clone(),
+        yaw_deg: pose.yaw_deg,
+        distance_m: pose.distance_m,
+        variant: variant.name().into(),
+        backend: backend.name().into(),
+        setting: set.label.clone(),
+        color: color_path,
+        lod,
+        flip,
+        per_lod,
+        ground_truth: gt_path,
+        ground_truth_class: gt_class,
+        accuracy: acc,
+    })
+}

@@ -1,0 +1,498 @@
+//! The sweep file (`experiments/sweeps/README.md`): its TOML form ([`SweepSpec`]), validation
+//! (one-line [`InputError`]s naming file, field and value), `--quick`, the parameter sets (settings
+//! times the axes' product, each through [`set_param`]) and the camera poses. Variant and backend
+//! names stay strings in the file form (and in `sweep.json`); [`SweepSpec::variant_list`] and
+//! [`SweepSpec::backend_list`] turn them into [`Variant`]s and [`Backend`]s.
+
+use std::collections::BTreeMap;
+
+use forestlod_reference::InputError;
+use forestlod_reference::scene::Scene;
+use forestlod_shared::{Camera, Params};
+use serde::{Deserialize, Serialize};
+
+use super::variant::{Backend, Variant};
+
+/// One camera entry of a sweep file.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    /// `far`, `medium`, `close` (E§5.0.1, [`forestlod_reference::cameras`]) or `distance`.
+    pub name: String,
+    /// For named cameras: a 360° sweep in this many equal yaw steps (default 1: yaw 0 only).
+    #[serde(default)]
+    pub yaw_steps: Option<u32>,
+    /// For `distance`: the camera's distances from the footprint's centre, metres.
+    #[serde(default)]
+    pub distances: Option<Vec<f32>>,
+}
+
+/// One parameter axis: every value is combined with every value of the other axes.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisSpec {
+    /// Parameter name ([`set_param`]).
+    pub param: String,
+    /// Values: numbers, or names for the mode parameters.
+    pub values: Vec<toml::Value>,
+}
+
+/// A named parameter setting (E Fig. 5.7's "default", "no LOD0", "no cross-fade").
+#[derive(Clone, Debug, Deserialize, Serialize)]
+pub struct SettingSpec {
+    /// Label in CSVs and plots.
+    pub label: String,
+    /// Parameter overrides.
+    #[serde(flatten)]
+    pub params: toml::Table,
+}
+
+/// The `[quick]` overrides.
+#[derive(Clone, Debug, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct QuickSpec {
+    /// Scenes.
+    pub scenes: Option<Vec<String>>,
+    /// Image width.
+    pub width: Option<u32>,
+    /// Image height.
+    pub height: Option<u32>,
+    /// Ground-truth samples per pixel side.
+    pub samples: Option<u32>,
+    /// Yaw steps of every named camera.
+    pub yaw_steps: Option<u32>,
+    /// Distances of the distance path.
+    pub distances: Option<Vec<f32>>,
+    /// Values per axis parameter.
+    pub axes: Option<BTreeMap<String, Vec<toml::Value>>>,
+    /// Base parameter overrides (applied after the file's `[params]`).
+    pub params: Option<toml::Table>,
+    /// Backends.
+    pub backends: Option<Vec<String>>,
+}
+
+/// A sweep file.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SweepSpec {
+    /// Name: the output sub-folder and CSV name.
+    pub name: String,
+    /// One-line title for plots and the report.
+    pub title: String,
+    /// What question the sweep answers.
+    #[serde(default)]
+    pub description: String,
+    /// Scenes: built-in names or scene files.
+    pub scenes: Vec<String>,
+    /// Variants: `ours`, `ours-atomic`, `vegetation`, `primitive`.
+    #[serde(default = "default_variants")]
+    pub variants: Vec<String>,
+    /// Backends: `reference` (default), `gpu`.
+    #[serde(default = "default_backends")]
+    pub backends: Vec<String>,
+    /// Image width.
+    #[serde(default = "default_width")]
+    pub width: u32,
+    /// Image height.
+    #[serde(default = "default_height")]
+    pub height: u32,
+    /// Ground-truth samples per pixel side.
+    #[serde(default = "default_samples")]
+    pub samples: u32,
+    /// Timed renders per frame; the minimum is kept.
+    #[serde(default = "default_repeats")]
+    pub repeats: u32,
+    /// The runtime plots' x axis: `yaw`, `distance` or a parameter name.
+    #[serde(default = "default_x_axis")]
+    pub x_axis: String,
+    /// Base parameter overrides (thesis defaults otherwise).
+    #[serde(default)]
+    pub params: toml::Table,
+    /// Cameras.
+    pub cameras: Vec<CameraSpec>,
+    /// Parameter axes (their Cartesian product).
+    #[serde(default)]
+    pub axes: Vec<AxisSpec>,
+    /// Named settings (each combined with every axis point).
+    #[serde(default)]
+    pub settings: Vec<SettingSpec>,
+    /// Quick-mode overrides.
+    #[serde(default)]
+    pub quick: Option<QuickSpec>,
+}
+
+fn default_variants() -> Vec<String> {
+    vec!["ours".into()]
+}
+fn default_backends() -> Vec<String> {
+    vec!["reference".into()]
+}
+fn default_width() -> u32 {
+    320
+}
+fn default_height() -> u32 {
+    180
+}
+fn default_samples() -> u32 {
+    forestlod_reference::ground_truth::DEFAULT_SAMPLES_PER_AXIS
+}
+fn default_repeats() -> u32 {
+    1
+}
+fn default_x_axis() -> String {
+    "yaw".into()
+}
+
+/// Applies one parameter to `p`: any key of the parameter table
+/// ([`forestlod_shared::registry::PARAMS`]: canonical names, flags and aliases). Numbers take TOML
+/// numbers, modes take their names. Adding a parameter needs no edit here.
+pub fn set_param(
+    p: &mut Params,
+    name: &str,
+    value: &toml::Value,
+    file: &str,
+) -> Result<(), InputError> {
+    let Some(spec) = forestlod_shared::param(name) else {
+        return Err(InputError::new(
+            file,
+            "param name",
+            name,
+            format!(
+                "unknown parameter; expected {}",
+                forestlod_shared::registry::param_names().join(", ")
+            ),
+        ));
+    };
+    let parsed = match value {
+        toml::Value::Integer(i) => spec.from_number(*i as f64),
+        toml::Value::Float(f) => spec.from_number(*f),
+        toml::Value::String(s) if matches!(spec.kind, forestlod_shared::ParamKind::Choice(_)) => {
+            spec.parse(s)
+        }
+        _ => Err(forestlod_shared::registry::ParseError {
+            expected: spec.expected(),
+        }),
+    }
+    .map_err(|e| InputError::new(file, format!("param {name}"), value, e.expected))?;
+    (spec.set)(p, parsed);
+    Ok(())
+}
+
+pub(super) fn value_label(v: &toml::Value) -> String {
+    match v {
+        toml::Value::String(s) => s.clone(),
+        other => other.to_string(),
+    }
+}
+
+pub(super) fn value_number(v: &toml::Value) -> Option<f64> {
+    match v {
+        toml::Value::Integer(i) => Some(*i as f64),
+        toml::Value::Float(f) => Some(*f),
+        _ => None,
+    }
+}
+
+/// One parameter set of a sweep.
+#[derive(Clone, Debug)]
+pub struct ParamSet {
+    /// Label: the setting's label and the axis values, e.g. `default grid_size=500`.
+    pub label: String,
+    /// The label without the x-axis parameter (the plots' series).
+    pub series: String,
+    /// The x-axis parameter's value, if the x axis is a numeric parameter.
+    pub x: Option<f64>,
+    /// The parameters, validated.
+    pub params: Params,
+}
+
+/// One camera pose.
+#[derive(Clone, Debug)]
+pub struct Pose {
+    /// Camera name.
+    pub camera: String,
+    /// Yaw, degrees.
+    pub yaw_deg: f32,
+    /// Distance of the distance path (0 otherwise).
+    pub distance_m: f32,
+    /// Whether this pose's images are saved (the first pose of each camera entry).
+    pub save_images: bool,
+}
+
+impl SweepSpec {
+    /// Parses and validates a sweep file's text.
+    pub fn parse(text: &str, file: &str) -> Result<Self, InputError> {
+        let spec: SweepSpec =
+            toml::from_str(text).map_err(|e| InputError::new(file, "TOML", "", e.to_string()))?;
+        spec.validate(file)?;
+        Ok(spec)
+    }
+
+    pub(crate) fn validate(&self, file: &str) -> Result<(), InputError> {
+        if self.scenes.is_empty() {
+            return Err(InputError::new(
+                file,
+                "scenes",
+                "[]",
+                "expected at least one scene",
+            ));
+        }
+        if self.cameras.is_empty() {
+            return Err(InputError::new(
+                file,
+                "cameras",
+                "[]",
+                "expected at least one camera",
+            ));
+        }
+        // Non-empty lists of known names.
+        let variants = self.variant_list(file)?;
+        let backends = self.backend_list(file)?;
+        let gpu_only = variants.iter().find(|v| v.gpu_only());
+        if let (Some(v), true) = (gpu_only, backends.contains(&Backend::Reference)) {
+            return Err(InputError::new(
+                file,
+                "variants",
+                v.name(),
+                "the atomic-counter compaction exists on the gpu backend only (the reference's stable compaction equals it as a multiset); use backends = [\"gpu\"]",
+            ));
+        }
+        for c in &self.cameras {
+            if c.yaw_steps == Some(0) {
+                return Err(InputError::new(
+                    file,
+                    "cameras.yaw_steps",
+                    0,
+                    "expected at least 1 yaw step",
+                ));
+            }
+            if c.name == "distance" {
+                if c.distances.as_ref().is_none_or(|d| d.is_empty()) {
+                    return Err(InputError::new(
+                        file,
+                        "cameras.distances",
+                        "",
+                        "a distance camera needs a non-empty `distances` list",
+                    ));
+                }
+            } else if !forestlod_reference::cameras::CAMERA_NAMES.contains(&c.name.as_str()) {
+                return Err(InputError::new(
+                    file,
+                    "cameras.name",
+                    &c.name,
+                    "expected far, medium, close or distance",
+                ));
+            }
+        }
+        if self.width == 0 || self.height == 0 || self.samples == 0 || self.repeats == 0 {
+            return Err(InputError::new(
+                file,
+                "width/height/samples/repeats",
+                format!(
+                    "{} {} {} {}",
+                    self.width, self.height, self.samples, self.repeats
+                ),
+                "expected positive values",
+            ));
+        }
+        self.param_sets(file)?;
+        Ok(())
+    }
+
+    /// The variants, typed: an error naming `variants` and the bad name (or `[]`) otherwise.
+    pub fn variant_list(&self, file: &str) -> Result<Vec<Variant>, InputError> {
+        if self.variants.is_empty() {
+            return Err(InputError::new(file, "variants", "[]", Variant::expected()));
+        }
+        self.variants
+            .iter()
+            .map(|v| Variant::parse(v).map_err(|e| InputError::new(file, "variants", v, e)))
+            .collect()
+    }
+
+    /// The backends, typed: an error naming `backends` and the bad name (or `[]`) otherwise.
+    pub fn backend_list(&self, file: &str) -> Result<Vec<Backend>, InputError> {
+        if self.backends.is_empty() {
+            return Err(InputError::new(file, "backends", "[]", Backend::expected()));
+        }
+        self.backends
+            .iter()
+            .map(|b| Backend::parse(b).map_err(|e| InputError::new(file, "backends", b, e)))
+            .collect()
+    }
+
+    /// Applies the `[quick]` table.
+    pub fn quick(mut self) -> Self {
+        let Some(q) = self.quick.clone() else {
+            return self;
+        };
+        if let Some(s) = q.scenes {
+            self.scenes = s;
+        }
+        self.width = q.width.unwrap_or(self.width);
+        self.height = q.height.unwrap_or(self.height);
+        self.samples = q.samples.unwrap_or(self.samples);
+        for c in &mut self.cameras {
+            if c.name == "distance" {
+                if let Some(d) = &q.distances {
+                    c.distances = Some(d.clone());
+                }
+            } else if q.yaw_steps.is_some() {
+                c.yaw_steps = q.yaw_steps;
+            }
+        }
+        if let Some(axes) = q.axes {
+            for a in &mut self.axes {
+                if let Some(v) = axes.get(&a.param) {
+                    a.values = v.clone();
+                }
+            }
+        }
+        if let Some(p) = q.params {
+            self.params.extend(p);
+        }
+        if let Some(b) = q.backends {
+            self.backends = b;
+        }
+        self
+    }
+
+    /// Every parameter set: settings (or one "default") times the axes' Cartesian product.
+    pub fn param_sets(&self, file: &str) -> Result<Vec<ParamSet>, InputError> {
+        let mut base = Params::default();
+        for (k, v) in &self.params {
+            set_param(&mut base, k, v, file)?;
+        }
+        let settings: Vec<SettingSpec> = if self.settings.is_empty() {
+            vec![SettingSpec {
+                label: "default".into(),
+                params: toml::Table::new(),
+            }]
+        } else {
+            self.settings.clone()
+        };
+        // Cartesian product of the axes, as lists of (param, value).
+        let mut points: Vec<Vec<(String, toml::Value)>> = vec![Vec::new()];
+        for axis in &self.axes {
+            if axis.values.is_empty() {
+                return Err(InputError::new(
+                    file,
+                    format!("axes.{}", axis.param),
+                    "[]",
+                    "expected at least one value",
+                ));
+            }
+            points = points
+                .into_iter()
+                .flat_map(|p| {
+                    axis.values.iter().map(move |v| {
+                        let mut q = p.clone();
+                        q.push((axis.param.clone(), v.clone()));
+                        q
+                    })
+                })
+                .collect();
+        }
+        let mut out = Vec::new();
+        for s in &settings {
+            for point in &points {
+                let mut params = base;
+                for (k, v) in &s.params {
+                    set_param(&mut params, k, v, file)?;
+                }
+                let mut label = vec![s.label.clone()];
+                let mut series = if settings.len() > 1 {
+                    vec![s.label.clone()]
+                } else {
+                    vec![]
+                };
+                let mut x = None;
+                for (k, v) in point {
+                    set_param(&mut params, k, v, file)?;
+                    label.push(format!("{k}={}", value_label(v)));
+                    if *k == self.x_axis {
+                        x = value_number(v);
+                    } else {
+                        series.push(format!("{k}={}", value_label(v)));
+                    }
+                }
+                params.validate().map_err(|e| {
+                    InputError::new(
+                        file,
+                        format!("setting {:?}, field {}", label.join(" "), e.field),
+                        e.value,
+                        e.reason,
+                    )
+                })?;
+                out.push(ParamSet {
+                    label: label.join(" "),
+                    series: series.join(" "),
+                    x,
+                    params,
+                });
+            }
+        }
+        Ok(out)
+    }
+
+    /// Every camera pose.
+    pub fn poses(&self) -> Vec<Pose> {
+        let mut out = Vec::new();
+        for c in &self.cameras {
+            if c.name == "distance" {
+                for (i, &d) in c.distances.iter().flatten().enumerate() {
+                    out.push(Pose {
+                        camera: "distance".into(),
+                        yaw_deg: 0.0,
+                        distance_m: d,
+                        save_images: i == 0,
+                    });
+                }
+            } else {
+                // `validate` rejects `yaw_steps = 0`.
+                let steps = c.yaw_steps.unwrap_or(1);
+                for i in 0..steps {
+                    out.push(Pose {
+                        camera: c.name.clone(),
+                        yaw_deg: 360.0 * i as f32 / steps as f32,
+                        distance_m: 0.0,
+                        save_images: i == 0,
+                    });
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Height of the distance path's eye above the ground at distance 0, metres.
+pub const DISTANCE_PATH_BASE_HEIGHT_M: f32 = 150.0;
+/// Climb of the distance path's eye per metre of distance.
+pub const DISTANCE_PATH_CLIMB: f32 = 0.05;
+/// How far beyond the footprint's centre the distance path looks, metres.
+pub const DISTANCE_PATH_LOOK_AHEAD_M: f32 = 500.0;
+
+/// The camera of the distance path (E§5.0.2: "moving the camera away until all trees are beyond
+/// the draw distance"): west of the footprint's centre by `distance`, at
+/// [`DISTANCE_PATH_BASE_HEIGHT_M`]` + `[`DISTANCE_PATH_CLIMB`]`·distance` above the ground,
+/// looking at the ground [`DISTANCE_PATH_LOOK_AHEAD_M`] east of the centre. The thesis also
+/// returns the camera; the way back repeats the same poses, so it is not rendered twice.
+pub fn distance_camera(scene: &Scene, distance: f32, width: u32, height: u32) -> Camera {
+    let [x0, y0, x1, y1] = scene.bounds;
+    let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
+    let ex = cx - distance;
+    let eye = [
+        ex,
+        cy,
+        scene.terrain.height(ex, cy) + DISTANCE_PATH_BASE_HEIGHT_M + DISTANCE_PATH_CLIMB * distance,
+    ];
+    let tx = cx + DISTANCE_PATH_LOOK_AHEAD_M;
+    let target = [tx, cy, scene.terrain.height(tx, cy)];
+    Camera::look_at(
+        eye,
+        target,
+        forestlod_reference::cameras::NAMED_FOV_Y_DEGREES,
+        width,
+        height,
+    )
+}

@@ -1,0 +1,172 @@
+//! The variant registry: every [`Variant`] a sweep can run and every [`Backend`] it runs on, with
+//! what differs between them as methods (GPU-only, the GPU twin's [`GpuVariant`], which reference
+//! renderer draws it). The file form, the CSV and `sweep.json` use [`Variant::name`] and
+//! [`Backend::name`]; [`Variant::parse`] and [`Backend::parse`] are the only string compares.
+//! Adding a variant: one arm here plus its reference and GPU renderers (`runner.rs`).
+
+use forestlod_gpu::Compaction;
+use forestlod_harness::backend::GpuVariant;
+
+/// A rendering variant: ours (stable compaction on the GPU), ours with the thesis's
+/// atomic-counter compaction (E§4.3; GPU backend only: the reference has one, stable, compaction,
+/// equal to the atomic one as a multiset), and the two baselines of E§5.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Variant {
+    /// Ours, stable compaction.
+    Ours,
+    /// Ours, atomic-counter compaction (GPU only).
+    OursAtomic,
+    /// The per-tree culled vegetation baseline.
+    Vegetation,
+    /// The primitive (proxy) baseline.
+    Primitive,
+}
+
+/// Which reference (CPU) renderer draws a variant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReferenceRenderer {
+    /// `Prepared::render`: selection, batching, refine, draw.
+    Ours,
+    /// `baselines::render_vegetation`.
+    Vegetation,
+    /// `baselines::render_primitive`.
+    Primitive,
+}
+
+impl Variant {
+    /// Every variant, in the order of the error messages.
+    pub const ALL: [Variant; 4] = [
+        Variant::Ours,
+        Variant::OursAtomic,
+        Variant::Vegetation,
+        Variant::Primitive,
+    ];
+
+    /// The name in sweep files, CSVs and plots.
+    pub fn name(self) -> &'static str {
+        match self {
+            Variant::Ours => "ours",
+            Variant::OursAtomic => "ours-atomic",
+            Variant::Vegetation => "vegetation",
+            Variant::Primitive => "primitive",
+        }
+    }
+
+    /// `expected one of ours, ours-atomic, vegetation, primitive`.
+    pub fn expected() -> String {
+        let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
+        format!("expected one of {}", names.join(", "))
+    }
+
+    /// The variant of a name; the error lists the valid names ([`Variant::expected`]).
+    pub fn parse(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|v| v.name() == name)
+            .ok_or_else(Self::expected)
+    }
+
+    /// Whether it runs on the GPU backend only.
+    pub fn gpu_only(self) -> bool {
+        self.reference_renderer().is_none()
+    }
+
+    /// Whether it is one of ours (LOD-id images with per-LOD error maps, selection counters).
+    pub fn is_ours(self) -> bool {
+        matches!(self, Variant::Ours | Variant::OursAtomic)
+    }
+
+    /// Whether it is a baseline of E§5 (needs the per-tree proxies of the parameter set).
+    pub fn is_baseline(self) -> bool {
+        matches!(self, Variant::Vegetation | Variant::Primitive)
+    }
+
+    /// The reference renderer that draws it; `None` for GPU-only variants.
+    pub fn reference_renderer(self) -> Option<ReferenceRenderer> {
+        match self {
+            Variant::Ours => Some(ReferenceRenderer::Ours),
+            Variant::OursAtomic => None,
+            Variant::Vegetation => Some(ReferenceRenderer::Vegetation),
+            Variant::Primitive => Some(ReferenceRenderer::Primitive),
+        }
+    }
+
+    /// What the GPU twin renders for it.
+    pub fn gpu_variant(self) -> GpuVariant {
+        match self {
+            Variant::Ours => GpuVariant::Ours(Compaction::Stable),
+            Variant::OursAtomic => GpuVariant::Ours(Compaction::Atomic),
+            Variant::Vegetation => GpuVariant::Vegetation,
+            Variant::Primitive => GpuVariant::Primitive,
+        }
+    }
+}
+
+/// Where a variant runs: the CPU reference rasterizer or the wgpu twin (`gpu/`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Backend {
+    /// The CPU reference.
+    Reference,
+    /// The wgpu twin.
+    Gpu,
+}
+
+impl Backend {
+    /// Every backend, in the order of the error messages.
+    pub const ALL: [Backend; 2] = [Backend::Reference, Backend::Gpu];
+
+    /// The name in sweep files, `--backend`, CSVs and the report.
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Reference => "reference",
+            Backend::Gpu => "gpu",
+        }
+    }
+
+    /// The short name in plot legends (`ours ref`, `vegetation gpu`).
+    pub fn short_name(self) -> &'static str {
+        match self {
+            Backend::Reference => "ref",
+            Backend::Gpu => "gpu",
+        }
+    }
+
+    /// `expected one of reference, gpu`.
+    pub fn expected() -> String {
+        let names: Vec<&str> = Self::ALL.iter().map(|b| b.name()).collect();
+        format!("expected one of {}", names.join(", "))
+    }
+
+    /// The backend of a name; the error lists the valid names ([`Backend::expected`]).
+    pub fn parse(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|b| b.name() == name)
+            .ok_or_else(Self::expected)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_errors_list_them() {
+        for v in Variant::ALL {
+            assert_eq!(Variant::parse(v.name()), Ok(v));
+        }
+        for b in Backend::ALL {
+            assert_eq!(Backend::parse(b.name()), Ok(b));
+        }
+        assert_eq!(
+            Variant::parse("fast").unwrap_err(),
+            "expected one of ours, ours-atomic, vegetation, primitive"
+        );
+        assert_eq!(
+            Backend::parse("cuda").unwrap_err(),
+            "expected one of reference, gpu"
+        );
+        let gpu_only: Vec<_> = Variant::ALL.into_iter().filter(|v| v.gpu_only()).collect();
+        assert_eq!(gpu_only, [Variant::OursAtomic]);
+    }
+}
