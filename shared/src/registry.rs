@@ -1,6 +1,6 @@
 //! The parameter table: one entry per [`Params`] field a user can set, from which the command-line
 //! flags (`experiments/src/options.rs`), the TOML sweep axes and settings
-//! (`experiments/src/sweep.rs`), the metrics JSON of the main job and the validation messages all
+//! (`experiments/src/sweep/spec.rs`), the metrics JSON of the main job and the validation messages all
 //! come. Adding a parameter is one entry here (plus the field, its `validate` rule and the code
 //! that reads it); no match on parameter names exists anywhere else.
 //!

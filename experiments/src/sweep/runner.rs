@@ -442,7 +442,7 @@ fn render_variant(variant: Variant, f: &Frame, repeats: u32) -> Result<VariantFr
 /// Renders one variant on the GPU backend ([`GpuSweepScene`]), `repeats` times, keeping the
 /// minimum times. Work counters the GPU does not report (trees drawn by ours, the batching
 /// counts) come from the reference's selection of the same frame, which the parity tests prove
-/// equal to the GPU's (`tests/tests/parity_select.rs`); triangles and fragments stay empty.
+/// equal to the GPU's (`tests/tests/parity/select.rs`); triangles and fragments stay empty.
 fn render_gpu_variant(
     gs: &mut GpuSweepScene,
     variant: Variant,
