@@ -116,6 +116,16 @@ pub enum UpAxis {
     Y,
 }
 
+impl UpAxis {
+    /// A mesh-file position in the Z-up world (OBJ and glTF alike).
+    pub fn to_z_up(self, p: [f32; 3]) -> [f32; 3] {
+        match self {
+            UpAxis::Z => p,
+            UpAxis::Y => [p[0], -p[2], p[1]],
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Files
 // ---------------------------------------------------------------------------------------------
@@ -1326,10 +1336,7 @@ pub fn parse_obj_mesh(
             ));
         }
         for (p, t) in m.positions.chunks_exact(3).zip(m.texcoords.chunks_exact(2)) {
-            mesh.positions.push(match up {
-                UpAxis::Z => [p[0], p[1], p[2]],
-                UpAxis::Y => [p[0], -p[2], p[1]],
-            });
+            mesh.positions.push(up.to_z_up([p[0], p[1], p[2]]));
             mesh.uvs.push([t[0], 1.0 - t[1]]);
         }
         let mut next = 0usize;
@@ -1898,11 +1905,8 @@ pub fn parse_gltf_mesh(
                     "expected finite coordinates".into(),
                 ));
             }
-            let v = [v[0] as f32, v[1] as f32, v[2] as f32];
-            mesh.positions.push(match up {
-                UpAxis::Z => v,
-                UpAxis::Y => [v[0], -v[2], v[1]],
-            });
+            mesh.positions
+                .push(up.to_z_up([v[0] as f32, v[1] as f32, v[2] as f32]));
         }
         let t = read_accessor(
             &uvs,
