@@ -157,8 +157,8 @@ pub fn params_json(params: &Params) -> serde_json::Value {
         .map(|spec| {
             let v = (spec.get)(params);
             let value = match spec.kind {
-                ParamKind::Float => json!(v as f32),
-                ParamKind::Uint => json!(v as u32),
+                ParamKind::Float { .. } => json!(v as f32),
+                ParamKind::Uint { .. } => json!(v as u32),
                 ParamKind::Choice(_) => json!(spec.format(params)),
             };
             (spec.key(), value)

@@ -131,24 +131,9 @@ pub fn group_key(x_axis: &str, r: &Row) -> String {
     }
 }
 
-/// Reads a sweep's CSV.
+/// Reads a sweep's CSV ([`crate::sweep::read_csv`]).
 pub fn read_rows(path: &Path) -> Result<Vec<Row>, InputError> {
-    let mut reader = csv::Reader::from_path(path)
-        .map_err(|e| InputError::new(path.display().to_string(), "read", "", e.to_string()))?;
-    reader
-        .deserialize()
-        .enumerate()
-        .map(|(i, r)| {
-            r.map_err(|e| {
-                InputError::new(
-                    path.display().to_string(),
-                    format!("row {}", i + 2),
-                    "",
-                    e.to_string(),
-                )
-            })
-        })
-        .collect()
+    crate::sweep::read_csv(path)
 }
 
 fn ms(s: f64) -> String {

@@ -195,12 +195,11 @@ pub const MIN_GRID_SIZE: f32 = 0.01;
 /// Largest distances we accept (grid, transition, draw distance): 1e7 m, beyond Earth's diameter.
 pub const MAX_DISTANCE: f32 = 1.0e7;
 
-fn err(field: &'static str, value: impl fmt::Display, reason: &'static str) -> ParamError {
-    ParamError {
-        field,
-        value: value.to_string(),
-        reason,
-    }
+/// The error the parameter table gives for field `name` of `p` (its reason, the stored value).
+fn rejected(name: &str, p: &Params) -> ParamError {
+    let spec = crate::registry::param(name).expect("every Params field is in the table");
+    spec.check(p)
+        .expect_err("only called for a value the typed accessor refused")
 }
 
 impl Params {
@@ -212,44 +211,21 @@ impl Params {
 
     /// Fade mode, validated.
     pub fn fade(&self) -> Result<crate::FadeMode, ParamError> {
-        crate::FadeMode::from_id(self.fade_mode).ok_or_else(|| {
-            err(
-                "fade_mode",
-                self.fade_mode,
-                "expected 0 (none), 1 (alpha), 2 (dither) or 3 (dither-sequential)",
-            )
-        })
+        crate::FadeMode::from_id(self.fade_mode).ok_or_else(|| rejected("fade_mode", self))
     }
     /// Mip mode, validated.
     pub fn mips(&self) -> Result<MipMode, ParamError> {
-        MipMode::from_id(self.mip_mode).ok_or_else(|| {
-            err(
-                "mip_mode",
-                self.mip_mode,
-                "expected 0 (alpha-aware), 1 (box) or 2 (coverage)",
-            )
-        })
+        MipMode::from_id(self.mip_mode).ok_or_else(|| rejected("mip_mode", self))
     }
     /// Angle index mode, validated.
     pub fn angle_mode(&self) -> Result<AngleIndexMode, ParamError> {
-        AngleIndexMode::from_id(self.angle_index_mode).ok_or_else(|| {
-            err(
-                "angle_index_mode",
-                self.angle_index_mode,
-                "expected 0 (nearest) or 1 (eq31-clamped)",
-            )
-        })
+        AngleIndexMode::from_id(self.angle_index_mode)
+            .ok_or_else(|| rejected("angle_index_mode", self))
     }
 
     /// Per-tree culling mode, validated.
     pub fn tree_culling(&self) -> Result<TreeCull, ParamError> {
-        TreeCull::from_id(self.tree_cull).ok_or_else(|| {
-            err(
-                "tree_cull",
-                self.tree_cull,
-                "expected 0 (none), 1 (lod0) or 2 (all)",
-            )
-        })
+        TreeCull::from_id(self.tree_cull).ok_or_else(|| rejected("tree_cull", self))
     }
 
     /// Number of mip levels of a billboard layer, `log2(r) + 1` (r = 1 has one level).
@@ -257,83 +233,20 @@ impl Params {
         self.texture_size.max(1).ilog2() + 1
     }
 
-    /// Checks every field, returning the first impossible one. Nothing downstream runs on invalid
-    /// parameters, so no stage needs to guard against NaN or zero divisors (SPEC §7).
+    /// Checks every field against the parameter table ([`crate::registry::PARAMS`], in its
+    /// order), returning the first impossible one. Nothing downstream runs on invalid parameters,
+    /// so no stage needs to guard against NaN or zero divisors (SPEC §7).
     pub fn validate(&self) -> Result<(), ParamError> {
-        let finite_in = |field, v: f32, lo: f32, hi: f32, reason| {
-            if v.is_finite() && v >= lo && v <= hi {
-                Ok(())
-            } else {
-                Err(err(field, v, reason))
-            }
-        };
-        finite_in(
-            "grid_size",
-            self.grid_size,
-            MIN_GRID_SIZE,
-            MAX_DISTANCE,
-            "expected a finite size in 0.01..=1e7 m",
-        )?;
-        if self.angle_count == 0 || self.angle_count > MAX_ANGLE_COUNT {
-            return Err(err(
-                "angle_count",
-                self.angle_count,
-                "expected 1..=91 elevation angles",
-            ));
-        }
-        if !self.texture_size.is_power_of_two() || self.texture_size > MAX_TEXTURE_SIZE {
-            return Err(err(
-                "texture_size",
-                self.texture_size,
-                "expected a power of two in 1..=4096",
-            ));
-        }
-        if !(1..=2).contains(&self.lod_levels) {
-            return Err(err(
-                "lod_levels",
-                self.lod_levels,
-                "expected 1 (meshes only) or 2 (meshes then billboards): a scene has only these two representations",
-            ));
-        }
-        finite_in(
-            "lod1_transition",
-            self.lod1_transition,
-            0.0,
-            MAX_DISTANCE,
-            "expected a finite distance in 0..=1e7 m",
-        )?;
-        finite_in(
-            "fade_width",
-            self.fade_width,
-            0.0,
-            MAX_DISTANCE,
-            "expected a finite width in 0..=1e7 m",
-        )?;
-        finite_in(
-            "draw_distance",
-            self.draw_distance,
-            0.0,
-            MAX_DISTANCE,
-            "expected a finite distance in 0..=1e7 m",
-        )?;
-        self.fade()?;
-        self.mips()?;
-        self.angle_mode()?;
-        self.tree_culling()?;
-        finite_in(
-            "alpha_cutoff",
-            self.alpha_cutoff,
-            0.0,
-            1.0,
-            "expected a finite alpha in 0..=1",
-        )?;
-        Ok(())
+        crate::registry::PARAMS
+            .iter()
+            .try_for_each(|spec| spec.check(self))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::registry::{ParamKind, ParamSpec};
 
     #[test]
     fn defaults_are_the_thesis_values_and_valid() {
@@ -347,155 +260,111 @@ mod tests {
         p.validate().unwrap();
     }
 
-    #[test]
-    fn each_impossible_value_is_named() {
-        let cases: Vec<(&str, Params)> = vec![
-            (
-                "grid_size",
-                Params {
-                    grid_size: f32::NAN,
-                    ..Default::default()
-                },
-            ),
-            (
-                "grid_size",
-                Params {
-                    grid_size: 0.0,
-                    ..Default::default()
-                },
-            ),
-            (
-                "grid_size",
-                Params {
-                    grid_size: f32::INFINITY,
-                    ..Default::default()
-                },
-            ),
-            (
-                "angle_count",
-                Params {
-                    angle_count: 0,
-                    ..Default::default()
-                },
-            ),
-            (
-                "texture_size",
-                Params {
-                    texture_size: 100,
-                    ..Default::default()
-                },
-            ),
-            (
-                "texture_size",
-                Params {
-                    texture_size: 8192,
-                    ..Default::default()
-                },
-            ),
-            (
-                "texture_size",
-                Params {
-                    texture_size: 0,
-                    ..Default::default()
-                },
-            ),
-            (
-                "lod_levels",
-                Params {
-                    lod_levels: 3,
-                    ..Default::default()
-                },
-            ),
-            (
-                "lod1_transition",
-                Params {
-                    lod1_transition: -1.0,
-                    ..Default::default()
-                },
-            ),
-            (
-                "fade_width",
-                Params {
-                    fade_width: f32::NEG_INFINITY,
-                    ..Default::default()
-                },
-            ),
-            (
-                "draw_distance",
-                Params {
-                    draw_distance: f32::NAN,
-                    ..Default::default()
-                },
-            ),
-            (
-                "fade_mode",
-                Params {
-                    fade_mode: 9,
-                    ..Default::default()
-                },
-            ),
-            (
-                "mip_mode",
-                Params {
-                    mip_mode: 3,
-                    ..Default::default()
-                },
-            ),
-            (
-                "angle_index_mode",
-                Params {
-                    angle_index_mode: 2,
-                    ..Default::default()
-                },
-            ),
-            (
-                "alpha_cutoff",
-                Params {
-                    alpha_cutoff: 1.5,
-                    ..Default::default()
-                },
-            ),
-        ];
-        for (field, p) in cases {
-            let e = p.validate().expect_err(field);
-            assert_eq!(e.field, field, "{e}");
-            assert!(e.to_string().contains(field), "{e}");
+    /// Values each table entry must refuse: non-finite and out-of-range floats, integers just
+    /// outside their range and non-powers of two, unknown choice codes.
+    fn impossible(spec: &ParamSpec) -> Vec<f64> {
+        match spec.kind {
+            ParamKind::Float { min, max } => vec![
+                f64::NAN,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::from(min) - 1.0,
+                f64::from(max) * 2.0,
+            ],
+            ParamKind::Uint {
+                min,
+                max,
+                power_of_two,
+            } => {
+                let mut v = vec![f64::from(max) + 1.0, f64::from(max) * 2.0];
+                if min > 0 {
+                    v.push(f64::from(min - 1));
+                }
+                if power_of_two {
+                    v.extend([3.0, 100.0, f64::from(max - 1)]);
+                }
+                v
+            }
+            ParamKind::Choice(choices) => vec![choices().len() as f64, 9.0],
+        }
+    }
+
+    /// The extremes each entry must accept (SPEC §7 asks the pipeline to run at them).
+    fn extremes(spec: &ParamSpec) -> Vec<f64> {
+        match spec.kind {
+            ParamKind::Float { min, max } => vec![f64::from(min), f64::from(max)],
+            ParamKind::Uint { min, max, .. } => vec![f64::from(min), f64::from(max)],
+            ParamKind::Choice(choices) => choices().iter().map(|(_, c)| f64::from(*c)).collect(),
         }
     }
 
     #[test]
+    fn each_impossible_value_is_named() {
+        let mut checked = 0;
+        for spec in &crate::registry::PARAMS {
+            for v in impossible(spec) {
+                let mut p = Params::default();
+                (spec.set)(&mut p, v);
+                let e = p.validate().expect_err(spec.name);
+                assert_eq!(e.field, spec.name, "{e}");
+                assert!(e.to_string().contains(spec.name), "{e}");
+                assert_eq!(e.reason, spec.reason, "{e}");
+                checked += 1;
+            }
+        }
+        // The typed accessors refuse with the table's words, and the choice reasons name every
+        // code the enum has (they are written by hand in the table).
+        let p = Params {
+            fade_mode: 9,
+            mip_mode: 3,
+            angle_index_mode: 2,
+            tree_cull: 3,
+            ..Default::default()
+        };
+        for (field, e) in [
+            ("fade_mode", p.fade().unwrap_err()),
+            ("mip_mode", p.mips().unwrap_err()),
+            ("angle_index_mode", p.angle_mode().unwrap_err()),
+            ("tree_cull", p.tree_culling().unwrap_err()),
+        ] {
+            assert_eq!(e.field, field);
+            assert!(e.value.parse::<u32>().is_ok(), "{e}: the stored code");
+            let spec = crate::registry::param(field).unwrap();
+            assert_eq!(e.reason, spec.reason);
+            if let ParamKind::Choice(choices) = spec.kind {
+                for (name, code) in choices() {
+                    assert!(
+                        spec.reason.contains(&format!("{code} ({name})")),
+                        "{field}: {name}"
+                    );
+                }
+            }
+        }
+        assert!(checked >= 40, "only {checked} impossible values tried");
+    }
+
+    #[test]
     fn extremes_that_are_allowed() {
+        for spec in &crate::registry::PARAMS {
+            for v in extremes(spec) {
+                let mut p = Params::default();
+                (spec.set)(&mut p, v);
+                p.validate()
+                    .unwrap_or_else(|e| panic!("{} = {v} refused: {e}", spec.name));
+            }
+        }
+        // Degenerate but meaningful: a zero-width fade band, billboards from the eye on, nothing
+        // drawn; a single angle and a one-texel billboard.
         for p in [
             Params {
-                texture_size: 1,
-                ..Default::default()
-            },
-            Params {
-                texture_size: 4096,
-                ..Default::default()
-            },
-            Params {
-                angle_count: 1,
-                ..Default::default()
-            },
-            Params {
                 fade_width: 0.0,
-                ..Default::default()
-            },
-            Params {
                 lod1_transition: 0.0,
-                ..Default::default()
-            },
-            Params {
                 draw_distance: 0.0,
                 ..Default::default()
             },
             Params {
-                draw_distance: 1e7,
-                ..Default::default()
-            },
-            Params {
-                grid_size: 1e6,
+                angle_count: 1,
+                texture_size: 1,
                 ..Default::default()
             },
         ] {

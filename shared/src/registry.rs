@@ -13,15 +13,28 @@
 //! Rejected design: a `match name` per consumer (CLI struct fields, a TOML `set_param`, metrics
 //! keys), as before issue 11: a parameter added to one was silently missing from the others.
 
+use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{AngleIndexMode, FadeMode, MipMode, Params, TreeCull};
 
-/// What values a parameter takes.
+/// What values a parameter takes, and so what [`Params::validate`] accepts.
 #[derive(Clone, Copy, Debug)]
 pub enum ParamKind {
-    /// An `f32`.
-    Float,
-    /// A `u32`.
-    Uint,
+    /// An `f32`, finite, in `min..=max`.
+    Float {
+        /// Smallest valid value.
+        min: f32,
+        /// Largest valid value.
+        max: f32,
+    },
+    /// A `u32` in `min..=max`, and a power of two where `power_of_two`.
+    Uint {
+        /// Smallest valid value.
+        min: u32,
+        /// Largest valid value.
+        max: u32,
+        /// Whether only powers of two are valid.
+        power_of_two: bool,
+    },
     /// One of named modes, stored as its `u32` code: `(name, code)` pairs.
     Choice(fn() -> Vec<(&'static str, u32)>),
 }
@@ -29,17 +42,19 @@ pub enum ParamKind {
 /// One user-settable parameter (module docs).
 #[derive(Clone, Copy, Debug)]
 pub struct ParamSpec {
-    /// Canonical name: the [`Params`] field, a TOML key.
+    /// Canonical name: the [`Params`] field, a TOML key, a sweep CSV column.
     pub name: &'static str,
     /// Command-line flag without the dashes; with `-` read as `_`, also a TOML key and the key of
     /// the main job's metrics.
     pub flag: &'static str,
-    /// Further TOML keys accepted for it.
+    /// Further keys accepted for it (TOML, and CSV columns written before a rename).
     pub aliases: &'static [&'static str],
     /// One-line help (the CLI's `--help`).
     pub help: &'static str,
     /// Values it takes.
     pub kind: ParamKind,
+    /// Why a value outside `kind` is refused: the `reason` of [`ParamError`].
+    pub reason: &'static str,
     /// Reads it from `Params` (choices: their code).
     pub get: fn(&Params) -> f64,
     /// Writes it into `Params` (exact for the kind's values).
@@ -72,26 +87,26 @@ impl ParamSpec {
         }
     }
 
-    /// What a valid value looks like, for error messages.
+    /// What a valid value looks like, for parse error messages.
     pub fn expected(&self) -> String {
         match self.kind {
-            ParamKind::Float => "expected a number".into(),
-            ParamKind::Uint => "expected a non-negative integer".into(),
+            ParamKind::Float { .. } => "expected a number".into(),
+            ParamKind::Uint { .. } => "expected a non-negative integer".into(),
             ParamKind::Choice(_) => format!("expected one of {}", self.choice_names().join(", ")),
         }
     }
 
-    /// Parses the text of a value (a flag's argument, a TOML string): a number for numeric kinds
-    /// (`nan` and `inf` parse; [`Params::validate`] rejects them, naming the field), a name for
-    /// choices. Returns what [`ParamSpec::set`] takes.
+    /// Parses the text of a value (a flag's argument, a TOML string, a CSV cell): a number for
+    /// numeric kinds (`nan` and `inf` parse; [`ParamSpec::check`] rejects them, naming the field),
+    /// a name for choices. Returns what [`ParamSpec::set`] takes.
     pub fn parse(&self, text: &str) -> Result<f64, ParseError> {
         let text = text.trim();
         let bad = || ParseError {
             expected: self.expected(),
         };
         match self.kind {
-            ParamKind::Float => text.parse::<f32>().map(f64::from).map_err(|_| bad()),
-            ParamKind::Uint => text.parse::<u32>().map(f64::from).map_err(|_| bad()),
+            ParamKind::Float { .. } => text.parse::<f32>().map(f64::from).map_err(|_| bad()),
+            ParamKind::Uint { .. } => text.parse::<u32>().map(f64::from).map_err(|_| bad()),
             ParamKind::Choice(choices) => choices()
                 .into_iter()
                 .find(|(name, _)| *name == text)
@@ -107,8 +122,10 @@ impl ParamSpec {
             expected: self.expected(),
         };
         match self.kind {
-            ParamKind::Float => Ok(f64::from(value as f32)),
-            ParamKind::Uint if value.fract() == 0.0 && (0.0..=u32::MAX as f64).contains(&value) => {
+            ParamKind::Float { .. } => Ok(f64::from(value as f32)),
+            ParamKind::Uint { .. }
+                if value.fract() == 0.0 && (0.0..=u32::MAX as f64).contains(&value) =>
+            {
                 Ok(value)
             }
             _ => Err(bad()),
@@ -119,148 +136,143 @@ impl ParamSpec {
     pub fn format(&self, p: &Params) -> String {
         let v = (self.get)(p);
         match self.kind {
-            ParamKind::Float => (v as f32).to_string(),
-            ParamKind::Uint => (v as u32).to_string(),
             ParamKind::Choice(choices) => choices()
                 .into_iter()
                 .find(|(_, code)| f64::from(*code) == v)
                 .map_or_else(|| format!("<code {v}>"), |(name, _)| name.to_string()),
+            _ => self.format_raw(v),
+        }
+    }
+
+    /// A stored value as a number (`f32` Display for floats, the `u32` otherwise).
+    fn format_raw(&self, v: f64) -> String {
+        match self.kind {
+            ParamKind::Float { .. } => (v as f32).to_string(),
+            _ => (v as u32).to_string(),
+        }
+    }
+
+    /// Whether the value in `p` is valid (its kind's range, power of two, a known choice code);
+    /// otherwise the [`ParamError`] naming the field, the value and [`ParamSpec::reason`].
+    pub fn check(&self, p: &Params) -> Result<(), ParamError> {
+        let v = (self.get)(p);
+        let ok = match self.kind {
+            ParamKind::Float { min, max } => {
+                let v = v as f32;
+                v.is_finite() && v >= min && v <= max
+            }
+            ParamKind::Uint {
+                min,
+                max,
+                power_of_two,
+            } => {
+                let v = v as u32;
+                (min..=max).contains(&v) && (!power_of_two || v.is_power_of_two())
+            }
+            ParamKind::Choice(choices) => choices().iter().any(|(_, c)| f64::from(*c) == v),
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err(ParamError {
+                field: self.name,
+                value: self.format_raw(v),
+                reason: self.reason,
+            })
         }
     }
 }
 
 fn fade_modes() -> Vec<(&'static str, u32)> {
-    FadeMode::ALL
-        .iter()
-        .map(|m| (m.name(), *m as u32))
-        .collect()
+    FadeMode::ALL.map(|m| (m.name(), m as u32)).to_vec()
 }
 fn mip_modes() -> Vec<(&'static str, u32)> {
-    MipMode::ALL.iter().map(|m| (m.name(), *m as u32)).collect()
+    MipMode::ALL.map(|m| (m.name(), m as u32)).to_vec()
 }
 fn angle_index_modes() -> Vec<(&'static str, u32)> {
-    AngleIndexMode::ALL
-        .iter()
-        .map(|m| (m.name(), *m as u32))
-        .collect()
+    AngleIndexMode::ALL.map(|m| (m.name(), m as u32)).to_vec()
 }
 fn tree_culls() -> Vec<(&'static str, u32)> {
-    TreeCull::ALL
-        .iter()
-        .map(|m| (m.name(), *m as u32))
-        .collect()
+    TreeCull::ALL.map(|m| (m.name(), m as u32)).to_vec()
 }
 
-/// Every user-settable parameter, in the order the CLI lists them.
+/// One table entry: the `Params` field, its flag, kind, refusal reason and help; the getter and
+/// setter are the field's, through `f64`.
+macro_rules! param {
+    ($field:ident, $flag:literal, $kind:expr, $reason:literal, $help:literal) => {
+        ParamSpec {
+            name: stringify!($field),
+            flag: $flag,
+            aliases: &[],
+            help: $help,
+            kind: $kind,
+            reason: $reason,
+            get: |p| f64::from(p.$field),
+            set: |p, v| p.$field = v as _,
+        }
+    };
+}
+
+/// A distance-like float: finite in `min..=MAX_DISTANCE`.
+const fn distance(min: f32) -> ParamKind {
+    ParamKind::Float {
+        min,
+        max: MAX_DISTANCE,
+    }
+}
+/// A float in `min..=max`.
+const fn float(min: f32, max: f32) -> ParamKind {
+    ParamKind::Float { min, max }
+}
+/// An integer in `min..=max`.
+const fn uint(min: u32, max: u32) -> ParamKind {
+    ParamKind::Uint {
+        min,
+        max,
+        power_of_two: false,
+    }
+}
+/// A power of two in `1..=max`.
+const fn power_of_two(max: u32) -> ParamKind {
+    ParamKind::Uint {
+        min: 1,
+        max,
+        power_of_two: true,
+    }
+}
+
+/// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
+/// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
+#[rustfmt::skip]
 pub const PARAMS: [ParamSpec; 12] = [
-    ParamSpec {
-        name: "grid_size",
-        flag: "grid-size",
-        aliases: &[],
-        help: "Batch grid cell size, metres (E§4.2)",
-        kind: ParamKind::Float,
-        get: |p| f64::from(p.grid_size),
-        set: |p, v| p.grid_size = v as f32,
-    },
-    ParamSpec {
-        name: "angle_count",
-        flag: "angles",
-        aliases: &[],
-        help: "Number of billboard elevation angles K (E§3.3)",
-        kind: ParamKind::Uint,
-        get: |p| f64::from(p.angle_count),
-        set: |p, v| p.angle_count = v as u32,
-    },
-    ParamSpec {
-        name: "texture_size",
-        flag: "texture-size",
-        aliases: &[],
-        help: "Billboard texture side r, a power of two (E§3.3)",
-        kind: ParamKind::Uint,
-        get: |p| f64::from(p.texture_size),
-        set: |p, v| p.texture_size = v as u32,
-    },
-    ParamSpec {
-        name: "lod_levels",
-        flag: "lod-levels",
-        aliases: &[],
-        help: "LOD levels: 1 (meshes only) or 2",
-        kind: ParamKind::Uint,
-        get: |p| f64::from(p.lod_levels),
-        set: |p, v| p.lod_levels = v as u32,
-    },
-    ParamSpec {
-        name: "lod1_transition",
-        flag: "transition",
-        aliases: &[],
-        help: "View depth where billboards have fully replaced meshes, metres (E§3.5)",
-        kind: ParamKind::Float,
-        get: |p| f64::from(p.lod1_transition),
-        set: |p, v| p.lod1_transition = v as f32,
-    },
-    ParamSpec {
-        name: "fade_width",
-        flag: "fade-width",
-        aliases: &[],
-        help: "Width of the fade band ending at the transition, metres (E§3.5)",
-        kind: ParamKind::Float,
-        get: |p| f64::from(p.fade_width),
-        set: |p, v| p.fade_width = v as f32,
-    },
-    ParamSpec {
-        name: "draw_distance",
-        flag: "draw-distance",
-        aliases: &[],
-        help: "Draw distance, metres (E§4.4)",
-        kind: ParamKind::Float,
-        get: |p| f64::from(p.draw_distance),
-        set: |p, v| p.draw_distance = v as f32,
-    },
-    ParamSpec {
-        name: "alpha_cutoff",
-        flag: "alpha-cutoff",
-        aliases: &[],
-        help: "Alpha-test cutoff of foliage, in 0..=1",
-        kind: ParamKind::Float,
-        get: |p| f64::from(p.alpha_cutoff),
-        set: |p, v| p.alpha_cutoff = v as f32,
-    },
-    ParamSpec {
-        name: "fade_mode",
-        flag: "fade-mode",
-        aliases: &[],
-        help: "Fade mode: none, alpha (E§4.4), dither, dither-sequential (G§4)",
-        kind: ParamKind::Choice(fade_modes),
-        get: |p| f64::from(p.fade_mode),
-        set: |p, v| p.fade_mode = v as u32,
-    },
-    ParamSpec {
-        name: "mip_mode",
-        flag: "mip-mode",
-        aliases: &[],
-        help: "Billboard mip mode: alpha-aware, box, coverage (E§3.3.2)",
-        kind: ParamKind::Choice(mip_modes),
-        get: |p| f64::from(p.mip_mode),
-        set: |p, v| p.mip_mode = v as u32,
-    },
-    ParamSpec {
-        name: "angle_index_mode",
-        flag: "angle-index",
-        aliases: &[],
-        help: "Billboard layer index: nearest, eq31-clamped (E Eq. 3.1)",
-        kind: ParamKind::Choice(angle_index_modes),
-        get: |p| f64::from(p.angle_index_mode),
-        set: |p, v| p.angle_index_mode = v as u32,
-    },
-    ParamSpec {
-        name: "tree_cull",
-        flag: "tree-cull",
-        aliases: &[],
-        help: "Per-tree culling after selection (refine, beyond the thesis): none, lod0, all",
-        kind: ParamKind::Choice(tree_culls),
-        get: |p| f64::from(p.tree_cull),
-        set: |p, v| p.tree_cull = v as u32,
-    },
+    param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
+        "Batch grid cell size, metres (E§4.2)"),
+    param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
+        "Number of billboard elevation angles K (E§3.3)"),
+    param!(texture_size, "texture-size", power_of_two(MAX_TEXTURE_SIZE), "expected a power of two in 1..=4096",
+        "Billboard texture side r, a power of two (E§3.3)"),
+    param!(lod_levels, "lod-levels", uint(1, 2),
+        "expected 1 (meshes only) or 2 (meshes then billboards): a scene has only these two representations",
+        "LOD levels: 1 (meshes only) or 2"),
+    param!(lod1_transition, "transition", distance(0.0), "expected a finite distance in 0..=1e7 m",
+        "View depth where billboards have fully replaced meshes, metres (E§3.5)"),
+    param!(fade_width, "fade-width", distance(0.0), "expected a finite width in 0..=1e7 m",
+        "Width of the fade band ending at the transition, metres (E§3.5)"),
+    param!(draw_distance, "draw-distance", distance(0.0), "expected a finite distance in 0..=1e7 m",
+        "Draw distance, metres (E§4.4)"),
+    param!(alpha_cutoff, "alpha-cutoff", float(0.0, 1.0), "expected a finite alpha in 0..=1",
+        "Alpha-test cutoff of foliage, in 0..=1"),
+    param!(fade_mode, "fade-mode", ParamKind::Choice(fade_modes),
+        "expected 0 (none), 1 (alpha), 2 (dither) or 3 (dither-sequential)",
+        "Fade mode: none, alpha (E§4.4), dither, dither-sequential (G§4)"),
+    param!(mip_mode, "mip-mode", ParamKind::Choice(mip_modes),
+        "expected 0 (alpha-aware), 1 (box) or 2 (coverage)",
+        "Billboard mip mode: alpha-aware, box, coverage (E§3.3.2)"),
+    param!(angle_index_mode, "angle-index", ParamKind::Choice(angle_index_modes),
+        "expected 0 (nearest) or 1 (eq31-clamped)",
+        "Billboard layer index: nearest, eq31-clamped (E Eq. 3.1)"),
+    param!(tree_cull, "tree-cull", ParamKind::Choice(tree_culls), "expected 0 (none), 1 (lod0) or 2 (all)",
+        "Per-tree culling after selection (refine, beyond the thesis): none, lod0, all"),
 ];
 
 /// The parameter `key` names (canonical name, flag in either form, or alias).

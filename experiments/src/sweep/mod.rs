@@ -40,7 +40,7 @@ use clap::Args;
 use forestlod_reference::InputError;
 
 pub use plots::write_plots;
-pub use rows::{FrameImages, Manifest, Row};
+pub use rows::{FrameImages, Manifest, Row, read_csv, write_csv};
 pub use runner::Runner;
 use runner::io_err;
 pub use spec::{

@@ -1,7 +1,17 @@
 //! What a sweep writes: one CSV [`Row`] per frame (variant and backend as their names, one column
 //! per parameter), the [`FrameImages`] saved for the first pose of each camera, and the
 //! [`Manifest`] (`sweep.json`) that `forestlod report` reads back.
+//!
+//! The parameter columns come from the parameter table, not from `Row`'s fields: a parameter
+//! added to [`forestlod_shared::registry::PARAMS`] gets its CSV column with no edit here or in the
+//! runner. Reading accepts any key the table answers to (so CSVs written before a column was
+//! renamed still read) and takes the default for a parameter a CSV lacks (it predates it).
 
+use std::path::Path;
+
+use csv::StringRecord;
+use forestlod_reference::InputError;
+use forestlod_shared::{PARAMS, ParamSpec, Params, param};
 use serde::{Deserialize, Serialize};
 
 use crate::metrics::Accuracy;
@@ -27,29 +37,11 @@ pub struct Row {
     pub backend: String,
     /// Parameter-set label (setting plus axis values).
     pub setting: String,
-    /// Parameters.
-    pub grid_size: f32,
-    /// K.
-    pub angle_count: u32,
-    /// r.
-    pub texture_size: u32,
-    /// l.
-    pub lod_levels: u32,
-    /// Transition distance.
-    pub lod1_transition: f32,
-    /// Fade band width.
-    pub fade_width: f32,
-    /// Draw distance.
-    pub draw_distance: f32,
-    /// Fade mode name.
-    pub fade_mode: String,
-    /// Mip mode name.
-    pub mip_mode: String,
-    /// Angle index mode name.
-    pub angle_index: String,
-    /// Per-tree culling after selection (`none`, `lod0`, `all`).
-    #[serde(default)]
-    pub tree_cull: String,
+    /// Every parameter of the frame. In the CSV: one column per entry of the parameter table
+    /// ([`forestlod_shared::registry::PARAMS`], named by its canonical name, valued as users write
+    /// it) right after `setting` ([`write_csv`], [`read_csv`]); serde skips it.
+    #[serde(skip)]
+    pub params: Params,
     /// Image size.
     pub width: u32,
     /// Image size.
@@ -101,6 +93,104 @@ pub struct Row {
     pub gt_tree_fraction: f64,
     /// Tree pixels in the frame, fraction.
     pub tree_fraction: f64,
+}
+
+/// `Row`'s own columns (the parameter columns left out) and their values for `row`, as the csv
+/// crate's serde support writes them.
+fn own_columns(row: &Row) -> Result<(StringRecord, StringRecord), csv::Error> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.serialize(row)?;
+    let bytes = w.into_inner().map_err(|e| e.into_error())?;
+    let mut r = csv::Reader::from_reader(&bytes[..]);
+    let headers = r.headers()?.clone();
+    let record = r.records().next().transpose()?.unwrap_or_default();
+    Ok((headers, record))
+}
+
+/// Where the parameter columns go: after `setting`.
+fn params_at(headers: &StringRecord) -> usize {
+    headers
+        .iter()
+        .position(|h| h == "setting")
+        .map_or(0, |i| i + 1)
+}
+
+/// Writes `rows` as a sweep CSV: `Row`'s columns with one column per parameter-table entry
+/// spliced in after `setting`.
+pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), InputError> {
+    let fail = |e: &dyn std::fmt::Display| {
+        InputError::new(path.display().to_string(), "write", "", e.to_string())
+    };
+    let mut w = csv::Writer::from_path(path).map_err(|e| fail(&e))?;
+    for (i, row) in rows.iter().enumerate() {
+        let (headers, record) = own_columns(row).map_err(|e| fail(&e))?;
+        let at = params_at(&headers);
+        let splice = |own: &StringRecord, params: Vec<String>| -> Vec<String> {
+            let own: Vec<String> = own.iter().map(str::to_string).collect();
+            [&own[..at], &params[..], &own[at..]].concat()
+        };
+        if i == 0 {
+            let names = PARAMS.iter().map(|s| s.name.to_string()).collect();
+            w.write_record(splice(&headers, names))
+                .map_err(|e| fail(&e))?;
+        }
+        let values = PARAMS.iter().map(|s| s.format(&row.params)).collect();
+        w.write_record(splice(&record, values))
+            .map_err(|e| fail(&e))?;
+    }
+    w.flush().map_err(|e| fail(&e))
+}
+
+/// Reads a sweep CSV written by [`write_csv`] (or before a parameter column was added or
+/// renamed: module docs). A cell that does not parse is an error naming the row and column.
+pub fn read_csv(path: &Path) -> Result<Vec<Row>, InputError> {
+    let file = path.display().to_string();
+    let mut reader = csv::Reader::from_path(path)
+        .map_err(|e| InputError::new(file.clone(), "read", "", e.to_string()))?;
+    let headers = reader
+        .headers()
+        .map_err(|e| InputError::new(file.clone(), "header", "", e.to_string()))?
+        .clone();
+    // Each column is a parameter of the table or one of `Row`'s own.
+    let specs: Vec<Option<&'static ParamSpec>> = headers.iter().map(param).collect();
+    let own_headers: StringRecord = headers
+        .iter()
+        .zip(&specs)
+        .filter(|(_, s)| s.is_none())
+        .map(|(h, _)| h)
+        .collect();
+    let mut rows = Vec::new();
+    for (i, record) in reader.records().enumerate() {
+        let at = format!("row {}", i + 2);
+        let record =
+            record.map_err(|e| InputError::new(file.clone(), at.clone(), "", e.to_string()))?;
+        let own: StringRecord = record
+            .iter()
+            .zip(&specs)
+            .filter(|(_, s)| s.is_none())
+            .map(|(v, _)| v)
+            .collect();
+        let mut row: Row = own
+            .deserialize(Some(&own_headers))
+            .map_err(|e| InputError::new(file.clone(), at.clone(), "", e.to_string()))?;
+        let mut params = Params::default();
+        for ((spec, value), column) in specs.iter().zip(&record).zip(&headers) {
+            if let Some(spec) = spec {
+                let v = spec.parse(value).map_err(|e| {
+                    InputError::new(
+                        file.clone(),
+                        format!("{at}, column {column}"),
+                        value,
+                        e.expected,
+                    )
+                })?;
+                (spec.set)(&mut params, v);
+            }
+        }
+        row.params = params;
+        rows.push(row);
+    }
+    Ok(rows)
 }
 
 /// Images saved for one frame (paths relative to the sweep folder).
@@ -182,4 +272,83 @@ pub struct Manifest {
     /// `forestlod report --replot` can redraw the plots from the CSV.
     #[serde(default)]
     pub spec: Option<SweepSpec>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use forestlod_shared::{FadeMode, TreeCull};
+
+    fn row(params: Params) -> Row {
+        let committed =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("results/tree_cull/tree_cull.csv");
+        let mut r = read_csv(&committed).expect("a committed sweep CSV reads")[0].clone();
+        r.params = params;
+        r
+    }
+
+    #[test]
+    fn every_parameter_gets_a_column_and_round_trips() {
+        let dir = std::env::temp_dir().join(format!("forestlod-rows-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("rows.csv");
+        let odd = Params {
+            grid_size: 137.25,
+            angle_count: 7,
+            alpha_cutoff: 0.3,
+            fade_mode: FadeMode::Alpha as u32,
+            tree_cull: TreeCull::All as u32,
+            ..Default::default()
+        };
+        let rows = vec![row(Params::default()), row(odd)];
+        write_csv(&path, &rows).unwrap();
+        let header = std::fs::read_to_string(&path).unwrap();
+        let header = header.lines().next().unwrap();
+        for spec in &PARAMS {
+            assert!(
+                header.split(',').any(|c| c == spec.name),
+                "no column {} in {header}",
+                spec.name
+            );
+        }
+        let back = read_csv(&path).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+        assert_eq!(back.len(), 2);
+        for (a, b) in rows.iter().zip(&back) {
+            assert_eq!(a.params, b.params);
+            assert_eq!(
+                (&a.setting, a.flip_mean, a.gpu_draw_s),
+                (&b.setting, b.flip_mean, b.gpu_draw_s)
+            );
+        }
+    }
+
+    #[test]
+    fn csvs_written_before_the_table_still_read() {
+        // `angle_index/angle_index.csv` predates the table: `angle_index` (the flag's key, not
+        // the field's name), floats as `500.0`, no `alpha_cutoff` and no `tree_cull` column.
+        let old = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/angle_index/angle_index.csv");
+        let rows = read_csv(&old).unwrap();
+        assert!(!rows.is_empty());
+        assert!(
+            rows.iter().any(|r| r.params.angle_index_mode == 1),
+            "eq31-clamped rows read"
+        );
+        assert!(rows.iter().any(|r| r.params.angle_count == 4));
+        for r in &rows {
+            r.params.validate().unwrap();
+            assert_eq!(r.params.alpha_cutoff, Params::default().alpha_cutoff);
+        }
+    }
+
+    #[test]
+    fn no_own_column_is_taken_for_a_parameter() {
+        let (headers, _) = own_columns(&row(Params::default())).unwrap();
+        for h in &headers {
+            assert!(
+                param(h).is_none(),
+                "column {h} would be read as a parameter"
+            );
+        }
+    }
 }

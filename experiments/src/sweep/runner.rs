@@ -21,15 +21,13 @@ use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::{Scene, builtin, load};
 use forestlod_reference::select::{BatchingCounts, batching_counts};
 use forestlod_reference::texture::Rgba8Image;
-use forestlod_shared::{
-    AngleIndexMode, Camera, CommandData, DrawCommand, FadeMode, MipMode, Params, TreeCull,
-};
+use forestlod_shared::{Camera, CommandData, DrawCommand, Params, TreeCull};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::metrics::{Accuracy, accuracy, error_image, per_lod_error_maps};
 
 use super::plots::write_plots;
-use super::rows::{FrameImages, Manifest, Row};
+use super::rows::{FrameImages, Manifest, Row, write_csv};
 use super::spec::{ParamSet, Pose, SweepSpec, distance_camera};
 use super::variant::{Backend, ReferenceRenderer, Variant};
 
@@ -233,25 +231,7 @@ impl Runner {
                                 variant: variant.name().into(),
                                 backend: backend.name().into(),
                                 setting: set.label.clone(),
-                                grid_size: p.grid_size,
-                                angle_count: p.angle_count,
-                                texture_size: p.texture_size,
-                                lod_levels: p.lod_levels,
-                                lod1_transition: p.lod1_transition,
-                                fade_width: p.fade_width,
-                                draw_distance: p.draw_distance,
-                                fade_mode: p.fade().map(FadeMode::name).unwrap_or("?").into(),
-                                mip_mode: p.mips().map(MipMode::name).unwrap_or("?").into(),
-                                angle_index: p
-                                    .angle_mode()
-                                    .map(AngleIndexMode::name)
-                                    .unwrap_or("?")
-                                    .into(),
-                                tree_cull: p
-                                    .tree_culling()
-                                    .map(TreeCull::name)
-                                    .unwrap_or("?")
-                                    .into(),
+                                params: *p,
                                 width: spec.width,
                                 height: spec.height,
                                 select_s: vf.select_s,
@@ -300,11 +280,7 @@ impl Runner {
         bar.finish();
         let csv_name = format!("{}.csv", spec.name);
         let csv_path = dir.join(&csv_name);
-        let mut w = csv::Writer::from_path(&csv_path).map_err(|e| io_err(&csv_path, e))?;
-        for r in &rows {
-            w.serialize(r).map_err(|e| io_err(&csv_path, e))?;
-        }
-        w.flush().map_err(|e| io_err(&csv_path, e))?;
+        write_csv(&csv_path, &rows)?;
         let plots = write_plots(spec, &rows, &dir)?;
         let manifest = Manifest {
             name: spec.name.clone(),
