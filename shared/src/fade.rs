@@ -15,44 +15,17 @@
 //!
 //! Keep in sync with `gpu/src/shaders/common.wgsl` (`fade_progress`, `lod_weights`).
 
-/// Fade modes (SPEC §6).
-#[repr(u32)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum FadeMode {
-    /// Hard switch at the transition distance.
-    None = 0,
-    /// Alpha cross-fade, E§4.4.
-    Alpha = 1,
-    /// Noise-dithered complementary pixel sets.
-    Dither = 2,
-    /// Noise-dithered sequential blend, G§4: first the incoming LOD in, then the outgoing out.
-    DitherSequential = 3,
-}
-
-impl FadeMode {
-    /// Every mode, in id order.
-    pub const ALL: [FadeMode; 4] = [
-        FadeMode::None,
-        FadeMode::Alpha,
-        FadeMode::Dither,
-        FadeMode::DitherSequential,
-    ];
-    /// The mode with this id, if any.
-    pub fn from_id(id: u32) -> Option<Self> {
-        Self::ALL.get(id as usize).copied()
-    }
-    /// Name used on the command line, in CSVs and golden file names.
-    pub fn name(self) -> &'static str {
-        match self {
-            FadeMode::None => "none",
-            FadeMode::Alpha => "alpha",
-            FadeMode::Dither => "dither",
-            FadeMode::DitherSequential => "dither-sequential",
-        }
-    }
-    /// Parses [`FadeMode::name`].
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|m| m.name() == name)
+crate::modes::modes! {
+    /// Fade modes (SPEC §6).
+    pub enum FadeMode {
+        /// Hard switch at the transition distance.
+        None = 0 => "none",
+        /// Alpha cross-fade, E§4.4.
+        Alpha = 1 => "alpha",
+        /// Noise-dithered complementary pixel sets.
+        Dither = 2 => "dither",
+        /// Noise-dithered sequential blend, G§4: first the incoming LOD in, then the outgoing out.
+        DitherSequential = 3 => "dither-sequential",
     }
 }
 

@@ -34,6 +34,7 @@ pub mod camera;
 pub mod color;
 pub mod fade;
 pub mod interval;
+pub mod modes;
 pub mod params;
 pub mod registry;
 pub mod terrain;

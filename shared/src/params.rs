@@ -6,97 +6,48 @@
 use bytemuck::{Pod, Zeroable};
 use core::fmt;
 
-/// How billboard mip levels are built (SPEC §5.2).
-#[repr(u32)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum MipMode {
-    /// Alpha-weighted downsampling plus alpha equalization, E Alg. 3.2.
-    AlphaAware = 0,
-    /// Plain per-channel box filter: the "blit" the thesis rejects (E Fig. 3.5).
-    Box = 1,
-    /// Coverage-preserving scaling (Castaño 2010, NVTT).
-    CoveragePreserving = 2,
-}
+use crate::modes::modes;
 
-impl MipMode {
-    /// Every mode, in id order.
-    pub const ALL: [MipMode; 3] = [
-        MipMode::AlphaAware,
-        MipMode::Box,
-        MipMode::CoveragePreserving,
-    ];
-    /// The mode with this id, if any.
-    pub fn from_id(id: u32) -> Option<Self> {
-        Self::ALL.get(id as usize).copied()
-    }
-    /// Name used on the command line and in CSVs.
-    pub fn name(self) -> &'static str {
-        match self {
-            MipMode::AlphaAware => "alpha-aware",
-            MipMode::Box => "box",
-            MipMode::CoveragePreserving => "coverage",
-        }
+modes! {
+    /// How billboard mip levels are built (SPEC §5.2).
+    pub enum MipMode {
+        /// Alpha-weighted downsampling plus alpha equalization, E Alg. 3.2.
+        AlphaAware = 0 => "alpha-aware",
+        /// Plain per-channel box filter: the "blit" the thesis rejects (E Fig. 3.5).
+        Box = 1 => "box",
+        /// Coverage-preserving scaling (Castaño 2010, NVTT).
+        CoveragePreserving = 2 => "coverage",
     }
 }
 
-/// Which billboard layer index the draw stage uses (SPEC §6).
-#[repr(u32)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum AngleIndexMode {
-    /// Nearest baked elevation, clamped, NaN-free: [`crate::angle_index`].
-    Nearest = 0,
-    /// E Eq. 3.1 as written, then clamped to `0..K-1` (its bins do not centre on the bake angles).
-    Eq31Clamped = 1,
-}
-
-impl AngleIndexMode {
-    /// Every mode, in id order.
-    pub const ALL: [AngleIndexMode; 2] = [AngleIndexMode::Nearest, AngleIndexMode::Eq31Clamped];
-    /// The mode with this id, if any.
-    pub fn from_id(id: u32) -> Option<Self> {
-        Self::ALL.get(id as usize).copied()
-    }
-    /// Name used on the command line and in CSVs.
-    pub fn name(self) -> &'static str {
-        match self {
-            AngleIndexMode::Nearest => "nearest",
-            AngleIndexMode::Eq31Clamped => "eq31-clamped",
-        }
+modes! {
+    /// Which billboard layer index the draw stage uses (SPEC §6).
+    pub enum AngleIndexMode {
+        /// Nearest baked elevation, clamped, NaN-free: [`crate::angle_index`].
+        Nearest = 0 => "nearest",
+        /// E Eq. 3.1 as written, then clamped to `0..K-1` (its bins do not centre on the bake angles).
+        Eq31Clamped = 1 => "eq31-clamped",
     }
 }
 
-/// Per-tree culling after batch selection (the `refine` stage, `reference/src/refine.rs`): beyond
-/// the thesis. Grouped selection (E§3.5) draws every tree of a batch that touches the view; at 10x
-/// density and 500 m cells that is hundreds of thousands of trees outside the frustum or in the
-/// wrong LOD (`experiments/results/README.md`). `refine` tests each tree of the chosen commands
-/// alone (the per-tree oracle's rule) and keeps the ones that need the command's LOD.
-#[repr(u32)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum TreeCull {
-    /// The thesis: no per-tree test; a command draws its whole batch.
-    None = 0,
-    /// Refine LOD0 (mesh) commands only: the near trees, few, and the expensive ones.
-    Lod0 = 1,
-    /// Refine every command: the per-tree oracle's trees exactly, at per-tree culling cost for
-    /// the trees of selected batches.
-    All = 2,
+modes! {
+    /// Per-tree culling after batch selection (the `refine` stage, `reference/src/refine.rs`): beyond
+    /// the thesis. Grouped selection (E§3.5) draws every tree of a batch that touches the view; at 10x
+    /// density and 500 m cells that is hundreds of thousands of trees outside the frustum or in the
+    /// wrong LOD (`experiments/results/README.md`). `refine` tests each tree of the chosen commands
+    /// alone (the per-tree oracle's rule) and keeps the ones that need the command's LOD.
+    pub enum TreeCull {
+        /// The thesis: no per-tree test; a command draws its whole batch.
+        None = 0 => "none",
+        /// Refine LOD0 (mesh) commands only: the near trees, few, and the expensive ones.
+        Lod0 = 1 => "lod0",
+        /// Refine every command: the per-tree oracle's trees exactly, at per-tree culling cost for
+        /// the trees of selected batches.
+        All = 2 => "all",
+    }
 }
 
 impl TreeCull {
-    /// Every mode, in id order.
-    pub const ALL: [TreeCull; 3] = [TreeCull::None, TreeCull::Lod0, TreeCull::All];
-    /// The mode with this id, if any.
-    pub fn from_id(id: u32) -> Option<Self> {
-        Self::ALL.get(id as usize).copied()
-    }
-    /// Name used on the command line and in CSVs.
-    pub fn name(self) -> &'static str {
-        match self {
-            TreeCull::None => "none",
-            TreeCull::Lod0 => "lod0",
-            TreeCull::All => "all",
-        }
-    }
     /// Whether commands of `lod` (`LOD_MESH` or `LOD_BILLBOARD`) are refined.
     pub fn refines(self, lod: u32) -> bool {
         match self {

@@ -183,19 +183,6 @@ impl ParamSpec {
     }
 }
 
-fn fade_modes() -> Vec<(&'static str, u32)> {
-    FadeMode::ALL.map(|m| (m.name(), m as u32)).to_vec()
-}
-fn mip_modes() -> Vec<(&'static str, u32)> {
-    MipMode::ALL.map(|m| (m.name(), m as u32)).to_vec()
-}
-fn angle_index_modes() -> Vec<(&'static str, u32)> {
-    AngleIndexMode::ALL.map(|m| (m.name(), m as u32)).to_vec()
-}
-fn tree_culls() -> Vec<(&'static str, u32)> {
-    TreeCull::ALL.map(|m| (m.name(), m as u32)).to_vec()
-}
-
 /// One table entry: the `Params` field, its flag, kind, refusal reason and help; the getter and
 /// setter are the field's, through `f64`.
 macro_rules! param {
@@ -262,16 +249,16 @@ pub const PARAMS: [ParamSpec; 12] = [
         "Draw distance, metres (E§4.4)"),
     param!(alpha_cutoff, "alpha-cutoff", float(0.0, 1.0), "expected a finite alpha in 0..=1",
         "Alpha-test cutoff of foliage, in 0..=1"),
-    param!(fade_mode, "fade-mode", ParamKind::Choice(fade_modes),
+    param!(fade_mode, "fade-mode", ParamKind::Choice(FadeMode::choices),
         "expected 0 (none), 1 (alpha), 2 (dither) or 3 (dither-sequential)",
         "Fade mode: none, alpha (E§4.4), dither, dither-sequential (G§4)"),
-    param!(mip_mode, "mip-mode", ParamKind::Choice(mip_modes),
+    param!(mip_mode, "mip-mode", ParamKind::Choice(MipMode::choices),
         "expected 0 (alpha-aware), 1 (box) or 2 (coverage)",
         "Billboard mip mode: alpha-aware, box, coverage (E§3.3.2)"),
-    param!(angle_index_mode, "angle-index", ParamKind::Choice(angle_index_modes),
+    param!(angle_index_mode, "angle-index", ParamKind::Choice(AngleIndexMode::choices),
         "expected 0 (nearest) or 1 (eq31-clamped)",
         "Billboard layer index: nearest, eq31-clamped (E Eq. 3.1)"),
-    param!(tree_cull, "tree-cull", ParamKind::Choice(tree_culls), "expected 0 (none), 1 (lod0) or 2 (all)",
+    param!(tree_cull, "tree-cull", ParamKind::Choice(TreeCull::choices), "expected 0 (none), 1 (lod0) or 2 (all)",
         "Per-tree culling after selection (refine, beyond the thesis): none, lod0, all"),
 ];
 

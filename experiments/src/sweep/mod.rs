@@ -48,7 +48,7 @@ pub use spec::{
     DISTANCE_PATH_LOOK_AHEAD_M, ParamSet, Pose, QuickSpec, SettingSpec, SweepSpec, distance_camera,
     set_param,
 };
-pub use variant::{Backend, ReferenceRenderer, Variant};
+pub use variant::{Backend, Named, ReferenceRenderer, Variant};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
 pub const BUILTIN_SWEEPS: [(&str, &str); 11] = [

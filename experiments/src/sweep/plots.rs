@@ -13,7 +13,7 @@ use crate::plot::{Axes, Series, Style, bar_plot, xy_plot};
 use super::rows::Row;
 use super::runner::io_err;
 use super::spec::SweepSpec;
-use super::variant::Backend;
+use super::variant::{Backend, Named};
 
 fn mean(v: impl Iterator<Item = f64>) -> f64 {
     let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));

@@ -29,7 +29,7 @@ use crate::metrics::{Accuracy, accuracy, error_image, per_lod_error_maps};
 use super::plots::write_plots;
 use super::rows::{FrameImages, Manifest, Row, write_csv};
 use super::spec::{ParamSet, Pose, SweepSpec, distance_camera};
-use super::variant::{Backend, ReferenceRenderer, Variant};
+use super::variant::{Backend, Named, ReferenceRenderer, Variant};
 
 fn load_scene(name: &str) -> Result<Scene, InputError> {
     let path = Path::new(name);

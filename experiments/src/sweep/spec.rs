@@ -11,7 +11,7 @@ use forestlod_reference::scene::Scene;
 use forestlod_shared::{Camera, Params};
 use serde::{Deserialize, Serialize};
 
-use super::variant::{Backend, Variant};
+use super::variant::{Backend, Named, Variant};
 
 /// One camera entry of a sweep file.
 #[derive(Clone, Debug, Deserialize, Serialize)]
@@ -119,6 +119,18 @@ pub struct SweepSpec {
     /// Quick-mode overrides.
     #[serde(default)]
     pub quick: Option<QuickSpec>,
+}
+
+/// A non-empty list of registry names as entries, or an error naming `file`, `field` and the bad
+/// name (or `[]`).
+fn typed<T: Named>(names: &[String], file: &str, field: &str) -> Result<Vec<T>, InputError> {
+    if names.is_empty() {
+        return Err(InputError::new(file, field, "[]", T::expected()));
+    }
+    names
+        .iter()
+        .map(|n| T::parse(n).map_err(|e| InputError::new(file, field, n, e)))
+        .collect()
 }
 
 fn default_variants() -> Vec<String> {
@@ -301,24 +313,12 @@ impl SweepSpec {
 
     /// The variants, typed: an error naming `variants` and the bad name (or `[]`) otherwise.
     pub fn variant_list(&self, file: &str) -> Result<Vec<Variant>, InputError> {
-        if self.variants.is_empty() {
-            return Err(InputError::new(file, "variants", "[]", Variant::expected()));
-        }
-        self.variants
-            .iter()
-            .map(|v| Variant::parse(v).map_err(|e| InputError::new(file, "variants", v, e)))
-            .collect()
+        typed(&self.variants, file, "variants")
     }
 
     /// The backends, typed: an error naming `backends` and the bad name (or `[]`) otherwise.
     pub fn backend_list(&self, file: &str) -> Result<Vec<Backend>, InputError> {
-        if self.backends.is_empty() {
-            return Err(InputError::new(file, "backends", "[]", Backend::expected()));
-        }
-        self.backends
-            .iter()
-            .map(|b| Backend::parse(b).map_err(|e| InputError::new(file, "backends", b, e)))
-            .collect()
+        typed(&self.backends, file, "backends")
     }
 
     /// Applies the `[quick]` table.

@@ -7,6 +7,30 @@
 use forestlod_gpu::Compaction;
 use forestlod_harness::backend::GpuVariant;
 
+/// A registry entry with a name users write (sweep files, `--backend`, CSVs, `sweep.json`).
+pub trait Named: Copy + PartialEq + Sized + 'static {
+    /// Every entry, in the order of the error messages.
+    const ALL: &'static [Self];
+
+    /// The name.
+    fn name(self) -> &'static str;
+
+    /// `expected one of a, b, c`.
+    fn expected() -> String {
+        let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
+        format!("expected one of {}", names.join(", "))
+    }
+
+    /// The entry of a name; the error lists the valid names ([`Named::expected`]).
+    fn parse(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|v| v.name() == name)
+            .ok_or_else(Self::expected)
+    }
+}
+
 /// A rendering variant: ours (stable compaction on the GPU), ours with the thesis's
 /// atomic-counter compaction (E§4.3; GPU backend only: the reference has one, stable, compaction,
 /// equal to the atomic one as a multiset), and the two baselines of E§5.
@@ -33,17 +57,15 @@ pub enum ReferenceRenderer {
     Primitive,
 }
 
-impl Variant {
-    /// Every variant, in the order of the error messages.
-    pub const ALL: [Variant; 4] = [
+impl Named for Variant {
+    const ALL: &'static [Self] = &[
         Variant::Ours,
         Variant::OursAtomic,
         Variant::Vegetation,
         Variant::Primitive,
     ];
 
-    /// The name in sweep files, CSVs and plots.
-    pub fn name(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             Variant::Ours => "ours",
             Variant::OursAtomic => "ours-atomic",
@@ -51,21 +73,9 @@ impl Variant {
             Variant::Primitive => "primitive",
         }
     }
+}
 
-    /// `expected one of ours, ours-atomic, vegetation, primitive`.
-    pub fn expected() -> String {
-        let names: Vec<&str> = Self::ALL.iter().map(|v| v.name()).collect();
-        format!("expected one of {}", names.join(", "))
-    }
-
-    /// The variant of a name; the error lists the valid names ([`Variant::expected`]).
-    pub fn parse(name: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|v| v.name() == name)
-            .ok_or_else(Self::expected)
-    }
-
+impl Variant {
     /// Whether it runs on the GPU backend only.
     pub fn gpu_only(self) -> bool {
         self.reference_renderer().is_none()
@@ -111,38 +121,24 @@ pub enum Backend {
     Gpu,
 }
 
-impl Backend {
-    /// Every backend, in the order of the error messages.
-    pub const ALL: [Backend; 2] = [Backend::Reference, Backend::Gpu];
+impl Named for Backend {
+    const ALL: &'static [Self] = &[Backend::Reference, Backend::Gpu];
 
-    /// The name in sweep files, `--backend`, CSVs and the report.
-    pub fn name(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             Backend::Reference => "reference",
             Backend::Gpu => "gpu",
         }
     }
+}
 
+impl Backend {
     /// The short name in plot legends (`ours ref`, `vegetation gpu`).
     pub fn short_name(self) -> &'static str {
         match self {
             Backend::Reference => "ref",
             Backend::Gpu => "gpu",
         }
-    }
-
-    /// `expected one of reference, gpu`.
-    pub fn expected() -> String {
-        let names: Vec<&str> = Self::ALL.iter().map(|b| b.name()).collect();
-        format!("expected one of {}", names.join(", "))
-    }
-
-    /// The backend of a name; the error lists the valid names ([`Backend::expected`]).
-    pub fn parse(name: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|b| b.name() == name)
-            .ok_or_else(Self::expected)
     }
 }
 
@@ -152,10 +148,10 @@ mod tests {
 
     #[test]
     fn names_round_trip_and_errors_list_them() {
-        for v in Variant::ALL {
+        for &v in Variant::ALL {
             assert_eq!(Variant::parse(v.name()), Ok(v));
         }
-        for b in Backend::ALL {
+        for &b in Backend::ALL {
             assert_eq!(Backend::parse(b.name()), Ok(b));
         }
         assert_eq!(
@@ -166,7 +162,7 @@ mod tests {
             Backend::parse("cuda").unwrap_err(),
             "expected one of reference, gpu"
         );
-        let gpu_only: Vec<_> = Variant::ALL.into_iter().filter(|v| v.gpu_only()).collect();
-        assert_eq!(gpu_only, [Variant::OursAtomic]);
+        let gpu_only: Vec<_> = Variant::ALL.iter().filter(|v| v.gpu_only()).collect();
+        assert_eq!(gpu_only, [&Variant::OursAtomic]);
     }
 }
