@@ -10,23 +10,15 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
+
+#[path = "../../reference/tests/common/mod.rs"]
+mod common;
+use common::{HEADER, crc32, gltf_card, write};
 
 /// A fresh directory for one case.
 fn case_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "forestlod-cli-bad-input-{}-{name}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
-    let path = dir.join(name);
-    std::fs::write(&path, bytes).unwrap();
-    path
+    common::fresh_dir("cli-bad-input", name)
 }
 
 /// Every file under `dir` with its contents (empty when `dir` is absent).
@@ -100,27 +92,57 @@ fn assert_rejected(dir: &Path, args: &[&str], expect: &[&str]) {
     }
 }
 
-const HEADER: &str = "x,y,z,yaw,scale,species\n";
-
 /// A crossed-card tree in OBJ (4 triangles, Z up).
+/// Writes `contents` to the CSV file that the error must name first (`expect[0]`) and checks that
+/// `render --instances` with it is rejected.
+fn reject_csv(dir: &Path, contents: impl AsRef<[u8]>, expect: &[&str]) {
+    let name = expect[0];
+    write(dir, name, contents);
+    assert_rejected(dir, &["render", "--instances", name], expect);
+}
+
+/// Writes `contents` to `dir/name` and checks that `render --scene name` is rejected.
+fn reject_toml(dir: &Path, name: &str, contents: impl AsRef<[u8]>, expect: &[&str]) {
+    write(dir, name, contents);
+    reject_scene(dir, name, expect);
+}
+
+/// Checks that `render --scene scene` is rejected.
+fn reject_scene(dir: &Path, scene: &str, expect: &[&str]) {
+    assert_rejected(dir, &["render", "--scene", scene], expect);
+}
+
+/// Writes `mesh` (the file `mesh_name`) and a scene file `scene` naming it with `texture`
+/// (see `species_scene`), and checks that rendering it is rejected.
+fn reject_mesh(
+    dir: &Path,
+    scene: &str,
+    (mesh_name, mesh): (&str, impl AsRef<[u8]>),
+    texture: &str,
+    expect: &[&str],
+) {
+    write(dir, mesh_name, mesh);
+    let scene = species_scene(dir, scene, &[(mesh_name, texture)]);
+    reject_scene(dir, &scene, expect);
+}
+
+/// Runs `forestlod args` in `dir` and asserts it succeeds.
+fn run_ok(dir: &Path, args: &[&str]) -> Output {
+    let output = Command::new(env!("CARGO_BIN_EXE_forestlod"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    output
+}
+
 const GOOD_OBJ: &str = "v -1 0 0\nv 1 0 0\nv 1 0 2\nv -1 0 2\nv 0 -1 0\nv 0 1 0\nv 0 1 2\nv 0 -1 2\n\
                         vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\nf 5/1 6/2 7/3 8/4\n";
-
-/// CRC-32 as PNG chunks use it.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &b in bytes {
-        crc ^= b as u32;
-        for _ in 0..8 {
-            crc = if crc & 1 != 0 {
-                (crc >> 1) ^ 0xEDB8_8320
-            } else {
-                crc >> 1
-            };
-        }
-    }
-    !crc
-}
 
 /// A valid `side`² RGBA8 PNG, written by the reference's own encoder.
 fn good_png(dir: &Path, side: u32) -> Vec<u8> {
@@ -144,20 +166,20 @@ fn patched_png(dir: &Path, width: u32, height: u32, colour_type: u8) -> Vec<u8> 
     png
 }
 
-/// A scene file naming `good.csv` and one OBJ species.
-fn obj_scene(dir: &Path, name: &str, obj: &str, texture: &str) -> String {
+/// A scene file naming `good.csv` and one OBJ/glTF species per `(mesh, texture)`.
+fn species_scene(dir: &Path, name: &str, species: &[(&str, &str)]) -> String {
     write(
         dir,
         "good.csv",
         format!("{HEADER}1,2,3,0,1,0\n4,5,6,0.5,1.2,0\n"),
     );
-    write(
-        dir,
-        name,
-        format!(
-            "instances = \"good.csv\"\n[[species]]\nname = \"card\"\nmesh = \"{obj}\"\ntexture = \"{texture}\"\n"
-        ),
-    );
+    let mut text = String::from("instances = \"good.csv\"\n");
+    for (i, (mesh, texture)) in species.iter().enumerate() {
+        text.push_str(&format!(
+            "[[species]]\nname = \"s{i}\"\nmesh = \"{mesh}\"\ntexture = \"{texture}\"\n"
+        ));
+    }
+    write(dir, name, text);
     name.to_string()
 }
 
@@ -168,71 +190,43 @@ fn obj_scene(dir: &Path, name: &str, obj: &str, texture: &str) -> String {
 #[test]
 fn nan_in_csv() {
     let dir = case_dir("nan-csv");
-    write(
-        &dir,
-        "nan.csv",
-        format!("{HEADER}1,2,3,0,1,oak\n1,2,NaN,0,1,oak\n"),
-    );
-    assert_rejected(
-        &dir,
-        &["render", "--instances", "nan.csv"],
-        &["nan.csv", "line 3", "column z", "NaN"],
-    );
-    write(&dir, "inf.csv", format!("{HEADER}1,2,3,inf,1,oak\n"));
-    assert_rejected(
-        &dir,
-        &["render", "--instances", "inf.csv"],
-        &["inf.csv", "line 2", "column yaw", "inf"],
-    );
+    let nan = format!("{HEADER}1,2,3,0,1,oak\n1,2,NaN,0,1,oak\n");
+    reject_csv(&dir, nan, &["nan.csv", "line 3", "column z", "NaN"]);
+    let inf = format!("{HEADER}1,2,3,inf,1,oak\n");
+    reject_csv(&dir, inf, &["inf.csv", "line 2", "column yaw", "inf"]);
 }
 
 #[test]
 fn negative_scale() {
     let dir = case_dir("neg-scale");
-    write(&dir, "neg.csv", format!("{HEADER}1,2,3,0,-1.5,pine\n"));
-    assert_rejected(
-        &dir,
-        &["render", "--instances", "neg.csv"],
-        &["neg.csv", "line 2", "column scale", "-1.5"],
-    );
+    let neg = format!("{HEADER}1,2,3,0,-1.5,pine\n");
+    reject_csv(&dir, neg, &["neg.csv", "line 2", "column scale", "-1.5"]);
 }
 
 #[test]
 fn unknown_species() {
     let dir = case_dir("unknown-species");
-    write(&dir, "unk.csv", format!("{HEADER}1,2,3,0,1,baobab\n"));
-    assert_rejected(
+    let unk = format!("{HEADER}1,2,3,0,1,baobab\n");
+    reject_csv(
         &dir,
-        &["render", "--instances", "unk.csv"],
+        unk,
         &["unk.csv", "line 2", "column species", "baobab"],
     );
-    write(&dir, "idx.csv", format!("{HEADER}1,2,3,0,1,7\n"));
-    assert_rejected(
-        &dir,
-        &["render", "--instances", "idx.csv"],
-        &["idx.csv", "line 2", "column species", "7"],
-    );
+    let idx = format!("{HEADER}1,2,3,0,1,7\n");
+    reject_csv(&dir, idx, &["idx.csv", "line 2", "column species", "7"]);
 }
 
 #[test]
 fn empty_instance_list() {
     let dir = case_dir("empty");
-    write(&dir, "header_only.csv", HEADER);
-    assert_rejected(
+    let header_only = ["header_only.csv", "line 2", "empty table"];
+    reject_csv(&dir, HEADER, &header_only);
+    reject_csv(&dir, "", &["zero_bytes.csv", "line 1", "empty file"]);
+    let scene = "instances = \"header_only.csv\"\n";
+    reject_toml(
         &dir,
-        &["render", "--instances", "header_only.csv"],
-        &["header_only.csv", "line 2", "empty table"],
-    );
-    write(&dir, "zero_bytes.csv", "");
-    assert_rejected(
-        &dir,
-        &["render", "--instances", "zero_bytes.csv"],
-        &["zero_bytes.csv", "line 1", "empty file"],
-    );
-    write(&dir, "scene.toml", "instances = \"header_only.csv\"\n");
-    assert_rejected(
-        &dir,
-        &["render", "--scene", "scene.toml"],
+        "scene.toml",
+        scene,
         &["header_only.csv", "empty table"],
     );
 }
@@ -240,45 +234,20 @@ fn empty_instance_list() {
 #[test]
 fn truncated_and_enormous_csv() {
     let dir = case_dir("truncated-csv");
-    write(&dir, "cut.csv", format!("{HEADER}1,2,3,0,1,oak\n4,5,6"));
-    assert_rejected(
-        &dir,
-        &["render", "--instances", "cut.csv"],
-        &["cut.csv", "line 3", "column count"],
-    );
-    write(&dir, "quote.csv", format!("{HEADER}1,2,3,0,1,\"oak"));
-    assert_rejected(
-        &dir,
-        &["render", "--instances", "quote.csv"],
-        &["quote.csv", "line 2", "never closed"],
-    );
+    let cut = format!("{HEADER}1,2,3,0,1,oak\n4,5,6");
+    reject_csv(&dir, cut, &["cut.csv", "line 3", "column count"]);
+    let quote = format!("{HEADER}1,2,3,0,1,\"oak");
+    reject_csv(&dir, quote, &["quote.csv", "line 2", "never closed"]);
     // One record longer than the 64 KiB limit: rejected without reading the rest.
-    write(
-        &dir,
-        "long.csv",
-        format!("{HEADER}{}\n", "1".repeat(100_000)),
-    );
-    assert_rejected(
-        &dir,
-        &["render", "--instances", "long.csv"],
-        &["long.csv", "line 2", "at most"],
-    );
+    let long = format!("{HEADER}{}\n", "1".repeat(100_000));
+    reject_csv(&dir, long, &["long.csv", "line 2", "at most"]);
     // Wrongly typed values.
-    write(&dir, "text.csv", format!("{HEADER}1,2,three,0,1,oak\n"));
-    assert_rejected(
-        &dir,
-        &["render", "--instances", "text.csv"],
-        &["text.csv", "line 2", "column z", "three"],
-    );
+    let text = format!("{HEADER}1,2,three,0,1,oak\n");
+    reject_csv(&dir, text, &["text.csv", "line 2", "column z", "three"]);
     // Invalid UTF-8.
     let mut bytes = format!("{HEADER}1,2,3,0,1,").into_bytes();
     bytes.extend_from_slice(&[0xff, 0xfe, b'\n']);
-    write(&dir, "binary.csv", bytes);
-    assert_rejected(
-        &dir,
-        &["render", "--instances", "binary.csv"],
-        &["binary.csv", "line 2"],
-    );
+    reject_csv(&dir, bytes, &["binary.csv", "line 2"]);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -311,21 +280,14 @@ fn invalid_params_flags() {
             &[field, shown],
         );
     }
-    assert_rejected(
-        &dir,
-        &["render", "--scene", "single", "--fade-mode", "blend"],
-        &["--fade-mode", "blend"],
-    );
-    assert_rejected(
-        &dir,
-        &["render", "--scene", "single", "--camera", "sideways"],
-        &["--camera", "sideways"],
-    );
-    assert_rejected(
-        &dir,
-        &["render", "--scene", "nowhere"],
-        &["scene name", "nowhere"],
-    );
+    for (flag, value) in [("--fade-mode", "blend"), ("--camera", "sideways")] {
+        assert_rejected(
+            &dir,
+            &["render", "--scene", "single", flag, value],
+            &[flag, value],
+        );
+    }
+    reject_scene(&dir, "nowhere", &["scene name", "nowhere"]);
     // Other subcommands validate the same way.
     assert_rejected(
         &dir,
@@ -337,28 +299,21 @@ fn invalid_params_flags() {
 #[test]
 fn missing_files() {
     let dir = case_dir("missing");
-    assert_rejected(
-        &dir,
-        &["render", "--scene", "missing.toml"],
-        &["missing.toml", "cannot be read"],
-    );
+    reject_scene(&dir, "missing.toml", &["missing.toml", "cannot be read"]);
     assert_rejected(
         &dir,
         &["render", "--instances", "missing.csv"],
         &["missing.csv", "cannot be read"],
     );
-    write(&dir, "no_csv.toml", "instances = \"gone.csv\"\n");
-    assert_rejected(
+    let no_csv = "instances = \"gone.csv\"\n";
+    reject_toml(&dir, "no_csv.toml", no_csv, &["gone.csv", "cannot be read"]);
+    let no_png = ["gone.png", "cannot be read"];
+    reject_mesh(
         &dir,
-        &["render", "--scene", "no_csv.toml"],
-        &["gone.csv", "cannot be read"],
-    );
-    let scene = obj_scene(&dir, "no_png.toml", "card.obj", "gone.png");
-    write(&dir, "card.obj", GOOD_OBJ);
-    assert_rejected(
-        &dir,
-        &["render", "--scene", &scene],
-        &["gone.png", "cannot be read"],
+        "no_png.toml",
+        ("card.obj", GOOD_OBJ),
+        "gone.png",
+        &no_png,
     );
 }
 
@@ -366,54 +321,30 @@ fn missing_files() {
 fn bad_scene_files() {
     let dir = case_dir("toml");
     write(&dir, "good.csv", format!("{HEADER}1,2,3,0,1,oak\n"));
-    write(
+    let wrong_type = "instances = \"good.csv\"\norigin = \"abc\"\n";
+    let expect = ["wrong_type.toml", "line 2", "abc"];
+    reject_toml(&dir, "wrong_type.toml", wrong_type, &expect);
+    let nan_origin = "instances = \"good.csv\"\norigin = [nan, 0.0, 0.0]\n";
+    let expect = ["nan_origin.toml", "line 2", "origin", "NaN"];
+    reject_toml(&dir, "nan_origin.toml", nan_origin, &expect);
+    reject_toml(&dir, "empty.toml", "", &["empty.toml", "instances"]);
+    let truncated = "instances = \"good.c";
+    reject_toml(
         &dir,
-        "wrong_type.toml",
-        "instances = \"good.csv\"\norigin = \"abc\"\n",
-    );
-    assert_rejected(
-        &dir,
-        &["render", "--scene", "wrong_type.toml"],
-        &["wrong_type.toml", "line 2", "abc"],
-    );
-    write(
-        &dir,
-        "nan_origin.toml",
-        "instances = \"good.csv\"\norigin = [nan, 0.0, 0.0]\n",
-    );
-    assert_rejected(
-        &dir,
-        &["render", "--scene", "nan_origin.toml"],
-        &["nan_origin.toml", "line 2", "origin", "NaN"],
-    );
-    write(&dir, "empty.toml", "");
-    assert_rejected(
-        &dir,
-        &["render", "--scene", "empty.toml"],
-        &["empty.toml", "instances"],
-    );
-    write(&dir, "truncated.toml", "instances = \"good.c");
-    assert_rejected(
-        &dir,
-        &["render", "--scene", "truncated.toml"],
+        "truncated.toml",
+        truncated,
         &["truncated.toml", "line 1"],
     );
-    write(&dir, "binary.toml", [0x89u8, b'P', b'N', b'G', 0xff, 0x00]);
-    assert_rejected(
+    let binary = [0x89u8, b'P', b'N', b'G', 0xff, 0x00];
+    reject_toml(
         &dir,
-        &["render", "--scene", "binary.toml"],
+        "binary.toml",
+        binary,
         &["binary.toml", "line 1", "UTF-8"],
     );
-    write(
-        &dir,
-        "unknown_builtin.toml",
-        "instances = \"good.csv\"\n[[species]]\nname = \"oak\"\nbuiltin = \"baobab\"\n",
-    );
-    assert_rejected(
-        &dir,
-        &["render", "--scene", "unknown_builtin.toml"],
-        &["unknown_builtin.toml", "line 4", "baobab"],
-    );
+    let builtin = "instances = \"good.csv\"\n[[species]]\nname = \"oak\"\nbuiltin = \"baobab\"\n";
+    let expect = ["unknown_builtin.toml", "line 4", "baobab"];
+    reject_toml(&dir, "unknown_builtin.toml", builtin, &expect);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -424,51 +355,24 @@ fn bad_scene_files() {
 fn out_of_range_obj_index() {
     let dir = case_dir("obj-index");
     write(&dir, "t.png", good_png(&dir, 8));
-    write(
-        &dir,
-        "bad.obj",
-        "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 9/1\n",
-    );
-    let scene = obj_scene(&dir, "s.toml", "bad.obj", "t.png");
-    assert_rejected(
-        &dir,
-        &["render", "--scene", &scene],
-        &["bad.obj", "line 5", "9/1", "out of range"],
-    );
-    write(
-        &dir,
-        "bad_uv.obj",
-        "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/4\n",
-    );
-    let scene = obj_scene(&dir, "s2.toml", "bad_uv.obj", "t.png");
-    assert_rejected(
-        &dir,
-        &["render", "--scene", &scene],
-        &["bad_uv.obj", "line 5", "3/4", "out of range"],
-    );
+    let bad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 9/1\n";
+    let expect = ["bad.obj", "line 5", "9/1", "out of range"];
+    reject_mesh(&dir, "s.toml", ("bad.obj", bad), "t.png", &expect);
+    let bad_uv = "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/4\n";
+    let expect = ["bad_uv.obj", "line 5", "3/4", "out of range"];
+    reject_mesh(&dir, "s2.toml", ("bad_uv.obj", bad_uv), "t.png", &expect);
 }
 
 #[test]
 fn nan_filled_and_truncated_obj() {
     let dir = case_dir("obj-nan");
     write(&dir, "t.png", good_png(&dir, 8));
-    write(&dir, "nan.obj", "v nan nan nan\nv 1 0 0\nv 1 1 0\n");
-    let scene = obj_scene(&dir, "s.toml", "nan.obj", "t.png");
-    assert_rejected(
-        &dir,
-        &["render", "--scene", &scene],
-        &["nan.obj", "line 1", "nan"],
-    );
-    write(&dir, "cut.obj", &GOOD_OBJ[..GOOD_OBJ.len() - 30]);
-    let scene = obj_scene(&dir, "s2.toml", "cut.obj", "t.png");
-    assert_rejected(&dir, &["render", "--scene", &scene], &["cut.obj"]);
-    write(&dir, "empty.obj", "");
-    let scene = obj_scene(&dir, "s3.toml", "empty.obj", "t.png");
-    assert_rejected(
-        &dir,
-        &["render", "--scene", &scene],
-        &["empty.obj", "geometry"],
-    );
+    let nan = ("nan.obj", "v nan nan nan\nv 1 0 0\nv 1 1 0\n");
+    reject_mesh(&dir, "s.toml", nan, "t.png", &["nan.obj", "line 1", "nan"]);
+    let cut = ("cut.obj", &GOOD_OBJ[..GOOD_OBJ.len() - 30]);
+    reject_mesh(&dir, "s2.toml", cut, "t.png", &["cut.obj"]);
+    let empty = ("empty.obj", "");
+    reject_mesh(&dir, "s3.toml", empty, "t.png", &["empty.obj", "geometry"]);
 }
 
 #[test]
@@ -477,59 +381,38 @@ fn truncated_png() {
     write(&dir, "card.obj", GOOD_OBJ);
     let png = good_png(&dir, 16);
     write(&dir, "cut.png", &png[..png.len() / 2]);
-    let scene = obj_scene(&dir, "s.toml", "card.obj", "cut.png");
-    assert_rejected(
-        &dir,
-        &["render", "--scene", &scene],
-        &["cut.png", "invalid PNG", "bytes"],
-    );
+    let scene = species_scene(&dir, "s.toml", &[("card.obj", "cut.png")]);
+    reject_scene(&dir, &scene, &["cut.png", "invalid PNG", "bytes"]);
     write(&dir, "empty.png", "");
-    let scene = obj_scene(&dir, "s2.toml", "card.obj", "empty.png");
-    assert_rejected(
-        &dir,
-        &["render", "--scene", &scene],
-        &["empty.png", "invalid PNG", "0 bytes"],
-    );
+    let scene = species_scene(&dir, "s2.toml", &[("card.obj", "empty.png")]);
+    reject_scene(&dir, &scene, &["empty.png", "invalid PNG", "0 bytes"]);
 }
 
 #[test]
 fn png_with_huge_or_wrong_dimensions_or_type() {
     let dir = case_dir("png-size");
     write(&dir, "card.obj", GOOD_OBJ);
-    let cases: [(&str, Vec<u8>, &[&str]); 5] = [
+    // (name, IHDR width, height, colour type, expected error parts).
+    let cases: [(&str, u32, u32, u8, &[&str]); 5] = [
         // Enormous declared size: rejected from the header, nothing allocated.
-        (
-            "huge.png",
-            patched_png(&dir, 65536, 65536, 6),
-            &["huge.png", "width", "65536"],
-        ),
+        ("huge.png", 65536, 65536, 6, &["huge.png", "width", "65536"]),
         // Allowed declared size, but only 4x4 texels of data.
-        (
-            "lying.png",
-            patched_png(&dir, 4096, 4096, 6),
-            &["lying.png", "invalid PNG"],
-        ),
-        (
-            "odd.png",
-            patched_png(&dir, 12, 12, 6),
-            &["odd.png", "width", "12"],
-        ),
+        ("lying.png", 4096, 4096, 6, &["lying.png", "invalid PNG"]),
+        ("odd.png", 12, 12, 6, &["odd.png", "width", "12"]),
         (
             "nonsquare.png",
-            patched_png(&dir, 16, 8, 6),
+            16,
+            8,
+            6,
             &["nonsquare.png", "16x8", "square"],
         ),
         // Colour type 2 (RGB): not RGBA.
-        (
-            "rgb.png",
-            patched_png(&dir, 4, 4, 2),
-            &["rgb.png", "colour type"],
-        ),
+        ("rgb.png", 4, 4, 2, &["rgb.png", "colour type"]),
     ];
-    for (i, (name, bytes, expect)) in cases.into_iter().enumerate() {
-        write(&dir, name, bytes);
-        let scene = obj_scene(&dir, &format!("s{i}.toml"), "card.obj", name);
-        assert_rejected(&dir, &["render", "--scene", &scene], expect);
+    for (i, (name, width, height, colour_type, expect)) in cases.into_iter().enumerate() {
+        write(&dir, name, patched_png(&dir, width, height, colour_type));
+        let scene = species_scene(&dir, &format!("s{i}.toml"), &[("card.obj", name)]);
+        reject_scene(&dir, &scene, expect);
     }
 }
 
@@ -539,56 +422,36 @@ fn a_good_obj_scene_renders() {
     let dir = case_dir("good");
     write(&dir, "card.obj", GOOD_OBJ);
     write(&dir, "t.png", good_png(&dir, 8));
-    let scene = obj_scene(&dir, "s.toml", "card.obj", "t.png");
+    let scene = species_scene(&dir, "s.toml", &[("card.obj", "t.png")]);
     let out = dir.join("out");
-    let output = Command::new(env!("CARGO_BIN_EXE_forestlod"))
-        .args([
-            "render",
-            "--scene",
-            &scene,
-            "--camera",
-            "close",
-            "--width",
-            "32",
-            "--height",
-            "32",
-            "--texture-size",
-            "16",
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    run_ok(&dir, &render_small(&scene, &out));
     assert!(out.join("color.png").is_file() && out.join("metrics.json").is_file());
+}
+
+/// `render --scene scene` at the close camera, 32x32 and 16² textures, into `out`.
+fn render_small<'a>(scene: &'a str, out: &'a Path) -> Vec<&'a str> {
+    let out = out.to_str().unwrap();
+    vec![
+        "render",
+        "--scene",
+        scene,
+        "--camera",
+        "close",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--texture-size",
+        "16",
+        "--out",
+        out,
+    ]
 }
 
 // ---------------------------------------------------------------------------------------------
 // Issue 10 ("failures that fail"): texture sizes, error chains, path confinement, mesh files
 // given as --scene, PNG colour types, polygons, glTF, long content
 // ---------------------------------------------------------------------------------------------
-
-/// A scene file naming `good.csv` and one OBJ/glTF species per `(mesh, texture)`.
-fn species_scene(dir: &Path, name: &str, species: &[(&str, &str)]) -> String {
-    write(
-        dir,
-        "good.csv",
-        format!("{HEADER}1,2,3,0,1,0\n4,5,6,0.5,1.2,0\n"),
-    );
-    let mut text = String::from("instances = \"good.csv\"\n");
-    for (i, (mesh, texture)) in species.iter().enumerate() {
-        text.push_str(&format!(
-            "[[species]]\nname = \"s{i}\"\nmesh = \"{mesh}\"\ntexture = \"{texture}\"\n"
-        ));
-    }
-    write(dir, name, text);
-    name.to_string()
-}
 
 #[test]
 fn species_textures_of_different_sizes() {
@@ -601,9 +464,9 @@ fn species_textures_of_different_sizes() {
         "s.toml",
         &[("card.obj", "t8.png"), ("card.obj", "t16.png")],
     );
-    assert_rejected(
+    reject_scene(
         &dir,
-        &["render", "--scene", &scene],
+        &scene,
         &[
             "error: s.toml: line 9, column 11, field species[1].texture: value \"16x16\"",
             "texture \"t16.png\" is 16x16",
@@ -617,15 +480,15 @@ fn species_textures_of_different_sizes() {
 fn errors_in_named_files_show_the_chain() {
     let dir = case_dir("chain");
     write(&dir, "t.png", good_png(&dir, 8));
-    write(
-        &dir,
+    let oak = (
         "oak.obj",
         "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 99/1\n",
     );
-    let scene = species_scene(&dir, "forest.toml", &[("oak.obj", "t.png")]);
-    assert_rejected(
+    reject_mesh(
         &dir,
-        &["render", "--scene", &scene],
+        "forest.toml",
+        oak,
+        "t.png",
         &[
             "error: forest.toml: line 4, column 8, field species[0].mesh = \"oak.obj\": oak.obj: line 5, face: value \"99/1\": vertex index out of range",
         ],
@@ -654,9 +517,9 @@ fn scene_files_naming_files_outside_their_folder() {
         "up.toml",
         "instances = \"good.csv\"\n[[species]]\nname = \"a\"\nmesh = \"../card.obj\"\ntexture = \"t.png\"\n",
     );
-    assert_rejected(
+    reject_scene(
         &dir,
-        &["render", "--scene", "scene/up.toml"],
+        "scene/up.toml",
         &[
             "scene/up.toml: line 4, column 8, field species[0].mesh: value \"../card.obj\": resolves to",
             "outside the scene file's folder",
@@ -671,9 +534,9 @@ fn scene_files_naming_files_outside_their_folder() {
             "link.toml",
             "instances = \"good.csv\"\n[[species]]\nname = \"a\"\nmesh = \"link.obj\"\ntexture = \"t.png\"\n",
         );
-        assert_rejected(
+        reject_scene(
             &dir,
-            &["render", "--scene", "scene/link.toml"],
+            "scene/link.toml",
             &[
                 "link.toml",
                 "species[0].mesh",
@@ -683,22 +546,14 @@ fn scene_files_naming_files_outside_their_folder() {
         );
     }
     // With the flag, the same scene loads.
-    let output = Command::new(env!("CARGO_BIN_EXE_forestlod"))
-        .args([
-            "scene",
-            "info",
-            "--scene",
-            "scene/up.toml",
-            "--allow-outside-paths",
-        ])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    let args = [
+        "scene",
+        "info",
+        "--scene",
+        "scene/up.toml",
+        "--allow-outside-paths",
+    ];
+    run_ok(&dir, &args);
 }
 
 #[test]
@@ -706,15 +561,12 @@ fn scene_flag_given_a_csv_or_a_mesh_says_what_to_use() {
     let dir = case_dir("scene-kind");
     write(&dir, "trees.csv", format!("{HEADER}1,2,3,0,1,oak\n"));
     write(&dir, "tree.obj", GOOD_OBJ);
-    assert_rejected(
-        &dir,
-        &["render", "--scene", "trees.csv"],
-        &["--scene: value \"trees.csv\"", "use --instances trees.csv"],
-    );
+    let expect = ["--scene: value \"trees.csv\"", "use --instances trees.csv"];
+    reject_scene(&dir, "trees.csv", &expect);
     for mesh in ["tree.obj", "tree.gltf", "tree.glb"] {
-        assert_rejected(
+        reject_scene(
             &dir,
-            &["render", "--scene", mesh],
+            mesh,
             &[
                 &format!("--scene: value \"{mesh}\""),
                 "scene TOML file",
@@ -740,14 +592,8 @@ fn png_colour_types_are_named() {
         let name = format!("c{colour_type}.png");
         write(&dir, &name, patched_png(&dir, 4, 4, colour_type));
         let scene = species_scene(&dir, &format!("s{i}.toml"), &[("card.obj", &name)]);
-        assert_rejected(
-            &dir,
-            &["render", "--scene", &scene],
-            &[
-                &format!("{name}: colour type: value \"{shown}\""),
-                "expected RGBA, 8-bit",
-            ],
-        );
+        let expect = format!("{name}: colour type: value \"{shown}\"");
+        reject_scene(&dir, &scene, &[&expect, "expected RGBA, 8-bit"]);
     }
 }
 
@@ -755,117 +601,50 @@ fn png_colour_types_are_named() {
 fn bad_obj_polygons() {
     let dir = case_dir("polygons");
     write(&dir, "t.png", good_png(&dir, 8));
-    write(
+    let bow = "v 0 0 0\nv 1 0 1\nv 1 0 0\nv 0 0 1\nvt 0 0\nf 1/1 2/1 3/1 4/1\n";
+    reject_mesh(
         &dir,
-        "bow.obj",
-        "v 0 0 0\nv 1 0 1\nv 1 0 0\nv 0 0 1\nvt 0 0\nf 1/1 2/1 3/1 4/1\n",
-    );
-    let scene = species_scene(&dir, "bow.toml", &[("bow.obj", "t.png")]);
-    assert_rejected(
-        &dir,
-        &["render", "--scene", &scene],
+        "bow.toml",
+        ("bow.obj", bow),
+        "t.png",
         &[
             "field species[0].mesh = \"bow.obj\": bow.obj: line 6, face: value \"4 vertices: 1 2 3 4\"",
             "self-intersecting",
         ],
     );
-    write(
-        &dir,
-        "bent.obj",
-        "v 0 0 0\nv 1 0 0\nv 1 1 1\nv 0 0 1\nvt 0 0\nf 1/1 2/1 3/1 4/1\n",
-    );
-    let scene = species_scene(&dir, "bent.toml", &[("bent.obj", "t.png")]);
-    assert_rejected(
-        &dir,
-        &["render", "--scene", &scene],
-        &["bent.obj: line 6, face", "non-planar"],
-    );
-}
-
-/// Standard base64 with padding.
-fn base64(bytes: &[u8]) -> String {
-    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
-        for k in 0..4 {
-            if k <= chunk.len() {
-                out.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
-}
-
-/// A glTF 2.0 card (Y up, 2 m tall) with an embedded base64 buffer, `indices` and `mode`.
-fn gltf_card(indices: &[u16], mode: u32) -> String {
-    let positions: [[f32; 3]; 4] = [
-        [-1.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [1.0, 2.0, 0.0],
-        [-1.0, 2.0, 0.0],
-    ];
-    let uvs: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
-    let mut buf: Vec<u8> = Vec::new();
-    for c in positions.iter().flatten().chain(uvs.iter().flatten()) {
-        buf.extend_from_slice(&c.to_le_bytes());
-    }
-    for i in indices {
-        buf.extend_from_slice(&i.to_le_bytes());
-    }
-    while !buf.len().is_multiple_of(4) {
-        buf.push(0);
-    }
-    format!(
-        r#"{{"asset":{{"version":"2.0"}},
-"buffers":[{{"byteLength":{len},"uri":"data:application/octet-stream;base64,{b64}"}}],
-"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},{{"buffer":0,"byteOffset":80,"byteLength":{il}}}],
-"accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,0],"max":[1,2,0]}},{{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},{{"bufferView":2,"componentType":5123,"count":{ni},"type":"SCALAR"}}],
-"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"mode":{mode}}}]}}],
-"nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#,
-        len = buf.len(),
-        b64 = base64(&buf),
-        il = indices.len() * 2,
-        ni = indices.len(),
-    )
+    let bent = "v 0 0 0\nv 1 0 0\nv 1 1 1\nv 0 0 1\nvt 0 0\nf 1/1 2/1 3/1 4/1\n";
+    let expect = ["bent.obj: line 6, face", "non-planar"];
+    reject_mesh(&dir, "bent.toml", ("bent.obj", bent), "t.png", &expect);
 }
 
 #[test]
 fn bad_gltf_meshes() {
     let dir = case_dir("gltf");
     write(&dir, "t.png", good_png(&dir, 8));
-    write(&dir, "range.gltf", gltf_card(&[0, 1, 2, 0, 2, 9], 4));
-    let scene = species_scene(&dir, "range.toml", &[("range.gltf", "t.png")]);
-    assert_rejected(
+    let range = ("range.gltf", gltf_card(&[0, 1, 2, 0, 2, 9], 4));
+    reject_mesh(
         &dir,
-        &["render", "--scene", &scene],
+        "range.toml",
+        range,
+        "t.png",
         &[
             "error: range.toml: line 4, column 8, field species[0].mesh = \"range.gltf\": range.gltf: mesh 0, primitive 0, indices element 5: value \"9\": index out of range (4 vertices)",
         ],
     );
-    write(&dir, "strip.gltf", gltf_card(&[0, 1, 2, 3], 5));
-    let scene = species_scene(&dir, "strip.toml", &[("strip.gltf", "t.png")]);
-    assert_rejected(
+    let strip = ("strip.gltf", gltf_card(&[0, 1, 2, 3], 5));
+    reject_mesh(
         &dir,
-        &["render", "--scene", &scene],
+        "strip.toml",
+        strip,
+        "t.png",
         &[
             "strip.gltf: mesh 0, primitive 0, mode: value \"TRIANGLE_STRIP (5)\": expected a triangle list",
         ],
     );
-    write(&dir, "cut.gltf", &gltf_card(&[0, 1, 2], 4)[..200]);
-    let scene = species_scene(&dir, "cut.toml", &[("cut.gltf", "t.png")]);
-    assert_rejected(
-        &dir,
-        &["render", "--scene", &scene],
-        &["cut.gltf: file", "invalid glTF 2.0"],
-    );
+    let card = gltf_card(&[0, 1, 2], 4);
+    let cut = ("cut.gltf", &card[..200]);
+    let expect = ["cut.gltf: file", "invalid glTF 2.0"];
+    reject_mesh(&dir, "cut.toml", cut, "t.png", &expect);
 }
 
 #[test]
@@ -875,19 +654,7 @@ fn a_good_gltf_scene_renders() {
     write(&dir, "t.png", good_png(&dir, 8));
     let scene = species_scene(&dir, "s.toml", &[("card.gltf", "t.png")]);
     let out = dir.join("out");
-    let output = Command::new(env!("CARGO_BIN_EXE_forestlod"))
-        .args([
-            "render", "--scene", &scene, "--camera", "close", "--width", "32", "--height", "32",
-        ])
-        .args(["--texture-size", "16", "--out", out.to_str().unwrap()])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    run_ok(&dir, &render_small(&scene, &out));
     assert!(out.join("color.png").is_file());
 }
 
@@ -895,30 +662,14 @@ fn a_good_gltf_scene_renders() {
 fn long_file_content_is_echoed_as_a_short_marked_excerpt() {
     let dir = case_dir("excerpt");
     let long = "q".repeat(10_000);
+    let excerpt = format!("value \"{}…\"", "q".repeat(40));
     write(&dir, "long.csv", format!("{HEADER}1,2,3,0,1,{long}\n"));
-    assert_rejected(
-        &dir,
-        &["render", "--instances", "long.csv"],
-        &[
-            "long.csv: line 2, column species",
-            &format!("value \"{}…\"", "q".repeat(40)),
-        ],
-    );
+    let expect = ["long.csv: line 2, column species", &excerpt];
+    assert_rejected(&dir, &["render", "--instances", "long.csv"], &expect);
     write(&dir, "t.png", good_png(&dir, 8));
-    write(
-        &dir,
-        "long.obj",
-        format!("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/1 {long}\n"),
-    );
-    let scene = species_scene(&dir, "s.toml", &[("long.obj", "t.png")]);
-    assert_rejected(
-        &dir,
-        &["render", "--scene", &scene],
-        &[
-            "long.obj: line 5, face",
-            &format!("value \"{}…\"", "q".repeat(40)),
-        ],
-    );
+    let obj = format!("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/1 {long}\n");
+    let expect = ["long.obj: line 5, face", &excerpt];
+    reject_mesh(&dir, "s.toml", ("long.obj", obj), "t.png", &expect);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -13,15 +13,12 @@ use std::process::{Command, Output, Stdio};
 
 use forestlod_reference::output::read_png;
 
+#[path = "../../reference/tests/common/mod.rs"]
+mod common;
+
 /// A fresh directory for one case.
 fn case_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "forestlod-cli-main-job-{}-{name}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::fresh_dir("cli-main-job", name)
 }
 
 fn forestlod(args: &[&str], env: &[(&str, Option<&str>)]) -> Output {
@@ -205,15 +202,21 @@ fn bad_out_fails_at_once_naming_out_the_path_and_the_reason() {
     assert_eq!(files(&readonly), BTreeSet::new());
 }
 
-#[test]
-fn gpu_skipped_exits_4_with_one_line_and_the_reference_outputs() {
-    let dir = case_dir("skipped");
-    let out = dir.join("out");
-    // wgpu's `with_env`: no backend of that name, so no adapter anywhere.
-    let o = render_tiny(&out, &[], &[("WGPU_BACKEND", Some("nonexistent"))]);
+/// Runs the main job on `tiny` into a fresh case folder's `out` with `WGPU_BACKEND=backend` and
+/// asserts exit 4 (GPU skipped); returns that `out`, stdout and stderr.
+fn run_gpu_skipped(case: &str, backend: &str) -> (PathBuf, String, String) {
+    let out = case_dir(case).join("out");
+    let o = render_tiny(&out, &[], &[("WGPU_BACKEND", Some(backend))]);
     let stdout = text(&o.stdout);
     let stderr = text(&o.stderr);
     assert_eq!(o.status.code(), Some(4), "{stdout}{stderr}");
+    (out, stdout, stderr)
+}
+
+#[test]
+fn gpu_skipped_exits_4_with_one_line_and_the_reference_outputs() {
+    // wgpu's `with_env`: no backend of that name, so no adapter anywhere.
+    let (out, stdout, stderr) = run_gpu_skipped("skipped", "nonexistent");
     let skipped: Vec<&str> = stdout
         .lines()
         .chain(stderr.lines())
@@ -246,12 +249,7 @@ fn gpu_skipped_exits_4_with_one_line_and_the_reference_outputs() {
 /// machine has no GL driver at all, wgpu finds no adapter and the run is skipped too.
 #[test]
 fn an_adapter_that_cannot_run_the_pipeline_is_passed_over() {
-    let dir = case_dir("gl-only");
-    let out = dir.join("out");
-    let o = render_tiny(&out, &[], &[("WGPU_BACKEND", Some("gl"))]);
-    let stdout = text(&o.stdout);
-    let stderr = text(&o.stderr);
-    assert_eq!(o.status.code(), Some(4), "{stdout}{stderr}");
+    let (out, stdout, _) = run_gpu_skipped("gl-only", "gl");
     let line = last_line(&stdout);
     assert!(line.starts_with("GPU parity skipped: "), "{line:?}");
     if line.contains("(Gl, ") {

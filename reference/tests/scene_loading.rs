@@ -13,21 +13,12 @@ use forestlod_reference::scene::load::{
 use forestlod_reference::texture::Rgba8Image;
 use proptest::prelude::*;
 
+mod common;
+use common::{CARD_POSITIONS, CARD_UVS, HEADER, crc32, gltf_json, write};
+
 /// A fresh directory under the system temp dir, unique to this process and test.
 fn temp_dir(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "forestlod-scene-loading-{}-{test}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
-    let path = dir.join(name);
-    std::fs::write(&path, bytes).unwrap();
-    path
+    common::fresh_dir("scene-loading", test)
 }
 
 fn png(color: image::ExtendedColorType, channels: usize, w: u32, h: u32) -> Vec<u8> {
@@ -66,8 +57,6 @@ vt 0 1
 f 1/1 2/2 3/3 4/4
 f 5/1 6/2 7/3 8/4
 ";
-
-const HEADER: &str = "x,y,z,yaw,scale,species\n";
 
 fn assert_mentions(e: &str, parts: &[&str]) {
     for p in parts {
@@ -479,80 +468,25 @@ fn names() -> Vec<String> {
     Species::ALL.iter().map(|s| s.name().to_string()).collect()
 }
 
+/// `|`-separated tokens, in order (the empty string included), for `prop::sample::select`.
+fn tokens(list: &'static str) -> Vec<&'static str> {
+    list.split('|').collect()
+}
+
 /// Lines of CSV-ish tokens: more likely than raw bytes to reach the row checks.
 fn csv_like() -> impl Strategy<Value = String> {
-    let token = prop::sample::select(vec![
-        "x",
-        "y",
-        "z",
-        "yaw",
-        "scale",
-        "species",
-        "0",
-        "1",
-        "-1",
-        "1e308",
-        "1e39",
-        "NaN",
-        "inf",
-        "-inf",
-        "oak",
-        "4",
-        "5",
-        "abc",
-        "",
-        "\"",
-        "\"a,b\"",
-        " ",
-        "0.5",
-        "4294967296",
-        "\u{feff}x",
-    ]);
+    let token = prop::sample::select(tokens(
+        "x|y|z|yaw|scale|species|0|1|-1|1e308|1e39|NaN|inf|-inf|oak|4|5|abc||\"|\"a,b\"| |0.5|4294967296|\u{feff}x",
+    ));
     let row = prop::collection::vec(token, 0..8).prop_map(|t| t.join(","));
     prop::collection::vec(row, 0..6).prop_map(|rows| rows.join("\n"))
 }
 
 /// Lines of OBJ-ish tokens.
 fn obj_like() -> impl Strategy<Value = String> {
-    let token = prop::sample::select(vec![
-        "v",
-        "vt",
-        "vn",
-        "f",
-        "l",
-        "p",
-        "o",
-        "g",
-        "s",
-        "usemtl",
-        "mtllib",
-        "#",
-        "0",
-        "1",
-        "2",
-        "3",
-        "-1",
-        "-9",
-        "1/1",
-        "2/2",
-        "3/3",
-        "1//1",
-        "1/1/1",
-        "1/0",
-        "0/1",
-        "-1/-1",
-        "9223372036854775807",
-        "-9223372036854775808",
-        "nan",
-        "inf",
-        "1e40",
-        "0.5",
-        "x",
-        "/",
-        "//",
-        "1/2/3/4",
-        "\u{3000}",
-    ]);
+    let token = prop::sample::select(tokens(
+        "v|vt|vn|f|l|p|o|g|s|usemtl|mtllib|#|0|1|2|3|-1|-9|1/1|2/2|3/3|1//1|1/1/1|1/0|0/1|-1/-1|9223372036854775807|-9223372036854775808|nan|inf|1e40|0.5|x|/|//|1/2/3/4|\u{3000}",
+    ));
     let line = prop::collection::vec(token, 0..7).prop_map(|t| t.join(" "));
     prop::collection::vec(line, 0..24).prop_map(|lines| lines.join("\n"))
 }
@@ -597,8 +531,17 @@ fn fuzz_cases() -> u32 {
         .unwrap_or(256)
 }
 
+/// The byte-fuzzing properties' configuration: `fuzz_cases()` cases, no persisted failures.
+fn fuzz_config() -> ProptestConfig {
+    ProptestConfig {
+        cases: fuzz_cases(),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    }
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig { cases: fuzz_cases(), failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(fuzz_config())]
 
     #[test]
     fn csv_loader_never_panics_on_bytes(bytes in prop::collection::vec(any::<u8>(), 0..512)) {
@@ -647,16 +590,9 @@ proptest! {
 #[test]
 fn toml_loader_never_panics_on_scene_like_text() {
     // A fixed directory with a good CSV, OBJ and PNG so that generated scene files reach the loaders.
-    let dir = temp_dir("toml-fuzz");
-    write(&dir, "t.csv", format!("{HEADER}1,2,3,0,1,0\n"));
-    write(&dir, "m.obj", CARD_TREE_Y_UP);
-    write(&dir, "t.png", rgba_png(4, 4));
+    let dir = fuzz_dir("toml-fuzz");
     let path = dir.join("fuzz.toml");
-    let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig {
-        cases: fuzz_cases(),
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    });
+    let mut runner = proptest::test_runner::TestRunner::new(fuzz_config());
     runner
         .run(&toml_like(), |text| {
             match parse_scene_file(text.as_bytes(), &path) {
@@ -671,22 +607,6 @@ fn toml_loader_never_panics_on_scene_like_text() {
 // ---------------------------------------------------------------------------------------------
 // Structure-aware PNG fuzzing and the whole file path (brief "Bad input and fuzzing").
 // ---------------------------------------------------------------------------------------------
-
-/// CRC-32 (ISO 3309, as PNG chunks use), bit by bit.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &b in bytes {
-        crc ^= b as u32;
-        for _ in 0..8 {
-            crc = if crc & 1 != 0 {
-                (crc >> 1) ^ 0xEDB8_8320
-            } else {
-                crc >> 1
-            };
-        }
-    }
-    !crc
-}
 
 /// Recomputes the CRC of every chunk whose length field fits the data, so that mutations reach
 /// the decoder's parsing instead of stopping at its checksum test.
@@ -773,7 +693,7 @@ fn fuzz_dir(test: &str) -> PathBuf {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: fuzz_cases(), failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(fuzz_config())]
 
     /// Mutated valid PNGs (bytes overwritten, then every chunk CRC fixed, then optionally cut)
     /// never panic the decoder, and what it accepts is a square power-of-two RGBA8 texture.
@@ -1100,77 +1020,6 @@ fn concave_polygons_are_ear_clipped_and_bad_ones_rejected() {
     let e = bad("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nvt 0 0\nf 1/1 2/1 3/1 4/1\n");
     assert_mentions(&e, &["line 6, face", "zero-area"]);
 }
-
-/// Standard base64 with padding.
-fn base64(bytes: &[u8]) -> String {
-    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
-        for k in 0..4 {
-            if k <= chunk.len() {
-                out.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
-}
-
-/// A glTF 2.0 JSON file with one embedded base64 buffer: `positions` (float VEC3), `uvs` (float
-/// VEC2), `indices` (unsigned short), primitive `mode`.
-fn gltf_json(positions: &[[f32; 3]], uvs: &[[f32; 2]], indices: &[u16], mode: u32) -> String {
-    let mut buf: Vec<u8> = Vec::new();
-    for p in positions {
-        for c in p {
-            buf.extend_from_slice(&c.to_le_bytes());
-        }
-    }
-    let uv_at = buf.len();
-    for t in uvs {
-        for c in t {
-            buf.extend_from_slice(&c.to_le_bytes());
-        }
-    }
-    let index_at = buf.len();
-    for i in indices {
-        buf.extend_from_slice(&i.to_le_bytes());
-    }
-    while !buf.len().is_multiple_of(4) {
-        buf.push(0);
-    }
-    format!(
-        r#"{{"asset":{{"version":"2.0"}},
-"buffers":[{{"byteLength":{len},"uri":"data:application/octet-stream;base64,{b64}"}}],
-"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{pl}}},{{"buffer":0,"byteOffset":{uv_at},"byteLength":{tl}}},{{"buffer":0,"byteOffset":{index_at},"byteLength":{il}}}],
-"accessors":[{{"bufferView":0,"componentType":5126,"count":{n},"type":"VEC3","min":[-1,-1,-1],"max":[1,1,1]}},{{"bufferView":1,"componentType":5126,"count":{nt},"type":"VEC2"}},{{"bufferView":2,"componentType":5123,"count":{ni},"type":"SCALAR"}}],
-"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"mode":{mode}}}]}}],
-"nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#,
-        len = buf.len(),
-        b64 = base64(&buf),
-        pl = uv_at,
-        tl = index_at - uv_at,
-        il = indices.len() * 2,
-        n = positions.len(),
-        nt = uvs.len(),
-        ni = indices.len(),
-    )
-}
-
-/// A card, Y up as glTF has it: 2 m tall.
-const CARD_POSITIONS: [[f32; 3]; 4] = [
-    [-1.0, 0.0, 0.0],
-    [1.0, 0.0, 0.0],
-    [1.0, 2.0, 0.0],
-    [-1.0, 2.0, 0.0],
-];
-const CARD_UVS: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
 
 #[test]
 fn gltf_meshes_load_and_bad_ones_are_rejected() {

@@ -4,8 +4,11 @@
 
 pub mod scenarios;
 
+use forestlod_reference::baselines::tree_spheres;
+use forestlod_reference::batches::{Batches, build_batches};
+use forestlod_reference::geometry::{PackedGeometry, pack_geometry};
 use forestlod_reference::scene::{Instance, Scene, Terrain, TreeMesh};
-use forestlod_reference::select::SelectUniform;
+use forestlod_reference::select::{SelectUniform, Selection, select};
 use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::{Camera, Params, selection_margin, view_interval};
 use proptest::prelude::*;
@@ -182,6 +185,24 @@ pub struct Thresholds {
     pub fade_band: bool,
 }
 
+impl Thresholds {
+    /// A batch's decision (`parity::select`): the fade band, no per-tree discard.
+    pub const BATCH: Self = Self {
+        centre_depth: false,
+        fade_band: true,
+    };
+    /// A tree's visibility (`parity::baselines`): the per-tree discard, no fade band.
+    pub const TREE_VISIBILITY: Self = Self {
+        centre_depth: true,
+        fade_band: false,
+    };
+    /// A tree's refinement (`parity::refine`): the per-tree discard and the fade band.
+    pub const TREE_REFINEMENT: Self = Self {
+        centre_depth: true,
+        fade_band: true,
+    };
+}
+
 /// Why the selection decision for the sphere (`center`, `radius`) is ambiguous under `u`, or
 /// `None` when it is not near any threshold: a distance is near a threshold when it lies within
 /// `rel` of `|c - e|₁ + r + |threshold|` of it (the rounding a fused multiply-add may move it
@@ -246,6 +267,85 @@ pub fn params() -> impl Strategy<Value = Params> {
             lod_levels: l,
             ..Params::default()
         })
+}
+
+/// The random properties' configuration: 256 cases each.
+pub fn property_config() -> ProptestConfig {
+    ProptestConfig {
+        cases: 256,
+        ..ProptestConfig::default()
+    }
+}
+
+/// A tree of species 0 on the x axis at `x`, unrotated and unscaled.
+pub fn tree_at_x(x: f32) -> Instance {
+    Instance {
+        position: [x, 0.0, 0.0],
+        yaw: 0.0,
+        scale: 1.0,
+        mesh: 0,
+    }
+}
+
+/// Random `trees` (`scene_of`) made ready for the stages: packed geometry, the trees' bounding
+/// spheres and the batches at `grid_size`.
+pub struct Packed {
+    pub scene: Scene,
+    pub geometry: PackedGeometry,
+    pub spheres: Vec<([f32; 3], f32)>,
+    pub batches: Batches,
+}
+
+impl Packed {
+    pub fn new(trees: Vec<Instance>, grid_size: f32) -> Self {
+        let scene = scene_of(trees);
+        let geometry = pack_geometry(&scene);
+        let spheres = tree_spheres(&scene, &geometry.meshes);
+        let batches = build_batches(&scene, &geometry.meshes, grid_size).unwrap();
+        Packed {
+            scene,
+            geometry,
+            spheres,
+            batches,
+        }
+    }
+}
+
+/// A hand-checked frame of `trees` (`scene_of`) at the default parameters: its packed geometry and
+/// batches, and a 64² camera (60°) at (0, 0, 5) looking along +x.
+pub struct AxisFrame {
+    pub geometry: PackedGeometry,
+    pub params: Params,
+    pub batches: Batches,
+    pub camera: Camera,
+}
+
+impl AxisFrame {
+    pub fn new(trees: Vec<Instance>) -> Self {
+        let scene = scene_of(trees);
+        let geometry = pack_geometry(&scene);
+        let params = Params::default();
+        let batches = build_batches(&scene, &geometry.meshes, params.grid_size).unwrap();
+        let camera = Camera::look_at([0.0, 0.0, 5.0], [100.0, 0.0, 5.0], 60.0, 64, 64);
+        AxisFrame {
+            geometry,
+            params,
+            batches,
+            camera,
+        }
+    }
+
+    /// The reference's selection of this frame.
+    pub fn select(&self) -> Selection {
+        let g = &self.geometry;
+        select(
+            &self.batches.metas,
+            &g.meshes,
+            &g.billboard,
+            &self.camera,
+            &self.params,
+        )
+    }
 }
 
 /// Runs `f` inside a rayon pool of `threads` threads.

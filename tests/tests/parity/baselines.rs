@@ -69,11 +69,13 @@ const CASES: u32 = 64;
 /// interval's near end against the draw distance, the centre's depth against it (the per-tree
 /// discard), and the six plane distances against `-r - m`.
 fn ambiguity(center: [f32; 3], radius: f32, u: &SelectUniform) -> Option<String> {
-    let checks = Thresholds {
-        centre_depth: true,
-        fade_band: false,
-    };
-    threshold_ambiguity(center, radius, u, AMBIGUITY_REL, checks)
+    threshold_ambiguity(
+        center,
+        radius,
+        u,
+        AMBIGUITY_REL,
+        Thresholds::TREE_VISIBILITY,
+    )
 }
 
 /// Tallies of the cull comparisons, printed at the end.

@@ -76,11 +76,13 @@ const MODES: [TreeCull; 2] = [TreeCull::Lod0, TreeCull::All];
 /// discard), the interval's ends against the fade band (which LODs it needs) and the six plane
 /// distances against `-r - m`.
 fn ambiguity(center: [f32; 3], radius: f32, u: &SelectUniform) -> Option<String> {
-    let checks = Thresholds {
-        centre_depth: true,
-        fade_band: true,
-    };
-    threshold_ambiguity(center, radius, u, AMBIGUITY_REL, checks)
+    threshold_ambiguity(
+        center,
+        radius,
+        u,
+        AMBIGUITY_REL,
+        Thresholds::TREE_REFINEMENT,
+    )
 }
 
 /// Tallies of the buffer comparisons, printed at the end.

@@ -30,7 +30,9 @@ use forestlod_shared::{
     BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, LOD_MESH, MeshMeta, Params,
     SelectCounters, view_interval,
 };
-use forestlod_tests::{Thresholds, cameras, instances, params, scene_of, threshold_ambiguity};
+use forestlod_tests::{
+    AxisFrame, Thresholds, cameras, instances, params, scene_of, threshold_ambiguity, tree_at_x,
+};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
 
@@ -66,11 +68,7 @@ struct Tally {
 
 /// Why a batch's decision is ambiguous, or `None` when it is not near any threshold.
 fn ambiguity(b: &BatchMeta, u: &SelectUniform) -> Option<String> {
-    let checks = Thresholds {
-        centre_depth: false,
-        fade_band: true,
-    };
-    threshold_ambiguity(b.center, b.radius, u, AMBIGUITY_REL, checks)
+    threshold_ambiguity(b.center, b.radius, u, AMBIGUITY_REL, Thresholds::BATCH)
 }
 
 /// Comparable key of a command and its data, `base_vertex` masked off (for multisets).
@@ -234,20 +232,13 @@ fn judge(
             prop_assert_eq!(&g.commands, &w.commands, "{}: commands", name);
             prop_assert_eq!(&g.data, &w.data, "{}: command data", name);
         } else {
-            let mut kw: Vec<Key> = w
-                .commands
-                .iter()
-                .zip(&w.data)
-                .map(|(c, d)| key(c, d))
-                .collect();
-            let mut kg: Vec<Key> = g
-                .commands
-                .iter()
-                .zip(&g.data)
-                .map(|(c, d)| key(c, d))
-                .collect();
-            kw.sort_unstable();
-            kg.sort_unstable();
+            let sorted_keys = |cmds: &[DrawCommand], data: &[CommandData]| {
+                let mut k: Vec<Key> = cmds.iter().zip(data).map(|(c, d)| key(c, d)).collect();
+                k.sort_unstable();
+                k
+            };
+            let kw = sorted_keys(&w.commands, &w.data);
+            let kg = sorted_keys(&g.commands, &g.data);
             prop_assert_eq!(kg, kw, "{}: commands as a multiset", name);
         }
         tally.exact_cases += 1;
@@ -502,17 +493,12 @@ fn straddling_batches_emit_both_lods_on_the_gpu() {
         eprintln!("skipped: no GPU adapter");
         return;
     }
-    let tree = |x: f32| Instance {
-        position: [x, 0.0, 0.0],
-        yaw: 0.0,
-        scale: 1.0,
-        mesh: 0,
-    };
-    let scene = scene_of(vec![tree(100.0), tree(600.0), tree(990.0)]);
-    let geometry = pack_geometry(&scene);
-    let p = Params::default();
-    let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
-    let camera = Camera::look_at([0.0, 0.0, 5.0], [100.0, 0.0, 5.0], 60.0, 64, 64);
+    let AxisFrame {
+        geometry,
+        params: p,
+        batches,
+        camera,
+    } = AxisFrame::new(vec![tree_at_x(100.0), tree_at_x(600.0), tree_at_x(990.0)]);
     for backend in gpu_backends() {
         let s = backend
             .select(
@@ -597,23 +583,13 @@ fn reference_selection_uploads_into_select_buffers() {
         scale: 1.0,
         mesh,
     };
-    let scene = scene_of(vec![
+    let s = AxisFrame::new(vec![
         tree(100.0, 0),
         tree(600.0, 1),
         tree(990.0, 2),
         tree(1500.0, 0),
-    ]);
-    let geometry = pack_geometry(&scene);
-    let p = Params::default();
-    let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
-    let camera = Camera::look_at([0.0, 0.0, 5.0], [100.0, 0.0, 5.0], 60.0, 64, 64);
-    let s = select(
-        &batches.metas,
-        &geometry.meshes,
-        &geometry.billboard,
-        &camera,
-        &p,
-    );
+    ])
+    .select();
     assert!(!s.commands.is_empty());
     let buffers = SelectBuffers::from_cpu(ctx, &s.commands, &s.data, &s.counters).unwrap();
     let back = buffers.read(ctx).unwrap();

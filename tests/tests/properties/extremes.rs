@@ -28,7 +28,7 @@ use forestlod_shared::{
     AngleIndexMode, Camera, FadeMode, LodNeeds, MipMode, Params, angle_index, angle_index_eq31,
     view_interval,
 };
-use forestlod_tests::{cameras, card_tree, instances, params};
+use forestlod_tests::{cameras, card_tree, instances, params, property_config};
 use proptest::prelude::*;
 
 // ---------------------------------------------------------------------------------------------
@@ -208,7 +208,7 @@ fn billboard_layers(prepared: &Prepared, params: &Params, camera: &Camera) -> Ve
 const INSIDE_FRACTION: f32 = 0.99;
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+    #![proptest_config(property_config())]
 
     /// SPEC §7 "camera at or inside a batch sphere": the batch is drawn, always with LOD0 (its
     /// interval starts behind the eye, before any transition distance), never culled.
@@ -483,6 +483,16 @@ fn draw_distance_huge_culls_nothing_by_distance() {
     }
 }
 
+/// Parameters at `grid_size` with a small bake (2 angles, 16² textures) for the grid-size extremes.
+fn small_bake_params(grid_size: f32) -> Params {
+    Params {
+        grid_size,
+        angle_count: 2,
+        texture_size: 16,
+        ..Params::default()
+    }
+}
+
 /// SPEC §7 "grid size tiny": at 1 m, `tiny`'s 1,468 trees make 1,467 batches (one 1 m cell holds
 /// two trees of one species); at 0.5 m every batch holds one tree, and grouped selection then
 /// equals the per-tree oracle exactly (SPEC §6).
@@ -493,22 +503,13 @@ fn grid_size_tiny_gives_one_tree_per_batch() {
     let one_metre = forestlod_reference::batches::build_batches(&scene, &metas, 1.0).unwrap();
     assert_eq!(one_metre.metas.len(), scene.instances.len() - 1);
     assert_eq!(one_metre.metas.iter().map(|b| b.len).max(), Some(2));
-    let p = Params {
-        grid_size: 0.5,
-        angle_count: 2,
-        texture_size: 16,
-        ..Params::default()
-    };
+    let p = small_bake_params(0.5);
     let batches = forestlod_reference::batches::build_batches(&scene, &metas, p.grid_size).unwrap();
     assert_eq!(batches.metas.len(), scene.instances.len());
     assert!(batches.metas.iter().all(|b| b.len == 1));
     let cam = camera([-120.0, 0.0, 40.0], [1.0, 0.1, -0.25], 64);
     let grouped = batch_decisions(&batches.metas, &cam, &p);
-    let spheres: Vec<_> = scene
-        .instances
-        .iter()
-        .map(|t| tree_sphere(t, &metas[t.mesh as usize]))
-        .collect();
+    let spheres = forestlod_reference::baselines::tree_spheres(&scene, &metas);
     let oracle = forestlod_reference::select::select_per_tree(&spheres, &cam, &p);
     let u = SelectUniform::new(&cam, &p);
     for (b, meta) in batches.metas.iter().enumerate() {
@@ -536,12 +537,7 @@ fn grid_size_tiny_gives_one_tree_per_batch() {
 fn grid_size_huge_gives_one_batch_per_mesh_and_quadrant() {
     let scene = builtin::tiny();
     let metas = scene.mesh_metas();
-    let p = Params {
-        grid_size: 1.0e6,
-        angle_count: 2,
-        texture_size: 16,
-        ..Params::default()
-    };
+    let p = small_bake_params(1.0e6);
     let batches = forestlod_reference::batches::build_batches(&scene, &metas, p.grid_size).unwrap();
     let mut keys: Vec<(u32, bool, bool)> = scene
         .instances

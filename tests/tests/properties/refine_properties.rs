@@ -2,25 +2,16 @@
 //! commands. Each property runs at least 256 random scenes, cameras and parameters; the image
 //! tests render the same frames with and without refinement.
 
-use forestlod_reference::batches::build_batches;
-use forestlod_reference::geometry::pack_geometry;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::refine::refine;
-use forestlod_reference::scene::{builtin, tree_sphere};
+use forestlod_reference::scene::builtin;
 use forestlod_reference::select::{select, select_per_tree};
 use forestlod_shared::{LOD_MESH, Params, TreeCull};
-use forestlod_tests::{cameras, instances, params, scene_of, with_threads};
+use forestlod_tests::{Packed, cameras, instances, params, property_config, with_threads};
 use proptest::prelude::*;
 
-fn config() -> ProptestConfig {
-    ProptestConfig {
-        cases: 256,
-        ..ProptestConfig::default()
-    }
-}
-
 proptest! {
-    #![proptest_config(config())]
+    #![proptest_config(property_config())]
 
     /// Under `all` the (tree, LOD) pairs drawn are exactly the per-tree oracle's; under `lod0` the
     /// LOD0 pairs are the oracle's and the LOD1 commands are the batches' untouched. Refined
@@ -28,10 +19,7 @@ proptest! {
     /// trees that need the other LOD breaks the first assertion.
     #[test]
     fn refine_draws_the_per_tree_oracles_trees(trees in instances(300), camera in cameras(), p in params()) {
-        let scene = scene_of(trees);
-        let geometry = pack_geometry(&scene);
-        let spheres: Vec<_> = scene.instances.iter().map(|t| tree_sphere(t, &geometry.meshes[t.mesh as usize])).collect();
-        let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
+        let Packed { geometry, spheres, batches, .. } = Packed::new(trees, p.grid_size);
         let oracle = select_per_tree(&spheres, &camera, &p);
         let n = batches.indirection.len() as u32;
         for mode in [TreeCull::Lod0, TreeCull::All] {
@@ -78,10 +66,7 @@ proptest! {
     /// Identical output with 1 and 2 rayon threads.
     #[test]
     fn refine_is_thread_count_independent(trees in instances(300), camera in cameras(), p in params()) {
-        let scene = scene_of(trees);
-        let geometry = pack_geometry(&scene);
-        let spheres: Vec<_> = scene.instances.iter().map(|t| tree_sphere(t, &geometry.meshes[t.mesh as usize])).collect();
-        let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
+        let Packed { geometry, spheres, batches, .. } = Packed::new(trees, p.grid_size);
         let p = Params { tree_cull: TreeCull::All as u32, ..p };
         let run = || {
             let mut s = select(&batches.metas, &geometry.meshes, &geometry.billboard, &camera, &p);

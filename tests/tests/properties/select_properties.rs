@@ -1,26 +1,22 @@
 //! Properties of grouped selection (SPEC §6) against the per-tree oracle, on random scenes, cameras
 //! and parameters. Each property runs at least 256 cases.
 
+use forestlod_reference::baselines::tree_spheres;
 use forestlod_reference::batches::build_batches;
 use forestlod_reference::geometry::pack_geometry;
-use forestlod_reference::scene::tree_sphere;
 use forestlod_reference::select::{
     Decision, SelectUniform, batch_decisions, batching_counts, select, select_per_tree,
     tree_within_draw_distance,
 };
 use forestlod_shared::{COMMAND_SHIFT, LodNeeds, Params};
-use forestlod_tests::{cameras, instances, params, scene_of, with_threads};
+use forestlod_tests::{
+    AxisFrame, Packed, cameras, instances, params, property_config, scene_of, tree_at_x,
+    with_threads,
+};
 use proptest::prelude::*;
 
-fn config() -> ProptestConfig {
-    ProptestConfig {
-        cases: 256,
-        ..ProptestConfig::default()
-    }
-}
-
 proptest! {
-    #![proptest_config(config())]
+    #![proptest_config(property_config())]
 
     /// The key property: every LOD a tree needs by its own bounding sphere has a command for its
     /// batch, and no tree the oracle draws sits in a culled batch.
@@ -30,7 +26,7 @@ proptest! {
         let metas = scene.mesh_metas();
         let batches = build_batches(&scene, &metas, p.grid_size).unwrap();
         let grouped = batch_decisions(&batches.metas, &camera, &p);
-        let spheres: Vec<_> = scene.instances.iter().map(|t| tree_sphere(t, &metas[t.mesh as usize])).collect();
+        let spheres = tree_spheres(&scene, &metas);
         let oracle = select_per_tree(&spheres, &camera, &p);
         let mut drawn = 0;
         for (b, meta) in batches.metas.iter().enumerate() {
@@ -63,7 +59,7 @@ proptest! {
         prop_assume!(batches.metas.iter().all(|b| b.len == 1));
         let u = SelectUniform::new(&camera, &p);
         let grouped = batch_decisions(&batches.metas, &camera, &p);
-        let spheres: Vec<_> = scene.instances.iter().map(|t| tree_sphere(t, &metas[t.mesh as usize])).collect();
+        let spheres = tree_spheres(&scene, &metas);
         let oracle = select_per_tree(&spheres, &camera, &p);
         for (b, meta) in batches.metas.iter().enumerate() {
             let tree = batches.indirection[meta.offset as usize] as usize;
@@ -104,10 +100,7 @@ proptest! {
     /// the view. Mutation-checked: counting `has1` from LOD0 commands makes the second part fail.
     #[test]
     fn batching_counts_are_conservative_and_vanish_for_single_tree_batches(trees in instances(300), camera in cameras(), p in params()) {
-        let scene = scene_of(trees);
-        let geometry = pack_geometry(&scene);
-        let spheres: Vec<_> = scene.instances.iter().map(|t| tree_sphere(t, &geometry.meshes[t.mesh as usize])).collect();
-        let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
+        let Packed { scene, geometry, spheres, batches } = Packed::new(trees, p.grid_size);
         let s = select(&batches.metas, &geometry.meshes, &geometry.billboard, &camera, &p);
         let c = batching_counts(&spheres, &batches.indirection, &s, &camera, &p);
         prop_assert_eq!(c.trees_missing_lod, 0, "{:?}", c);
@@ -143,27 +136,8 @@ proptest! {
 /// LOD0 range gets only LOD0.
 #[test]
 fn straddling_batches_emit_both_lods() {
-    use forestlod_reference::scene::Instance;
-    let tree = |x: f32| Instance {
-        position: [x, 0.0, 0.0],
-        yaw: 0.0,
-        scale: 1.0,
-        mesh: 0,
-    };
     // Grid 500 m: cell 1 holds trees at 600 m and 990 m (band is 750..1000 m), cell 0 one at 100 m.
-    let scene = scene_of(vec![tree(100.0), tree(600.0), tree(990.0)]);
-    let geometry = pack_geometry(&scene);
-    let p = Params::default();
-    let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
-    let camera =
-        forestlod_shared::Camera::look_at([0.0, 0.0, 5.0], [100.0, 0.0, 5.0], 60.0, 64, 64);
-    let s = select(
-        &batches.metas,
-        &geometry.meshes,
-        &geometry.billboard,
-        &camera,
-        &p,
-    );
+    let s = AxisFrame::new(vec![tree_at_x(100.0), tree_at_x(600.0), tree_at_x(990.0)]).select();
     let lods: Vec<_> = s.data.iter().map(|d| (d.batch, d.lod, d.fading)).collect();
     assert_eq!(lods, vec![(0, 0, 0), (1, 0, 1), (1, 1, 1)]);
     assert_eq!(s.counters.transition_batches, 1);
