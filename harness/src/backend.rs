@@ -1,5 +1,6 @@
-//! "One test body, several backends" (SPEC §8): the reference and the GPU twins behind one trait,
-//! so a parity test runs the same body over every backend and compares each with the reference.
+//! The GPU side of "one test body, several backends" (SPEC §8): the GPU backends of `select` and
+//! `draw` ([`crate::stage::Backend`]), the reference-to-GPU bridge they and the CLI use, and the
+//! sweeps' per-scene GPU runner.
 //!
 //! The GPU context is created once per test binary ([`gpu_context`]): device creation on lavapipe
 //! costs about half a second, and proptest runs hundreds of cases.
@@ -11,8 +12,10 @@ use forestlod_gpu::select::{
     DECISION_LOD0, DECISION_LOD1,
 };
 use forestlod_gpu::{Compaction, GpuContext, GpuSelect, gpu_or_explain};
-use forestlod_reference::select::{Decision, Selection, batch_decisions, select};
-use forestlod_shared::{BatchMeta, Camera, LodNeeds, MeshMeta, Params};
+use forestlod_reference::select::{Decision, Selection};
+use forestlod_shared::{Camera, LodNeeds, Params};
+
+use crate::stage::{Backend, Draw, FrameInput, Reference, Select, SelectInput};
 
 /// The shared GPU context of this test binary, or `None` when no adapter exists and
 /// `FORESTLOD_ALLOW_NO_GPU=1` (without it, the first call panics with the install hint).
@@ -37,74 +40,26 @@ pub struct BackendSelection {
     pub decisions: Vec<Decision>,
 }
 
-/// A `select` implementation: the reference or a GPU twin.
-pub trait SelectBackend {
-    /// Name for reports, e.g. `gpu-stable`.
-    fn name(&self) -> String;
-    /// Whether commands come out in the reference's order (else: compare as a multiset).
-    fn ordered(&self) -> bool;
-    /// Runs selection for one frame.
-    fn select(
-        &self,
-        batches: &[BatchMeta],
-        meshes: &[MeshMeta],
-        billboard: &MeshMeta,
-        camera: &Camera,
-        params: &Params,
-    ) -> BackendSelection;
-}
-
-/// The CPU oracle, `forestlod_reference::select`.
-pub struct ReferenceBackend;
-
-impl SelectBackend for ReferenceBackend {
-    fn name(&self) -> String {
-        "reference".into()
-    }
-    fn ordered(&self) -> bool {
-        true
-    }
-    fn select(
-        &self,
-        batches: &[BatchMeta],
-        meshes: &[MeshMeta],
-        billboard: &MeshMeta,
-        camera: &Camera,
-        params: &Params,
-    ) -> BackendSelection {
-        BackendSelection {
-            selection: select(batches, meshes, billboard, camera, params),
-            decisions: batch_decisions(batches, camera, params),
-        }
-    }
-}
-
-/// `select.wgsl` with one of its compactions.
-pub struct GpuBackend {
+/// `select.wgsl` with one of its compactions: a [`Backend<Select>`].
+pub struct GpuSelectBackend {
     /// The shared context.
     pub ctx: &'static GpuContext,
     /// Which compaction.
     pub compaction: Compaction,
 }
 
-impl SelectBackend for GpuBackend {
+impl Backend<Select> for GpuSelectBackend {
     fn name(&self) -> String {
         format!("gpu-{}", self.compaction.name())
     }
     fn ordered(&self) -> bool {
         self.compaction == Compaction::Stable
     }
-    fn select(
-        &self,
-        batches: &[BatchMeta],
-        meshes: &[MeshMeta],
-        billboard: &MeshMeta,
-        camera: &Camera,
-        params: &Params,
-    ) -> BackendSelection {
-        let mut gpu = GpuSelect::new(self.ctx, batches, meshes, billboard).expect("GpuSelect::new");
+    fn run(&self, i: SelectInput<'_>) -> BackendSelection {
+        let mut gpu =
+            GpuSelect::new(self.ctx, i.batches, i.meshes, i.billboard).expect("GpuSelect::new");
         let out = gpu
-            .run(camera, params, self.compaction)
+            .run(i.camera, i.params, self.compaction)
             .expect("GpuSelect::run");
         let decisions = gpu
             .read_decisions()
@@ -138,12 +93,12 @@ pub fn decode_decision(code: u32) -> Decision {
 
 /// The GPU backends (stable and atomic compaction), empty when no adapter exists and
 /// `FORESTLOD_ALLOW_NO_GPU=1`.
-pub fn gpu_backends() -> Vec<GpuBackend> {
+pub fn gpu_backends() -> Vec<GpuSelectBackend> {
     gpu_context()
         .map(|ctx| {
             Compaction::ALL
                 .iter()
-                .map(|&compaction| GpuBackend { ctx, compaction })
+                .map(|&compaction| GpuSelectBackend { ctx, compaction })
                 .collect()
         })
         .unwrap_or_default()
@@ -226,28 +181,6 @@ impl StagesFromCpu {
     }
 }
 
-/// A `draw` implementation: renders one frame of a prepared scene.
-pub trait Renderer {
-    /// Name for reports, e.g. `gpu(from-cpu: select,textures)`.
-    fn name(&self) -> String;
-    /// Renders one frame. `camera` and `params` are valid and `params` is what `prepared` was
-    /// prepared with.
-    fn render(&self, prepared: &Prepared, camera: &Camera, params: &Params) -> Images;
-}
-
-/// The CPU oracle: `Prepared::render` (select, then `draw_frame`).
-pub struct ReferenceRenderer;
-
-impl Renderer for ReferenceRenderer {
-    fn name(&self) -> String {
-        "reference".into()
-    }
-    fn render(&self, prepared: &Prepared, camera: &Camera, params: &Params) -> Images {
-        let frame = prepared.render(camera, params).expect("reference render");
-        images_of(&frame.drawn.target)
-    }
-}
-
 /// The reference frames with the alpha-test cutoff moved by each of
 /// `±image_compare::ALPHA_TEST_SHIFTS`: the alternatives that classify threshold-ambiguous
 /// pixels (`image_compare` module docs).
@@ -264,7 +197,14 @@ pub fn alpha_test_alternatives(
                 alpha_cutoff: (params.alpha_cutoff + d).clamp(0.0, 1.0),
                 ..*params
             };
-            ReferenceRenderer.render(prepared, camera, &p)
+            Backend::<Draw>::run(
+                &Reference,
+                FrameInput {
+                    prepared,
+                    camera,
+                    params: &p,
+                },
+            )
         })
         .collect()
 }
@@ -520,7 +460,7 @@ pub fn gpu_draw(ctx: &'static GpuContext) -> &'static GpuDraw {
     DRAW.get_or_init(|| GpuDraw::new(ctx).expect("GpuDraw::new"))
 }
 
-/// `draw.wgsl` fed by the chosen stages.
+/// `draw.wgsl` fed by the chosen stages: a [`Backend<Draw>`].
 pub struct GpuRenderer {
     /// The shared context.
     pub ctx: &'static GpuContext,
@@ -528,17 +468,17 @@ pub struct GpuRenderer {
     pub from_cpu: StagesFromCpu,
 }
 
-impl Renderer for GpuRenderer {
+impl Backend<Draw> for GpuRenderer {
     fn name(&self) -> String {
         format!("gpu(from-cpu: {})", self.from_cpu.name())
     }
-    fn render(&self, prepared: &Prepared, camera: &Camera, params: &Params) -> Images {
+    fn run(&self, i: FrameInput<'_>) -> Images {
         render_gpu(
             self.ctx,
             gpu_draw(self.ctx),
-            prepared,
-            camera,
-            params,
+            i.prepared,
+            i.camera,
+            i.params,
             self.from_cpu,
         )
         .unwrap_or_else(|e| panic!("{}: {e}", self.name()))

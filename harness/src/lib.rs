@@ -5,9 +5,10 @@
 //! - [`backend`]: the reference-to-GPU bridge (a prepared scene's buffers and textures converted to
 //!   the GPU's types), frame orchestration on the GPU (`render_gpu`, the sweep runner's
 //!   `GpuSweepScene`), `StagesFromCpu` (which GPU stages take the reference's output, the CLI's
-//!   `--stage-from-cpu`), and the select and render backend traits ("one test body, several
-//!   backends", SPEC §8);
-//! - [`texel_compare`]: the mips and bake backends and the RGBA8 texel tally (SPEC §5.1, §5.2);
+//!   `--stage-from-cpu`), and the GPU backends of select and draw;
+//! - [`stage`]: the one family of backend traits, `Backend<S: Stage>` for every stage, and the
+//!   reference backend of every stage ("one test body, several backends", SPEC §8);
+//! - [`texel_compare`]: the GPU mips and bake backends and the RGBA8 texel tally (SPEC §5.1, §5.2);
 //! - [`image_compare`]: the image parity classes, every tolerance a named constant (SPEC §8).
 //!
 //! Rules:
@@ -22,4 +23,5 @@
 
 pub mod backend;
 pub mod image_compare;
+pub mod stage;
 pub mod texel_compare;

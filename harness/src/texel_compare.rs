@@ -6,11 +6,12 @@
 //!   per-channel difference and the first offender, so every parity test can report "how many,
 //!   how far" (SPEC §8: "RGBA8 texels within ±1 per channel, with the count and maximum of
 //!   differences reported").
-//! - [`MipsBackend`] builds mip chains from level-0 layers: [`ReferenceMips`]
-//!   (`forestlod_reference::mips::build_mip_array`) or [`GpuMipsBackend`] (`mips.wgsl` on the
-//!   same level 0, uploaded from the CPU), both returning [`LevelOut`]s in the reference's terms.
-//! - [`BakeBackend`] renders level 0 of every layer: [`ReferenceBake`]
-//!   (`forestlod_reference::bake::bake_layer`) or [`GpuBakeBackend`] (`bake.wgsl`).
+//! - The [`Mips`] stage builds mip chains from level-0 layers: [`Reference`](crate::stage::Reference)
+//!   ([`reference_mip_chains`]) or [`GpuMipsBackend`] (`mips.wgsl` on the same level 0, uploaded
+//!   from the CPU), both returning [`LevelOut`]s in the reference's terms.
+//! - The [`Bake`] stage renders level 0 of every layer: [`Reference`](crate::stage::Reference)
+//!   ([`reference_bake_level0`])
+//!   or [`GpuBakeBackend`] (`bake.wgsl`).
 //!
 //! The GPU pipelines are compiled once per test binary ([`gpu_bake`]) on the shared context of
 //! [`crate::backend::gpu_context`].
@@ -27,6 +28,8 @@ use forestlod_reference::scene::TreeMesh;
 use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::MipMode;
 use rayon::prelude::*;
+
+use crate::stage::{Backend, Bake, BakeInput, Mips, MipsInput};
 
 use crate::backend::gpu_context;
 
@@ -116,42 +119,32 @@ pub struct LevelOut {
     pub pass_count: u64,
 }
 
-/// A `mips` implementation: level-0 layers in, every level of every layer out.
-pub trait MipsBackend {
-    /// Name for reports.
-    fn name(&self) -> String;
-    /// Builds the chains of `layers` (equal square power-of-two sizes): `[layer][level]`.
-    fn build(&self, layers: &[Rgba8Image], mode: MipMode, alpha_ref: f32) -> Vec<Vec<LevelOut>>;
+/// The CPU oracle's chains, `forestlod_reference::mips::build_mip_array`, as [`LevelOut`]s (the
+/// [`Reference`](crate::stage::Reference) backend of [`Mips`]).
+pub fn reference_mip_chains(
+    layers: &[Rgba8Image],
+    mode: MipMode,
+    alpha_ref: f32,
+) -> Vec<Vec<LevelOut>> {
+    build_mip_array(layers, mode, alpha_ref)
+        .expect("build_mip_array")
+        .into_iter()
+        .map(|chain| {
+            chain
+                .levels
+                .into_iter()
+                .map(|l| LevelOut {
+                    image: l.rgba8,
+                    raw_alpha_range: l.raw_alpha_range,
+                    adjust: l.adjust,
+                    pass_count: l.alpha_test_pass_count,
+                })
+                .collect()
+        })
+        .collect()
 }
 
-/// The CPU oracle, `forestlod_reference::mips`.
-pub struct ReferenceMips;
-
-impl MipsBackend for ReferenceMips {
-    fn name(&self) -> String {
-        "reference".into()
-    }
-    fn build(&self, layers: &[Rgba8Image], mode: MipMode, alpha_ref: f32) -> Vec<Vec<LevelOut>> {
-        build_mip_array(layers, mode, alpha_ref)
-            .expect("build_mip_array")
-            .into_iter()
-            .map(|chain| {
-                chain
-                    .levels
-                    .into_iter()
-                    .map(|l| LevelOut {
-                        image: l.rgba8,
-                        raw_alpha_range: l.raw_alpha_range,
-                        adjust: l.adjust,
-                        pass_count: l.alpha_test_pass_count,
-                    })
-                    .collect()
-            })
-            .collect()
-    }
-}
-
-/// `mips.wgsl` on level 0 uploaded from the CPU (`GpuMips::run_from_cpu`).
+/// `mips.wgsl` on level 0 uploaded from the CPU (`GpuMips::run_from_cpu`): a [`Backend<Mips>`].
 pub struct GpuMipsBackend {
     /// The compiled stages.
     pub bake: &'static GpuBake<'static>,
@@ -172,11 +165,16 @@ pub fn adjust_of(stats: &MipLevelStats) -> AlphaAdjust {
     }
 }
 
-impl MipsBackend for GpuMipsBackend {
+impl Backend<Mips> for GpuMipsBackend {
     fn name(&self) -> String {
         "gpu".into()
     }
-    fn build(&self, layers: &[Rgba8Image], mode: MipMode, alpha_ref: f32) -> Vec<Vec<LevelOut>> {
+    fn run(&self, i: MipsInput<'_>) -> Vec<Vec<LevelOut>> {
+        let MipsInput {
+            layers,
+            mode,
+            alpha_ref,
+        } = i;
         let ctx = self.bake.mips().context();
         let side = layers[0].width;
         let texels: Vec<&[[u8; 4]]> = layers.iter().map(|l| l.texels.as_slice()).collect();
@@ -213,46 +211,31 @@ impl MipsBackend for GpuMipsBackend {
     }
 }
 
-/// A `bake` implementation: level 0 of every layer `mesh * K + k`.
-pub trait BakeBackend {
-    /// Name for reports.
-    fn name(&self) -> String;
-    /// Bakes `meshes` from `angle_count` angles at `side x side`.
-    fn bake_level0(&self, meshes: &[TreeMesh], angle_count: u32, side: u32) -> Vec<Rgba8Image>;
+/// The CPU oracle's level 0 of every layer, `forestlod_reference::bake::bake_layer` per layer
+/// (the [`Reference`](crate::stage::Reference) backend of [`Bake`]; level 0 of the mesh texture is all the bake samples).
+pub fn reference_bake_level0(meshes: &[TreeMesh], angle_count: u32, side: u32) -> Vec<Rgba8Image> {
+    let textures: Vec<Texture> = meshes
+        .iter()
+        .map(|m| Texture::new(vec![m.texture.clone()]).expect("mesh texture"))
+        .collect();
+    let jobs: Vec<(usize, u32)> = (0..meshes.len())
+        .flat_map(|m| (0..angle_count).map(move |k| (m, k)))
+        .collect();
+    jobs.par_iter()
+        .map(|&(m, k)| {
+            bake_layer(
+                &meshes[m],
+                &meshes[m].meta(),
+                &textures[m],
+                k,
+                angle_count,
+                side,
+            )
+        })
+        .collect()
 }
 
-/// The CPU oracle, `forestlod_reference::bake::bake_layer` per layer (level 0 of the mesh
-/// texture is all the bake samples).
-pub struct ReferenceBake;
-
-impl BakeBackend for ReferenceBake {
-    fn name(&self) -> String {
-        "reference".into()
-    }
-    fn bake_level0(&self, meshes: &[TreeMesh], angle_count: u32, side: u32) -> Vec<Rgba8Image> {
-        let textures: Vec<Texture> = meshes
-            .iter()
-            .map(|m| Texture::new(vec![m.texture.clone()]).expect("mesh texture"))
-            .collect();
-        let jobs: Vec<(usize, u32)> = (0..meshes.len())
-            .flat_map(|m| (0..angle_count).map(move |k| (m, k)))
-            .collect();
-        jobs.par_iter()
-            .map(|&(m, k)| {
-                bake_layer(
-                    &meshes[m],
-                    &meshes[m].meta(),
-                    &textures[m],
-                    k,
-                    angle_count,
-                    side,
-                )
-            })
-            .collect()
-    }
-}
-
-/// `bake.wgsl`, level 0 read back before the mips stage.
+/// `bake.wgsl`, level 0 read back before the mips stage: a [`Backend<Bake>`].
 pub struct GpuBakeBackend {
     /// The compiled stages.
     pub bake: &'static GpuBake<'static>,
@@ -271,11 +254,16 @@ pub fn bake_mesh(mesh: &TreeMesh) -> BakeMesh<'_> {
     }
 }
 
-impl BakeBackend for GpuBakeBackend {
+impl Backend<Bake> for GpuBakeBackend {
     fn name(&self) -> String {
         "gpu".into()
     }
-    fn bake_level0(&self, meshes: &[TreeMesh], angle_count: u32, side: u32) -> Vec<Rgba8Image> {
+    fn run(&self, i: BakeInput<'_>) -> Vec<Rgba8Image> {
+        let BakeInput {
+            meshes,
+            angle_count,
+            side,
+        } = i;
         let ctx = self.bake.mips().context();
         let inputs: Vec<BakeMesh<'_>> = meshes.iter().map(bake_mesh).collect();
         let texture = self

@@ -41,9 +41,9 @@
 use std::time::Instant;
 
 use forestlod_gpu::GpuError;
+use forestlod_harness::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Reference};
 use forestlod_harness::texel_compare::{
-    BakeBackend, GpuBakeBackend, MipsBackend, ReferenceBake, ReferenceMips, TexelTally, bake_mesh,
-    channel_diff, gpu_bake,
+    GpuBakeBackend, TexelTally, bake_mesh, channel_diff, gpu_bake,
 };
 use forestlod_reference::bake::bake_clip;
 use forestlod_reference::sampler::Texture;
@@ -350,13 +350,18 @@ struct BakeTally {
 
 /// The one test body: both backends bake `meshes`; the GPU judged pixel by pixel.
 fn check_bake(
-    gpu: &GpuBakeBackend,
+    gpu: &dyn Backend<Bake>,
     meshes: &[TreeMesh],
     angle_count: u32,
     r: u32,
 ) -> (BakeTally, Vec<Rgba8Image>) {
-    let want = ReferenceBake.bake_level0(meshes, angle_count, r);
-    let got = gpu.bake_level0(meshes, angle_count, r);
+    let input = BakeInput {
+        meshes,
+        angle_count,
+        side: r,
+    };
+    let want = Backend::<Bake>::run(&Reference, input);
+    let got = gpu.run(input);
     assert_eq!(got.len(), want.len());
     let mut tally = BakeTally::default();
     for (layer, (g, w)) in got.iter().zip(&want).enumerate() {
@@ -473,7 +478,14 @@ fn run(angle_count: u32, r: u32, full_path: bool) {
         let baked = bake.bake(&inputs, &params).expect("GpuBake::bake");
         assert_eq!(baked.extents.len(), gpu_layers.len());
         let chains = baked.mips.read_chains(ctx).expect("read chains");
-        let want = ReferenceMips.build(&gpu_layers, mode, params.alpha_cutoff);
+        let want = Backend::<Mips>::run(
+            &Reference,
+            MipsInput {
+                layers: &gpu_layers,
+                mode,
+                alpha_ref: params.alpha_cutoff,
+            },
+        );
         let mut texels = TexelTally::default();
         for (layer, (g, w)) in chains.iter().zip(&want).enumerate() {
             assert_eq!(

@@ -24,10 +24,11 @@ use std::time::Instant;
 
 use forestlod_gpu::{Compaction, DrawIndirectArgs, GpuCull};
 use forestlod_harness::backend::{
-    GpuSweepScene, GpuVariant, ReferenceRenderer, Renderer, alpha_test_alternatives, cull_trees,
-    cull_trees_of, gpu_context, images_of, primitive_alternatives, vegetation_alternatives,
+    GpuSweepScene, GpuVariant, alpha_test_alternatives, cull_trees, cull_trees_of, gpu_context,
+    images_of, primitive_alternatives, vegetation_alternatives,
 };
 use forestlod_harness::image_compare::{MaxDiffs, judge_image, print_max_diffs};
+use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_reference::baselines::{
     self, Proxy, primitive_quad, proxies, render_primitive, render_vegetation, tree_spheres,
     vegetation_commands, visible_trees,
@@ -563,7 +564,14 @@ fn sweep_runner_renders_ours_like_the_reference() {
     let p = tiny_params(FadeMode::Alpha);
     let prepared = prepare(tiny.clone(), &p).expect("prepare tiny");
     let camera = named_camera("medium", &tiny, 0.0, 96, 96).unwrap();
-    let want = ReferenceRenderer.render(&prepared, &camera, &p);
+    let want = Backend::<Draw>::run(
+        &Reference,
+        FrameInput {
+            prepared: &prepared,
+            camera: &camera,
+            params: &p,
+        },
+    );
     let alternatives = alpha_test_alternatives(&prepared, &camera, &p);
     let commands = prepared.select(&camera, &p).commands.len() as u64;
     let mut sweep = GpuSweepScene::new(ctx, &prepared, &p).expect("GpuSweepScene::new");

@@ -24,10 +24,11 @@ use std::time::Instant;
 use forestlod_gpu::draw::{DrawTarget, GpuDraw, IndirectMode};
 use forestlod_gpu::{Compaction, DrawInputs, DrawScene, DrawTextures, GpuSelect};
 use forestlod_harness::backend::{
-    DrawSceneData, GpuRenderer, ReferenceRenderer, Renderer, StagesFromCpu,
-    alpha_test_alternatives, gpu_context, gpu_draw, render_gpu, upload_reference_textures,
+    DrawSceneData, GpuRenderer, StagesFromCpu, alpha_test_alternatives, gpu_context, gpu_draw,
+    render_gpu, upload_reference_textures,
 };
 use forestlod_harness::image_compare::{Images, compare_images, write_failure_images};
+use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::builtin;
 use forestlod_shared::{Camera, FadeMode, Params};
@@ -106,7 +107,7 @@ fn gpu_draw_matches_the_reference() {
         prepared.len(),
         start.elapsed().as_secs_f64()
     );
-    let backends: Vec<Box<dyn Renderer>> = vec![
+    let backends: Vec<Box<dyn Backend<Draw>>> = vec![
         Box::new(GpuRenderer {
             ctx,
             from_cpu: StagesFromCpu::ALL,
@@ -127,12 +128,17 @@ fn gpu_draw_matches_the_reference() {
     for s in &scenarios {
         let p = &prepared[s.prepared_key];
         let t = Instant::now();
-        let want = ReferenceRenderer.render(p, &s.camera, &s.params);
+        let input = FrameInput {
+            prepared: p,
+            camera: &s.camera,
+            params: &s.params,
+        };
+        let want = Backend::<Draw>::run(&Reference, input);
         let reference_seconds = t.elapsed().as_secs_f64();
         let alternatives = alpha_test_alternatives(p, &s.camera, &s.params);
         for backend in &backends {
             let t = Instant::now();
-            let got = backend.render(p, &s.camera, &s.params);
+            let got = backend.run(input);
             let gpu_seconds = t.elapsed().as_secs_f64();
             let name = format!("{}/{}", s.name, backend.name());
             let report = compare_images(&name, &got, &want, &alternatives, &s.camera);
@@ -180,7 +186,14 @@ fn one_draw_call_and_stale_slots_past_the_count_are_ignored() {
         0 < n_second && n_second < n_first,
         "{n_second} vs {n_first} commands"
     );
-    let want = ReferenceRenderer.render(&prepared, &camera, &params);
+    let want = Backend::<Draw>::run(
+        &Reference,
+        FrameInput {
+            prepared: &prepared,
+            camera: &camera,
+            params: &params,
+        },
+    );
     let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
 
     let data = DrawSceneData::new(&prepared);

@@ -30,10 +30,8 @@ use forestlod_gpu::mips::{
     TABLE_SRGB_DECODE, TABLE_SRGB_ENCODE, TABLE_UNORM_DECODE, TABLE_UNORM_ENCODE, encode_byte,
     mip_tables,
 };
-use forestlod_harness::texel_compare::{
-    BakeBackend, GpuMipsBackend, LevelOut, MipsBackend, ReferenceBake, ReferenceMips, TexelTally,
-    gpu_bake,
-};
+use forestlod_harness::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Reference};
+use forestlod_harness::texel_compare::{GpuMipsBackend, LevelOut, TexelTally, gpu_bake};
 use forestlod_reference::mips::AlphaAdjust;
 use forestlod_reference::scene::builtin::species_meshes;
 use forestlod_reference::texture::{Rgba8Image, linear_to_srgb, srgb_to_linear, unorm8};
@@ -175,14 +173,19 @@ fn judge(
 /// The one test body: both backends on `layers` in `mode`; the GPU judged against the reference.
 fn check(
     what: &str,
-    gpu: &GpuMipsBackend,
+    gpu: &dyn Backend<Mips>,
     layers: &[Rgba8Image],
     mode: MipMode,
     alpha_ref: f32,
     tally: &mut Tally,
 ) -> Result<(), TestCaseError> {
-    let want = ReferenceMips.build(layers, mode, alpha_ref);
-    let got = gpu.build(layers, mode, alpha_ref);
+    let input = MipsInput {
+        layers,
+        mode,
+        alpha_ref,
+    };
+    let want = Backend::<Mips>::run(&Reference, input);
+    let got = gpu.run(input);
     judge(what, mode, alpha_ref, &got, &want, tally)
 }
 
@@ -378,7 +381,14 @@ fn gpu_mips_equal_the_reference_on_baked_species() {
     };
     let started = Instant::now();
     // The reference's baked layers of the five built-in species, r = 128, K = 10.
-    let layers = ReferenceBake.bake_level0(&species_meshes(), 10, 128);
+    let layers = Backend::<Bake>::run(
+        &Reference,
+        BakeInput {
+            meshes: &species_meshes(),
+            angle_count: 10,
+            side: 128,
+        },
+    );
     assert_eq!(layers.len(), 50);
     let mut tally = Tally::default();
     for mode in MipMode::ALL {

@@ -19,9 +19,8 @@ use std::collections::BTreeSet;
 use std::time::Instant;
 
 use forestlod_gpu::{Compaction, GpuSelect, SelectBuffers};
-use forestlod_harness::backend::{
-    BackendSelection, GpuBackend, ReferenceBackend, SelectBackend, gpu_backends, gpu_context,
-};
+use forestlod_harness::backend::{BackendSelection, GpuSelectBackend, gpu_backends, gpu_context};
+use forestlod_harness::stage::{Backend, Reference, Select, SelectInput};
 use forestlod_reference::batches::build_batches;
 use forestlod_reference::geometry::pack_geometry;
 use forestlod_reference::scene::Instance;
@@ -122,7 +121,7 @@ fn counters_of(decisions: &[Decision], batches: &[BatchMeta]) -> SelectCounters 
 /// Judges `got` (from `backend`) against the reference `want`; updates `tally`.
 #[allow(clippy::too_many_arguments)]
 fn judge(
-    backend: &dyn SelectBackend,
+    backend: &dyn Backend<Select>,
     want: &BackendSelection,
     got: &BackendSelection,
     batches: &[BatchMeta],
@@ -269,23 +268,30 @@ fn check_case(
     trees: Vec<Instance>,
     camera: &Camera,
     p: &Params,
-    backends: &[GpuBackend],
+    backends: &[GpuSelectBackend],
     tallies: &mut [Tally],
 ) -> Result<(), TestCaseError> {
     let scene = scene_of(trees);
     let geometry = pack_geometry(&scene);
     let batches = build_batches(&scene, &geometry.meshes, p.grid_size).unwrap();
     let (metas, meshes, billboard) = (&batches.metas, &geometry.meshes, &geometry.billboard);
-    let want = ReferenceBackend.select(metas, meshes, billboard, camera, p);
+    let input = SelectInput {
+        batches: metas,
+        meshes,
+        billboard,
+        camera,
+        params: p,
+    };
+    let want = Backend::<Select>::run(&Reference, input);
     let u = SelectUniform::new(camera, p);
     for (backend, tally) in backends.iter().zip(tallies.iter_mut()) {
-        let got = backend.select(metas, meshes, billboard, camera, p);
+        let got = backend.run(input);
         judge(backend, &want, &got, metas, meshes, billboard, &u, tally)?;
     }
     Ok(())
 }
 
-fn report(what: &str, backends: &[GpuBackend], tallies: &[Tally], started: Instant) {
+fn report(what: &str, backends: &[GpuSelectBackend], tallies: &[Tally], started: Instant) {
     for (backend, t) in backends.iter().zip(tallies) {
         eprintln!(
             "{what} {}: {} cases run incl. any shrinking ({} exact, {} with ambiguous batches), \
@@ -309,7 +315,7 @@ fn run_property<S: Strategy>(
     what: &str,
     cases: u32,
     strategy: S,
-    body: impl Fn(S::Value, &[GpuBackend], &mut [Tally]) -> Result<(), TestCaseError>,
+    body: impl Fn(S::Value, &[GpuSelectBackend], &mut [Tally]) -> Result<(), TestCaseError>,
 ) where
     S::Value: std::fmt::Debug,
 {
@@ -501,13 +507,13 @@ fn straddling_batches_emit_both_lods_on_the_gpu() {
     } = AxisFrame::new(vec![tree_at_x(100.0), tree_at_x(600.0), tree_at_x(990.0)]);
     for backend in gpu_backends() {
         let s = backend
-            .select(
-                &batches.metas,
-                &geometry.meshes,
-                &geometry.billboard,
-                &camera,
-                &p,
-            )
+            .run(SelectInput {
+                batches: &batches.metas,
+                meshes: &geometry.meshes,
+                billboard: &geometry.billboard,
+                camera: &camera,
+                params: &p,
+            })
             .selection;
         let mut lods: Vec<_> = s.data.iter().map(|d| (d.batch, d.lod, d.fading)).collect();
         lods.sort_unstable();

@@ -5,13 +5,14 @@
 //! merge, so the vertex outputs (positions and varyings, the only source of fragment inputs) are
 //! checked instead. README "Numerical extremes" lists every case with its outcome.
 //!
-//! **GPU hook.** [`ExtremesBackend`] is the seam for the wgpu twins: each whole-frame extreme runs
+//! **GPU hook.** `Backend<Frame>` is the seam for the wgpu twins: each whole-frame extreme runs
 //! through [`backends`], which today returns the reference only. When the GPU draw pipeline lands,
 //! an implementation pushed there runs every frame-level case unchanged (SPEC §8 tolerances apply).
 //!
 //! Scenes are small (`single`, `pair`, card-tree rows, `tiny` only where a forest is the point),
 //! viewports at most 128 x 128, billboards at most 32² unless the texture size is the extreme.
 
+use forestlod_harness::stage::{Backend, Reference, Stage};
 use forestlod_reference::draw::{
     LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION, tree_triangles,
 };
@@ -47,32 +48,23 @@ struct FrameBuffers {
     lod: Vec<u32>,
 }
 
-/// A pipeline that can render one frame of a scene: the reference, and later the GPU twins.
-trait ExtremesBackend {
-    /// Name for failure messages.
-    fn name(&self) -> &'static str;
-    /// Prepares `scene` with `params` and renders one frame from `camera`; `Err` names the
-    /// rejected field or value.
-    fn render(
-        &self,
-        scene: &Scene,
-        params: &Params,
-        camera: &Camera,
-    ) -> Result<FrameBuffers, String>;
+/// A whole frame from a scene (prepare, select, draw): this file's stage of the harness's one
+/// backend family (`forestlod_harness::stage`). `Err` names the rejected field or value.
+struct Frame;
+
+impl Stage for Frame {
+    type Input<'a> = (&'a Scene, &'a Params, &'a Camera);
+    type Output = Result<FrameBuffers, String>;
 }
 
 /// The CPU oracle. Besides the buffers it checks every vertex the draw stage emits for NaN.
-struct Reference;
-
-impl ExtremesBackend for Reference {
-    fn name(&self) -> &'static str {
-        "reference"
+impl Backend<Frame> for Reference {
+    fn name(&self) -> String {
+        "reference".into()
     }
-    fn render(
+    fn run(
         &self,
-        scene: &Scene,
-        params: &Params,
-        camera: &Camera,
+        (scene, params, camera): (&Scene, &Params, &Camera),
     ) -> Result<FrameBuffers, String> {
         let prepared = prepare(scene.clone(), params).map_err(|e| e.to_string())?;
         render_prepared(&prepared, params, camera)
@@ -80,7 +72,7 @@ impl ExtremesBackend for Reference {
 }
 
 /// The backends every frame-level extreme runs on (see the module docs).
-fn backends() -> Vec<Box<dyn ExtremesBackend>> {
+fn backends() -> Vec<Box<dyn Backend<Frame>>> {
     vec![Box::new(Reference)]
 }
 
@@ -252,8 +244,8 @@ fn camera_at_a_sphere_centre_renders_without_nan() {
         };
         let cam = camera(center, [1.0, 0.2, 0.0], 64);
         for backend in backends() {
-            let b = backend.render(&scene, &p, &cam).unwrap();
-            assert_finite(&b, backend.name());
+            let b = backend.run((&scene, &p, &cam)).unwrap();
+            assert_finite(&b, &backend.name());
             // Batches sort by mesh first: the spruce (mesh 0) batch is batch 0.
             assert!(
                 b.selection.data.iter().any(|d| d.lod == 0 && d.batch == 0),
@@ -351,8 +343,8 @@ fn zero_length_view_vector_at_a_tree_base() {
         let layers = billboard_layers(&prepared, &p, &cam);
         assert!(layers.iter().all(|&l| l == 0), "{mode:?}: {layers:?}");
         for backend in backends() {
-            let b = backend.render(&scene, &p, &cam).unwrap();
-            assert_finite(&b, backend.name());
+            let b = backend.run((&scene, &p, &cam)).unwrap();
+            assert_finite(&b, &backend.name());
         }
     }
 }
@@ -375,8 +367,8 @@ fn fade_width_zero_is_a_hard_switch() {
             ..small_params()
         };
         for backend in backends() {
-            let b = backend.render(&scene, &p, &cam).unwrap();
-            assert_finite(&b, backend.name());
+            let b = backend.run((&scene, &p, &cam)).unwrap();
+            assert_finite(&b, &backend.name());
             assert!(
                 b.selection
                     .data
@@ -405,8 +397,8 @@ fn transition_zero_means_no_lod0() {
             ..small_params()
         };
         for backend in backends() {
-            let b = backend.render(&scene, &p, &cam).unwrap();
-            assert_finite(&b, backend.name());
+            let b = backend.run((&scene, &p, &cam)).unwrap();
+            assert_finite(&b, &backend.name());
             assert_eq!(b.selection.counters.lod0_commands, 0, "fade {fade_width}");
             assert!(b.selection.counters.lod1_commands > 0);
             assert_eq!(count(&b, LOD_ID_MESH), 0);
@@ -446,8 +438,8 @@ fn draw_distance_zero_draws_no_tree() {
         ..small_params()
     };
     for backend in backends() {
-        let b = backend.render(&scene, &p, &cam).unwrap();
-        assert_finite(&b, backend.name());
+        let b = backend.run((&scene, &p, &cam)).unwrap();
+        assert_finite(&b, &backend.name());
         assert_eq!(b.selection.counters.commands, 0);
         assert_eq!(
             b.selection.counters.culled_distance,
@@ -473,10 +465,10 @@ fn draw_distance_huge_culls_nothing_by_distance() {
         ..small_params()
     };
     for backend in backends() {
-        let b = backend.render(&scene, &near, &cam).unwrap();
+        let b = backend.run((&scene, &near, &cam)).unwrap();
         assert_eq!(b.selection.counters.commands, 0);
-        let b = backend.render(&scene, &huge, &cam).unwrap();
-        assert_finite(&b, backend.name());
+        let b = backend.run((&scene, &huge, &cam)).unwrap();
+        assert_finite(&b, &backend.name());
         assert_eq!(b.selection.counters.culled_distance, 0);
         assert!(b.selection.counters.lod1_commands > 0);
         assert_eq!(b.selection.counters.lod0_commands, 0);
@@ -523,8 +515,8 @@ fn grid_size_tiny_gives_one_tree_per_batch() {
         assert_eq!(effective, oracle[tree].needs(), "tree {tree}");
     }
     for backend in backends() {
-        let b = backend.render(&scene, &p, &cam).unwrap();
-        assert_finite(&b, backend.name());
+        let b = backend.run((&scene, &p, &cam)).unwrap();
+        assert_finite(&b, &backend.name());
         assert!(tree_pixels(&b) > 0);
     }
 }
@@ -556,8 +548,8 @@ fn grid_size_huge_gives_one_batch_per_mesh_and_quadrant() {
     );
     let cam = camera([0.0, 0.0, 30.0], [1.0, 0.1, -0.25], 64);
     for backend in backends() {
-        let b = backend.render(&scene, &p, &cam).unwrap();
-        assert_finite(&b, backend.name());
+        let b = backend.run((&scene, &p, &cam)).unwrap();
+        assert_finite(&b, &backend.name());
         // Every batch contains the eye: none is culled, each draws LOD0 (the near trees).
         assert_eq!(
             b.selection.counters.culled_frustum + b.selection.counters.culled_distance,

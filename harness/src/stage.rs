@@ -1,0 +1,175 @@
+//! One family of backend traits for every stage and every backend ("one test body, several
+//! backends", SPEC §8): a [`Stage`] names what goes in and what comes out, a [`Backend<S>`] runs
+//! stage `S`. [`Reference`] (the CPU oracle) is one backend of every stage; each GPU twin is one
+//! type per stage, beside the code that drives it (`GpuSelectBackend`, `GpuRenderer` in
+//! [`crate::backend`], `GpuMipsBackend`, `GpuBakeBackend` in [`crate::texel_compare`]). A test
+//! written against `&dyn Backend<S>` runs on any backend of `S`; a new backend (a variant's GPU
+//! twin) is one `impl Backend<S>`, a new stage one `impl Stage` (a test binary may declare its
+//! own, as `tests/tests/properties/extremes.rs` does for whole frames from a scene).
+//!
+//! vello keeps one stage signature for every CPU twin (`vello_shaders/src/cpu/*.rs`); the same
+//! idea here takes typed inputs and outputs because our stages' buffers differ in kind.
+//!
+//! Rejected design: one trait per stage (`SelectBackend`, `Renderer`, `MipsBackend`,
+//! `BakeBackend`, and a fifth in the extremes tests), as before issue 11: five names, five
+//! `name()` methods, and no way to write a helper over "any backend of any stage".
+
+use forestlod_reference::pipeline::Prepared;
+use forestlod_reference::scene::TreeMesh;
+use forestlod_reference::select::{batch_decisions, select};
+use forestlod_reference::texture::Rgba8Image;
+use forestlod_shared::{BatchMeta, Camera, MeshMeta, MipMode, Params};
+
+use crate::backend::{BackendSelection, images_of};
+use crate::image_compare::Images;
+use crate::texel_compare::{LevelOut, reference_bake_level0, reference_mip_chains};
+
+/// A stage as the harness runs it: its input and its output in the reference's terms.
+pub trait Stage {
+    /// What one run takes.
+    type Input<'a>;
+    /// What one run gives.
+    type Output;
+}
+
+/// One backend's implementation of stage `S`.
+pub trait Backend<S: Stage> {
+    /// Name for reports, e.g. `reference`, `gpu-stable`, `gpu(from-cpu: select)`.
+    fn name(&self) -> String;
+    /// Whether outputs come in the reference's order (else a test compares them as a multiset).
+    fn ordered(&self) -> bool {
+        true
+    }
+    /// Runs the stage once. Inputs are valid (validated parameters, a prepared scene); a backend
+    /// that fails anyway panics naming itself: the harness serves tests and the CLI's parity run,
+    /// which report the panic as the failure.
+    fn run(&self, input: S::Input<'_>) -> S::Output;
+}
+
+/// The CPU oracle: a backend of every stage.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Reference;
+
+/// `select` (E§3.5, SPEC §6): the batches of a frame, their commands and per-batch decisions.
+pub struct Select;
+
+/// The input of [`Select`].
+#[derive(Clone, Copy)]
+pub struct SelectInput<'a> {
+    /// Batch records.
+    pub batches: &'a [BatchMeta],
+    /// Mesh records.
+    pub meshes: &'a [MeshMeta],
+    /// The billboard quad's record.
+    pub billboard: &'a MeshMeta,
+    /// The camera (valid).
+    pub camera: &'a Camera,
+    /// Parameters (valid).
+    pub params: &'a Params,
+}
+
+impl Stage for Select {
+    type Input<'a> = SelectInput<'a>;
+    type Output = BackendSelection;
+}
+
+impl Backend<Select> for Reference {
+    fn name(&self) -> String {
+        "reference".into()
+    }
+    fn run(&self, i: SelectInput<'_>) -> BackendSelection {
+        BackendSelection {
+            selection: select(i.batches, i.meshes, i.billboard, i.camera, i.params),
+            decisions: batch_decisions(i.batches, i.camera, i.params),
+        }
+    }
+}
+
+/// `draw` (SPEC §5.5): one frame of a prepared scene, selection and refine included.
+pub struct Draw;
+
+/// The input of [`Draw`].
+#[derive(Clone, Copy)]
+pub struct FrameInput<'a> {
+    /// The scene, prepared with `params`.
+    pub prepared: &'a Prepared,
+    /// The camera (valid).
+    pub camera: &'a Camera,
+    /// Parameters (valid), those `prepared` was prepared with.
+    pub params: &'a Params,
+}
+
+impl Stage for Draw {
+    type Input<'a> = FrameInput<'a>;
+    type Output = Images;
+}
+
+impl Backend<Draw> for Reference {
+    fn name(&self) -> String {
+        "reference".into()
+    }
+    fn run(&self, i: FrameInput<'_>) -> Images {
+        let frame = i
+            .prepared
+            .render(i.camera, i.params)
+            .expect("reference render");
+        images_of(&frame.drawn.target)
+    }
+}
+
+/// `mips` (E Alg. 3.2, SPEC §5.2): level-0 layers in, every level of every layer out,
+/// `[layer][level]`.
+pub struct Mips;
+
+/// The input of [`Mips`].
+#[derive(Clone, Copy)]
+pub struct MipsInput<'a> {
+    /// Level-0 layers, equal square power-of-two sizes.
+    pub layers: &'a [Rgba8Image],
+    /// The mip mode.
+    pub mode: MipMode,
+    /// The alpha-test reference the coverage is kept for.
+    pub alpha_ref: f32,
+}
+
+impl Stage for Mips {
+    type Input<'a> = MipsInput<'a>;
+    type Output = Vec<Vec<LevelOut>>;
+}
+
+impl Backend<Mips> for Reference {
+    fn name(&self) -> String {
+        "reference".into()
+    }
+    fn run(&self, i: MipsInput<'_>) -> Vec<Vec<LevelOut>> {
+        reference_mip_chains(i.layers, i.mode, i.alpha_ref)
+    }
+}
+
+/// `bake` (E Alg. 3.1, SPEC §5.1): level 0 of every billboard layer `mesh * K + k`.
+pub struct Bake;
+
+/// The input of [`Bake`].
+#[derive(Clone, Copy)]
+pub struct BakeInput<'a> {
+    /// The species meshes.
+    pub meshes: &'a [TreeMesh],
+    /// K, the baked elevation angles.
+    pub angle_count: u32,
+    /// The layer side, texels.
+    pub side: u32,
+}
+
+impl Stage for Bake {
+    type Input<'a> = BakeInput<'a>;
+    type Output = Vec<Rgba8Image>;
+}
+
+impl Backend<Bake> for Reference {
+    fn name(&self) -> String {
+        "reference".into()
+    }
+    fn run(&self, i: BakeInput<'_>) -> Vec<Rgba8Image> {
+        reference_bake_level0(i.meshes, i.angle_count, i.side)
+    }
+}
