@@ -40,7 +40,7 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MeshMeta, Params, SelectCounters, ViewUniform};
 
-use crate::context::{StagePipelines, buffer_entry, compute_pipelines};
+use crate::context::{Dispatch, READ, Slot, StagePipelines, WRITE, compute_pass, compute_stage};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError, SelectBuffers};
 
@@ -142,35 +142,23 @@ pub struct CullPipelines {
 impl StagePipelines for CullPipelines {
     /// Compiles `cull.wgsl` and creates its three pipelines.
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        ctx.checked("cull.wgsl pipelines", || {
-            use wgpu::BufferBindingType as B;
-            let buffer =
-                |binding, ty, min| buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty, min);
-            let storage = |read_only| B::Storage { read_only };
-            let (layout, [count, commands, scatter]) = compute_pipelines(
-                &ctx.device,
-                "cull",
-                &crate::shaders::cull_source(),
-                &[
-                    buffer(0, B::Uniform, size_of::<CullUniform>() as u64),
-                    buffer(1, storage(true), 0),
-                    buffer(2, storage(true), 0),
-                    buffer(3, storage(false), 0),
-                    buffer(4, storage(false), 0),
-                    buffer(5, storage(false), 0),
-                    buffer(6, storage(false), 0),
-                    buffer(7, storage(false), 0),
-                    buffer(8, storage(false), size_of::<SelectCounters>() as u64),
-                    buffer(9, storage(false), size_of::<DrawIndirectArgs>() as u64),
-                ],
-                ["cull_count", "cull_commands", "cull_scatter"],
-            );
-            Self {
-                layout,
-                count,
-                commands,
-                scatter,
-            }
+        let uniform = Slot::Uniform(size_of::<CullUniform>() as u64);
+        let counters = Slot::Write(size_of::<SelectCounters>() as u64);
+        let args = Slot::Write(size_of::<DrawIndirectArgs>() as u64);
+        let (layout, [count, commands, scatter]) = compute_stage(
+            ctx,
+            "cull",
+            &crate::shaders::cull_source(),
+            &[
+                uniform, READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE, counters, args,
+            ],
+            ["cull_count", "cull_commands", "cull_scatter"],
+        )?;
+        Ok(Self {
+            layout,
+            count,
+            commands,
+            scatter,
         })
     }
 }
@@ -340,17 +328,16 @@ impl<'a> GpuCull<'a> {
         encoder.clear_buffer(&self.mesh_counts, 0, None);
         let pipelines = &self.pipelines;
         let (x, y) = self.groups();
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("cull"),
-            timestamp_writes: None,
-        });
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.set_pipeline(&pipelines.count);
-        pass.dispatch_workgroups(x, y, 1);
-        pass.set_pipeline(&pipelines.commands);
-        pass.dispatch_workgroups(1, 1, 1);
-        pass.set_pipeline(&pipelines.scatter);
-        pass.dispatch_workgroups(x, y, 1);
+        compute_pass(
+            encoder,
+            "cull",
+            &self.bind_group,
+            &[
+                (&pipelines.count, Dispatch::Groups(x, y)),
+                (&pipelines.commands, Dispatch::Groups(1, 1)),
+                (&pipelines.scatter, Dispatch::Groups(x, y)),
+            ],
+        );
     }
 
     /// Runs one frame's culling and leaves the result on the GPU. Does not wait.

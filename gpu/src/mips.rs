@@ -70,7 +70,7 @@ use std::sync::{Arc, OnceLock};
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::MipMode;
 
-use crate::context::{StagePipelines, buffer_entry, compute_pipelines};
+use crate::context::{Slot, StagePipelines, compute_stage};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -484,70 +484,46 @@ struct MipsPipelines {
 
 impl StagePipelines for MipsPipelines {
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        ctx.checked("mips.wgsl pipelines", || {
-            use wgpu::BufferBindingType as B;
-            let buffer =
-                |binding, ty, min| buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty, min);
-            let storage = |read_only| B::Storage { read_only };
-            let (layout, pipelines) = compute_pipelines(
-                &ctx.device,
-                "mips",
-                &crate::shaders::mips_source(),
-                &[
-                    // One uniform slot per level, picked by dynamic offset.
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 0,
-                        visibility: wgpu::ShaderStages::COMPUTE,
-                        ty: wgpu::BindingType::Buffer {
-                            ty: B::Uniform,
-                            has_dynamic_offset: true,
-                            min_binding_size: NonZeroU64::new(size_of::<MipsUniform>() as u64),
-                        },
-                        count: None,
-                    },
-                    buffer(1, storage(true), (TABLE_LEN * 4) as u64),
-                    buffer(2, storage(true), 16),
-                    buffer(3, storage(false), 16),
-                    buffer(4, storage(false), size_of::<MipLevelStats>() as u64),
-                    buffer(5, storage(false), 4),
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 6,
-                        visibility: wgpu::ShaderStages::COMPUTE,
-                        ty: wgpu::BindingType::Texture {
-                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                            view_dimension: wgpu::TextureViewDimension::D2Array,
-                            multisampled: false,
-                        },
-                        count: None,
-                    },
-                    buffer(7, storage(false), size_of::<CoverageState>() as u64),
-                ],
-                [
-                    "mips_decode",
-                    "mips_downsample",
-                    "mips_adjust",
-                    "mips_coverage_count",
-                    "mips_coverage_step",
-                    "mips_finalize",
-                ],
-            );
-            let [
-                decode,
-                downsample,
-                adjust,
-                coverage_count,
-                coverage_step,
-                finalize,
-            ] = pipelines;
-            Self {
-                layout,
-                decode,
-                downsample,
-                adjust,
-                coverage_count,
-                coverage_step,
-                finalize,
-            }
+        let (layout, pipelines) = compute_stage(
+            ctx,
+            "mips",
+            &crate::shaders::mips_source(),
+            &[
+                // One uniform slot per level, picked by dynamic offset.
+                Slot::DynamicUniform(size_of::<MipsUniform>() as u64),
+                Slot::Read((TABLE_LEN * 4) as u64),
+                Slot::Read(16),
+                Slot::Write(16),
+                Slot::Write(size_of::<MipLevelStats>() as u64),
+                Slot::Write(4),
+                Slot::Texture(wgpu::TextureViewDimension::D2Array),
+                Slot::Write(size_of::<CoverageState>() as u64),
+            ],
+            [
+                "mips_decode",
+                "mips_downsample",
+                "mips_adjust",
+                "mips_coverage_count",
+                "mips_coverage_step",
+                "mips_finalize",
+            ],
+        )?;
+        let [
+            decode,
+            downsample,
+            adjust,
+            coverage_count,
+            coverage_step,
+            finalize,
+        ] = pipelines;
+        Ok(Self {
+            layout,
+            decode,
+            downsample,
+            adjust,
+            coverage_count,
+            coverage_step,
+            finalize,
         })
     }
 }
