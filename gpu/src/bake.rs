@@ -582,26 +582,23 @@ impl<'a> GpuBake<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mips::tests::{validate_wgsl, wgsl_offsets};
-    use core::mem::offset_of;
+    use crate::wgsl_layout::{assert_layout, rust_layout, validate};
 
     #[test]
     fn wgsl_bake_layer_matches_its_rust_twin() {
-        let module = validate_wgsl(&crate::shaders::bake_source());
-        let offsets = [
-            offset_of!(BakeLayer, bbox_min),
-            offset_of!(BakeLayer, sphere_radius),
-            offset_of!(BakeLayer, bbox_max),
-            offset_of!(BakeLayer, sin_e),
-            offset_of!(BakeLayer, cos_e),
-            offset_of!(BakeLayer, half_width),
-            offset_of!(BakeLayer, bottom),
-            offset_of!(BakeLayer, height),
-        ]
-        .map(|o| o as u32);
-        assert_eq!(
-            wgsl_offsets(&module, "BakeLayer"),
-            (offsets.to_vec(), size_of::<BakeLayer>() as u32)
+        let module = validate(&crate::shaders::bake_source());
+        assert_layout(
+            &module,
+            &rust_layout!(BakeLayer {
+                bbox_min,
+                sphere_radius,
+                bbox_max,
+                sin_e,
+                cos_e,
+                half_width,
+                bottom,
+                height
+            }),
         );
     }
 }

@@ -378,44 +378,33 @@ impl<'a> GpuCull<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
-    use core::mem::offset_of;
+    use crate::wgsl_layout::{assert_layout, assert_view_uniform, rust_layout, validate};
 
     /// `CullUniform` (with its `ViewUniform`) and `DrawIndirectArgs` have their WGSL twins' layout (naga reflection of the
     /// full `cull.wgsl` module, which also validates it; `CullTree`, in `common.wgsl`, is checked
     /// by `gpu/tests/layout.rs`).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let module = validate_wgsl(&crate::shaders::cull_source());
-        assert_wgsl_struct(
+        let module = validate(&crate::shaders::cull_source());
+        assert_layout(
             &module,
-            "CullUniform",
-            &[
-                ("view", offset_of!(CullUniform, view)),
-                ("tree_count", offset_of!(CullUniform, tree_count)),
-                ("mesh_count", offset_of!(CullUniform, mesh_count)),
-                ("_pad0", offset_of!(CullUniform, _pad0)),
-                ("_pad1", offset_of!(CullUniform, _pad1)),
-            ],
-            size_of::<CullUniform>(),
+            &rust_layout!(CullUniform {
+                view,
+                tree_count,
+                mesh_count,
+                _pad0,
+                _pad1
+            }),
         );
-        crate::mips::tests::assert_view_uniform(&module);
-        assert_wgsl_struct(
+        assert_view_uniform(&module);
+        assert_layout(
             &module,
-            "DrawIndirectArgs",
-            &[
-                ("vertex_count", offset_of!(DrawIndirectArgs, vertex_count)),
-                (
-                    "instance_count",
-                    offset_of!(DrawIndirectArgs, instance_count),
-                ),
-                ("first_vertex", offset_of!(DrawIndirectArgs, first_vertex)),
-                (
-                    "first_instance",
-                    offset_of!(DrawIndirectArgs, first_instance),
-                ),
-            ],
-            size_of::<DrawIndirectArgs>(),
+            &rust_layout!(DrawIndirectArgs {
+                vertex_count,
+                instance_count,
+                first_vertex,
+                first_instance
+            }),
         );
     }
 

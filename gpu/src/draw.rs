@@ -1160,92 +1160,64 @@ impl GpuDraw {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use core::mem::offset_of;
+    use crate::wgsl_layout::{RustLayout, assert_layout, rust_layout, validate, validate_with};
 
     /// `depth_copy.wgsl` parses and validates (naga), standalone as the driver compiles it.
     #[test]
     fn depth_copy_wgsl_validates() {
-        crate::mips::tests::validate_wgsl(crate::shaders::DEPTH_COPY_WGSL);
+        validate(crate::shaders::DEPTH_COPY_WGSL);
     }
 
-    /// `DrawInstance`'s members and their offsets, which its twins in `draw.wgsl` and
-    /// `primitive.wgsl` must both have.
-    pub(crate) fn draw_instance_fields() -> [(&'static str, usize); 4] {
-        [
-            ("position", offset_of!(DrawInstance, position)),
-            ("yaw", offset_of!(DrawInstance, yaw)),
-            ("scale", offset_of!(DrawInstance, scale)),
-            ("mesh", offset_of!(DrawInstance, mesh)),
-        ]
+    /// `DrawInstance`'s layout, which its twins in `draw.wgsl` and `primitive.wgsl` must both
+    /// have.
+    pub(crate) fn draw_instance_layout() -> RustLayout {
+        rust_layout!(DrawInstance {
+            position,
+            yaw,
+            scale,
+            mesh
+        })
     }
 
     /// `DrawUniform`, `DrawVertex` and `DrawInstance` have their WGSL twins' layout (naga
-    /// reflection of the full `draw.wgsl` module, which also validates it).
+    /// reflection of the full `draw.wgsl` module, which also validates it; naga's layouter
+    /// agrees on the sizes).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let source = crate::shaders::draw_source();
-        let module = naga::front::wgsl::parse_str(&source).expect("draw.wgsl parses");
-        let mut validator = naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
+        let module = validate_with(
+            &crate::shaders::draw_source(),
             naga::valid::Capabilities::all(),
         );
-        validator.validate(&module).expect("draw.wgsl validates");
         let mut layouter = naga::proc::Layouter::default();
         layouter.update(module.to_ctx()).expect("layout");
-        let find = |name: &str| {
-            module
+        let layouts = [
+            rust_layout!(DrawUniform {
+                view_proj,
+                eye,
+                draw_distance,
+                forward,
+                angle_count,
+                fade_mode,
+                angle_index_mode,
+                alpha_cutoff,
+                billboard_first_vertex
+            }),
+            rust_layout!(DrawVertex { position, uv }),
+            draw_instance_layout(),
+        ];
+        for rust in &layouts {
+            assert_layout(&module, rust);
+            let handle = module
                 .types
                 .iter()
-                .find(|(_, t)| t.name.as_deref() == Some(name))
-                .unwrap_or_else(|| panic!("struct {name} in draw.wgsl"))
-        };
-        let check = |name: &str, fields: &[(&str, usize)], size: usize| {
-            let (handle, ty) = find(name);
-            let naga::TypeInner::Struct { members, span } = &ty.inner else {
-                panic!("{name} is not a struct")
-            };
-            assert_eq!(*span as usize, size, "{name} size");
-            assert_eq!(layouter[handle].size as usize, size, "{name} size");
-            assert_eq!(members.len(), fields.len(), "{name} member count");
-            for (m, (field, offset)) in members.iter().zip(fields) {
-                assert_eq!(m.name.as_deref(), Some(*field), "{name} member order");
-                assert_eq!(m.offset as usize, *offset, "{name}.{field} offset");
-            }
-        };
-        check(
-            "DrawUniform",
-            &[
-                ("view_proj", offset_of!(DrawUniform, view_proj)),
-                ("eye", offset_of!(DrawUniform, eye)),
-                ("draw_distance", offset_of!(DrawUniform, draw_distance)),
-                ("forward", offset_of!(DrawUniform, forward)),
-                ("angle_count", offset_of!(DrawUniform, angle_count)),
-                ("fade_mode", offset_of!(DrawUniform, fade_mode)),
-                (
-                    "angle_index_mode",
-                    offset_of!(DrawUniform, angle_index_mode),
-                ),
-                ("alpha_cutoff", offset_of!(DrawUniform, alpha_cutoff)),
-                (
-                    "billboard_first_vertex",
-                    offset_of!(DrawUniform, billboard_first_vertex),
-                ),
-            ],
-            size_of::<DrawUniform>(),
-        );
-        check(
-            "DrawVertex",
-            &[
-                ("position", offset_of!(DrawVertex, position)),
-                ("uv", offset_of!(DrawVertex, uv)),
-            ],
-            size_of::<DrawVertex>(),
-        );
-        check(
-            "DrawInstance",
-            &draw_instance_fields(),
-            size_of::<DrawInstance>(),
-        );
+                .find_map(|(h, t)| (t.name.as_deref() == Some(rust.name)).then_some(h))
+                .expect("struct in draw.wgsl");
+            assert_eq!(
+                layouter[handle].size as usize, rust.size,
+                "{} size",
+                rust.name
+            );
+        }
     }
 
     #[test]

@@ -988,7 +988,7 @@ impl<'a> GpuMips<'a> {
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
 
     #[test]
@@ -1040,119 +1040,31 @@ pub(crate) mod tests {
         }
     }
 
-    /// Parses and validates a module with naga; returns it for reflection.
-    pub(crate) fn validate_wgsl(source: &str) -> naga::Module {
-        let module = naga::front::wgsl::parse_str(source)
-            .unwrap_or_else(|e| panic!("WGSL parse error:\n{}", e.emit_to_string(source)));
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::default(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("WGSL validation error:\n{}", e.emit_to_string(source)));
-        module
-    }
-
-    /// Member offsets and span of the WGSL struct `name`.
-    pub(crate) fn wgsl_offsets(module: &naga::Module, name: &str) -> (Vec<u32>, u32) {
-        module
-            .types
-            .iter()
-            .find_map(|(_, ty)| match &ty.inner {
-                naga::TypeInner::Struct { members, span } if ty.name.as_deref() == Some(name) => {
-                    Some((members.iter().map(|m| m.offset).collect(), *span))
-                }
-                _ => None,
-            })
-            .unwrap_or_else(|| panic!("WGSL has no struct {name}"))
-    }
-
-    /// Asserts that the WGSL struct `name` of `module` has exactly the members `fields`, as
-    /// `(name, byte offset)` in declaration order, and the span `size`: its Rust twin's
-    /// `offset_of!`s and `size_of`.
-    /// `module`'s `ViewUniform` and `FrustumPlanes` have the layout of
-    /// `forestlod_shared::{ViewUniform, FrustumPlanes}` (the stage uniforms embed them).
-    pub(crate) fn assert_view_uniform(module: &naga::Module) {
-        use core::mem::offset_of;
-        use forestlod_shared::{FrustumPlanes, ViewUniform};
-        assert_wgsl_struct(
-            module,
-            "FrustumPlanes",
-            &[("planes", offset_of!(FrustumPlanes, planes))],
-            size_of::<FrustumPlanes>(),
-        );
-        assert_wgsl_struct(
-            module,
-            "ViewUniform",
-            &[
-                ("frustum", offset_of!(ViewUniform, frustum)),
-                ("eye", offset_of!(ViewUniform, eye)),
-                ("fade_start", offset_of!(ViewUniform, fade_start)),
-                ("forward", offset_of!(ViewUniform, forward)),
-                ("fade_end", offset_of!(ViewUniform, fade_end)),
-                ("draw_distance", offset_of!(ViewUniform, draw_distance)),
-                ("lod_levels", offset_of!(ViewUniform, lod_levels)),
-                ("_pad0", offset_of!(ViewUniform, _pad0)),
-                ("_pad1", offset_of!(ViewUniform, _pad1)),
-            ],
-            size_of::<ViewUniform>(),
-        );
-    }
-
-    pub(crate) fn assert_wgsl_struct(
-        module: &naga::Module,
-        name: &str,
-        fields: &[(&str, usize)],
-        size: usize,
-    ) {
-        let (_, ty) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some(name))
-            .unwrap_or_else(|| panic!("WGSL has no struct {name}"));
-        let naga::TypeInner::Struct { members, span } = &ty.inner else {
-            panic!("{name} is not a struct")
-        };
-        assert_eq!(*span as usize, size, "{name} size");
-        let got: Vec<(&str, usize)> = members
-            .iter()
-            .map(|m| (m.name.as_deref().unwrap_or(""), m.offset as usize))
-            .collect();
-        assert_eq!(got, fields, "{name} members");
-    }
-
     #[test]
     fn wgsl_structs_match_their_rust_twins() {
-        use core::mem::offset_of;
-        let module = validate_wgsl(&crate::shaders::mips_source());
-        let uniform = [
-            offset_of!(MipsUniform, level),
-            offset_of!(MipsUniform, side),
-            offset_of!(MipsUniform, layer_count),
-            offset_of!(MipsUniform, mode),
-            offset_of!(MipsUniform, alpha_ref),
-            offset_of!(MipsUniform, out_offset),
-            offset_of!(MipsUniform, out_row),
-            offset_of!(MipsUniform, level0_side),
-        ]
-        .map(|o| o as u32);
-        assert_eq!(
-            wgsl_offsets(&module, "MipsUniform"),
-            (uniform.to_vec(), size_of::<MipsUniform>() as u32)
-        );
-        let stats = [
-            offset_of!(MipLevelStats, alpha_min_bits),
-            offset_of!(MipLevelStats, alpha_max_bits),
-            offset_of!(MipLevelStats, pass_count),
-            offset_of!(MipLevelStats, adjust_kind),
-            offset_of!(MipLevelStats, adjust),
-        ]
-        .map(|o| o as u32);
-        assert_eq!(
-            wgsl_offsets(&module, "LevelStats"),
-            (stats.to_vec(), size_of::<MipLevelStats>() as u32)
-        );
-        let (offsets, span) = wgsl_offsets(&module, "CoverageState");
+        use crate::wgsl_layout::{assert_offsets, rust_layout, validate, wgsl_layout};
+        let module = validate(&crate::shaders::mips_source());
+        let uniform = rust_layout!(MipsUniform {
+            level,
+            side,
+            layer_count,
+            mode,
+            alpha_ref,
+            out_offset,
+            out_row,
+            level0_side
+        });
+        assert_offsets(&module, "MipsUniform", &uniform);
+        let stats = rust_layout!(MipLevelStats {
+            alpha_min_bits,
+            alpha_max_bits,
+            pass_count,
+            adjust_kind,
+            adjust
+        });
+        assert_offsets(&module, "LevelStats", &stats);
+        let (members, span) = wgsl_layout(&module, "CoverageState").expect("CoverageState");
+        let offsets: Vec<u32> = members.iter().map(|(_, o)| *o).collect();
         assert_eq!(offsets, (0..12).map(|i| i * 4).collect::<Vec<u32>>());
         assert_eq!(span as usize, size_of::<CoverageState>());
     }

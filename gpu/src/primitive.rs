@@ -347,56 +347,35 @@ impl GpuPrimitive {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::DrawInstance;
     use crate::draw::LOD_ID_MESH;
-    use crate::draw::tests::draw_instance_fields;
-    use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
-    use core::mem::offset_of;
+    use crate::draw::tests::draw_instance_layout;
+    use crate::wgsl_layout::{assert_layout, rust_layout, validate};
 
     /// `PrimitiveUniform` and `DrawInstance` have their WGSL twins' layout in `primitive.wgsl`
     /// (naga reflection, which also validates the module; `ProxyRecord` is checked with the
     /// shared records in `gpu/tests/layout.rs`).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let module = validate_wgsl(&crate::shaders::primitive_source());
-        assert_wgsl_struct(
+        let module = validate(&crate::shaders::primitive_source());
+        assert_layout(
             &module,
-            "PrimitiveUniform",
-            &[
-                ("view_proj", offset_of!(PrimitiveUniform, view_proj)),
-                ("eye", offset_of!(PrimitiveUniform, eye)),
-                ("near", offset_of!(PrimitiveUniform, near)),
-                ("forward", offset_of!(PrimitiveUniform, forward)),
-                ("far", offset_of!(PrimitiveUniform, far)),
-                ("right", offset_of!(PrimitiveUniform, right)),
-                (
-                    "fallback_distance",
-                    offset_of!(PrimitiveUniform, fallback_distance),
-                ),
-                ("up", offset_of!(PrimitiveUniform, up)),
-                (
-                    "fallback_depth",
-                    offset_of!(PrimitiveUniform, fallback_depth),
-                ),
-                (
-                    "fallback_half_x",
-                    offset_of!(PrimitiveUniform, fallback_half_x),
-                ),
-                (
-                    "fallback_half_y",
-                    offset_of!(PrimitiveUniform, fallback_half_y),
-                ),
-                ("bound_scale", offset_of!(PrimitiveUniform, bound_scale)),
-                ("_pad0", offset_of!(PrimitiveUniform, _pad0)),
-            ],
-            size_of::<PrimitiveUniform>(),
+            &rust_layout!(PrimitiveUniform {
+                view_proj,
+                eye,
+                near,
+                forward,
+                far,
+                right,
+                fallback_distance,
+                up,
+                fallback_depth,
+                fallback_half_x,
+                fallback_half_y,
+                bound_scale,
+                _pad0
+            }),
         );
-        assert_wgsl_struct(
-            &module,
-            "DrawInstance",
-            &draw_instance_fields(),
-            size_of::<DrawInstance>(),
-        );
+        assert_layout(&module, &draw_instance_layout());
         assert_eq!(LOD_ID_MESH, 1, "primitive.wgsl's LOD_ID_MESH");
     }
 }

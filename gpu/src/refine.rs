@@ -432,47 +432,40 @@ impl<'a> GpuRefine<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
-    use core::mem::offset_of;
+    use crate::wgsl_layout::{assert_layout, assert_view_uniform, rust_layout, validate};
 
     /// `RefineUniform` (with its `ViewUniform`), `RefineCounters` and `RefineDispatch` have their WGSL twins' layout (naga reflection of the
     /// full `refine.wgsl` module, which also validates it; `CullTree`, in `common.wgsl`, is
     /// checked by `gpu/tests/layout.rs`).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let module = validate_wgsl(&crate::shaders::refine_source());
-        assert_wgsl_struct(
+        let module = validate(&crate::shaders::refine_source());
+        assert_layout(
             &module,
-            "RefineUniform",
-            &[
-                ("view", offset_of!(RefineUniform, view)),
-                ("tree_count", offset_of!(RefineUniform, tree_count)),
-                ("tree_cull", offset_of!(RefineUniform, tree_cull)),
-                ("max_workgroups", offset_of!(RefineUniform, max_workgroups)),
-                ("_pad0", offset_of!(RefineUniform, _pad0)),
-            ],
-            size_of::<RefineUniform>(),
+            &rust_layout!(RefineUniform {
+                view,
+                tree_count,
+                tree_cull,
+                max_workgroups,
+                _pad0
+            }),
         );
-        crate::mips::tests::assert_view_uniform(&module);
-        assert_wgsl_struct(
+        assert_view_uniform(&module);
+        assert_layout(
             &module,
-            "RefineCounters",
-            &[
-                ("trees_tested", offset_of!(RefineCounters, trees_tested)),
-                ("trees_kept", offset_of!(RefineCounters, trees_kept)),
-            ],
-            size_of::<RefineCounters>(),
+            &rust_layout!(RefineCounters {
+                trees_tested,
+                trees_kept
+            }),
         );
-        assert_wgsl_struct(
+        assert_layout(
             &module,
-            "RefineDispatch",
-            &[
-                ("x", offset_of!(RefineDispatch, x)),
-                ("y", offset_of!(RefineDispatch, y)),
-                ("z", offset_of!(RefineDispatch, z)),
-                ("max_chunks", offset_of!(RefineDispatch, max_chunks)),
-            ],
-            size_of::<RefineDispatch>(),
+            &rust_layout!(RefineDispatch {
+                x,
+                y,
+                z,
+                max_chunks
+            }),
         );
     }
 
