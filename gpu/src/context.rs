@@ -413,16 +413,19 @@ pub(crate) fn dynamic_uniform_entry(
     visibility: wgpu::ShaderStages,
     min_binding_size: u64,
 ) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
+    let mut entry = buffer_entry(
         binding,
         visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: true,
-            min_binding_size: wgpu::BufferSize::new(min_binding_size),
-        },
-        count: None,
+        wgpu::BufferBindingType::Uniform,
+        min_binding_size,
+    );
+    if let wgpu::BindingType::Buffer {
+        has_dynamic_offset, ..
+    } = &mut entry.ty
+    {
+        *has_dynamic_offset = true;
     }
+    entry
 }
 
 /// A bind-group layout entry for a filtering sampler: `binding`, seen from `visibility`.

@@ -662,7 +662,7 @@ impl MipArray {
             ctx.queue.submit([encoder.finish()]);
             staging
         })?;
-        let data = map_whole(ctx, &bytes)?;
+        let data = crate::readback::map_and_read(ctx, &bytes)?;
         Ok((0..layers as usize)
             .map(|layer| {
                 regions
@@ -710,26 +710,6 @@ impl MipArray {
                 .collect(),
         ))
     }
-}
-
-/// Maps a whole `MAP_READ` buffer after the GPU is done and copies its bytes out.
-fn map_whole(ctx: &GpuContext, staging: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
-    let (sender, receiver) = std::sync::mpsc::channel();
-    staging.map_async(wgpu::MapMode::Read, .., move |result| {
-        // The receiver outlives the wait below; a failed send only means nobody listens.
-        let _ = sender.send(result);
-    });
-    ctx.wait()?;
-    receiver
-        .recv()
-        .map_err(|e| GpuError::Map(e.to_string()))?
-        .map_err(|e| GpuError::Map(e.to_string()))?;
-    let bytes = staging
-        .get_mapped_range(..)
-        .map_err(|e| GpuError::Map(e.to_string()))?
-        .to_vec();
-    staging.unmap();
-    Ok(bytes)
 }
 
 impl<'a> GpuMips<'a> {
