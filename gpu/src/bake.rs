@@ -50,7 +50,10 @@ use forestlod_shared::{
 };
 use wgpu::util::DeviceExt;
 
-use crate::context::StagePipelines;
+use crate::context::{
+    StagePipelines, dynamic_uniform_entry, group_layout, sampler_entry, shader_module,
+    texture_entry,
+};
 use crate::mips::{BILLBOARD_FORMAT, GpuMips, MipArray, create_billboard_texture};
 use crate::{GpuContext, GpuError};
 
@@ -259,46 +262,18 @@ impl StagePipelines for BakePipelines {
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("bake.wgsl pipeline", || {
             let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("bake.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(crate::shaders::bake_source().into()),
-            });
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("bake"),
-                entries: &[
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 0,
-                        visibility: wgpu::ShaderStages::VERTEX,
-                        ty: wgpu::BindingType::Buffer {
-                            ty: wgpu::BufferBindingType::Uniform,
-                            has_dynamic_offset: true,
-                            min_binding_size: NonZeroU64::new(size_of::<BakeLayer>() as u64),
-                        },
-                        count: None,
-                    },
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 1,
-                        visibility: wgpu::ShaderStages::FRAGMENT,
-                        ty: wgpu::BindingType::Texture {
-                            sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                            view_dimension: wgpu::TextureViewDimension::D2,
-                            multisampled: false,
-                        },
-                        count: None,
-                    },
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 2,
-                        visibility: wgpu::ShaderStages::FRAGMENT,
-                        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                        count: None,
-                    },
+            let module = shader_module(device, "bake.wgsl", &crate::shaders::bake_source());
+            let layer_size = size_of::<BakeLayer>() as u64;
+            let fragment = wgpu::ShaderStages::FRAGMENT;
+            let (layout, pipeline_layout) = group_layout(
+                device,
+                "bake",
+                &[
+                    dynamic_uniform_entry(0, wgpu::ShaderStages::VERTEX, layer_size),
+                    texture_entry(1, fragment, true, wgpu::TextureViewDimension::D2),
+                    sampler_entry(2, fragment),
                 ],
-            });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("bake"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
+            );
             let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some("bake"),
                 layout: Some(&pipeline_layout),
@@ -607,26 +582,23 @@ impl<'a> GpuBake<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mips::tests::{validate_wgsl, wgsl_offsets};
-    use core::mem::offset_of;
+    use crate::wgsl_layout::{assert_layout, rust_layout, validate};
 
     #[test]
     fn wgsl_bake_layer_matches_its_rust_twin() {
-        let module = validate_wgsl(&crate::shaders::bake_source());
-        let offsets = [
-            offset_of!(BakeLayer, bbox_min),
-            offset_of!(BakeLayer, sphere_radius),
-            offset_of!(BakeLayer, bbox_max),
-            offset_of!(BakeLayer, sin_e),
-            offset_of!(BakeLayer, cos_e),
-            offset_of!(BakeLayer, half_width),
-            offset_of!(BakeLayer, bottom),
-            offset_of!(BakeLayer, height),
-        ]
-        .map(|o| o as u32);
-        assert_eq!(
-            wgsl_offsets(&module, "BakeLayer"),
-            (offsets.to_vec(), size_of::<BakeLayer>() as u32)
+        let module = validate(&crate::shaders::bake_source());
+        assert_layout(
+            &module,
+            &rust_layout!(BakeLayer {
+                bbox_min,
+                sphere_radius,
+                bbox_max,
+                sin_e,
+                cos_e,
+                half_width,
+                bottom,
+                height
+            }),
         );
     }
 }

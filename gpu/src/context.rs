@@ -10,8 +10,9 @@
 //! with an install hint when no adapter exists.
 //!
 //! Crate-internal helpers hold the pipeline boilerplate the stage drivers share: `buffer_entry`
-//! (one buffer binding of a bind-group layout), `compute_pipelines` (a stage's WGSL module, its one
-//! bind-group layout and a compute pipeline per entry point).
+//! and `texture_entry` (one binding of a bind-group layout), `compute_stage` (a compute stage's
+//! WGSL module, its one bind-group layout of `Slot`s and a compute pipeline per entry point) and
+//! `compute_pass` (one labelled compute pass with the stage's bind group set).
 //!
 //! **One pipeline cache.** Every stage's compiled pipelines (a type implementing
 //! [`StagePipelines`]) are created once per context on first use and shared by every driver of
@@ -334,8 +335,8 @@ impl GpuContext {
 /// A bind-group layout entry for a buffer without dynamic offset: `binding`, seen from
 /// `visibility`, of type `ty`, with `min_binding_size` bytes at least (0: no minimum, for
 /// runtime-sized arrays; wgpu then checks the size at draw or dispatch time instead of at bind
-/// group creation). Entries with dynamic offsets, textures and samplers are written out where
-/// they are used.
+/// group creation). [`dynamic_uniform_entry`], [`texture_entry`] and [`sampler_entry`] make the
+/// other kinds of entry.
 pub(crate) fn buffer_entry(
     binding: u32,
     visibility: wgpu::ShaderStages,
@@ -354,24 +355,45 @@ pub(crate) fn buffer_entry(
     }
 }
 
-/// Compiles one compute stage: the WGSL module `source` (labelled `"{label}.wgsl"`), a bind-group
-/// layout of `entries` and a pipeline layout of that one group (both labelled `label`), and one
-/// pipeline per name of `entry_points` (each labelled with its entry point), in that order. Every
-/// pipeline of the stage shares the layout, so one bind group serves all its dispatches.
-///
-/// wgpu reports a WGSL or layout error through error scopes, not through the return value: call
-/// this inside [`GpuContext::checked`], which turns it into [`GpuError::Validation`].
-pub(crate) fn compute_pipelines<const N: usize>(
+/// A bind-group layout entry for a float texture without multisampling: `binding`, seen from
+/// `visibility`, `filterable` or not, of view dimension `view_dimension`.
+pub(crate) fn texture_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+    filterable: bool,
+    view_dimension: wgpu::TextureViewDimension,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable },
+            view_dimension,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// Compiles the WGSL `source` into a shader module labelled `label`.
+pub(crate) fn shader_module(
     device: &wgpu::Device,
     label: &str,
     source: &str,
-    entries: &[wgpu::BindGroupLayoutEntry],
-    entry_points: [&str; N],
-) -> (wgpu::BindGroupLayout, [wgpu::ComputePipeline; N]) {
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(&format!("{label}.wgsl")),
+) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
         source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
+    })
+}
+
+/// A bind-group layout of `entries` and a pipeline layout of that one group (no immediates), both
+/// labelled `label`.
+pub(crate) fn group_layout(
+    device: &wgpu::Device,
+    label: &str,
+    entries: &[wgpu::BindGroupLayoutEntry],
+) -> (wgpu::BindGroupLayout, wgpu::PipelineLayout) {
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some(label),
         entries,
@@ -381,17 +403,142 @@ pub(crate) fn compute_pipelines<const N: usize>(
         bind_group_layouts: &[Some(&layout)],
         immediate_size: 0,
     });
-    let pipelines = entry_points.map(|entry_point| {
-        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(entry_point),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some(entry_point),
-            compilation_options: Default::default(),
-            cache: None,
-        })
+    (layout, pipeline_layout)
+}
+
+/// A bind-group layout entry for a uniform buffer picked by a dynamic offset: `binding`, seen
+/// from `visibility`, `min_binding_size` bytes a slot.
+pub(crate) fn dynamic_uniform_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+    min_binding_size: u64,
+) -> wgpu::BindGroupLayoutEntry {
+    let mut entry = buffer_entry(
+        binding,
+        visibility,
+        wgpu::BufferBindingType::Uniform,
+        min_binding_size,
+    );
+    if let wgpu::BindingType::Buffer {
+        has_dynamic_offset, ..
+    } = &mut entry.ty
+    {
+        *has_dynamic_offset = true;
+    }
+    entry
+}
+
+/// A bind-group layout entry for a filtering sampler: `binding`, seen from `visibility`.
+pub(crate) fn sampler_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+        count: None,
+    }
+}
+
+/// One binding of a compute stage's group 0 ([`compute_stage`]), bound at its index in the list.
+/// Buffer sizes are the minimum binding size in bytes (0: no minimum, for runtime-sized arrays).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Slot {
+    /// A uniform buffer.
+    Uniform(u64),
+    /// A uniform buffer picked by a dynamic offset, this many bytes a slot.
+    DynamicUniform(u64),
+    /// A read-only storage buffer.
+    Read(u64),
+    /// A read-write storage buffer.
+    Write(u64),
+    /// An unfilterable float texture of this view dimension.
+    Texture(wgpu::TextureViewDimension),
+}
+
+/// A read-only storage buffer without minimum size (a runtime-sized array).
+pub(crate) const READ: Slot = Slot::Read(0);
+/// A read-write storage buffer without minimum size (a runtime-sized array).
+pub(crate) const WRITE: Slot = Slot::Write(0);
+
+impl Slot {
+    fn entry(self, binding: u32) -> wgpu::BindGroupLayoutEntry {
+        use wgpu::BufferBindingType as B;
+        let compute = wgpu::ShaderStages::COMPUTE;
+        match self {
+            Slot::Uniform(min) => buffer_entry(binding, compute, B::Uniform, min),
+            Slot::DynamicUniform(min) => dynamic_uniform_entry(binding, compute, min),
+            Slot::Read(min) => buffer_entry(binding, compute, B::Storage { read_only: true }, min),
+            Slot::Write(min) => {
+                buffer_entry(binding, compute, B::Storage { read_only: false }, min)
+            }
+            Slot::Texture(dimension) => texture_entry(binding, compute, false, dimension),
+        }
+    }
+}
+
+/// Compiles one compute stage inside [`GpuContext::checked`] (naming `"{label}.wgsl
+/// pipelines"`, so a WGSL or layout error becomes [`GpuError::Validation`]): the WGSL module
+/// `source` (labelled `"{label}.wgsl"`), a bind-group layout of `slots` (binding `i` is
+/// `slots[i]`) and a pipeline layout of that one group (both labelled `label`), and one pipeline
+/// per name of `entry_points` (each labelled with its entry point), in that order. Every pipeline
+/// of the stage shares the layout, so one bind group serves all its dispatches.
+pub(crate) fn compute_stage<const N: usize>(
+    ctx: &GpuContext,
+    label: &str,
+    source: &str,
+    slots: &[Slot],
+    entry_points: [&str; N],
+) -> Result<(wgpu::BindGroupLayout, [wgpu::ComputePipeline; N]), GpuError> {
+    ctx.checked(&format!("{label}.wgsl pipelines"), || {
+        let device = &ctx.device;
+        let module = shader_module(device, &format!("{label}.wgsl"), source);
+        let entries: Vec<_> = (0..).zip(slots).map(|(i, s)| s.entry(i)).collect();
+        let (layout, pipeline_layout) = group_layout(device, label, &entries);
+        let pipelines = entry_points.map(|entry_point| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry_point),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry_point),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        });
+        (layout, pipelines)
+    })
+}
+
+/// How one step of [`compute_pass`] dispatches.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Dispatch<'a> {
+    /// `(x, y, 1)` workgroups.
+    Groups(u32, u32),
+    /// The workgroup counts the GPU wrote at offset 0 of this `INDIRECT` buffer.
+    Indirect(&'a wgpu::Buffer),
+}
+
+/// Records one compute pass labelled `label` on `encoder`, `bind_group` at group 0 (no dynamic
+/// offsets), running `steps` in order: each sets its pipeline and dispatches.
+pub(crate) fn compute_pass(
+    encoder: &mut wgpu::CommandEncoder,
+    label: &str,
+    bind_group: &wgpu::BindGroup,
+    steps: &[(&wgpu::ComputePipeline, Dispatch<'_>)],
+) {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes: None,
     });
-    (layout, pipelines)
+    pass.set_bind_group(0, bind_group, &[]);
+    for &(pipeline, dispatch) in steps {
+        pass.set_pipeline(pipeline);
+        match dispatch {
+            Dispatch::Groups(x, y) => pass.dispatch_workgroups(x, y, 1),
+            Dispatch::Indirect(buffer) => pass.dispatch_workgroups_indirect(buffer, 0),
+        }
+    }
 }
 
 /// A fresh `UNIFORM` buffer holding `value`, for one recorded frame.

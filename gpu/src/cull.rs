@@ -40,7 +40,7 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MeshMeta, Params, SelectCounters, ViewUniform};
 
-use crate::context::{StagePipelines, buffer_entry, compute_pipelines};
+use crate::context::{Dispatch, READ, Slot, StagePipelines, WRITE, compute_pass, compute_stage};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError, SelectBuffers};
 
@@ -142,35 +142,23 @@ pub struct CullPipelines {
 impl StagePipelines for CullPipelines {
     /// Compiles `cull.wgsl` and creates its three pipelines.
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        ctx.checked("cull.wgsl pipelines", || {
-            use wgpu::BufferBindingType as B;
-            let buffer =
-                |binding, ty, min| buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty, min);
-            let storage = |read_only| B::Storage { read_only };
-            let (layout, [count, commands, scatter]) = compute_pipelines(
-                &ctx.device,
-                "cull",
-                &crate::shaders::cull_source(),
-                &[
-                    buffer(0, B::Uniform, size_of::<CullUniform>() as u64),
-                    buffer(1, storage(true), 0),
-                    buffer(2, storage(true), 0),
-                    buffer(3, storage(false), 0),
-                    buffer(4, storage(false), 0),
-                    buffer(5, storage(false), 0),
-                    buffer(6, storage(false), 0),
-                    buffer(7, storage(false), 0),
-                    buffer(8, storage(false), size_of::<SelectCounters>() as u64),
-                    buffer(9, storage(false), size_of::<DrawIndirectArgs>() as u64),
-                ],
-                ["cull_count", "cull_commands", "cull_scatter"],
-            );
-            Self {
-                layout,
-                count,
-                commands,
-                scatter,
-            }
+        let uniform = Slot::Uniform(size_of::<CullUniform>() as u64);
+        let counters = Slot::Write(size_of::<SelectCounters>() as u64);
+        let args = Slot::Write(size_of::<DrawIndirectArgs>() as u64);
+        let (layout, [count, commands, scatter]) = compute_stage(
+            ctx,
+            "cull",
+            &crate::shaders::cull_source(),
+            &[
+                uniform, READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE, counters, args,
+            ],
+            ["cull_count", "cull_commands", "cull_scatter"],
+        )?;
+        Ok(Self {
+            layout,
+            count,
+            commands,
+            scatter,
         })
     }
 }
@@ -340,17 +328,16 @@ impl<'a> GpuCull<'a> {
         encoder.clear_buffer(&self.mesh_counts, 0, None);
         let pipelines = &self.pipelines;
         let (x, y) = self.groups();
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("cull"),
-            timestamp_writes: None,
-        });
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.set_pipeline(&pipelines.count);
-        pass.dispatch_workgroups(x, y, 1);
-        pass.set_pipeline(&pipelines.commands);
-        pass.dispatch_workgroups(1, 1, 1);
-        pass.set_pipeline(&pipelines.scatter);
-        pass.dispatch_workgroups(x, y, 1);
+        compute_pass(
+            encoder,
+            "cull",
+            &self.bind_group,
+            &[
+                (&pipelines.count, Dispatch::Groups(x, y)),
+                (&pipelines.commands, Dispatch::Groups(1, 1)),
+                (&pipelines.scatter, Dispatch::Groups(x, y)),
+            ],
+        );
     }
 
     /// Runs one frame's culling and leaves the result on the GPU. Does not wait.
@@ -391,44 +378,33 @@ impl<'a> GpuCull<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
-    use core::mem::offset_of;
+    use crate::wgsl_layout::{assert_layout, assert_view_uniform, rust_layout, validate};
 
     /// `CullUniform` (with its `ViewUniform`) and `DrawIndirectArgs` have their WGSL twins' layout (naga reflection of the
     /// full `cull.wgsl` module, which also validates it; `CullTree`, in `common.wgsl`, is checked
     /// by `gpu/tests/layout.rs`).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let module = validate_wgsl(&crate::shaders::cull_source());
-        assert_wgsl_struct(
+        let module = validate(&crate::shaders::cull_source());
+        assert_layout(
             &module,
-            "CullUniform",
-            &[
-                ("view", offset_of!(CullUniform, view)),
-                ("tree_count", offset_of!(CullUniform, tree_count)),
-                ("mesh_count", offset_of!(CullUniform, mesh_count)),
-                ("_pad0", offset_of!(CullUniform, _pad0)),
-                ("_pad1", offset_of!(CullUniform, _pad1)),
-            ],
-            size_of::<CullUniform>(),
+            &rust_layout!(CullUniform {
+                view,
+                tree_count,
+                mesh_count,
+                _pad0,
+                _pad1
+            }),
         );
-        crate::mips::tests::assert_view_uniform(&module);
-        assert_wgsl_struct(
+        assert_view_uniform(&module);
+        assert_layout(
             &module,
-            "DrawIndirectArgs",
-            &[
-                ("vertex_count", offset_of!(DrawIndirectArgs, vertex_count)),
-                (
-                    "instance_count",
-                    offset_of!(DrawIndirectArgs, instance_count),
-                ),
-                ("first_vertex", offset_of!(DrawIndirectArgs, first_vertex)),
-                (
-                    "first_instance",
-                    offset_of!(DrawIndirectArgs, first_instance),
-                ),
-            ],
-            size_of::<DrawIndirectArgs>(),
+            &rust_layout!(DrawIndirectArgs {
+                vertex_count,
+                instance_count,
+                first_vertex,
+                first_instance
+            }),
         );
     }
 

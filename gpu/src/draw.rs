@@ -42,7 +42,10 @@ use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MAX_COMMANDS, MAX_MESH_VERTICES, MeshMeta, Params};
 use wgpu::util::DeviceExt;
 
-use crate::context::{StagePipelines, buffer_entry, frame_uniform};
+use crate::context::{
+    Dispatch, Slot, StagePipelines, buffer_entry, compute_pass, compute_stage, frame_uniform,
+    group_layout, sampler_entry, shader_module, texture_entry,
+};
 use crate::readback::{read_texture, upload_storage};
 use crate::{GpuContext, GpuError, SelectBuffers};
 
@@ -592,7 +595,7 @@ impl DrawTarget {
             n * 4,
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         );
-        ctx.checked("depth copy by compute", || {
+        ctx.submit("depth copy by compute", "copy_depth", |encoder| {
             let view = self.depth.create_view(&wgpu::TextureViewDescriptor {
                 aspect: wgpu::TextureAspect::DepthOnly,
                 ..Default::default()
@@ -611,21 +614,13 @@ impl DrawTarget {
                     },
                 ],
             });
-            let mut encoder = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("copy_depth"),
-                });
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("copy_depth"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&pipelines.pipeline);
-                pass.set_bind_group(0, &bind_group, &[]);
-                pass.dispatch_workgroups(self.width.div_ceil(8), self.height.div_ceil(8), 1);
-            }
-            ctx.queue.submit([encoder.finish()]);
+            let groups = Dispatch::Groups(self.width.div_ceil(8), self.height.div_ceil(8));
+            compute_pass(
+                encoder,
+                "copy_depth",
+                &bind_group,
+                &[(&pipelines.pipeline, groups)],
+            );
         })?;
         crate::readback::read_buffer(ctx, &buffer, 0, n as usize)
     }
@@ -642,55 +637,17 @@ impl StagePipelines for DepthCopyPipelines {
     /// Compiles `depth_copy.wgsl`: a depth texture (bound as unfilterable float: GLSL has no
     /// `textureLoad` of depth textures, but loads from a float view) and the output buffer.
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        ctx.checked("depth_copy.wgsl pipeline", || {
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("depth_copy.wgsl"),
-                    source: wgpu::ShaderSource::Wgsl(crate::shaders::DEPTH_COPY_WGSL.into()),
-                });
-            let layout = ctx
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("copy_depth"),
-                    entries: &[
-                        wgpu::BindGroupLayoutEntry {
-                            binding: 0,
-                            visibility: wgpu::ShaderStages::COMPUTE,
-                            ty: wgpu::BindingType::Texture {
-                                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                                view_dimension: wgpu::TextureViewDimension::D2,
-                                multisampled: false,
-                            },
-                            count: None,
-                        },
-                        buffer_entry(
-                            1,
-                            wgpu::ShaderStages::COMPUTE,
-                            wgpu::BufferBindingType::Storage { read_only: false },
-                            0,
-                        ),
-                    ],
-                });
-            let pipeline_layout =
-                ctx.device
-                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                        label: Some("copy_depth"),
-                        bind_group_layouts: &[Some(&layout)],
-                        immediate_size: 0,
-                    });
-            let pipeline = ctx
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("copy_depth"),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some("copy_depth"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
-            Self { layout, pipeline }
-        })
+        let (layout, [pipeline]) = compute_stage(
+            ctx,
+            "depth_copy",
+            crate::shaders::DEPTH_COPY_WGSL,
+            &[
+                Slot::Texture(wgpu::TextureViewDimension::D2),
+                Slot::Write(0),
+            ],
+            ["copy_depth"],
+        )?;
+        Ok(Self { layout, pipeline })
     }
 }
 
@@ -976,25 +933,21 @@ impl StagePipelines for DrawPipelines {
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("draw.wgsl pipelines", || {
             let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("draw.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(crate::shaders::draw_source().into()),
-            });
+            let module = shader_module(device, "draw.wgsl", &crate::shaders::draw_source());
             use wgpu::ShaderStages as S;
             let storage = wgpu::BufferBindingType::Storage { read_only: true };
-            let texture = |binding| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: S::FRAGMENT,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                    view_dimension: wgpu::TextureViewDimension::D2Array,
-                    multisampled: false,
-                },
-                count: None,
+            let texture = |binding| {
+                texture_entry(
+                    binding,
+                    S::FRAGMENT,
+                    true,
+                    wgpu::TextureViewDimension::D2Array,
+                )
             };
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("draw"),
-                entries: &[
+            let (layout, pipeline_layout) = group_layout(
+                device,
+                "draw",
+                &[
                     buffer_entry(
                         0,
                         S::VERTEX_FRAGMENT,
@@ -1014,19 +967,9 @@ impl StagePipelines for DrawPipelines {
                     ),
                     texture(7),
                     texture(8),
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 9,
-                        visibility: S::FRAGMENT,
-                        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                        count: None,
-                    },
+                    sampler_entry(9, S::FRAGMENT),
                 ],
-            });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("draw"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
+            );
             // Straight-alpha source-over (reference raster `Blend::AlphaBlend`).
             let source_over = wgpu::BlendState {
                 color: wgpu::BlendComponent {
@@ -1217,92 +1160,64 @@ impl GpuDraw {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use core::mem::offset_of;
+    use crate::wgsl_layout::{RustLayout, assert_layout, rust_layout, validate, validate_with};
 
     /// `depth_copy.wgsl` parses and validates (naga), standalone as the driver compiles it.
     #[test]
     fn depth_copy_wgsl_validates() {
-        crate::mips::tests::validate_wgsl(crate::shaders::DEPTH_COPY_WGSL);
+        validate(crate::shaders::DEPTH_COPY_WGSL);
     }
 
-    /// `DrawInstance`'s members and their offsets, which its twins in `draw.wgsl` and
-    /// `primitive.wgsl` must both have.
-    pub(crate) fn draw_instance_fields() -> [(&'static str, usize); 4] {
-        [
-            ("position", offset_of!(DrawInstance, position)),
-            ("yaw", offset_of!(DrawInstance, yaw)),
-            ("scale", offset_of!(DrawInstance, scale)),
-            ("mesh", offset_of!(DrawInstance, mesh)),
-        ]
+    /// `DrawInstance`'s layout, which its twins in `draw.wgsl` and `primitive.wgsl` must both
+    /// have.
+    pub(crate) fn draw_instance_layout() -> RustLayout {
+        rust_layout!(DrawInstance {
+            position,
+            yaw,
+            scale,
+            mesh
+        })
     }
 
     /// `DrawUniform`, `DrawVertex` and `DrawInstance` have their WGSL twins' layout (naga
-    /// reflection of the full `draw.wgsl` module, which also validates it).
+    /// reflection of the full `draw.wgsl` module, which also validates it; naga's layouter
+    /// agrees on the sizes).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let source = crate::shaders::draw_source();
-        let module = naga::front::wgsl::parse_str(&source).expect("draw.wgsl parses");
-        let mut validator = naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
+        let module = validate_with(
+            &crate::shaders::draw_source(),
             naga::valid::Capabilities::all(),
         );
-        validator.validate(&module).expect("draw.wgsl validates");
         let mut layouter = naga::proc::Layouter::default();
         layouter.update(module.to_ctx()).expect("layout");
-        let find = |name: &str| {
-            module
+        let layouts = [
+            rust_layout!(DrawUniform {
+                view_proj,
+                eye,
+                draw_distance,
+                forward,
+                angle_count,
+                fade_mode,
+                angle_index_mode,
+                alpha_cutoff,
+                billboard_first_vertex
+            }),
+            rust_layout!(DrawVertex { position, uv }),
+            draw_instance_layout(),
+        ];
+        for rust in &layouts {
+            assert_layout(&module, rust);
+            let handle = module
                 .types
                 .iter()
-                .find(|(_, t)| t.name.as_deref() == Some(name))
-                .unwrap_or_else(|| panic!("struct {name} in draw.wgsl"))
-        };
-        let check = |name: &str, fields: &[(&str, usize)], size: usize| {
-            let (handle, ty) = find(name);
-            let naga::TypeInner::Struct { members, span } = &ty.inner else {
-                panic!("{name} is not a struct")
-            };
-            assert_eq!(*span as usize, size, "{name} size");
-            assert_eq!(layouter[handle].size as usize, size, "{name} size");
-            assert_eq!(members.len(), fields.len(), "{name} member count");
-            for (m, (field, offset)) in members.iter().zip(fields) {
-                assert_eq!(m.name.as_deref(), Some(*field), "{name} member order");
-                assert_eq!(m.offset as usize, *offset, "{name}.{field} offset");
-            }
-        };
-        check(
-            "DrawUniform",
-            &[
-                ("view_proj", offset_of!(DrawUniform, view_proj)),
-                ("eye", offset_of!(DrawUniform, eye)),
-                ("draw_distance", offset_of!(DrawUniform, draw_distance)),
-                ("forward", offset_of!(DrawUniform, forward)),
-                ("angle_count", offset_of!(DrawUniform, angle_count)),
-                ("fade_mode", offset_of!(DrawUniform, fade_mode)),
-                (
-                    "angle_index_mode",
-                    offset_of!(DrawUniform, angle_index_mode),
-                ),
-                ("alpha_cutoff", offset_of!(DrawUniform, alpha_cutoff)),
-                (
-                    "billboard_first_vertex",
-                    offset_of!(DrawUniform, billboard_first_vertex),
-                ),
-            ],
-            size_of::<DrawUniform>(),
-        );
-        check(
-            "DrawVertex",
-            &[
-                ("position", offset_of!(DrawVertex, position)),
-                ("uv", offset_of!(DrawVertex, uv)),
-            ],
-            size_of::<DrawVertex>(),
-        );
-        check(
-            "DrawInstance",
-            &draw_instance_fields(),
-            size_of::<DrawInstance>(),
-        );
+                .find_map(|(h, t)| (t.name.as_deref() == Some(rust.name)).then_some(h))
+                .expect("struct in draw.wgsl");
+            assert_eq!(
+                layouter[handle].size as usize, rust.size,
+                "{} size",
+                rust.name
+            );
+        }
     }
 
     #[test]

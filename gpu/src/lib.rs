@@ -66,6 +66,8 @@ pub mod readback;
 pub mod refine;
 pub mod select;
 pub mod shaders;
+#[cfg(test)]
+mod wgsl_layout;
 
 pub use bake::{BakeMesh, GpuBake, GpuBaked};
 pub use context::{

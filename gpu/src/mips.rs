@@ -70,7 +70,7 @@ use std::sync::{Arc, OnceLock};
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::MipMode;
 
-use crate::context::{StagePipelines, buffer_entry, compute_pipelines};
+use crate::context::{Slot, StagePipelines, compute_stage};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -484,70 +484,46 @@ struct MipsPipelines {
 
 impl StagePipelines for MipsPipelines {
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        ctx.checked("mips.wgsl pipelines", || {
-            use wgpu::BufferBindingType as B;
-            let buffer =
-                |binding, ty, min| buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty, min);
-            let storage = |read_only| B::Storage { read_only };
-            let (layout, pipelines) = compute_pipelines(
-                &ctx.device,
-                "mips",
-                &crate::shaders::mips_source(),
-                &[
-                    // One uniform slot per level, picked by dynamic offset.
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 0,
-                        visibility: wgpu::ShaderStages::COMPUTE,
-                        ty: wgpu::BindingType::Buffer {
-                            ty: B::Uniform,
-                            has_dynamic_offset: true,
-                            min_binding_size: NonZeroU64::new(size_of::<MipsUniform>() as u64),
-                        },
-                        count: None,
-                    },
-                    buffer(1, storage(true), (TABLE_LEN * 4) as u64),
-                    buffer(2, storage(true), 16),
-                    buffer(3, storage(false), 16),
-                    buffer(4, storage(false), size_of::<MipLevelStats>() as u64),
-                    buffer(5, storage(false), 4),
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 6,
-                        visibility: wgpu::ShaderStages::COMPUTE,
-                        ty: wgpu::BindingType::Texture {
-                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                            view_dimension: wgpu::TextureViewDimension::D2Array,
-                            multisampled: false,
-                        },
-                        count: None,
-                    },
-                    buffer(7, storage(false), size_of::<CoverageState>() as u64),
-                ],
-                [
-                    "mips_decode",
-                    "mips_downsample",
-                    "mips_adjust",
-                    "mips_coverage_count",
-                    "mips_coverage_step",
-                    "mips_finalize",
-                ],
-            );
-            let [
-                decode,
-                downsample,
-                adjust,
-                coverage_count,
-                coverage_step,
-                finalize,
-            ] = pipelines;
-            Self {
-                layout,
-                decode,
-                downsample,
-                adjust,
-                coverage_count,
-                coverage_step,
-                finalize,
-            }
+        let (layout, pipelines) = compute_stage(
+            ctx,
+            "mips",
+            &crate::shaders::mips_source(),
+            &[
+                // One uniform slot per level, picked by dynamic offset.
+                Slot::DynamicUniform(size_of::<MipsUniform>() as u64),
+                Slot::Read((TABLE_LEN * 4) as u64),
+                Slot::Read(16),
+                Slot::Write(16),
+                Slot::Write(size_of::<MipLevelStats>() as u64),
+                Slot::Write(4),
+                Slot::Texture(wgpu::TextureViewDimension::D2Array),
+                Slot::Write(size_of::<CoverageState>() as u64),
+            ],
+            [
+                "mips_decode",
+                "mips_downsample",
+                "mips_adjust",
+                "mips_coverage_count",
+                "mips_coverage_step",
+                "mips_finalize",
+            ],
+        )?;
+        let [
+            decode,
+            downsample,
+            adjust,
+            coverage_count,
+            coverage_step,
+            finalize,
+        ] = pipelines;
+        Ok(Self {
+            layout,
+            decode,
+            downsample,
+            adjust,
+            coverage_count,
+            coverage_step,
+            finalize,
         })
     }
 }
@@ -686,7 +662,7 @@ impl MipArray {
             ctx.queue.submit([encoder.finish()]);
             staging
         })?;
-        let data = map_whole(ctx, &bytes)?;
+        let data = crate::readback::map_and_read(ctx, &bytes)?;
         Ok((0..layers as usize)
             .map(|layer| {
                 regions
@@ -734,26 +710,6 @@ impl MipArray {
                 .collect(),
         ))
     }
-}
-
-/// Maps a whole `MAP_READ` buffer after the GPU is done and copies its bytes out.
-fn map_whole(ctx: &GpuContext, staging: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
-    let (sender, receiver) = std::sync::mpsc::channel();
-    staging.map_async(wgpu::MapMode::Read, .., move |result| {
-        // The receiver outlives the wait below; a failed send only means nobody listens.
-        let _ = sender.send(result);
-    });
-    ctx.wait()?;
-    receiver
-        .recv()
-        .map_err(|e| GpuError::Map(e.to_string()))?
-        .map_err(|e| GpuError::Map(e.to_string()))?;
-    let bytes = staging
-        .get_mapped_range(..)
-        .map_err(|e| GpuError::Map(e.to_string()))?
-        .to_vec();
-    staging.unmap();
-    Ok(bytes)
 }
 
 impl<'a> GpuMips<'a> {
@@ -1012,7 +968,7 @@ impl<'a> GpuMips<'a> {
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
 
     #[test]
@@ -1064,119 +1020,31 @@ pub(crate) mod tests {
         }
     }
 
-    /// Parses and validates a module with naga; returns it for reflection.
-    pub(crate) fn validate_wgsl(source: &str) -> naga::Module {
-        let module = naga::front::wgsl::parse_str(source)
-            .unwrap_or_else(|e| panic!("WGSL parse error:\n{}", e.emit_to_string(source)));
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::default(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("WGSL validation error:\n{}", e.emit_to_string(source)));
-        module
-    }
-
-    /// Member offsets and span of the WGSL struct `name`.
-    pub(crate) fn wgsl_offsets(module: &naga::Module, name: &str) -> (Vec<u32>, u32) {
-        module
-            .types
-            .iter()
-            .find_map(|(_, ty)| match &ty.inner {
-                naga::TypeInner::Struct { members, span } if ty.name.as_deref() == Some(name) => {
-                    Some((members.iter().map(|m| m.offset).collect(), *span))
-                }
-                _ => None,
-            })
-            .unwrap_or_else(|| panic!("WGSL has no struct {name}"))
-    }
-
-    /// Asserts that the WGSL struct `name` of `module` has exactly the members `fields`, as
-    /// `(name, byte offset)` in declaration order, and the span `size`: its Rust twin's
-    /// `offset_of!`s and `size_of`.
-    /// `module`'s `ViewUniform` and `FrustumPlanes` have the layout of
-    /// `forestlod_shared::{ViewUniform, FrustumPlanes}` (the stage uniforms embed them).
-    pub(crate) fn assert_view_uniform(module: &naga::Module) {
-        use core::mem::offset_of;
-        use forestlod_shared::{FrustumPlanes, ViewUniform};
-        assert_wgsl_struct(
-            module,
-            "FrustumPlanes",
-            &[("planes", offset_of!(FrustumPlanes, planes))],
-            size_of::<FrustumPlanes>(),
-        );
-        assert_wgsl_struct(
-            module,
-            "ViewUniform",
-            &[
-                ("frustum", offset_of!(ViewUniform, frustum)),
-                ("eye", offset_of!(ViewUniform, eye)),
-                ("fade_start", offset_of!(ViewUniform, fade_start)),
-                ("forward", offset_of!(ViewUniform, forward)),
-                ("fade_end", offset_of!(ViewUniform, fade_end)),
-                ("draw_distance", offset_of!(ViewUniform, draw_distance)),
-                ("lod_levels", offset_of!(ViewUniform, lod_levels)),
-                ("_pad0", offset_of!(ViewUniform, _pad0)),
-                ("_pad1", offset_of!(ViewUniform, _pad1)),
-            ],
-            size_of::<ViewUniform>(),
-        );
-    }
-
-    pub(crate) fn assert_wgsl_struct(
-        module: &naga::Module,
-        name: &str,
-        fields: &[(&str, usize)],
-        size: usize,
-    ) {
-        let (_, ty) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some(name))
-            .unwrap_or_else(|| panic!("WGSL has no struct {name}"));
-        let naga::TypeInner::Struct { members, span } = &ty.inner else {
-            panic!("{name} is not a struct")
-        };
-        assert_eq!(*span as usize, size, "{name} size");
-        let got: Vec<(&str, usize)> = members
-            .iter()
-            .map(|m| (m.name.as_deref().unwrap_or(""), m.offset as usize))
-            .collect();
-        assert_eq!(got, fields, "{name} members");
-    }
-
     #[test]
     fn wgsl_structs_match_their_rust_twins() {
-        use core::mem::offset_of;
-        let module = validate_wgsl(&crate::shaders::mips_source());
-        let uniform = [
-            offset_of!(MipsUniform, level),
-            offset_of!(MipsUniform, side),
-            offset_of!(MipsUniform, layer_count),
-            offset_of!(MipsUniform, mode),
-            offset_of!(MipsUniform, alpha_ref),
-            offset_of!(MipsUniform, out_offset),
-            offset_of!(MipsUniform, out_row),
-            offset_of!(MipsUniform, level0_side),
-        ]
-        .map(|o| o as u32);
-        assert_eq!(
-            wgsl_offsets(&module, "MipsUniform"),
-            (uniform.to_vec(), size_of::<MipsUniform>() as u32)
-        );
-        let stats = [
-            offset_of!(MipLevelStats, alpha_min_bits),
-            offset_of!(MipLevelStats, alpha_max_bits),
-            offset_of!(MipLevelStats, pass_count),
-            offset_of!(MipLevelStats, adjust_kind),
-            offset_of!(MipLevelStats, adjust),
-        ]
-        .map(|o| o as u32);
-        assert_eq!(
-            wgsl_offsets(&module, "LevelStats"),
-            (stats.to_vec(), size_of::<MipLevelStats>() as u32)
-        );
-        let (offsets, span) = wgsl_offsets(&module, "CoverageState");
+        use crate::wgsl_layout::{assert_offsets, rust_layout, validate, wgsl_layout};
+        let module = validate(&crate::shaders::mips_source());
+        let uniform = rust_layout!(MipsUniform {
+            level,
+            side,
+            layer_count,
+            mode,
+            alpha_ref,
+            out_offset,
+            out_row,
+            level0_side
+        });
+        assert_offsets(&module, "MipsUniform", &uniform);
+        let stats = rust_layout!(MipLevelStats {
+            alpha_min_bits,
+            alpha_max_bits,
+            pass_count,
+            adjust_kind,
+            adjust
+        });
+        assert_offsets(&module, "LevelStats", &stats);
+        let (members, span) = wgsl_layout(&module, "CoverageState").expect("CoverageState");
+        let offsets: Vec<u32> = members.iter().map(|(_, o)| *o).collect();
         assert_eq!(offsets, (0..12).map(|i| i * 4).collect::<Vec<u32>>());
         assert_eq!(span as usize, size_of::<CoverageState>());
     }

@@ -40,7 +40,7 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, ProxyRecord};
 
-use crate::context::{StagePipelines, buffer_entry, frame_uniform};
+use crate::context::{StagePipelines, buffer_entry, frame_uniform, group_layout, shader_module};
 use crate::draw::{
     DrawScene, DrawTarget, DrawUniform, begin_target_pass, target_pipeline, terrain_pipeline,
 };
@@ -196,54 +196,43 @@ impl StagePipelines for PrimitivePipelines {
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("primitive.wgsl pipelines", || {
             let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("primitive.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(crate::shaders::primitive_source().into()),
-            });
-            let draw_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("draw.wgsl (terrain)"),
-                source: wgpu::ShaderSource::Wgsl(crate::shaders::draw_source().into()),
-            });
+            let module = shader_module(
+                device,
+                "primitive.wgsl",
+                &crate::shaders::primitive_source(),
+            );
+            let draw_module = shader_module(
+                device,
+                "draw.wgsl (terrain)",
+                &crate::shaders::draw_source(),
+            );
             use wgpu::ShaderStages as S;
             let storage = wgpu::BufferBindingType::Storage { read_only: true };
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("primitive"),
-                entries: &[
-                    buffer_entry(
-                        0,
-                        S::VERTEX_FRAGMENT,
-                        wgpu::BufferBindingType::Uniform,
-                        size_of::<PrimitiveUniform>() as u64,
-                    ),
+            let uniform = |size| {
+                buffer_entry(
+                    0,
+                    S::VERTEX_FRAGMENT,
+                    wgpu::BufferBindingType::Uniform,
+                    size,
+                )
+            };
+            let (layout, quad_layout) = group_layout(
+                device,
+                "primitive",
+                &[
+                    uniform(size_of::<PrimitiveUniform>() as u64),
                     buffer_entry(1, S::VERTEX_FRAGMENT, storage, 0),
                     buffer_entry(2, S::VERTEX, storage, 0),
                     buffer_entry(3, S::VERTEX_FRAGMENT, storage, 0),
                 ],
-            });
-            // The terrain entry points of draw.wgsl read only binding 0, its DrawUniform.
-            let terrain_layout =
-                device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("primitive terrain"),
-                    entries: &[buffer_entry(
-                        0,
-                        S::VERTEX_FRAGMENT,
-                        wgpu::BufferBindingType::Uniform,
-                        size_of::<DrawUniform>() as u64,
-                    )],
-                });
-            let pipeline_layout = |label, layout| {
-                device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some(label),
-                    bind_group_layouts: &[Some(layout)],
-                    immediate_size: 0,
-                })
-            };
-            let quad_layout = pipeline_layout("primitive", &layout);
-            let terrain = terrain_pipeline(
-                device,
-                &draw_module,
-                &pipeline_layout("primitive terrain", &terrain_layout),
             );
+            // The terrain entry points of draw.wgsl read only binding 0, its DrawUniform.
+            let (terrain_layout, terrain_pipeline_layout) = group_layout(
+                device,
+                "primitive terrain",
+                &[uniform(size_of::<DrawUniform>() as u64)],
+            );
+            let terrain = terrain_pipeline(device, &draw_module, &terrain_pipeline_layout);
             let quads = target_pipeline(
                 device,
                 "primitive quads",
@@ -358,56 +347,35 @@ impl GpuPrimitive {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::DrawInstance;
     use crate::draw::LOD_ID_MESH;
-    use crate::draw::tests::draw_instance_fields;
-    use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
-    use core::mem::offset_of;
+    use crate::draw::tests::draw_instance_layout;
+    use crate::wgsl_layout::{assert_layout, rust_layout, validate};
 
     /// `PrimitiveUniform` and `DrawInstance` have their WGSL twins' layout in `primitive.wgsl`
     /// (naga reflection, which also validates the module; `ProxyRecord` is checked with the
     /// shared records in `gpu/tests/layout.rs`).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let module = validate_wgsl(&crate::shaders::primitive_source());
-        assert_wgsl_struct(
+        let module = validate(&crate::shaders::primitive_source());
+        assert_layout(
             &module,
-            "PrimitiveUniform",
-            &[
-                ("view_proj", offset_of!(PrimitiveUniform, view_proj)),
-                ("eye", offset_of!(PrimitiveUniform, eye)),
-                ("near", offset_of!(PrimitiveUniform, near)),
-                ("forward", offset_of!(PrimitiveUniform, forward)),
-                ("far", offset_of!(PrimitiveUniform, far)),
-                ("right", offset_of!(PrimitiveUniform, right)),
-                (
-                    "fallback_distance",
-                    offset_of!(PrimitiveUniform, fallback_distance),
-                ),
-                ("up", offset_of!(PrimitiveUniform, up)),
-                (
-                    "fallback_depth",
-                    offset_of!(PrimitiveUniform, fallback_depth),
-                ),
-                (
-                    "fallback_half_x",
-                    offset_of!(PrimitiveUniform, fallback_half_x),
-                ),
-                (
-                    "fallback_half_y",
-                    offset_of!(PrimitiveUniform, fallback_half_y),
-                ),
-                ("bound_scale", offset_of!(PrimitiveUniform, bound_scale)),
-                ("_pad0", offset_of!(PrimitiveUniform, _pad0)),
-            ],
-            size_of::<PrimitiveUniform>(),
+            &rust_layout!(PrimitiveUniform {
+                view_proj,
+                eye,
+                near,
+                forward,
+                far,
+                right,
+                fallback_distance,
+                up,
+                fallback_depth,
+                fallback_half_x,
+                fallback_half_y,
+                bound_scale,
+                _pad0
+            }),
         );
-        assert_wgsl_struct(
-            &module,
-            "DrawInstance",
-            &draw_instance_fields(),
-            size_of::<DrawInstance>(),
-        );
+        assert_layout(&module, &draw_instance_layout());
         assert_eq!(LOD_ID_MESH, 1, "primitive.wgsl's LOD_ID_MESH");
     }
 }

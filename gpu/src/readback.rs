@@ -83,25 +83,42 @@ pub fn read_buffer<T: Pod>(
     }
     // Copies move multiples of 4 bytes; a T of odd size reads a little more and truncates.
     let copy_len = len.next_multiple_of(4).min(buffer.size() - offset);
+    let bytes = copy_and_read(
+        ctx,
+        "readback",
+        copy_len.next_multiple_of(4),
+        |encoder, staging| {
+            encoder.copy_buffer_to_buffer(buffer, offset, staging, 0, copy_len);
+        },
+    )?;
+    Ok(bytemuck::pod_collect_to_vec(&bytes[..len as usize]))
+}
+
+/// Creates a `MAP_READ | COPY_DST` staging buffer of `size` bytes (labelled `"{label} staging"`),
+/// records the copies into it with `copy` in an encoder labelled `label`, submits them and
+/// returns the staging buffer's bytes ([`map_and_read`]). Blocks.
+fn copy_and_read(
+    ctx: &GpuContext,
+    label: &str,
+    size: u64,
+    copy: impl FnOnce(&mut wgpu::CommandEncoder, &wgpu::Buffer),
+) -> Result<Vec<u8>, GpuError> {
     let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("readback staging"),
-        size: copy_len.next_multiple_of(4),
+        label: Some(&format!("{label} staging")),
+        size,
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
     let mut encoder = ctx
         .device
-        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("readback"),
-        });
-    encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, copy_len);
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+    copy(&mut encoder, &staging);
     ctx.queue.submit([encoder.finish()]);
-    let bytes = map_and_read(ctx, &staging)?;
-    Ok(bytemuck::pod_collect_to_vec(&bytes[..len as usize]))
+    map_and_read(ctx, &staging)
 }
 
 /// Maps a whole `MAP_READ` buffer, copies its bytes out and unmaps it.
-fn map_and_read(ctx: &GpuContext, staging: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+pub(crate) fn map_and_read(ctx: &GpuContext, staging: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     let (sender, receiver) = std::sync::mpsc::channel();
     staging.map_async(wgpu::MapMode::Read, .., move |result| {
         // The receiver outlives the poll below; a failed send only means nobody listens.
@@ -178,44 +195,34 @@ pub fn read_texture(
     let (width, height) = (size.width, size.height);
     let row = width * bytes_per_texel;
     let padded_row = row.next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("texture readback staging"),
-        size: u64::from(padded_row) * u64::from(height),
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut encoder = ctx
-        .device
-        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("texture readback"),
-        });
-    encoder.copy_texture_to_buffer(
-        wgpu::TexelCopyTextureInfo {
-            texture,
-            mip_level,
-            origin: wgpu::Origin3d {
-                x: 0,
-                y: 0,
-                z: layer,
+    let size = u64::from(padded_row) * u64::from(height);
+    let padded = copy_and_read(ctx, "texture readback", size, |encoder, staging| {
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level,
+                origin: wgpu::Origin3d {
+                    x: 0,
+                    y: 0,
+                    z: layer,
+                },
+                aspect,
             },
-            aspect,
-        },
-        wgpu::TexelCopyBufferInfo {
-            buffer: &staging,
-            layout: wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(padded_row),
-                rows_per_image: Some(height),
+            wgpu::TexelCopyBufferInfo {
+                buffer: staging,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded_row),
+                    rows_per_image: Some(height),
+                },
             },
-        },
-        wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        },
-    );
-    ctx.queue.submit([encoder.finish()]);
-    let padded = map_and_read(ctx, &staging)?;
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+        );
+    })?;
     let mut data = Vec::with_capacity((row * height) as usize);
     for y in 0..height as usize {
         let start = y * padded_row as usize;

@@ -65,7 +65,7 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, SelectCounters, ViewUniform};
 
-use crate::context::{StagePipelines, buffer_entry, compute_pipelines};
+use crate::context::{Dispatch, READ, Slot, StagePipelines, WRITE, compute_pass, compute_stage};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{CullTree, GpuContext, GpuError, GpuSelection, SelectBuffers};
 
@@ -168,44 +168,34 @@ pub struct RefinePipelines {
 impl StagePipelines for RefinePipelines {
     /// Compiles `refine.wgsl` and creates its pipelines.
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        ctx.checked("refine.wgsl pipelines", || {
-            use wgpu::BufferBindingType as B;
-            let buffer =
-                |binding, ty, min| buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty, min);
-            let storage = |read_only| B::Storage { read_only };
-            let (layout, [prepare, args, count, scan, write, finalize]) = compute_pipelines(
-                &ctx.device,
-                "refine",
-                &crate::shaders::refine_source(),
-                &[
-                    buffer(0, B::Uniform, size_of::<RefineUniform>() as u64),
-                    buffer(1, storage(true), 0),
-                    buffer(2, storage(false), 0),
-                    buffer(3, storage(false), 0),
-                    buffer(4, storage(true), 0),
-                    buffer(5, storage(true), size_of::<SelectCounters>() as u64),
-                    buffer(6, storage(false), size_of::<RefineCounters>() as u64),
-                    buffer(7, storage(false), 0),
-                    buffer(8, storage(false), size_of::<RefineDispatch>() as u64),
-                ],
-                [
-                    "refine_prepare",
-                    "refine_args",
-                    "refine_count",
-                    "refine_scan",
-                    "refine_write",
-                    "refine_finalize",
-                ],
-            );
-            Self {
-                layout,
-                prepare,
-                args,
-                count,
-                scan,
-                write,
-                finalize,
-            }
+        let uniform = Slot::Uniform(size_of::<RefineUniform>() as u64);
+        let selected = Slot::Read(size_of::<SelectCounters>() as u64);
+        let counters = Slot::Write(size_of::<RefineCounters>() as u64);
+        let dispatch = Slot::Write(size_of::<RefineDispatch>() as u64);
+        let (layout, [prepare, args, count, scan, write, finalize]) = compute_stage(
+            ctx,
+            "refine",
+            &crate::shaders::refine_source(),
+            &[
+                uniform, READ, WRITE, WRITE, READ, selected, counters, WRITE, dispatch,
+            ],
+            [
+                "refine_prepare",
+                "refine_args",
+                "refine_count",
+                "refine_scan",
+                "refine_write",
+                "refine_finalize",
+            ],
+        )?;
+        Ok(Self {
+            layout,
+            prepare,
+            args,
+            count,
+            scan,
+            write,
+            finalize,
         })
     }
 }
@@ -383,17 +373,15 @@ impl<'a> GpuRefine<'a> {
                 }),
             });
         let (x, y) = self.slot_groups(selection.capacity);
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("refine grid"),
-                timestamp_writes: None,
-            });
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.set_pipeline(&pipelines.prepare);
-            pass.dispatch_workgroups(x, y, 1);
-            pass.set_pipeline(&pipelines.args);
-            pass.dispatch_workgroups(1, 1, 1);
-        }
+        compute_pass(
+            encoder,
+            "refine grid",
+            &bind_group,
+            &[
+                (&pipelines.prepare, Dispatch::Groups(x, y)),
+                (&pipelines.args, Dispatch::Groups(1, 1)),
+            ],
+        );
         // The grid leaves the bound storage buffer for an INDIRECT-only one (a buffer cannot be
         // both in the same dispatch).
         encoder.copy_buffer_to_buffer(
@@ -403,19 +391,18 @@ impl<'a> GpuRefine<'a> {
             0,
             size_of::<RefineDispatch>() as u64,
         );
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("refine"),
-            timestamp_writes: None,
-        });
-        pass.set_bind_group(0, &bind_group, &[]);
-        pass.set_pipeline(&pipelines.count);
-        pass.dispatch_workgroups_indirect(&self.dispatch_args, 0);
-        pass.set_pipeline(&pipelines.scan);
-        pass.dispatch_workgroups(x, y, 1);
-        pass.set_pipeline(&pipelines.write);
-        pass.dispatch_workgroups_indirect(&self.dispatch_args, 0);
-        pass.set_pipeline(&pipelines.finalize);
-        pass.dispatch_workgroups(x, y, 1);
+        let indirect = Dispatch::Indirect(&self.dispatch_args);
+        compute_pass(
+            encoder,
+            "refine",
+            &bind_group,
+            &[
+                (&pipelines.count, indirect),
+                (&pipelines.scan, Dispatch::Groups(x, y)),
+                (&pipelines.write, indirect),
+                (&pipelines.finalize, Dispatch::Groups(x, y)),
+            ],
+        );
     }
 
     /// Refines `selection` for one frame and leaves the result on the GPU. Does not wait.
@@ -445,47 +432,40 @@ impl<'a> GpuRefine<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mips::tests::{assert_wgsl_struct, validate_wgsl};
-    use core::mem::offset_of;
+    use crate::wgsl_layout::{assert_layout, assert_view_uniform, rust_layout, validate};
 
     /// `RefineUniform` (with its `ViewUniform`), `RefineCounters` and `RefineDispatch` have their WGSL twins' layout (naga reflection of the
     /// full `refine.wgsl` module, which also validates it; `CullTree`, in `common.wgsl`, is
     /// checked by `gpu/tests/layout.rs`).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let module = validate_wgsl(&crate::shaders::refine_source());
-        assert_wgsl_struct(
+        let module = validate(&crate::shaders::refine_source());
+        assert_layout(
             &module,
-            "RefineUniform",
-            &[
-                ("view", offset_of!(RefineUniform, view)),
-                ("tree_count", offset_of!(RefineUniform, tree_count)),
-                ("tree_cull", offset_of!(RefineUniform, tree_cull)),
-                ("max_workgroups", offset_of!(RefineUniform, max_workgroups)),
-                ("_pad0", offset_of!(RefineUniform, _pad0)),
-            ],
-            size_of::<RefineUniform>(),
+            &rust_layout!(RefineUniform {
+                view,
+                tree_count,
+                tree_cull,
+                max_workgroups,
+                _pad0
+            }),
         );
-        crate::mips::tests::assert_view_uniform(&module);
-        assert_wgsl_struct(
+        assert_view_uniform(&module);
+        assert_layout(
             &module,
-            "RefineCounters",
-            &[
-                ("trees_tested", offset_of!(RefineCounters, trees_tested)),
-                ("trees_kept", offset_of!(RefineCounters, trees_kept)),
-            ],
-            size_of::<RefineCounters>(),
+            &rust_layout!(RefineCounters {
+                trees_tested,
+                trees_kept
+            }),
         );
-        assert_wgsl_struct(
+        assert_layout(
             &module,
-            "RefineDispatch",
-            &[
-                ("x", offset_of!(RefineDispatch, x)),
-                ("y", offset_of!(RefineDispatch, y)),
-                ("z", offset_of!(RefineDispatch, z)),
-                ("max_chunks", offset_of!(RefineDispatch, max_chunks)),
-            ],
-            size_of::<RefineDispatch>(),
+            &rust_layout!(RefineDispatch {
+                x,
+                y,
+                z,
+                max_chunks
+            }),
         );
     }
 

@@ -33,7 +33,7 @@ use forestlod_shared::{
     SelectCounters, ViewUniform,
 };
 
-use crate::context::{StagePipelines, buffer_entry, compute_pipelines};
+use crate::context::{Dispatch, READ, Slot, StagePipelines, WRITE, compute_pass, compute_stage};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -235,39 +235,26 @@ pub struct SelectPipelines {
 impl StagePipelines for SelectPipelines {
     /// Compiles `select.wgsl` and creates its four pipelines.
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        ctx.checked("select.wgsl pipelines", || {
-            use wgpu::BufferBindingType as B;
-            let buffer =
-                |binding, ty, min| buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty, min);
-            let storage = |read_only| B::Storage { read_only };
-            let (layout, [decide, scan, write, atomic]) = compute_pipelines(
-                &ctx.device,
-                "select",
-                &crate::shaders::select_source(),
-                &[
-                    buffer(0, B::Uniform, size_of::<SelectUniform>() as u64),
-                    buffer(1, storage(true), 0),
-                    buffer(2, storage(true), 0),
-                    buffer(3, storage(false), 0),
-                    buffer(4, storage(false), 0),
-                    buffer(5, storage(false), 0),
-                    buffer(6, storage(false), 0),
-                    buffer(7, storage(false), size_of::<SelectCounters>() as u64),
-                ],
-                [
-                    "select_decide",
-                    "select_scan",
-                    "select_write",
-                    "select_atomic",
-                ],
-            );
-            Self {
-                layout,
-                decide,
-                scan,
-                write,
-                atomic,
-            }
+        let uniform = Slot::Uniform(size_of::<SelectUniform>() as u64);
+        let counters = Slot::Write(size_of::<SelectCounters>() as u64);
+        let (layout, [decide, scan, write, atomic]) = compute_stage(
+            ctx,
+            "select",
+            &crate::shaders::select_source(),
+            &[uniform, READ, READ, WRITE, WRITE, WRITE, WRITE, counters],
+            [
+                "select_decide",
+                "select_scan",
+                "select_write",
+                "select_atomic",
+            ],
+        )?;
+        Ok(Self {
+            layout,
+            decide,
+            scan,
+            write,
+            atomic,
         })
     }
 }
@@ -409,25 +396,15 @@ impl<'a> GpuSelect<'a> {
         encoder.clear_buffer(&self.out.counters, 0, None);
         let pipelines = &self.pipelines;
         let (x, y) = self.groups();
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("select"),
-            timestamp_writes: None,
-        });
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        match compaction {
-            Compaction::Stable => {
-                pass.set_pipeline(&pipelines.decide);
-                pass.dispatch_workgroups(x, y, 1);
-                pass.set_pipeline(&pipelines.scan);
-                pass.dispatch_workgroups(1, 1, 1);
-                pass.set_pipeline(&pipelines.write);
-                pass.dispatch_workgroups(x, y, 1);
-            }
-            Compaction::Atomic => {
-                pass.set_pipeline(&pipelines.atomic);
-                pass.dispatch_workgroups(x, y, 1);
-            }
-        }
+        let steps = match compaction {
+            Compaction::Stable => vec![
+                (&pipelines.decide, Dispatch::Groups(x, y)),
+                (&pipelines.scan, Dispatch::Groups(1, 1)),
+                (&pipelines.write, Dispatch::Groups(x, y)),
+            ],
+            Compaction::Atomic => vec![(&pipelines.atomic, Dispatch::Groups(x, y))],
+        };
+        compute_pass(encoder, "select", &self.bind_group, &steps);
     }
 
     /// Runs one frame's selection and leaves the result on the GPU ([`GpuSelect::buffers`]) for

@@ -6,31 +6,19 @@
 //! and `SelectUniform` (with the `ViewUniform` every selection-like stage embeds) are legal in the
 //! uniform address space.
 
-use core::mem::{offset_of, size_of};
-
 use forestlod_gpu::shaders::{COMMON_WGSL, cull_source, primitive_source, select_source};
 use forestlod_gpu::{CullTree, SelectUniform};
 use forestlod_shared::{
     BatchMeta, Camera, CommandData, DrawCommand, FrustumPlanes, MeshMeta, Params, ProxyRecord,
-    SelectCounters, ViewUniform,
+    SelectCounters,
 };
 
-/// A Rust struct's layout: `(field, offset)` in declaration order, and its size.
-struct RustLayout {
-    name: &'static str,
-    fields: Vec<(&'static str, usize)>,
-    size: usize,
-}
-
-macro_rules! rust_layout {
-    ($ty:ident { $($field:ident),* $(,)? }) => {
-        RustLayout {
-            name: stringify!($ty),
-            fields: vec![$((stringify!($field), offset_of!($ty, $field))),*],
-            size: size_of::<$ty>(),
-        }
-    };
-}
+/// The crate's own layout-test support (`gpu/src/wgsl_layout.rs`), shared with its unit tests.
+#[path = "../src/wgsl_layout.rs"]
+mod wgsl_layout;
+use wgsl_layout::{
+    RustLayout, assert_layout, rust_layout, validate, view_uniform_layout, wgsl_layout,
+};
 
 fn rust_layouts() -> Vec<RustLayout> {
     vec![
@@ -113,17 +101,7 @@ fn rust_layouts() -> Vec<RustLayout> {
             mesh
         }),
         rust_layout!(FrustumPlanes { planes }),
-        rust_layout!(ViewUniform {
-            frustum,
-            eye,
-            fade_start,
-            forward,
-            fade_end,
-            draw_distance,
-            lod_levels,
-            _pad0,
-            _pad1
-        }),
+        view_uniform_layout(),
         rust_layout!(SelectUniform {
             view,
             batch_count,
@@ -132,32 +110,6 @@ fn rust_layouts() -> Vec<RustLayout> {
             billboard_index_count
         }),
     ]
-}
-
-/// `(member, offset)` list and span of the WGSL struct `name`, if the module declares it.
-fn wgsl_layout(module: &naga::Module, name: &str) -> Option<(Vec<(String, u32)>, u32)> {
-    module.types.iter().find_map(|(_, ty)| match &ty.inner {
-        naga::TypeInner::Struct { members, span } if ty.name.as_deref() == Some(name) => Some((
-            members
-                .iter()
-                .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
-                .collect(),
-            *span,
-        )),
-        _ => None,
-    })
-}
-
-fn validate(source: &str) -> naga::Module {
-    let module = naga::front::wgsl::parse_str(source)
-        .unwrap_or_else(|e| panic!("WGSL parse error:\n{}", e.emit_to_string(source)));
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::default(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("WGSL validation error:\n{}", e.emit_to_string(source)));
-    module
 }
 
 #[test]
@@ -184,22 +136,7 @@ fn wgsl_structs_match_their_rust_twins() {
         .map(|l| (l, &module))
         .chain(primitive_layouts.into_iter().map(|l| (l, &primitive)));
     for (rust, module) in layouts {
-        let (members, span) = wgsl_layout(module, rust.name)
-            .unwrap_or_else(|| panic!("WGSL has no struct {}", rust.name));
-        let wgsl: Vec<(&str, usize)> = members
-            .iter()
-            .map(|(n, o)| (n.as_str(), *o as usize))
-            .collect();
-        assert_eq!(
-            wgsl, rust.fields,
-            "struct {}: WGSL members/offsets (left) differ from Rust (right)",
-            rust.name
-        );
-        assert_eq!(
-            span as usize, rust.size,
-            "struct {}: WGSL size differs from Rust",
-            rust.name
-        );
+        assert_layout(module, &rust);
         checked += 1;
         eprintln!(
             "{}: {} members, {} bytes: layouts equal",

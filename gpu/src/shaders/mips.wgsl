@@ -230,12 +230,29 @@ fn downsample_texel(t00: vec4<f32>, t10: vec4<f32>, t01: vec4<f32>, t11: vec4<f3
     return vec4<f32>(rgb, alpha_sum * 0.25);
 }
 
+// Starts a tiled pass: one invocation clears the workgroup's stats, then all wait for it (call
+// it first, from uniform control flow).
 fn reset_workgroup_stats(lid: u32) {
     if lid == 0u {
         atomicStore(&wg_min, F32_INF_BITS);
         atomicStore(&wg_max, 0u);
         atomicStore(&wg_count, 0u);
     }
+    workgroupBarrier();
+}
+
+// Folds a raw texel's alpha (its bits: non-negative floats order as their bits) into the
+// workgroup's range.
+fn add_to_alpha_range(raw: vec4<f32>) {
+    let bits = bitcast<u32>(raw.w);
+    atomicMin(&wg_min, bits);
+    atomicMax(&wg_max, bits);
+}
+
+// Merges the workgroup's alpha range into `stats[s]` (one invocation, after a barrier).
+fn merge_alpha_range(s: u32) {
+    atomicMin(&stats[s].alpha_min, atomicLoad(&wg_min));
+    atomicMax(&stats[s].alpha_max, atomicLoad(&wg_max));
 }
 
 // Level 0's raw value at (x, y) of `layer`: the stored bytes decoded by the tables.
@@ -259,14 +276,11 @@ fn mips_decode(
     @builtin(local_invocation_index) lid: u32,
 ) {
     reset_workgroup_stats(lid);
-    workgroupBarrier();
     let side = u.side;
     let layer = gid.z;
     if gid.x < side && gid.y < side {
         let raw = load_level0(layer, gid.x, gid.y);
-        let bits = bitcast<u32>(raw.w);
-        atomicMin(&wg_min, bits);
-        atomicMax(&wg_max, bits);
+        add_to_alpha_range(raw);
         if passes_alpha_test(scale_alpha(raw.w, 1.0)) {
             atomicAdd(&wg_count, 1u);
         }
@@ -274,8 +288,7 @@ fn mips_decode(
     workgroupBarrier();
     if lid == 0u {
         let s = stats_index(0u, layer);
-        atomicMin(&stats[s].alpha_min, atomicLoad(&wg_min));
-        atomicMax(&stats[s].alpha_max, atomicLoad(&wg_max));
+        merge_alpha_range(s);
         atomicAdd(&stats[s].pass_count, atomicLoad(&wg_count));
     }
 }
@@ -288,7 +301,6 @@ fn mips_downsample(
     @builtin(local_invocation_index) lid: u32,
 ) {
     reset_workgroup_stats(lid);
-    workgroupBarrier();
     let side = u.side;
     let layer = gid.z;
     if gid.x < side && gid.y < side {
@@ -314,15 +326,11 @@ fn mips_downsample(
         }
         let raw = downsample_texel(t00, t10, t01, t11, u.mode);
         dst[(layer * side + gid.y) * side + gid.x] = raw;
-        let bits = bitcast<u32>(raw.w);
-        atomicMin(&wg_min, bits);
-        atomicMax(&wg_max, bits);
+        add_to_alpha_range(raw);
     }
     workgroupBarrier();
     if lid == 0u {
-        let s = stats_index(u.level, layer);
-        atomicMin(&stats[s].alpha_min, atomicLoad(&wg_min));
-        atomicMax(&stats[s].alpha_max, atomicLoad(&wg_max));
+        merge_alpha_range(stats_index(u.level, layer));
     }
 }
 
@@ -380,7 +388,6 @@ fn mips_coverage_count(
     @builtin(local_invocation_index) lid: u32,
 ) {
     reset_workgroup_stats(lid);
-    workgroupBarrier();
     let side = u.side;
     let layer = gid.z;
     let searching = coverage[layer].phase != COVERAGE_DONE;
@@ -480,7 +487,6 @@ fn mips_finalize(
     @builtin(local_invocation_index) lid: u32,
 ) {
     reset_workgroup_stats(lid);
-    workgroupBarrier();
     let side = u.side;
     let layer = gid.z;
     let s = stats_index(u.level, layer);

@@ -148,18 +148,22 @@ fn refine_args() {
     dispatch.z = (slots + y - 1u) / y;
 }
 
-// The invocation's chunk of a refined command: `(off, len)` and the chunk index, or `ok = false`
-// when the invocation has nothing to do.
+// The invocation's chunk of a refined command: `(off, len)`, the chunk index and the chunk's
+// trees (`indirection[src + j]` for `j` in `[first, end)`, at most 64), or `ok = false` when the
+// invocation has nothing to do.
 struct Chunk {
     ok: bool,
     lod: u32,
     off: u32,
     len: u32,
     chunk: u32,
+    src: u32,
+    first: u32,
+    end: u32,
 }
 
 fn invocation_chunk(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> Chunk {
-    var c = Chunk(false, 0u, 0u, 0u, wid.x * REFINE_WORKGROUP_SIZE + lid);
+    var c = Chunk(false, 0u, 0u, 0u, wid.x * REFINE_WORKGROUP_SIZE + lid, 0u, 0u, 0u);
     let slot = wid.z * groups.y + wid.y;
     if slot >= counters.commands {
         return c;
@@ -172,6 +176,9 @@ fn invocation_chunk(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> Chunk {
     c.off = command.first_instance;
     c.len = command.instance_count;
     c.ok = c.chunk < chunk_count(c.len);
+    c.src = 2u * u.tree_count + c.off;
+    c.first = c.chunk * REFINE_WORKGROUP_SIZE;
+    c.end = min(c.first + REFINE_WORKGROUP_SIZE, c.len);
     return c;
 }
 
@@ -186,12 +193,9 @@ fn refine_count(
     if !c.ok {
         return;
     }
-    let src = 2u * u.tree_count + c.off;
-    let first = c.chunk * REFINE_WORKGROUP_SIZE;
-    let end = min(first + REFINE_WORKGROUP_SIZE, c.len);
     var kept = 0u;
-    for (var j = first; j < end; j++) {
-        kept += u32(tree_needs(indirection[src + j], c.lod));
+    for (var j = c.first; j < c.end; j++) {
+        kept += u32(tree_needs(indirection[c.src + j], c.lod));
     }
     chunk_counts[chunk_base(c.lod, c.off) + c.chunk] = kept;
 }
@@ -237,12 +241,9 @@ fn refine_write(
     if !c.ok {
         return;
     }
-    let src = 2u * u.tree_count + c.off;
-    let first = c.chunk * REFINE_WORKGROUP_SIZE;
-    let end = min(first + REFINE_WORKGROUP_SIZE, c.len);
     var k = c.lod * u.tree_count + c.off + chunk_counts[chunk_base(c.lod, c.off) + c.chunk];
-    for (var j = first; j < end; j++) {
-        let tree = indirection[src + j];
+    for (var j = c.first; j < c.end; j++) {
+        let tree = indirection[c.src + j];
         if tree_needs(tree, c.lod) {
             indirection[k] = tree;
             k++;

@@ -137,6 +137,13 @@ fn batch_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
     return gid.y * (groups.x * SELECT_WORKGROUP_SIZE) + gid.x;
 }
 
+// The batch's decision (`decide`), recorded in `decisions`.
+fn decide_batch(index: u32) -> u32 {
+    let decision = decide(batches[index]);
+    decisions[index] = decision;
+    return decision;
+}
+
 // Stable, pass 1: decision, command count, counters.
 @compute @workgroup_size(SELECT_WORKGROUP_SIZE)
 fn select_decide(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
@@ -144,10 +151,8 @@ fn select_decide(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wor
     if index >= u.batch_count {
         return;
     }
-    let b = batches[index];
-    let decision = decide(b);
-    decisions[index] = decision;
-    count(b, decision);
+    let decision = decide_batch(index);
+    count(batches[index], decision);
     offsets[index] = command_count(decision);
 }
 
@@ -212,8 +217,7 @@ fn select_atomic(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wor
         return;
     }
     let b = batches[index];
-    let decision = decide(b);
-    decisions[index] = decision;
+    let decision = decide_batch(index);
     let slot = count(b, decision);
     emit_all(slot, index, b, decision);
 }
