@@ -86,6 +86,16 @@ pub fn percentile(values: &[f32], p: f64) -> f64 {
     v[rank.min(v.len()) - 1] as f64
 }
 
+/// The median of timings (the upper one of an even count; `NaN` for none): what the benchmarks
+/// report per configuration.
+pub fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
 /// Accuracy of a frame (colour and LOD-id aux buffer) against the ground truth, and the FLIP map.
 ///
 /// # Panics

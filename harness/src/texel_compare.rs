@@ -170,11 +170,7 @@ impl Backend<Mips> for GpuMipsBackend {
         "gpu".into()
     }
     fn run(&self, i: MipsInput<'_>) -> Vec<Vec<LevelOut>> {
-        let MipsInput {
-            layers,
-            mode,
-            alpha_ref,
-        } = i;
+        let (layers, mode, alpha_ref) = (i.layers, i.mode, i.alpha_ref);
         let ctx = self.bake.mips().context();
         let side = layers[0].width;
         let texels: Vec<&[[u8; 4]]> = layers.iter().map(|l| l.texels.as_slice()).collect();
@@ -259,11 +255,7 @@ impl Backend<Bake> for GpuBakeBackend {
         "gpu".into()
     }
     fn run(&self, i: BakeInput<'_>) -> Vec<Rgba8Image> {
-        let BakeInput {
-            meshes,
-            angle_count,
-            side,
-        } = i;
+        let (meshes, angle_count, side) = (i.meshes, i.angle_count, i.side);
         let ctx = self.bake.mips().context();
         let inputs: Vec<BakeMesh<'_>> = meshes.iter().map(bake_mesh).collect();
         let texture = self

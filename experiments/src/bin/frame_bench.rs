@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Parser;
+use forestlod_experiments::metrics::median;
 use forestlod_experiments::options::{ParamArgs, SceneArgs};
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::prepare;
@@ -37,11 +38,6 @@ struct Args {
     /// Output folder.
     #[arg(long, default_value = "out/frame_bench")]
     out: PathBuf,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

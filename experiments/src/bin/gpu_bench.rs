@@ -14,6 +14,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Parser;
+use forestlod_experiments::metrics::median;
 use forestlod_experiments::options::ParamArgs;
 use forestlod_gpu::draw::{DrawInputs, DrawScene, DrawTarget, DrawTextures};
 use forestlod_gpu::{Compaction, GpuContext, GpuDraw, GpuSelect};
@@ -98,11 +99,6 @@ fn median_opt(v: Vec<Option<f64>>) -> Option<f64> {
 
 fn fmt_opt(v: Option<f64>) -> String {
     v.map_or_else(String::new, |s| format!("{s:.6}"))
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

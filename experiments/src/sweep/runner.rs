@@ -336,6 +336,19 @@ fn unknown_variant(variant: Variant) -> InputError {
     InputError::new("<sweep>", "variant", variant.name(), Variant::expected())
 }
 
+/// Runs `frame` `repeats` times (at least once), keeping the fastest
+/// ([`VariantFrame::keep_fastest`]).
+fn fastest_of<E>(
+    repeats: u32,
+    mut frame: impl FnMut() -> Result<VariantFrame, E>,
+) -> Result<VariantFrame, E> {
+    let mut best = frame()?;
+    for _ in 1..repeats.max(1) {
+        best = best.keep_fastest(frame()?);
+    }
+    Ok(best)
+}
+
 /// Renders one variant on the reference backend, `repeats` times, keeping the minimum select
 /// and draw times.
 fn render_variant(variant: Variant, f: &Frame, repeats: u32) -> Result<VariantFrame, InputError> {
@@ -346,8 +359,7 @@ fn render_variant(variant: Variant, f: &Frame, repeats: u32) -> Result<VariantFr
         camera,
         params,
     } = *f;
-    let mut best: Option<VariantFrame> = None;
-    for _ in 0..repeats.max(1) {
+    fastest_of(repeats, || {
         let vf = match variant.reference_renderer() {
             Some(ReferenceRenderer::Ours) => {
                 let frame = prepared.render(camera, params)?;
@@ -407,12 +419,8 @@ fn render_variant(variant: Variant, f: &Frame, repeats: u32) -> Result<VariantFr
             }
             None => return Err(unknown_variant(variant)),
         };
-        best = Some(match best {
-            None => vf,
-            Some(b) => b.keep_fastest(vf),
-        });
-    }
-    Ok(best.expect("at least one repeat"))
+        Ok(vf)
+    })
 }
 
 /// Renders one variant on the GPU backend ([`GpuSweepScene`]), `repeats` times, keeping the
@@ -425,31 +433,29 @@ fn render_gpu_variant(
     f: &Frame,
     repeats: u32,
 ) -> Result<VariantFrame, Box<dyn std::error::Error>> {
-    let Frame {
-        prepared,
-        spheres,
-        proxies: proxy_list,
-        camera,
-        params,
-    } = *f;
     let gpu_variant = variant.gpu_variant();
-    let mut best: Option<VariantFrame> = None;
-    for _ in 0..repeats.max(1) {
-        let g = gs.render(gpu_variant, camera, params)?;
+    fastest_of(repeats, || {
+        let g = gs.render(gpu_variant, f.camera, f.params)?;
         let (batches_tested, trees_drawn, batching, memory_bytes) = match gpu_variant {
             GpuVariant::Ours(_) => {
-                let (selection, refined) = prepared.select_refined(camera, params);
+                let (selection, refined) = f.prepared.select_refined(f.camera, f.params);
                 let indirection = refined
                     .as_ref()
-                    .map_or(&prepared.batches.indirection[..], |r| &r.indirection[..]);
-                let trees =
-                    trees_drawn_by_selection(prepared, &selection, indirection, camera, params);
-                let batching = batching_counts(spheres, indirection, &selection, camera, params);
+                    .map_or(&f.prepared.batches.indirection[..], |r| &r.indirection[..]);
+                let trees = trees_drawn_by_selection(
+                    f.prepared,
+                    &selection,
+                    indirection,
+                    f.camera,
+                    f.params,
+                );
+                let batching =
+                    batching_counts(f.spheres, indirection, &selection, f.camera, f.params);
                 (
-                    prepared.batches.metas.len() as u64,
+                    f.prepared.batches.metas.len() as u64,
                     trees.len() as u64,
                     batching,
-                    ours_memory(prepared, params),
+                    ours_memory(f.prepared, f.params),
                 )
             }
             GpuVariant::Vegetation | GpuVariant::Primitive => {
@@ -458,10 +464,10 @@ fn render_gpu_variant(
                 let extra = if gpu_variant == GpuVariant::Vegetation {
                     g.commands * (size_of::<DrawCommand>() + size_of::<CommandData>()) as u64
                 } else {
-                    proxy_list.len() as u64 * PROXY_BYTES
+                    f.proxies.len() as u64 * PROXY_BYTES
                 };
                 (
-                    spheres.len() as u64,
+                    f.spheres.len() as u64,
                     visible,
                     BatchingCounts::default(),
                     visible * INSTANCE_INDEX_BYTES + extra,
@@ -488,12 +494,8 @@ fn render_gpu_variant(
             fragments_written: None,
             memory_bytes,
         };
-        best = Some(match best {
-            None => vf,
-            Some(b) => b.keep_fastest(vf),
-        });
-    }
-    Ok(best.expect("at least one repeat"))
+        Ok(vf)
+    })
 }
 
 fn slug(s: &str) -> String {

@@ -241,21 +241,15 @@ impl SweepSpec {
     }
 
     pub(crate) fn validate(&self, file: &str) -> Result<(), InputError> {
-        if self.scenes.is_empty() {
-            return Err(InputError::new(
-                file,
-                "scenes",
-                "[]",
-                "expected at least one scene",
-            ));
-        }
-        if self.cameras.is_empty() {
-            return Err(InputError::new(
-                file,
-                "cameras",
-                "[]",
-                "expected at least one camera",
-            ));
+        for (field, empty) in [
+            ("scenes", self.scenes.is_empty()),
+            ("cameras", self.cameras.is_empty()),
+        ] {
+            if empty {
+                let what = field.trim_end_matches('s');
+                let reason = format!("expected at least one {what}");
+                return Err(InputError::new(file, field, "[]", reason));
+            }
         }
         // Non-empty lists of known names.
         let variants = self.variant_list(file)?;
