@@ -97,7 +97,7 @@
 use forestlod_shared::MipMode;
 use rayon::prelude::*;
 
-use crate::texture::{LinearImage, Rgba8Image, linear_to_srgb, srgb_to_linear, unorm8};
+use crate::texture::{Image, LinearImage, Rgba8Image, decode_texel, encode_texel, unorm8};
 
 /// Largest layer side accepted (a 4096 x 4096 layer has 13 levels).
 pub const MAX_MIP_SIDE: u32 = 4096;
@@ -487,46 +487,28 @@ pub fn adjust_level(raw: &LinearImage, adjust: AlphaAdjust) -> LinearImage {
     out
 }
 
-/// Decodes level 0 to linear: colour by [`srgb_to_linear`], alpha as `byte / 255`; the same
-/// result as [`Rgba8Image::to_linear`], computed in parallel.
+/// Decodes level 0 to linear with [`decode_texel`] (colour by the sRGB curve, alpha as
+/// `byte / 255`); the same result as [`Rgba8Image::to_linear`], computed in parallel.
 pub fn decode_level(level0: &Rgba8Image) -> LinearImage {
-    LinearImage {
-        width: level0.width,
-        height: level0.height,
-        texels: level0
-            .texels
-            .par_iter()
-            .with_min_len(TEXELS_PER_TASK)
-            .map(|t| {
-                [
-                    srgb_to_linear(t[0]),
-                    srgb_to_linear(t[1]),
-                    srgb_to_linear(t[2]),
-                    t[3] as f32 / 255.0,
-                ]
-            })
-            .collect(),
-    }
+    par_map(level0, decode_texel)
 }
 
-/// Quantizes a final level to RGBA8: colour by [`linear_to_srgb`], alpha by [`unorm8`]; the same
-/// result as [`LinearImage::to_rgba8`], computed in parallel.
+/// Quantizes a final level to RGBA8 with [`encode_texel`] (colour by the inverse sRGB curve, alpha
+/// by [`unorm8`]); the same result as [`LinearImage::to_rgba8`], computed in parallel.
 pub fn quantize_level(level: &LinearImage) -> Rgba8Image {
-    Rgba8Image {
-        width: level.width,
-        height: level.height,
-        texels: level
+    par_map(level, encode_texel)
+}
+
+/// [`Image::map`] in parallel over texels (order kept).
+fn par_map<T: Copy + Sync, U: Send>(image: &Image<T>, f: impl Fn(T) -> U + Sync) -> Image<U> {
+    Image {
+        width: image.width,
+        height: image.height,
+        texels: image
             .texels
             .par_iter()
             .with_min_len(TEXELS_PER_TASK)
-            .map(|t| {
-                [
-                    linear_to_srgb(t[0]),
-                    linear_to_srgb(t[1]),
-                    linear_to_srgb(t[2]),
-                    unorm8(t[3]),
-                ]
-            })
+            .map(|&t| f(t))
             .collect(),
     }
 }
@@ -642,6 +624,7 @@ pub fn build_mip_array(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::texture::srgb_to_linear;
     use approx::assert_abs_diff_eq;
     use proptest::prelude::*;
     use std::sync::OnceLock;
