@@ -66,7 +66,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::builtin::{Species, species_meshes};
-use super::{Instance, MAX_TREE_TRIANGLES, Scene, Terrain, TreeMesh};
+use super::{Instance, MAX_TREE_TRIANGLES, Scene, Terrain, TreeMesh, footprint};
 use crate::InputError;
 use crate::error::{cut, excerpt};
 use crate::texture::Rgba8Image;
@@ -749,6 +749,26 @@ fn validated(scene: Scene, file: &str) -> Result<Scene, InputError> {
     Ok(scene)
 }
 
+/// The origin the loaders choose for trees at world `positions` (SPEC §3): the centre of their
+/// bounding box rounded to whole metres.
+pub fn default_origin(positions: impl IntoIterator<Item = [f64; 3]>) -> [f64; 3] {
+    let (lo, hi) = bounding_box(positions);
+    [0, 1, 2].map(|k| ((lo[k] + hi[k]) * 0.5).round())
+}
+
+/// Componentwise `(min, max)` of `points`.
+fn bounding_box(points: impl IntoIterator<Item = [f64; 3]>) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
+}
+
 /// Turns parsed rows into a scene: picks the origin (given, or the bounding-box centre rounded to
 /// whole metres), converts positions to `f32` relative to it (each within
 /// ±[`MAX_RELATIVE_COORDINATE`]), sets the terrain (given, or flat at the lowest tree) and the
@@ -769,24 +789,8 @@ fn build_scene(
             "expected at least one tree: the scene is empty",
         ));
     }
-    let origin = origin.unwrap_or_else(|| {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for r in rows {
-            for k in 0..3 {
-                lo[k] = lo[k].min(r.position[k]);
-                hi[k] = hi[k].max(r.position[k]);
-            }
-        }
-        [0, 1, 2].map(|k| ((lo[k] + hi[k]) * 0.5).round())
-    });
+    let origin = origin.unwrap_or_else(|| default_origin(rows.iter().map(|r| r.position)));
     let mut instances = Vec::with_capacity(rows.len());
-    let mut bounds = [
-        f32::INFINITY,
-        f32::INFINITY,
-        f32::NEG_INFINITY,
-        f32::NEG_INFINITY,
-    ];
     let mut min_z = f32::INFINITY;
     for r in rows {
         let rel = [0, 1, 2].map(|k| r.position[k] - origin[k]);
@@ -802,12 +806,6 @@ fn build_scene(
             ));
         }
         let p = rel.map(|c| c as f32);
-        bounds = [
-            bounds[0].min(p[0]),
-            bounds[1].min(p[1]),
-            bounds[2].max(p[0]),
-            bounds[3].max(p[1]),
-        ];
         min_z = min_z.min(p[2]);
         instances.push(Instance {
             position: p,
@@ -816,6 +814,7 @@ fn build_scene(
             mesh: r.mesh,
         });
     }
+    let bounds = footprint(instances.iter().map(|i| i.position));
     let terrain = match terrain {
         Some(TerrainSpec::FlatWorld(z)) => Terrain::Flat {
             z: (z - origin[2]) as f32,
@@ -1424,14 +1423,7 @@ pub fn triangulate_polygon(points: &[[f64; 3]]) -> Result<Vec<[usize; 3]>, Strin
         normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
         normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
     }
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in points {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
+    let (lo, hi) = bounding_box(points.iter().copied());
     let size = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
