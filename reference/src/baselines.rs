@@ -50,13 +50,10 @@ use forestlod_shared::{
 };
 use glam::{Vec3, Vec4};
 
-use crate::draw::{
-    DrawResources, LOD_ID_BACKGROUND, LOD_ID_MESH, LOD_ID_TERRAIN, SKY_SRGB, draw_frame,
-    terrain_triangles,
-};
+use crate::draw::{DrawResources, LOD_ID_MESH, draw_frame, sky_and_ground};
 use crate::pipeline::{FrameTimings, Prepared};
 use crate::raster::{
-    ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, RenderTarget, Triangle, Vertex,
+    DrawState, DrawStats, Fragment, FragmentOutput, RenderTarget, Triangle, Vertex,
 };
 use crate::scene::{Scene, tree_sphere};
 use crate::select::{Decision, Selection, select_per_tree, tree_within_draw_distance};
@@ -110,7 +107,8 @@ impl Baseline {
 
 /// One frame of a baseline.
 pub struct BaselineFrame {
-    /// Colour, depth and id buffers (ids: [`LOD_ID_MESH`] for trees, [`LOD_ID_TERRAIN`], background).
+    /// Colour, depth and id buffers (ids: [`LOD_ID_MESH`] for trees,
+    /// [`LOD_ID_TERRAIN`](crate::draw::LOD_ID_TERRAIN), background).
     pub target: RenderTarget,
     /// Ground draw counters.
     pub terrain_stats: DrawStats,
@@ -508,26 +506,8 @@ pub fn render_primitive_shifted(
     let visible = visible_trees(spheres, camera, params);
     let select_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let sky = SKY_SRGB.map(srgb_to_linear);
-    let mut target = RenderTarget::new(
-        camera.width,
-        camera.height,
-        ClearValues {
-            color: [sky[0], sky[1], sky[2], 1.0],
-            depth: 1.0,
-            aux: LOD_ID_BACKGROUND,
-        },
-    );
+    let (mut target, terrain_stats) = sky_and_ground(&prepared.scene, camera);
     let view_proj = camera.view_projection();
-    let ground = terrain_triangles(&prepared.scene, &view_proj);
-    let ground_shader = |f: &Fragment<3>| {
-        Some(FragmentOutput {
-            color: [f.varyings[0], f.varyings[1], f.varyings[2], 1.0],
-            id: LOD_ID_TERRAIN,
-            depth: None,
-        })
-    };
-    let terrain_stats = target.draw(&ground, &ground_shader, &DrawState::OPAQUE);
 
     // The vertex stage: one quad (two triangles) per visible tree.
     let quads: Vec<Triangle<PRIMITIVE_VARYINGS>> = visible

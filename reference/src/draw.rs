@@ -334,27 +334,7 @@ pub fn draw_frame(
     camera: &Camera,
     params: &Params,
 ) -> DrawnFrame {
-    let sky = SKY_SRGB.map(srgb_to_linear);
-    let mut target = RenderTarget::new(
-        camera.width,
-        camera.height,
-        ClearValues {
-            color: [sky[0], sky[1], sky[2], 1.0],
-            depth: 1.0,
-            aux: LOD_ID_BACKGROUND,
-        },
-    );
-    let view_proj = camera.view_projection();
-    let ground = terrain_triangles(res.scene, &view_proj);
-    let ground_shader = |f: &Fragment<3>| {
-        Some(FragmentOutput {
-            color: [f.varyings[0], f.varyings[1], f.varyings[2], 1.0],
-            id: LOD_ID_TERRAIN,
-            depth: None,
-        })
-    };
-    let terrain_stats = target.draw(&ground, &ground_shader, &DrawState::OPAQUE);
-
+    let (mut target, terrain_stats) = sky_and_ground(res.scene, camera);
     let (triangles, trees_discarded) = tree_triangles(res, selection, camera, params);
     let shader = TreeShader {
         res,
@@ -374,6 +354,32 @@ pub fn draw_frame(
         tree_stats,
         trees_discarded,
     }
+}
+
+/// A `camera`-sized target cleared to the sky (colour [`SKY_SRGB`], depth 1, id
+/// [`LOD_ID_BACKGROUND`]) with `scene`'s ground drawn (id [`LOD_ID_TERRAIN`]), and the ground's
+/// work counters: how every rasterized frame starts.
+pub fn sky_and_ground(scene: &Scene, camera: &Camera) -> (RenderTarget, DrawStats) {
+    let sky = SKY_SRGB.map(srgb_to_linear);
+    let mut target = RenderTarget::new(
+        camera.width,
+        camera.height,
+        ClearValues {
+            color: [sky[0], sky[1], sky[2], 1.0],
+            depth: 1.0,
+            aux: LOD_ID_BACKGROUND,
+        },
+    );
+    let ground = terrain_triangles(scene, &camera.view_projection());
+    let ground_shader = |f: &Fragment<3>| {
+        Some(FragmentOutput {
+            color: [f.varyings[0], f.varyings[1], f.varyings[2], 1.0],
+            id: LOD_ID_TERRAIN,
+            depth: None,
+        })
+    };
+    let terrain_stats = target.draw(&ground, &ground_shader, &DrawState::OPAQUE);
+    (target, terrain_stats)
 }
 
 /// Colour of each LOD-id in the debug view (E Fig. 3.1: green LOD0, blue LOD1, red transition).

@@ -97,7 +97,7 @@
 use forestlod_shared::MipMode;
 use rayon::prelude::*;
 
-use crate::texture::{LinearImage, Rgba8Image, linear_to_srgb, srgb_to_linear, unorm8};
+use crate::texture::{Image, LinearImage, Rgba8Image, decode_texel, encode_texel, unorm8};
 
 /// Largest layer side accepted (a 4096 x 4096 layer has 13 levels).
 pub const MAX_MIP_SIDE: u32 = 4096;
@@ -487,46 +487,28 @@ pub fn adjust_level(raw: &LinearImage, adjust: AlphaAdjust) -> LinearImage {
     out
 }
 
-/// Decodes level 0 to linear: colour by [`srgb_to_linear`], alpha as `byte / 255`; the same
-/// result as [`Rgba8Image::to_linear`], computed in parallel.
+/// Decodes level 0 to linear with [`decode_texel`] (colour by the sRGB curve, alpha as
+/// `byte / 255`); the same result as [`Rgba8Image::to_linear`], computed in parallel.
 pub fn decode_level(level0: &Rgba8Image) -> LinearImage {
-    LinearImage {
-        width: level0.width,
-        height: level0.height,
-        texels: level0
-            .texels
-            .par_iter()
-            .with_min_len(TEXELS_PER_TASK)
-            .map(|t| {
-                [
-                    srgb_to_linear(t[0]),
-                    srgb_to_linear(t[1]),
-                    srgb_to_linear(t[2]),
-                    t[3] as f32 / 255.0,
-                ]
-            })
-            .collect(),
-    }
+    par_map(level0, decode_texel)
 }
 
-/// Quantizes a final level to RGBA8: colour by [`linear_to_srgb`], alpha by [`unorm8`]; the same
-/// result as [`LinearImage::to_rgba8`], computed in parallel.
+/// Quantizes a final level to RGBA8 with [`encode_texel`] (colour by the inverse sRGB curve, alpha
+/// by [`unorm8`]); the same result as [`LinearImage::to_rgba8`], computed in parallel.
 pub fn quantize_level(level: &LinearImage) -> Rgba8Image {
-    Rgba8Image {
-        width: level.width,
-        height: level.height,
-        texels: level
+    par_map(level, encode_texel)
+}
+
+/// [`Image::map`] in parallel over texels (order kept).
+fn par_map<T: Copy + Sync, U: Send>(image: &Image<T>, f: impl Fn(T) -> U + Sync) -> Image<U> {
+    Image {
+        width: image.width,
+        height: image.height,
+        texels: image
             .texels
             .par_iter()
             .with_min_len(TEXELS_PER_TASK)
-            .map(|t| {
-                [
-                    linear_to_srgb(t[0]),
-                    linear_to_srgb(t[1]),
-                    linear_to_srgb(t[2]),
-                    unorm8(t[3]),
-                ]
-            })
+            .map(|&t| f(t))
             .collect(),
     }
 }
@@ -642,6 +624,7 @@ pub fn build_mip_array(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::texture::srgb_to_linear;
     use approx::assert_abs_diff_eq;
     use proptest::prelude::*;
     use std::sync::OnceLock;
@@ -794,41 +777,60 @@ mod tests {
         )
     }
 
+    /// Builds [`hand_2x2`]'s chain in `mode` and checks its 1x1 level: the alpha adjustment, the
+    /// linear texel (within [`HAND_TOL`]) and the RGBA8 texel. Returns the chain.
+    fn check_hand_2x2_top(
+        mode: MipMode,
+        adjust: AlphaAdjust,
+        linear: [f32; 4],
+        rgba8: [u8; 4],
+    ) -> MipChain {
+        let chain = build(&hand_2x2(), mode);
+        let top = &chain.levels[1];
+        assert_eq!(top.adjust, adjust);
+        assert_texel(top.linear.texels[0], linear, HAND_TOL);
+        assert_eq!(top.rgba8.texels[0], rgba8);
+        chain
+    }
+
     #[test]
     fn hand_2x2_alpha_aware() {
         // AlphaSum = 1 + 0.2 + 0 + 0.4 = 1.6; colour = (1, 0.2, 0.4) / 1.6; raw alpha 0.4.
         // The 1x1 level is degenerate: alpha = MaxAlpha_0 = 1.
-        let chain = build(&hand_2x2(), MipMode::AlphaAware);
-        let top = &chain.levels[1];
-        assert_abs_diff_eq!(top.raw_alpha_range[0], 0.4, epsilon = HAND_TOL);
-        assert_eq!(top.adjust, AlphaAdjust::Constant(1.0));
-        assert_texel(top.linear.texels[0], [0.625, 0.125, 0.25, 1.0], HAND_TOL);
         // linear_to_srgb: 0.625 -> 207.15, 0.125 -> 99.09, 0.25 -> 136.96.
-        assert_eq!(top.rgba8.texels[0], [207, 99, 137, 255]);
+        let chain = check_hand_2x2_top(
+            MipMode::AlphaAware,
+            AlphaAdjust::Constant(1.0),
+            [0.625, 0.125, 0.25, 1.0],
+            [207, 99, 137, 255],
+        );
+        assert_abs_diff_eq!(chain.levels[1].raw_alpha_range[0], 0.4, epsilon = HAND_TOL);
     }
 
     #[test]
     fn hand_2x2_box() {
         // Plain average: every colour channel (1 + 0 + 0 + 0) / 4 = 0.25, alpha 0.4, no
         // equalization.
-        let chain = build(&hand_2x2(), MipMode::Box);
-        let top = &chain.levels[1];
-        assert_eq!(top.adjust, AlphaAdjust::Keep);
-        assert_texel(top.linear.texels[0], [0.25, 0.25, 0.25, 0.4], HAND_TOL);
-        assert_eq!(top.rgba8.texels[0], [137, 137, 137, 102]);
+        check_hand_2x2_top(
+            MipMode::Box,
+            AlphaAdjust::Keep,
+            [0.25, 0.25, 0.25, 0.4],
+            [137, 137, 137, 102],
+        );
     }
 
     #[test]
     fn hand_2x2_coverage() {
         // alpha_ref 0.5: level 0 passes 1 of 4 (red). The 1x1 raw alpha 0.4 fails at s = 1:
         // coverage 0 (error 1/4) beats coverage 1 (error 3/4), so s = 1 and alpha stays 0.4.
-        let chain = build(&hand_2x2(), MipMode::CoveragePreserving);
-        let top = &chain.levels[1];
-        assert_eq!(top.adjust, AlphaAdjust::Scale(1.0));
-        assert_texel(top.linear.texels[0], [0.625, 0.125, 0.25, 0.4], HAND_TOL);
-        assert_eq!(top.rgba8.texels[0], [207, 99, 137, 102]);
+        let chain = check_hand_2x2_top(
+            MipMode::CoveragePreserving,
+            AlphaAdjust::Scale(1.0),
+            [0.625, 0.125, 0.25, 0.4],
+            [207, 99, 137, 102],
+        );
         assert_eq!(chain.levels[0].alpha_test_pass_count, 1);
-        assert_eq!(top.alpha_test_pass_count, 0);
+        assert_eq!(chain.levels[1].alpha_test_pass_count, 0);
         // alpha_ref 0.3: level 0 passes 2 of 4 (red, blue); the 1x1 level's 0.4 passes at s = 1
         // (coverage 1, error 1/2) and coverage 0 is no closer (error 1/2): s = 1 is kept.
         let chain = build_mips(&hand_2x2(), MipMode::CoveragePreserving, 0.3).unwrap();

@@ -30,7 +30,7 @@ use forestlod_shared::{BatchMeta, Camera, LodNeeds, MeshMeta, Params};
 use glam::DVec3;
 
 use crate::batches::{Batches, batch_meta};
-use crate::scene::{Instance, Scene, tree_sphere};
+use crate::scene::{Instance, Scene, footprint, tree_sphere};
 use crate::select::{Decision, SelectUniform};
 
 /// Units of `f32::EPSILON` in the ambiguity band: the relative path rounds each position and the
@@ -262,29 +262,8 @@ impl PrecisionScene {
             "one position per tree"
         );
         let with_positions = |origin: [f64; 3]| {
-            let instances: Vec<Instance> = template
-                .instances
-                .iter()
-                .zip(world)
-                .map(|(t, w)| Instance {
-                    position: core::array::from_fn(|k| (w[k] - origin[k]) as f32),
-                    ..*t
-                })
-                .collect();
-            let mut bounds = [
-                f32::INFINITY,
-                f32::INFINITY,
-                f32::NEG_INFINITY,
-                f32::NEG_INFINITY,
-            ];
-            for t in &instances {
-                bounds = [
-                    bounds[0].min(t.position[0]),
-                    bounds[1].min(t.position[1]),
-                    bounds[2].max(t.position[0]),
-                    bounds[3].max(t.position[1]),
-                ];
-            }
+            let instances = instances_at(&template.instances, world, origin);
+            let bounds = footprint(instances.iter().map(|t| t.position));
             // Flat ground under the lowest tree, as the loaders choose it.
             let lowest = world.iter().map(|w| w[2]).fold(f64::INFINITY, f64::min);
             let terrain = crate::scene::Terrain::Flat {
@@ -540,15 +519,20 @@ pub fn place(template: &Scene, center_world: [f64; 3]) -> Vec<[f64; 3]> {
 /// The origin the loaders would choose (SPEC §3): the centre of the trees' bounding box rounded to
 /// whole metres ([`crate::scene::load`]).
 pub fn default_origin(world: &[[f64; 3]]) -> [f64; 3] {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for w in world {
-        for k in 0..3 {
-            lo[k] = lo[k].min(w[k]);
-            hi[k] = hi[k].max(w[k]);
-        }
-    }
-    core::array::from_fn(|k| ((lo[k] + hi[k]) * 0.5).round())
+    crate::scene::load::default_origin(world.iter().copied())
+}
+
+/// `template` (yaws, scales, meshes) standing at `world` (`f64`, one per instance), positions
+/// `f32` relative to `origin`, each rounded once from the `f64` difference.
+pub fn instances_at(template: &[Instance], world: &[[f64; 3]], origin: [f64; 3]) -> Vec<Instance> {
+    template
+        .iter()
+        .zip(world)
+        .map(|(t, w)| Instance {
+            position: core::array::from_fn(|k| (w[k] - origin[k]) as f32),
+            ..*t
+        })
+        .collect()
 }
 
 #[cfg(test)]

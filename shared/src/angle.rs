@@ -82,6 +82,8 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    use crate::test_support::proptest_config;
+
     /// Eq. 3.1 at the extremes that SPEC §6 asks us to show.
     #[test]
     fn eq31_straight_down_is_one_past_the_last_layer() {
@@ -144,15 +146,8 @@ mod tests {
         assert_eq!(angle_index(0.60, 2), 0);
     }
 
-    fn config() -> ProptestConfig {
-        ProptestConfig {
-            cases: 512,
-            ..ProptestConfig::default()
-        }
-    }
-
     proptest! {
-        #![proptest_config(config())]
+        #![proptest_config(proptest_config())]
 
         #[test]
         fn used_index_is_always_in_range(v in proptest::num::f32::ANY, k in 1u32..=91) {

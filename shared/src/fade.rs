@@ -104,15 +104,10 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn config() -> ProptestConfig {
-        ProptestConfig {
-            cases: 512,
-            ..ProptestConfig::default()
-        }
-    }
+    use crate::test_support::proptest_config;
 
     proptest! {
-        #![proptest_config(config())]
+        #![proptest_config(proptest_config())]
 
         #[test]
         fn alpha_weights_sum_to_one(d in -1e4f32..1e4, start in -1e3f32..2e3, width in 0.0f32..1e3) {

@@ -76,3 +76,17 @@ pub const MAX_COMMANDS: u32 = 1 << (31 - COMMAND_SHIFT);
 pub const LOD_MESH: u32 = 0;
 /// Level of detail of camera-facing billboards (E§3.3).
 pub const LOD_BILLBOARD: u32 = 1;
+
+/// Helpers shared by this crate's unit tests.
+#[cfg(test)]
+pub(crate) mod test_support {
+    use proptest::prelude::ProptestConfig;
+
+    /// The property tests' configuration: 512 cases each.
+    pub(crate) fn proptest_config() -> ProptestConfig {
+        ProptestConfig {
+            cases: 512,
+            ..ProptestConfig::default()
+        }
+    }
+}

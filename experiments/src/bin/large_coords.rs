@@ -31,11 +31,11 @@ use forestlod_reference::geometry::pack_geometry;
 use forestlod_reference::output::{difference_image, lod_id_image, write_png};
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::precision::{
-    Disagreements, Precision, PrecisionScene, default_origin, place, sweep,
+    Disagreements, Precision, PrecisionScene, default_origin, instances_at, place, sweep,
 };
 use forestlod_reference::raster::RenderTarget;
 use forestlod_reference::scene::builtin::{forest, tiny_config};
-use forestlod_reference::scene::{Instance, Scene, Terrain, tree_sphere};
+use forestlod_reference::scene::{Scene, Terrain, tree_sphere};
 use forestlod_reference::{InputError, draw};
 use forestlod_shared::{Camera, Params};
 use serde::Serialize;
@@ -195,15 +195,7 @@ fn prepared_like(base: &Prepared, scene: Scene, membership: &Batches) -> Prepare
 
 /// The scene with its origin moved to `origin` (f64), positions recomputed from `world`.
 fn rebased(scene: &Scene, world: &[[f64; 3]], origin: [f64; 3]) -> Scene {
-    let instances: Vec<Instance> = scene
-        .instances
-        .iter()
-        .zip(world)
-        .map(|(t, w)| Instance {
-            position: core::array::from_fn(|k| (w[k] - origin[k]) as f32),
-            ..*t
-        })
-        .collect();
+    let instances = instances_at(&scene.instances, world, origin);
     let Terrain::Flat { z } = scene.terrain else {
         unreachable!("precision scenes stand on flat ground")
     };
@@ -517,6 +509,31 @@ mod plot {
         }
     }
 
+    /// Strokes the open polyline through `points`.
+    fn polyline(
+        pix: &mut Pixmap,
+        points: &[(f32, f32)],
+        paint: &Paint,
+        stroke: &Stroke,
+    ) -> Result<(), &'static str> {
+        let mut pb = PathBuilder::new();
+        for (i, &(x, y)) in points.iter().enumerate() {
+            if i == 0 {
+                pb.move_to(x, y);
+            } else {
+                pb.line_to(x, y);
+            }
+        }
+        pix.stroke_path(
+            &pb.finish().ok_or("path")?,
+            paint,
+            stroke,
+            Transform::identity(),
+            None,
+        );
+        Ok(())
+    }
+
     fn text(pix: &mut Pixmap, s: &str, x: f32, y: f32, px: f32) {
         let mut paint = Paint::default();
         paint.set_color(Color::from_rgba8(30, 30, 30, 255));
@@ -566,30 +583,12 @@ mod plot {
         };
         for e in (y_lo as i32)..=(y_hi as i32) {
             let y = py(10f64.powi(e));
-            let mut pb = PathBuilder::new();
-            pb.move_to(LEFT, y);
-            pb.line_to(W as f32 - RIGHT, y);
-            pix.stroke_path(
-                &pb.finish().ok_or("path")?,
-                &grid,
-                &thin,
-                Transform::identity(),
-                None,
-            );
+            polyline(&mut pix, &[(LEFT, y), (W as f32 - RIGHT, y)], &grid, &thin)?;
             text(&mut pix, &format!("1e{e}"), 20.0, y - 7.0, 3.0);
         }
         for e in 3..=6 {
             let x = px(10f64.powi(e));
-            let mut pb = PathBuilder::new();
-            pb.move_to(x, TOP);
-            pb.line_to(x, H as f32 - BOTTOM);
-            pix.stroke_path(
-                &pb.finish().ok_or("path")?,
-                &grid,
-                &thin,
-                Transform::identity(),
-                None,
-            );
+            polyline(&mut pix, &[(x, TOP), (x, H as f32 - BOTTOM)], &grid, &thin)?;
             text(
                 &mut pix,
                 &format!("1e{e}"),
@@ -600,17 +599,9 @@ mod plot {
         }
         let mut axis = Paint::default();
         axis.set_color(Color::from_rgba8(60, 60, 60, 255));
-        let mut pb = PathBuilder::new();
-        pb.move_to(LEFT, TOP);
-        pb.line_to(LEFT, H as f32 - BOTTOM);
-        pb.line_to(W as f32 - RIGHT, H as f32 - BOTTOM);
-        pix.stroke_path(
-            &pb.finish().ok_or("path")?,
-            &axis,
-            &thin,
-            Transform::identity(),
-            None,
-        );
+        let corner = (LEFT, H as f32 - BOTTOM);
+        let axes = [(LEFT, TOP), corner, (W as f32 - RIGHT, H as f32 - BOTTOM)];
+        polyline(&mut pix, &axes, &axis, &thin)?;
 
         let series = |precision: &str, batches: bool| -> Vec<(f64, f64)> {
             decisions
@@ -678,21 +669,8 @@ mod plot {
                 dash: dash.and_then(|d| tiny_skia::StrokeDash::new(d, 0.0)),
                 ..Stroke::default()
             };
-            let mut pb = PathBuilder::new();
-            for (i, (s, r)) in points.iter().enumerate() {
-                if i == 0 {
-                    pb.move_to(px(*s), py(*r));
-                } else {
-                    pb.line_to(px(*s), py(*r));
-                }
-            }
-            pix.stroke_path(
-                &pb.finish().ok_or("path")?,
-                &paint,
-                &stroke,
-                Transform::identity(),
-                None,
-            );
+            let plotted: Vec<(f32, f32)> = points.iter().map(|&(s, r)| (px(s), py(r))).collect();
+            polyline(&mut pix, &plotted, &paint, &stroke)?;
             for (s, r) in &points {
                 let dot = PathBuilder::from_circle(px(*s), py(*r), 4.0).ok_or("circle")?;
                 pix.fill_path(
@@ -704,16 +682,12 @@ mod plot {
                 );
             }
             let y = TOP + 20.0 + row as f32 * 18.0;
-            let mut pb = PathBuilder::new();
-            pb.move_to(LEFT + 20.0, y);
-            pb.line_to(LEFT + 60.0, y);
-            pix.stroke_path(
-                &pb.finish().ok_or("path")?,
+            polyline(
+                &mut pix,
+                &[(LEFT + 20.0, y), (LEFT + 60.0, y)],
                 &paint,
                 &stroke,
-                Transform::identity(),
-                None,
-            );
+            )?;
             text(&mut pix, label, LEFT + 70.0, y - 5.0, 2.0);
         }
         text(

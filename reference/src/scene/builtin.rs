@@ -365,46 +365,17 @@ struct Atlas {
 
 fn atlas(layout: Layout, size: u32) -> Atlas {
     let h = size / 2;
+    let region = |x0, y0, w, h| Region { x0, y0, w, h };
     match layout {
         Layout::Tall => Atlas {
-            side: Region {
-                x0: 0,
-                y0: 0,
-                w: h,
-                h: size,
-            },
-            top: Region {
-                x0: h,
-                y0: 0,
-                w: h,
-                h,
-            },
-            bark: Region {
-                x0: h,
-                y0: h,
-                w: h,
-                h,
-            },
+            side: region(0, 0, h, size),
+            top: region(h, 0, h, h),
+            bark: region(h, h, h, h),
         },
         Layout::Wide => Atlas {
-            side: Region {
-                x0: 0,
-                y0: 0,
-                w: size,
-                h,
-            },
-            top: Region {
-                x0: 0,
-                y0: h,
-                w: h,
-                h,
-            },
-            bark: Region {
-                x0: h,
-                y0: h,
-                w: h,
-                h,
-            },
+            side: region(0, 0, size, h),
+            top: region(0, h, h, h),
+            bark: region(h, h, h, h),
         },
     }
 }

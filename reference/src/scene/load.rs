@@ -66,7 +66,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::builtin::{Species, species_meshes};
-use super::{Instance, MAX_TREE_TRIANGLES, Scene, Terrain, TreeMesh};
+use super::{Instance, MAX_TREE_TRIANGLES, Scene, Terrain, TreeMesh, footprint};
 use crate::InputError;
 use crate::error::{cut, excerpt};
 use crate::texture::Rgba8Image;
@@ -749,6 +749,26 @@ fn validated(scene: Scene, file: &str) -> Result<Scene, InputError> {
     Ok(scene)
 }
 
+/// The origin the loaders choose for trees at world `positions` (SPEC §3): the centre of their
+/// bounding box rounded to whole metres.
+pub fn default_origin(positions: impl IntoIterator<Item = [f64; 3]>) -> [f64; 3] {
+    let (lo, hi) = bounding_box(positions);
+    [0, 1, 2].map(|k| ((lo[k] + hi[k]) * 0.5).round())
+}
+
+/// Componentwise `(min, max)` of `points`.
+fn bounding_box(points: impl IntoIterator<Item = [f64; 3]>) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
+}
+
 /// Turns parsed rows into a scene: picks the origin (given, or the bounding-box centre rounded to
 /// whole metres), converts positions to `f32` relative to it (each within
 /// ±[`MAX_RELATIVE_COORDINATE`]), sets the terrain (given, or flat at the lowest tree) and the
@@ -769,24 +789,8 @@ fn build_scene(
             "expected at least one tree: the scene is empty",
         ));
     }
-    let origin = origin.unwrap_or_else(|| {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for r in rows {
-            for k in 0..3 {
-                lo[k] = lo[k].min(r.position[k]);
-                hi[k] = hi[k].max(r.position[k]);
-            }
-        }
-        [0, 1, 2].map(|k| ((lo[k] + hi[k]) * 0.5).round())
-    });
+    let origin = origin.unwrap_or_else(|| default_origin(rows.iter().map(|r| r.position)));
     let mut instances = Vec::with_capacity(rows.len());
-    let mut bounds = [
-        f32::INFINITY,
-        f32::INFINITY,
-        f32::NEG_INFINITY,
-        f32::NEG_INFINITY,
-    ];
     let mut min_z = f32::INFINITY;
     for r in rows {
         let rel = [0, 1, 2].map(|k| r.position[k] - origin[k]);
@@ -802,12 +806,6 @@ fn build_scene(
             ));
         }
         let p = rel.map(|c| c as f32);
-        bounds = [
-            bounds[0].min(p[0]),
-            bounds[1].min(p[1]),
-            bounds[2].max(p[0]),
-            bounds[3].max(p[1]),
-        ];
         min_z = min_z.min(p[2]);
         instances.push(Instance {
             position: p,
@@ -816,6 +814,7 @@ fn build_scene(
             mesh: r.mesh,
         });
     }
+    let bounds = footprint(instances.iter().map(|i| i.position));
     let terrain = match terrain {
         Some(TerrainSpec::FlatWorld(z)) => Terrain::Flat {
             z: (z - origin[2]) as f32,
@@ -1424,14 +1423,7 @@ pub fn triangulate_polygon(points: &[[f64; 3]]) -> Result<Vec<[usize; 3]>, Strin
         normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
         normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
     }
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in points {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
+    let (lo, hi) = bounding_box(points.iter().copied());
     let size = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
@@ -1890,39 +1882,49 @@ pub fn parse_gltf_mesh(
                 "expected one texture coordinate per vertex".into(),
             ));
         }
-        let p = read_accessor(
+        // The accessor's values, `width` per element, each element finite.
+        let read_finite =
+            |accessor: &gltf::Accessor, attribute: &str, usage, width, reason: &str| {
+                let values = read_accessor(
+                    accessor,
+                    &data,
+                    file,
+                    &format!("{prim_at}, {attribute}"),
+                    usage,
+                )?;
+                if let Some((i, v)) = values
+                    .chunks_exact(width)
+                    .enumerate()
+                    .find(|(_, v)| v.iter().any(|c| !c.is_finite()))
+                {
+                    let shown: Vec<String> = v.iter().map(f64::to_string).collect();
+                    return Err(err(
+                        format!("{prim_at}, {attribute} element {i}"),
+                        format!("({})", shown.join(", ")),
+                        reason.into(),
+                    ));
+                }
+                Ok(values)
+            };
+        let p = read_finite(
             &positions,
-            &data,
-            file,
-            &format!("{prim_at}, POSITION"),
+            "POSITION",
             AccessorUse::Position,
+            3,
+            "expected finite coordinates",
         )?;
-        for (i, v) in p.chunks_exact(3).enumerate() {
-            if v.iter().any(|c| !c.is_finite()) {
-                return Err(err(
-                    format!("{prim_at}, POSITION element {i}"),
-                    format!("({}, {}, {})", v[0], v[1], v[2]),
-                    "expected finite coordinates".into(),
-                ));
-            }
+        for v in p.chunks_exact(3) {
             mesh.positions
                 .push(up.to_z_up([v[0] as f32, v[1] as f32, v[2] as f32]));
         }
-        let t = read_accessor(
+        let t = read_finite(
             &uvs,
-            &data,
-            file,
-            &format!("{prim_at}, TEXCOORD_0"),
+            "TEXCOORD_0",
             AccessorUse::TexCoord,
+            2,
+            "expected finite texture coordinates",
         )?;
-        for (i, uv) in t.chunks_exact(2).enumerate() {
-            if uv.iter().any(|c| !c.is_finite()) {
-                return Err(err(
-                    format!("{prim_at}, TEXCOORD_0 element {i}"),
-                    format!("({}, {})", uv[0], uv[1]),
-                    "expected finite texture coordinates".into(),
-                ));
-            }
+        for uv in t.chunks_exact(2) {
             mesh.uvs.push([uv[0] as f32, uv[1] as f32]);
         }
         let local: Vec<u32> = match primitive.indices() {
@@ -2256,80 +2258,77 @@ mod tests {
     #[test]
     fn csv_errors_name_file_line_column_and_value() {
         let h = "x,y,z,yaw,scale,species\n";
-        let e = err(&format!("{h}1,2,3,0,1,oak\nabc,2,3,0,1,oak\n"));
-        assert!(
-            e.contains("trees.csv")
-                && e.contains("line 3")
-                && e.contains("column x")
-                && e.contains("abc"),
-            "{e}"
-        );
-        let e = err(&format!("{h}1,2,NaN,0,1,oak\n"));
-        assert!(
-            e.contains("line 2") && e.contains("column z") && e.contains("NaN"),
-            "{e}"
-        );
-        let e = err(&format!("{h}1,2,3,inf,1,oak\n"));
-        assert!(e.contains("column yaw") && e.contains("inf"), "{e}");
-        let e = err(&format!("{h}1,2,3,0,-1,oak\n"));
-        assert!(e.contains("column scale") && e.contains("-1"), "{e}");
-        let e = err(&format!("{h}1,2,3,0,0,oak\n"));
-        assert!(e.contains("column scale") && e.contains("\"0\""), "{e}");
-        let e = err(&format!("{h}1,2,3,0,1,baobab\n"));
-        assert!(
-            e.contains("column species") && e.contains("baobab") && e.contains("spruce"),
-            "{e}"
-        );
-        let e = err(&format!("{h}1,2,3,0,1,5\n"));
-        assert!(e.contains("column species") && e.contains("\"5\""), "{e}");
-        let e = err(&format!("{h}1,2,3,0,1\n"));
-        assert!(e.contains("line 2") && e.contains("column count"), "{e}");
-        let e = err(h);
-        assert!(e.contains("empty table"), "{e}");
-        let e = err("");
-        assert!(e.contains("empty file"), "{e}");
-        let e = err("x,y,z,yaw,species\n1,2,3,0,oak\n");
-        assert!(e.contains("missing column") && e.contains("scale"), "{e}");
-        let e = err("x,y,z,yaw,scale,species,height\n");
-        assert!(e.contains("unknown column") && e.contains("height"), "{e}");
-        let e = err("x,y,z,yaw,scale,species,x\n");
-        assert!(e.contains("duplicate column"), "{e}");
-        let e = err(&format!("{h}1e300,2,3,0,1,oak\n"));
-        assert!(e.contains("column x") && e.contains("1e300"), "{e}");
+        // Rows after the header `h`, and what the error must mention.
+        let after_header: [(&str, &[&str]); 10] = [
+            (
+                "1,2,3,0,1,oak\nabc,2,3,0,1,oak\n",
+                &["trees.csv", "line 3", "column x", "abc"],
+            ),
+            ("1,2,NaN,0,1,oak\n", &["line 2", "column z", "NaN"]),
+            ("1,2,3,inf,1,oak\n", &["column yaw", "inf"]),
+            ("1,2,3,0,-1,oak\n", &["column scale", "-1"]),
+            ("1,2,3,0,0,oak\n", &["column scale", "\"0\""]),
+            (
+                "1,2,3,0,1,baobab\n",
+                &["column species", "baobab", "spruce"],
+            ),
+            ("1,2,3,0,1,5\n", &["column species", "\"5\""]),
+            ("1,2,3,0,1\n", &["line 2", "column count"]),
+            ("", &["empty table"]),
+            ("1e300,2,3,0,1,oak\n", &["column x", "1e300"]),
+        ];
+        for (rows, needles) in after_header {
+            let e = err(&format!("{h}{rows}"));
+            assert!(needles.iter().all(|n| e.contains(n)), "{e}");
+        }
+        // Whole files: no header, or a bad one.
+        let whole: [(&str, &[&str]); 4] = [
+            ("", &["empty file"]),
+            (
+                "x,y,z,yaw,species\n1,2,3,0,oak\n",
+                &["missing column", "scale"],
+            ),
+            (
+                "x,y,z,yaw,scale,species,height\n",
+                &["unknown column", "height"],
+            ),
+            ("x,y,z,yaw,scale,species,x\n", &["duplicate column"]),
+        ];
+        for (text, needles) in whole {
+            let e = err(text);
+            assert!(needles.iter().all(|n| e.contains(n)), "{e}");
+        }
     }
 
     #[test]
     fn csv_line_numbers_count_blank_lines_crlf_and_quoted_newlines() {
         let h = "x,y,z,yaw,scale,species\r\n";
-        let rows = parse(&format!(
-            "{h}\r\n1,2,3,0,1,oak\r\n\n  \n\"1\",2,3,0,1,\"o\nak\"\n4,5,6,0,1,\"pine\""
-        ))
-        .unwrap_err();
+        // (position, value) of the error for the table `h` + `body`.
+        let error_at = |body: &str| {
+            let e = parse(&format!("{h}{body}")).unwrap_err();
+            (e.position, e.value)
+        };
         // The quoted species spans lines 6-7 and is not a species name.
-        assert_eq!(rows.position, "line 6, column species");
-        assert_eq!(rows.value, "o\nak");
-        let rows = parse(&format!(
-            "{h}\r\n1,2,3,0,1,oak\r\n\n  \n\" 1 \",2,3,0,1,\"pi\"\"ne\"\n4,5,6,0,1,\"pine\""
-        ))
-        .unwrap_err();
-        assert_eq!(rows.position, "line 6, column species");
-        assert_eq!(rows.value, "pi\"ne");
+        let (position, value) =
+            error_at("\r\n1,2,3,0,1,oak\r\n\n  \n\"1\",2,3,0,1,\"o\nak\"\n4,5,6,0,1,\"pine\"");
+        assert_eq!(position, "line 6, column species");
+        assert_eq!(value, "o\nak");
+        let (position, value) =
+            error_at("\r\n1,2,3,0,1,oak\r\n\n  \n\" 1 \",2,3,0,1,\"pi\"\"ne\"\n4,5,6,0,1,\"pine\"");
+        assert_eq!(position, "line 6, column species");
+        assert_eq!(value, "pi\"ne");
         let rows = parse(&format!(
             "{h}\r\n1,2,3,0,1,oak\r\n\n\n\"1\" ,2,3,0,1,\"pine\"\r\n4,5,6,0,1,birch"
         ))
         .unwrap();
         assert_eq!(rows.iter().map(|r| r.line).collect::<Vec<_>>(), [3, 6, 7]);
         assert_eq!(rows[1].position[0], 1.0);
-        let e = parse(&format!("{h}1,2,3,0,1,\"oak"))
-            .unwrap_err()
-            .to_string();
+        let e = err(&format!("{h}1,2,3,0,1,\"oak"));
         assert!(e.contains("line 2") && e.contains("never closed"), "{e}");
-        let e = parse(&format!("{h}1,2,3,0,1,\"oak\"x"))
-            .unwrap_err()
-            .to_string();
+        let e = err(&format!("{h}1,2,3,0,1,\"oak\"x"));
         assert!(e.contains("line 2") && e.contains("closing quote"), "{e}");
         let long = format!("{h}{}", "1".repeat(MAX_CSV_RECORD_BYTES + 10));
-        let e = parse(&long).unwrap_err().to_string();
+        let e = err(&long);
         assert!(e.contains("line 2") && e.contains("at most"), "{e}");
     }
 
@@ -2388,27 +2387,14 @@ mod tests {
 
     #[test]
     fn obj_quad_is_triangulated_with_flipped_v() {
-        let m = parse_obj_mesh(
-            "card",
-            QUAD_OBJ.as_bytes(),
-            "card.obj",
-            UpAxis::Z,
-            texture(),
-        )
-        .unwrap();
+        let card = |up| parse_obj_mesh("card", QUAD_OBJ.as_bytes(), "card.obj", up, texture());
+        let m = card(UpAxis::Z).unwrap();
         assert_eq!(m.indices.len(), 6);
         assert_eq!(m.positions.len(), 4);
         assert_eq!(m.positions[2], [1.0, 0.0, 2.0]);
         assert_eq!(m.uvs[0], [0.0, 1.0]);
         assert_eq!(m.uvs[2], [1.0, 0.0]);
-        let y = parse_obj_mesh(
-            "card",
-            QUAD_OBJ.as_bytes(),
-            "card.obj",
-            UpAxis::Y,
-            texture(),
-        )
-        .unwrap();
+        let y = card(UpAxis::Y).unwrap();
         assert_eq!(y.positions[2], [1.0, -2.0, 0.0]);
     }
 
@@ -2468,44 +2454,32 @@ mod tests {
 
     #[test]
     fn png_must_be_rgba8_power_of_two_and_small() {
-        let t = decode_png_texture(&png(image::ExtendedColorType::Rgba8, 8, 8), "t.png").unwrap();
+        use image::ExtendedColorType::{L8, Rgb8, Rgba8, Rgba16};
+        let t = decode_png_texture(&png(Rgba8, 8, 8), "t.png").unwrap();
         assert_eq!((t.width, t.height), (8, 8));
         assert_eq!(t.texels[0], [7, 7, 7, 7]);
-        let e = decode_png_texture(&png(image::ExtendedColorType::Rgba8, 8, 4), "t.png")
-            .unwrap_err()
-            .to_string();
+        let err = |bytes: &[u8]| decode_png_texture(bytes, "t.png").unwrap_err().to_string();
+        let e = err(&png(Rgba8, 8, 4));
         assert!(
             e.contains("t.png") && e.contains("8x4") && e.contains("square"),
             "{e}"
         );
-        let e = decode_png_texture(&png(image::ExtendedColorType::Rgb8, 8, 8), "t.png")
-            .unwrap_err()
-            .to_string();
+        let e = err(&png(Rgb8, 8, 8));
         assert!(
             e.contains("t.png") && e.contains("colour type") && e.contains("RGB, 8-bit"),
             "{e}"
         );
-        let e = decode_png_texture(&png(image::ExtendedColorType::L8, 8, 8), "t.png")
-            .unwrap_err()
-            .to_string();
+        let e = err(&png(L8, 8, 8));
         assert!(e.contains("colour type"), "{e}");
-        let e = decode_png_texture(&png(image::ExtendedColorType::Rgba16, 8, 8), "t.png")
-            .unwrap_err()
-            .to_string();
+        let e = err(&png(Rgba16, 8, 8));
         assert!(e.contains("colour type"), "{e}");
-        let e = decode_png_texture(&png(image::ExtendedColorType::Rgba8, 6, 8), "t.png")
-            .unwrap_err()
-            .to_string();
+        let e = err(&png(Rgba8, 6, 8));
         assert!(e.contains("width") && e.contains('6'), "{e}");
-        let e = decode_png_texture(&png(image::ExtendedColorType::Rgba8, 8192, 1), "t.png")
-            .unwrap_err()
-            .to_string();
+        let e = err(&png(Rgba8, 8192, 1));
         assert!(e.contains("width") && e.contains("8192"), "{e}");
-        let e = decode_png_texture(b"not a png", "t.png")
-            .unwrap_err()
-            .to_string();
+        let e = err(b"not a png");
         assert!(e.contains("invalid PNG"), "{e}");
-        let full = png(image::ExtendedColorType::Rgba8, 8, 8);
+        let full = png(Rgba8, 8, 8);
         assert!(decode_png_texture(&full[..full.len() / 2], "t.png").is_err());
     }
 

@@ -103,6 +103,26 @@ pub struct Scene {
     pub bounds: [f32; 4],
 }
 
+/// Footprint `[min_x, min_y, max_x, max_y]` of trees standing at `positions` (what
+/// [`Scene::bounds`] holds).
+pub fn footprint(positions: impl IntoIterator<Item = [f32; 3]>) -> [f32; 4] {
+    let mut bounds = [
+        f32::INFINITY,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NEG_INFINITY,
+    ];
+    for p in positions {
+        bounds = [
+            bounds[0].min(p[0]),
+            bounds[1].min(p[1]),
+            bounds[2].max(p[0]),
+            bounds[3].max(p[1]),
+        ];
+    }
+    bounds
+}
+
 impl TreeMesh {
     /// Per-mesh metadata (E§4.1): bounding box, sphere and billboard size. Index and vertex offsets
     /// are filled in when meshes are packed into shared buffers; here they are 0.
