@@ -40,26 +40,31 @@ pub struct BackendSelection {
     pub decisions: Vec<Decision>,
 }
 
-/// `select.wgsl` with one of its compactions: a [`Backend<Select>`].
-pub struct GpuSelectBackend {
+/// A GPU twin as a [`Backend`] of one stage, with the stage's option `O`: the compaction of
+/// `select.wgsl` ([`GpuSelectBackend`]), or the stages the draw takes from the reference
+/// ([`GpuRenderer`]).
+pub struct GpuBackend<O> {
     /// The shared context.
     pub ctx: &'static GpuContext,
-    /// Which compaction.
-    pub compaction: Compaction,
+    /// The stage's option.
+    pub option: O,
 }
+
+/// `select.wgsl` with one of its compactions: a [`Backend<Select>`].
+pub type GpuSelectBackend = GpuBackend<Compaction>;
 
 impl Backend<Select> for GpuSelectBackend {
     fn name(&self) -> String {
-        format!("gpu-{}", self.compaction.name())
+        format!("gpu-{}", self.option.name())
     }
     fn ordered(&self) -> bool {
-        self.compaction == Compaction::Stable
+        self.option == Compaction::Stable
     }
     fn run(&self, i: SelectInput<'_>) -> BackendSelection {
         let mut gpu =
             GpuSelect::new(self.ctx, i.batches, i.meshes, i.billboard).expect("GpuSelect::new");
         let out = gpu
-            .run(i.camera, i.params, self.compaction)
+            .run(i.camera, i.params, self.option)
             .expect("GpuSelect::run");
         let decisions = gpu
             .read_decisions()
@@ -98,7 +103,7 @@ pub fn gpu_backends() -> Vec<GpuSelectBackend> {
         .map(|ctx| {
             Compaction::ALL
                 .iter()
-                .map(|&compaction| GpuSelectBackend { ctx, compaction })
+                .map(|&option| GpuSelectBackend { ctx, option })
                 .collect()
         })
         .unwrap_or_default()
@@ -460,17 +465,13 @@ pub fn gpu_draw(ctx: &'static GpuContext) -> &'static GpuDraw {
     DRAW.get_or_init(|| GpuDraw::new(ctx).expect("GpuDraw::new"))
 }
 
-/// `draw.wgsl` fed by the chosen stages: a [`Backend<Draw>`].
-pub struct GpuRenderer {
-    /// The shared context.
-    pub ctx: &'static GpuContext,
-    /// Which inputs come from the reference.
-    pub from_cpu: StagesFromCpu,
-}
+/// `draw.wgsl` fed by the chosen stages (which inputs come from the reference): a
+/// [`Backend<Draw>`].
+pub type GpuRenderer = GpuBackend<StagesFromCpu>;
 
 impl Backend<Draw> for GpuRenderer {
     fn name(&self) -> String {
-        format!("gpu(from-cpu: {})", self.from_cpu.name())
+        format!("gpu(from-cpu: {})", self.option.name())
     }
     fn run(&self, i: FrameInput<'_>) -> Images {
         render_gpu(
@@ -479,7 +480,7 @@ impl Backend<Draw> for GpuRenderer {
             i.prepared,
             i.camera,
             i.params,
-            self.from_cpu,
+            self.option,
         )
         .unwrap_or_else(|e| panic!("{}: {e}", self.name()))
         .images

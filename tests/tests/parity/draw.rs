@@ -110,18 +110,18 @@ fn gpu_draw_matches_the_reference() {
     let backends: Vec<Box<dyn Backend<Draw>>> = vec![
         Box::new(GpuRenderer {
             ctx,
-            from_cpu: StagesFromCpu::ALL,
+            option: StagesFromCpu::ALL,
         }),
         Box::new(GpuRenderer {
             ctx,
-            from_cpu: StagesFromCpu {
+            option: StagesFromCpu {
                 select: false,
                 textures: true,
             },
         }),
         Box::new(GpuRenderer {
             ctx,
-            from_cpu: StagesFromCpu::NONE,
+            option: StagesFromCpu::NONE,
         }),
     ];
     let mut failures = Vec::new();
