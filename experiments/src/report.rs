@@ -84,10 +84,10 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
         s.trees_finer += r.trees_finer as f64;
         s.trees_coarser += r.trees_coarser as f64;
         s.memory_bytes += r.memory_bytes as f64;
-        s.flip_mean += r.flip_mean;
-        s.flip_p95 += r.flip_p95;
-        s.flip_p99 += r.flip_p99;
-        s.coverage_error += r.coverage_error;
+        s.flip_mean += r.accuracy.flip_mean;
+        s.flip_p95 += r.accuracy.flip_p95;
+        s.flip_p99 += r.accuracy.flip_p99;
+        s.coverage_error += r.accuracy.coverage_error;
     }
     let n = s.frames.max(1) as f64;
     for v in [

@@ -125,12 +125,12 @@ pub fn write_plots(
         (
             "cost_vs_flip.png",
             "FLIP mean vs ground truth",
-            (|r: &Row| r.flip_mean) as fn(&Row) -> f64,
+            (|r: &Row| r.accuracy.flip_mean) as fn(&Row) -> f64,
         ),
         (
             "cost_vs_coverage.png",
             "coverage error (fraction of pixels)",
-            |r: &Row| r.coverage_error,
+            |r: &Row| r.accuracy.coverage_error,
         ),
     ] {
         let series = group(&all, &y, &|r: &Row| r.frame_s, false);
@@ -222,13 +222,13 @@ pub fn write_plots(
                 (
                     "accuracy_distance.png",
                     "FLIP mean",
-                    |r: &Row| r.flip_mean,
+                    |r: &Row| r.accuracy.flip_mean,
                     "FLIP mean along the distance path.",
                 ),
                 (
                     "coverage_distance.png",
                     "coverage error",
-                    |r: &Row| r.coverage_error,
+                    |r: &Row| r.accuracy.coverage_error,
                     "Coverage error along the distance path.",
                 ),
             ] {
@@ -270,9 +270,9 @@ pub fn write_plots(
                     ("frame", |r| r.frame_s * 1e3),
                 ];
                 let errors: [Metric; 3] = [
-                    ("FLIP mean", |r| r.flip_mean),
-                    ("FLIP p95", |r| r.flip_p95),
-                    ("coverage err", |r| r.coverage_error),
+                    ("FLIP mean", |r| r.accuracy.flip_mean),
+                    ("FLIP p95", |r| r.accuracy.flip_p95),
+                    ("coverage err", |r| r.accuracy.coverage_error),
                 ];
                 for (file, title, y_label, caption, metrics) in [
                     (
@@ -346,9 +346,9 @@ pub fn write_plots(
                     .map(|l| {
                         let rs: Vec<&Row> = rows.iter().filter(|r| &r.setting == l).collect();
                         vec![
-                            mean(rs.iter().map(|r| r.flip_mean)),
-                            mean(rs.iter().map(|r| r.flip_p95)),
-                            mean(rs.iter().map(|r| r.coverage_error)),
+                            mean(rs.iter().map(|r| r.accuracy.flip_mean)),
+                            mean(rs.iter().map(|r| r.accuracy.flip_p95)),
+                            mean(rs.iter().map(|r| r.accuracy.coverage_error)),
                         ]
                     })
                     .collect();

@@ -81,25 +81,18 @@ pub struct Row {
     pub overdraw: Option<f64>,
     /// Bytes the method adds to the scene data (ours: E Eq. 4.1's terms as allocated).
     pub memory_bytes: u64,
-    /// FLIP mean against the ground truth.
-    pub flip_mean: f64,
-    /// FLIP 95th percentile.
-    pub flip_p95: f64,
-    /// FLIP 99th percentile.
-    pub flip_p99: f64,
-    /// Tree / not-tree disagreement with the ground truth, fraction of pixels.
-    pub coverage_error: f64,
-    /// Tree pixels in the ground truth, fraction.
-    pub gt_tree_fraction: f64,
-    /// Tree pixels in the frame, fraction.
-    pub tree_fraction: f64,
+    /// Accuracy against the ground truth. In the CSV: [`Accuracy`]'s columns, last
+    /// ([`write_csv`]); serde skips it here, so a figure added to `Accuracy` is a column with
+    /// no edit of this file or the runner.
+    #[serde(skip)]
+    pub accuracy: Accuracy,
 }
 
-/// `Row`'s own columns (the parameter columns left out) and their values for `row`, as the csv
-/// crate's serde support writes them.
-fn own_columns(row: &Row) -> Result<(StringRecord, StringRecord), csv::Error> {
+/// The columns and values of `value` as the csv crate's serde support writes them (a flat
+/// struct: `Row` without its skipped parts, [`Accuracy`]).
+fn columns_of<T: Serialize>(value: &T) -> Result<(StringRecord, StringRecord), csv::Error> {
     let mut w = csv::Writer::from_writer(Vec::new());
-    w.serialize(row)?;
+    w.serialize(value)?;
     let bytes = w.into_inner().map_err(|e| e.into_error())?;
     let mut r = csv::Reader::from_reader(&bytes[..]);
     let headers = r.headers()?.clone();
@@ -116,29 +109,41 @@ fn params_at(headers: &StringRecord) -> usize {
 }
 
 /// Writes `rows` as a sweep CSV: `Row`'s columns with one column per parameter-table entry
-/// spliced in after `setting`.
+/// spliced in after `setting`, and [`Accuracy`]'s columns last.
 pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), InputError> {
     let fail = |e: &dyn std::fmt::Display| {
         InputError::new(path.display().to_string(), "write", "", e.to_string())
     };
     let mut w = csv::Writer::from_path(path).map_err(|e| fail(&e))?;
     for (i, row) in rows.iter().enumerate() {
-        let (headers, record) = own_columns(row).map_err(|e| fail(&e))?;
+        let (headers, record) = columns_of(row).map_err(|e| fail(&e))?;
+        let (acc_headers, acc_record) = columns_of(&row.accuracy).map_err(|e| fail(&e))?;
         let at = params_at(&headers);
-        let splice = |own: &StringRecord, params: Vec<String>| -> Vec<String> {
+        let splice = |own: &StringRecord, params: Vec<String>, acc: &StringRecord| -> Vec<String> {
             let own: Vec<String> = own.iter().map(str::to_string).collect();
-            [&own[..at], &params[..], &own[at..]].concat()
+            let acc: Vec<String> = acc.iter().map(str::to_string).collect();
+            [&own[..at], &params[..], &own[at..], &acc[..]].concat()
         };
         if i == 0 {
             let names = PARAMS.iter().map(|s| s.name.to_string()).collect();
-            w.write_record(splice(&headers, names))
+            w.write_record(splice(&headers, names, &acc_headers))
                 .map_err(|e| fail(&e))?;
         }
         let values = PARAMS.iter().map(|s| s.format(&row.params)).collect();
-        w.write_record(splice(&record, values))
+        w.write_record(splice(&record, values, &acc_record))
             .map_err(|e| fail(&e))?;
     }
     w.flush().map_err(|e| fail(&e))
+}
+
+/// What a CSV column holds.
+enum Column {
+    /// A parameter of the table.
+    Param(&'static ParamSpec),
+    /// A figure of [`Accuracy`].
+    Accuracy,
+    /// One of `Row`'s own fields.
+    Own,
 }
 
 /// Reads a sweep CSV written by [`write_csv`] (or before a parameter column was added or
@@ -151,31 +156,43 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, InputError> {
         .headers()
         .map_err(|e| InputError::new(file.clone(), "header", "", e.to_string()))?
         .clone();
-    // Each column is a parameter of the table or one of `Row`'s own.
-    let specs: Vec<Option<&'static ParamSpec>> = headers.iter().map(param).collect();
-    let own_headers: StringRecord = headers
+    // Each column is a parameter of the table, a figure of `Accuracy` or one of `Row`'s own.
+    let (acc_names, _) = columns_of(&Accuracy::default())
+        .map_err(|e| InputError::new(file.clone(), "header", "", e.to_string()))?;
+    let kinds: Vec<Column> = headers
         .iter()
-        .zip(&specs)
-        .filter(|(_, s)| s.is_none())
-        .map(|(h, _)| h)
+        .map(|h| match param(h) {
+            Some(spec) => Column::Param(spec),
+            None if acc_names.iter().any(|a| a == h) => Column::Accuracy,
+            None => Column::Own,
+        })
         .collect();
+    let pick = |record: &StringRecord, want: fn(&Column) -> bool| -> StringRecord {
+        record
+            .iter()
+            .zip(&kinds)
+            .filter(|(_, k)| want(k))
+            .map(|(v, _)| v)
+            .collect()
+    };
+    let is_own: fn(&Column) -> bool = |k| matches!(k, Column::Own);
+    let is_acc: fn(&Column) -> bool = |k| matches!(k, Column::Accuracy);
+    let (own_headers, acc_headers) = (pick(&headers, is_own), pick(&headers, is_acc));
     let mut rows = Vec::new();
     for (i, record) in reader.records().enumerate() {
         let at = format!("row {}", i + 2);
-        let record =
-            record.map_err(|e| InputError::new(file.clone(), at.clone(), "", e.to_string()))?;
-        let own: StringRecord = record
-            .iter()
-            .zip(&specs)
-            .filter(|(_, s)| s.is_none())
-            .map(|(v, _)| v)
-            .collect();
-        let mut row: Row = own
+        let bad = |e: &dyn std::fmt::Display| {
+            InputError::new(file.clone(), at.clone(), "", e.to_string())
+        };
+        let record = record.map_err(|e| bad(&e))?;
+        let mut row: Row = pick(&record, is_own)
             .deserialize(Some(&own_headers))
-            .map_err(|e| InputError::new(file.clone(), at.clone(), "", e.to_string()))?;
-        let mut params = Params::default();
-        for ((spec, value), column) in specs.iter().zip(&record).zip(&headers) {
-            if let Some(spec) = spec {
+            .map_err(|e| bad(&e))?;
+        row.accuracy = pick(&record, is_acc)
+            .deserialize(Some(&acc_headers))
+            .map_err(|e| bad(&e))?;
+        for ((kind, value), column) in kinds.iter().zip(&record).zip(&headers) {
+            if let Column::Param(spec) = kind {
                 let v = spec.parse(value).map_err(|e| {
                     InputError::new(
                         file.clone(),
@@ -184,10 +201,9 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, InputError> {
                         e.expected,
                     )
                 })?;
-                (spec.set)(&mut params, v);
+                (spec.set)(&mut row.params, v);
             }
         }
-        row.params = params;
         rows.push(row);
     }
     Ok(rows)
@@ -317,8 +333,8 @@ mod tests {
         for (a, b) in rows.iter().zip(&back) {
             assert_eq!(a.params, b.params);
             assert_eq!(
-                (&a.setting, a.flip_mean, a.gpu_draw_s),
-                (&b.setting, b.flip_mean, b.gpu_draw_s)
+                (&a.setting, a.accuracy, a.gpu_draw_s),
+                (&b.setting, b.accuracy, b.gpu_draw_s)
             );
         }
     }
@@ -343,7 +359,7 @@ mod tests {
 
     #[test]
     fn no_own_column_is_taken_for_a_parameter() {
-        let (headers, _) = own_columns(&row(Params::default())).unwrap();
+        let (headers, _) = columns_of(&row(Params::default())).unwrap();
         for h in &headers {
             assert!(
                 param(h).is_none(),

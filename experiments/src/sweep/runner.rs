@@ -251,12 +251,7 @@ impl Runner {
                                 fragments_written: vf.fragments_written,
                                 overdraw: vf.fragments_written.map(|f| f as f64 / pixels as f64),
                                 memory_bytes: vf.memory_bytes,
-                                flip_mean: acc.flip_mean,
-                                flip_p95: acc.flip_p95,
-                                flip_p99: acc.flip_p99,
-                                coverage_error: acc.coverage_error,
-                                gt_tree_fraction: acc.gt_tree_fraction,
-                                tree_fraction: acc.tree_fraction,
+                                accuracy: acc,
                             });
                             if pose.save_images {
                                 images.push(save_frame_images(
