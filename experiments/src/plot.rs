@@ -63,6 +63,19 @@ pub struct Axes {
     pub log_y: bool,
 }
 
+impl Axes {
+    /// Linear axes with a title and axis labels.
+    pub fn linear(title: String, x_label: &str, y_label: &str) -> Self {
+        Self {
+            title,
+            x_label: x_label.into(),
+            y_label: y_label.into(),
+            log_x: false,
+            log_y: false,
+        }
+    }
+}
+
 fn color(c: [u8; 3]) -> Color {
     Color::from_rgba8(c[0], c[1], c[2], 255)
 }

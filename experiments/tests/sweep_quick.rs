@@ -61,7 +61,12 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
         let mut per_variant: BTreeMap<(&str, &str), usize> = BTreeMap::new();
         for r in &rows {
             let cost = [r.select_s, r.draw_s, r.frame_s];
-            let acc = [r.accuracy.flip_mean, r.accuracy.flip_p95, r.accuracy.flip_p99, r.accuracy.coverage_error];
+            let acc = [
+                r.accuracy.flip_mean,
+                r.accuracy.flip_p95,
+                r.accuracy.flip_p99,
+                r.accuracy.coverage_error,
+            ];
             assert!(
                 cost.iter().all(|v| v.is_finite() && *v >= 0.0) && r.frame_s > 0.0,
                 "{name}: cost figures of {} {} {}: {cost:?}",

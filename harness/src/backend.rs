@@ -194,22 +194,29 @@ pub fn alpha_test_alternatives(
     camera: &Camera,
     params: &Params,
 ) -> Vec<Images> {
+    cutoff_shifted(params, |p| {
+        Backend::<Draw>::run(
+            &Reference,
+            FrameInput {
+                prepared,
+                camera,
+                params: p,
+            },
+        )
+    })
+}
+
+/// `render` with the alpha-test cutoff moved by each of `±image_compare::ALPHA_TEST_SHIFTS`
+/// (clamped to `0..=1`).
+fn cutoff_shifted(params: &Params, render: impl Fn(&Params) -> Images) -> Vec<Images> {
     crate::image_compare::ALPHA_TEST_SHIFTS
         .iter()
         .flat_map(|&d| [-d, d])
         .map(|d| {
-            let p = Params {
+            render(&Params {
                 alpha_cutoff: (params.alpha_cutoff + d).clamp(0.0, 1.0),
                 ..*params
-            };
-            Backend::<Draw>::run(
-                &Reference,
-                FrameInput {
-                    prepared,
-                    camera,
-                    params: &p,
-                },
-            )
+            })
         })
         .collect()
 }
@@ -522,17 +529,9 @@ pub fn vegetation_alternatives(
     camera: &Camera,
     params: &Params,
 ) -> Vec<Images> {
-    crate::image_compare::ALPHA_TEST_SHIFTS
-        .iter()
-        .flat_map(|&d| [-d, d])
-        .map(|d| {
-            let p = Params {
-                alpha_cutoff: (params.alpha_cutoff + d).clamp(0.0, 1.0),
-                ..*params
-            };
-            images_of(&render_vegetation(prepared, spheres, camera, &p).target)
-        })
-        .collect()
+    cutoff_shifted(params, |p| {
+        images_of(&render_vegetation(prepared, spheres, camera, p).target)
+    })
 }
 
 /// The reference Primitive frames with the ray cast's root tests moved by each of

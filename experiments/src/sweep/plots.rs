@@ -21,6 +21,27 @@ fn mean(v: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// Series label of a row: the variant, plus the parameter set's series label when there is one.
+/// Mean select and draw time of rows, milliseconds: the bars of the pass-time plots.
+const PASS_MS: [fn(&Row) -> f64; 2] = [|r| r.select_s * 1e3, |r| r.draw_s * 1e3];
+
+/// For each group, the mean of each metric over the group's rows (bar-plot values).
+fn group_means<'r>(
+    groups: &[String],
+    metrics: &[fn(&Row) -> f64],
+    rows_of: impl Fn(&String) -> Vec<&'r Row>,
+) -> Vec<Vec<f64>> {
+    groups
+        .iter()
+        .map(|g| {
+            let rs = rows_of(g);
+            metrics
+                .iter()
+                .map(|m| mean(rs.iter().map(|r| m(r))))
+                .collect()
+        })
+        .collect()
+}
+
 fn series_of(row: &Row, sets: &HashMap<String, String>, variants: usize) -> String {
     let series = sets.get(&row.setting).cloned().unwrap_or_default();
     match (variants > 1, series.is_empty()) {
@@ -164,36 +185,25 @@ pub fn write_plots(
             for cam in &cameras {
                 let rs: Vec<&Row> = rows.iter().filter(|r| &r.camera == cam).collect();
                 let series = group(&rs, &|r| r.frame_s * 1e3, &|r| r.yaw_deg as f64, true);
-                let axes = Axes {
-                    title: format!("{}: {cam} benchmark runtime over 360 deg", spec.name),
-                    x_label: "camera yaw [deg]".into(),
-                    y_label: "frame time [ms]".into(),
-                    log_x: false,
-                    log_y: false,
-                };
+                let axes = Axes::linear(
+                    format!("{}: {cam} benchmark runtime over 360 deg", spec.name),
+                    "camera yaw [deg]",
+                    "frame time [ms]",
+                );
                 plot(
                     &format!("runtime_{cam}.png"),
                     format!("Runtime over the 360° sweep of camera `{cam}` (E Fig. 5.1–5.3 b)."),
                     &|p| xy_plot(p, &axes, &series, Style::Lines),
                 )?;
                 // Mean time of each pass per variant (E Fig. 5.1c).
-                let values: Vec<Vec<f64>> = variants
-                    .iter()
-                    .map(|v| {
-                        let vr: Vec<&&Row> = rs.iter().filter(|r| &r.variant == v).collect();
-                        vec![
-                            mean(vr.iter().map(|r| r.select_s * 1e3)),
-                            mean(vr.iter().map(|r| r.draw_s * 1e3)),
-                        ]
-                    })
-                    .collect();
-                let axes = Axes {
-                    title: format!("{}: {cam} mean pass times", spec.name),
-                    x_label: "variant".into(),
-                    y_label: "mean time [ms]".into(),
-                    log_x: false,
-                    log_y: false,
-                };
+                let values = group_means(&variants, &PASS_MS, |v| {
+                    rs.iter().copied().filter(|r| &r.variant == v).collect()
+                });
+                let axes = Axes::linear(
+                    format!("{}: {cam} mean pass times", spec.name),
+                    "variant",
+                    "mean time [ms]",
+                );
                 plot(
                     &format!("passes_{cam}.png"),
                     format!(
@@ -233,13 +243,11 @@ pub fn write_plots(
                 ),
             ] {
                 let series = group(&all, &y, &|r| r.distance_m as f64, true);
-                let axes = Axes {
-                    title: format!("{}: {ylabel} vs distance", spec.name),
-                    x_label: "camera distance from the forest centre [m]".into(),
-                    y_label: ylabel.into(),
-                    log_x: false,
-                    log_y: false,
-                };
+                let axes = Axes::linear(
+                    format!("{}: {ylabel} vs distance", spec.name),
+                    "camera distance from the forest centre [m]",
+                    ylabel,
+                );
                 plot(name, cap.into(), &|p| {
                     xy_plot(p, &axes, &series, Style::Lines)
                 })?;
@@ -311,23 +319,14 @@ pub fn write_plots(
             } else {
                 // Categorical settings: grouped bars (E Fig. 5.7).
                 let labels: Vec<String> = sets.iter().map(|s| s.label.clone()).collect();
-                let passes: Vec<Vec<f64>> = labels
-                    .iter()
-                    .map(|l| {
-                        let rs: Vec<&Row> = rows.iter().filter(|r| &r.setting == l).collect();
-                        vec![
-                            mean(rs.iter().map(|r| r.select_s * 1e3)),
-                            mean(rs.iter().map(|r| r.draw_s * 1e3)),
-                        ]
-                    })
-                    .collect();
-                let axes = Axes {
-                    title: format!("{}: mean pass times", spec.name),
-                    x_label: "setting".into(),
-                    y_label: "mean time [ms]".into(),
-                    log_x: false,
-                    log_y: false,
-                };
+                let by_setting =
+                    |l: &String| -> Vec<&Row> { rows.iter().filter(|r| &r.setting == l).collect() };
+                let passes = group_means(&labels, &PASS_MS, by_setting);
+                let axes = Axes::linear(
+                    format!("{}: mean pass times", spec.name),
+                    "setting",
+                    "mean time [ms]",
+                );
                 plot(
                     "runtime.png",
                     "Mean select and draw time per setting (thesis-style, E Fig. 5.7).".into(),
@@ -341,24 +340,20 @@ pub fn write_plots(
                         )
                     },
                 )?;
-                let acc: Vec<Vec<f64>> = labels
-                    .iter()
-                    .map(|l| {
-                        let rs: Vec<&Row> = rows.iter().filter(|r| &r.setting == l).collect();
-                        vec![
-                            mean(rs.iter().map(|r| r.accuracy.flip_mean)),
-                            mean(rs.iter().map(|r| r.accuracy.flip_p95)),
-                            mean(rs.iter().map(|r| r.accuracy.coverage_error)),
-                        ]
-                    })
-                    .collect();
-                let axes = Axes {
-                    title: format!("{}: accuracy per setting", spec.name),
-                    x_label: "setting".into(),
-                    y_label: "error vs ground truth".into(),
-                    log_x: false,
-                    log_y: false,
-                };
+                let acc = group_means(
+                    &labels,
+                    &[
+                        |r| r.accuracy.flip_mean,
+                        |r| r.accuracy.flip_p95,
+                        |r| r.accuracy.coverage_error,
+                    ],
+                    by_setting,
+                );
+                let axes = Axes::linear(
+                    format!("{}: accuracy per setting", spec.name),
+                    "setting",
+                    "error vs ground truth",
+                );
                 plot(
                     "accuracy.png",
                     "Mean FLIP, FLIP p95 and coverage error per setting.".into(),
