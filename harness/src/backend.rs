@@ -535,7 +535,7 @@ pub fn vegetation_alternatives(
 }
 
 /// The reference Primitive frames with the ray cast's root tests moved by each of
-/// `±image_compare::PRIMITIVE_DISC_SHIFTS` roundings (`Proxy::intersect_shifted`): the
+/// `±image_compare::PRIMITIVE_DISC_SHIFTS` roundings (`Proxy::intersect`): the
 /// alternatives that classify the pixels a rounding of the discriminant decides.
 pub fn primitive_alternatives(
     prepared: &Prepared,
@@ -796,6 +796,16 @@ impl GpuSweepScene {
         let refining = params.tree_cull != TreeCull::None as u32;
         let target = &self.targets[&key];
         let stamps = self.timestamps.as_ref();
+        // An encoder that starts with timestamp `stamp` where timestamps are offered.
+        let begin = |label: &str, stamp: u32| {
+            let mut encoder = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+            if let Some(s) = stamps {
+                s.mark(&mut encoder, stamp);
+            }
+            encoder
+        };
         let submit_timed = |encoder: wgpu::CommandEncoder| -> Result<f64, GpuError> {
             let commands = encoder.finish();
             let t = Instant::now();
@@ -806,14 +816,7 @@ impl GpuSweepScene {
 
         // Stage 1: selection or culling.
         let encoder = ctx.checked("sweep select/cull", || {
-            let mut encoder = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("sweep select"),
-                });
-            if let Some(s) = stamps {
-                s.mark(&mut encoder, 0);
-            }
+            let mut encoder = begin("sweep select", 0);
             match variant {
                 GpuVariant::Ours(compaction) => {
                     self.select.encode(&mut encoder, camera, params, compaction);
@@ -835,14 +838,7 @@ impl GpuSweepScene {
 
         // Stage 2: the draw pass.
         let encoder = ctx.checked("sweep draw", || -> Result<_, GpuError> {
-            let mut encoder = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("sweep draw"),
-                });
-            if let Some(s) = stamps {
-                s.mark(&mut encoder, 2);
-            }
+            let mut encoder = begin("sweep draw", 2);
             match variant {
                 GpuVariant::Ours(_) | GpuVariant::Vegetation => {
                     let inputs = match variant {

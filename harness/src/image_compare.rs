@@ -112,7 +112,7 @@ pub const ALPHA_TEST_EPSILON: f32 = 0.09;
 pub const ALPHA_TEST_SHIFTS: [f32; 3] = [0.01, 0.03, ALPHA_TEST_EPSILON];
 
 /// How many roundings of the discriminant the Primitive's alternative frames move its root tests
-/// by (`reference::baselines::Proxy::intersect_shifted`: `disc >= k · ε · m`, `m` the larger of
+/// by (`reference::baselines::Proxy::intersect`: `disc >= k · ε · m`, `m` the larger of
 /// the two products the discriminant subtracts).
 ///
 /// Why 4: the discriminant `b·b - a·(|o|² - r²)` of a ray passing a proxy hundreds of metres away

@@ -344,26 +344,16 @@ impl Proxy {
 
     /// Nearest ray parameter `t >= t_min` where `origin + t·dir` meets the proxy of a tree standing
     /// at `base` with `scale`, or `None`. `origin` and `dir` need not be normalized.
-    pub fn intersect(
-        &self,
-        base: Vec3,
-        scale: f32,
-        origin: Vec3,
-        dir: Vec3,
-        t_min: f32,
-    ) -> Option<f32> {
-        self.intersect_shifted(base, scale, origin, dir, t_min, 0.0)
-    }
-
-    /// [`Proxy::intersect`] with each root test `disc >= 0` (sphere and cylinder) moved to
+    ///
+    /// `disc_shift` moves each root test `disc >= 0` (sphere and cylinder) to
     /// `disc >= disc_shift · ε · m`, `m` the larger magnitude of the two products the discriminant
     /// subtracts (`b·b` and `a·(|o|² - r²)`) and `ε` = `f32::EPSILON`: positive shifts shrink the
     /// proxy's silhouettes, negative ones widen them, by `disc_shift` roundings of the
-    /// discriminant. `0.0` is exactly [`Proxy::intersect`]. The GPU parity tests render
+    /// discriminant; `0.0` is the exact test, what the baseline renders with. The GPU parity tests render
     /// alternative frames with it: far from the eye the discriminant cancels catastrophically
     /// (a trunk 0.34 m wide 700 m away has `r² ≈ 2` units in the last place of `b·b`), so a
     /// rounding difference (a fused multiply-add on the GPU) decides its hits there.
-    pub fn intersect_shifted(
+    pub fn intersect(
         &self,
         base: Vec3,
         scale: f32,
@@ -492,7 +482,7 @@ pub fn render_primitive(
 }
 
 /// [`render_primitive`] with every ray cast's root tests moved by `disc_shift` roundings
-/// ([`Proxy::intersect_shifted`]); `0.0` is exactly [`render_primitive`]. For the GPU parity
+/// ([`Proxy::intersect`]); `0.0` is exactly [`render_primitive`]. For the GPU parity
 /// tests' alternative frames.
 pub fn render_primitive_shifted(
     prepared: &Prepared,
@@ -539,7 +529,7 @@ pub fn render_primitive_shifted(
         }
         // Scale the ray so that t is the view depth, then clip to the near plane.
         let dir = dir / along;
-        let t = proxy.intersect_shifted(
+        let t = proxy.intersect(
             Vec3::from(inst.position),
             inst.scale,
             eye,
@@ -593,16 +583,16 @@ mod tests {
         let base = Vec3::new(10.0, 0.0, 2.0);
         let o = Vec3::new(0.0, 0.0, 2.0);
         // Through the crown centre: the sphere's near side at x = 7 (t = 7 with a unit x ray).
-        let t = proxy.intersect(base, 1.0, o + Vec3::Z * 15.0, Vec3::X, 0.1);
+        let t = proxy.intersect(base, 1.0, o + Vec3::Z * 15.0, Vec3::X, 0.1, 0.0);
         assert!((t.unwrap() - 7.0).abs() < 1e-4);
         // Through the trunk at 5 m: the cylinder's near side at x = 9.7.
-        let t = proxy.intersect(base, 1.0, o + Vec3::Z * 5.0, Vec3::X, 0.1);
+        let t = proxy.intersect(base, 1.0, o + Vec3::Z * 5.0, Vec3::X, 0.1, 0.0);
         assert!((t.unwrap() - 9.7).abs() < 1e-4);
         // Beside the trunk, below the crown: a miss.
-        let t = proxy.intersect(base, 1.0, o + Vec3::new(0.0, 1.0, 5.0), Vec3::X, 0.1);
+        let t = proxy.intersect(base, 1.0, o + Vec3::new(0.0, 1.0, 5.0), Vec3::X, 0.1, 0.0);
         assert_eq!(t, None);
         // Scaled by 2: the crown centre is at 30 m, radius 6.
-        let t = proxy.intersect(base, 2.0, o + Vec3::Z * 30.0, Vec3::X, 0.1);
+        let t = proxy.intersect(base, 2.0, o + Vec3::Z * 30.0, Vec3::X, 0.1, 0.0);
         assert!((t.unwrap() - 4.0).abs() < 1e-4);
     }
 
