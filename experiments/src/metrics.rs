@@ -12,6 +12,13 @@
 //!   coverage, mip alpha, culling) from colour errors.
 //! - **Per-LOD error maps**: the FLIP map split by the frame's LOD id, so one sees *where* the error
 //!   comes from (E Fig. 3.1's colours name the classes), with the mean FLIP of each class.
+//! - **LOD error** ([`lod_error`]): FLIP against the *same backend's full-detail frame* (the
+//!   Vegetation baseline: every visible tree at its full mesh, same camera, same sampling). The
+//!   error against the ray-traced truth above is dominated by the rasterizer's one-sample aliasing
+//!   of alpha-tested foliage, which every variant shares (issue 12: FLIP 0.0510–0.0514 for every
+//!   K x r in `angles_texture`); against a frame with the same aliasing that part cancels and
+//!   what remains is what the LOD changed. Its mean, its 99th percentile (LOD artefacts are
+//!   sparse) and the fraction of pixels it changed at all ([`LOD_CHANGED_LEVELS`]).
 
 use forestlod_reference::draw::{
     LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION,
@@ -55,6 +62,46 @@ pub struct Accuracy {
     pub gt_tree_fraction: f64,
     /// Fraction of pixels that are trees in the frame.
     pub tree_fraction: f64,
+    /// LOD error ([`lod_error`]): mean FLIP against the same backend's full-detail frame. `NaN`
+    /// in CSVs written before it existed.
+    #[serde(default = "not_measured")]
+    pub lod_flip_mean: f64,
+    /// LOD error: 99th percentile of that FLIP map.
+    #[serde(default = "not_measured")]
+    pub lod_flip_p99: f64,
+    /// LOD error: fraction of pixels whose colour differs from the full-detail frame by more
+    /// than [`LOD_CHANGED_LEVELS`] in some channel.
+    #[serde(default = "not_measured")]
+    pub lod_changed: f64,
+}
+
+fn not_measured() -> f64 {
+    f64::NAN
+}
+
+/// A pixel counts as changed by the LOD when a channel differs from the full-detail frame by
+/// more than this many 8-bit levels: 2 absorbs the ±1 rounding of two blends that differ only in
+/// order (the parity tests' colour tolerance), so only real changes count.
+pub const LOD_CHANGED_LEVELS: u8 = 2;
+
+/// Fills the LOD-error figures of `acc` for `color` against `full`, the same backend's
+/// full-detail frame (module docs), and returns the FLIP map.
+///
+/// # Panics
+/// If the sizes differ.
+pub fn lod_error(acc: &mut Accuracy, full: &Rgba8Image, color: &Rgba8Image) -> Vec<f32> {
+    let map = flip_map(full, color);
+    let n = map.len().max(1) as f64;
+    acc.lod_flip_mean = map.iter().map(|&e| e as f64).sum::<f64>() / n;
+    acc.lod_flip_p99 = percentile(&map, 99.0);
+    let changed = full
+        .texels
+        .iter()
+        .zip(&color.texels)
+        .filter(|(a, b)| (0..3).any(|c| a[c].abs_diff(b[c]) > LOD_CHANGED_LEVELS))
+        .count();
+    acc.lod_changed = changed as f64 / n;
+    map
 }
 
 /// The FLIP error map of `test` against `reference` (equal sizes), row-major.
@@ -123,6 +170,9 @@ pub fn accuracy(gt: &GroundTruthImage, color: &Rgba8Image, aux: &[u32]) -> (Accu
             coverage_error: differ as f64 / n,
             gt_tree_fraction: gt_trees as f64 / n,
             tree_fraction: trees as f64 / n,
+            lod_flip_mean: f64::NAN,
+            lod_flip_p99: f64::NAN,
+            lod_changed: f64::NAN,
         },
         map,
     )

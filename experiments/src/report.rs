@@ -63,13 +63,70 @@ pub struct Summary {
     pub flip_p99: f64,
     /// Mean coverage error.
     pub coverage_error: f64,
+    /// Frames left out of every mean because the ground truth shows no tree (a camera looking
+    /// away from the forest measures nothing about LOD).
+    pub empty: usize,
+    /// Half-width of the 95% interval of the mean frame time over frames (Student t).
+    pub frame_ci: f64,
+    /// Half-width of the 95% interval of the mean FLIP.
+    pub flip_ci: f64,
+    /// Mean LOD error (FLIP against the same backend's full-detail frame; NaN when not measured).
+    pub lod_flip_mean: f64,
+    /// Half-width of its 95% interval.
+    pub lod_flip_ci: f64,
+    /// Mean 99th percentile of the LOD error.
+    pub lod_flip_p99: f64,
+    /// Mean fraction of pixels the LOD changed.
+    pub lod_changed: f64,
 }
 
-/// Means of `rows`.
+/// Two-sided 95% quantiles of Student's t for 1..=30 degrees of freedom; 1.96 beyond.
+const T95: [f64; 30] = [
+    12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
+    2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
+    2.052, 2.048, 2.045, 2.042,
+];
+
+/// Mean of `values` and the half-width of its 95% confidence interval (Student t over the
+/// values, which are frames or repeats); the half-width is NaN for fewer than two values, the
+/// mean NaN for none.
+pub fn mean_ci(values: &[f64]) -> (f64, f64) {
+    let n = values.len();
+    if n == 0 {
+        return (f64::NAN, f64::NAN);
+    }
+    let mean = values.iter().sum::<f64>() / n as f64;
+    if n < 2 {
+        return (mean, f64::NAN);
+    }
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+    let t = T95.get(n - 2).copied().unwrap_or(1.96);
+    (mean, t * (var / n as f64).sqrt())
+}
+
+/// Whether two means lie within each other's noise: their 95% intervals overlap (or either
+/// has none).
+pub fn within_noise((a, a_ci): (f64, f64), (b, b_ci): (f64, f64)) -> bool {
+    !(a_ci.is_finite() && b_ci.is_finite()) || (a - b).abs() <= a_ci + b_ci
+}
+
+/// Means of `rows` over the frames whose ground truth shows a tree (the others are counted in
+/// [`Summary::empty`]), with 95% intervals for frame time, FLIP and LOD error.
 pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     let mut s = Summary::default();
     let mut counted = 0usize;
+    let (mut times, mut flips, mut lod_flips) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut lod_p99, mut lod_changed) = (0.0, 0.0);
     for r in rows {
+        if r.accuracy.gt_tree_fraction <= 0.0 {
+            s.empty += 1;
+            continue;
+        }
+        times.push(r.frame_s);
+        flips.push(r.accuracy.flip_mean);
+        lod_flips.push(r.accuracy.lod_flip_mean);
+        lod_p99 += r.accuracy.lod_flip_p99;
+        lod_changed += r.accuracy.lod_changed;
         s.frames += 1;
         s.select_s += r.select_s;
         s.draw_s += r.draw_s;
@@ -113,6 +170,11 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     for v in [&mut s.triangles, &mut s.fragments, &mut s.overdraw] {
         *v /= c;
     }
+    s.frame_ci = mean_ci(&times).1;
+    s.flip_ci = mean_ci(&flips).1;
+    (s.lod_flip_mean, s.lod_flip_ci) = mean_ci(&lod_flips);
+    s.lod_flip_p99 = lod_p99 / n;
+    s.lod_changed = lod_changed / n;
     s
 }
 
@@ -134,6 +196,26 @@ pub fn group_key(x_axis: &str, r: &Row) -> String {
 /// Reads a sweep's CSV ([`crate::sweep::read_csv`]).
 pub fn read_rows(path: &Path) -> Result<Vec<Row>, InputError> {
     crate::sweep::read_csv(path)
+}
+
+/// `mean ± half` with `digits` decimals; `-` for NaN, no `±` without an interval.
+fn pm(mean: f64, half: f64, digits: usize) -> String {
+    if mean.is_nan() {
+        "-".into()
+    } else if half.is_nan() {
+        format!("{mean:.digits$}")
+    } else {
+        format!("{mean:.digits$} ± {half:.digits$}")
+    }
+}
+
+/// `v` with `digits` decimals, `-` for NaN.
+fn opt(v: f64, digits: usize) -> String {
+    if v.is_nan() {
+        "-".into()
+    } else {
+        format!("{v:.digits$}")
+    }
 }
 
 fn ms(s: f64) -> String {
@@ -236,18 +318,19 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         .collect();
     let _ = writeln!(
         out,
-        "| group | frames | frame ms | select ms | draw ms | commands | trees finer / coarser | triangles | fragments | overdraw | memory MB | FLIP mean | FLIP p95 | FLIP p99 | coverage err |"
+        "| group | frames (no tree) | frame ms ±95% | select ms | draw ms | commands | trees finer / coarser | triangles | fragments | overdraw | memory MB | FLIP mean ±95% | FLIP p95 | FLIP p99 | coverage err | LOD error ±95% | LOD p99 | LOD changed |"
     );
     let _ = writeln!(
         out,
-        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
     );
     for (k, s) in &summaries {
         let _ = writeln!(
             out,
-            "| {k} | {} | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {:.4} | {:.4} | {:.4} | {:.4} |",
+            "| {k} | {} ({}) | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} |",
             s.frames,
-            ms(s.frame_s),
+            s.empty,
+            pm(s.frame_s * 1e3, s.frame_ci * 1e3, 2),
             ms(s.select_s),
             ms(s.draw_s),
             big(s.commands),
@@ -261,10 +344,17 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                 format!("{:.2}", s.overdraw)
             },
             s.memory_bytes / 1e6,
-            s.flip_mean,
+            pm(s.flip_mean, s.flip_ci, 4),
             s.flip_p95,
             s.flip_p99,
-            s.coverage_error
+            s.coverage_error,
+            pm(s.lod_flip_mean, s.lod_flip_ci, 4),
+            opt(s.lod_flip_p99, 4),
+            if s.lod_changed.is_nan() {
+                "-".to_string()
+            } else {
+                format!("{:.2}%", s.lod_changed * 100.0)
+            },
         );
     }
     let _ = writeln!(out);
@@ -295,9 +385,13 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                 )
             };
             let (o, veg, prim) = (s("ours"), s("vegetation"), s("primitive"));
+            // No ratio for frames that drew nothing; a ratio whose two means lie within each
+            // other's 95% interval is marked as noise.
             let ratio = |b: &Summary| {
-                if b.frames == 0 || o.frame_s <= 0.0 {
+                if b.frames == 0 || o.frames == 0 || o.commands <= 0.0 || o.frame_s <= 0.0 {
                     "-".to_string()
+                } else if within_noise((b.frame_s, b.frame_ci), (o.frame_s, o.frame_ci)) {
+                    format!("{:.2}x (within noise)", b.frame_s / o.frame_s)
                 } else {
                     format!("{:.2}x", b.frame_s / o.frame_s)
                 }
@@ -566,6 +660,36 @@ pub fn run(args: &ReportArgs) -> Result<(), Box<dyn std::error::Error>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn intervals_are_student_t_and_overlap_means_noise() {
+        let (m, h) = mean_ci(&[1.0, 2.0, 3.0]);
+        assert!((m - 2.0).abs() < 1e-12);
+        assert!((h - 4.303 / 3f64.sqrt()).abs() < 1e-9, "{h}");
+        assert!(mean_ci(&[5.0]).1.is_nan());
+        assert!(mean_ci(&[]).0.is_nan());
+        let many: Vec<f64> = (0..100).map(|i| (i % 2) as f64).collect();
+        assert!((mean_ci(&many).1 - 1.96 * (0.25f64 * 100.0 / 99.0).sqrt() / 10.0).abs() < 1e-9);
+        assert!(within_noise((1.0, 0.5), (1.8, 0.4)));
+        assert!(!within_noise((1.0, 0.1), (1.8, 0.1)));
+    }
+
+    #[test]
+    fn frames_without_trees_are_left_out_of_the_means() {
+        let csv = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("results/angles_texture/angles_texture.csv");
+        let rows = read_rows(&csv).unwrap();
+        let (empty, full): (Vec<&Row>, Vec<&Row>) =
+            rows.iter().partition(|r| r.accuracy.gt_tree_fraction <= 0.0);
+        assert!(!empty.is_empty() && !full.is_empty(), "the committed sweep has both kinds");
+        let s = summarize(rows.iter());
+        assert_eq!((s.frames, s.empty), (full.len(), empty.len()));
+        let mean = full.iter().map(|r| r.accuracy.flip_mean).sum::<f64>() / full.len() as f64;
+        assert!((s.flip_mean - mean).abs() < 1e-12);
+        assert!(s.flip_ci > 0.0 && s.frame_ci > 0.0);
+        // Written before the LOD error existed: not measured, not zero.
+        assert!(s.lod_flip_mean.is_nan());
+    }
 
     fn s(frame_s: f64, flip_mean: f64) -> Summary {
         Summary {

@@ -53,7 +53,7 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
             assert!(dir.join(plot).is_file(), "{name}: plot {plot} missing");
         }
         for im in &manifest.images {
-            for p in [&im.color, &im.lod, &im.flip, &im.ground_truth] {
+            for p in [&im.color, &im.lod, &im.flip, &im.lod_flip, &im.ground_truth] {
                 assert!(dir.join(p).is_file(), "{name}: image {p} missing");
             }
         }
@@ -66,6 +66,9 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
                 r.accuracy.flip_p95,
                 r.accuracy.flip_p99,
                 r.accuracy.coverage_error,
+                r.accuracy.lod_flip_mean,
+                r.accuracy.lod_flip_p99,
+                r.accuracy.lod_changed,
             ];
             assert!(
                 cost.iter().all(|v| v.is_finite() && *v >= 0.0) && r.frame_s > 0.0,
@@ -90,6 +93,16 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
                 r.backend
             );
             assert!(r.overdraw.is_none_or(|o| o.is_finite() && o >= 0.0));
+            // The LOD error's reference is the full-detail frame, which the Vegetation baseline
+            // is: its LOD error is exactly zero, on either backend.
+            if r.variant == "vegetation" {
+                assert_eq!(
+                    (r.accuracy.lod_flip_mean, r.accuracy.lod_changed),
+                    (0.0, 0.0),
+                    "{name}: Vegetation's LOD error on {}",
+                    r.backend
+                );
+            }
             // Conservative selection: no tree misses a LOD the per-tree oracle gives it.
             assert_eq!(r.trees_missing_lod, 0, "{name}: {} {}", r.variant, r.camera);
             *per_variant

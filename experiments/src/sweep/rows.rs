@@ -231,6 +231,9 @@ pub struct FrameImages {
     pub lod: String,
     /// The FLIP error map.
     pub flip: String,
+    /// The LOD error map: FLIP against the same backend's full-detail frame.
+    #[serde(default)]
+    pub lod_flip: String,
     /// Per-LOD FLIP maps: `(label, path, mean FLIP, pixels)`.
     pub per_lod: Vec<(String, String, f64, u64)>,
     /// The ground truth.
@@ -333,8 +336,8 @@ mod tests {
         for (a, b) in rows.iter().zip(&back) {
             assert_eq!(a.params, b.params);
             assert_eq!(
-                (&a.setting, a.accuracy, a.gpu_draw_s),
-                (&b.setting, b.accuracy, b.gpu_draw_s)
+                (&a.setting, format!("{:?}", a.accuracy), a.gpu_draw_s),
+                (&b.setting, format!("{:?}", b.accuracy), b.gpu_draw_s)
             );
         }
     }

@@ -24,7 +24,7 @@ use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::{Camera, CommandData, DrawCommand, Params, TreeCull};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::metrics::{Accuracy, accuracy, error_image, per_lod_error_maps};
+use crate::metrics::{Accuracy, accuracy, error_image, lod_error, per_lod_error_maps};
 
 use super::plots::write_plots;
 use super::rows::{FrameImages, Manifest, Row, write_csv};
@@ -198,16 +198,16 @@ impl Runner {
                         self.images.insert(key.clone(), img);
                     }
                     let gt = &self.images[&key];
+                    let frame = Frame {
+                        prepared: &prepared,
+                        spheres: &spheres,
+                        proxies: &proxy_list,
+                        camera: &camera,
+                        params: &set.params,
+                    };
                     for &backend in &backends {
-                        for &variant in &variants {
-                            let frame = Frame {
-                                prepared: &prepared,
-                                spheres: &spheres,
-                                proxies: &proxy_list,
-                                camera: &camera,
-                                params: &set.params,
-                            };
-                            let vf = if backend == Backend::Gpu {
+                        let mut render = |variant: Variant, repeats: u32| {
+                            if backend == Backend::Gpu {
                                 let gs = gpu_scene.as_mut().expect("created when use_gpu");
                                 if !gpu_warm {
                                     // First frame of a parameter set: pipelines, bind groups and
@@ -215,11 +215,18 @@ impl Runner {
                                     render_gpu_variant(gs, variant, &frame, 1)?;
                                     gpu_warm = true;
                                 }
-                                render_gpu_variant(gs, variant, &frame, spec.repeats)?
+                                render_gpu_variant(gs, variant, &frame, repeats)
                             } else {
-                                render_variant(variant, &frame, spec.repeats)?
-                            };
-                            let (acc, map) = accuracy(gt, &vf.color, &vf.aux);
+                                render_variant(variant, &frame, repeats).map_err(Into::into)
+                            }
+                        };
+                        // The LOD error's reference: this backend's full-detail frame (every
+                        // visible tree at its full mesh, the Vegetation baseline), untimed.
+                        let full = render(Variant::Vegetation, 1)?.color;
+                        for &variant in &variants {
+                            let vf = render(variant, spec.repeats)?;
+                            let (mut acc, map) = accuracy(gt, &vf.color, &vf.aux);
+                            let lod_map = lod_error(&mut acc, &full, &vf.color);
                             let pixels = (spec.width as u64 * spec.height as u64).max(1);
                             let p = &set.params;
                             rows.push(Row {
@@ -262,7 +269,7 @@ impl Runner {
                                     set,
                                     gt,
                                     (&vf.color, &vf.aux),
-                                    &map,
+                                    (&map, &lod_map),
                                     acc,
                                 )?);
                             }
@@ -519,7 +526,7 @@ fn save_frame_images(
     set: &ParamSet,
     gt: &GroundTruthImage,
     (color, aux): (&Rgba8Image, &[u32]),
-    map: &[f32],
+    (map, lod_map): (&[f32], &[f32]),
     acc: Accuracy,
 ) -> Result<FrameImages, InputError> {
     let pose_slug = if pose.camera == "distance" {
@@ -544,6 +551,8 @@ fn save_frame_images(
     let color_path = rel(format!("{stem}_color.png"));
     let lod = rel(format!("{stem}_lod.png"));
     let flip = rel(format!("{stem}_flip.png"));
+    let lod_flip = rel(format!("{stem}_lod_flip.png"));
+    write_png(&dir.join(&lod_flip), &error_image(lod_map, w, h))?;
     write_png(&dir.join(&color_path), color)?;
     write_png(&dir.join(&lod), &lod_id_image(w, h, aux))?;
     write_png(&dir.join(&flip), &error_image(map, w, h))?;
@@ -568,6 +577,7 @@ fn save_frame_images(
         color: color_path,
         lod,
         flip,
+        lod_flip,
         per_lod,
         ground_truth: gt_path,
         ground_truth_class: gt_class,
