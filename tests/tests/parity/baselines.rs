@@ -129,8 +129,8 @@ struct SceneCull<'a> {
 impl<'a> SceneCull<'a> {
     fn new(ctx: &'static GpuContext, scene: &'a Scene) -> Result<Self, String> {
         let input = CullInput::new(scene);
-        let gpu = GpuCull::new(ctx, &input.trees, &input.geometry.meshes)
-            .map_err(|e| e.to_string())?;
+        let gpu =
+            GpuCull::new(ctx, &input.trees, &input.geometry.meshes).map_err(|e| e.to_string())?;
         Ok(Self { scene, input, gpu })
     }
 }
