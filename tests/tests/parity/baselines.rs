@@ -144,12 +144,10 @@ fn judge_cull(
     params: &Params,
     tally: &mut CullTally,
 ) -> Result<(), String> {
-    let (scene, meshes, spheres, gpu): (&Scene, &[MeshMeta], &[([f32; 3], f32)], _) = (
-        cull.scene,
-        &cull.input.geometry.meshes,
-        &cull.input.spheres,
-        &mut cull.gpu,
-    );
+    let scene = cull.scene;
+    let meshes: &[MeshMeta] = &cull.input.geometry.meshes;
+    let spheres: &[([f32; 3], f32)] = &cull.input.spheres;
+    let gpu = &mut cull.gpu;
     gpu.dispatch(camera, params).map_err(|e| e.to_string())?;
     let got = gpu.read().map_err(|e| e.to_string())?;
     let want = visible_trees(spheres, camera, params);

@@ -212,8 +212,13 @@ fn check_all(
     tally.report(report, started);
 }
 
+/// The GPU mips stage, or `None` (saying the test is skipped) without an adapter.
 fn gpu_backend() -> Option<GpuMipsBackend> {
-    gpu_bake().map(|bake| GpuMipsBackend { bake })
+    let gpu = gpu_bake().map(|bake| GpuMipsBackend { bake });
+    if gpu.is_none() {
+        eprintln!("skipped, no GPU adapter");
+    }
+    gpu
 }
 
 fn image(side: u32, texels: Vec<[u8; 4]>) -> Rgba8Image {
@@ -301,10 +306,7 @@ fn gpu_tables_are_the_reference_formulas() {
 
 #[test]
 fn gpu_mips_equal_the_reference_on_random_layers() {
-    let Some(gpu) = gpu_backend() else {
-        eprintln!("skipped, no GPU adapter");
-        return;
-    };
+    let Some(gpu) = gpu_backend() else { return };
     let started = Instant::now();
     let tally = std::cell::RefCell::new(Tally::default());
     let mut runner = TestRunner::new(Config {
@@ -334,10 +336,7 @@ fn gpu_mips_equal_the_reference_on_random_layers() {
 
 #[test]
 fn gpu_mips_equal_the_reference_on_degenerate_layers() {
-    let Some(gpu) = gpu_backend() else {
-        eprintln!("skipped, no GPU adapter");
-        return;
-    };
+    let Some(gpu) = gpu_backend() else { return };
     let started = Instant::now();
     let side = 16;
     let n = (side * side) as usize;
@@ -387,10 +386,7 @@ fn gpu_mips_equal_the_reference_on_degenerate_layers() {
 
 #[test]
 fn gpu_mips_equal_the_reference_on_baked_species() {
-    let Some(gpu) = gpu_backend() else {
-        eprintln!("skipped, no GPU adapter");
-        return;
-    };
+    let Some(gpu) = gpu_backend() else { return };
     let started = Instant::now();
     // The reference's baked layers of the five built-in species, r = 128, K = 10.
     let layers = Backend::<Bake>::run(
@@ -412,10 +408,7 @@ fn gpu_mips_equal_the_reference_on_a_large_layer() {
     // workgroup loops 33 · 256 times per invocation there, which llvmpipe's loop limiter (65535
     // iterations per invocation, shared by all loops) cut short in the stage's first version;
     // the stage now counts one dispatch per round (gpu/src/mips.rs).
-    let Some(gpu) = gpu_backend() else {
-        eprintln!("skipped, no GPU adapter");
-        return;
-    };
+    let Some(gpu) = gpu_backend() else { return };
     let started = Instant::now();
     let side = 512u32;
     let texels: Vec<[u8; 4]> = (0..side * side)

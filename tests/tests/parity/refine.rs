@@ -32,14 +32,13 @@ use forestlod_gpu::{
     SelectBuffers,
 };
 use forestlod_harness::backend::{
-    GpuSweepScene, GpuVariant, StagesFromCpu, alpha_test_alternatives, cull_trees_of, gpu_context,
-    gpu_draw, images_of, render_gpu,
+    GpuSweepScene, GpuVariant, StagesFromCpu, alpha_test_alternatives, gpu_context, gpu_draw,
+    images_of, render_gpu,
 };
 use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
-use forestlod_reference::baselines::tree_spheres;
 use forestlod_reference::batches::{Batches, build_batches};
 use forestlod_reference::cameras::named_camera;
-use forestlod_reference::geometry::{PackedGeometry, pack_geometry};
+use forestlod_reference::geometry::PackedGeometry;
 use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::refine::refine;
 use forestlod_reference::scene::{Scene, builtin};
@@ -580,10 +579,8 @@ fn tree_cull_none_points_every_command_at_the_copy() {
     let Some(ctx) = gpu_context() else { return };
     let tiny = builtin::tiny();
     let p = tiny_params(FadeMode::Alpha);
-    let geometry = pack_geometry(&tiny);
-    let spheres = tree_spheres(&tiny, &geometry.meshes);
-    let trees = cull_trees_of(&tiny, &spheres);
-    let mut b = Batched::new(ctx, &tiny, &geometry, &spheres, &trees, p.grid_size).unwrap();
+    let i = CullInput::new(&tiny);
+    let mut b = Batched::new(ctx, &tiny, &i.geometry, &i.spheres, &i.trees, p.grid_size).unwrap();
     let camera = named_camera("medium", &tiny, 0.0, 96, 96).unwrap();
     let s = b.select.run(&camera, &p, Compaction::Stable).unwrap();
     assert!(!s.commands.is_empty());
@@ -598,7 +595,7 @@ fn tree_cull_none_points_every_command_at_the_copy() {
     }
     assert_eq!(got.counters, RefineCounters::default());
     // Refusals are named.
-    let err = GpuRefine::new(ctx, &trees[..1], &b.batches.indirection)
+    let err = GpuRefine::new(ctx, &i.trees[..1], &b.batches.indirection)
         .err()
         .unwrap();
     assert!(err.to_string().contains("batch indirection"), "{err}");
