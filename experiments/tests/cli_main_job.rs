@@ -82,6 +82,13 @@ fn last_line(s: &str) -> &str {
     s.lines().last().unwrap_or("")
 }
 
+/// Asserts that `text` contains each of `wants`; `what` (and `text`) name the case on failure.
+fn assert_contains_all(text: &str, wants: &[&str], what: &str) {
+    for want in wants {
+        assert!(text.contains(want), "{what}: {want:?} in {text:?}");
+    }
+}
+
 fn metrics(out: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap()
 }
@@ -194,9 +201,11 @@ fn bad_out_fails_at_once_naming_out_the_path_and_the_reason() {
         assert_eq!(o.status.code(), Some(1), "{out_str}: {stderr}");
         let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
         assert_eq!(lines.len(), 1, "{out_str}: one line: {stderr:?}");
-        for want in ["error:", "--out", out_str, reason, "os error"] {
-            assert!(lines[0].contains(want), "{out_str}: {want:?} in {stderr:?}");
-        }
+        assert_contains_all(
+            lines[0],
+            &["error:", "--out", out_str, reason, "os error"],
+            out_str,
+        );
         assert!(text(&o.stdout).is_empty());
     }
     assert_eq!(files(&readonly), BTreeSet::new());
@@ -225,14 +234,16 @@ fn gpu_skipped_exits_4_with_one_line_and_the_reference_outputs() {
     assert_eq!(skipped.len(), 1, "one GPU line: {skipped:#?}");
     let line = last_line(&stdout);
     assert_eq!(line, skipped[0]);
-    for want in [
-        "GPU parity skipped: ",
-        "scripts/install-deps",
-        "--no-gpu",
-        "[exit 4]",
-    ] {
-        assert!(line.contains(want), "{want:?} in {line:?}");
-    }
+    assert_contains_all(
+        line,
+        &[
+            "GPU parity skipped: ",
+            "scripts/install-deps",
+            "--no-gpu",
+            "[exit 4]",
+        ],
+        "the GPU line",
+    );
     assert_eq!(files(&out), set(&REFERENCE_FILES));
     let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
     assert_eq!(last_line(&summary), line);
@@ -328,14 +339,16 @@ fn help_documents_the_exit_codes_and_usage_errors_exit_1() {
         let o = forestlod(args, &[]);
         assert_eq!(o.status.code(), Some(0));
         let help = text(&o.stdout);
-        for want in [
-            "2  GPU parity failed",
-            "3  GPU error",
-            "4  GPU parity skipped",
-            "1  bad input",
-        ] {
-            assert!(help.contains(want), "{args:?}: {want:?}");
-        }
+        assert_contains_all(
+            &help,
+            &[
+                "2  GPU parity failed",
+                "3  GPU error",
+                "4  GPU parity skipped",
+                "1  bad input",
+            ],
+            &format!("{args:?}"),
+        );
     }
     let o = forestlod(&["render", "--no-such-flag"], &[]);
     assert_eq!(o.status.code(), Some(1), "usage errors are bad input");

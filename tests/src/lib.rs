@@ -4,6 +4,8 @@
 
 pub mod scenarios;
 
+use forestlod_gpu::CullTree;
+use forestlod_harness::backend::cull_trees_of;
 use forestlod_reference::baselines::tree_spheres;
 use forestlod_reference::batches::{Batches, build_batches};
 use forestlod_reference::geometry::{PackedGeometry, pack_geometry};
@@ -134,7 +136,7 @@ pub fn cameras() -> impl Strategy<Value = Camera> {
 /// 20°..100°, 64..256 pixels a side; only valid cameras.
 pub fn cameras_around(bounds: [f32; 4]) -> impl Strategy<Value = Camera> {
     let [x0, y0, x1, y1] = bounds;
-    let m = 0.5 * (x1 - x0).max(y1 - y0);
+    let m = half_side(bounds);
     (
         (x0 - m)..(x1 + m),
         (y0 - m)..(y1 + m),
@@ -150,6 +152,37 @@ pub fn cameras_around(bounds: [f32; 4]) -> impl Strategy<Value = Camera> {
             Camera::look_at([ex, ey, ez], [tx, ty, tz], fov, w, h)
         })
         .prop_filter("valid camera", |c| c.validate().is_ok())
+}
+
+/// Half the larger side of a footprint `bounds` (`[x0, y0, x1, y1]`).
+pub fn half_side(bounds: [f32; 4]) -> f32 {
+    let [x0, y0, x1, y1] = bounds;
+    0.5 * (x1 - x0).max(y1 - y0)
+}
+
+/// Random per-frame parameters around a scene's footprint `bounds` of half-side `m`: the draw
+/// distance 0..2m (often inside the footprint, so the distance cull and the per-tree discard both
+/// bite) or 4 km, the transition in `lod1_transition`, the fade width in `fade_width`, one or two
+/// LOD levels.
+pub fn params_around(
+    bounds: [f32; 4],
+    lod1_transition: std::ops::Range<f32>,
+    fade_width: std::ops::Range<f32>,
+) -> impl Strategy<Value = Params> {
+    let m = half_side(bounds);
+    (
+        prop_oneof![0.0f32..(2.0 * m), Just(4000.0f32)],
+        lod1_transition,
+        fade_width,
+        1u32..=2,
+    )
+        .prop_map(|(d, t, w, l)| Params {
+            draw_distance: d,
+            lod1_transition: t,
+            fade_width: w,
+            lod_levels: l,
+            ..Params::default()
+        })
 }
 
 /// Runs `cases` random cases of `strategy` through `body`, panicking with proptest's (shrunk)
@@ -307,6 +340,27 @@ impl Packed {
             geometry,
             spheres,
             batches,
+        }
+    }
+}
+
+/// `scene` made ready for the per-tree GPU stages (`parity::baselines`' cull, `parity::refine`):
+/// its packed geometry, the trees' bounding spheres and their [`CullTree`] records.
+pub struct CullInput {
+    pub geometry: PackedGeometry,
+    pub spheres: Vec<([f32; 3], f32)>,
+    pub trees: Vec<CullTree>,
+}
+
+impl CullInput {
+    pub fn new(scene: &Scene) -> Self {
+        let geometry = pack_geometry(scene);
+        let spheres = tree_spheres(scene, &geometry.meshes);
+        let trees = cull_trees_of(scene, &spheres);
+        CullInput {
+            geometry,
+            spheres,
+            trees,
         }
     }
 }

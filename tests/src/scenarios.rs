@@ -105,6 +105,42 @@ pub fn crop_params(fade: FadeMode) -> Params {
     }
 }
 
+/// One view of [`named_views`].
+#[derive(Clone, Debug)]
+pub struct NamedView {
+    /// The named camera (`medium`, `close`, `far`).
+    pub camera_name: &'static str,
+    /// Its yaw, degrees.
+    pub yaw: f32,
+    /// The camera.
+    pub camera: Camera,
+    /// The parameters, with the view's draw distance.
+    pub params: Params,
+}
+
+/// The per-tree parity tests' named views of `scene` (`parity::baselines`' cull,
+/// `parity::refine`): `medium`, `close` and `far` at `size`², each yawed by 0°, 40° and 200°, each
+/// with `p`'s draw distance and with it pulled in to 150 m.
+pub fn named_views(scene: &Scene, p: &Params, size: u32) -> Vec<NamedView> {
+    let mut out = Vec::new();
+    for camera_name in ["medium", "close", "far"] {
+        for yaw in [0.0, 40.0, 200.0] {
+            for draw_distance in [p.draw_distance, 150.0] {
+                out.push(NamedView {
+                    camera_name,
+                    yaw,
+                    camera: named_camera(camera_name, scene, yaw, size, size).unwrap(),
+                    params: Params {
+                        draw_distance,
+                        ..*p
+                    },
+                });
+            }
+        }
+    }
+    out
+}
+
 /// One frame of a prepared scene to render and compare.
 #[derive(Clone, Debug)]
 pub struct FrameScenario {

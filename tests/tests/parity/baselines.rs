@@ -22,20 +22,19 @@
 use std::collections::BTreeSet;
 use std::time::Instant;
 
-use forestlod_gpu::{Compaction, DrawIndirectArgs, GpuCull};
+use forestlod_gpu::{Compaction, DrawIndirectArgs, GpuContext, GpuCull};
 use forestlod_harness::backend::{
-    GpuSweepScene, GpuVariant, alpha_test_alternatives, cull_trees, cull_trees_of, gpu_context,
+    GpuSweepScene, GpuTimedFrame, GpuVariant, alpha_test_alternatives, cull_trees, gpu_context,
     images_of, primitive_alternatives, vegetation_alternatives,
 };
-use forestlod_harness::image_compare::{MaxDiffs, judge_image, print_max_diffs};
+use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
 use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_reference::baselines::{
-    self, Proxy, primitive_quad, proxies, render_primitive, render_vegetation, tree_spheres,
-    vegetation_commands, visible_trees,
+    self, BaselineFrame, Proxy, primitive_quad, proxies, render_primitive, render_vegetation,
+    tree_spheres, vegetation_commands, visible_trees,
 };
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::draw::LOD_ID_MESH;
-use forestlod_reference::geometry::pack_geometry;
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::{Scene, builtin};
 use forestlod_reference::select::SelectUniform;
@@ -43,11 +42,11 @@ use forestlod_shared::{
     Camera, CommandData, DrawCommand, FadeMode, MeshMeta, Params, ProxyRecord, view_interval,
 };
 use forestlod_tests::scenarios::{
-    crop_params, cropped_synthetic, tiny_and_crop_frames, tiny_params,
+    crop_params, cropped_synthetic, named_views, tiny_and_crop_frames, tiny_params,
 };
 use forestlod_tests::{
-    Thresholds, cameras, cameras_around, instances, params, run_cases, scene_of,
-    threshold_ambiguity,
+    CullInput, Thresholds, cameras, cameras_around, instances, params, params_around, run_cases,
+    scene_of, threshold_ambiguity,
 };
 use glam::Vec3;
 use proptest::prelude::*;
@@ -120,18 +119,35 @@ fn command_multiset(commands: &[DrawCommand], data: &[CommandData]) -> Vec<[u32;
     v
 }
 
-/// Culls one frame on the GPU and judges it against the reference (module docs).
-#[allow(clippy::too_many_arguments)]
+/// A scene's trees ready to cull: their [`CullInput`] and the [`GpuCull`] over it.
+struct SceneCull<'a> {
+    scene: &'a Scene,
+    input: CullInput,
+    gpu: GpuCull<'static>,
+}
+
+impl<'a> SceneCull<'a> {
+    fn new(ctx: &'static GpuContext, scene: &'a Scene) -> Result<Self, String> {
+        let input = CullInput::new(scene);
+        let gpu =
+            GpuCull::new(ctx, &input.trees, &input.geometry.meshes).map_err(|e| e.to_string())?;
+        Ok(Self { scene, input, gpu })
+    }
+}
+
+/// Culls one frame of `cull`'s scene on the GPU and judges it against the reference (module
+/// docs).
 fn judge_cull(
     name: &str,
-    scene: &Scene,
-    meshes: &[MeshMeta],
-    spheres: &[([f32; 3], f32)],
-    gpu: &mut GpuCull,
+    cull: &mut SceneCull,
     camera: &Camera,
     params: &Params,
     tally: &mut CullTally,
 ) -> Result<(), String> {
+    let scene = cull.scene;
+    let meshes: &[MeshMeta] = &cull.input.geometry.meshes;
+    let spheres: &[([f32; 3], f32)] = &cull.input.spheres;
+    let gpu = &mut cull.gpu;
     gpu.dispatch(camera, params).map_err(|e| e.to_string())?;
     let got = gpu.read().map_err(|e| e.to_string())?;
     let want = visible_trees(spheres, camera, params);
@@ -251,22 +267,10 @@ fn judge_cull(
 /// up, looking at a random point of it) and random per-frame parameters (draw distance often
 /// inside the footprint, so the distance cull and the per-tree discard both bite).
 fn cases_around(bounds: [f32; 4]) -> impl Strategy<Value = (Camera, Params)> {
-    let [x0, y0, x1, y1] = bounds;
-    let m = 0.5 * (x1 - x0).max(y1 - y0);
-    let p = (
-        prop_oneof![0.0f32..(2.0 * m), Just(4000.0f32)],
-        0.0f32..2000.0,
-        0.0f32..500.0,
-        1u32..=2,
+    (
+        cameras_around(bounds),
+        params_around(bounds, 0.0..2000.0, 0.0..500.0),
     )
-        .prop_map(|(d, t, w, l)| Params {
-            draw_distance: d,
-            lod1_transition: t,
-            fade_width: w,
-            lod_levels: l,
-            ..Params::default()
-        });
-    (cameras_around(bounds), p)
 }
 
 #[test]
@@ -281,49 +285,24 @@ fn gpu_cull_matches_per_tree_culling() {
         (&tiny, tiny_params(FadeMode::Alpha), 96),
         (&crop, crop_params(FadeMode::Alpha), 160),
     ] {
-        let geometry = pack_geometry(scene);
-        let spheres = tree_spheres(scene, &geometry.meshes);
-        let trees = cull_trees_of(scene, &spheres);
-        let mut gpu = GpuCull::new(ctx, &trees, &geometry.meshes).expect("GpuCull::new");
+        let mut cull = SceneCull::new(ctx, scene).expect("GpuCull::new");
         // The named cameras of parity_draw, yawed, and the draw distance pulled in.
-        for name in ["medium", "close", "far"] {
-            for yaw in [0.0, 40.0, 200.0] {
-                for draw_distance in [p.draw_distance, 150.0] {
-                    let camera = named_camera(name, scene, yaw, size, size).unwrap();
-                    let params = Params { draw_distance, ..p };
-                    let case = format!("{}-{name}-yaw{yaw}-dd{draw_distance}", scene.name);
-                    if let Err(e) = judge_cull(
-                        &case,
-                        scene,
-                        &geometry.meshes,
-                        &spheres,
-                        &mut gpu,
-                        &camera,
-                        &params,
-                        &mut tally,
-                    ) {
-                        failures.push(e);
-                    }
-                }
+        for v in named_views(scene, &p, size) {
+            let case = format!(
+                "{}-{}-yaw{}-dd{}",
+                scene.name, v.camera_name, v.yaw, v.params.draw_distance
+            );
+            if let Err(e) = judge_cull(&case, &mut cull, &v.camera, &v.params, &mut tally) {
+                failures.push(e);
             }
         }
         // Random cameras and parameters around the scene.
+        let random = format!("{} random", scene.name);
         run_cases(
-            &format!("{} random cameras", scene.name),
+            &format!("{random} cameras"),
             CASES,
             cases_around(scene.bounds),
-            |(camera, params)| {
-                judge_cull(
-                    &format!("{} random", scene.name),
-                    scene,
-                    &geometry.meshes,
-                    &spheres,
-                    &mut gpu,
-                    &camera,
-                    &params,
-                    &mut tally,
-                )
-            },
+            |(camera, params)| judge_cull(&random, &mut cull, &camera, &params, &mut tally),
         );
     }
     // Random scenes of card trees, random cameras (`parity::select`'s generators).
@@ -333,20 +312,8 @@ fn gpu_cull_matches_per_tree_culling() {
         (instances(300), cameras(), params()),
         |(trees, camera, params)| {
             let scene = scene_of(trees);
-            let geometry = pack_geometry(&scene);
-            let spheres = tree_spheres(&scene, &geometry.meshes);
-            let cull = cull_trees_of(&scene, &spheres);
-            let mut gpu = GpuCull::new(ctx, &cull, &geometry.meshes).map_err(|e| e.to_string())?;
-            judge_cull(
-                "random scene",
-                &scene,
-                &geometry.meshes,
-                &spheres,
-                &mut gpu,
-                &camera,
-                &params,
-                &mut tally,
-            )
+            let mut cull = SceneCull::new(ctx, &scene)?;
+            judge_cull("random scene", &mut cull, &camera, &params, &mut tally)
         },
     );
     println!(
@@ -436,6 +403,45 @@ fn image_scenarios() -> (Vec<Prepared>, Vec<ImageScenario>) {
     (prepared, out)
 }
 
+/// Renders the baseline `variant` of `s` with the sweeps' runner and judges it against the
+/// reference's frame `want`: the same trees drawn and commands (asserted), and the image (named
+/// `name`) within tolerance of `want`'s or of one of `alternatives` (a failure goes to
+/// `failures`). Returns the GPU frame.
+#[allow(clippy::too_many_arguments)]
+fn judge_baseline(
+    sweep: &mut GpuSweepScene,
+    variant: GpuVariant,
+    s: &ImageScenario,
+    want: &BaselineFrame,
+    name: &str,
+    alternatives: &[Images],
+    max: &mut MaxDiffs,
+    failures: &mut Vec<String>,
+) -> GpuTimedFrame {
+    let label = format!("{variant:?}");
+    let got = sweep
+        .render(variant, &s.camera, &s.params)
+        .unwrap_or_else(|e| panic!("{label} frame: {e:?}"));
+    assert_eq!(
+        got.trees_drawn,
+        Some(want.visible.len() as u64),
+        "{}: {label} trees drawn",
+        s.name
+    );
+    assert_eq!(got.commands, want.commands, "{}: {label} commands", s.name);
+    if let Some(f) = judge_image(
+        name,
+        &got.images,
+        &images_of(&want.target),
+        alternatives,
+        &s.camera,
+        max,
+    ) {
+        failures.push(f);
+    }
+    got
+}
+
 #[test]
 fn gpu_baseline_images_match_the_reference() {
     let Some(ctx) = gpu_context() else { return };
@@ -464,31 +470,16 @@ fn gpu_baseline_images_match_the_reference() {
 
         // Vegetation.
         let want = render_vegetation(p, &spheres, &s.camera, &s.params);
-        let alternatives = vegetation_alternatives(p, &spheres, &s.camera, &s.params);
-        let got = sweep
-            .render(GpuVariant::Vegetation, &s.camera, &s.params)
-            .expect("Vegetation frame");
-        assert_eq!(
-            got.trees_drawn,
-            Some(want.visible.len() as u64),
-            "{}: Vegetation trees drawn",
-            s.name
-        );
-        assert_eq!(
-            got.commands, want.commands,
-            "{}: Vegetation commands",
-            s.name
-        );
-        if let Some(f) = judge_image(
+        judge_baseline(
+            sweep,
+            GpuVariant::Vegetation,
+            s,
+            &want,
             &format!("{}/vegetation", s.name),
-            &got.images,
-            &images_of(&want.target),
-            &alternatives,
-            &s.camera,
+            &vegetation_alternatives(p, &spheres, &s.camera, &s.params),
             &mut max_vegetation,
-        ) {
-            failures.push(f);
-        }
+            &mut failures,
+        );
 
         // Primitive.
         let want = render_primitive(p, &spheres, &proxy_list, &s.camera, &s.params);
@@ -506,32 +497,16 @@ fn gpu_baseline_images_match_the_reference() {
             );
             fallback_scenarios += 1;
         }
-        let got = sweep
-            .render(GpuVariant::Primitive, &s.camera, &s.params)
-            .expect("Primitive frame");
-        assert_eq!(
-            got.trees_drawn,
-            Some(want.visible.len() as u64),
-            "{}: Primitive trees drawn",
-            s.name
-        );
-        assert_eq!(
-            got.commands, want.commands,
-            "{}: Primitive commands",
-            s.name
-        );
-        let name = format!("{}/primitive ({fallbacks} near-fallback quads)", s.name);
-        let alternatives = primitive_alternatives(p, &spheres, &proxy_list, &s.camera, &s.params);
-        if let Some(f) = judge_image(
-            &name,
-            &got.images,
-            &images_of(&want.target),
-            &alternatives,
-            &s.camera,
+        let got = judge_baseline(
+            sweep,
+            GpuVariant::Primitive,
+            s,
+            &want,
+            &format!("{}/primitive ({fallbacks} near-fallback quads)", s.name),
+            &primitive_alternatives(p, &spheres, &proxy_list, &s.camera, &s.params),
             &mut max_primitive,
-        ) {
-            failures.push(f);
-        }
+            &mut failures,
+        );
         println!(
             "  ({}: Vegetation and Primitive, GPU select {:.2} ms, draw {:.2} ms)",
             s.name,

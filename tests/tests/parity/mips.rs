@@ -189,8 +189,36 @@ fn check(
     judge(what, mode, alpha_ref, &got, &want, tally)
 }
 
+/// [`check`]s every case `(what, layers)` in every mode at each of `alpha_refs`; reports the
+/// tally as `report` at the end, or before panicking with the first failure.
+fn check_all(
+    report: &str,
+    started: Instant,
+    gpu: &GpuMipsBackend,
+    cases: &[(&str, Vec<Rgba8Image>)],
+    alpha_refs: &[f32],
+) {
+    let mut tally = Tally::default();
+    for (what, layers) in cases {
+        for mode in MipMode::ALL {
+            for &alpha_ref in alpha_refs {
+                if let Err(e) = check(what, gpu, layers, mode, alpha_ref, &mut tally) {
+                    tally.report(report, started);
+                    panic!("{what}, {mode:?}, alpha_ref {alpha_ref}: {e}");
+                }
+            }
+        }
+    }
+    tally.report(report, started);
+}
+
+/// The GPU mips stage, or `None` (saying the test is skipped) without an adapter.
 fn gpu_backend() -> Option<GpuMipsBackend> {
-    gpu_bake().map(|bake| GpuMipsBackend { bake })
+    let gpu = gpu_bake().map(|bake| GpuMipsBackend { bake });
+    if gpu.is_none() {
+        eprintln!("skipped, no GPU adapter");
+    }
+    gpu
 }
 
 fn image(side: u32, texels: Vec<[u8; 4]>) -> Rgba8Image {
@@ -278,10 +306,7 @@ fn gpu_tables_are_the_reference_formulas() {
 
 #[test]
 fn gpu_mips_equal_the_reference_on_random_layers() {
-    let Some(gpu) = gpu_backend() else {
-        eprintln!("skipped, no GPU adapter");
-        return;
-    };
+    let Some(gpu) = gpu_backend() else { return };
     let started = Instant::now();
     let tally = std::cell::RefCell::new(Tally::default());
     let mut runner = TestRunner::new(Config {
@@ -311,10 +336,7 @@ fn gpu_mips_equal_the_reference_on_random_layers() {
 
 #[test]
 fn gpu_mips_equal_the_reference_on_degenerate_layers() {
-    let Some(gpu) = gpu_backend() else {
-        eprintln!("skipped, no GPU adapter");
-        return;
-    };
+    let Some(gpu) = gpu_backend() else { return };
     let started = Instant::now();
     let side = 16;
     let n = (side * side) as usize;
@@ -359,26 +381,12 @@ fn gpu_mips_equal_the_reference_on_degenerate_layers() {
             ],
         ),
     ];
-    let mut tally = Tally::default();
-    for (what, layers) in &cases {
-        for mode in MipMode::ALL {
-            for alpha_ref in [0.0, 0.5, 1.0] {
-                if let Err(e) = check(what, &gpu, layers, mode, alpha_ref, &mut tally) {
-                    tally.report("degenerate layers", started);
-                    panic!("{what}, {mode:?}, alpha_ref {alpha_ref}: {e}");
-                }
-            }
-        }
-    }
-    tally.report("degenerate layers", started);
+    check_all("degenerate layers", started, &gpu, &cases, &[0.0, 0.5, 1.0]);
 }
 
 #[test]
 fn gpu_mips_equal_the_reference_on_baked_species() {
-    let Some(gpu) = gpu_backend() else {
-        eprintln!("skipped, no GPU adapter");
-        return;
-    };
+    let Some(gpu) = gpu_backend() else { return };
     let started = Instant::now();
     // The reference's baked layers of the five built-in species, r = 128, K = 10.
     let layers = Backend::<Bake>::run(
@@ -390,14 +398,8 @@ fn gpu_mips_equal_the_reference_on_baked_species() {
         },
     );
     assert_eq!(layers.len(), 50);
-    let mut tally = Tally::default();
-    for mode in MipMode::ALL {
-        if let Err(e) = check("species r=128 K=10", &gpu, &layers, mode, 0.5, &mut tally) {
-            tally.report("baked species", started);
-            panic!("{mode:?}: {e}");
-        }
-    }
-    tally.report("baked species", started);
+    let cases = [("species r=128 K=10", layers)];
+    check_all("baked species", started, &gpu, &cases, &[0.5]);
 }
 
 #[test]
@@ -406,10 +408,7 @@ fn gpu_mips_equal_the_reference_on_a_large_layer() {
     // workgroup loops 33 · 256 times per invocation there, which llvmpipe's loop limiter (65535
     // iterations per invocation, shared by all loops) cut short in the stage's first version;
     // the stage now counts one dispatch per round (gpu/src/mips.rs).
-    let Some(gpu) = gpu_backend() else {
-        eprintln!("skipped, no GPU adapter");
-        return;
-    };
+    let Some(gpu) = gpu_backend() else { return };
     let started = Instant::now();
     let side = 512u32;
     let texels: Vec<[u8; 4]> = (0..side * side)
@@ -418,13 +417,6 @@ fn gpu_mips_equal_the_reference_on_a_large_layer() {
             if h % 3 == 0 { [0; 4] } else { h.to_le_bytes() }
         })
         .collect();
-    let layers = [image(side, texels)];
-    let mut tally = Tally::default();
-    for mode in MipMode::ALL {
-        if let Err(e) = check("512² hashed", &gpu, &layers, mode, 0.5, &mut tally) {
-            tally.report("large layer", started);
-            panic!("{mode:?}: {e}");
-        }
-    }
-    tally.report("large layer", started);
+    let cases = [("512² hashed", vec![image(side, texels)])];
+    check_all("large layer", started, &gpu, &cases, &[0.5]);
 }

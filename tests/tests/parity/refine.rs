@@ -32,25 +32,24 @@ use forestlod_gpu::{
     SelectBuffers,
 };
 use forestlod_harness::backend::{
-    GpuSweepScene, GpuVariant, StagesFromCpu, alpha_test_alternatives, cull_trees_of, gpu_context,
-    gpu_draw, images_of, render_gpu,
+    GpuSweepScene, GpuVariant, StagesFromCpu, alpha_test_alternatives, gpu_context, gpu_draw,
+    images_of, render_gpu,
 };
 use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
-use forestlod_reference::baselines::tree_spheres;
 use forestlod_reference::batches::{Batches, build_batches};
 use forestlod_reference::cameras::named_camera;
-use forestlod_reference::geometry::{PackedGeometry, pack_geometry};
+use forestlod_reference::geometry::PackedGeometry;
 use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::refine::refine;
 use forestlod_reference::scene::{Scene, builtin};
 use forestlod_reference::select::{SelectUniform, Selection, select, select_per_tree};
 use forestlod_shared::{Camera, FadeMode, LOD_MESH, Params, TreeCull, view_interval};
 use forestlod_tests::scenarios::{
-    FrameScenario, crop_params, cropped_synthetic, tiny_and_crop_frames, tiny_params,
+    FrameScenario, crop_params, cropped_synthetic, named_views, tiny_and_crop_frames, tiny_params,
 };
 use forestlod_tests::{
-    Thresholds, cameras, cameras_around, instances, params, run_cases, scene_of,
-    threshold_ambiguity,
+    CullInput, Thresholds, cameras, cameras_around, half_side, instances, params, params_around,
+    run_cases, scene_of, threshold_ambiguity,
 };
 use proptest::prelude::*;
 
@@ -445,22 +444,14 @@ fn check_frame(
 /// Random cameras around a scene's footprint (as `parity::baselines`) with random per-frame
 /// parameters, a refinement mode and one of the prepared grid sizes.
 fn cases_around(bounds: [f32; 4], grids: usize) -> impl Strategy<Value = (Camera, Params, usize)> {
-    let [x0, y0, x1, y1] = bounds;
-    let m = 0.5 * (x1 - x0).max(y1 - y0);
+    let m = half_side(bounds);
     let p = (
-        prop_oneof![0.0f32..(2.0 * m), Just(4000.0f32)],
-        0.0f32..(2.0 * m),
-        0.0f32..(0.5 * m),
-        1u32..=2,
+        params_around(bounds, 0.0..(2.0 * m), 0.0..(0.5 * m)),
         1u32..=2,
     )
-        .prop_map(|(d, t, w, l, mode)| Params {
-            draw_distance: d,
-            lod1_transition: t,
-            fade_width: w,
-            lod_levels: l,
+        .prop_map(|(p, mode)| Params {
             tree_cull: mode,
-            ..Params::default()
+            ..p
         });
     (cameras_around(bounds), p, 0..grids)
 }
@@ -484,35 +475,32 @@ fn gpu_refine_matches_the_reference() {
             [100.0, 300.0, 1000.0],
         ),
     ] {
-        let geometry = pack_geometry(scene);
-        let spheres = tree_spheres(scene, &geometry.meshes);
-        let trees = cull_trees_of(scene, &spheres);
+        let input = CullInput::new(scene);
         let mut batched: Vec<Batched> = grids
             .iter()
-            .map(|&g| Batched::new(ctx, scene, &geometry, &spheres, &trees, g).expect("batches"))
+            .map(|&g| {
+                Batched::new(ctx, scene, &input.geometry, &input.spheres, &input.trees, g)
+                    .expect("batches")
+            })
             .collect();
         for (b, grid) in batched.iter_mut().zip(grids) {
-            for name in ["medium", "close", "far"] {
-                for yaw in [0.0, 40.0, 200.0] {
-                    for draw_distance in [p.draw_distance, 150.0] {
-                        for mode in MODES {
-                            let camera = named_camera(name, scene, yaw, size, size).unwrap();
-                            let params = Params {
-                                draw_distance,
-                                grid_size: grid,
-                                tree_cull: mode as u32,
-                                ..p
-                            };
-                            let case = format!(
-                                "{}-g{grid}-{name}-yaw{yaw}-dd{draw_distance}-{}",
-                                scene.name,
-                                mode.name()
-                            );
-                            if let Err(e) = check_frame(ctx, &case, b, &camera, &params, &mut tally)
-                            {
-                                failures.push(e);
-                            }
-                        }
+            for v in named_views(scene, &p, size) {
+                for mode in MODES {
+                    let params = Params {
+                        grid_size: grid,
+                        tree_cull: mode as u32,
+                        ..v.params
+                    };
+                    let case = format!(
+                        "{}-g{grid}-{}-yaw{}-dd{}-{}",
+                        scene.name,
+                        v.camera_name,
+                        v.yaw,
+                        v.params.draw_distance,
+                        mode.name()
+                    );
+                    if let Err(e) = check_frame(ctx, &case, b, &v.camera, &params, &mut tally) {
+                        failures.push(e);
                     }
                 }
             }
@@ -549,10 +537,15 @@ fn gpu_refine_matches_the_reference() {
                 ..params
             };
             let scene = scene_of(trees);
-            let geometry = pack_geometry(&scene);
-            let spheres = tree_spheres(&scene, &geometry.meshes);
-            let trees = cull_trees_of(&scene, &spheres);
-            let mut b = Batched::new(ctx, &scene, &geometry, &spheres, &trees, params.grid_size)?;
+            let i = CullInput::new(&scene);
+            let mut b = Batched::new(
+                ctx,
+                &scene,
+                &i.geometry,
+                &i.spheres,
+                &i.trees,
+                params.grid_size,
+            )?;
             check_frame(ctx, "random scene", &mut b, &camera, &params, &mut tally)
         },
     );
@@ -586,10 +579,8 @@ fn tree_cull_none_points_every_command_at_the_copy() {
     let Some(ctx) = gpu_context() else { return };
     let tiny = builtin::tiny();
     let p = tiny_params(FadeMode::Alpha);
-    let geometry = pack_geometry(&tiny);
-    let spheres = tree_spheres(&tiny, &geometry.meshes);
-    let trees = cull_trees_of(&tiny, &spheres);
-    let mut b = Batched::new(ctx, &tiny, &geometry, &spheres, &trees, p.grid_size).unwrap();
+    let i = CullInput::new(&tiny);
+    let mut b = Batched::new(ctx, &tiny, &i.geometry, &i.spheres, &i.trees, p.grid_size).unwrap();
     let camera = named_camera("medium", &tiny, 0.0, 96, 96).unwrap();
     let s = b.select.run(&camera, &p, Compaction::Stable).unwrap();
     assert!(!s.commands.is_empty());
@@ -604,7 +595,7 @@ fn tree_cull_none_points_every_command_at_the_copy() {
     }
     assert_eq!(got.counters, RefineCounters::default());
     // Refusals are named.
-    let err = GpuRefine::new(ctx, &trees[..1], &b.batches.indirection)
+    let err = GpuRefine::new(ctx, &i.trees[..1], &b.batches.indirection)
         .err()
         .unwrap();
     assert!(err.to_string().contains("batch indirection"), "{err}");

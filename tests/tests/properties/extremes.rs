@@ -584,6 +584,31 @@ fn assert_chains_finite(chains: &[forestlod_reference::mips::MipChain], what: &s
     }
 }
 
+/// `scene` prepared for billboards only (transition 0) at `texture_size` and `angle_count`, with
+/// those parameters: one baked layer per mesh and angle, and every chain finite (`what` names the
+/// case).
+fn prepare_billboards_only(
+    scene: &Scene,
+    texture_size: u32,
+    angle_count: u32,
+    what: &str,
+) -> (Params, Prepared) {
+    let p = Params {
+        texture_size,
+        angle_count,
+        lod1_transition: 0.0,
+        ..Params::default()
+    };
+    let prepared = prepare(scene.clone(), &p).unwrap();
+    assert_eq!(
+        prepared.billboards.layers.len(),
+        scene.meshes.len() * angle_count as usize,
+        "{what}"
+    );
+    assert_chains_finite(&prepared.billboards.chains, what);
+    (p, prepared)
+}
+
 /// SPEC §7 "r = 1, 2" (and 256): bake and mips at the smallest sizes and a large one: the chain
 /// has `log2(r) + 1` levels, nothing is NaN, and the frame (billboards only) renders.
 #[test]
@@ -591,15 +616,8 @@ fn texture_sizes_1_2_and_256_bake_and_draw() {
     let scene = builtin::single();
     let cam = camera([-40.0, 0.0, 8.0], [1.0, 0.0, -0.05], 64);
     for r in [1u32, 2, 256] {
-        let p = Params {
-            texture_size: r,
-            angle_count: 2,
-            lod1_transition: 0.0,
-            ..Params::default()
-        };
-        let prepared = prepare(scene.clone(), &p).unwrap();
+        let (p, prepared) = prepare_billboards_only(&scene, r, 2, &format!("r = {r}"));
         let baked = &prepared.billboards;
-        assert_eq!(baked.layers.len(), scene.meshes.len() * 2);
         assert!(baked.layers.iter().all(|l| l.width == r && l.height == r));
         assert!(
             baked
@@ -607,7 +625,6 @@ fn texture_sizes_1_2_and_256_bake_and_draw() {
                 .iter()
                 .all(|c| c.levels.len() as u32 == r.ilog2() + 1)
         );
-        assert_chains_finite(&baked.chains, &format!("r = {r}"));
         let b = render_prepared(&prepared, &p, &cam).unwrap();
         assert_finite(&b, &format!("r = {r}"));
         assert_eq!(b.selection.counters.lod0_commands, 0);
@@ -662,18 +679,7 @@ fn one_and_two_angles() {
     let down = camera([0.0, 0.0, 60.0], [1.0e-3, 0.0, -1.0], 64);
     let level = camera([-40.0, 0.0, 5.0], [1.0, 0.0, 0.0], 64);
     for (k, down_layer, level_layer) in [(1u32, 0u32, 0u32), (2, 1, 0)] {
-        let p = Params {
-            angle_count: k,
-            texture_size: 32,
-            lod1_transition: 0.0,
-            ..Params::default()
-        };
-        let prepared = prepare(scene.clone(), &p).unwrap();
-        assert_eq!(
-            prepared.billboards.layers.len(),
-            scene.meshes.len() * k as usize
-        );
-        assert_chains_finite(&prepared.billboards.chains, &format!("K = {k}"));
+        let (p, prepared) = prepare_billboards_only(&scene, 32, k, &format!("K = {k}"));
         // Layers of mesh 0 (the spruce) are 0..K.
         let down_layers = billboard_layers(&prepared, &p, &down);
         assert!(

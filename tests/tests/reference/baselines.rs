@@ -9,13 +9,14 @@
 //!   accuracy cost the sweeps measure).
 
 use forestlod_reference::baselines::{
-    proxies, render_primitive, render_vegetation, tree_spheres, trees_drawn_by_selection,
+    BaselineFrame, proxies, render_primitive, render_vegetation, tree_spheres,
+    trees_drawn_by_selection,
 };
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::draw::{LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TRANSITION};
-use forestlod_reference::pipeline::prepare;
+use forestlod_reference::pipeline::{Frame, Prepared, prepare};
 use forestlod_reference::scene::builtin;
-use forestlod_shared::Params;
+use forestlod_shared::{Camera, Params};
 
 /// Image size of the comparisons.
 const SIZE: (u32, u32) = (128, 96);
@@ -55,6 +56,41 @@ fn poses() -> Vec<(&'static str, f32)> {
     ]
 }
 
+/// One pose's frames: ours, the trees its selection draws, and the reference Vegetation's.
+struct PoseFrames {
+    camera: Camera,
+    ours: Frame,
+    drawn: Vec<u32>,
+    veg: BaselineFrame,
+}
+
+/// `prepared` from the named camera `name` yawed by `yaw` (at [`SIZE`]), rendered by ours and by
+/// Vegetation (on the trees' bounding `spheres`).
+fn pose_frames(
+    prepared: &Prepared,
+    spheres: &[([f32; 3], f32)],
+    params: &Params,
+    name: &str,
+    yaw: f32,
+) -> PoseFrames {
+    let camera = named_camera(name, &prepared.scene, yaw, SIZE.0, SIZE.1).unwrap();
+    let ours = prepared.render(&camera, params).unwrap();
+    let drawn = trees_drawn_by_selection(
+        prepared,
+        &ours.selection,
+        ours.indirection(prepared),
+        &camera,
+        params,
+    );
+    let veg = render_vegetation(prepared, spheres, &camera, params);
+    PoseFrames {
+        camera,
+        ours,
+        drawn,
+        veg,
+    }
+}
+
 #[test]
 fn with_one_tree_per_batch_every_variant_draws_the_per_tree_visible_set() {
     let params = Params {
@@ -67,16 +103,9 @@ fn with_one_tree_per_batch_every_variant_draws_the_per_tree_visible_set() {
     let spheres = tree_spheres(&prepared.scene, &prepared.geometry.meshes);
     let proxy_list = proxies(&prepared, params.alpha_cutoff);
     for (name, yaw) in poses() {
-        let camera = named_camera(name, &prepared.scene, yaw, SIZE.0, SIZE.1).unwrap();
-        let ours = prepared.render(&camera, &params).unwrap();
-        let drawn = trees_drawn_by_selection(
-            &prepared,
-            &ours.selection,
-            ours.indirection(&prepared),
-            &camera,
-            &params,
-        );
-        let veg = render_vegetation(&prepared, &spheres, &camera, &params);
+        let PoseFrames {
+            camera, drawn, veg, ..
+        } = pose_frames(&prepared, &spheres, &params, name, yaw);
         let prim = render_primitive(&prepared, &spheres, &proxy_list, &camera, &params);
         assert_eq!(drawn, veg.visible, "{name} yaw {yaw}: ours vs Vegetation");
         assert_eq!(veg.visible, prim.visible, "{name} yaw {yaw}: Primitive");
@@ -131,16 +160,9 @@ fn ours_is_conservative_and_its_coverage_matches_vegetation() {
         let prepared = prepare(builtin::tiny(), &params).unwrap();
         let spheres = tree_spheres(&prepared.scene, &prepared.geometry.meshes);
         for (name, yaw) in poses() {
-            let camera = named_camera(name, &prepared.scene, yaw, SIZE.0, SIZE.1).unwrap();
-            let ours = prepared.render(&camera, &params).unwrap();
-            let drawn = trees_drawn_by_selection(
-                &prepared,
-                &ours.selection,
-                ours.indirection(&prepared),
-                &camera,
-                &params,
-            );
-            let veg = render_vegetation(&prepared, &spheres, &camera, &params);
+            let PoseFrames {
+                ours, drawn, veg, ..
+            } = pose_frames(&prepared, &spheres, &params, name, yaw);
             for t in &veg.visible {
                 assert!(
                     drawn.binary_search(t).is_ok(),

@@ -9,6 +9,7 @@ use forestlod_reference::output::{
     difference_image, lod_id_image, read_depth_exr, read_png, write_depth_exr, write_png,
 };
 use forestlod_reference::pipeline::prepare;
+use forestlod_reference::texture::Image;
 use forestlod_tests::scenarios::golden_scenarios;
 
 /// Largest per-channel colour difference tolerated against a golden. The reference is
@@ -29,6 +30,15 @@ fn goldens_dir() -> PathBuf {
 
 fn failures_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/test-failures/goldens")
+}
+
+/// How many texels of `a` differ from `b`'s.
+fn texels_differing<T: PartialEq>(a: &Image<T>, b: &Image<T>) -> usize {
+    a.texels
+        .iter()
+        .zip(&b.texels)
+        .filter(|(x, y)| x != y)
+        .count()
 }
 
 #[test]
@@ -75,18 +85,8 @@ fn reference_matches_goldens() {
             s.name
         );
         let (diff, max) = difference_image(&color, &golden);
-        let differing = color
-            .texels
-            .iter()
-            .zip(&golden.texels)
-            .filter(|(a, b)| a != b)
-            .count();
-        let lod_mismatch = lod
-            .texels
-            .iter()
-            .zip(&golden_lod.texels)
-            .filter(|(a, b)| a != b)
-            .count();
+        let differing = texels_differing(&color, &golden);
+        let lod_mismatch = texels_differing(&lod, &golden_lod);
         let depth_max = depth
             .iter()
             .zip(&golden_depth)
