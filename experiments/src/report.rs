@@ -679,9 +679,13 @@ mod tests {
         let csv = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("results/angles_texture/angles_texture.csv");
         let rows = read_rows(&csv).unwrap();
-        let (empty, full): (Vec<&Row>, Vec<&Row>) =
-            rows.iter().partition(|r| r.accuracy.gt_tree_fraction <= 0.0);
-        assert!(!empty.is_empty() && !full.is_empty(), "the committed sweep has both kinds");
+        let (empty, full): (Vec<&Row>, Vec<&Row>) = rows
+            .iter()
+            .partition(|r| r.accuracy.gt_tree_fraction <= 0.0);
+        assert!(
+            !empty.is_empty() && !full.is_empty(),
+            "the committed sweep has both kinds"
+        );
         let s = summarize(rows.iter());
         assert_eq!((s.frames, s.empty), (full.len(), empty.len()));
         let mean = full.iter().map(|r| r.accuracy.flip_mean).sum::<f64>() / full.len() as f64;
