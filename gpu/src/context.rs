@@ -564,6 +564,60 @@ pub(crate) fn frame_uniform<T: bytemuck::Pod>(
     )
 }
 
+/// A bind group on `layout` labelled `label`: binding `i` is `resources[i]`.
+pub(crate) fn bind_group<'a>(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    resources: impl IntoIterator<Item = wgpu::BindingResource<'a>>,
+) -> wgpu::BindGroup {
+    let entries: Vec<_> = (0..)
+        .zip(resources)
+        .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
+/// The binding of one `T`-sized slot of a uniform `buffer` picked by a dynamic offset
+/// ([`Slot::DynamicUniform`]).
+pub(crate) fn dynamic_uniform_slot<T>(buffer: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer,
+        offset: 0,
+        size: std::num::NonZeroU64::new(size_of::<T>() as u64),
+    })
+}
+
+/// [`bind_group`] of whole buffers: binding `i` is all of `buffers[i]`.
+pub(crate) fn buffer_bind_group(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    bind_group(
+        device,
+        label,
+        layout,
+        buffers.iter().map(|b| b.as_entire_binding()),
+    )
+}
+
+/// A zeroed `UNIFORM | COPY_DST` buffer the size of `T`, labelled `label`: the uniform a driver
+/// owning per-scene outputs rewrites each frame from a `&mut self` method (crate docs).
+pub(crate) fn stage_uniform<T>(ctx: &GpuContext, label: &str) -> wgpu::Buffer {
+    crate::readback::zeroed_buffer(
+        ctx,
+        label,
+        size_of::<T>() as u64,
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+    )
+}
+
 /// A stage's compiled pipelines (bind-group layouts, pipelines, samplers: nothing per frame),
 /// created once per [`GpuContext`] and cached there ([`GpuContext::pipelines`]).
 pub trait StagePipelines: Any + Send + Sync + Sized {

@@ -64,13 +64,12 @@
 //! readback: one 2048² layer 1.6-1.9 s (AlphaAware, Box) and 6 s (CoveragePreserving); one
 //! 4096² layer 7 s and 22 s; the reference 0.4-0.8 s and 2-3 s.
 
-use std::num::NonZeroU64;
 use std::sync::{Arc, OnceLock};
 
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::MipMode;
 
-use crate::context::{Slot, StagePipelines, compute_stage};
+use crate::context::{Slot, StagePipelines, bind_group, compute_stage, dynamic_uniform_slot};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -836,48 +835,21 @@ impl<'a> GpuMips<'a> {
         });
         // Bind group `d` writes raw buffer `d` and reads the other one.
         let bind_group = |d: usize| {
-            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("mips"),
-                layout: &self.pipelines.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &uniforms,
-                            offset: 0,
-                            size: NonZeroU64::new(size_of::<MipsUniform>() as u64),
-                        }),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: tables.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: raw[1 - d].as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: raw[d].as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 4,
-                        resource: stats.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 5,
-                        resource: out.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 6,
-                        resource: wgpu::BindingResource::TextureView(&level0),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 7,
-                        resource: coverage.as_entire_binding(),
-                    },
+            bind_group(
+                &ctx.device,
+                "mips",
+                &self.pipelines.layout,
+                [
+                    dynamic_uniform_slot::<MipsUniform>(&uniforms),
+                    tables.as_entire_binding(),
+                    raw[1 - d].as_entire_binding(),
+                    raw[d].as_entire_binding(),
+                    stats.as_entire_binding(),
+                    out.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&level0),
+                    coverage.as_entire_binding(),
                 ],
-            })
+            )
         };
         ctx.checked("mips dispatch", || {
             let groups = [bind_group(0), bind_group(1)];

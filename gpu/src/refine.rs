@@ -65,7 +65,10 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, SelectCounters, ViewUniform};
 
-use crate::context::{Dispatch, READ, Slot, StagePipelines, WRITE, compute_pass, compute_stage};
+use crate::context::{
+    Dispatch, READ, Slot, StagePipelines, WRITE, buffer_bind_group, compute_pass, compute_stage,
+    stage_uniform,
+};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{CullTree, GpuContext, GpuError, GpuSelection, SelectBuffers};
 
@@ -274,12 +277,7 @@ impl<'a> GpuRefine<'a> {
         Ok(Self {
             ctx,
             pipelines: pipelines.clone(),
-            uniform: zeroed_buffer(
-                ctx,
-                "refine uniform",
-                size_of::<RefineUniform>() as u64,
-                U::UNIFORM | U::COPY_DST,
-            ),
+            uniform: stage_uniform::<RefineUniform>(ctx, "refine uniform"),
             trees: upload_storage(ctx, "refine trees", trees, U::empty()),
             indirection: upload_storage(ctx, "refine indirection", &all, U::empty()),
             counters: zeroed_buffer(
@@ -350,28 +348,22 @@ impl<'a> GpuRefine<'a> {
         encoder.clear_buffer(&self.counters, 0, None);
         encoder.clear_buffer(&self.dispatch, 0, None);
         let pipelines = &self.pipelines;
-        let bind_group = self
-            .ctx
-            .device
-            .create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("refine"),
-                layout: &pipelines.layout,
-                entries: &[
-                    (0, &self.uniform),
-                    (1, &self.trees),
-                    (2, &self.indirection),
-                    (3, &selection.commands),
-                    (4, &selection.data),
-                    (5, &selection.counters),
-                    (6, &self.counters),
-                    (7, &self.chunk_counts),
-                    (8, &self.dispatch),
-                ]
-                .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                    binding,
-                    resource: buffer.as_entire_binding(),
-                }),
-            });
+        let bind_group = buffer_bind_group(
+            &self.ctx.device,
+            "refine",
+            &pipelines.layout,
+            &[
+                &self.uniform,
+                &self.trees,
+                &self.indirection,
+                &selection.commands,
+                &selection.data,
+                &selection.counters,
+                &self.counters,
+                &self.chunk_counts,
+                &self.dispatch,
+            ],
+        );
         let (x, y) = self.slot_groups(selection.capacity);
         compute_pass(
             encoder,
