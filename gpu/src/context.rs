@@ -510,6 +510,38 @@ pub(crate) fn compute_stage<const N: usize>(
     })
 }
 
+/// Declares a compute stage's pipelines (`$vis struct $name`: its group-0 `layout` and one
+/// `ComputePipeline` field per entry point) and their [`StagePipelines`] impl, which compiles
+/// `$source` through [`compute_stage`] labelled `$label` with the bindings `$slots`.
+macro_rules! compute_pipelines {
+    (
+        $(#[$doc:meta])*
+        $vis:vis struct $name:ident = $label:literal, $source:expr, $slots:expr,
+        { $($field:ident: $entry:literal),+ $(,)? }
+    ) => {
+        $(#[$doc])*
+        #[derive(Debug)]
+        $vis struct $name {
+            layout: wgpu::BindGroupLayout,
+            $($field: wgpu::ComputePipeline,)+
+        }
+
+        impl $crate::context::StagePipelines for $name {
+            fn create(ctx: &$crate::GpuContext) -> Result<Self, $crate::GpuError> {
+                let (layout, [$($field),+]) = $crate::context::compute_stage(
+                    ctx,
+                    $label,
+                    &$source,
+                    &$slots,
+                    [$($entry),+],
+                )?;
+                Ok(Self { layout, $($field),+ })
+            }
+        }
+    };
+}
+pub(crate) use compute_pipelines;
+
 /// How one step of [`compute_pass`] dispatches.
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum Dispatch<'a> {

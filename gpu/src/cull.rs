@@ -41,8 +41,7 @@ use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MeshMeta, Params, SelectCounters, ViewUniform};
 
 use crate::context::{
-    Dispatch, READ, Slot, StagePipelines, WRITE, buffer_bind_group, compute_pass, compute_stage,
-    stage_uniform,
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
 };
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::select::check_mesh_indices;
@@ -134,37 +133,22 @@ pub struct GpuCulled {
     pub draw_args: DrawIndirectArgs,
 }
 
-/// The compiled pipelines of `cull.wgsl`, one set per [`GpuContext`] (cached there).
-#[derive(Debug)]
-pub struct CullPipelines {
-    layout: wgpu::BindGroupLayout,
-    count: wgpu::ComputePipeline,
-    commands: wgpu::ComputePipeline,
-    scatter: wgpu::ComputePipeline,
-}
-
-impl StagePipelines for CullPipelines {
-    /// Compiles `cull.wgsl` and creates its three pipelines.
-    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        let uniform = Slot::Uniform(size_of::<CullUniform>() as u64);
-        let counters = Slot::Write(size_of::<SelectCounters>() as u64);
-        let args = Slot::Write(size_of::<DrawIndirectArgs>() as u64);
-        let (layout, [count, commands, scatter]) = compute_stage(
-            ctx,
-            "cull",
-            &crate::shaders::cull_source(),
-            &[
-                uniform, READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE, counters, args,
-            ],
-            ["cull_count", "cull_commands", "cull_scatter"],
-        )?;
-        Ok(Self {
-            layout,
-            count,
-            commands,
-            scatter,
-        })
-    }
+compute_pipelines! {
+    /// The compiled pipelines of `cull.wgsl` (its three passes), one set per [`GpuContext`]
+    /// (cached there).
+    pub struct CullPipelines = "cull", crate::shaders::cull_source(), [
+        Slot::Uniform(size_of::<CullUniform>() as u64),
+        READ,
+        READ,
+        WRITE,
+        WRITE,
+        WRITE,
+        WRITE,
+        WRITE,
+        Slot::Write(size_of::<SelectCounters>() as u64),
+        Slot::Write(size_of::<DrawIndirectArgs>() as u64),
+    ],
+    { count: "cull_count", commands: "cull_commands", scatter: "cull_scatter" }
 }
 
 /// One scene's trees on the GPU, ready to cull for any camera and parameters (module docs).

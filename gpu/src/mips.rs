@@ -69,7 +69,7 @@ use std::sync::{Arc, OnceLock};
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::MipMode;
 
-use crate::context::{Slot, StagePipelines, bind_group, compute_stage, dynamic_uniform_slot};
+use crate::context::{Slot, bind_group, compute_pipelines, dynamic_uniform_slot};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -469,61 +469,26 @@ fn check_billboard_texture(
     Ok((side, layers, levels))
 }
 
-/// The compiled pipelines of `mips.wgsl`.
-#[derive(Debug)]
-struct MipsPipelines {
-    layout: wgpu::BindGroupLayout,
-    decode: wgpu::ComputePipeline,
-    downsample: wgpu::ComputePipeline,
-    adjust: wgpu::ComputePipeline,
-    coverage_count: wgpu::ComputePipeline,
-    coverage_step: wgpu::ComputePipeline,
-    finalize: wgpu::ComputePipeline,
-}
-
-impl StagePipelines for MipsPipelines {
-    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        let (layout, pipelines) = compute_stage(
-            ctx,
-            "mips",
-            &crate::shaders::mips_source(),
-            &[
-                // One uniform slot per level, picked by dynamic offset.
-                Slot::DynamicUniform(size_of::<MipsUniform>() as u64),
-                Slot::Read((TABLE_LEN * 4) as u64),
-                Slot::Read(16),
-                Slot::Write(16),
-                Slot::Write(size_of::<MipLevelStats>() as u64),
-                Slot::Write(4),
-                Slot::Texture(wgpu::TextureViewDimension::D2Array),
-                Slot::Write(size_of::<CoverageState>() as u64),
-            ],
-            [
-                "mips_decode",
-                "mips_downsample",
-                "mips_adjust",
-                "mips_coverage_count",
-                "mips_coverage_step",
-                "mips_finalize",
-            ],
-        )?;
-        let [
-            decode,
-            downsample,
-            adjust,
-            coverage_count,
-            coverage_step,
-            finalize,
-        ] = pipelines;
-        Ok(Self {
-            layout,
-            decode,
-            downsample,
-            adjust,
-            coverage_count,
-            coverage_step,
-            finalize,
-        })
+compute_pipelines! {
+    /// The compiled pipelines of `mips.wgsl`.
+    struct MipsPipelines = "mips", crate::shaders::mips_source(), [
+        // One uniform slot per level, picked by dynamic offset.
+        Slot::DynamicUniform(size_of::<MipsUniform>() as u64),
+        Slot::Read((TABLE_LEN * 4) as u64),
+        Slot::Read(16),
+        Slot::Write(16),
+        Slot::Write(size_of::<MipLevelStats>() as u64),
+        Slot::Write(4),
+        Slot::Texture(wgpu::TextureViewDimension::D2Array),
+        Slot::Write(size_of::<CoverageState>() as u64),
+    ],
+    {
+        decode: "mips_decode",
+        downsample: "mips_downsample",
+        adjust: "mips_adjust",
+        coverage_count: "mips_coverage_count",
+        coverage_step: "mips_coverage_step",
+        finalize: "mips_finalize",
     }
 }
 

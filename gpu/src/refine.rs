@@ -66,8 +66,7 @@ use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, SelectCounters, ViewUniform};
 
 use crate::context::{
-    Dispatch, READ, Slot, StagePipelines, WRITE, buffer_bind_group, compute_pass, compute_stage,
-    stage_uniform,
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
 };
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{CullTree, GpuContext, GpuError, GpuSelection, SelectBuffers};
@@ -155,51 +154,27 @@ pub struct GpuRefined {
     pub counters: RefineCounters,
 }
 
-/// The compiled pipelines of `refine.wgsl` (one per pass), one set per [`GpuContext`] (cached
-/// there).
-#[derive(Debug)]
-pub struct RefinePipelines {
-    layout: wgpu::BindGroupLayout,
-    prepare: wgpu::ComputePipeline,
-    args: wgpu::ComputePipeline,
-    count: wgpu::ComputePipeline,
-    scan: wgpu::ComputePipeline,
-    write: wgpu::ComputePipeline,
-    finalize: wgpu::ComputePipeline,
-}
-
-impl StagePipelines for RefinePipelines {
-    /// Compiles `refine.wgsl` and creates its pipelines.
-    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        let uniform = Slot::Uniform(size_of::<RefineUniform>() as u64);
-        let selected = Slot::Read(size_of::<SelectCounters>() as u64);
-        let counters = Slot::Write(size_of::<RefineCounters>() as u64);
-        let dispatch = Slot::Write(size_of::<RefineDispatch>() as u64);
-        let (layout, [prepare, args, count, scan, write, finalize]) = compute_stage(
-            ctx,
-            "refine",
-            &crate::shaders::refine_source(),
-            &[
-                uniform, READ, WRITE, WRITE, READ, selected, counters, WRITE, dispatch,
-            ],
-            [
-                "refine_prepare",
-                "refine_args",
-                "refine_count",
-                "refine_scan",
-                "refine_write",
-                "refine_finalize",
-            ],
-        )?;
-        Ok(Self {
-            layout,
-            prepare,
-            args,
-            count,
-            scan,
-            write,
-            finalize,
-        })
+compute_pipelines! {
+    /// The compiled pipelines of `refine.wgsl` (one per pass), one set per [`GpuContext`] (cached
+    /// there).
+    pub struct RefinePipelines = "refine", crate::shaders::refine_source(), [
+        Slot::Uniform(size_of::<RefineUniform>() as u64),
+        READ,
+        WRITE,
+        WRITE,
+        READ,
+        Slot::Read(size_of::<SelectCounters>() as u64),
+        Slot::Write(size_of::<RefineCounters>() as u64),
+        WRITE,
+        Slot::Write(size_of::<RefineDispatch>() as u64),
+    ],
+    {
+        prepare: "refine_prepare",
+        args: "refine_args",
+        count: "refine_count",
+        scan: "refine_scan",
+        write: "refine_write",
+        finalize: "refine_finalize",
     }
 }
 

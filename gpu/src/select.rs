@@ -34,8 +34,7 @@ use forestlod_shared::{
 };
 
 use crate::context::{
-    Dispatch, READ, Slot, StagePipelines, WRITE, buffer_bind_group, compute_pass, compute_stage,
-    stage_uniform,
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
 };
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
@@ -246,40 +245,24 @@ pub(crate) fn check_mesh_indices(
     }
 }
 
-/// The compiled pipelines of `select.wgsl`, one set per [`GpuContext`] (cached there).
-#[derive(Debug)]
-pub struct SelectPipelines {
-    layout: wgpu::BindGroupLayout,
-    decide: wgpu::ComputePipeline,
-    scan: wgpu::ComputePipeline,
-    write: wgpu::ComputePipeline,
-    atomic: wgpu::ComputePipeline,
-}
-
-impl StagePipelines for SelectPipelines {
-    /// Compiles `select.wgsl` and creates its four pipelines.
-    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        let uniform = Slot::Uniform(size_of::<SelectUniform>() as u64);
-        let counters = Slot::Write(size_of::<SelectCounters>() as u64);
-        let (layout, [decide, scan, write, atomic]) = compute_stage(
-            ctx,
-            "select",
-            &crate::shaders::select_source(),
-            &[uniform, READ, READ, WRITE, WRITE, WRITE, WRITE, counters],
-            [
-                "select_decide",
-                "select_scan",
-                "select_write",
-                "select_atomic",
-            ],
-        )?;
-        Ok(Self {
-            layout,
-            decide,
-            scan,
-            write,
-            atomic,
-        })
+compute_pipelines! {
+    /// The compiled pipelines of `select.wgsl` (its four passes), one set per [`GpuContext`]
+    /// (cached there).
+    pub struct SelectPipelines = "select", crate::shaders::select_source(), [
+        Slot::Uniform(size_of::<SelectUniform>() as u64),
+        READ,
+        READ,
+        WRITE,
+        WRITE,
+        WRITE,
+        WRITE,
+        Slot::Write(size_of::<SelectCounters>() as u64),
+    ],
+    {
+        decide: "select_decide",
+        scan: "select_scan",
+        write: "select_write",
+        atomic: "select_atomic",
     }
 }
 
