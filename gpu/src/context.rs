@@ -303,6 +303,14 @@ impl GpuContext {
         })
     }
 
+    /// The largest storage buffer one binding can hold: the smaller of the device's storage
+    /// binding and buffer size limits, in bytes.
+    pub(crate) fn max_storage_binding(&self) -> u64 {
+        self.limits
+            .max_storage_buffer_binding_size
+            .min(self.limits.max_buffer_size)
+    }
+
     /// Workgroup counts `(x, y)` of a dispatch of `groups` workgroups, spilling into `y` beyond
     /// the per-dimension limit (`x · y ≥ groups`; the shaders skip the excess).
     pub(crate) fn workgroup_grid(&self, groups: u32) -> (u32, u32) {

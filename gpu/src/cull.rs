@@ -138,13 +138,7 @@ compute_pipelines! {
     /// (cached there).
     pub struct CullPipelines = "cull", crate::shaders::cull_source(), [
         Slot::Uniform(size_of::<CullUniform>() as u64),
-        READ,
-        READ,
-        WRITE,
-        WRITE,
-        WRITE,
-        WRITE,
-        WRITE,
+        READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE,
         Slot::Write(size_of::<SelectCounters>() as u64),
         Slot::Write(size_of::<DrawIndirectArgs>() as u64),
     ],

@@ -717,10 +717,7 @@ impl<'a> GpuMips<'a> {
             u64::from(layers) * s * s * texel_bytes
         };
         let (raw0_size, raw1_size) = (raw_size(2), raw_size(1));
-        let limit = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
+        let limit = ctx.max_storage_binding();
         if raw1_size > limit {
             return Err(GpuError::Input {
                 field: "billboard texture",

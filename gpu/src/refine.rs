@@ -159,10 +159,7 @@ compute_pipelines! {
     /// there).
     pub struct RefinePipelines = "refine", crate::shaders::refine_source(), [
         Slot::Uniform(size_of::<RefineUniform>() as u64),
-        READ,
-        WRITE,
-        WRITE,
-        READ,
+        READ, WRITE, WRITE, READ,
         Slot::Read(size_of::<SelectCounters>() as u64),
         Slot::Write(size_of::<RefineCounters>() as u64),
         WRITE,
@@ -232,10 +229,7 @@ impl<'a> GpuRefine<'a> {
             });
         }
         let chunk_bytes = 4 * n as u64 * size_of::<u32>() as u64;
-        let max_bytes = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
+        let max_bytes = ctx.max_storage_binding();
         if chunk_bytes > max_bytes {
             return Err(GpuError::Input {
                 field: "batch indirection",

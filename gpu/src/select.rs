@@ -250,12 +250,7 @@ compute_pipelines! {
     /// (cached there).
     pub struct SelectPipelines = "select", crate::shaders::select_source(), [
         Slot::Uniform(size_of::<SelectUniform>() as u64),
-        READ,
-        READ,
-        WRITE,
-        WRITE,
-        WRITE,
-        WRITE,
+        READ, READ, WRITE, WRITE, WRITE, WRITE,
         Slot::Write(size_of::<SelectCounters>() as u64),
     ],
     {
