@@ -41,7 +41,6 @@
 //!
 //! Everywhere else the layers agree within ±1 per channel (the sRGB encodes round apart).
 
-use std::num::NonZeroU64;
 use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
@@ -51,8 +50,8 @@ use forestlod_shared::{
 use wgpu::util::DeviceExt;
 
 use crate::context::{
-    StagePipelines, dynamic_uniform_entry, group_layout, sampler_entry, shader_module,
-    texture_entry,
+    StagePipelines, bind_group, dynamic_uniform_entry, dynamic_uniform_slot, group_layout,
+    sampler_entry, shader_module, texture_entry,
 };
 use crate::mips::{BILLBOARD_FORMAT, GpuMips, MipArray, create_billboard_texture};
 use crate::{GpuContext, GpuError};
@@ -461,28 +460,16 @@ impl<'a> GpuBake<'a> {
                         bytemuck::cast_slice(m.texture),
                     );
                     let view = tex.create_view(&wgpu::TextureViewDescriptor::default());
-                    device.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some("bake mesh"),
-                        layout: &self.pipelines.layout,
-                        entries: &[
-                            wgpu::BindGroupEntry {
-                                binding: 0,
-                                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                                    buffer: &uniforms,
-                                    offset: 0,
-                                    size: NonZeroU64::new(size_of::<BakeLayer>() as u64),
-                                }),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 1,
-                                resource: wgpu::BindingResource::TextureView(&view),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 2,
-                                resource: wgpu::BindingResource::Sampler(&self.pipelines.sampler),
-                            },
+                    bind_group(
+                        device,
+                        "bake mesh",
+                        &self.pipelines.layout,
+                        [
+                            dynamic_uniform_slot::<BakeLayer>(&uniforms),
+                            wgpu::BindingResource::TextureView(&view),
+                            wgpu::BindingResource::Sampler(&self.pipelines.sampler),
                         ],
-                    })
+                    )
                 })
                 .collect();
             let depth = device.create_texture(&wgpu::TextureDescriptor {

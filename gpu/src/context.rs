@@ -303,6 +303,14 @@ impl GpuContext {
         })
     }
 
+    /// The largest storage buffer one binding can hold: the smaller of the device's storage
+    /// binding and buffer size limits, in bytes.
+    pub(crate) fn max_storage_binding(&self) -> u64 {
+        self.limits
+            .max_storage_buffer_binding_size
+            .min(self.limits.max_buffer_size)
+    }
+
     /// Workgroup counts `(x, y)` of a dispatch of `groups` workgroups, spilling into `y` beyond
     /// the per-dimension limit (`x · y ≥ groups`; the shaders skip the excess).
     pub(crate) fn workgroup_grid(&self, groups: u32) -> (u32, u32) {
@@ -510,6 +518,38 @@ pub(crate) fn compute_stage<const N: usize>(
     })
 }
 
+/// Declares a compute stage's pipelines (`$vis struct $name`: its group-0 `layout` and one
+/// `ComputePipeline` field per entry point) and their [`StagePipelines`] impl, which compiles
+/// `$source` through [`compute_stage`] labelled `$label` with the bindings `$slots`.
+macro_rules! compute_pipelines {
+    (
+        $(#[$doc:meta])*
+        $vis:vis struct $name:ident = $label:literal, $source:expr, $slots:expr,
+        { $($field:ident: $entry:literal),+ $(,)? }
+    ) => {
+        $(#[$doc])*
+        #[derive(Debug)]
+        $vis struct $name {
+            layout: wgpu::BindGroupLayout,
+            $($field: wgpu::ComputePipeline,)+
+        }
+
+        impl $crate::context::StagePipelines for $name {
+            fn create(ctx: &$crate::GpuContext) -> Result<Self, $crate::GpuError> {
+                let (layout, [$($field),+]) = $crate::context::compute_stage(
+                    ctx,
+                    $label,
+                    &$source,
+                    &$slots,
+                    [$($entry),+],
+                )?;
+                Ok(Self { layout, $($field),+ })
+            }
+        }
+    };
+}
+pub(crate) use compute_pipelines;
+
 /// How one step of [`compute_pass`] dispatches.
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum Dispatch<'a> {
@@ -561,6 +601,60 @@ pub(crate) fn frame_uniform<T: bytemuck::Pod>(
             contents: bytemuck::bytes_of(value),
             usage: wgpu::BufferUsages::UNIFORM,
         },
+    )
+}
+
+/// A bind group on `layout` labelled `label`: binding `i` is `resources[i]`.
+pub(crate) fn bind_group<'a>(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    resources: impl IntoIterator<Item = wgpu::BindingResource<'a>>,
+) -> wgpu::BindGroup {
+    let entries: Vec<_> = (0..)
+        .zip(resources)
+        .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
+/// The binding of one `T`-sized slot of a uniform `buffer` picked by a dynamic offset
+/// ([`Slot::DynamicUniform`]).
+pub(crate) fn dynamic_uniform_slot<T>(buffer: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer,
+        offset: 0,
+        size: std::num::NonZeroU64::new(size_of::<T>() as u64),
+    })
+}
+
+/// [`bind_group`] of whole buffers: binding `i` is all of `buffers[i]`.
+pub(crate) fn buffer_bind_group(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    bind_group(
+        device,
+        label,
+        layout,
+        buffers.iter().map(|b| b.as_entire_binding()),
+    )
+}
+
+/// A zeroed `UNIFORM | COPY_DST` buffer the size of `T`, labelled `label`: the uniform a driver
+/// owning per-scene outputs rewrites each frame from a `&mut self` method (crate docs).
+pub(crate) fn stage_uniform<T>(ctx: &GpuContext, label: &str) -> wgpu::Buffer {
+    crate::readback::zeroed_buffer(
+        ctx,
+        label,
+        size_of::<T>() as u64,
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
     )
 }
 

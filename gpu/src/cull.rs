@@ -40,8 +40,11 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MeshMeta, Params, SelectCounters, ViewUniform};
 
-use crate::context::{Dispatch, READ, Slot, StagePipelines, WRITE, compute_pass, compute_stage};
+use crate::context::{
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
+};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
+use crate::select::check_mesh_indices;
 use crate::{GpuContext, GpuError, SelectBuffers};
 
 /// Invocations per workgroup of the per-tree passes. Keep in sync with `cull.wgsl`.
@@ -130,37 +133,16 @@ pub struct GpuCulled {
     pub draw_args: DrawIndirectArgs,
 }
 
-/// The compiled pipelines of `cull.wgsl`, one set per [`GpuContext`] (cached there).
-#[derive(Debug)]
-pub struct CullPipelines {
-    layout: wgpu::BindGroupLayout,
-    count: wgpu::ComputePipeline,
-    commands: wgpu::ComputePipeline,
-    scatter: wgpu::ComputePipeline,
-}
-
-impl StagePipelines for CullPipelines {
-    /// Compiles `cull.wgsl` and creates its three pipelines.
-    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        let uniform = Slot::Uniform(size_of::<CullUniform>() as u64);
-        let counters = Slot::Write(size_of::<SelectCounters>() as u64);
-        let args = Slot::Write(size_of::<DrawIndirectArgs>() as u64);
-        let (layout, [count, commands, scatter]) = compute_stage(
-            ctx,
-            "cull",
-            &crate::shaders::cull_source(),
-            &[
-                uniform, READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE, counters, args,
-            ],
-            ["cull_count", "cull_commands", "cull_scatter"],
-        )?;
-        Ok(Self {
-            layout,
-            count,
-            commands,
-            scatter,
-        })
-    }
+compute_pipelines! {
+    /// The compiled pipelines of `cull.wgsl` (its three passes), one set per [`GpuContext`]
+    /// (cached there).
+    pub struct CullPipelines = "cull", crate::shaders::cull_source(), [
+        Slot::Uniform(size_of::<CullUniform>() as u64),
+        READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE,
+        Slot::Write(size_of::<SelectCounters>() as u64),
+        Slot::Write(size_of::<DrawIndirectArgs>() as u64),
+    ],
+    { count: "cull_count", commands: "cull_commands", scatter: "cull_scatter" }
 }
 
 /// One scene's trees on the GPU, ready to cull for any camera and parameters (module docs).
@@ -187,17 +169,12 @@ impl<'a> GpuCull<'a> {
         trees: &[CullTree],
         meshes: &[MeshMeta],
     ) -> Result<Self, GpuError> {
-        if let Some((i, t)) = trees
-            .iter()
-            .enumerate()
-            .find(|(_, t)| t.mesh as usize >= meshes.len())
-        {
-            return Err(GpuError::Input {
-                field: "tree.mesh",
-                value: format!("tree {i} mesh {} of {} meshes", t.mesh, meshes.len()),
-                reason: "expected a mesh index below the mesh count",
-            });
-        }
+        check_mesh_indices(
+            "tree.mesh",
+            "tree",
+            trees.iter().map(|t| t.mesh),
+            meshes.len(),
+        )?;
         if meshes.len() > MAX_CULL_MESHES as usize {
             return Err(GpuError::Input {
                 field: "meshes",
@@ -227,12 +204,7 @@ impl<'a> GpuCull<'a> {
         let n = trees.len() as u64;
         let tree_buffer = upload_storage(ctx, "cull trees", trees, U::empty());
         let mesh_buffer = upload_storage(ctx, "cull meshes", meshes, U::empty());
-        let uniform = zeroed_buffer(
-            ctx,
-            "cull uniform",
-            size_of::<CullUniform>() as u64,
-            U::UNIFORM | U::COPY_DST,
-        );
+        let uniform = stage_uniform::<CullUniform>(ctx, "cull uniform");
         let mesh_counts = zeroed_buffer(
             ctx,
             "cull mesh counts",
@@ -254,26 +226,23 @@ impl<'a> GpuCull<'a> {
         );
         let out = SelectBuffers::with_capacity(ctx, meshes.len() as u32);
         let bind_group = ctx.checked("cull bind group", || {
-            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("cull"),
-                layout: &pipelines.layout,
-                entries: &[
-                    (0, &uniform),
-                    (1, &tree_buffer),
-                    (2, &mesh_buffer),
-                    (3, &mesh_counts),
-                    (4, &slots),
-                    (5, &indirection),
-                    (6, &out.commands),
-                    (7, &out.data),
-                    (8, &out.counters),
-                    (9, &draw_args),
-                ]
-                .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                    binding,
-                    resource: buffer.as_entire_binding(),
-                }),
-            })
+            buffer_bind_group(
+                &ctx.device,
+                "cull",
+                &pipelines.layout,
+                &[
+                    &uniform,
+                    &tree_buffer,
+                    &mesh_buffer,
+                    &mesh_counts,
+                    &slots,
+                    &indirection,
+                    &out.commands,
+                    &out.data,
+                    &out.counters,
+                    &draw_args,
+                ],
+            )
         })?;
         Ok(Self {
             ctx,

@@ -39,7 +39,7 @@
 use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
-use forestlod_shared::{Camera, MAX_COMMANDS, MAX_MESH_VERTICES, MeshMeta, Params};
+use forestlod_shared::{Camera, MAX_COMMANDS, MAX_MESH_VERTICES, MeshMeta, Params, ViewUniform};
 use wgpu::util::DeviceExt;
 
 use crate::context::{
@@ -111,12 +111,9 @@ const _: () = assert!(size_of::<TerrainVertex>() == 24);
 pub struct DrawUniform {
     /// `projection * view`, column-major.
     pub view_proj: [[f32; 4]; 4],
-    /// Eye position.
-    pub eye: [f32; 3],
-    /// Draw distance.
-    pub draw_distance: f32,
-    /// Unit view direction (`Camera::basis().forward`).
-    pub forward: [f32; 3],
+    /// The view constants ([`ViewUniform::new`]; the reference's `DrawUniform::select`): eye,
+    /// unit forward and draw distance are what the draw reads.
+    pub view: ViewUniform,
     /// Billboard angles K.
     pub angle_count: u32,
     /// `FadeMode` as `u32`.
@@ -127,23 +124,31 @@ pub struct DrawUniform {
     pub alpha_cutoff: f32,
     /// First vertex of the billboard quad in the shared vertex buffer.
     pub billboard_first_vertex: u32,
+    /// Explicit padding.
+    pub _pad0: u32,
+    /// Explicit padding.
+    pub _pad1: u32,
+    /// Explicit padding.
+    pub _pad2: u32,
 }
-const _: () = assert!(size_of::<DrawUniform>() == 112);
+const _: () = assert!(size_of::<DrawUniform>() == 240);
 
 impl DrawUniform {
     /// The uniform of a validated camera and parameters, derived as the reference derives its
-    /// own (`DrawUniform::new` there: `SelectUniform` eye and forward, `Camera::view_projection`).
+    /// own (`DrawUniform::new` there: `SelectUniform`, i.e. [`ViewUniform::new`], and
+    /// `Camera::view_projection`).
     pub fn new(camera: &Camera, params: &Params, billboard_first_vertex: u32) -> Self {
         Self {
             view_proj: camera.view_projection().to_cols_array_2d(),
-            eye: camera.eye,
-            draw_distance: params.draw_distance,
-            forward: camera.basis().forward.to_array(),
+            view: ViewUniform::new(camera, params),
             angle_count: params.angle_count,
             fade_mode: params.fade_mode,
             angle_index_mode: params.angle_index_mode,
             alpha_cutoff: params.alpha_cutoff,
             billboard_first_vertex,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         }
     }
 }
@@ -1193,14 +1198,15 @@ pub(crate) mod tests {
         let layouts = [
             rust_layout!(DrawUniform {
                 view_proj,
-                eye,
-                draw_distance,
-                forward,
+                view,
                 angle_count,
                 fade_mode,
                 angle_index_mode,
                 alpha_cutoff,
-                billboard_first_vertex
+                billboard_first_vertex,
+                _pad0,
+                _pad1,
+                _pad2
             }),
             rust_layout!(DrawVertex { position, uv }),
             draw_instance_layout(),

@@ -64,13 +64,12 @@
 //! readback: one 2048² layer 1.6-1.9 s (AlphaAware, Box) and 6 s (CoveragePreserving); one
 //! 4096² layer 7 s and 22 s; the reference 0.4-0.8 s and 2-3 s.
 
-use std::num::NonZeroU64;
 use std::sync::{Arc, OnceLock};
 
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::MipMode;
 
-use crate::context::{Slot, StagePipelines, compute_stage};
+use crate::context::{Slot, bind_group, compute_pipelines, dynamic_uniform_slot};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -470,61 +469,26 @@ fn check_billboard_texture(
     Ok((side, layers, levels))
 }
 
-/// The compiled pipelines of `mips.wgsl`.
-#[derive(Debug)]
-struct MipsPipelines {
-    layout: wgpu::BindGroupLayout,
-    decode: wgpu::ComputePipeline,
-    downsample: wgpu::ComputePipeline,
-    adjust: wgpu::ComputePipeline,
-    coverage_count: wgpu::ComputePipeline,
-    coverage_step: wgpu::ComputePipeline,
-    finalize: wgpu::ComputePipeline,
-}
-
-impl StagePipelines for MipsPipelines {
-    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        let (layout, pipelines) = compute_stage(
-            ctx,
-            "mips",
-            &crate::shaders::mips_source(),
-            &[
-                // One uniform slot per level, picked by dynamic offset.
-                Slot::DynamicUniform(size_of::<MipsUniform>() as u64),
-                Slot::Read((TABLE_LEN * 4) as u64),
-                Slot::Read(16),
-                Slot::Write(16),
-                Slot::Write(size_of::<MipLevelStats>() as u64),
-                Slot::Write(4),
-                Slot::Texture(wgpu::TextureViewDimension::D2Array),
-                Slot::Write(size_of::<CoverageState>() as u64),
-            ],
-            [
-                "mips_decode",
-                "mips_downsample",
-                "mips_adjust",
-                "mips_coverage_count",
-                "mips_coverage_step",
-                "mips_finalize",
-            ],
-        )?;
-        let [
-            decode,
-            downsample,
-            adjust,
-            coverage_count,
-            coverage_step,
-            finalize,
-        ] = pipelines;
-        Ok(Self {
-            layout,
-            decode,
-            downsample,
-            adjust,
-            coverage_count,
-            coverage_step,
-            finalize,
-        })
+compute_pipelines! {
+    /// The compiled pipelines of `mips.wgsl`.
+    struct MipsPipelines = "mips", crate::shaders::mips_source(), [
+        // One uniform slot per level, picked by dynamic offset.
+        Slot::DynamicUniform(size_of::<MipsUniform>() as u64),
+        Slot::Read((TABLE_LEN * 4) as u64),
+        Slot::Read(16),
+        Slot::Write(16),
+        Slot::Write(size_of::<MipLevelStats>() as u64),
+        Slot::Write(4),
+        Slot::Texture(wgpu::TextureViewDimension::D2Array),
+        Slot::Write(size_of::<CoverageState>() as u64),
+    ],
+    {
+        decode: "mips_decode",
+        downsample: "mips_downsample",
+        adjust: "mips_adjust",
+        coverage_count: "mips_coverage_count",
+        coverage_step: "mips_coverage_step",
+        finalize: "mips_finalize",
     }
 }
 
@@ -753,10 +717,7 @@ impl<'a> GpuMips<'a> {
             u64::from(layers) * s * s * texel_bytes
         };
         let (raw0_size, raw1_size) = (raw_size(2), raw_size(1));
-        let limit = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
+        let limit = ctx.max_storage_binding();
         if raw1_size > limit {
             return Err(GpuError::Input {
                 field: "billboard texture",
@@ -836,48 +797,21 @@ impl<'a> GpuMips<'a> {
         });
         // Bind group `d` writes raw buffer `d` and reads the other one.
         let bind_group = |d: usize| {
-            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("mips"),
-                layout: &self.pipelines.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &uniforms,
-                            offset: 0,
-                            size: NonZeroU64::new(size_of::<MipsUniform>() as u64),
-                        }),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: tables.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: raw[1 - d].as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: raw[d].as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 4,
-                        resource: stats.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 5,
-                        resource: out.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 6,
-                        resource: wgpu::BindingResource::TextureView(&level0),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 7,
-                        resource: coverage.as_entire_binding(),
-                    },
+            bind_group(
+                &ctx.device,
+                "mips",
+                &self.pipelines.layout,
+                [
+                    dynamic_uniform_slot::<MipsUniform>(&uniforms),
+                    tables.as_entire_binding(),
+                    raw[1 - d].as_entire_binding(),
+                    raw[d].as_entire_binding(),
+                    stats.as_entire_binding(),
+                    out.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&level0),
+                    coverage.as_entire_binding(),
                 ],
-            })
+            )
         };
         ctx.checked("mips dispatch", || {
             let groups = [bind_group(0), bind_group(1)];

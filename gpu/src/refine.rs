@@ -65,7 +65,9 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, SelectCounters, ViewUniform};
 
-use crate::context::{Dispatch, READ, Slot, StagePipelines, WRITE, compute_pass, compute_stage};
+use crate::context::{
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
+};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{CullTree, GpuContext, GpuError, GpuSelection, SelectBuffers};
 
@@ -152,51 +154,24 @@ pub struct GpuRefined {
     pub counters: RefineCounters,
 }
 
-/// The compiled pipelines of `refine.wgsl` (one per pass), one set per [`GpuContext`] (cached
-/// there).
-#[derive(Debug)]
-pub struct RefinePipelines {
-    layout: wgpu::BindGroupLayout,
-    prepare: wgpu::ComputePipeline,
-    args: wgpu::ComputePipeline,
-    count: wgpu::ComputePipeline,
-    scan: wgpu::ComputePipeline,
-    write: wgpu::ComputePipeline,
-    finalize: wgpu::ComputePipeline,
-}
-
-impl StagePipelines for RefinePipelines {
-    /// Compiles `refine.wgsl` and creates its pipelines.
-    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        let uniform = Slot::Uniform(size_of::<RefineUniform>() as u64);
-        let selected = Slot::Read(size_of::<SelectCounters>() as u64);
-        let counters = Slot::Write(size_of::<RefineCounters>() as u64);
-        let dispatch = Slot::Write(size_of::<RefineDispatch>() as u64);
-        let (layout, [prepare, args, count, scan, write, finalize]) = compute_stage(
-            ctx,
-            "refine",
-            &crate::shaders::refine_source(),
-            &[
-                uniform, READ, WRITE, WRITE, READ, selected, counters, WRITE, dispatch,
-            ],
-            [
-                "refine_prepare",
-                "refine_args",
-                "refine_count",
-                "refine_scan",
-                "refine_write",
-                "refine_finalize",
-            ],
-        )?;
-        Ok(Self {
-            layout,
-            prepare,
-            args,
-            count,
-            scan,
-            write,
-            finalize,
-        })
+compute_pipelines! {
+    /// The compiled pipelines of `refine.wgsl` (one per pass), one set per [`GpuContext`] (cached
+    /// there).
+    pub struct RefinePipelines = "refine", crate::shaders::refine_source(), [
+        Slot::Uniform(size_of::<RefineUniform>() as u64),
+        READ, WRITE, WRITE, READ,
+        Slot::Read(size_of::<SelectCounters>() as u64),
+        Slot::Write(size_of::<RefineCounters>() as u64),
+        WRITE,
+        Slot::Write(size_of::<RefineDispatch>() as u64),
+    ],
+    {
+        prepare: "refine_prepare",
+        args: "refine_args",
+        count: "refine_count",
+        scan: "refine_scan",
+        write: "refine_write",
+        finalize: "refine_finalize",
     }
 }
 
@@ -254,10 +229,7 @@ impl<'a> GpuRefine<'a> {
             });
         }
         let chunk_bytes = 4 * n as u64 * size_of::<u32>() as u64;
-        let max_bytes = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
+        let max_bytes = ctx.max_storage_binding();
         if chunk_bytes > max_bytes {
             return Err(GpuError::Input {
                 field: "batch indirection",
@@ -274,12 +246,7 @@ impl<'a> GpuRefine<'a> {
         Ok(Self {
             ctx,
             pipelines: pipelines.clone(),
-            uniform: zeroed_buffer(
-                ctx,
-                "refine uniform",
-                size_of::<RefineUniform>() as u64,
-                U::UNIFORM | U::COPY_DST,
-            ),
+            uniform: stage_uniform::<RefineUniform>(ctx, "refine uniform"),
             trees: upload_storage(ctx, "refine trees", trees, U::empty()),
             indirection: upload_storage(ctx, "refine indirection", &all, U::empty()),
             counters: zeroed_buffer(
@@ -350,28 +317,22 @@ impl<'a> GpuRefine<'a> {
         encoder.clear_buffer(&self.counters, 0, None);
         encoder.clear_buffer(&self.dispatch, 0, None);
         let pipelines = &self.pipelines;
-        let bind_group = self
-            .ctx
-            .device
-            .create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("refine"),
-                layout: &pipelines.layout,
-                entries: &[
-                    (0, &self.uniform),
-                    (1, &self.trees),
-                    (2, &self.indirection),
-                    (3, &selection.commands),
-                    (4, &selection.data),
-                    (5, &selection.counters),
-                    (6, &self.counters),
-                    (7, &self.chunk_counts),
-                    (8, &self.dispatch),
-                ]
-                .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                    binding,
-                    resource: buffer.as_entire_binding(),
-                }),
-            });
+        let bind_group = buffer_bind_group(
+            &self.ctx.device,
+            "refine",
+            &pipelines.layout,
+            &[
+                &self.uniform,
+                &self.trees,
+                &self.indirection,
+                &selection.commands,
+                &selection.data,
+                &selection.counters,
+                &self.counters,
+                &self.chunk_counts,
+                &self.dispatch,
+            ],
+        );
         let (x, y) = self.slot_groups(selection.capacity);
         compute_pass(
             encoder,

@@ -33,7 +33,9 @@ use forestlod_shared::{
     SelectCounters, ViewUniform,
 };
 
-use crate::context::{Dispatch, READ, Slot, StagePipelines, WRITE, compute_pass, compute_stage};
+use crate::context::{
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
+};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::{GpuContext, GpuError};
 
@@ -222,40 +224,40 @@ impl SelectBuffers {
     }
 }
 
-/// The compiled pipelines of `select.wgsl`, one set per [`GpuContext`] (cached there).
-#[derive(Debug)]
-pub struct SelectPipelines {
-    layout: wgpu::BindGroupLayout,
-    decide: wgpu::ComputePipeline,
-    scan: wgpu::ComputePipeline,
-    write: wgpu::ComputePipeline,
-    atomic: wgpu::ComputePipeline,
+/// Fails with [`GpuError::Input`] on `field` (`"{item}.mesh"`) at the first `item` whose mesh
+/// index (`mesh_indices`, in order) is not below `mesh_count`.
+pub(crate) fn check_mesh_indices(
+    field: &'static str,
+    item: &str,
+    mesh_indices: impl IntoIterator<Item = u32>,
+    mesh_count: usize,
+) -> Result<(), GpuError> {
+    match (0..)
+        .zip(mesh_indices)
+        .find(|&(_, mesh)| mesh as usize >= mesh_count)
+    {
+        Some((i, mesh)) => Err(GpuError::Input {
+            field,
+            value: format!("{item} {i} mesh {mesh} of {mesh_count} meshes"),
+            reason: "expected a mesh index below the mesh count",
+        }),
+        None => Ok(()),
+    }
 }
 
-impl StagePipelines for SelectPipelines {
-    /// Compiles `select.wgsl` and creates its four pipelines.
-    fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
-        let uniform = Slot::Uniform(size_of::<SelectUniform>() as u64);
-        let counters = Slot::Write(size_of::<SelectCounters>() as u64);
-        let (layout, [decide, scan, write, atomic]) = compute_stage(
-            ctx,
-            "select",
-            &crate::shaders::select_source(),
-            &[uniform, READ, READ, WRITE, WRITE, WRITE, WRITE, counters],
-            [
-                "select_decide",
-                "select_scan",
-                "select_write",
-                "select_atomic",
-            ],
-        )?;
-        Ok(Self {
-            layout,
-            decide,
-            scan,
-            write,
-            atomic,
-        })
+compute_pipelines! {
+    /// The compiled pipelines of `select.wgsl` (its four passes), one set per [`GpuContext`]
+    /// (cached there).
+    pub struct SelectPipelines = "select", crate::shaders::select_source(), [
+        Slot::Uniform(size_of::<SelectUniform>() as u64),
+        READ, READ, WRITE, WRITE, WRITE, WRITE,
+        Slot::Write(size_of::<SelectCounters>() as u64),
+    ],
+    {
+        decide: "select_decide",
+        scan: "select_scan",
+        write: "select_write",
+        atomic: "select_atomic",
     }
 }
 
@@ -284,17 +286,12 @@ impl<'a> GpuSelect<'a> {
         meshes: &[MeshMeta],
         billboard: &MeshMeta,
     ) -> Result<Self, GpuError> {
-        if let Some((i, b)) = batches
-            .iter()
-            .enumerate()
-            .find(|(_, b)| b.mesh as usize >= meshes.len())
-        {
-            return Err(GpuError::Input {
-                field: "batch.mesh",
-                value: format!("batch {i} mesh {} of {} meshes", b.mesh, meshes.len()),
-                reason: "expected a mesh index below the mesh count",
-            });
-        }
+        check_mesh_indices(
+            "batch.mesh",
+            "batch",
+            batches.iter().map(|b| b.mesh),
+            meshes.len(),
+        )?;
         let capacity = batches.len().saturating_mul(2);
         if capacity > MAX_COMMANDS as usize {
             return Err(GpuError::Input {
@@ -308,34 +305,26 @@ impl<'a> GpuSelect<'a> {
         let n = batches.len() as u64;
         let batch_buffer = upload_storage(ctx, "select batches", batches, U::empty());
         let mesh_buffer = upload_storage(ctx, "select meshes", meshes, U::empty());
-        let uniform = zeroed_buffer(
-            ctx,
-            "select uniform",
-            size_of::<SelectUniform>() as u64,
-            U::UNIFORM | U::COPY_DST,
-        );
+        let uniform = stage_uniform::<SelectUniform>(ctx, "select uniform");
         let decisions = zeroed_buffer(ctx, "select decisions", n * 4, U::STORAGE | U::COPY_SRC);
         let offsets = zeroed_buffer(ctx, "select offsets", n * 4, U::STORAGE | U::COPY_SRC);
         let out = SelectBuffers::with_capacity(ctx, capacity as u32);
         let bind_group = ctx.checked("select bind group", || {
-            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("select"),
-                layout: &pipelines.layout,
-                entries: &[
-                    (0, &uniform),
-                    (1, &batch_buffer),
-                    (2, &mesh_buffer),
-                    (3, &decisions),
-                    (4, &offsets),
-                    (5, &out.commands),
-                    (6, &out.data),
-                    (7, &out.counters),
-                ]
-                .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                    binding,
-                    resource: buffer.as_entire_binding(),
-                }),
-            })
+            buffer_bind_group(
+                &ctx.device,
+                "select",
+                &pipelines.layout,
+                &[
+                    &uniform,
+                    &batch_buffer,
+                    &mesh_buffer,
+                    &decisions,
+                    &offsets,
+                    &out.commands,
+                    &out.data,
+                    &out.counters,
+                ],
+            )
         })?;
         Ok(Self {
             ctx,

@@ -25,15 +25,17 @@ const DISCARDED_POSITION: vec4<f32> = vec4<f32>(0.0, 0.0, 2.0, 1.0);
 // Keep in sync with gpu/src/draw.rs `DrawUniform` (layout checked by its tests).
 struct DrawUniform {
     view_proj: mat4x4<f32>,
-    eye: vec3<f32>,
-    draw_distance: f32,
-    // Unit view direction (`Camera::basis().forward`).
-    forward: vec3<f32>,
+    // The shared view constants (common.wgsl `ViewUniform`); the draw reads eye, unit forward
+    // and draw distance.
+    view: ViewUniform,
     angle_count: u32,
     fade_mode: u32,
     angle_index_mode: u32,
     alpha_cutoff: f32,
     billboard_first_vertex: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // Keep in sync with gpu/src/draw.rs `DrawVertex` (= reference PackedVertex).
@@ -106,7 +108,7 @@ fn tree_sphere(t: DrawInstance, mesh: MeshMeta) -> TreeSphere {
 
 // reference/src/select.rs `tree_within_draw_distance` (E§4.4's per-tree discard; common.wgsl).
 fn tree_within_draw_distance(center: vec3<f32>) -> bool {
-    return within_draw_distance(center, u.eye, u.forward, u.draw_distance);
+    return within_draw_distance(center, u.view.eye, u.view.forward, u.view.draw_distance);
 }
 
 // reference `vertex_stage`.
@@ -152,14 +154,14 @@ fn tree_vertex(
     } else {
         let corner_vertex = vertices[u.billboard_first_vertex + local];
         let corner = vec2<f32>(corner_vertex.uv[0], corner_vertex.uv[1]);
-        let to_eye = u.eye - base;
+        let to_eye = u.view.eye - base;
         let v_dot_u = to_eye.z / length(to_eye);
         let k_count = u.angle_count;
         let k = angle_index_for(u.angle_index_mode, v_dot_u, k_count);
         let elevation = bake_elevation(k, k_count);
         var h = vec3<f32>(to_eye.x, to_eye.y, 0.0);
         if dot(h, h) < 1e-12 {
-            h = vec3<f32>(-u.forward.x, -u.forward.y, 0.0);
+            h = vec3<f32>(-u.view.forward.x, -u.view.forward.y, 0.0);
         }
         if dot(h, h) < 1e-12 {
             h = vec3<f32>(1.0, 0.0, 0.0);
@@ -177,10 +179,10 @@ fn tree_vertex(
         uv = corner;
         layer = t.mesh * k_count + k;
     }
-    let rel = world - u.eye;
-    var depth = rel.x * u.forward.x + rel.y * u.forward.y + rel.z * u.forward.z;
+    let rel = world - u.view.eye;
+    var depth = rel.x * u.view.forward.x + rel.y * u.view.forward.y + rel.z * u.view.forward.z;
     if data.billboard != 0u {
-        let i = view_interval(sphere.center, sphere.radius, u.eye, u.forward);
+        let i = view_interval(sphere.center, sphere.radius, u.view.eye, u.view.forward);
         depth = min(max(depth, i.lo), i.hi);
     }
     out.clip = u.view_proj * vec4<f32>(world, 1.0);

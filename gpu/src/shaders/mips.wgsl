@@ -241,6 +241,25 @@ fn reset_workgroup_stats(lid: u32) {
     workgroupBarrier();
 }
 
+// The builtins of a per-texel pass: one MIPS_TILE² workgroup per tile of the level, `z` the
+// layer.
+struct TexelInvocation {
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+}
+
+// Starts a per-texel pass (reset_workgroup_stats); whether the invocation's texel lies within
+// the level (`u.side`²).
+fn begin_texel_pass(inv: TexelInvocation) -> bool {
+    reset_workgroup_stats(inv.lid);
+    return inv.gid.x < u.side && inv.gid.y < u.side;
+}
+
+// Index of the invocation's texel in a level of `u.side`² texels per layer (`src`, `dst`).
+fn level_index(inv: TexelInvocation) -> u32 {
+    return (inv.gid.z * u.side + inv.gid.y) * u.side + inv.gid.x;
+}
+
 // Folds a raw texel's alpha (its bits: non-negative floats order as their bits) into the
 // workgroup's range.
 fn add_to_alpha_range(raw: vec4<f32>) {
@@ -271,14 +290,11 @@ fn load_level0(layer: u32, x: u32, y: u32) -> vec4<f32> {
 // Level 0: its alpha range and alpha-test count (its raw values are decoded again where level 1
 // reads them, so level 0 needs no buffer of its own).
 @compute @workgroup_size(MIPS_TILE, MIPS_TILE, 1)
-fn mips_decode(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    reset_workgroup_stats(lid);
-    let side = u.side;
+fn mips_decode(inv: TexelInvocation) {
+    let inside = begin_texel_pass(inv);
+    let gid = inv.gid;
     let layer = gid.z;
-    if gid.x < side && gid.y < side {
+    if inside {
         let raw = load_level0(layer, gid.x, gid.y);
         add_to_alpha_range(raw);
         if passes_alpha_test(scale_alpha(raw.w, 1.0)) {
@@ -286,7 +302,7 @@ fn mips_decode(
         }
     }
     workgroupBarrier();
-    if lid == 0u {
+    if inv.lid == 0u {
         let s = stats_index(0u, layer);
         merge_alpha_range(s);
         atomicAdd(&stats[s].pass_count, atomicLoad(&wg_count));
@@ -296,14 +312,12 @@ fn mips_decode(
 // Level k >= 1: raw level k from raw level k - 1 (level 0 read from the texture), and its raw
 // alpha range.
 @compute @workgroup_size(MIPS_TILE, MIPS_TILE, 1)
-fn mips_downsample(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    reset_workgroup_stats(lid);
+fn mips_downsample(inv: TexelInvocation) {
+    let inside = begin_texel_pass(inv);
     let side = u.side;
+    let gid = inv.gid;
     let layer = gid.z;
-    if gid.x < side && gid.y < side {
+    if inside {
         let x = 2u * gid.x;
         let y = 2u * gid.y;
         var t00: vec4<f32>;
@@ -325,11 +339,11 @@ fn mips_downsample(
             t11 = src[row1 + 1u];
         }
         let raw = downsample_texel(t00, t10, t01, t11, u.mode);
-        dst[(layer * side + gid.y) * side + gid.x] = raw;
+        dst[level_index(inv)] = raw;
         add_to_alpha_range(raw);
     }
     workgroupBarrier();
-    if lid == 0u {
+    if inv.lid == 0u {
         merge_alpha_range(stats_index(u.level, layer));
     }
 }
@@ -383,23 +397,19 @@ fn mips_adjust(@builtin(global_invocation_id) gid: vec3<u32>) {
 // One counting pass of the coverage search (reference `alpha_test_count` at the layer's trial
 // scale): every texel of the level, reduced per workgroup, summed per layer.
 @compute @workgroup_size(MIPS_TILE, MIPS_TILE, 1)
-fn mips_coverage_count(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    reset_workgroup_stats(lid);
-    let side = u.side;
-    let layer = gid.z;
+fn mips_coverage_count(inv: TexelInvocation) {
+    let inside = begin_texel_pass(inv);
+    let layer = inv.gid.z;
     let searching = coverage[layer].phase != COVERAGE_DONE;
-    if searching && gid.x < side && gid.y < side {
-        let alpha = dst[(layer * side + gid.y) * side + gid.x].w;
+    if searching && inside {
+        let alpha = dst[level_index(inv)].w;
         let scale = bitcast<f32>(coverage[layer].test_bits);
         if passes_alpha_test(scale_alpha(alpha, scale)) {
             atomicAdd(&wg_count, 1u);
         }
     }
     workgroupBarrier();
-    if lid == 0u && searching {
+    if inv.lid == 0u && searching {
         atomicAdd(&coverage[layer].count, atomicLoad(&wg_count));
     }
 }
@@ -482,16 +492,14 @@ fn mips_coverage_step(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 // Level k >= 1: adjusted alpha, quantized texels and the level's alpha-test count.
 @compute @workgroup_size(MIPS_TILE, MIPS_TILE, 1)
-fn mips_finalize(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    reset_workgroup_stats(lid);
+fn mips_finalize(inv: TexelInvocation) {
+    let inside = begin_texel_pass(inv);
     let side = u.side;
+    let gid = inv.gid;
     let layer = gid.z;
     let s = stats_index(u.level, layer);
-    if gid.x < side && gid.y < side {
-        let raw = dst[(layer * side + gid.y) * side + gid.x];
+    if inside {
+        let raw = dst[level_index(inv)];
         let alpha = apply_adjust(raw.w, stats[s].adjust_kind, stats[s].adjust);
         let r = encode_byte(raw.x, TABLE_SRGB_ENCODE);
         let g = encode_byte(raw.y, TABLE_SRGB_ENCODE);
@@ -504,7 +512,7 @@ fn mips_finalize(
         }
     }
     workgroupBarrier();
-    if lid == 0u {
+    if inv.lid == 0u {
         atomicAdd(&stats[s].pass_count, atomicLoad(&wg_count));
     }
 }

@@ -112,19 +112,22 @@ fn chunk_base(lod: u32, off: u32) -> u32 {
     return lod * 2u * u.tree_count + 2u * off;
 }
 
+// The builtins every pass of a workgroup of REFINE_WORKGROUP_SIZE reads.
+struct Invocation {
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+}
+
 // The slot of a one-invocation-per-slot pass (`ceil(capacity / 64)` workgroups, spilling into y).
-fn slot_of(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> u32 {
-    return (wid.y * groups.x + wid.x) * REFINE_WORKGROUP_SIZE + lid;
+fn slot_of(inv: Invocation) -> u32 {
+    return (inv.wid.y * inv.groups.x + inv.wid.x) * REFINE_WORKGROUP_SIZE + inv.lid;
 }
 
 // Pass 1: the largest chunk count of the refined commands.
 @compute @workgroup_size(REFINE_WORKGROUP_SIZE)
-fn refine_prepare(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let slot = slot_of(wid, groups, lid);
+fn refine_prepare(inv: Invocation) {
+    let slot = slot_of(inv);
     if slot >= counters.commands || !refines(u.tree_cull, command_data[slot].lod) {
         return;
     }
@@ -162,9 +165,9 @@ struct Chunk {
     end: u32,
 }
 
-fn invocation_chunk(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> Chunk {
-    var c = Chunk(false, 0u, 0u, 0u, wid.x * REFINE_WORKGROUP_SIZE + lid, 0u, 0u, 0u);
-    let slot = wid.z * groups.y + wid.y;
+fn invocation_chunk(inv: Invocation) -> Chunk {
+    var c = Chunk(false, 0u, 0u, 0u, inv.wid.x * REFINE_WORKGROUP_SIZE + inv.lid, 0u, 0u, 0u);
+    let slot = inv.wid.z * inv.groups.y + inv.wid.y;
     if slot >= counters.commands {
         return c;
     }
@@ -184,12 +187,8 @@ fn invocation_chunk(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> Chunk {
 
 // Pass 3: each chunk's kept count (a loop of at most 64 iterations).
 @compute @workgroup_size(REFINE_WORKGROUP_SIZE)
-fn refine_count(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let c = invocation_chunk(wid, groups, lid);
+fn refine_count(inv: Invocation) {
+    let c = invocation_chunk(inv);
     if !c.ok {
         return;
     }
@@ -202,12 +201,8 @@ fn refine_count(
 
 // Pass 4: per refined command, the exclusive prefix of its chunk counts and their total.
 @compute @workgroup_size(REFINE_WORKGROUP_SIZE)
-fn refine_scan(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let slot = slot_of(wid, groups, lid);
+fn refine_scan(inv: Invocation) {
+    let slot = slot_of(inv);
     if slot >= counters.commands {
         return;
     }
@@ -232,12 +227,8 @@ fn refine_scan(
 
 // Pass 5: the kept trees, in batch order (the same loop as pass 3).
 @compute @workgroup_size(REFINE_WORKGROUP_SIZE)
-fn refine_write(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let c = invocation_chunk(wid, groups, lid);
+fn refine_write(inv: Invocation) {
+    let c = invocation_chunk(inv);
     if !c.ok {
         return;
     }
@@ -253,12 +244,8 @@ fn refine_write(
 
 // Pass 6: the commands rewritten, the counters.
 @compute @workgroup_size(REFINE_WORKGROUP_SIZE)
-fn refine_finalize(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let slot = slot_of(wid, groups, lid);
+fn refine_finalize(inv: Invocation) {
+    let slot = slot_of(inv);
     if slot >= counters.commands {
         return;
     }
