@@ -30,7 +30,7 @@
 //! Far from the eye the discriminant `b·b - a·(|o|² - r²)` cancels catastrophically (a 0.34 m
 //! trunk 700 m away is 2 ulp of `b·b`), so whether a pixel hits a distant trunk is decided by
 //! rounding, and the GPU may fuse multiply-adds; the tests classify those pixels with reference
-//! frames whose root tests are moved by a few roundings (`Proxy::intersect_shifted`). The
+//! frames whose root tests are moved by a few roundings (`Proxy::intersect`, its `disc_shift`). The
 //! depth test runs after the shader on the GPU (the shader writes depth) and before and after it
 //! in the reference (its early test uses the quad's depth, which never exceeds the ray-cast one),
 //! which keeps and drops the same fragments.
