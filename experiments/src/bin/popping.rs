@@ -1,8 +1,9 @@
 //! Popping: how much a frame changes, from one frame to the next along a camera path, that the
 //! motion itself does not explain (issue 12's temporal error), for each fade mode (E§4.4, G§4).
 //!
-//! The camera dollies towards the forest (`distance_camera`, the sweeps' distance path) so that
-//! trees cross the fade band `[transition - fade width, transition]`. For each consecutive pair
+//! The camera dollies towards the forest at a drone's height ([`dolly_camera`]) so that the
+//! front trees cross the fade band `[transition - fade width, transition]` while they are large
+//! on screen. For each consecutive pair
 //! of frames `(t, t + 1)` it renders, on the reference backend:
 //! - the frame with LOD, `v_t`, and
 //! - the full-detail frame `f_t` (the Vegetation baseline: every visible tree at full mesh,
@@ -34,15 +35,16 @@ use clap::Parser;
 use forestlod_experiments::metrics::{error_image, flip_map, percentile};
 use forestlod_experiments::plot::{Axes, Series, Style, xy_plot};
 use forestlod_experiments::report::{mean_ci, within_noise};
-use forestlod_experiments::sweep::distance_camera;
 use forestlod_reference::InputError;
 use forestlod_reference::baselines::{render_vegetation, tree_spheres};
+use forestlod_reference::cameras::NAMED_FOV_Y_DEGREES;
 use forestlod_reference::error::COMMAND_LINE;
 use forestlod_reference::output::write_png;
 use forestlod_reference::pipeline::prepare;
+use forestlod_reference::scene::Scene;
 use forestlod_reference::scene::builtin;
 use forestlod_reference::texture::Rgba8Image;
-use forestlod_shared::{FadeMode, Params};
+use forestlod_shared::{Camera, FadeMode, Params};
 
 #[derive(Parser, Debug)]
 struct Args {
@@ -57,20 +59,30 @@ struct Args {
     )]
     modes: Vec<String>,
     /// LOD1 transition distance, metres (the end of the fade band).
-    #[arg(long, default_value_t = 150.0)]
+    #[arg(long, default_value_t = 80.0)]
     transition: f32,
     /// Fade band width, metres.
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(long, default_value_t = 30.0)]
     fade_width: f32,
+    /// Eye height above the ground, metres: a drone's view, low enough that trees in the band
+    /// are large on screen (at 150 m, the sweeps' distance path, a tree in the band is a dozen
+    /// pixels and a billboard is indistinguishable from its mesh: nothing can pop visibly).
+    #[arg(long, default_value_t = 12.0)]
+    eye_height: f32,
+    /// Billboard texture side r: lower it to make the mesh-to-billboard switch itself visible
+    /// (the check that the pop score sees a pop).
+    #[arg(long, default_value_t = 128)]
+    texture_size: u32,
     /// Batch grid cell, metres: small enough (50 m in a 200 m scene, as the quick sweeps) that
     /// batches, not the whole forest, cross the band.
     #[arg(long, default_value_t = 50.0)]
     grid_size: f32,
-    /// Camera distance from the scene's centre at the first frame, metres.
-    #[arg(long, default_value_t = 320.0)]
+    /// Camera distance from the scene's centre at the first frame, metres (`tiny` is 200 m
+    /// wide: its edge is 100 m from the centre).
+    #[arg(long, default_value_t = 220.0)]
     from: f32,
     /// Camera distance at the last frame, metres.
-    #[arg(long, default_value_t = 80.0)]
+    #[arg(long, default_value_t = 130.0)]
     to: f32,
     /// Frames along the path (pairs = frames - 1).
     #[arg(long, default_value_t = 61)]
@@ -81,6 +93,13 @@ struct Args {
     /// Viewport height.
     #[arg(long, default_value_t = 360)]
     height: u32,
+    /// Box-filter every frame by this factor before scoring (4: 640x360 frames scored at
+    /// 160x90). One-sample alpha-tested foliage shimmers from any sub-pixel motion, in the
+    /// full-detail frames as much as in ours, and that shimmer is not what a pop is; the filter
+    /// averages it out as a supersampled render would, while a tree that changes LOD still
+    /// changes the mean colour of the blocks it covers. 1 scores the frames as rendered.
+    #[arg(long, default_value_t = 4)]
+    pool: u32,
     /// Output folder.
     #[arg(long, default_value = "out/popping")]
     out: PathBuf,
@@ -94,6 +113,10 @@ struct Pair {
     excess_mean: f64,
     /// 99th percentile over pixels of it.
     excess_p99: f64,
+    /// The pop score: the largest mean excess of any [`TILE`]² tile. A tree that switches LOD
+    /// in one step changes a compact group of pixels at once; the same change spread over the
+    /// frames of a fade, or scattered by a dither, raises no tile as much.
+    pop: f64,
     /// Mean FLIP between the two LOD frames.
     lod_change: f64,
     /// Mean FLIP between the two full-detail frames.
@@ -134,6 +157,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         lod1_transition: args.transition,
         fade_width: args.fade_width,
         grid_size: args.grid_size,
+        texture_size: args.texture_size,
         ..Params::default()
     };
     base.validate().map_err(InputError::from)?;
@@ -143,7 +167,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         .collect();
     let cameras: Vec<_> = distances
         .iter()
-        .map(|&d| distance_camera(&scene, d, args.width, args.height))
+        .map(|&d| dolly_camera(&scene, d, args.eye_height, args.width, args.height))
         .collect();
     for c in &cameras {
         c.validate().map_err(InputError::from)?;
@@ -160,17 +184,22 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                 .color_image()
         })
         .collect();
-    let full_maps: Vec<Vec<f32>> = full.windows(2).map(|w| flip_map(&w[0], &w[1])).collect();
+    let full_pooled: Vec<Rgba8Image> = full.iter().map(|f| pool(f, args.pool)).collect();
+    let full_maps: Vec<Vec<f32>> = full_pooled
+        .windows(2)
+        .map(|w| flip_map(&w[0], &w[1]))
+        .collect();
+    let (pw, ph) = (full_pooled[0].width, full_pooled[0].height);
 
     let mut csv = String::from(
-        "mode,pair,distance_m,excess_mean,excess_p99,lod_change,full_change,lod_error\n",
+        "mode,pair,distance_m,excess_mean,excess_p99,pop,lod_change,full_change,lod_error\n",
     );
     let mut summary = String::new();
     let mut series = Vec::new();
     let mut stats: Vec<(FadeMode, (f64, f64))> = Vec::new();
     let _ = writeln!(
         summary,
-        "| fade mode | pairs | excess mean ±95% | excess p99 (mean) | worst pair (distance) | worst excess | LOD error ±95% |\n|---|--:|--:|--:|--:|--:|--:|"
+        "| fade mode | pairs | pop score ±95% | worst pop (pair, distance) | excess mean ±95% | excess p99 (mean) | LOD error ±95% |\n|---|--:|--:|--:|--:|--:|--:|"
     );
     for &mode in &modes {
         let params = Params {
@@ -186,35 +215,33 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                     .map(|f| f.drawn.target.color_image())
             })
             .collect::<Result<_, _>>()?;
+        let pooled: Vec<Rgba8Image> = frames.iter().map(|f| pool(f, args.pool)).collect();
         let mut pairs = Vec::new();
         let mut excess_maps = Vec::new();
         for t in 0..frames.len() - 1 {
-            let lod_map = flip_map(&frames[t], &frames[t + 1]);
-            let excess: Vec<f32> = lod_map
-                .iter()
-                .zip(&full_maps[t])
-                .map(|(v, f)| (v - f).max(0.0))
-                .collect();
+            let (lod_map, excess) = pair_excess(&pooled[t], &pooled[t + 1], &full_maps[t]);
             let n = excess.len().max(1) as f64;
             let mean = |m: &[f32]| m.iter().map(|&e| e as f64).sum::<f64>() / n;
             pairs.push(Pair {
                 distance: distances[t],
                 excess_mean: mean(&excess),
                 excess_p99: percentile(&excess, 99.0),
+                pop: worst_tile(&excess, pw as usize, ph as usize),
                 lod_change: mean(&lod_map),
                 full_change: mean(&full_maps[t]),
-                lod_error: mean(&flip_map(&full[t], &frames[t])),
+                lod_error: mean(&flip_map(&full_pooled[t], &pooled[t])),
             });
             excess_maps.push((lod_map, excess));
         }
         for (i, p) in pairs.iter().enumerate() {
             let _ = writeln!(
                 csv,
-                "{},{i},{},{},{},{},{},{}",
+                "{},{i},{},{},{},{},{},{},{}",
                 mode.name(),
                 p.distance,
                 p.excess_mean,
                 p.excess_p99,
+                p.pop,
                 p.lod_change,
                 p.full_change,
                 p.lod_error
@@ -222,37 +249,37 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         }
         let means: Vec<f64> = pairs.iter().map(|p| p.excess_mean).collect();
         let (mean, ci) = mean_ci(&means);
+        let pops: Vec<f64> = pairs.iter().map(|p| p.pop).collect();
+        let (pop, pop_ci) = mean_ci(&pops);
         let p99 = pairs.iter().map(|p| p.excess_p99).sum::<f64>() / pairs.len() as f64;
         let lod_errors: Vec<f64> = pairs.iter().map(|p| p.lod_error).collect();
         let (lod_mean, lod_ci) = mean_ci(&lod_errors);
         let worst = (0..pairs.len())
-            .max_by(|&a, &b| pairs[a].excess_mean.total_cmp(&pairs[b].excess_mean))
+            .max_by(|&a, &b| pairs[a].pop.total_cmp(&pairs[b].pop))
             .expect("at least one pair");
         let _ = writeln!(
             summary,
-            "| {} | {} | {mean:.5} ± {ci:.5} | {p99:.4} | {worst} ({:.1} m) | {:.5} | {lod_mean:.5} ± {lod_ci:.5} |",
+            "| {} | {} | {pop:.4} ± {pop_ci:.4} | {:.4} ({worst}, {:.1} m) | {mean:.5} ± {ci:.5} | {p99:.4} | {lod_mean:.5} ± {lod_ci:.5} |",
             mode.name(),
             pairs.len(),
+            pairs[worst].pop,
             pairs[worst].distance,
-            pairs[worst].excess_mean
         );
-        stats.push((mode, (mean, ci)));
+        stats.push((mode, (pop, pop_ci)));
         series.push(Series {
             label: mode.name().into(),
-            points: pairs
-                .iter()
-                .map(|p| (p.distance as f64, p.excess_mean))
-                .collect(),
+            points: pairs.iter().map(|p| (p.distance as f64, p.pop)).collect(),
         });
         let (w, h) = (args.width, args.height);
+        let up = |map: &[f32]| upscale(&error_image(map, pw, ph), w, h);
         let strip = tile(
             &[
                 &frames[worst],
                 &frames[worst + 1],
-                &error_image(&excess_maps[worst].1, w, h),
+                &up(&excess_maps[worst].1),
                 &full[worst],
                 &full[worst + 1],
-                &error_image(&full_maps[worst], w, h),
+                &up(&full_maps[worst]),
             ],
             3,
         );
@@ -260,7 +287,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     }
     let _ = writeln!(
         summary,
-        "\nDifferences of mean excess beyond the noise (95% intervals do not overlap):\n"
+        "\nDifferences of the mean pop score beyond the noise (95% intervals do not overlap):\n"
     );
     for (i, (a, sa)) in stats.iter().enumerate() {
         for (b, sb) in &stats[i + 1..] {
@@ -292,7 +319,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                 args.transition
             ),
             "camera distance from the forest centre [m]",
-            "excess FLIP per frame pair (mean over pixels)",
+            "pop score per frame pair (worst tile of excess FLIP)",
         ),
         &series,
         Style::Lines,
@@ -303,6 +330,97 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         args.out.display()
     );
     Ok(())
+}
+
+/// The change between two LOD frames (FLIP map) and its excess over `full_map`, the change
+/// between the two full-detail frames at the same pixels: `max(0, FLIP(v0, v1) − full_map)`.
+fn pair_excess(v0: &Rgba8Image, v1: &Rgba8Image, full_map: &[f32]) -> (Vec<f32>, Vec<f32>) {
+    let lod_map = flip_map(v0, v1);
+    let excess = lod_map
+        .iter()
+        .zip(full_map)
+        .map(|(v, f)| (v - f).max(0.0))
+        .collect();
+    (lod_map, excess)
+}
+
+/// The dolly's camera `distance` metres before the scene's centre on -X, `eye_height` above the
+/// ground, looking along +X and slightly down (at the ground 300 m ahead).
+fn dolly_camera(scene: &Scene, distance: f32, eye_height: f32, width: u32, height: u32) -> Camera {
+    let [x0, y0, x1, y1] = scene.bounds;
+    let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
+    let ex = cx - distance;
+    let eye = [ex, cy, scene.terrain.height(ex, cy) + eye_height];
+    let tx = ex + 300.0;
+    let target = [tx, cy, scene.terrain.height(tx, cy)];
+    Camera::look_at(eye, target, NAMED_FOV_Y_DEGREES, width, height)
+}
+
+/// Side of the pop score's tiles, pixels of the pooled frame: 4 (16 frame pixels at the
+/// default pool), about a tree's crown in the band at 640x360.
+const TILE: usize = 4;
+
+/// `img` box-filtered by `k` in each direction (sRGB bytes averaged: a measure, not a
+/// rendering); a partial block at the right or bottom edge is dropped.
+fn pool(img: &Rgba8Image, k: u32) -> Rgba8Image {
+    let k = k.max(1) as usize;
+    let (w, h) = (img.width as usize / k, img.height as usize / k);
+    let mut texels = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let mut sum = [0u32; 4];
+            for dy in 0..k {
+                for dx in 0..k {
+                    let t = img.texels[(y * k + dy) * img.width as usize + x * k + dx];
+                    for c in 0..4 {
+                        sum[c] += u32::from(t[c]);
+                    }
+                }
+            }
+            let n = (k * k) as u32;
+            texels.push(sum.map(|v| ((v + n / 2) / n) as u8));
+        }
+    }
+    Rgba8Image {
+        width: w as u32,
+        height: h as u32,
+        texels,
+    }
+}
+
+/// `img` enlarged to `width x height` by nearest neighbour (for the strips).
+fn upscale(img: &Rgba8Image, width: u32, height: u32) -> Rgba8Image {
+    let texels = (0..height)
+        .flat_map(|y| (0..width).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let sx = (x * img.width / width).min(img.width - 1);
+            let sy = (y * img.height / height).min(img.height - 1);
+            img.texels[(sy * img.width + sx) as usize]
+        })
+        .collect();
+    Rgba8Image {
+        width,
+        height,
+        texels,
+    }
+}
+
+/// The largest mean of `map` (row-major, `width x height`) over the `TILE x TILE` tiles that lie
+/// wholly inside the image.
+fn worst_tile(map: &[f32], width: usize, height: usize) -> f64 {
+    let mut worst = 0.0f64;
+    for ty in 0..height / TILE {
+        for tx in 0..width / TILE {
+            let sum: f64 = (0..TILE)
+                .flat_map(|y| {
+                    let row = (ty * TILE + y) * width + tx * TILE;
+                    map[row..row + TILE].iter().map(|&e| e as f64)
+                })
+                .sum();
+            worst = worst.max(sum / (TILE * TILE) as f64);
+        }
+    }
+    worst
 }
 
 /// Images of one size laid out `columns` to a row.
@@ -321,5 +439,67 @@ fn tile(images: &[&Rgba8Image], columns: usize) -> Rgba8Image {
         width: (w * columns) as u32,
         height: (h * rows) as u32,
         texels,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn image(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 4]) -> Rgba8Image {
+        Rgba8Image {
+            width: w,
+            height: h,
+            texels: (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .map(|(x, y)| f(x, y))
+                .collect(),
+        }
+    }
+
+    const GREEN: [u8; 4] = [40, 90, 30, 255];
+    const SKY: [u8; 4] = [165, 195, 225, 255];
+
+    #[test]
+    fn pooling_averages_blocks() {
+        let img = image(4, 2, |x, _| {
+            if x % 2 == 0 {
+                [0, 0, 0, 255]
+            } else {
+                [200, 100, 50, 255]
+            }
+        });
+        let p = pool(&img, 2);
+        assert_eq!((p.width, p.height), (2, 1));
+        assert_eq!(p.texels, vec![[100, 50, 25, 255]; 2]);
+    }
+
+    /// A tree-sized block that changes in the LOD frames only is a pop; the same change in
+    /// both sequences (motion) is none. The mutation this guards against: scoring the LOD
+    /// frames' change alone, or averaging it over the frame, which a single tree cannot move.
+    #[test]
+    fn the_pop_score_sees_one_tree_switching_and_ignores_shared_motion() {
+        let (w, h) = (64, 48);
+        let sky = image(w, h, |_, _| SKY);
+        let tree = image(w, h, |x, y| {
+            if (20..36).contains(&x) && (10..30).contains(&y) {
+                GREEN
+            } else {
+                SKY
+            }
+        });
+        let no_motion = flip_map(&sky, &sky);
+        let (_, popped) = pair_excess(&sky, &tree, &no_motion);
+        let pop = worst_tile(&popped, w as usize, h as usize);
+        assert!(pop > 0.3, "a whole tree appearing scores {pop}");
+        let mean = popped.iter().map(|&e| e as f64).sum::<f64>() / popped.len() as f64;
+        assert!(
+            pop > 3.0 * mean,
+            "the tile score stands out of the frame mean: {pop} vs {mean}"
+        );
+        // The same change in the full-detail frames is motion: nothing in excess.
+        let moved = flip_map(&sky, &tree);
+        let (_, shared) = pair_excess(&sky, &tree, &moved);
+        assert_eq!(worst_tile(&shared, w as usize, h as usize), 0.0);
     }
 }
