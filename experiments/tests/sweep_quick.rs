@@ -25,6 +25,8 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
     };
     let args = SweepArgs {
         file: None,
+        shards: Vec::new(),
+        shard: None,
         out: out.clone(),
         quick: true,
         scene: None,

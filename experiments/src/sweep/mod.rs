@@ -30,6 +30,7 @@
 mod plots;
 mod rows;
 mod runner;
+pub mod shard;
 mod spec;
 mod variant;
 
@@ -74,8 +75,16 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 11] = [
 /// Options of `forestlod sweep`.
 #[derive(Args, Clone, Debug)]
 pub struct SweepArgs {
-    /// A sweep TOML file or a built-in sweep name; all built-in sweeps when omitted.
+    /// A sweep TOML file or a built-in sweep name; all built-in sweeps when omitted. `merge`
+    /// followed by shard folders joins `--shard` runs into `--out` (`forestlod sweep merge --out
+    /// DIR SHARD_DIR...`).
     pub file: Option<String>,
+    /// With `merge`: the `--out` folders of the shard runs to join.
+    pub shards: Vec<PathBuf>,
+    /// Run shard I of N (`I/N`, 0 <= I < N): a deterministic 1/N of the frames; join the shards
+    /// with `forestlod sweep merge`.
+    #[arg(long)]
+    pub shard: Option<shard::Shard>,
     /// Output folder: one sub-folder per sweep.
     #[arg(long)]
     pub out: PathBuf,
@@ -196,6 +205,26 @@ pub fn configure(spec: SweepSpec, args: &SweepArgs) -> Result<Option<SweepSpec>,
 
 /// `forestlod sweep`.
 pub fn run(args: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
+    if args.file.as_deref() == Some("merge") {
+        for m in shard::merge(&args.shards, &args.out)? {
+            println!(
+                "sweep {}: {} frames merged -> {}",
+                m.name,
+                m.frames,
+                args.out.join(&m.name).join(&m.csv).display()
+            );
+        }
+        return Ok(());
+    }
+    if !args.shards.is_empty() {
+        return Err(InputError::new(
+            "<command line>",
+            "sweep",
+            args.shards[0].display(),
+            "extra folders are for `forestlod sweep merge`",
+        )
+        .into());
+    }
     // Every sweep is configured (and so validated) before anything runs or is written.
     let mut specs = Vec::new();
     for spec in resolve(args.file.as_deref())? {
@@ -209,7 +238,7 @@ pub fn run(args: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
     let mut runner = Runner::default();
     let start = Instant::now();
     for spec in specs {
-        let m = runner.run_sweep(&spec, args.quick, &args.out)?;
+        let m = runner.run_sweep(&spec, args.quick, args.shard, &args.out)?;
         println!(
             "sweep {}: {} frames in {:.1} s -> {}",
             m.name,

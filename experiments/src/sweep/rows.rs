@@ -21,6 +21,10 @@ use super::spec::SweepSpec;
 /// One CSV row: one frame of one variant.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Row {
+    /// The frame's index in the sweep's canonical order (scene, parameter set, pose, backend,
+    /// variant): what `sweep merge` orders shards' rows by. 0 in CSVs written before sharding.
+    #[serde(default)]
+    pub frame: u64,
     /// Sweep name.
     pub sweep: String,
     /// Scene name.
@@ -212,6 +216,9 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, InputError> {
 /// Images saved for one frame (paths relative to the sweep folder).
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct FrameImages {
+    /// The frame's index ([`Row::frame`]).
+    #[serde(default)]
+    pub frame: u64,
     /// Camera.
     pub camera: String,
     /// Yaw, degrees.
@@ -287,6 +294,10 @@ pub struct Manifest {
     pub ground_truth_bvh: Vec<(String, usize, f64)>,
     /// Ground-truth rays traced.
     pub ground_truth_rays: u64,
+    /// `I/N` when this is shard `I` of `N` (`forestlod sweep --shard`), to be joined by
+    /// `forestlod sweep merge`.
+    #[serde(default)]
+    pub shard: Option<String>,
     /// The sweep as it ran (quick mode and command-line overrides applied), so that
     /// `forestlod report --replot` can redraw the plots from the CSV.
     #[serde(default)]

@@ -28,6 +28,7 @@ use crate::metrics::{Accuracy, accuracy, error_image, lod_error, per_lod_error_m
 
 use super::plots::write_plots;
 use super::rows::{FrameImages, Manifest, Row, write_csv};
+use super::shard::Shard;
 use super::spec::{ParamSet, Pose, SweepSpec, distance_camera};
 use super::variant::{Backend, Named, ReferenceRenderer, Variant};
 
@@ -120,6 +121,7 @@ impl Runner {
         &mut self,
         spec: &SweepSpec,
         quick: bool,
+        shard: Option<Shard>,
         out: &Path,
     ) -> Result<Manifest, Box<dyn std::error::Error>> {
         let start = Instant::now();
@@ -133,11 +135,10 @@ impl Runner {
         let backends = spec.backend_list(&file)?;
         let use_gpu = backends.contains(&Backend::Gpu);
         let gpu_ctx = if use_gpu { Some(self.gpu()?) } else { None };
-        let frames = spec.scenes.len()
-            * sets.len()
-            * poses.len()
-            * spec.variants.len()
-            * spec.backends.len();
+        let per_unit = spec.variants.len() * spec.backends.len();
+        let units = spec.scenes.len() * sets.len() * poses.len();
+        let mine = |unit: usize| shard.is_none_or(|s| s.contains(unit));
+        let frames = (0..units).filter(|&u| mine(u)).count() * per_unit;
         let bar = ProgressBar::new(frames as u64);
         bar.set_style(
             ProgressStyle::with_template(
@@ -152,7 +153,7 @@ impl Runner {
         let mut images = Vec::new();
         let mut bvh_info = Vec::new();
         let rays_before = self.rays;
-        for scene_name in &spec.scenes {
+        for (scene_i, scene_name) in spec.scenes.iter().enumerate() {
             self.scene(scene_name, alpha_cutoff)?;
             let (_, scene, gt_scene) = self.scene.as_ref().expect("loaded");
             bvh_info.push((
@@ -160,7 +161,13 @@ impl Runner {
                 gt_scene.triangle_count(),
                 gt_scene.build_seconds(),
             ));
-            for set in &sets {
+            for (set_i, set) in sets.iter().enumerate() {
+                // The unit of sharding is one pose of one parameter set of one scene: its
+                // ground truth and full-detail frames are shared by its variants and backends.
+                let unit_of = |pose_i: usize| (scene_i * sets.len() + set_i) * poses.len() + pose_i;
+                if !(0..poses.len()).any(|p| mine(unit_of(p))) {
+                    continue;
+                }
                 let prepared = prepare(scene.clone(), &set.params)?;
                 let spheres = tree_spheres(&prepared.scene, &prepared.geometry.meshes);
                 let baselines = variants.iter().any(|v| v.is_baseline());
@@ -175,7 +182,11 @@ impl Runner {
                     None => None,
                 };
                 let mut gpu_warm = false;
-                for pose in &poses {
+                for (pose_i, pose) in poses.iter().enumerate() {
+                    let unit = unit_of(pose_i);
+                    if !mine(unit) {
+                        continue;
+                    }
                     let camera = if pose.camera == "distance" {
                         distance_camera(scene, pose.distance_m, spec.width, spec.height)
                     } else {
@@ -205,7 +216,7 @@ impl Runner {
                         camera: &camera,
                         params: &set.params,
                     };
-                    for &backend in &backends {
+                    for (backend_i, &backend) in backends.iter().enumerate() {
                         let mut render = |variant: Variant, repeats: u32| {
                             if backend == Backend::Gpu {
                                 let gs = gpu_scene.as_mut().expect("created when use_gpu");
@@ -223,13 +234,16 @@ impl Runner {
                         // The LOD error's reference: this backend's full-detail frame (every
                         // visible tree at its full mesh, the Vegetation baseline), untimed.
                         let full = render(Variant::Vegetation, 1)?.color;
-                        for &variant in &variants {
+                        for (variant_i, &variant) in variants.iter().enumerate() {
+                            let frame_index =
+                                (unit * per_unit + backend_i * variants.len() + variant_i) as u64;
                             let vf = render(variant, spec.repeats)?;
                             let (mut acc, map) = accuracy(gt, &vf.color, &vf.aux);
                             let lod_map = lod_error(&mut acc, &full, &vf.color);
                             let pixels = (spec.width as u64 * spec.height as u64).max(1);
                             let p = &set.params;
                             rows.push(Row {
+                                frame: frame_index,
                                 sweep: spec.name.clone(),
                                 scene: scene.name.clone(),
                                 camera: pose.camera.clone(),
@@ -262,6 +276,7 @@ impl Runner {
                             });
                             if pose.save_images {
                                 images.push(save_frame_images(
+                                    frame_index,
                                     &dir,
                                     scene,
                                     pose,
@@ -283,7 +298,12 @@ impl Runner {
         let csv_name = format!("{}.csv", spec.name);
         let csv_path = dir.join(&csv_name);
         write_csv(&csv_path, &rows)?;
-        let plots = write_plots(spec, &rows, &dir)?;
+        // A shard's plots would show part of the sweep: `sweep merge` draws them.
+        let plots = if shard.is_some() {
+            Vec::new()
+        } else {
+            write_plots(spec, &rows, &dir)?
+        };
         let manifest = Manifest {
             name: spec.name.clone(),
             title: spec.title.clone(),
@@ -305,6 +325,7 @@ impl Runner {
             ground_truth_bvh: bvh_info,
             ground_truth_rays: self.rays - rays_before,
             spec: Some(spec.clone()),
+            shard: shard.map(|s| s.to_string()),
         };
         let mpath = dir.join("sweep.json");
         std::fs::write(&mpath, serde_json::to_string_pretty(&manifest)?)
@@ -519,6 +540,7 @@ fn slug(s: &str) -> String {
 
 #[allow(clippy::too_many_arguments)]
 fn save_frame_images(
+    frame: u64,
     dir: &Path,
     scene: &Scene,
     pose: &Pose,
@@ -568,6 +590,7 @@ fn save_frame_images(
         }
     }
     Ok(FrameImages {
+        frame,
         camera: pose.camera.clone(),
         yaw_deg: pose.yaw_deg,
         distance_m: pose.distance_m,

@@ -1,0 +1,260 @@
+//! Sharding a sweep over machines: `forestlod sweep --shard I/N` runs a deterministic 1/N of a
+//! sweep's frames, `forestlod sweep merge --out DIR SHARD_DIR...` joins the shards into the result
+//! the unsharded run writes (same rows in the same order, the plots drawn from all of them).
+//!
+//! The unit of work is one pose of one parameter set of one scene (its ground-truth image and
+//! full-detail frame are shared by every variant and backend of the pose); units are numbered in
+//! the sweep's canonical order and shard `I` takes the units `u` with `u mod N = I`, so the
+//! shards of a 360° sweep each get every N-th yaw, not one slow camera each. Every row carries
+//! its frame index ([`Row::frame`]), which the merge orders by. Timings differ between machines
+//! as between runs; everything else is deterministic.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use forestlod_reference::InputError;
+
+use super::plots::write_plots;
+use super::rows::{Manifest, Row, read_csv, write_csv};
+
+/// Shard `index` of `count` (`I/N` on the command line, `0 <= I < N`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    /// Which shard, from 0.
+    pub index: usize,
+    /// How many shards.
+    pub count: usize,
+}
+
+impl Shard {
+    /// Whether work unit `unit` (module docs) belongs to this shard.
+    pub fn contains(self, unit: usize) -> bool {
+        unit % self.count == self.index
+    }
+}
+
+impl fmt::Display for Shard {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+impl FromStr for Shard {
+    type Err = String;
+    fn from_str(text: &str) -> Result<Self, String> {
+        let bad = || format!("shard {text:?}: expected I/N with 0 <= I < N, e.g. 0/4");
+        let (i, n) = text.split_once('/').ok_or_else(bad)?;
+        let (index, count) = (
+            i.trim().parse::<usize>().map_err(|_| bad())?,
+            n.trim().parse::<usize>().map_err(|_| bad())?,
+        );
+        if count == 0 || index >= count {
+            return Err(bad());
+        }
+        Ok(Self { index, count })
+    }
+}
+
+fn read_manifest(path: &Path) -> Result<Manifest, InputError> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| InputError::new(file.clone(), "read", "", e.to_string()))?;
+    serde_json::from_str(&text).map_err(|e| InputError::new(file, "parse", "", e.to_string()))
+}
+
+/// Joins shard runs (each a `--out` folder of `forestlod sweep --shard I/N`) into `out`: for every
+/// sweep they hold, the rows of all N shards in canonical order, the saved images, the plots and
+/// one manifest. Errors name the folder when a shard is missing, repeated, of another sweep
+/// definition, or when two shards claim one frame.
+pub fn merge(
+    shard_dirs: &[PathBuf],
+    out: &Path,
+) -> Result<Vec<Manifest>, Box<dyn std::error::Error>> {
+    if shard_dirs.is_empty() {
+        return Err(InputError::new(
+            "<command line>",
+            "sweep merge",
+            "",
+            "expected the shard folders to join",
+        )
+        .into());
+    }
+    // sweep name -> (shard dir, manifest)
+    let mut sweeps: BTreeMap<String, Vec<(PathBuf, Manifest)>> = BTreeMap::new();
+    for dir in shard_dirs {
+        let entries = std::fs::read_dir(dir).map_err(|e| {
+            InputError::new(
+                dir.display().to_string(),
+                "read",
+                "",
+                format!("{e}; expected a `forestlod sweep --shard` output folder"),
+            )
+        })?;
+        let mut found = false;
+        for entry in entries {
+            let sub = entry?.path();
+            let mpath = sub.join("sweep.json");
+            if mpath.is_file() {
+                let m = read_manifest(&mpath)?;
+                found = true;
+                sweeps.entry(m.name.clone()).or_default().push((sub, m));
+            }
+        }
+        if !found {
+            return Err(InputError::new(
+                dir.display().to_string(),
+                "sweep.json",
+                "",
+                "no sweep in this folder",
+            )
+            .into());
+        }
+    }
+    let mut merged = Vec::new();
+    for (name, parts) in sweeps {
+        let first = &parts[0].1;
+        let count = shard_of(&parts[0].0, first)?.count;
+        let mut seen = vec![None::<&PathBuf>; count];
+        for (dir, m) in &parts {
+            let shard = shard_of(dir, m)?;
+            let field = |what: &str, why: String| {
+                InputError::new(
+                    dir.join("sweep.json").display().to_string(),
+                    what.to_string(),
+                    shard.to_string(),
+                    why,
+                )
+            };
+            if shard.count != count {
+                return Err(field(
+                    "shard",
+                    format!(
+                        "sweep {name}: shards of {count} and of {} mixed",
+                        shard.count
+                    ),
+                )
+                .into());
+            }
+            if serde_json::to_value(&m.spec)? != serde_json::to_value(&first.spec)?
+                || m.quick != first.quick
+            {
+                return Err(field(
+                    "spec",
+                    format!(
+                        "sweep {name}: not the sweep definition of {}",
+                        parts[0].0.display()
+                    ),
+                )
+                .into());
+            }
+            if let Some(other) = seen[shard.index].replace(dir) {
+                return Err(field(
+                    "shard",
+                    format!("sweep {name}: shard given twice (also {})", other.display()),
+                )
+                .into());
+            }
+        }
+        if let Some(missing) = seen.iter().position(Option::is_none) {
+            return Err(InputError::new(
+                "<command line>",
+                "sweep merge",
+                format!("{name} {missing}/{count}"),
+                "a shard is missing",
+            )
+            .into());
+        }
+        let dir = out.join(&name);
+        std::fs::create_dir_all(dir.join("img"))?;
+        let mut rows: Vec<Row> = Vec::new();
+        let mut manifest = Manifest {
+            shard: None,
+            plots: Vec::new(),
+            images: Vec::new(),
+            wall_seconds: 0.0,
+            ground_truth_rays: 0,
+            ..first.clone()
+        };
+        for (shard_dir, m) in &parts {
+            rows.extend(read_csv(&shard_dir.join(&m.csv))?);
+            for im in &m.images {
+                for p in [
+                    &im.color,
+                    &im.lod,
+                    &im.flip,
+                    &im.lod_flip,
+                    &im.ground_truth,
+                    &im.ground_truth_class,
+                ]
+                .into_iter()
+                .chain(im.per_lod.iter().map(|(_, p, _, _)| p))
+                .filter(|p| !p.is_empty())
+                {
+                    std::fs::copy(shard_dir.join(p), dir.join(p))?;
+                }
+            }
+            manifest.images.extend(m.images.iter().cloned());
+            manifest.wall_seconds += m.wall_seconds;
+            manifest.ground_truth_rays += m.ground_truth_rays;
+        }
+        rows.sort_by_key(|r| r.frame);
+        if let Some(w) = rows.windows(2).find(|w| w[0].frame == w[1].frame) {
+            return Err(InputError::new(
+                "<command line>",
+                "sweep merge",
+                format!("{name} frame {}", w[0].frame),
+                "two shards hold this frame",
+            )
+            .into());
+        }
+        manifest.images.sort_by_key(|im| im.frame);
+        manifest.frames = rows.len();
+        write_csv(&dir.join(&manifest.csv), &rows)?;
+        if let Some(spec) = &manifest.spec {
+            manifest.plots = write_plots(spec, &rows, &dir)?;
+        }
+        std::fs::write(
+            dir.join("sweep.json"),
+            serde_json::to_string_pretty(&manifest)?,
+        )?;
+        merged.push(manifest);
+    }
+    Ok(merged)
+}
+
+fn shard_of(dir: &Path, m: &Manifest) -> Result<Shard, InputError> {
+    let file = dir.join("sweep.json").display().to_string();
+    let text = m.shard.as_deref().ok_or_else(|| {
+        InputError::new(
+            file.clone(),
+            "shard",
+            "",
+            "not a shard: run with --shard I/N",
+        )
+    })?;
+    text.parse()
+        .map_err(|e: String| InputError::new(file, "shard", text, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_parse_and_partition_the_units() {
+        let s: Shard = "1/3".parse().unwrap();
+        assert_eq!((s.index, s.count), (1, 3));
+        assert_eq!(s.to_string(), "1/3");
+        for bad in ["3/3", "1/0", "a/2", "1", "-1/2", ""] {
+            assert!(bad.parse::<Shard>().is_err(), "{bad}");
+        }
+        for unit in 0..10 {
+            let owners = (0..3)
+                .filter(|&i| Shard { index: i, count: 3 }.contains(unit))
+                .count();
+            assert_eq!(owners, 1, "unit {unit}");
+        }
+    }
+}

@@ -1,0 +1,112 @@
+//! `forestlod sweep --shard I/N` and `forestlod sweep merge` (issue 12): every built-in sweep in
+//! quick mode on the reference backend, unsharded and as 3 shards, then merged. The merged CSV
+//! must equal the unsharded one row for row in everything but wall-clock times (which differ
+//! between any two runs), and the merge must refuse an incomplete set of shards.
+
+use std::path::{Path, PathBuf};
+
+use forestlod_experiments::report::read_rows;
+use forestlod_experiments::sweep::shard::Shard;
+use forestlod_experiments::sweep::{BUILTIN_SWEEPS, Manifest, Row, SweepArgs, run};
+
+fn args(out: &Path, shard: Option<Shard>) -> SweepArgs {
+    SweepArgs {
+        file: None,
+        shards: Vec::new(),
+        shard,
+        out: out.to_path_buf(),
+        quick: true,
+        scene: None,
+        width: None,
+        height: None,
+        yaw_steps: None,
+        repeats: None,
+        backend: Some("reference".into()),
+    }
+}
+
+/// Everything of a row a second run must reproduce (all but the times).
+fn deterministic(r: &Row) -> String {
+    format!(
+        "{} {} {} {} {} {} {} {} {} {:?} | {} {} {} {} {} {} {} {:?} {:?} {:?} {:?} {} | {:?}",
+        r.frame,
+        r.sweep,
+        r.scene,
+        r.camera,
+        r.yaw_deg,
+        r.distance_m,
+        r.variant,
+        r.backend,
+        r.setting,
+        r.params,
+        r.batches_tested,
+        r.commands,
+        r.trees_drawn,
+        r.trees_finer,
+        r.trees_coarser,
+        r.trees_outside_view,
+        r.trees_missing_lod,
+        r.triangles,
+        r.fragments,
+        r.fragments_written,
+        r.overdraw,
+        r.memory_bytes,
+        r.accuracy
+    )
+}
+
+fn manifest(dir: &Path) -> Manifest {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("sweep.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn three_merged_shards_equal_the_unsharded_run_row_for_row() {
+    let root = std::env::temp_dir().join(format!("forestlod-sweep-shard-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    let whole = root.join("whole");
+    run(&args(&whole, None)).expect("unsharded run");
+    let shard_dirs: Vec<PathBuf> = (0..3).map(|i| root.join(format!("shard-{i}"))).collect();
+    for (i, dir) in shard_dirs.iter().enumerate() {
+        run(&args(dir, Some(Shard { index: i, count: 3 }))).expect("shard run");
+    }
+    // An incomplete set is refused, naming the missing shard.
+    let mut merge = args(&root.join("partial"), None);
+    merge.file = Some("merge".into());
+    merge.shards = shard_dirs[..2].to_vec();
+    let e = run(&merge).unwrap_err().to_string();
+    assert!(e.contains("2/3") && e.contains("missing"), "{e}");
+
+    let merged = root.join("merged");
+    merge.out = merged.clone();
+    merge.shards = shard_dirs.clone();
+    run(&merge).expect("merge");
+    let mut compared = 0;
+    for (name, _) in BUILTIN_SWEEPS {
+        let w = whole.join(name);
+        if !w.join("sweep.json").is_file() {
+            continue; // GPU-only sweep: nothing to run on the reference backend
+        }
+        let (mw, mm) = (manifest(&w), manifest(&merged.join(name)));
+        let want = read_rows(&w.join(&mw.csv)).unwrap();
+        let got = read_rows(&merged.join(name).join(&mm.csv)).unwrap();
+        assert_eq!(got.len(), want.len(), "{name}: rows");
+        for (i, (g, r)) in got.iter().zip(&want).enumerate() {
+            assert_eq!(r.frame, i as u64, "{name}: unsharded frames in order");
+            assert_eq!(deterministic(g), deterministic(r), "{name}: row {i}");
+        }
+        assert_eq!(mm.frames, mw.frames, "{name}");
+        assert_eq!(mm.images.len(), mw.images.len(), "{name}: saved frames");
+        assert_eq!(mm.plots.len(), mw.plots.len(), "{name}: plots");
+        for im in &mm.images {
+            assert!(merged.join(name).join(&im.color).is_file(), "{name}: {}", im.color);
+        }
+        // Each shard did a part, not the whole.
+        for dir in &shard_dirs {
+            let m = manifest(&dir.join(name));
+            assert!(m.frames < mw.frames || mw.frames <= 1, "{name}: shard ran everything");
+        }
+        compared += want.len();
+    }
+    assert!(compared > 50, "only {compared} rows compared");
+    std::fs::remove_dir_all(&root).ok();
+}
