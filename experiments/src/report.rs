@@ -486,10 +486,13 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         let _ = writeln!(out, "### Frames\n");
         let _ = writeln!(
             out,
-            "| pose | variant / setting | ground truth | frame | FLIP error | LOD ids |"
+            "| pose | variant / setting | ground truth | frame | FLIP error | LOD error | LOD ids |"
         );
-        let _ = writeln!(out, "|---|---|---|---|---|---|");
-        for im in &m.images {
+        let _ = writeln!(out, "|---|---|---|---|---|---|---|");
+        // The worst frames first (FLIP against the truth).
+        let mut images: Vec<_> = m.images.iter().collect();
+        images.sort_by(|a, b| b.accuracy.flip_mean.total_cmp(&a.accuracy.flip_mean));
+        for im in images {
             let pose = if im.camera == "distance" {
                 format!("distance {} m", im.distance_m)
             } else {
@@ -497,7 +500,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             };
             let _ = writeln!(
                 out,
-                "| {pose} | {} ({}) / {} (FLIP {:.4}, cov {:.4}) | ![]({}) | ![]({}) | ![]({}) | ![]({}) |",
+                "| {pose} | {} ({}) / {} (FLIP {:.4}, cov {:.4}, LOD error {}) | ![]({}) | ![]({}) | ![]({}) | {} | ![]({}) |",
                 im.variant,
                 if im.backend.is_empty() {
                     "reference"
@@ -507,9 +510,15 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                 im.setting,
                 im.accuracy.flip_mean,
                 im.accuracy.coverage_error,
+                opt(im.accuracy.lod_flip_mean, 4),
                 rel(&im.ground_truth),
                 rel(&im.color),
                 rel(&im.flip),
+                if im.lod_flip.is_empty() {
+                    "-".to_string()
+                } else {
+                    format!("![]({})", rel(&im.lod_flip))
+                },
                 rel(&im.lod)
             );
         }
@@ -607,8 +616,12 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
         sweep_section(&mut out, dir, m)?;
     }
     let path = run.join("report.md");
-    std::fs::write(&path, out)
+    std::fs::write(&path, &out)
         .map_err(|e| InputError::new(path.display().to_string(), "write", "", e.to_string()))?;
+    let html = run.join("report.html");
+    let page = crate::html::report_page(&out, run, "forestlod sweep report");
+    std::fs::write(&html, page)
+        .map_err(|e| InputError::new(html.display().to_string(), "write", "", e.to_string()))?;
     Ok(path)
 }
 
@@ -653,7 +666,11 @@ pub fn run(args: &ReportArgs) -> Result<(), Box<dyn std::error::Error>> {
         println!("redrew the plots of {n} sweep(s)");
     }
     let path = write_report(&args.run)?;
-    println!("wrote {}", path.display());
+    println!(
+        "wrote {} and {} (self-contained)",
+        path.display(),
+        args.run.join("report.html").display()
+    );
     Ok(())
 }
 

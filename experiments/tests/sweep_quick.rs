@@ -132,6 +132,13 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
     assert_eq!(replot(&out).expect("the plots are redrawn"), sweeps);
     let report = write_report(&out).expect("the report is written");
     let text = std::fs::read_to_string(&report).unwrap();
+    // The HTML twin embeds every image: nothing points outside the page.
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(
+        html.contains("src=\"data:image/png;base64,"),
+        "report.html embeds images"
+    );
+    assert!(!html.contains("missing image"), "report.html lost an image");
     for (name, _) in BUILTIN_SWEEPS {
         if !out.join(name).join("sweep.json").is_file() {
             continue; // GPU-only sweep with the GPU opted out

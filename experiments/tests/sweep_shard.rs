@@ -98,12 +98,19 @@ fn three_merged_shards_equal_the_unsharded_run_row_for_row() {
         assert_eq!(mm.images.len(), mw.images.len(), "{name}: saved frames");
         assert_eq!(mm.plots.len(), mw.plots.len(), "{name}: plots");
         for im in &mm.images {
-            assert!(merged.join(name).join(&im.color).is_file(), "{name}: {}", im.color);
+            assert!(
+                merged.join(name).join(&im.color).is_file(),
+                "{name}: {}",
+                im.color
+            );
         }
         // Each shard did a part, not the whole.
         for dir in &shard_dirs {
             let m = manifest(&dir.join(name));
-            assert!(m.frames < mw.frames || mw.frames <= 1, "{name}: shard ran everything");
+            assert!(
+                m.frames < mw.frames || mw.frames <= 1,
+                "{name}: shard ran everything"
+            );
         }
         compared += want.len();
     }
