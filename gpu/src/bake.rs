@@ -50,8 +50,8 @@ use forestlod_shared::{
 use wgpu::util::DeviceExt;
 
 use crate::context::{
-    StagePipelines, bind_group, dynamic_uniform_entry, dynamic_uniform_slot, group_layout,
-    sampler_entry, shader_module, texture_entry,
+    StagePipelines, bind_group, cleared_render_pass, dynamic_uniform_entry, dynamic_uniform_slot,
+    group_layout, sampler_entry, shader_module, texture_entry,
 };
 use crate::mips::{BILLBOARD_FORMAT, GpuMips, MipArray, create_billboard_texture};
 use crate::{GpuContext, GpuError};
@@ -162,12 +162,8 @@ impl GpuBaked {
         mode: MipMode,
         alpha_ref: f32,
     ) -> Result<Self, GpuError> {
-        check_layer_count(metas.len(), angle_count, layers.len())?;
-        Ok(Self {
-            angle_count,
-            texture_size: side,
-            mips: mips.run_from_cpu(side, layers, mode, alpha_ref)?,
-            extents: layer_extents(metas, angle_count),
+        Self::with_mips(metas, angle_count, side, layers.len(), || {
+            mips.run_from_cpu(side, layers, mode, alpha_ref)
         })
     }
 
@@ -186,11 +182,25 @@ impl GpuBaked {
         mode: MipMode,
         alpha_ref: f32,
     ) -> Result<Self, GpuError> {
-        check_layer_count(metas.len(), angle_count, chains.len())?;
+        Self::with_mips(metas, angle_count, side, chains.len(), || {
+            MipArray::from_cpu_chains(ctx, side, chains, mode, alpha_ref)
+        })
+    }
+
+    /// The baked billboards of `metas` at `angle_count` angles and side `side`, whose `layers`
+    /// layers `mips` makes once their count is checked (`metas.len() * angle_count`).
+    fn with_mips(
+        metas: &[MeshMeta],
+        angle_count: u32,
+        side: u32,
+        layers: usize,
+        mips: impl FnOnce() -> Result<MipArray, GpuError>,
+    ) -> Result<Self, GpuError> {
+        check_layer_count(metas.len(), angle_count, layers)?;
         Ok(Self {
             angle_count,
             texture_size: side,
-            mips: MipArray::from_cpu_chains(ctx, side, chains, mode, alpha_ref)?,
+            mips: mips()?,
             extents: layer_extents(metas, angle_count),
         })
     }
@@ -502,29 +512,13 @@ impl<'a> GpuBake<'a> {
                         array_layer_count: Some(1),
                         ..Default::default()
                     });
-                    let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                        label: Some("bake layer"),
-                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                            view: &view,
-                            depth_slice: None,
-                            resolve_target: None,
-                            ops: wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                                store: wgpu::StoreOp::Store,
-                            },
-                        })],
-                        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                            view: &depth_view,
-                            depth_ops: Some(wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(1.0),
-                                store: wgpu::StoreOp::Discard,
-                            }),
-                            stencil_ops: None,
-                        }),
-                        timestamp_writes: None,
-                        occlusion_query_set: None,
-                        multiview_mask: None,
-                    });
+                    let mut pass = cleared_render_pass(
+                        &mut encoder,
+                        "bake layer",
+                        &[(&view, wgpu::Color::TRANSPARENT)],
+                        &depth_view,
+                        wgpu::StoreOp::Discard,
+                    );
                     if range.is_empty() {
                         continue;
                     }

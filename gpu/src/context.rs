@@ -303,12 +303,28 @@ impl GpuContext {
         })
     }
 
-    /// The largest storage buffer one binding can hold: the smaller of the device's storage
-    /// binding and buffer size limits, in bytes.
-    pub(crate) fn max_storage_binding(&self) -> u64 {
-        self.limits
+    /// Checks that a storage buffer of `bytes` fits one binding: the smaller of the device's
+    /// storage binding and buffer size limits. Otherwise fails with [`GpuError::Input`] on
+    /// `field`, its value `value(limit)` (the limit in bytes) and `reason`.
+    pub(crate) fn check_storage_binding(
+        &self,
+        bytes: u64,
+        field: &'static str,
+        value: impl FnOnce(u64) -> String,
+        reason: &'static str,
+    ) -> Result<(), GpuError> {
+        let limit = self
+            .limits
             .max_storage_buffer_binding_size
-            .min(self.limits.max_buffer_size)
+            .min(self.limits.max_buffer_size);
+        if bytes > limit {
+            return Err(GpuError::Input {
+                field,
+                value: value(limit),
+                reason,
+            });
+        }
+        Ok(())
     }
 
     /// Workgroup counts `(x, y)` of a dispatch of `groups` workgroups, spilling into `y` beyond
@@ -604,8 +620,49 @@ pub(crate) fn frame_uniform<T: bytemuck::Pod>(
     )
 }
 
+/// Begins a render pass labelled `label` that clears each colour attachment of `colors` (a view
+/// and its clear colour) and stores it, and clears the depth attachment `depth` to 1 and ends it
+/// with `depth_store`.
+pub(crate) fn cleared_render_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    colors: &[(&wgpu::TextureView, wgpu::Color)],
+    depth: &wgpu::TextureView,
+    depth_store: wgpu::StoreOp,
+) -> wgpu::RenderPass<'e> {
+    let color_attachments: Vec<_> = colors
+        .iter()
+        .map(|&(view, clear)| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(clear),
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        })
+        .collect();
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &color_attachments,
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(1.0),
+                store: depth_store,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
 /// A bind group on `layout` labelled `label`: binding `i` is `resources[i]`.
-pub(crate) fn bind_group<'a>(
+pub fn bind_group<'a>(
     device: &wgpu::Device,
     label: &str,
     layout: &wgpu::BindGroupLayout,

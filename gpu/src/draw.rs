@@ -43,8 +43,8 @@ use forestlod_shared::{Camera, MAX_COMMANDS, MAX_MESH_VERTICES, MeshMeta, Params
 use wgpu::util::DeviceExt;
 
 use crate::context::{
-    Dispatch, Slot, StagePipelines, buffer_entry, compute_pass, compute_stage, frame_uniform,
-    group_layout, sampler_entry, shader_module, texture_entry,
+    Dispatch, Slot, StagePipelines, bind_group, buffer_entry, cleared_render_pass, compute_pass,
+    compute_stage, frame_uniform, group_layout, sampler_entry, shader_module, texture_entry,
 };
 use crate::readback::{read_texture, upload_storage};
 use crate::{GpuContext, GpuError, SelectBuffers};
@@ -335,7 +335,7 @@ pub struct DrawScene {
     meshes: wgpu::Buffer,
     pub(crate) terrain: wgpu::Buffer,
     pub(crate) terrain_vertex_count: u32,
-    pub(crate) billboard_first_vertex: u32,
+    billboard_first_vertex: u32,
     mesh_count: u32,
 }
 
@@ -434,6 +434,19 @@ impl DrawScene {
     /// Number of meshes.
     pub fn mesh_count(&self) -> u32 {
         self.mesh_count
+    }
+
+    /// A fresh uniform buffer labelled `label` holding this frame's [`DrawUniform`] for the scene
+    /// (the draw's uniform, and the Primitive's for its terrain).
+    pub(crate) fn draw_uniform(
+        &self,
+        ctx: &GpuContext,
+        label: &str,
+        camera: &Camera,
+        params: &Params,
+    ) -> wgpu::Buffer {
+        let uniform = DrawUniform::new(camera, params, self.billboard_first_vertex);
+        frame_uniform(ctx, label, &uniform)
     }
 }
 
@@ -820,50 +833,25 @@ pub(crate) fn begin_target_pass<'e>(
         view(&target.lod_id),
     );
     let sky = SKY_SRGB.map(|c| forestlod_shared::srgb_to_linear(c) as f64);
-    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some(label),
-        color_attachments: &[
-            Some(wgpu::RenderPassColorAttachment {
-                view: &color,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color {
-                        r: sky[0],
-                        g: sky[1],
-                        b: sky[2],
-                        a: 1.0,
-                    }),
-                    store: wgpu::StoreOp::Store,
-                },
-            }),
-            Some(wgpu::RenderPassColorAttachment {
-                view: &lod_id,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color {
-                        r: LOD_ID_BACKGROUND as f64,
-                        g: 0.0,
-                        b: 0.0,
-                        a: 0.0,
-                    }),
-                    store: wgpu::StoreOp::Store,
-                },
-            }),
-        ],
-        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-            view: &depth,
-            depth_ops: Some(wgpu::Operations {
-                load: wgpu::LoadOp::Clear(1.0),
-                store: wgpu::StoreOp::Store,
-            }),
-            stencil_ops: None,
-        }),
-        timestamp_writes: None,
-        occlusion_query_set: None,
-        multiview_mask: None,
-    })
+    let sky = wgpu::Color {
+        r: sky[0],
+        g: sky[1],
+        b: sky[2],
+        a: 1.0,
+    };
+    let background = wgpu::Color {
+        r: LOD_ID_BACKGROUND as f64,
+        g: 0.0,
+        b: 0.0,
+        a: 0.0,
+    };
+    cleared_render_pass(
+        encoder,
+        label,
+        &[(&color, sky), (&lod_id, background)],
+        &depth,
+        wgpu::StoreOp::Store,
+    )
 }
 
 /// The compiled `draw.wgsl` pipelines, one set per [`GpuContext`] (cached there).
@@ -1060,59 +1048,26 @@ impl GpuDraw {
                 reason: "expected at most MAX_COMMANDS (base_vertex is an i32)",
             });
         }
-        let uniform = frame_uniform(
-            ctx,
-            "draw uniform",
-            &DrawUniform::new(camera, params, scene.billboard_first_vertex),
-        );
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("draw"),
-            layout: &self.pipelines.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: uniform.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: scene.vertices.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: scene.instances.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: indirection
-                        .unwrap_or(&scene.indirection)
-                        .as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: scene.meshes.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: selection.data.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 6,
-                    resource: selection.counters.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 7,
-                    resource: wgpu::BindingResource::TextureView(&textures.mesh),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 8,
-                    resource: wgpu::BindingResource::TextureView(&textures.billboards),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 9,
-                    resource: wgpu::BindingResource::Sampler(&self.pipelines.sampler),
-                },
+        let uniform = scene.draw_uniform(ctx, "draw uniform", camera, params);
+        let bind_group = bind_group(
+            &ctx.device,
+            "draw",
+            &self.pipelines.layout,
+            [
+                uniform.as_entire_binding(),
+                scene.vertices.as_entire_binding(),
+                scene.instances.as_entire_binding(),
+                indirection
+                    .unwrap_or(&scene.indirection)
+                    .as_entire_binding(),
+                scene.meshes.as_entire_binding(),
+                selection.data.as_entire_binding(),
+                selection.counters.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&textures.mesh),
+                wgpu::BindingResource::TextureView(&textures.billboards),
+                wgpu::BindingResource::Sampler(&self.pipelines.sampler),
             ],
-        });
+        );
         let mut pass = begin_target_pass(encoder, target, "draw");
         pass.set_bind_group(0, &bind_group, &[]);
         pass.set_pipeline(&self.pipelines.terrain);

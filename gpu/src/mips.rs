@@ -717,16 +717,14 @@ impl<'a> GpuMips<'a> {
             u64::from(layers) * s * s * texel_bytes
         };
         let (raw0_size, raw1_size) = (raw_size(2), raw_size(1));
-        let limit = ctx.max_storage_binding();
-        if raw1_size > limit {
-            return Err(GpuError::Input {
-                field: "billboard texture",
-                value: format!(
-                    "{layers} layers of {side}x{side}: {raw1_size} bytes of raw level-1 texels"
-                ),
-                reason: "exceeds the device's storage buffer limit; run fewer layers at a time",
-            });
-        }
+        ctx.check_storage_binding(
+            raw1_size,
+            "billboard texture",
+            |_| {
+                format!("{layers} layers of {side}x{side}: {raw1_size} bytes of raw level-1 texels")
+            },
+            "exceeds the device's storage buffer limit; run fewer layers at a time",
+        )?;
 
         // Per-level uniforms (dynamic offsets) and output regions (levels >= 1).
         let align = u64::from(ctx.limits.min_uniform_buffer_offset_alignment.max(1));

@@ -40,7 +40,9 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, ProxyRecord};
 
-use crate::context::{StagePipelines, buffer_entry, frame_uniform, group_layout, shader_module};
+use crate::context::{
+    StagePipelines, buffer_bind_group, buffer_entry, frame_uniform, group_layout, shader_module,
+};
 use crate::draw::{
     DrawScene, DrawTarget, DrawUniform, begin_target_pass, target_pipeline, terrain_pipeline,
 };
@@ -284,33 +286,19 @@ impl GpuPrimitive {
             });
         }
         let uniform = frame_uniform(ctx, "primitive uniform", &PrimitiveUniform::new(camera));
-        let terrain_uniform = frame_uniform(
-            ctx,
-            "primitive terrain uniform",
-            &DrawUniform::new(camera, params, scene.billboard_first_vertex),
+        let terrain_uniform = scene.draw_uniform(ctx, "primitive terrain uniform", camera, params);
+        let bind_group = buffer_bind_group(
+            &ctx.device,
+            "primitive",
+            &self.pipelines.layout,
+            &[&uniform, &scene.instances, indirection, &proxies.buffer],
         );
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("primitive"),
-            layout: &self.pipelines.layout,
-            entries: &[
-                (0, &uniform),
-                (1, &scene.instances),
-                (2, indirection),
-                (3, &proxies.buffer),
-            ]
-            .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                binding,
-                resource: buffer.as_entire_binding(),
-            }),
-        });
-        let terrain_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("primitive terrain"),
-            layout: &self.pipelines.terrain_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: terrain_uniform.as_entire_binding(),
-            }],
-        });
+        let terrain_group = buffer_bind_group(
+            &ctx.device,
+            "primitive terrain",
+            &self.pipelines.terrain_layout,
+            &[&terrain_uniform],
+        );
         let mut pass = begin_target_pass(encoder, target, "primitive");
         pass.set_pipeline(&self.pipelines.terrain);
         pass.set_bind_group(0, &terrain_group, &[]);

@@ -229,16 +229,14 @@ impl<'a> GpuRefine<'a> {
             });
         }
         let chunk_bytes = 4 * n as u64 * size_of::<u32>() as u64;
-        let max_bytes = ctx.max_storage_binding();
-        if chunk_bytes > max_bytes {
-            return Err(GpuError::Input {
-                field: "batch indirection",
-                value: format!(
-                    "{n} trees: a chunk scratch buffer of 4n u32 = {chunk_bytes} bytes, over the device's {max_bytes}"
-                ),
-                reason: "refine.wgsl's chunk counts must fit one storage binding",
-            });
-        }
+        ctx.check_storage_binding(
+            chunk_bytes,
+            "batch indirection",
+            |max_bytes| format!(
+                "{n} trees: a chunk scratch buffer of 4n u32 = {chunk_bytes} bytes, over the device's {max_bytes}"
+            ),
+            "refine.wgsl's chunk counts must fit one storage binding",
+        )?;
         let pipelines = ctx.pipelines::<RefinePipelines>()?;
         use wgpu::BufferUsages as U;
         let mut all = vec![0u32; 3 * n];

@@ -228,6 +228,19 @@ fn within_draw_distance(center: vec3<f32>, eye: vec3<f32>, forward: vec3<f32>, d
     return view_interval(center, 0.0, eye, forward).d <= draw_distance;
 }
 
+// A lone tree's decision under `v` (cull.wgsl, refine.wgsl): `decide_view` on the tree's own
+// sphere, then DECISION_CULLED_DISTANCE instead of DECISION_DRAW where its centre fails the draw
+// stage's per-tree draw-distance discard (`within_draw_distance`).
+fn decide_tree(t: CullTree, v: ViewUniform) -> u32 {
+    let center = vec3<f32>(t.center[0], t.center[1], t.center[2]);
+    let decision = decide_view(center, t.radius, v);
+    if (decision & DECISION_KIND_MASK) == DECISION_DRAW
+        && !within_draw_distance(center, v.eye, v.forward, v.draw_distance) {
+        return DECISION_CULLED_DISTANCE;
+    }
+    return decision;
+}
+
 // forestlod_shared::lod_needs (E§4.3): LOD0 where some point is nearer than the band's end, LOD1
 // where some point is at or past its start; one LOD level means meshes everywhere.
 fn lod_needs(lo: f32, hi: f32, fade_start: f32, fade_end: f32, lod_levels: u32) -> LodNeeds {

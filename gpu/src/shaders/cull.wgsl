@@ -60,12 +60,10 @@ fn tree_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
 }
 
 // reference select::select_per_tree for one tree, reduced to "drawn or not" (any LOD): decide the
-// tree's sphere alone, then discard it when its centre lies beyond the draw distance.
+// tree's sphere alone, then discard it when its centre lies beyond the draw distance
+// (common.wgsl `decide_tree`).
 fn tree_visible(t: CullTree) -> bool {
-    let center = vec3<f32>(t.center[0], t.center[1], t.center[2]);
-    let decision = decide_view(center, t.radius, u.view);
-    return (decision & DECISION_KIND_MASK) == DECISION_DRAW
-        && within_draw_distance(center, u.view.eye, u.view.forward, u.view.draw_distance);
+    return (decide_tree(t, u.view) & DECISION_KIND_MASK) == DECISION_DRAW;
 }
 
 @compute @workgroup_size(CULL_WORKGROUP_SIZE)

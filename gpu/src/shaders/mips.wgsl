@@ -292,10 +292,9 @@ fn load_level0(layer: u32, x: u32, y: u32) -> vec4<f32> {
 @compute @workgroup_size(MIPS_TILE, MIPS_TILE, 1)
 fn mips_decode(inv: TexelInvocation) {
     let inside = begin_texel_pass(inv);
-    let gid = inv.gid;
-    let layer = gid.z;
+    let layer = inv.gid.z;
     if inside {
-        let raw = load_level0(layer, gid.x, gid.y);
+        let raw = load_level0(layer, inv.gid.x, inv.gid.y);
         add_to_alpha_range(raw);
         if passes_alpha_test(scale_alpha(raw.w, 1.0)) {
             atomicAdd(&wg_count, 1u);
@@ -314,12 +313,10 @@ fn mips_decode(inv: TexelInvocation) {
 @compute @workgroup_size(MIPS_TILE, MIPS_TILE, 1)
 fn mips_downsample(inv: TexelInvocation) {
     let inside = begin_texel_pass(inv);
-    let side = u.side;
-    let gid = inv.gid;
-    let layer = gid.z;
+    let layer = inv.gid.z;
     if inside {
-        let x = 2u * gid.x;
-        let y = 2u * gid.y;
+        let x = 2u * inv.gid.x;
+        let y = 2u * inv.gid.y;
         var t00: vec4<f32>;
         var t10: vec4<f32>;
         var t01: vec4<f32>;
@@ -330,7 +327,7 @@ fn mips_downsample(inv: TexelInvocation) {
             t01 = load_level0(layer, x, y + 1u);
             t11 = load_level0(layer, x + 1u, y + 1u);
         } else {
-            let prev = side * 2u;
+            let prev = u.side * 2u;
             let row0 = (layer * prev + y) * prev + x;
             let row1 = row0 + prev;
             t00 = src[row0];
@@ -494,9 +491,7 @@ fn mips_coverage_step(@builtin(global_invocation_id) gid: vec3<u32>) {
 @compute @workgroup_size(MIPS_TILE, MIPS_TILE, 1)
 fn mips_finalize(inv: TexelInvocation) {
     let inside = begin_texel_pass(inv);
-    let side = u.side;
-    let gid = inv.gid;
-    let layer = gid.z;
+    let layer = inv.gid.z;
     let s = stats_index(u.level, layer);
     if inside {
         let raw = dst[level_index(inv)];
@@ -505,7 +500,7 @@ fn mips_finalize(inv: TexelInvocation) {
         let g = encode_byte(raw.y, TABLE_SRGB_ENCODE);
         let b = encode_byte(raw.z, TABLE_SRGB_ENCODE);
         let a = encode_byte(alpha, TABLE_UNORM_ENCODE);
-        out_texels[u.out_offset + (layer * side + gid.y) * u.out_row + gid.x] =
+        out_texels[u.out_offset + (layer * u.side + inv.gid.y) * u.out_row + inv.gid.x] =
             r | (g << 8u) | (b << 16u) | (a << 24u);
         if tables[TABLE_UNORM_DECODE + a] > u.alpha_ref {
             atomicAdd(&wg_count, 1u);

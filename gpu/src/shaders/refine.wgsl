@@ -91,15 +91,9 @@ fn refines(mode: u32, lod: u32) -> bool {
 // The reference's per-tree test in `refine_command`: the tree's own sphere is drawn and needs LOD
 // `lod`, and its centre passes the draw stage's per-tree draw-distance discard.
 fn tree_needs(tree: u32, lod: u32) -> bool {
-    let t = trees[tree];
-    let center = vec3<f32>(t.center[0], t.center[1], t.center[2]);
-    let decision = decide_view(center, t.radius, u.view);
-    if (decision & DECISION_KIND_MASK) != DECISION_DRAW {
-        return false;
-    }
+    let decision = decide_tree(trees[tree], u.view);
     let bit = select(DECISION_LOD1, DECISION_LOD0, lod == LOD_MESH);
-    return (decision & bit) != 0u
-        && within_draw_distance(center, u.view.eye, u.view.forward, u.view.draw_distance);
+    return (decision & DECISION_KIND_MASK) == DECISION_DRAW && (decision & bit) != 0u;
 }
 
 // Chunks of 64 trees of a batch of `len` trees.

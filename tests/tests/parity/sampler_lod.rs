@@ -10,6 +10,7 @@
 
 use std::f32::consts::FRAC_1_SQRT_2;
 
+use forestlod_gpu::context::bind_group;
 use forestlod_harness::backend::gpu_context;
 
 /// Largest |λ_GPU − λ_exact| accepted: 1/16. Measured on lavapipe (Mesa 22.3.6, LLVM 15): max
@@ -134,24 +135,16 @@ fn implicit_lod_matches_log2_of_the_derivatives() {
         mapped_at_creation: false,
     });
     let view = texture.create_view(&Default::default());
-    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: uniform.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: wgpu::BindingResource::TextureView(&view),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: wgpu::BindingResource::Sampler(&sampler),
-            },
+    let bind_group = bind_group(
+        device,
+        "sampler lod",
+        &pipeline.get_bind_group_layout(0),
+        [
+            uniform.as_entire_binding(),
+            wgpu::BindingResource::TextureView(&view),
+            wgpu::BindingResource::Sampler(&sampler),
         ],
-    });
+    );
     let target_view = target.create_view(&Default::default());
     let mut worst = (0.0f32, [0.0f32; 4], 0.0f32, 0.0f32);
     let mut sum = 0.0f64;
