@@ -31,6 +31,17 @@ pub fn base64(bytes: &[u8]) -> String {
     out
 }
 
+/// The anchor of a heading, as GitHub's Markdown makes it (lower case, spaces to `-`,
+/// punctuation dropped): the report's contents link to it in both forms.
+pub fn anchor(heading: &str) -> String {
+    heading
+        .to_lowercase()
+        .chars()
+        .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-')
+        .map(|c| if c == ' ' { '-' } else { c })
+        .collect()
+}
+
 fn escape(text: &str) -> String {
     text.replace('&', "&amp;")
         .replace('<', "&lt;")
@@ -113,12 +124,7 @@ pub fn report_page(md: &str, base: &Path, title: &str) -> String {
             (1..=6).find(|&n| t.starts_with(&"#".repeat(n)) && t[n..].starts_with(' '))
         {
             let text = t[level + 1..].trim();
-            let id: String = text
-                .to_lowercase()
-                .chars()
-                .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-')
-                .map(|c| if c == ' ' { '-' } else { c })
-                .collect();
+            let id = anchor(text);
             body.push_str(&format!(
                 "<h{level} id=\"{id}\">{}</h{level}>\n",
                 inline(text, base)

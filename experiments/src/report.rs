@@ -603,12 +603,7 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
     let _ = writeln!(out, "Contents:\n");
     for (_, m) in &manifests {
         let heading = format!("{} ({})", m.title, m.scenes.join(", "));
-        let anchor: String = heading
-            .to_lowercase()
-            .chars()
-            .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-')
-            .map(|c| if c == ' ' { '-' } else { c })
-            .collect();
+        let anchor = crate::html::anchor(&heading);
         let _ = writeln!(out, "- [{heading}](#{anchor}) (`{}`)", m.name);
     }
     let _ = writeln!(out);

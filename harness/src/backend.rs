@@ -555,24 +555,29 @@ pub fn primitive_alternatives(
         .collect()
 }
 
+/// `cell`'s value, made by `make` on first use; an error leaves the cell empty (the next call
+/// tries again and reports again).
+fn once<T>(
+    cell: &'static OnceLock<T>,
+    make: impl FnOnce() -> Result<T, GpuError>,
+) -> Result<&'static T, GpuError> {
+    if let Some(v) = cell.get() {
+        return Ok(v);
+    }
+    let v = make()?;
+    Ok(cell.get_or_init(|| v))
+}
+
 /// The draw pipelines of this process's context, compiled once (fallible twin of [`gpu_draw`]).
 pub fn try_gpu_draw(ctx: &'static GpuContext) -> Result<&'static GpuDraw, GpuError> {
     static DRAW: OnceLock<GpuDraw> = OnceLock::new();
-    if let Some(d) = DRAW.get() {
-        return Ok(d);
-    }
-    let d = GpuDraw::new(ctx)?;
-    Ok(DRAW.get_or_init(|| d))
+    once(&DRAW, || GpuDraw::new(ctx))
 }
 
 /// The Primitive pipelines of this process's context, compiled once.
 pub fn gpu_primitive(ctx: &'static GpuContext) -> Result<&'static GpuPrimitive, GpuError> {
     static PRIMITIVE: OnceLock<GpuPrimitive> = OnceLock::new();
-    if let Some(p) = PRIMITIVE.get() {
-        return Ok(p);
-    }
-    let p = GpuPrimitive::new(ctx)?;
-    Ok(PRIMITIVE.get_or_init(|| p))
+    once(&PRIMITIVE, || GpuPrimitive::new(ctx))
 }
 
 /// Every tree's bounding sphere (`baselines::tree_spheres`, computed on the CPU) and mesh: the
