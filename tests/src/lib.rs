@@ -410,3 +410,8 @@ pub fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T 
         .expect("rayon pool")
         .install(f)
 }
+
+/// Asserts that no check failed: else panics with `what` and the failures, one a line.
+pub fn assert_no_failures(what: &str, failures: &[String]) {
+    assert!(failures.is_empty(), "{what}:\n{}", failures.join("\n"));
+}

@@ -383,13 +383,7 @@ fn atlas(layout: Layout, size: u32) -> Atlas {
 fn build_mesh(species: Species, size: u32) -> TreeMesh {
     let shape = species.shape();
     let atlas = atlas(shape.layout, size);
-    let mut mesh = TreeMesh {
-        name: species.name().to_string(),
-        positions: Vec::new(),
-        uvs: Vec::new(),
-        indices: Vec::new(),
-        texture: Rgba8Image::new(size, size, [0, 0, 0, 0]),
-    };
+    let mut mesh = TreeMesh::new(species.name(), Rgba8Image::new(size, size, [0, 0, 0, 0]));
 
     // Trunk: two crossed tapered quads in the diagonal planes (45° and 135°), so that no trunk
     // quad is coplanar with a crown card (cards lie at 0°/90° or 0°/60°/120°): coplanar

@@ -1299,13 +1299,7 @@ pub fn parse_obj_mesh(
             Err(tobj::LoadError::OpenFileFailed)
         })
         .map_err(|e| InputError::new(file, "file", "", format!("invalid OBJ: {e}")))?;
-    let mut mesh = TreeMesh {
-        name: name.to_string(),
-        positions: Vec::new(),
-        uvs: Vec::new(),
-        indices: Vec::new(),
-        texture,
-    };
+    let mut mesh = TreeMesh::new(name, texture);
     // Faces (of 3 or more vertices) seen so far, over all models: indexes `face_lines`.
     let mut face_number = 0usize;
     for model in &models {
@@ -1821,13 +1815,7 @@ pub fn parse_gltf_mesh(
         }
         data.push(bytes);
     }
-    let mut mesh = TreeMesh {
-        name: name.to_string(),
-        positions: Vec::new(),
-        uvs: Vec::new(),
-        indices: Vec::new(),
-        texture,
-    };
+    let mut mesh = TreeMesh::new(name, texture);
     let mesh_at = format!("mesh {}", gmesh.index());
     for primitive in gmesh.primitives() {
         let prim_at = format!("{mesh_at}, primitive {}", primitive.index());
@@ -2217,6 +2205,11 @@ pub fn decode_png_texture(bytes: &[u8], file: &str) -> Result<Rgba8Image, InputE
 mod tests {
     use super::*;
 
+    /// Asserts that the error text `e` mentions every one of `needles`.
+    fn assert_mentions(e: &str, needles: &[&str]) {
+        assert!(needles.iter().all(|n| e.contains(n)), "{e}");
+    }
+
     fn names() -> Vec<String> {
         Species::ALL.iter().map(|s| s.name().to_string()).collect()
     }
@@ -2279,7 +2272,7 @@ mod tests {
         ];
         for (rows, needles) in after_header {
             let e = err(&format!("{h}{rows}"));
-            assert!(needles.iter().all(|n| e.contains(n)), "{e}");
+            assert_mentions(&e, needles);
         }
         // Whole files: no header, or a bad one.
         let whole: [(&str, &[&str]); 4] = [
@@ -2296,7 +2289,7 @@ mod tests {
         ];
         for (text, needles) in whole {
             let e = err(text);
-            assert!(needles.iter().all(|n| e.contains(n)), "{e}");
+            assert_mentions(&e, needles);
         }
     }
 
@@ -2324,12 +2317,12 @@ mod tests {
         assert_eq!(rows.iter().map(|r| r.line).collect::<Vec<_>>(), [3, 6, 7]);
         assert_eq!(rows[1].position[0], 1.0);
         let e = err(&format!("{h}1,2,3,0,1,\"oak"));
-        assert!(e.contains("line 2") && e.contains("never closed"), "{e}");
+        assert_mentions(&e, &["line 2", "never closed"]);
         let e = err(&format!("{h}1,2,3,0,1,\"oak\"x"));
-        assert!(e.contains("line 2") && e.contains("closing quote"), "{e}");
+        assert_mentions(&e, &["line 2", "closing quote"]);
         let long = format!("{h}{}", "1".repeat(MAX_CSV_RECORD_BYTES + 10));
         let e = err(&long);
-        assert!(e.contains("line 2") && e.contains("at most"), "{e}");
+        assert_mentions(&e, &["line 2", "at most"]);
     }
 
     #[test]
@@ -2344,13 +2337,7 @@ mod tests {
         let e = parse_instances_csv_limited(text.as_bytes(), "big.csv", &names(), 2)
             .unwrap_err()
             .to_string();
-        assert!(
-            e.contains("big.csv")
-                && e.contains("line 5")
-                && e.contains("row 3")
-                && e.contains("too many rows"),
-            "{e}"
-        );
+        assert_mentions(&e, &["big.csv", "line 5", "row 3", "too many rows"]);
     }
 
     #[test]
@@ -2360,7 +2347,7 @@ mod tests {
         let e = parse_instances_csv(&bytes[..], "trees.csv", &names())
             .unwrap_err()
             .to_string();
-        assert!(e.contains("trees.csv") && e.contains("line 3"), "{e}");
+        assert_mentions(&e, &["trees.csv", "line 3"]);
     }
 
     #[test]
@@ -2376,7 +2363,7 @@ mod tests {
         )
         .unwrap_err()
         .to_string();
-        assert!(e.contains("line 3") && e.contains("3000000"), "{e}");
+        assert_mentions(&e, &["line 3", "3000000"]);
     }
 
     const QUAD_OBJ: &str = "# a card\nv -1 0 0\nv 1 0 0\nv 1 0 2\nv -1 0 2\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n";
@@ -2406,19 +2393,13 @@ mod tests {
                 .to_string()
         };
         let e = bad("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 7/1\n");
-        assert!(
-            e.contains("tree.obj")
-                && e.contains("line 5")
-                && e.contains("7/1")
-                && e.contains("out of range"),
-            "{e}"
-        );
+        assert_mentions(&e, &["tree.obj", "line 5", "7/1", "out of range"]);
         let e = bad("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 0/1\n");
-        assert!(e.contains("line 5") && e.contains("0/1"), "{e}");
+        assert_mentions(&e, &["line 5", "0/1"]);
         let e = bad("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/0 2/1 3/1\n");
-        assert!(e.contains("line 5") && e.contains("1/0"), "{e}");
+        assert_mentions(&e, &["line 5", "1/0"]);
         let e = bad("v 0 nan 0\n");
-        assert!(e.contains("line 1") && e.contains("nan"), "{e}");
+        assert_mentions(&e, &["line 1", "nan"]);
         let e = bad("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n");
         assert!(e.contains("texture coordinate"), "{e}");
         let e = bad("# nothing\n");
@@ -2432,7 +2413,7 @@ mod tests {
             many.push_str(&format!("f {}/1 {}/1 {}/1\n", b, b + 1, b + 2));
         }
         let e = bad(&many);
-        assert!(e.contains("triangle count") && e.contains("25"), "{e}");
+        assert_mentions(&e, &["triangle count", "25"]);
     }
 
     fn png(color: image::ExtendedColorType, w: u32, h: u32) -> Vec<u8> {
@@ -2460,23 +2441,17 @@ mod tests {
         assert_eq!(t.texels[0], [7, 7, 7, 7]);
         let err = |bytes: &[u8]| decode_png_texture(bytes, "t.png").unwrap_err().to_string();
         let e = err(&png(Rgba8, 8, 4));
-        assert!(
-            e.contains("t.png") && e.contains("8x4") && e.contains("square"),
-            "{e}"
-        );
+        assert_mentions(&e, &["t.png", "8x4", "square"]);
         let e = err(&png(Rgb8, 8, 8));
-        assert!(
-            e.contains("t.png") && e.contains("colour type") && e.contains("RGB, 8-bit"),
-            "{e}"
-        );
+        assert_mentions(&e, &["t.png", "colour type", "RGB, 8-bit"]);
         let e = err(&png(L8, 8, 8));
         assert!(e.contains("colour type"), "{e}");
         let e = err(&png(Rgba16, 8, 8));
         assert!(e.contains("colour type"), "{e}");
         let e = err(&png(Rgba8, 6, 8));
-        assert!(e.contains("width") && e.contains('6'), "{e}");
+        assert_mentions(&e, &["width", "6"]);
         let e = err(&png(Rgba8, 8192, 1));
-        assert!(e.contains("width") && e.contains("8192"), "{e}");
+        assert_mentions(&e, &["width", "8192"]);
         let e = err(b"not a png");
         assert!(e.contains("invalid PNG"), "{e}");
         let full = png(Rgba8, 8, 8);

@@ -124,6 +124,18 @@ pub fn footprint(positions: impl IntoIterator<Item = [f32; 3]>) -> [f32; 4] {
 }
 
 impl TreeMesh {
+    /// A mesh named `name` with `texture` and no geometry yet (the builders and loaders push
+    /// vertices and triangles onto it).
+    pub fn new(name: &str, texture: Rgba8Image) -> Self {
+        TreeMesh {
+            name: name.to_string(),
+            positions: Vec::new(),
+            uvs: Vec::new(),
+            indices: Vec::new(),
+            texture,
+        }
+    }
+
     /// Per-mesh metadata (E§4.1): bounding box, sphere and billboard size. Index and vertex offsets
     /// are filled in when meshes are packed into shared buffers; here they are 0.
     pub fn meta(&self) -> MeshMeta {

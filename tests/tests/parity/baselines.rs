@@ -45,8 +45,8 @@ use forestlod_tests::scenarios::{
     crop_params, cropped_synthetic, named_views, tiny_and_crop_frames, tiny_params,
 };
 use forestlod_tests::{
-    CullInput, Thresholds, cameras, cameras_around, instances, params, params_around, run_cases,
-    scene_of, threshold_ambiguity,
+    CullInput, Thresholds, assert_no_failures, cameras, cameras_around, instances, params,
+    params_around, run_cases, scene_of, threshold_ambiguity,
 };
 use glam::Vec3;
 use proptest::prelude::*;
@@ -321,11 +321,7 @@ fn gpu_cull_matches_per_tree_culling() {
         started.elapsed().as_secs_f64()
     );
     assert!(tally.cases >= 64 + 36, "too few cases ran: {}", tally.cases);
-    assert!(
-        failures.is_empty(),
-        "cull parity failed:\n{}",
-        failures.join("\n")
-    );
+    assert_no_failures("cull parity failed", &failures);
 }
 
 /// One frame of the image comparisons.
@@ -523,11 +519,7 @@ fn gpu_baseline_images_match_the_reference() {
     print_max_diffs("Vegetation", &max_vegetation);
     print_max_diffs("Primitive", &max_primitive);
     assert!(fallback_scenarios >= 2);
-    assert!(
-        failures.is_empty(),
-        "baseline image parity failed:\n{}",
-        failures.join("\n")
-    );
+    assert_no_failures("baseline image parity failed", &failures);
 }
 
 /// The sweeps' runner draws our pipeline like the reference, with the reference's command count,

@@ -32,6 +32,7 @@ use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::builtin;
 use forestlod_shared::{Camera, FadeMode, Params};
+use forestlod_tests::assert_no_failures;
 use forestlod_tests::scenarios::{
     FrameScenario, crop_params, cropped_synthetic, golden_scenarios, tiny_params,
 };
@@ -154,11 +155,7 @@ fn gpu_draw_matches_the_reference() {
         }
     }
     eprintln!("total {:.1} s", start.elapsed().as_secs_f64());
-    assert!(
-        failures.is_empty(),
-        "draw parity failed:\n{}",
-        failures.join("\n")
-    );
+    assert_no_failures("draw parity failed", &failures);
 }
 
 /// One multi-draw call draws every command whatever the command count, and the fallback without

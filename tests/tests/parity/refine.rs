@@ -48,8 +48,8 @@ use forestlod_tests::scenarios::{
     FrameScenario, crop_params, cropped_synthetic, named_views, tiny_and_crop_frames, tiny_params,
 };
 use forestlod_tests::{
-    CullInput, Thresholds, cameras, cameras_around, half_side, instances, params, params_around,
-    run_cases, scene_of, threshold_ambiguity,
+    CullInput, Thresholds, assert_no_failures, cameras, cameras_around, half_side, instances,
+    params, params_around, run_cases, scene_of, threshold_ambiguity,
 };
 use proptest::prelude::*;
 
@@ -564,11 +564,9 @@ fn gpu_refine_matches_the_reference() {
         tally.trees_kept,
         tally.trees_tested
     );
-    assert!(
-        failures.is_empty(),
-        "refine parity failed ({} frames):\n{}",
-        failures.len(),
-        failures.join("\n")
+    assert_no_failures(
+        &format!("refine parity failed ({} frames)", failures.len()),
+        &failures,
     );
 }
 
@@ -708,9 +706,5 @@ fn gpu_refined_images_match_the_reference() {
         print_max_diffs(path, m);
     }
     assert!(kept < tested, "refinement dropped no tree in any scenario");
-    assert!(
-        failures.is_empty(),
-        "refined image parity failed:\n{}",
-        failures.join("\n")
-    );
+    assert_no_failures("refined image parity failed", &failures);
 }

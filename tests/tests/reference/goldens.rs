@@ -10,6 +10,7 @@ use forestlod_reference::output::{
 };
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::texture::Image;
+use forestlod_tests::assert_no_failures;
 use forestlod_tests::scenarios::golden_scenarios;
 
 /// Largest per-channel colour difference tolerated against a golden. The reference is
@@ -115,11 +116,7 @@ fn reference_matches_goldens() {
             ));
         }
     }
-    assert!(
-        failures.is_empty(),
-        "golden mismatches:\n{}",
-        failures.join("\n")
-    );
+    assert_no_failures("golden mismatches", &failures);
 }
 
 /// The goldens show what they should: `medium` holds all three LOD classes, `far` holds no tree.
