@@ -24,17 +24,10 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
         None => Some("reference".to_string()),
     };
     let args = SweepArgs {
-        file: None,
-        shards: Vec::new(),
-        shard: None,
         out: out.clone(),
         quick: true,
-        scene: None,
-        width: None,
-        height: None,
-        yaw_steps: None,
-        repeats: None,
         backend: backend.clone(),
+        ..SweepArgs::default()
     };
     let start = Instant::now();
     run(&args).expect("the quick sweeps run");

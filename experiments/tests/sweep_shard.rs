@@ -11,17 +11,11 @@ use forestlod_experiments::sweep::{BUILTIN_SWEEPS, Manifest, Row, SweepArgs, run
 
 fn args(out: &Path, shard: Option<Shard>) -> SweepArgs {
     SweepArgs {
-        file: None,
-        shards: Vec::new(),
         shard,
         out: out.to_path_buf(),
         quick: true,
-        scene: None,
-        width: None,
-        height: None,
-        yaw_steps: None,
-        repeats: None,
         backend: Some("reference".into()),
+        ..SweepArgs::default()
     }
 }
 

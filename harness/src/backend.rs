@@ -454,13 +454,7 @@ pub fn render_gpu(
     let calls = draw.render(ctx, &inputs, camera, params, &target)?;
     let out = target.read(ctx)?;
     Ok(GpuFrame {
-        images: Images {
-            width: out.width,
-            height: out.height,
-            color: out.color,
-            depth: out.depth,
-            lod_id: out.lod_id,
-        },
+        images: Images::from(out),
         calls,
         from_cpu,
     })
@@ -909,13 +903,7 @@ impl GpuSweepScene {
         };
         let out = target.read(ctx)?;
         Ok(GpuTimedFrame {
-            images: Images {
-                width: out.width,
-                height: out.height,
-                color: out.color,
-                depth: out.depth,
-                lod_id: out.lod_id,
-            },
+            images: Images::from(out),
             select_s,
             draw_s,
             gpu_select_s,

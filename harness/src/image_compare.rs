@@ -215,6 +215,19 @@ pub struct Images {
     pub lod_id: Vec<u32>,
 }
 
+impl From<forestlod_gpu::draw::DrawnImages> for Images {
+    /// The GPU target's buffers as read back (`DrawTarget::read`).
+    fn from(out: forestlod_gpu::draw::DrawnImages) -> Self {
+        Self {
+            width: out.width,
+            height: out.height,
+            color: out.color,
+            depth: out.depth,
+            lod_id: out.lod_id,
+        }
+    }
+}
+
 impl Images {
     /// The colour buffer as an image.
     pub fn color_image(&self) -> Rgba8Image {

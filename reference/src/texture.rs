@@ -32,6 +32,17 @@ impl<T: Copy> Image<T> {
             texels: vec![fill; (width as usize) * (height as usize)],
         }
     }
+    /// A `width` x `height` image whose texel at column `x`, row `y` is `f(x, y)`.
+    pub fn from_fn(width: u32, height: u32, f: impl Fn(u32, u32) -> T) -> Self {
+        Self {
+            width,
+            height,
+            texels: (0..height)
+                .flat_map(|y| (0..width).map(move |x| (x, y)))
+                .map(|(x, y)| f(x, y))
+                .collect(),
+        }
+    }
     /// Texel at column `x`, row `y`.
     pub fn get(&self, x: u32, y: u32) -> T {
         self.texels[(y * self.width + x) as usize]

@@ -447,14 +447,7 @@ mod tests {
     use super::*;
 
     fn image(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 4]) -> Rgba8Image {
-        Rgba8Image {
-            width: w,
-            height: h,
-            texels: (0..h)
-                .flat_map(|y| (0..w).map(move |x| (x, y)))
-                .map(|(x, y)| f(x, y))
-                .collect(),
-        }
+        Rgba8Image::from_fn(w, h, f)
     }
 
     const GREEN: [u8; 4] = [40, 90, 30, 255];

@@ -72,8 +72,8 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 11] = [
     ("tree_cull", include_str!("../../sweeps/tree_cull.toml")),
 ];
 
-/// Options of `forestlod sweep`.
-#[derive(Args, Clone, Debug)]
+/// Options of `forestlod sweep` (`Default`: no file, no override, an empty `out`).
+#[derive(Args, Clone, Debug, Default)]
 pub struct SweepArgs {
     /// A sweep TOML file or a built-in sweep name; all built-in sweeps when omitted. `merge`
     /// followed by shard folders joins `--shard` runs into `--out` (`forestlod sweep merge --out
