@@ -527,14 +527,19 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         if !with_lod.is_empty() {
             let _ = writeln!(
                 out,
-                "Per-LOD FLIP maps of ours (the error where the frame drew LOD0, LOD1, the transition band, ground, sky; mean FLIP and pixel count in the caption):\n"
+                "Per-LOD FLIP maps of ours (the error where the frame drew LOD0, LOD1, the transition band, ground, sky; mean FLIP and pixel count in the caption), against the truth and, after them, the LOD error's:\n"
             );
             for im in with_lod {
                 let cells: Vec<String> = im
                     .per_lod
                     .iter()
-                    .map(|(label, p, mean, px)| {
-                        format!("![{label}]({})<br>{label}: {mean:.4} ({px} px)", rel(p))
+                    .map(|m| (m, "truth"))
+                    .chain(im.per_lod_lod_error.iter().map(|m| (m, "LOD")))
+                    .map(|((label, p, mean, px), against)| {
+                        format!(
+                            "![{label}]({})<br>{label} ({against}): {mean:.4} ({px} px)",
+                            rel(p)
+                        )
                     })
                     .collect();
                 let _ = writeln!(

@@ -51,6 +51,16 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
             for p in [&im.color, &im.lod, &im.flip, &im.lod_flip, &im.ground_truth] {
                 assert!(dir.join(p).is_file(), "{name}: image {p} missing");
             }
+            // Ours splits both error maps by LOD class, with the same classes.
+            assert_eq!(
+                im.per_lod.len(),
+                im.per_lod_lod_error.len(),
+                "{name}: per-LOD maps of {}",
+                im.variant
+            );
+            for (_, p, mean, _) in &im.per_lod_lod_error {
+                assert!(dir.join(p).is_file() && mean.is_finite(), "{name}: {p}");
+            }
         }
         let rows = read_rows(&dir.join(&manifest.csv)).unwrap();
         let mut per_variant: BTreeMap<(&str, &str), usize> = BTreeMap::new();

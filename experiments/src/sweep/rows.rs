@@ -243,6 +243,9 @@ pub struct FrameImages {
     pub lod_flip: String,
     /// Per-LOD FLIP maps: `(label, path, mean FLIP, pixels)`.
     pub per_lod: Vec<(String, String, f64, u64)>,
+    /// Per-LOD maps of the LOD error, likewise (ours only).
+    #[serde(default)]
+    pub per_lod_lod_error: Vec<(String, String, f64, u64)>,
     /// The ground truth.
     pub ground_truth: String,
     /// The ground truth's classes.

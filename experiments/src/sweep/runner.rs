@@ -578,17 +578,23 @@ fn save_frame_images(
     write_png(&dir.join(&color_path), color)?;
     write_png(&dir.join(&lod), &lod_id_image(w, h, aux))?;
     write_png(&dir.join(&flip), &error_image(map, w, h))?;
-    let mut per_lod = Vec::new();
-    if variant.is_ours() {
-        for m in per_lod_error_maps(map, aux, w, h) {
-            if m.pixels == 0 {
-                continue;
+    // Ours: both error maps split by the frame's LOD class (`{stem}_{kind}_{class}.png`).
+    let split = |map: &[f32], kind: &str| -> Result<Vec<_>, InputError> {
+        let mut out = Vec::new();
+        if variant.is_ours() {
+            for m in per_lod_error_maps(map, aux, w, h) {
+                if m.pixels == 0 {
+                    continue;
+                }
+                let p = rel(format!("{stem}_{kind}_{}.png", m.label));
+                write_png(&dir.join(&p), &m.image)?;
+                out.push((m.label.to_string(), p, m.flip_mean, m.pixels));
             }
-            let p = rel(format!("{stem}_flip_{}.png", m.label));
-            write_png(&dir.join(&p), &m.image)?;
-            per_lod.push((m.label.to_string(), p, m.flip_mean, m.pixels));
         }
-    }
+        Ok(out)
+    };
+    let per_lod = split(map, "flip")?;
+    let per_lod_lod_error = split(lod_map, "lod_flip")?;
     Ok(FrameImages {
         frame,
         camera: pose.camera.clone(),
@@ -602,6 +608,7 @@ fn save_frame_images(
         flip,
         lod_flip,
         per_lod,
+        per_lod_lod_error,
         ground_truth: gt_path,
         ground_truth_class: gt_class,
         accuracy: acc,

@@ -190,6 +190,7 @@ pub fn merge(
                 ]
                 .into_iter()
                 .chain(im.per_lod.iter().map(|(_, p, _, _)| p))
+                .chain(im.per_lod_lod_error.iter().map(|(_, p, _, _)| p))
                 .filter(|p| !p.is_empty())
                 {
                     std::fs::copy(shard_dir.join(p), dir.join(p))?;
