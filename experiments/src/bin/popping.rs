@@ -363,46 +363,28 @@ const TILE: usize = 4;
 /// `img` box-filtered by `k` in each direction (sRGB bytes averaged: a measure, not a
 /// rendering); a partial block at the right or bottom edge is dropped.
 fn pool(img: &Rgba8Image, k: u32) -> Rgba8Image {
-    let k = k.max(1) as usize;
-    let (w, h) = (img.width as usize / k, img.height as usize / k);
-    let mut texels = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let mut sum = [0u32; 4];
-            for dy in 0..k {
-                for dx in 0..k {
-                    let t = img.texels[(y * k + dy) * img.width as usize + x * k + dx];
-                    for c in 0..4 {
-                        sum[c] += u32::from(t[c]);
-                    }
-                }
+    let k = k.max(1);
+    let n = k * k;
+    Rgba8Image::from_fn(img.width / k, img.height / k, |x, y| {
+        let mut sum = [0u32; 4];
+        for (dx, dy) in (0..k).flat_map(|dy| (0..k).map(move |dx| (dx, dy))) {
+            let t = img.get(x * k + dx, y * k + dy);
+            for c in 0..4 {
+                sum[c] += u32::from(t[c]);
             }
-            let n = (k * k) as u32;
-            texels.push(sum.map(|v| ((v + n / 2) / n) as u8));
         }
-    }
-    Rgba8Image {
-        width: w as u32,
-        height: h as u32,
-        texels,
-    }
+        sum.map(|v| ((v + n / 2) / n) as u8)
+    })
 }
 
 /// `img` enlarged to `width x height` by nearest neighbour (for the strips).
 fn upscale(img: &Rgba8Image, width: u32, height: u32) -> Rgba8Image {
-    let texels = (0..height)
-        .flat_map(|y| (0..width).map(move |x| (x, y)))
-        .map(|(x, y)| {
-            let sx = (x * img.width / width).min(img.width - 1);
-            let sy = (y * img.height / height).min(img.height - 1);
-            img.texels[(sy * img.width + sx) as usize]
-        })
-        .collect();
-    Rgba8Image {
-        width,
-        height,
-        texels,
-    }
+    Rgba8Image::from_fn(width, height, |x, y| {
+        img.get(
+            (x * img.width / width).min(img.width - 1),
+            (y * img.height / height).min(img.height - 1),
+        )
+    })
 }
 
 /// The largest mean of `map` (row-major, `width x height`) over the `TILE x TILE` tiles that lie
