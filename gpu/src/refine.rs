@@ -428,22 +428,6 @@ mod tests {
         );
     }
 
-    /// The shader's `TreeCull` ids and workgroup size are the Rust ones.
-    #[test]
-    fn wgsl_constants_match_rust() {
-        use forestlod_shared::TreeCull;
-        let src = crate::shaders::REFINE_WGSL;
-        for (name, id) in [
-            ("TREE_CULL_NONE", TreeCull::None as u32),
-            ("TREE_CULL_LOD0", TreeCull::Lod0 as u32),
-            ("TREE_CULL_ALL", TreeCull::All as u32),
-            ("REFINE_WORKGROUP_SIZE", REFINE_WORKGROUP_SIZE),
-        ] {
-            let line = format!("const {name}: u32 = {id}u;");
-            assert!(src.contains(&line), "refine.wgsl lacks `{line}`");
-        }
-    }
-
     /// The uniform is derived as the reference's `SelectUniform::new` (same fields, same order of
     /// operations), with the tree count and the mode.
     #[test]

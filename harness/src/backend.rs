@@ -15,7 +15,7 @@ use forestlod_gpu::{Compaction, GpuContext, GpuSelect, gpu_or_explain};
 use forestlod_reference::select::{Decision, Selection};
 use forestlod_shared::{Camera, LodNeeds, Params};
 
-use crate::stage::{Backend, Draw, FrameInput, Reference, Select, SelectInput};
+use crate::stage::{Backend, Draw, FrameInput, Named, Reference, Select, SelectInput};
 
 /// The shared GPU context of this test binary, or `None` when no adapter exists and
 /// `FORESTLOD_ALLOW_NO_GPU=1` (without it, the first call panics with the install hint).
@@ -53,10 +53,13 @@ pub struct GpuBackend<O> {
 /// `select.wgsl` with one of its compactions: a [`Backend<Select>`].
 pub type GpuSelectBackend = GpuBackend<Compaction>;
 
-impl Backend<Select> for GpuSelectBackend {
+impl Named for GpuSelectBackend {
     fn name(&self) -> String {
         format!("gpu-{}", self.option.name())
     }
+}
+
+impl Backend<Select> for GpuSelectBackend {
     fn ordered(&self) -> bool {
         self.option == Compaction::Stable
     }
@@ -470,10 +473,13 @@ pub fn gpu_draw(ctx: &'static GpuContext) -> &'static GpuDraw {
 /// [`Backend<Draw>`].
 pub type GpuRenderer = GpuBackend<StagesFromCpu>;
 
-impl Backend<Draw> for GpuRenderer {
+impl Named for GpuRenderer {
     fn name(&self) -> String {
         format!("gpu(from-cpu: {})", self.option.name())
     }
+}
+
+impl Backend<Draw> for GpuRenderer {
     fn run(&self, i: FrameInput<'_>) -> Images {
         render_gpu(
             self.ctx,

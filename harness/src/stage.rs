@@ -32,10 +32,15 @@ pub trait Stage {
     type Output;
 }
 
-/// One backend's implementation of stage `S`.
-pub trait Backend<S: Stage> {
-    /// Name for reports, e.g. `reference`, `gpu-stable`, `gpu(from-cpu: select)`.
+/// A backend's name for reports, e.g. `reference`, `gpu-stable`, `gpu(from-cpu: select)`: one
+/// per backend type, whatever stages it runs.
+pub trait Named {
+    /// The name.
     fn name(&self) -> String;
+}
+
+/// One backend's implementation of stage `S`.
+pub trait Backend<S: Stage>: Named {
     /// Whether outputs come in the reference's order (else a test compares them as a multiset).
     fn ordered(&self) -> bool {
         true
@@ -49,6 +54,12 @@ pub trait Backend<S: Stage> {
 /// The CPU oracle: a backend of every stage.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Reference;
+
+impl Named for Reference {
+    fn name(&self) -> String {
+        "reference".into()
+    }
+}
 
 /// `select` (E§3.5, SPEC §6): the batches of a frame, their commands and per-batch decisions.
 pub struct Select;
@@ -74,9 +85,6 @@ impl Stage for Select {
 }
 
 impl Backend<Select> for Reference {
-    fn name(&self) -> String {
-        "reference".into()
-    }
     fn run(&self, i: SelectInput<'_>) -> BackendSelection {
         BackendSelection {
             selection: select(i.batches, i.meshes, i.billboard, i.camera, i.params),
@@ -105,9 +113,6 @@ impl Stage for Draw {
 }
 
 impl Backend<Draw> for Reference {
-    fn name(&self) -> String {
-        "reference".into()
-    }
     fn run(&self, i: FrameInput<'_>) -> Images {
         let frame = i
             .prepared
@@ -138,9 +143,6 @@ impl Stage for Mips {
 }
 
 impl Backend<Mips> for Reference {
-    fn name(&self) -> String {
-        "reference".into()
-    }
     fn run(&self, i: MipsInput<'_>) -> Vec<Vec<LevelOut>> {
         reference_mip_chains(i.layers, i.mode, i.alpha_ref)
     }
@@ -166,9 +168,6 @@ impl Stage for Bake {
 }
 
 impl Backend<Bake> for Reference {
-    fn name(&self) -> String {
-        "reference".into()
-    }
     fn run(&self, i: BakeInput<'_>) -> Vec<Rgba8Image> {
         reference_bake_level0(i.meshes, i.angle_count, i.side)
     }

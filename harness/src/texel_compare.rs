@@ -29,7 +29,7 @@ use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::MipMode;
 use rayon::prelude::*;
 
-use crate::stage::{Backend, Bake, BakeInput, Mips, MipsInput};
+use crate::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Named};
 
 use crate::backend::gpu_context;
 
@@ -165,10 +165,13 @@ pub fn adjust_of(stats: &MipLevelStats) -> AlphaAdjust {
     }
 }
 
-impl Backend<Mips> for GpuMipsBackend {
+impl Named for GpuMipsBackend {
     fn name(&self) -> String {
         "gpu".into()
     }
+}
+
+impl Backend<Mips> for GpuMipsBackend {
     fn run(&self, i: MipsInput<'_>) -> Vec<Vec<LevelOut>> {
         let (layers, mode, alpha_ref) = (i.layers, i.mode, i.alpha_ref);
         let ctx = self.bake.mips().context();
@@ -250,10 +253,13 @@ pub fn bake_mesh(mesh: &TreeMesh) -> BakeMesh<'_> {
     }
 }
 
-impl Backend<Bake> for GpuBakeBackend {
+impl Named for GpuBakeBackend {
     fn name(&self) -> String {
         "gpu".into()
     }
+}
+
+impl Backend<Bake> for GpuBakeBackend {
     fn run(&self, i: BakeInput<'_>) -> Vec<Rgba8Image> {
         let (meshes, angle_count, side) = (i.meshes, i.angle_count, i.side);
         let ctx = self.bake.mips().context();

@@ -14,11 +14,9 @@
 // multiply and an add into one fused multiply-add, which rounds once instead of twice; the parity
 // tests classify decisions within a small ε of a threshold as ambiguous for that reason (SPEC §8).
 
-// Keep in sync with forestlod_shared::COMMAND_SHIFT (shared/src/lib.rs).
-const COMMAND_SHIFT: u32 = 8u;
-// Keep in sync with forestlod_shared::LOD_MESH / LOD_BILLBOARD.
-const LOD_MESH: u32 = 0u;
-const LOD_BILLBOARD: u32 = 1u;
+// COMMAND_SHIFT, LOD_MESH, LOD_BILLBOARD, the DECISION_* codes (low two bits the kind, plus LOD
+// bits for DECISION_DRAW), and the FADE_* and ANGLE_INDEX_* mode ids: generated from Rust
+// (gpu/src/shaders.rs).
 // f32::EPSILON, 2^-23.
 const F32_EPSILON: f32 = 1.1920929e-7;
 
@@ -160,14 +158,6 @@ fn sphere_visible(planes: array<vec4<f32>, 6>, center: vec3<f32>, radius: f32, e
     return visible;
 }
 
-// Per-sphere decision codes (low two bits), plus LOD bits for DECISION_DRAW. Keep in sync with
-// the DECISION_* consts of shared/src/view.rs (forestlod_shared::Decision::code).
-const DECISION_CULLED_DISTANCE: u32 = 0u;
-const DECISION_CULLED_FRUSTUM: u32 = 1u;
-const DECISION_DRAW: u32 = 2u;
-const DECISION_KIND_MASK: u32 = 3u;
-const DECISION_LOD0: u32 = 4u;
-const DECISION_LOD1: u32 = 8u;
 
 // Keep in sync with forestlod_shared::FrustumPlanes (shared/src/camera.rs).
 struct FrustumPlanes {
@@ -260,15 +250,7 @@ fn lod_needs(lo: f32, hi: f32, fade_start: f32, fade_end: f32, lod_levels: u32) 
 const F32_FRAC_PI_2: f32 = 1.5707963705062866;
 const F32_PI: f32 = 3.1415927410125732;
 
-// Keep in sync with forestlod_shared::FadeMode (shared/src/fade.rs).
-const FADE_NONE: u32 = 0u;
-const FADE_ALPHA: u32 = 1u;
-const FADE_DITHER: u32 = 2u;
-const FADE_DITHER_SEQUENTIAL: u32 = 3u;
 
-// Keep in sync with forestlod_shared::AngleIndexMode (shared/src/params.rs).
-const ANGLE_INDEX_NEAREST: u32 = 0u;
-const ANGLE_INDEX_EQ31_CLAMPED: u32 = 1u;
 
 // `x.max(lo).min(hi)` of Rust: NaN maps to `lo`.
 fn clamp_nan_low(x: f32, lo: f32, hi: f32) -> f32 {

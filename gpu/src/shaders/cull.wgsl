@@ -33,8 +33,7 @@ struct DrawIndirectArgs {
     first_instance: u32,
 }
 
-// Keep in sync with CULL_WORKGROUP_SIZE in gpu/src/cull.rs.
-const CULL_WORKGROUP_SIZE: u32 = 64u;
+// CULL_WORKGROUP_SIZE: generated from Rust (gpu/src/shaders.rs).
 // A tree that is not drawn.
 const NO_SLOT: u32 = 0xffffffffu;
 // Vertices of one Primitive quad (two triangles).

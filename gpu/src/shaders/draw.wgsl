@@ -11,11 +11,7 @@
 // Keep in sync with forestlod_shared::MAX_MESH_VERTICES.
 const MAX_MESH_VERTICES: u32 = 1u << COMMAND_SHIFT;
 
-// Keep in sync with reference/src/draw.rs (LOD_ID_*) and gpu/src/draw.rs.
-const LOD_ID_MESH: u32 = 1u;
-const LOD_ID_BILLBOARD: u32 = 2u;
-const LOD_ID_TRANSITION: u32 = 3u;
-const LOD_ID_TERRAIN: u32 = 4u;
+// The LOD_ID_* values (forestlod_shared::color): generated from Rust (gpu/src/shaders.rs).
 
 // A clip position outside the far plane (z > w): a triangle whose three vertices all sit here
 // is clipped away entirely and, being degenerate too, could never cover a sample anyway. Used for

@@ -47,23 +47,10 @@
 // reference's exactly; colour and the remap may differ by a few ulp
 // (WGSL division is within 2.5 ulp, and a compiler may fuse `a * b + c`), hence ±1 per channel.
 
-// Keep in sync with forestlod_shared::MipMode.
-const MIP_ALPHA_AWARE: u32 = 0u;
-const MIP_BOX: u32 = 1u;
-const MIP_COVERAGE: u32 = 2u;
-
-// AlphaAdjust kinds; keep in sync with the ADJUST_* consts of gpu/src/mips.rs (and the variants
-// of reference/src/mips.rs `AlphaAdjust`).
-const ADJUST_KEEP: u32 = 0u;
-const ADJUST_REMAP: u32 = 1u;
-const ADJUST_CONSTANT: u32 = 2u;
-const ADJUST_SCALE: u32 = 3u;
-
-// Keep in sync with COVERAGE_BISECTION_STEPS of gpu/src/mips.rs and reference/src/mips.rs.
-const COVERAGE_BISECTION_STEPS: u32 = 31u;
-// Counting rounds of a CoveragePreserving level: scale 1, f32::MAX, then the bisection steps.
-// Keep in sync with COVERAGE_ROUNDS in gpu/src/mips.rs.
-const COVERAGE_ROUNDS: u32 = COVERAGE_BISECTION_STEPS + 2u;
+// MIP_* mode ids, ADJUST_* (AlphaAdjust kinds), COVERAGE_BISECTION_STEPS, COVERAGE_ROUNDS
+// (counting rounds of a CoveragePreserving level: scale 1, f32::MAX, then the bisection steps),
+// MIPS_TILE, MIPS_LAYER_WORKGROUP_SIZE and TABLE_* (offsets of the four tables in `tables`):
+// generated from Rust (gpu/src/shaders.rs).
 
 // CoverageState::phase: which count the state waits for.
 const COVERAGE_AT_ONE: u32 = 0u;
@@ -74,16 +61,6 @@ const COVERAGE_DONE: u32 = 3u;
 const F32_MAX_BITS: u32 = 0x7F7FFFFFu;
 // +inf bits: the identity of atomicMin over non-negative f32 bit patterns.
 const F32_INF_BITS: u32 = 0x7F800000u;
-
-// Keep in sync with MIPS_TILE / MIPS_LAYER_WORKGROUP_SIZE in gpu/src/mips.rs.
-const MIPS_TILE: u32 = 8u;
-const MIPS_LAYER_WORKGROUP_SIZE: u32 = 64u;
-
-// Offsets of the four tables in `tables`; keep in sync with the TABLE_* consts of gpu/src/mips.rs.
-const TABLE_SRGB_DECODE: u32 = 0u;
-const TABLE_UNORM_DECODE: u32 = 256u;
-const TABLE_SRGB_ENCODE: u32 = 512u;
-const TABLE_UNORM_ENCODE: u32 = 768u;
 
 // Keep in sync with forestlod_gpu::mips::MipsUniform (gpu/src/mips.rs). One per level, bound with
 // a dynamic offset.

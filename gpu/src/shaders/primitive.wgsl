@@ -52,8 +52,7 @@ struct DrawInstance {
     mesh: u32,
 }
 
-// Keep in sync with reference/src/draw.rs LOD_ID_MESH (and draw.wgsl).
-const LOD_ID_MESH: u32 = 1u;
+// LOD_ID_MESH: generated from Rust (gpu/src/shaders.rs).
 
 @group(0) @binding(0) var<uniform> u: PrimitiveUniform;
 @group(0) @binding(1) var<storage, read> instances: array<DrawInstance>;

@@ -62,12 +62,7 @@ struct RefineDispatch {
     max_chunks: atomic<u32>,
 }
 
-// Keep in sync with REFINE_WORKGROUP_SIZE in gpu/src/refine.rs; also the trees per chunk.
-const REFINE_WORKGROUP_SIZE: u32 = 64u;
-// Keep in sync with forestlod_shared::TreeCull (shared/src/params.rs).
-const TREE_CULL_NONE: u32 = 0u;
-const TREE_CULL_LOD0: u32 = 1u;
-const TREE_CULL_ALL: u32 = 2u;
+// REFINE_WORKGROUP_SIZE (also the trees per chunk) and the TREE_CULL_* ids: generated from Rust (gpu/src/shaders.rs).
 
 @group(0) @binding(0) var<uniform> u: RefineUniform;
 @group(0) @binding(1) var<storage, read> trees: array<CullTree>;

@@ -41,9 +41,7 @@ struct SelectCountersAtomic {
 
 // Decision codes (DECISION_*) and `decide_sphere` live in common.wgsl (shared with cull.wgsl).
 
-// Keep in sync with SELECT_WORKGROUP_SIZE / SCAN_WORKGROUP_SIZE in gpu/src/select.rs.
-const SELECT_WORKGROUP_SIZE: u32 = 64u;
-const SCAN_WORKGROUP_SIZE: u32 = 256u;
+// SELECT_WORKGROUP_SIZE, SCAN_WORKGROUP_SIZE: generated from Rust (gpu/src/shaders.rs).
 
 @group(0) @binding(0) var<uniform> u: SelectUniform;
 @group(0) @binding(1) var<storage, read> batches: array<BatchMeta>;

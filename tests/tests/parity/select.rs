@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use forestlod_gpu::{Compaction, GpuSelect, SelectBuffers};
 use forestlod_harness::backend::{BackendSelection, GpuSelectBackend, gpu_backends, gpu_context};
-use forestlod_harness::stage::{Backend, Reference, Select, SelectInput};
+use forestlod_harness::stage::{Backend, Named, Reference, Select, SelectInput};
 use forestlod_reference::batches::build_batches;
 use forestlod_reference::geometry::pack_geometry;
 use forestlod_reference::scene::Instance;

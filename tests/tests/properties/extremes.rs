@@ -59,9 +59,6 @@ impl Stage for Frame {
 
 /// The CPU oracle. Besides the buffers it checks every vertex the draw stage emits for NaN.
 impl Backend<Frame> for Reference {
-    fn name(&self) -> String {
-        "reference".into()
-    }
     fn run(
         &self,
         (scene, params, camera): (&Scene, &Params, &Camera),
