@@ -35,9 +35,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use forestlod_gpu::{GpuContext, GpuDraw};
-use forestlod_harness::backend::{StagesFromCpu, alpha_test_alternatives, render_gpu};
+use forestlod_harness::backend::{StagesFromCpu, alpha_test_alternatives_at, render_gpu};
 use forestlod_harness::image_compare::{
-    ClassCounts, ImageReport, Images, class_image, compare_images,
+    ClassCounts, ImageReport, Images, alternative_pixels, class_image, compare_images,
 };
 use forestlod_shared::{Camera, Params};
 
@@ -239,6 +239,25 @@ pub struct GpuRender {
     pub from_cpu: StagesFromCpu,
     /// Wall seconds of the GPU frame (uploads, select, draw, readback).
     pub seconds: f64,
+    /// Wall seconds of each GPU-side phase.
+    pub phases: GpuPhases,
+}
+
+/// Wall seconds of the main job's GPU-side phases (issue 14: every second accounted for).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GpuPhases {
+    /// Adapter, device and pipelines (`GpuContext::new`, `GpuDraw::new`).
+    pub init: f64,
+    /// The GPU frame: uploads, select, draw, readback (`render_gpu`).
+    pub frame: f64,
+    /// The reference's alternative frames (cutoff moved), drawn only where the frames disagree.
+    pub alternatives: f64,
+    /// The classified comparison, FLIP included.
+    pub comparison: f64,
+    /// How many pixels the alternatives were drawn at.
+    pub alternative_pixels: usize,
+    /// How many alternative frames were drawn (0 when no pixel needed one).
+    pub alternative_frames: usize,
 }
 
 /// Renders the frame on the GPU, when an adapter exists, and compares it with the reference's.
@@ -250,6 +269,8 @@ pub fn gpu_frame(
     from_cpu: StagesFromCpu,
     name: &str,
 ) -> GpuOutcome {
+    let mut phases = GpuPhases::default();
+    let t = Instant::now();
     let ctx = match GpuContext::new() {
         Ok(ctx) => {
             // Adapters that cannot run the pipeline (wgpu's GL backend, say), one line each.
@@ -269,16 +290,19 @@ pub fn gpu_frame(
         adapter: adapter.clone(),
         error: one_line(&e),
     };
-    let t = Instant::now();
+    let t_draw = Instant::now();
     let draw = match GpuDraw::new(&ctx) {
         Ok(d) => d,
         Err(e) => return failed(e.to_string()),
     };
+    phases.init = t.elapsed().as_secs_f64();
+    let t = Instant::now();
     let gpu = match render_gpu(&ctx, &draw, prepared, camera, params, from_cpu) {
         Ok(g) => g,
         Err(e) => return failed(e.to_string()),
     };
-    let seconds = t.elapsed().as_secs_f64();
+    phases.frame = t.elapsed().as_secs_f64();
+    let seconds = t_draw.elapsed().as_secs_f64();
     let target = &frame.drawn.target;
     let reference = Images {
         width: target.width(),
@@ -287,8 +311,15 @@ pub fn gpu_frame(
         depth: target.depth().to_vec(),
         lod_id: target.aux().to_vec(),
     };
-    let alternatives = alpha_test_alternatives(prepared, camera, params);
+    let t = Instant::now();
+    let pixels = alternative_pixels(&gpu.images, &reference);
+    let alternatives = alpha_test_alternatives_at(prepared, camera, params, &pixels);
+    phases.alternatives = t.elapsed().as_secs_f64();
+    phases.alternative_pixels = pixels.iter().filter(|&&p| p).count();
+    phases.alternative_frames = alternatives.len();
+    let t = Instant::now();
     let report = compare_images(name, &gpu.images, &reference, &alternatives, camera);
+    phases.comparison = t.elapsed().as_secs_f64();
     GpuOutcome::Rendered(Box::new(GpuRender {
         adapter,
         images: gpu.images,
@@ -296,6 +327,7 @@ pub fn gpu_frame(
         calls: gpu.calls,
         from_cpu,
         seconds,
+        phases,
     }))
 }
 
@@ -492,14 +524,15 @@ pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
         )
     })?;
     args.camera.free()?;
+    let wall = Instant::now();
     let (scene, scene_seconds) = stage("loading scene", || args.scene.load());
     let scene = scene?;
     let camera = args.camera.camera(&scene, args.width, args.height)?;
-    let (prepared, _) = stage("batches, mips and billboard bake", || {
+    let (prepared, prepare_seconds) = stage("batches, mips and billboard bake", || {
         prepare(scene, &params)
     });
     let prepared = prepared?;
-    let (frame, _) = stage("selection and reference draw", || {
+    let (frame, frame_seconds) = stage("selection and reference draw", || {
         prepared.render(&camera, &params)
     });
     let frame = frame?;
@@ -526,13 +559,27 @@ pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
     let mut metrics = metrics(&prepared, &frame, args, &params, scene_seconds);
     metrics["parity"] = parity_json(&gpu);
     metrics["verdict"] = json!({ "line": verdict, "exit_code": code });
+    let mut phases = vec![
+        ("scene", scene_seconds),
+        ("prepare", prepare_seconds),
+        ("reference_frame", frame_seconds),
+    ];
+    if let GpuOutcome::Rendered(g) = &gpu {
+        phases.extend([
+            ("gpu_init", g.phases.init),
+            ("gpu_frame", g.phases.frame),
+            ("alternatives", g.phases.alternatives),
+            ("comparison", g.phases.comparison),
+        ]);
+    }
     let target = &frame.drawn.target;
     let (w, h) = (target.width(), target.height());
-    let details = format!("{}{}", summary_text(&metrics), parity_text(&gpu));
     let mut written: Vec<&str> = Vec::new();
+    let mut details = String::new();
     write_outputs(
         &args.out,
         |dir, written| {
+            let encoding = Instant::now();
             let mut png = |name: &'static str, image: &Rgba8Image| {
                 written.push(name);
                 write_png(&dir.join(name), image)
@@ -561,6 +608,27 @@ pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
             }
             written.push("depth.exr");
             write_depth_exr(&dir.join("depth.exr"), w, h, target.depth())?;
+            // The summary and metrics are written last, so that they can account for the image
+            // encoding and for the whole run's wall time up to here.
+            phases.push(("image_encoding", encoding.elapsed().as_secs_f64()));
+            let accounted: f64 = phases.iter().map(|p| p.1).sum();
+            let wall_seconds = wall.elapsed().as_secs_f64();
+            metrics["times_seconds"]["phases"] = phases
+                .iter()
+                .map(|&(name, t)| (name.to_string(), json!(t)))
+                .collect::<serde_json::Map<_, _>>()
+                .into();
+            metrics["times_seconds"]["wall"] = json!(wall_seconds);
+            if let GpuOutcome::Rendered(g) = &gpu {
+                metrics["parity"]["alternative_pixels"] = json!(g.phases.alternative_pixels);
+                metrics["parity"]["alternative_frames"] = json!(g.phases.alternative_frames);
+            }
+            details = format!(
+                "{}{}{}",
+                summary_text(&metrics),
+                parity_text(&gpu),
+                phases_text(&phases, accounted, wall_seconds, &gpu)
+            );
             for (name, text) in [
                 (
                     "metrics.json",
@@ -619,6 +687,26 @@ fn write_outputs<'a>(
     });
     let _ = std::fs::remove_dir_all(&staging);
     moved
+}
+
+/// The phase line of the summary: every phase's wall seconds, their sum and the run's wall time
+/// so far (the rest is argument parsing and the output folder's set-up).
+fn phases_text(phases: &[(&str, f64)], accounted: f64, wall: f64, gpu: &GpuOutcome) -> String {
+    let list: Vec<String> = phases
+        .iter()
+        .map(|(name, t)| format!("{} {t:.2} s", name.replace('_', " ")))
+        .collect();
+    let alternatives = match gpu {
+        GpuOutcome::Rendered(g) => format!(
+            "; alternatives: {} reference frame(s) drawn at {} pixel(s) only",
+            g.phases.alternative_frames, g.phases.alternative_pixels
+        ),
+        _ => String::new(),
+    };
+    format!(
+        "phases: {}; sum {accounted:.2} s of {wall:.2} s wall{alternatives}\n",
+        list.join(", ")
+    )
 }
 
 /// A few human-readable lines from the metrics.

@@ -209,9 +209,31 @@ pub fn alpha_test_alternatives(
     })
 }
 
+/// [`alpha_test_alternatives`] drawn only at `pixels` (`image_compare::alternative_pixels` of
+/// the two frames to compare; the rest of each alternative is sky and never read), the six
+/// cutoffs sharing one selection and one setup (`Prepared::render_cutoffs`): the same comparison
+/// for a fraction of one frame's cost. None at all when no pixel needs one.
+pub fn alpha_test_alternatives_at(
+    prepared: &Prepared,
+    camera: &Camera,
+    params: &Params,
+    pixels: &[bool],
+) -> Vec<Images> {
+    if !pixels.contains(&true) {
+        return Vec::new();
+    }
+    let cutoffs: Vec<f32> = cutoff_shifted(params, |p| p.alpha_cutoff);
+    prepared
+        .render_cutoffs(camera, params, &cutoffs, Some(pixels.to_vec()))
+        .expect("reference render")
+        .iter()
+        .map(|drawn| images_of(&drawn.target))
+        .collect()
+}
+
 /// `render` with the alpha-test cutoff moved by each of `±image_compare::ALPHA_TEST_SHIFTS`
 /// (clamped to `0..=1`).
-fn cutoff_shifted(params: &Params, render: impl Fn(&Params) -> Images) -> Vec<Images> {
+fn cutoff_shifted<T>(params: &Params, render: impl Fn(&Params) -> T) -> Vec<T> {
     crate::image_compare::ALPHA_TEST_SHIFTS
         .iter()
         .flat_map(|&d| [-d, d])

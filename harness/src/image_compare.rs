@@ -456,6 +456,49 @@ pub fn flip_mean(reference: &[[u8; 4]], test: &[[u8; 4]], width: u32, height: u3
     nv_flip::FlipPool::from_image(&error).mean()
 }
 
+/// The pixels at which [`compare_images`] reads its alternative frames for this pair of frames:
+/// a colour pixel whose ±1 px window misses the tolerance reads the alternatives over its 3x3
+/// neighbourhood; a depth pixel beyond [`DEPTH_MAX_ULPS`] and a LOD-id pixel that differs read
+/// them at the pixel. Alternatives drawn only here
+/// (`forestlod_reference::raster::RenderTarget::with_pixel_mask`,
+/// `backend::alpha_test_alternatives_at`) give the same report as whole ones
+/// (`masked_alternatives_give_the_same_report`), at the cost of the disagreeing pixels only.
+///
+/// # Panics
+/// If the frames differ in size or a buffer has the wrong length.
+pub fn alternative_pixels(gpu: &Images, reference: &Images) -> Vec<bool> {
+    let (w, h) = (reference.width, reference.height);
+    let n = w as usize * h as usize;
+    assert_eq!((gpu.width, gpu.height), (w, h), "image sizes differ");
+    assert!(
+        [&gpu.color, &reference.color].iter().all(|c| c.len() == n)
+            && [&gpu.depth, &reference.depth].iter().all(|d| d.len() == n)
+            && [&gpu.lod_id, &reference.lod_id]
+                .iter()
+                .all(|l| l.len() == n),
+        "buffer lengths"
+    );
+    let mut pixels = vec![false; n];
+    for i in 0..n {
+        let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
+        let g = gpu.color[i];
+        let color_reads = channel_diff(g, reference.color[i]) > COLOR_TOLERANCE
+            && neighbourhood(x, y, w, h)
+                .all(|q| channel_diff(g, reference.color[q]) > COLOR_TOLERANCE);
+        if color_reads {
+            for q in neighbourhood(x, y, w, h) {
+                pixels[q] = true;
+            }
+        }
+        if ulps(gpu.depth[i], reference.depth[i]) > DEPTH_MAX_ULPS
+            || gpu.lod_id[i] != reference.lod_id[i]
+        {
+            pixels[i] = true;
+        }
+    }
+    pixels
+}
+
 /// Compares a GPU frame with the reference's (module docs). `alternatives` are reference frames
 /// rendered with the decision thresholds moved within the GPU's precision (possibly none);
 /// `camera` gives the near and far planes for depth linearization.

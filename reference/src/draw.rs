@@ -41,6 +41,7 @@ use crate::bake::BakedBillboards;
 use crate::geometry::PackedGeometry;
 use crate::raster::{
     ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, RenderTarget, Triangle, Vertex,
+    draw_each,
 };
 use crate::sampler::{Sampler, Texture};
 use crate::scene::{Scene, tree_sphere};
@@ -334,32 +335,78 @@ pub fn draw_frame(
     camera: &Camera,
     params: &Params,
 ) -> DrawnFrame {
-    let (mut target, terrain_stats) = sky_and_ground(res.scene, camera);
+    let mut frames =
+        draw_frame_cutoffs(res, selection, camera, params, &[params.alpha_cutoff], None);
+    frames.pop().expect("one cutoff, one frame")
+}
+
+/// [`draw_frame`] once per alpha-test cutoff of `cutoffs` (every other parameter `params`'),
+/// restricted to the pixels of `mask` when given ([`RenderTarget::with_pixel_mask`]). The vertex
+/// stage, clipping, setup and binning are done once for all ([`draw_each`]: the cutoff enters only
+/// the fragment shader); each frame's buffers and counters are those of its own [`draw_frame`]
+/// (at the masked pixels when masked; the others keep the sky's clear values). What it is for: the
+/// parity's alternative frames, the cutoff moved within the GPU's precision (issue 14).
+pub fn draw_frame_cutoffs(
+    res: &DrawResources,
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+    cutoffs: &[f32],
+    mask: Option<Vec<bool>>,
+) -> Vec<DrawnFrame> {
+    let mut grounds: Vec<(RenderTarget, DrawStats)> = cutoffs
+        .iter()
+        .map(|_| sky_and_ground_masked(res.scene, camera, mask.clone()))
+        .collect();
     let (triangles, trees_discarded) = tree_triangles(res, selection, camera, params);
-    let shader = TreeShader {
-        res,
-        selection,
-        fade: params.fade().unwrap_or(FadeMode::Alpha),
-        alpha_cutoff: params.alpha_cutoff,
-    };
+    let shaders: Vec<TreeShader> = cutoffs
+        .iter()
+        .map(|&alpha_cutoff| TreeShader {
+            res,
+            selection,
+            fade: params.fade().unwrap_or(FadeMode::Alpha),
+            alpha_cutoff,
+        })
+        .collect();
+    let closures: Vec<_> = shaders
+        .iter()
+        .map(|shader| move |f: &Fragment<TREE_VARYINGS>| shader.shade(f))
+        .collect();
     let state = DrawState {
         depth_write: true,
         ..DrawState::TRANSPARENT
     };
-    let closure = |f: &Fragment<TREE_VARYINGS>| shader.shade(f);
-    let tree_stats = target.draw(&triangles, &closure, &state);
-    DrawnFrame {
-        target,
-        terrain_stats,
-        tree_stats,
-        trees_discarded,
-    }
+    let mut passes: Vec<_> = grounds
+        .iter_mut()
+        .zip(&closures)
+        .map(|((target, _), closure)| (target, closure))
+        .collect();
+    let stats = draw_each(&mut passes, &triangles, &state);
+    grounds
+        .into_iter()
+        .zip(stats)
+        .map(|((target, terrain_stats), tree_stats)| DrawnFrame {
+            target,
+            terrain_stats,
+            tree_stats,
+            trees_discarded,
+        })
+        .collect()
 }
 
 /// A `camera`-sized target cleared to the sky (colour [`SKY_SRGB`], depth 1, id
 /// [`LOD_ID_BACKGROUND`]) with `scene`'s ground drawn (id [`LOD_ID_TERRAIN`]), and the ground's
 /// work counters: how every rasterized frame starts.
 pub fn sky_and_ground(scene: &Scene, camera: &Camera) -> (RenderTarget, DrawStats) {
+    sky_and_ground_masked(scene, camera, None)
+}
+
+/// [`sky_and_ground`] into a target restricted to `mask` ([`RenderTarget::with_pixel_mask`]).
+fn sky_and_ground_masked(
+    scene: &Scene,
+    camera: &Camera,
+    mask: Option<Vec<bool>>,
+) -> (RenderTarget, DrawStats) {
     let sky = SKY_SRGB.map(srgb_to_linear);
     let mut target = RenderTarget::new(
         camera.width,
@@ -370,6 +417,9 @@ pub fn sky_and_ground(scene: &Scene, camera: &Camera) -> (RenderTarget, DrawStat
             aux: LOD_ID_BACKGROUND,
         },
     );
+    if let Some(mask) = mask {
+        target = target.with_pixel_mask(mask);
+    }
     let ground = terrain_triangles(scene, &camera.view_projection());
     let ground_shader = |f: &Fragment<3>| {
         Some(FragmentOutput {

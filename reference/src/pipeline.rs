@@ -13,7 +13,7 @@ use serde::Serialize;
 use crate::InputError;
 use crate::bake::{BakedBillboards, bake, mesh_textures};
 use crate::batches::{Batches, MemoryReport, build_batches, memory_report};
-use crate::draw::{DrawResources, DrawnFrame, draw_frame};
+use crate::draw::{DrawResources, DrawnFrame, draw_frame, draw_frame_cutoffs};
 use crate::geometry::{PackedGeometry, pack_geometry};
 use crate::refine::{Refined, refine};
 use crate::sampler::Texture;
@@ -212,5 +212,30 @@ impl Prepared {
                 draw: draw_seconds,
             },
         })
+    }
+
+    /// The frame's draw once per alpha-test cutoff of `cutoffs`, restricted to `mask` when given:
+    /// selection and refine run once (they do not read the cutoff), the draws share their setup
+    /// ([`draw_frame_cutoffs`]). Each frame equals [`Prepared::render`]'s with that cutoff (at the
+    /// masked pixels when masked). The camera and parameters are validated first.
+    pub fn render_cutoffs(
+        &self,
+        camera: &Camera,
+        params: &Params,
+        cutoffs: &[f32],
+        mask: Option<Vec<bool>>,
+    ) -> Result<Vec<DrawnFrame>, InputError> {
+        camera.validate()?;
+        params.validate()?;
+        let mut selection = self.select(camera, params);
+        let refined = self.refine(&mut selection, camera, params);
+        let indirection = refined.as_ref().map(|r| r.indirection.as_slice());
+        let res = DrawResources {
+            indirection: indirection.unwrap_or(&self.batches.indirection),
+            ..self.resources()
+        };
+        Ok(draw_frame_cutoffs(
+            &res, &selection, camera, params, cutoffs, mask,
+        ))
     }
 }

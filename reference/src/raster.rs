@@ -337,6 +337,9 @@ pub struct RenderTarget {
     color: Vec<[u8; 4]>,
     depth: Vec<f32>,
     aux: Vec<u32>,
+    /// [`RenderTarget::with_pixel_mask`]: the only pixels draws may touch (row-major); `None`,
+    /// every pixel.
+    mask: Option<Vec<bool>>,
 }
 
 impl RenderTarget {
@@ -356,9 +359,32 @@ impl RenderTarget {
             color: vec![[0; 4]; n],
             depth: vec![0.0; n],
             aux: vec![0; n],
+            mask: None,
         };
         target.clear(clear);
         target
+    }
+
+    /// Restricts every later draw to the pixels where `mask` (row-major, one entry per pixel) is
+    /// true: a sample outside it counts as uncovered, so it is never tested, shaded or written,
+    /// and a quad or tile with no pixel inside is skipped. A pixel inside receives exactly the
+    /// fragments, in the same order, with the same quad derivatives (helpers are still
+    /// interpolated) as without a mask, so its colour, depth and id are **bit-identical** to an
+    /// unmasked draw's; pixels outside keep their clear values. What this is for: the parity
+    /// comparison reads its alternative frames (cutoff moved) only at the few pixels where the GPU
+    /// and the reference disagree, so those frames need only those pixels (issue 14: 6 of the main
+    /// job's 7 reference frames). The work counters ([`DrawStats`]) count only the masked pixels.
+    ///
+    /// # Panics
+    /// If `mask` does not have one entry per pixel.
+    pub fn with_pixel_mask(mut self, mask: Vec<bool>) -> Self {
+        assert_eq!(
+            mask.len(),
+            self.width as usize * self.height as usize,
+            "pixel mask length"
+        );
+        self.mask = Some(mask);
+        self
     }
 
     /// Resets every pixel of every buffer.
@@ -416,64 +442,8 @@ impl RenderTarget {
     where
         S: FragmentShader<N> + ?Sized,
     {
-        assert!(
-            u32::try_from(triangles.len()).is_ok(),
-            "a draw holds at most u32::MAX triangles"
-        );
-        let viewport = Viewport::new(self.width, self.height);
-        let mut stats = DrawStats {
-            triangles_in: triangles.len() as u64,
-            ..DrawStats::default()
-        };
-
-        // Clip, project, snap and set up, in parallel but collected in submission order.
-        let per_primitive: Vec<(u64, Vec<SetupTriangle<N>>)> = triangles
-            .par_iter()
-            .enumerate()
-            .map(|(id, tri)| setup_primitive(id as u32, tri, &viewport, state))
-            .collect();
-        let mut setup = Vec::with_capacity(triangles.len());
-        for (clipped, pieces) in per_primitive {
-            stats.triangles_clipped += clipped;
-            setup.extend(pieces);
-        }
-        stats.triangles_rasterized = setup.len() as u64;
-
-        // Bin by bounding box; each bin lists setup indices in increasing, i.e. submission, order.
-        let tiles = self.tiles();
-        let tiles_x = self.width.div_ceil(TILE_SIZE) as usize;
-        let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles.len()];
-        for (i, tri) in setup.iter().enumerate() {
-            let Some(b) = tri.bbox else { continue };
-            for ty in (b.y0 / TILE_SIZE)..=((b.y1 - 1) / TILE_SIZE) {
-                for tx in (b.x0 / TILE_SIZE)..=((b.x1 - 1) / TILE_SIZE) {
-                    bins[ty as usize * tiles_x + tx as usize].push(i as u32);
-                }
-            }
-        }
-
-        // Render tiles in parallel, each into a private copy of its pixels.
-        let rendered: Vec<Option<(TileBuffers, FragmentCounts)>> = tiles
-            .par_iter()
-            .zip(bins.par_iter())
-            .map(|(rect, bin)| {
-                if bin.is_empty() {
-                    return None;
-                }
-                let mut buffers = self.load_tile(*rect);
-                let counts = render_tile(&mut buffers, bin, &setup, shader, state);
-                Some((buffers, counts))
-            })
-            .collect();
-
-        // Write back in tile order (tiles are disjoint, so the order only fixes the sum's order).
-        for (buffers, counts) in rendered.into_iter().flatten() {
-            stats.fragments_covered += counts.covered;
-            stats.fragments_shaded += counts.shaded;
-            stats.fragments_written += counts.written;
-            self.store_tile(&buffers);
-        }
-        stats
+        let mut pass = [(self, shader)];
+        draw_each(&mut pass, triangles, state)[0]
     }
 
     /// Screen tiles, row by row.
@@ -499,11 +469,15 @@ impl RenderTarget {
             color: Vec::with_capacity(n),
             depth: Vec::with_capacity(n),
             aux: Vec::with_capacity(n),
+            mask: self.mask.as_ref().map(|_| Vec::with_capacity(n)),
         };
         for y in rect.y0..rect.y1 {
             let row = self.index(rect.x0, y)..self.index(rect.x1, y);
             b.color.extend_from_slice(&self.color[row.clone()]);
             b.depth.extend_from_slice(&self.depth[row.clone()]);
+            if let (Some(local), Some(mask)) = (&mut b.mask, &self.mask) {
+                local.extend_from_slice(&mask[row.clone()]);
+            }
             b.aux.extend_from_slice(&self.aux[row]);
         }
         b
@@ -819,6 +793,25 @@ impl<const N: usize> SetupTriangle<N> {
         std::array::from_fn(|i| edge_function(p[(i + 1) % 3], p[(i + 2) % 3], s))
     }
 
+    /// The edge functions at the four pixel centres of the 2x2 quad at `(qx, qy)`, in [`QUAD`]
+    /// order: those of the top-left pixel plus the exact integer steps of one pixel right and one
+    /// down (an edge function is linear in the sample position), so each value equals
+    /// [`SetupTriangle::edges`] at that pixel bit for bit, for a quarter of the multiplications.
+    fn quad_edges(&self, qx: u32, qy: u32) -> [[i64; 3]; 4] {
+        let e = self.edges(qx, qy);
+        let p = self.v.map(|v| v.pos);
+        // Edge i runs from a = p[i+1] to b = p[i+2]: E = (b.x - a.x)(s.y - a.y) - (b.y - a.y)(s.x - a.x).
+        let step_x: [i64; 3] =
+            std::array::from_fn(|i| -(p[(i + 2) % 3][1] - p[(i + 1) % 3][1]) * SUBPIXEL_ONE);
+        let step_y: [i64; 3] =
+            std::array::from_fn(|i| (p[(i + 2) % 3][0] - p[(i + 1) % 3][0]) * SUBPIXEL_ONE);
+        QUAD.map(|(dx, dy)| {
+            std::array::from_fn(|i| {
+                e[i] + if dx == 1 { step_x[i] } else { 0 } + if dy == 1 { step_y[i] } else { 0 }
+            })
+        })
+    }
+
     /// The top-left coverage test (module docs, step 5).
     fn covers(&self, e: &[i64; 3]) -> bool {
         (0..3).all(|i| e[i] + self.bias[i] >= 0)
@@ -849,12 +842,123 @@ impl<const N: usize> SetupTriangle<N> {
     }
 }
 
+/// Triangles set up per chunk of [`draw_each`]: bounds the setup's memory (a setup triangle is
+/// about 250 bytes; a million-triangle frame set up at once held over 500 MB, issue 14) without
+/// changing any pixel: chunks go in submission order and each tile renders a chunk's triangles in
+/// order before the next chunk's, so every pixel still merges its fragments in submission order.
+pub const SETUP_CHUNK: usize = 1 << 16;
+
+/// Draws one triangle list into several targets of one size, each with its own shader, sharing
+/// the clipping, setup and binning (they depend only on the triangles, the size and `state`):
+/// each target's buffers and counters are exactly those of its own [`RenderTarget::draw`], which
+/// is this with one target. What it is for: the reference frames that differ only in a shader
+/// constant (the parity's alternative frames, cutoff moved) cost one setup, not one each.
+///
+/// Order of work: per chunk of [`SETUP_CHUNK`] triangles, setup in parallel (collected in order),
+/// bin by bounding box, then per target render every tile (tiles in parallel, each into a private
+/// copy of its pixels, written back in tile order).
+///
+/// # Panics
+/// If there are more than `u32::MAX` triangles (primitive ids are `u32`, as in Vulkan), or the
+/// targets differ in size.
+pub fn draw_each<const N: usize, S>(
+    passes: &mut [(&mut RenderTarget, &S)],
+    triangles: &[Triangle<N>],
+    state: &DrawState,
+) -> Vec<DrawStats>
+where
+    S: FragmentShader<N> + ?Sized,
+{
+    assert!(
+        u32::try_from(triangles.len()).is_ok(),
+        "a draw holds at most u32::MAX triangles"
+    );
+    let mut stats = vec![
+        DrawStats {
+            triangles_in: triangles.len() as u64,
+            ..DrawStats::default()
+        };
+        passes.len()
+    ];
+    let Some((first, _)) = passes.first() else {
+        return stats;
+    };
+    let (width, height) = (first.width, first.height);
+    assert!(
+        passes
+            .iter()
+            .all(|(t, _)| (t.width, t.height) == (width, height)),
+        "draw_each: targets differ in size"
+    );
+    let viewport = Viewport::new(width, height);
+    let tiles = first.tiles();
+    let tiles_x = width.div_ceil(TILE_SIZE) as usize;
+    for (c, chunk) in triangles.chunks(SETUP_CHUNK).enumerate() {
+        let base = c * SETUP_CHUNK;
+        // Clip, project, snap and set up, in parallel but collected in submission order.
+        let per_primitive: Vec<(u64, Vec<SetupTriangle<N>>)> = chunk
+            .par_iter()
+            .enumerate()
+            .map(|(i, tri)| setup_primitive((base + i) as u32, tri, &viewport, state))
+            .collect();
+        let mut setup = Vec::with_capacity(chunk.len());
+        let mut clipped = 0;
+        for (k, pieces) in per_primitive {
+            clipped += k;
+            setup.extend(pieces);
+        }
+        // Bin by bounding box; each bin lists setup indices in increasing, i.e. submission, order.
+        let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles.len()];
+        for (i, tri) in setup.iter().enumerate() {
+            let Some(b) = tri.bbox else { continue };
+            for ty in (b.y0 / TILE_SIZE)..=((b.y1 - 1) / TILE_SIZE) {
+                for tx in (b.x0 / TILE_SIZE)..=((b.x1 - 1) / TILE_SIZE) {
+                    bins[ty as usize * tiles_x + tx as usize].push(i as u32);
+                }
+            }
+        }
+        for ((target, shader), stats) in passes.iter_mut().zip(&mut stats) {
+            stats.triangles_clipped += clipped;
+            stats.triangles_rasterized += setup.len() as u64;
+            let shader: &S = *shader;
+            let read: &RenderTarget = target;
+            // Render tiles in parallel, each into a private copy of its pixels.
+            let rendered: Vec<Option<(TileBuffers, FragmentCounts)>> = tiles
+                .par_iter()
+                .zip(bins.par_iter())
+                .map(|(rect, bin)| {
+                    if bin.is_empty() {
+                        return None;
+                    }
+                    let mut buffers = read.load_tile(*rect);
+                    if buffers.mask.as_ref().is_some_and(|m| !m.contains(&true)) {
+                        return None;
+                    }
+                    let counts = render_tile(&mut buffers, bin, &setup, shader, state);
+                    Some((buffers, counts))
+                })
+                .collect();
+            // Write back in tile order (tiles are disjoint, so the order only fixes the sum's
+            // order).
+            for (buffers, counts) in rendered.into_iter().flatten() {
+                stats.fragments_covered += counts.covered;
+                stats.fragments_shaded += counts.shaded;
+                stats.fragments_written += counts.written;
+                target.store_tile(&buffers);
+            }
+        }
+    }
+    stats
+}
+
 /// A tile's private copy of its pixels.
 struct TileBuffers {
     rect: PixelRect,
     color: Vec<[u8; 4]>,
     depth: Vec<f32>,
     aux: Vec<u32>,
+    /// The target's pixel mask over this tile, if it has one.
+    mask: Option<Vec<bool>>,
 }
 
 #[derive(Default)]
@@ -887,11 +991,20 @@ where
         // Quads are aligned to even coordinates; tiles start at even coordinates too.
         for qy in ((r.y0 & !1)..r.y1).step_by(2) {
             for qx in ((r.x0 & !1)..r.x1).step_by(2) {
-                let edges = QUAD.map(|(dx, dy)| tri.edges(qx + dx, qy + dy));
-                let covered: [bool; 4] = std::array::from_fn(|k| {
+                // Pixels of the quad this tile may write: inside the triangle's box and the tile,
+                // and inside the target's pixel mask if it has one.
+                let open: [bool; 4] = std::array::from_fn(|k| {
                     let (x, y) = (qx + QUAD[k].0, qy + QUAD[k].1);
-                    r.contains(x, y) && tri.covers(&edges[k])
+                    r.contains(x, y)
+                        && buffers.mask.as_ref().is_none_or(|m| {
+                            m[((y - tile.y0) * tile.width() + (x - tile.x0)) as usize]
+                        })
                 });
+                if !open.iter().any(|&o| o) {
+                    continue;
+                }
+                let edges = tri.quad_edges(qx, qy);
+                let covered: [bool; 4] = std::array::from_fn(|k| open[k] && tri.covers(&edges[k]));
                 if !covered.iter().any(|&c| c) {
                     continue;
                 }
@@ -1071,5 +1184,118 @@ mod tests {
         // Alpha: a + d.a (1 - a).
         let out = merge(encode([0.0; 4]), [1.0, 1.0, 1.0, 0.5], Blend::AlphaBlend);
         assert_eq!(out[3], unorm8(0.5));
+    }
+
+    /// `quad_edges` (incremental) equals `edges` evaluated at each of the quad's pixels, for
+    /// triangles of every size up to the guard band, both windings.
+    #[test]
+    fn quad_edges_equal_the_edge_functions_at_each_pixel() {
+        let vp = Viewport::new(640, 360);
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f32 / (1u64 << 53) as f32
+        };
+        let mut checked = 0;
+        for case in 0..400 {
+            let scale = [1.0, 4.0, 4000.0][case % 3];
+            let tri = [0, 1, 2]
+                .map(|_| vertex((next() * 2.0 - 1.0) * scale, (next() * 2.0 - 1.0) * scale));
+            let (_, pieces) = setup_primitive(case as u32, &tri, &vp, &DrawState::OPAQUE);
+            for t in &pieces {
+                let Some(b) = t.bbox else { continue };
+                for qy in ((b.y0 & !1)..b.y1.min(b.y0 + 40)).step_by(2) {
+                    for qx in ((b.x0 & !1)..b.x1.min(b.x0 + 40)).step_by(2) {
+                        let quad = t.quad_edges(qx, qy);
+                        for (k, (dx, dy)) in QUAD.iter().enumerate() {
+                            assert_eq!(quad[k], t.edges(qx + dx, qy + dy), "case {case}");
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked > 10_000, "only {checked} pixels checked");
+    }
+
+    /// A masked draw writes exactly the unmasked draw's values inside the mask and nothing
+    /// outside it; `draw_each` gives each target what its own `draw` gives.
+    #[test]
+    fn masked_and_shared_draws_equal_plain_draws() {
+        let (w, h) = (96, 80);
+        let clear = ClearValues {
+            color: [0.2, 0.3, 0.4, 1.0],
+            depth: 1.0,
+            aux: 0,
+        };
+        let mut seed = 12345u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let tris: Vec<Triangle<1>> = (0..300)
+            .map(|i| {
+                [0, 1, 2].map(|_| {
+                    Vertex::new(
+                        [next() * 2.2 - 1.1, next() * 2.2 - 1.1, next(), 1.0],
+                        [i as f32 / 300.0],
+                    )
+                })
+            })
+            .collect();
+        let shader = |cut: f32| {
+            move |f: &Fragment<1>| {
+                (f.varyings[0] >= cut).then_some(FragmentOutput {
+                    color: [f.varyings[0], 0.5, 1.0 - f.varyings[0], 0.7],
+                    id: f.primitive_id,
+                    depth: None,
+                })
+            }
+        };
+        let state = DrawState::TRANSPARENT;
+        let (s1, s2) = (shader(0.2), shader(0.6));
+        let mut plain1 = RenderTarget::new(w, h, clear);
+        let st1 = plain1.draw(&tris, &s1, &state);
+        let mut plain2 = RenderTarget::new(w, h, clear);
+        let st2 = plain2.draw(&tris, &s2, &state);
+        let mask: Vec<bool> = (0..w * h).map(|i| (i * 7919) % 13 < 3).collect();
+        let mut m1 = RenderTarget::new(w, h, clear).with_pixel_mask(mask.clone());
+        let mut m2 = RenderTarget::new(w, h, clear).with_pixel_mask(mask.clone());
+        let mut u1 = RenderTarget::new(w, h, clear);
+        let mut u2 = RenderTarget::new(w, h, clear);
+        let shared = draw_each(&mut [(&mut u1, &s1), (&mut u2, &s2)], &tris, &state);
+        assert_eq!(shared, vec![st1, st2]);
+        assert_eq!(
+            (u1.color(), u1.depth(), u1.aux()),
+            (plain1.color(), plain1.depth(), plain1.aux())
+        );
+        assert_eq!(
+            (u2.color(), u2.depth(), u2.aux()),
+            (plain2.color(), plain2.depth(), plain2.aux())
+        );
+        draw_each(&mut [(&mut m1, &s1), (&mut m2, &s2)], &tris, &state);
+        let blank = RenderTarget::new(w, h, clear);
+        for (masked, plain) in [(&m1, &plain1), (&m2, &plain2)] {
+            let mut inside_written = 0;
+            for i in 0..(w * h) as usize {
+                let want = if mask[i] { plain } else { &blank };
+                assert_eq!(masked.color()[i], want.color()[i], "pixel {i}");
+                assert_eq!(
+                    masked.depth()[i].to_bits(),
+                    want.depth()[i].to_bits(),
+                    "pixel {i}"
+                );
+                assert_eq!(masked.aux()[i], want.aux()[i], "pixel {i}");
+                inside_written += usize::from(mask[i] && plain.aux()[i] != 0);
+            }
+            assert!(
+                inside_written > 100,
+                "the mask covers {inside_written} drawn pixels"
+            );
+        }
     }
 }

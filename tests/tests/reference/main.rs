@@ -6,6 +6,7 @@
 //!
 //! Run one module with `cargo test -p forestlod-tests --test reference <module>::`.
 
+mod alternatives;
 mod baselines;
 mod embree_crosscheck;
 mod goldens;
