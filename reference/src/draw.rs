@@ -322,10 +322,14 @@ pub fn tree_triangles(
         })
         .collect();
     let discarded = per_instance.iter().filter(|t| t.is_none()).count() as u64;
-    (
-        per_instance.into_iter().flatten().flatten().collect(),
-        discarded,
-    )
+    // Exact capacity: a collect through `flatten` has no size hint and grows by doubling, which
+    // held up to three copies of a million-triangle frame at once (issue 14).
+    let total = per_instance.iter().flatten().map(Vec::len).sum();
+    let mut triangles = Vec::with_capacity(total);
+    for tris in per_instance.into_iter().flatten() {
+        triangles.extend(tris);
+    }
+    (triangles, discarded)
 }
 
 /// Draws one frame: sky, ground, then every command of `selection` (module docs).

@@ -16,7 +16,13 @@ fn masked_alternatives_give_the_same_report() {
     let scene = builtin::tiny();
     let camera = named_camera("close", &scene, 30.0, 192, 108).expect("camera");
     let prepared = prepare(scene, &params).expect("prepare");
-    let reference = images_of(&prepared.render(&camera, &params).expect("render").drawn.target);
+    let reference = images_of(
+        &prepared
+            .render(&camera, &params)
+            .expect("render")
+            .drawn
+            .target,
+    );
     // A stand-in for a GPU frame that disagrees the way a GPU does: its alpha test rounds
     // differently (cutoff moved by a little less than the 0.03 shift, so nearly every pixel it
     // flips is forgiven by some alternative), plus a few depth and LOD-id outliers that must
@@ -25,7 +31,13 @@ fn masked_alternatives_give_the_same_report() {
         alpha_cutoff: params.alpha_cutoff + 0.029,
         ..params
     };
-    let mut gpu = images_of(&prepared.render(&camera, &shifted).expect("render").drawn.target);
+    let mut gpu = images_of(
+        &prepared
+            .render(&camera, &shifted)
+            .expect("render")
+            .drawn
+            .target,
+    );
     let n = gpu.depth.len();
     for i in (0..n).step_by(997) {
         gpu.depth[i] = (gpu.depth[i] * 0.5).max(0.0);
@@ -58,7 +70,10 @@ fn masked_alternatives_give_the_same_report() {
         "the case must exercise the alternatives: {:?}",
         want.color
     );
-    assert!(want.depth.mismatches > 0 && want.lod_id.mismatches > 0, "{want}");
+    assert!(
+        want.depth.mismatches > 0 && want.lod_id.mismatches > 0,
+        "{want}"
+    );
     assert!(read < pixels.len() / 4, "{read} of {} pixels", pixels.len());
     assert_eq!(format!("{got:?}"), format!("{want:?}"));
 }
