@@ -796,6 +796,7 @@ mod tests {
             },
             from_cpu: StagesFromCpu::default(),
             seconds: 0.0,
+            phases: GpuPhases::default(),
         }))
     }
 

@@ -920,7 +920,7 @@ where
         for ((target, shader), stats) in passes.iter_mut().zip(&mut stats) {
             stats.triangles_clipped += clipped;
             stats.triangles_rasterized += setup.len() as u64;
-            let shader: &S = *shader;
+            let shader: &S = shader;
             let read: &RenderTarget = target;
             // Render tiles in parallel, each into a private copy of its pixels.
             let rendered: Vec<Option<(TileBuffers, FragmentCounts)>> = tiles
@@ -1281,8 +1281,8 @@ mod tests {
         let blank = RenderTarget::new(w, h, clear);
         for (masked, plain) in [(&m1, &plain1), (&m2, &plain2)] {
             let mut inside_written = 0;
-            for i in 0..(w * h) as usize {
-                let want = if mask[i] { plain } else { &blank };
+            for (i, &inside) in mask.iter().enumerate() {
+                let want = if inside { plain } else { &blank };
                 assert_eq!(masked.color()[i], want.color()[i], "pixel {i}");
                 assert_eq!(
                     masked.depth()[i].to_bits(),
@@ -1290,7 +1290,7 @@ mod tests {
                     "pixel {i}"
                 );
                 assert_eq!(masked.aux()[i], want.aux()[i], "pixel {i}");
-                inside_written += usize::from(mask[i] && plain.aux()[i] != 0);
+                inside_written += usize::from(inside && plain.aux()[i] != 0);
             }
             assert!(
                 inside_written > 100,
