@@ -78,6 +78,17 @@ pub struct Summary {
     pub lod_flip_p99: f64,
     /// Mean fraction of pixels the LOD changed.
     pub lod_changed: f64,
+    /// Mean total error (our frame at the truth's sampling rate against the truth, `crate::fair`;
+    /// NaN when not measured).
+    pub total_flip_mean: f64,
+    /// Half-width of its 95% interval.
+    pub total_flip_ci: f64,
+    /// Mean coverage error at the truth's sampling rate.
+    pub total_coverage_error: f64,
+    /// Mean fraction of the frame the truth traced (1: full frame; less: sampled tiles).
+    pub truth_fraction: f64,
+    /// Mean seconds the truth of a frame took to trace.
+    pub truth_s: f64,
 }
 
 /// Two-sided 95% quantiles of Student's t for 1..=30 degrees of freedom; 1.96 beyond.
@@ -117,6 +128,8 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     let mut counted = 0usize;
     let (mut times, mut flips, mut lod_flips) = (Vec::new(), Vec::new(), Vec::new());
     let (mut lod_p99, mut lod_changed) = (0.0, 0.0);
+    let (mut totals, mut total_cov) = (Vec::new(), 0.0);
+    let (mut truth_fraction, mut truth_s) = (0.0, 0.0);
     for r in rows {
         if r.accuracy.gt_tree_fraction <= 0.0 {
             s.empty += 1;
@@ -127,6 +140,10 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
         lod_flips.push(r.accuracy.lod_flip_mean);
         lod_p99 += r.accuracy.lod_flip_p99;
         lod_changed += r.accuracy.lod_changed;
+        totals.push(r.accuracy.total_flip_mean);
+        total_cov += r.accuracy.total_coverage_error;
+        truth_fraction += r.truth_fraction.unwrap_or(1.0);
+        truth_s += r.truth_s.unwrap_or(f64::NAN);
         s.frames += 1;
         s.select_s += r.select_s;
         s.draw_s += r.draw_s;
@@ -175,6 +192,10 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     (s.lod_flip_mean, s.lod_flip_ci) = mean_ci(&lod_flips);
     s.lod_flip_p99 = lod_p99 / n;
     s.lod_changed = lod_changed / n;
+    (s.total_flip_mean, s.total_flip_ci) = mean_ci(&totals);
+    s.total_coverage_error = total_cov / n;
+    s.truth_fraction = truth_fraction / n;
+    s.truth_s = truth_s / n;
     s
 }
 
@@ -252,6 +273,52 @@ pub fn pareto(groups: &[(String, Summary)]) -> Vec<(String, Summary)> {
     front
 }
 
+/// Each group's errors against the first group's: the difference of the means, and whether it is
+/// outside the noise (the two 95% intervals do not overlap, [`within_noise`]).
+fn noise_section(out: &mut String, summaries: &[(String, Summary)]) {
+    let Some((first, base)) = summaries.first() else {
+        return;
+    };
+    if summaries.len() < 2 || base.frames == 0 {
+        return;
+    }
+    let _ = writeln!(
+        out,
+        "Differences from **{}** (the first group; difference of means, *outside the noise* when the two 95% intervals do not overlap, else *within noise*):\n",
+        first.trim()
+    );
+    let _ = writeln!(out, "| group | LOD error | total error | FLIP (1 sample) |");
+    let _ = writeln!(out, "|---|--:|--:|--:|");
+    let cell = |a: (f64, f64), b: (f64, f64)| {
+        if a.0.is_nan() || b.0.is_nan() {
+            "-".to_string()
+        } else if within_noise(a, b) {
+            format!("{:+.4} (within noise)", a.0 - b.0)
+        } else {
+            format!("{:+.4} (**outside the noise**)", a.0 - b.0)
+        }
+    };
+    for (k, s) in &summaries[1..] {
+        if s.frames == 0 {
+            continue;
+        }
+        let _ = writeln!(
+            out,
+            "| {k} | {} | {} | {} |",
+            cell(
+                (s.lod_flip_mean, s.lod_flip_ci),
+                (base.lod_flip_mean, base.lod_flip_ci)
+            ),
+            cell(
+                (s.total_flip_mean, s.total_flip_ci),
+                (base.total_flip_mean, base.total_flip_ci)
+            ),
+            cell((s.flip_mean, s.flip_ci), (base.flip_mean, base.flip_ci)),
+        );
+    }
+    let _ = writeln!(out);
+}
+
 fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), InputError> {
     let folder = dir
         .file_name()
@@ -268,9 +335,29 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         .iter()
         .map(|(s, t, secs)| format!("{s}: {t} triangles, built in {secs:.2} s"))
         .collect();
+    let truth_cost = format!(
+        "traced on {}; {:.1} s tracing{}{}",
+        if m.ground_truth_layout.is_empty() {
+            "the full frame".to_string()
+        } else {
+            m.ground_truth_layout.join(", ")
+        },
+        m.ground_truth_seconds.unwrap_or(f64::NAN),
+        m.ground_truth_memory_bytes
+            .map(|b| format!(", {:.1} MB held (BVH, triangles, textures)", b as f64 / 1e6))
+            .unwrap_or_default(),
+        if m.total_error {
+            format!(
+                "; total error: our frames rendered again at {0}x{0} samples per pixel and box-filtered",
+                (m.ground_truth_spp as f64).sqrt().round()
+            )
+        } else {
+            "; total error not measured".to_string()
+        }
+    );
     let _ = writeln!(
         out,
-        "Setup: scenes {}; variants {}; backends {}{}; {}x{} pixels; ground truth {} rays/pixel ({} rays, BVH {}); \
+        "Setup: scenes {}; variants {}; backends {}{}; {}x{} pixels; ground truth {} rays/pixel ({} rays, BVH {}; {truth_cost}); \
          {} frames in {:.1} s{}. Data: [`{}`]({}).\n",
         m.scenes.join(", "),
         m.variants.join(", "),
@@ -318,16 +405,16 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         .collect();
     let _ = writeln!(
         out,
-        "| group | frames (no tree) | frame ms ±95% | select ms | draw ms | commands | trees finer / coarser | triangles | fragments | overdraw | memory MB | FLIP mean ±95% | FLIP p95 | FLIP p99 | coverage err | LOD error ±95% | LOD p99 | LOD changed |"
+        "| group | frames (no tree) | frame ms ±95% | select ms | draw ms | commands | trees finer / coarser | triangles | fragments | overdraw | memory MB | FLIP mean ±95% | FLIP p95 | FLIP p99 | coverage err | LOD error ±95% | LOD p99 | LOD changed | total error ±95% | total coverage err | truth traced |"
     );
     let _ = writeln!(
         out,
-        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
     );
     for (k, s) in &summaries {
         let _ = writeln!(
             out,
-            "| {k} | {} ({}) | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} |",
+            "| {k} | {} ({}) | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} | {} |",
             s.frames,
             s.empty,
             pm(s.frame_s * 1e3, s.frame_ci * 1e3, 2),
@@ -355,9 +442,17 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             } else {
                 format!("{:.2}%", s.lod_changed * 100.0)
             },
+            pm(s.total_flip_mean, s.total_flip_ci, 4),
+            opt(s.total_coverage_error, 4),
+            if s.frames == 0 {
+                "-".to_string()
+            } else {
+                format!("{:.1}%", s.truth_fraction * 100.0)
+            },
         );
     }
     let _ = writeln!(out);
+    noise_section(out, &summaries);
 
     // Ratios against the baselines, per camera (or overall).
     if m.variants.len() > 1 && m.variants.iter().any(|v| v == "ours") {
@@ -486,9 +581,9 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         let _ = writeln!(out, "### Frames\n");
         let _ = writeln!(
             out,
-            "| pose | variant / setting | ground truth | frame | FLIP error | LOD error | LOD ids |"
+            "| pose | variant / setting | ground truth | frame | FLIP error | LOD error | total error | LOD ids |"
         );
-        let _ = writeln!(out, "|---|---|---|---|---|---|---|");
+        let _ = writeln!(out, "|---|---|---|---|---|---|---|---|");
         // The worst frames first (FLIP against the truth).
         let mut images: Vec<_> = m.images.iter().collect();
         images.sort_by(|a, b| b.accuracy.flip_mean.total_cmp(&a.accuracy.flip_mean));
@@ -500,7 +595,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             };
             let _ = writeln!(
                 out,
-                "| {pose} | {} ({}) / {} (FLIP {:.4}, cov {:.4}, LOD error {}) | ![]({}) | ![]({}) | ![]({}) | {} | ![]({}) |",
+                "| {pose} | {} ({}) / {} (FLIP {:.4}, cov {:.4}, LOD error {}, total error {}) | ![]({}) | ![]({}) | ![]({}) | {} | {} | ![]({}) |",
                 im.variant,
                 if im.backend.is_empty() {
                     "reference"
@@ -511,6 +606,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                 im.accuracy.flip_mean,
                 im.accuracy.coverage_error,
                 opt(im.accuracy.lod_flip_mean, 4),
+                opt(im.accuracy.total_flip_mean, 4),
                 rel(&im.ground_truth),
                 rel(&im.color),
                 rel(&im.flip),
@@ -518,6 +614,11 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                     "-".to_string()
                 } else {
                     format!("![]({})", rel(&im.lod_flip))
+                },
+                if im.total_flip.is_empty() {
+                    "-".to_string()
+                } else {
+                    format!("![]({})", rel(&im.total_flip))
                 },
                 rel(&im.lod)
             );
@@ -527,7 +628,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         if !with_lod.is_empty() {
             let _ = writeln!(
                 out,
-                "Per-LOD FLIP maps of ours (the error where the frame drew LOD0, LOD1, the transition band, ground, sky; mean FLIP and pixel count in the caption), against the truth and, after them, the LOD error's:\n"
+                "Per-LOD FLIP maps of ours (the error where the frame drew LOD0, LOD1, the transition band, ground, sky; mean FLIP and pixel count in the caption): against the truth at 1 sample (`truth`, on the truth's tiles when sampled), the LOD error's (`LOD`, full frame) and the total error's (`total`, at the truth's sampling rate, on its tiles):\n"
             );
             for im in with_lod {
                 let cells: Vec<String> = im
@@ -535,6 +636,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                     .iter()
                     .map(|m| (m, "truth"))
                     .chain(im.per_lod_lod_error.iter().map(|m| (m, "LOD")))
+                    .chain(im.per_lod_total.iter().map(|m| (m, "total")))
                     .map(|((label, p, mean, px), against)| {
                         format!(
                             "![{label}]({})<br>{label} ({against}): {mean:.4} ({px} px)",
