@@ -204,13 +204,13 @@ pub fn variant_label(r: &Row) -> String {
     format!("{} ({})", r.variant, r.backend)
 }
 
-/// The group a row is summarized in: by camera for yaw sweeps, by distance for the distance
-/// path, by setting otherwise; always by variant.
+/// The group a row is summarized in: by distance for the distance path, else by camera (a
+/// path's frames and a named camera's differ too much to share one interval); always by
+/// variant and setting.
 pub fn group_key(x_axis: &str, r: &Row) -> String {
     match x_axis {
-        "yaw" => format!("{}, {}, {}", r.camera, variant_label(r), r.setting),
         "distance" => format!("{:>6} m, {}, {}", r.distance_m, variant_label(r), r.setting),
-        _ => format!("{}, {}", variant_label(r), r.setting),
+        _ => format!("{}, {}, {}", r.camera, variant_label(r), r.setting),
     }
 }
 
@@ -273,47 +273,89 @@ pub fn pareto(groups: &[(String, Summary)]) -> Vec<(String, Summary)> {
     front
 }
 
-/// Each group's errors against the first group's: the difference of the means, and whether it is
-/// outside the noise (the two 95% intervals do not overlap, [`within_noise`]).
-fn noise_section(out: &mut String, summaries: &[(String, Summary)]) {
-    let Some((first, base)) = summaries.first() else {
-        return;
-    };
-    if summaries.len() < 2 || base.frames == 0 {
-        return;
+/// A pose's identity within a camera: what pairs two groups' frames (the same view rendered
+/// with two settings).
+fn pose_key(r: &Row) -> (String, String, u32, u32, String) {
+    (
+        r.scene.clone(),
+        r.camera.clone(),
+        r.yaw_deg.to_bits(),
+        r.distance_m.to_bits(),
+        format!("{}x{} {}", r.width, r.height, r.backend),
+    )
+}
+
+/// Mean and 95% half-width of the per-pose differences `f(a) - f(b)` over the poses both groups
+/// rendered whose truth shows trees (NaN differences skipped).
+pub fn paired_difference(a: &[&Row], b: &[&Row], f: fn(&Row) -> f64) -> (f64, f64, usize) {
+    let diffs: Vec<f64> = a
+        .iter()
+        .filter(|r| r.accuracy.gt_tree_fraction > 0.0)
+        .filter_map(|r| {
+            let k = pose_key(r);
+            let o = b.iter().find(|o| pose_key(o) == k)?;
+            let d = f(r) - f(o);
+            d.is_finite().then_some(d)
+        })
+        .collect();
+    let (m, h) = mean_ci(&diffs);
+    (m, h, diffs.len())
+}
+
+/// Each group's errors against the first group of its camera (or distance: the key's first
+/// part, [`group_key`]), **paired by pose**: the mean of the per-frame differences with its 95%
+/// Student-t interval ([`paired_difference`]). Views differ far more than settings do, so pairing
+/// removes the pose-to-pose spread an unpaired comparison of the two means would carry. A
+/// difference is *outside the noise* when its interval excludes 0.
+pub fn noise_section(out: &mut String, groups: &[(String, Vec<&Row>)]) {
+    let camera = |k: &str| k.split(", ").next().unwrap_or("").to_string();
+    let mut firsts: Vec<(String, usize)> = Vec::new();
+    for (i, (k, _)) in groups.iter().enumerate() {
+        if !firsts.iter().any(|(c, _)| *c == camera(k)) {
+            firsts.push((camera(k), i));
+        }
+    }
+    if groups.len() <= firsts.len() {
+        return; // no group has a first one to be compared with
     }
     let _ = writeln!(
         out,
-        "Differences from **{}** (the first group; difference of means, *outside the noise* when the two 95% intervals do not overlap, else *within noise*):\n",
-        first.trim()
+        "Differences from the first group of the same camera, paired by pose (mean of the per-frame differences ± its 95% interval; *outside the noise* when the interval excludes 0):\n"
     );
-    let _ = writeln!(out, "| group | LOD error | total error | FLIP (1 sample) |");
-    let _ = writeln!(out, "|---|--:|--:|--:|");
-    let cell = |a: (f64, f64), b: (f64, f64)| {
-        if a.0.is_nan() || b.0.is_nan() {
+    let _ = writeln!(
+        out,
+        "| group | against | pairs | LOD error | total error | FLIP (1 sample) |"
+    );
+    let _ = writeln!(out, "|---|---|--:|--:|--:|--:|");
+    let cell = |(m, h, _): (f64, f64, usize)| {
+        if m.is_nan() {
             "-".to_string()
-        } else if within_noise(a, b) {
-            format!("{:+.4} (within noise)", a.0 - b.0)
+        } else if h.is_nan() {
+            format!("{m:+.4} (one pair: no interval)")
+        } else if m.abs() > h {
+            format!("{m:+.4} ± {h:.4} (**outside the noise**)")
         } else {
-            format!("{:+.4} (**outside the noise**)", a.0 - b.0)
+            format!("{m:+.4} ± {h:.4} (within noise)")
         }
     };
-    for (k, s) in &summaries[1..] {
-        if s.frames == 0 {
+    for (i, (k, rows)) in groups.iter().enumerate() {
+        let Some(&(_, first)) = firsts.iter().find(|(c, _)| *c == camera(k)) else {
+            continue;
+        };
+        if first == i {
             continue;
         }
+        let (fk, base) = (&groups[first].0, &groups[first].1);
+        let lod = paired_difference(rows, base, |r| r.accuracy.lod_flip_mean);
+        let total = paired_difference(rows, base, |r| r.accuracy.total_flip_mean);
+        let flip = paired_difference(rows, base, |r| r.accuracy.flip_mean);
         let _ = writeln!(
             out,
-            "| {k} | {} | {} | {} |",
-            cell(
-                (s.lod_flip_mean, s.lod_flip_ci),
-                (base.lod_flip_mean, base.lod_flip_ci)
-            ),
-            cell(
-                (s.total_flip_mean, s.total_flip_ci),
-                (base.total_flip_mean, base.total_flip_ci)
-            ),
-            cell((s.flip_mean, s.flip_ci), (base.flip_mean, base.flip_ci)),
+            "| {k} | {fk} | {} | {} | {} | {} |",
+            lod.2.max(flip.2),
+            cell(lod),
+            cell(total),
+            cell(flip)
         );
     }
     let _ = writeln!(out);
@@ -452,7 +494,9 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         );
     }
     let _ = writeln!(out);
-    noise_section(out, &summaries);
+    let grouped: Vec<(String, Vec<&Row>)> =
+        order.iter().map(|k| (k.clone(), groups[k].clone())).collect();
+    noise_section(out, &grouped);
 
     // Ratios against the baselines, per camera (or overall).
     if m.variants.len() > 1 && m.variants.iter().any(|v| v == "ours") {
@@ -812,6 +856,54 @@ mod tests {
         assert!(s.flip_ci > 0.0 && s.frame_ci > 0.0);
         // Written before the LOD error existed: not measured, not zero.
         assert!(s.lod_flip_mean.is_nan());
+    }
+
+    #[test]
+    fn differences_are_paired_by_pose_and_marked_outside_or_within_the_noise() {
+        let committed = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("results/angles_texture/angles_texture.csv");
+        let template = read_rows(&committed).unwrap()[0].clone();
+        // Three poses whose errors differ a lot; setting b adds 0.010 ± 0.0002 to each (outside
+        // the noise once paired, though far inside the pose-to-pose spread), c adds ±0.001.
+        let row = |camera: &str, yaw: f32, setting: &str, lod: f64| {
+            let mut r = template.clone();
+            (r.camera, r.yaw_deg, r.setting) = (camera.into(), yaw, setting.into());
+            r.accuracy.gt_tree_fraction = 0.3;
+            r.accuracy.lod_flip_mean = lod;
+            r
+        };
+        let base = [0.01, 0.05, 0.09];
+        let mut rows = Vec::new();
+        for (i, (&l, yaw)) in base.iter().zip([0.0, 120.0, 240.0]).enumerate() {
+            rows.push(row("orbit", yaw, "a", l));
+            rows.push(row("orbit", yaw, "b", l + 0.010 + 0.0002 * i as f64));
+            rows.push(row("orbit", yaw, "c", l + [0.001, -0.001, 0.0005][i]));
+            rows.push(row("dolly", yaw, "a", 2.0 * l));
+            rows.push(row("dolly", yaw, "b", 2.0 * l + [0.001, -0.001, 0.0][i]));
+        }
+        let mut groups: Vec<(String, Vec<&Row>)> = Vec::new();
+        for r in &rows {
+            let k = group_key("angle_count", r);
+            match groups.iter_mut().find(|(g, _)| *g == k) {
+                Some((_, v)) => v.push(r),
+                None => groups.push((k, vec![r])),
+            }
+        }
+        let mut out = String::new();
+        noise_section(&mut out, &groups);
+        let line = |setting: &str, camera: &str| {
+            out.lines()
+                .find(|l| l.starts_with(&format!("| {camera}, ours (reference), {setting} |")))
+                .unwrap_or_else(|| panic!("{setting} {camera}:\n{out}"))
+                .to_string()
+        };
+        assert!(line("b", "orbit").contains("+0.0102 ± 0.0005 (**outside the noise**)"));
+        assert!(line("c", "orbit").contains("(within noise)"));
+        // Compared with its own camera's first group, not the orbit's.
+        let dolly = line("b", "dolly");
+        assert!(dolly.contains("| dolly, ours (reference), a | 3 |"), "{dolly}");
+        assert!(dolly.contains("(within noise)"), "{dolly}");
+        assert!(!out.contains("| orbit, ours (reference), a | orbit"), "no self-comparison");
     }
 
     fn s(frame_s: f64, flip_mean: f64) -> Summary {
