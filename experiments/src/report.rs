@@ -494,8 +494,10 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         );
     }
     let _ = writeln!(out);
-    let grouped: Vec<(String, Vec<&Row>)> =
-        order.iter().map(|k| (k.clone(), groups[k].clone())).collect();
+    let grouped: Vec<(String, Vec<&Row>)> = order
+        .iter()
+        .map(|k| (k.clone(), groups[k].clone()))
+        .collect();
     noise_section(out, &grouped);
 
     // Ratios against the baselines, per camera (or overall).
@@ -860,8 +862,8 @@ mod tests {
 
     #[test]
     fn differences_are_paired_by_pose_and_marked_outside_or_within_the_noise() {
-        let committed = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("results/angles_texture/angles_texture.csv");
+        let committed =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("results/angles_texture/angles_texture.csv");
         let template = read_rows(&committed).unwrap()[0].clone();
         // Three poses whose errors differ a lot; setting b adds 0.010 ± 0.0002 to each (outside
         // the noise once paired, though far inside the pose-to-pose spread), c adds ±0.001.
@@ -901,9 +903,15 @@ mod tests {
         assert!(line("c", "orbit").contains("(within noise)"));
         // Compared with its own camera's first group, not the orbit's.
         let dolly = line("b", "dolly");
-        assert!(dolly.contains("| dolly, ours (reference), a | 3 |"), "{dolly}");
+        assert!(
+            dolly.contains("| dolly, ours (reference), a | 3 |"),
+            "{dolly}"
+        );
         assert!(dolly.contains("(within noise)"), "{dolly}");
-        assert!(!out.contains("| orbit, ours (reference), a | orbit"), "no self-comparison");
+        assert!(
+            !out.contains("| orbit, ours (reference), a | orbit"),
+            "no self-comparison"
+        );
     }
 
     fn s(frame_s: f64, flip_mean: f64) -> Summary {
