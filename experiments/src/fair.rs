@@ -231,7 +231,7 @@ impl TruthLayout {
 pub fn box_filter(color: &Rgba8Image, aux: &[u32], s: u32) -> (Rgba8Image, Vec<u32>) {
     let s = s.max(1);
     assert!(
-        color.width % s == 0 && color.height % s == 0,
+        color.width.is_multiple_of(s) && color.height.is_multiple_of(s),
         "supersampled size"
     );
     assert_eq!(aux.len(), color.texels.len(), "id buffer size");

@@ -145,7 +145,7 @@ pub fn flip_map_tiled(reference: &Rgba8Image, test: &Rgba8Image, tile: Option<u3
         return flip_map(reference, test);
     };
     assert!(
-        reference.height == t && reference.width % t == 0,
+        reference.height == t && reference.width.is_multiple_of(t),
         "a mosaic is one row of whole tiles"
     );
     let crop = |img: &Rgba8Image, k: u32| Rgba8Image::from_fn(t, t, |x, y| img.get(k * t + x, y));

@@ -389,6 +389,9 @@ impl Runner {
     }
 }
 
+/// The total error's FLIP map and the filtered frame's LOD ids, on the truth's layout.
+type TotalMap = (Vec<f32>, Vec<u32>);
+
 /// One frame's inputs, shared by every variant and backend.
 struct Frame<'a> {
     prepared: &'a Prepared,
@@ -603,7 +606,7 @@ fn save_frame_images(
     set: &ParamSet,
     gt: &GroundTruthImage,
     (color, aux, truth_aux): (&Rgba8Image, &[u32], &[u32]),
-    (map, lod_map, total): (&[f32], &[f32], Option<&(Vec<f32>, Vec<u32>)>),
+    (map, lod_map, total): (&[f32], &[f32], Option<&TotalMap>),
     acc: Accuracy,
 ) -> Result<FrameImages, InputError> {
     let pose_slug = if pose.camera == "distance" {
