@@ -73,6 +73,17 @@ pub struct Accuracy {
     /// than [`LOD_CHANGED_LEVELS`] in some channel.
     #[serde(default = "not_measured")]
     pub lod_changed: f64,
+    /// Total error ([`total_error`]): mean FLIP of our frame at the truth's sampling rate
+    /// ([`crate::fair`]) against the truth. `NaN` where not measured.
+    #[serde(default = "not_measured")]
+    pub total_flip_mean: f64,
+    /// Total error: 99th percentile of that FLIP map.
+    #[serde(default = "not_measured")]
+    pub total_flip_p99: f64,
+    /// Total error: fraction of pixels whose tree / not-tree class (the truth's majority rule on
+    /// both sides) differs from the truth's.
+    #[serde(default = "not_measured")]
+    pub total_coverage_error: f64,
 }
 
 fn not_measured() -> f64 {
@@ -102,6 +113,52 @@ pub fn lod_error(acc: &mut Accuracy, full: &Rgba8Image, color: &Rgba8Image) -> V
         .count();
     acc.lod_changed = changed as f64 / n;
     map
+}
+
+/// Fills the total-error figures of `acc`: `color` and `aux` are our frame box-filtered to the
+/// truth's sampling rate ([`crate::fair::box_filter`]) and gathered onto the truth's layout
+/// (`tile`: FLIP per tile, [`flip_map_tiled`]). Returns the FLIP map.
+///
+/// # Panics
+/// If the sizes differ.
+pub fn total_error(
+    acc: &mut Accuracy,
+    gt: &GroundTruthImage,
+    color: &Rgba8Image,
+    aux: &[u32],
+    tile: Option<u32>,
+) -> Vec<f32> {
+    let (a, map) = accuracy(gt, color, aux, tile);
+    acc.total_flip_mean = a.flip_mean;
+    acc.total_flip_p99 = a.flip_p99;
+    acc.total_coverage_error = a.coverage_error;
+    map
+}
+
+/// [`flip_map`] on each `tile`-wide square of a mosaic ([`crate::fair::TruthLayout`]) alone, so
+/// that FLIP's filters never reach from one tile into its neighbour; the whole image for `None`.
+///
+/// # Panics
+/// If the sizes differ, or the image is not one row of whole tiles.
+pub fn flip_map_tiled(reference: &Rgba8Image, test: &Rgba8Image, tile: Option<u32>) -> Vec<f32> {
+    let Some(t) = tile else {
+        return flip_map(reference, test);
+    };
+    assert!(
+        reference.height == t && reference.width.is_multiple_of(t),
+        "a mosaic is one row of whole tiles"
+    );
+    let crop = |img: &Rgba8Image, k: u32| Rgba8Image::from_fn(t, t, |x, y| img.get(k * t + x, y));
+    let maps: Vec<Vec<f32>> = (0..reference.width / t)
+        .map(|k| flip_map(&crop(reference, k), &crop(test, k)))
+        .collect();
+    let mut out = Vec::with_capacity(reference.texels.len());
+    for y in 0..t as usize {
+        for m in &maps {
+            out.extend_from_slice(&m[y * t as usize..(y + 1) * t as usize]);
+        }
+    }
+    out
 }
 
 /// The FLIP error map of `test` against `reference` (equal sizes), row-major.
@@ -144,12 +201,19 @@ pub fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Accuracy of a frame (colour and LOD-id aux buffer) against the ground truth, and the FLIP map.
+/// With `tile`, the images are mosaics of sampled tiles ([`crate::fair::TruthLayout`]) and FLIP
+/// runs per tile ([`flip_map_tiled`]).
 ///
 /// # Panics
 /// If the sizes differ.
-pub fn accuracy(gt: &GroundTruthImage, color: &Rgba8Image, aux: &[u32]) -> (Accuracy, Vec<f32>) {
+pub fn accuracy(
+    gt: &GroundTruthImage,
+    color: &Rgba8Image,
+    aux: &[u32],
+    tile: Option<u32>,
+) -> (Accuracy, Vec<f32>) {
     assert_eq!(aux.len(), gt.class.len(), "aux buffer size");
-    let map = flip_map(&gt.srgb, color);
+    let map = flip_map_tiled(&gt.srgb, color, tile);
     let n = map.len().max(1) as f64;
     let mean = map.iter().map(|&e| e as f64).sum::<f64>() / n;
     let mut differ = 0u64;
@@ -173,6 +237,9 @@ pub fn accuracy(gt: &GroundTruthImage, color: &Rgba8Image, aux: &[u32]) -> (Accu
             lod_flip_mean: f64::NAN,
             lod_flip_p99: f64::NAN,
             lod_changed: f64::NAN,
+            total_flip_mean: f64::NAN,
+            total_flip_p99: f64::NAN,
+            total_coverage_error: f64::NAN,
         },
         map,
     )
@@ -268,6 +335,40 @@ mod tests {
     }
 
     #[test]
+    fn tiled_flip_is_each_tiles_own_flip() {
+        let a = image(48, 16, |x, y| [(x * 5) as u8, (y * 9) as u8, 90, 255]);
+        // A change in the middle tile only: the tiled map is zero in the other two tiles (a
+        // whole-image FLIP spreads it across the seams) and equals that tile's own FLIP.
+        let b = image(48, 16, |x, y| {
+            let mut t = a.get(x, y);
+            if (16..32).contains(&x) && (4..12).contains(&y) {
+                t[0] = 255 - t[0];
+            }
+            t
+        });
+        let tiled = flip_map_tiled(&a, &b, Some(16));
+        let whole = flip_map(&a, &b);
+        let at = |m: &[f32], x: u32, y: u32| m[(y * 48 + x) as usize];
+        for y in 0..16 {
+            for x in (0..16).chain(32..48) {
+                assert_eq!(at(&tiled, x, y), 0.0, "({x}, {y})");
+            }
+        }
+        assert!(
+            (0..16).any(|y| at(&whole, 15, y) > 0.0),
+            "whole-image FLIP crosses seams"
+        );
+        let crop = |img: &Rgba8Image| Rgba8Image::from_fn(16, 16, |x, y| img.get(16 + x, y));
+        let own = flip_map(&crop(&a), &crop(&b));
+        for y in 0..16 {
+            for x in 0..16 {
+                assert_eq!(at(&tiled, 16 + x, y), own[(y * 16 + x) as usize]);
+            }
+        }
+        assert_eq!(flip_map_tiled(&a, &b, None), whole);
+    }
+
+    #[test]
     fn percentiles_are_nearest_rank() {
         let v: Vec<f32> = (1..=100).map(|i| i as f32).collect();
         assert_eq!(percentile(&v, 95.0), 95.0);
@@ -311,7 +412,7 @@ mod tests {
             LOD_ID_BACKGROUND,
             LOD_ID_BACKGROUND,
         ];
-        let (acc, map) = accuracy(&gt, &srgb, &aux);
+        let (acc, map) = accuracy(&gt, &srgb, &aux, None);
         assert_eq!(acc.coverage_error, 2.0 / 8.0);
         assert_eq!(acc.flip_mean, 0.0);
         assert_eq!(map.len(), 8);

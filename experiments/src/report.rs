@@ -78,6 +78,17 @@ pub struct Summary {
     pub lod_flip_p99: f64,
     /// Mean fraction of pixels the LOD changed.
     pub lod_changed: f64,
+    /// Mean total error (our frame at the truth's sampling rate against the truth, `crate::fair`;
+    /// NaN when not measured).
+    pub total_flip_mean: f64,
+    /// Half-width of its 95% interval.
+    pub total_flip_ci: f64,
+    /// Mean coverage error at the truth's sampling rate.
+    pub total_coverage_error: f64,
+    /// Mean fraction of the frame the truth traced (1: full frame; less: sampled tiles).
+    pub truth_fraction: f64,
+    /// Mean seconds the truth of a frame took to trace.
+    pub truth_s: f64,
 }
 
 /// Two-sided 95% quantiles of Student's t for 1..=30 degrees of freedom; 1.96 beyond.
@@ -117,6 +128,8 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     let mut counted = 0usize;
     let (mut times, mut flips, mut lod_flips) = (Vec::new(), Vec::new(), Vec::new());
     let (mut lod_p99, mut lod_changed) = (0.0, 0.0);
+    let (mut totals, mut total_cov) = (Vec::new(), 0.0);
+    let (mut truth_fraction, mut truth_s) = (0.0, 0.0);
     for r in rows {
         if r.accuracy.gt_tree_fraction <= 0.0 {
             s.empty += 1;
@@ -127,6 +140,10 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
         lod_flips.push(r.accuracy.lod_flip_mean);
         lod_p99 += r.accuracy.lod_flip_p99;
         lod_changed += r.accuracy.lod_changed;
+        totals.push(r.accuracy.total_flip_mean);
+        total_cov += r.accuracy.total_coverage_error;
+        truth_fraction += r.truth_fraction.unwrap_or(1.0);
+        truth_s += r.truth_s.unwrap_or(f64::NAN);
         s.frames += 1;
         s.select_s += r.select_s;
         s.draw_s += r.draw_s;
@@ -175,6 +192,10 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     (s.lod_flip_mean, s.lod_flip_ci) = mean_ci(&lod_flips);
     s.lod_flip_p99 = lod_p99 / n;
     s.lod_changed = lod_changed / n;
+    (s.total_flip_mean, s.total_flip_ci) = mean_ci(&totals);
+    s.total_coverage_error = total_cov / n;
+    s.truth_fraction = truth_fraction / n;
+    s.truth_s = truth_s / n;
     s
 }
 
@@ -183,13 +204,13 @@ pub fn variant_label(r: &Row) -> String {
     format!("{} ({})", r.variant, r.backend)
 }
 
-/// The group a row is summarized in: by camera for yaw sweeps, by distance for the distance
-/// path, by setting otherwise; always by variant.
+/// The group a row is summarized in: by distance for the distance path, else by camera (a
+/// path's frames and a named camera's differ too much to share one interval); always by
+/// variant and setting.
 pub fn group_key(x_axis: &str, r: &Row) -> String {
     match x_axis {
-        "yaw" => format!("{}, {}, {}", r.camera, variant_label(r), r.setting),
         "distance" => format!("{:>6} m, {}, {}", r.distance_m, variant_label(r), r.setting),
-        _ => format!("{}, {}", variant_label(r), r.setting),
+        _ => format!("{}, {}, {}", r.camera, variant_label(r), r.setting),
     }
 }
 
@@ -252,6 +273,94 @@ pub fn pareto(groups: &[(String, Summary)]) -> Vec<(String, Summary)> {
     front
 }
 
+/// A pose's identity within a camera: what pairs two groups' frames (the same view rendered
+/// with two settings).
+fn pose_key(r: &Row) -> (String, String, u32, u32, String) {
+    (
+        r.scene.clone(),
+        r.camera.clone(),
+        r.yaw_deg.to_bits(),
+        r.distance_m.to_bits(),
+        format!("{}x{} {}", r.width, r.height, r.backend),
+    )
+}
+
+/// Mean and 95% half-width of the per-pose differences `f(a) - f(b)` over the poses both groups
+/// rendered whose truth shows trees (NaN differences skipped).
+pub fn paired_difference(a: &[&Row], b: &[&Row], f: fn(&Row) -> f64) -> (f64, f64, usize) {
+    let diffs: Vec<f64> = a
+        .iter()
+        .filter(|r| r.accuracy.gt_tree_fraction > 0.0)
+        .filter_map(|r| {
+            let k = pose_key(r);
+            let o = b.iter().find(|o| pose_key(o) == k)?;
+            let d = f(r) - f(o);
+            d.is_finite().then_some(d)
+        })
+        .collect();
+    let (m, h) = mean_ci(&diffs);
+    (m, h, diffs.len())
+}
+
+/// Each group's errors against the first group of its camera (or distance: the key's first
+/// part, [`group_key`]), **paired by pose**: the mean of the per-frame differences with its 95%
+/// Student-t interval ([`paired_difference`]). Views differ far more than settings do, so pairing
+/// removes the pose-to-pose spread an unpaired comparison of the two means would carry. A
+/// difference is *outside the noise* when its interval excludes 0.
+pub fn noise_section(out: &mut String, groups: &[(String, Vec<&Row>)]) {
+    let camera = |k: &str| k.split(", ").next().unwrap_or("").to_string();
+    let mut firsts: Vec<(String, usize)> = Vec::new();
+    for (i, (k, _)) in groups.iter().enumerate() {
+        if !firsts.iter().any(|(c, _)| *c == camera(k)) {
+            firsts.push((camera(k), i));
+        }
+    }
+    if groups.len() <= firsts.len() {
+        return; // no group has a first one to be compared with
+    }
+    let _ = writeln!(
+        out,
+        "Differences from the first group of the same camera, paired by pose (mean of the per-frame differences ± its 95% interval; *outside the noise* when the interval excludes 0):\n"
+    );
+    let _ = writeln!(
+        out,
+        "| group | against | pairs | LOD error | total error | FLIP (1 sample) |"
+    );
+    let _ = writeln!(out, "|---|---|--:|--:|--:|--:|");
+    let cell = |(m, h, _): (f64, f64, usize)| {
+        if m.is_nan() {
+            "-".to_string()
+        } else if h.is_nan() {
+            format!("{m:+.4} (one pair: no interval)")
+        } else if m.abs() > h {
+            format!("{m:+.4} ± {h:.4} (**outside the noise**)")
+        } else {
+            format!("{m:+.4} ± {h:.4} (within noise)")
+        }
+    };
+    for (i, (k, rows)) in groups.iter().enumerate() {
+        let Some(&(_, first)) = firsts.iter().find(|(c, _)| *c == camera(k)) else {
+            continue;
+        };
+        if first == i {
+            continue;
+        }
+        let (fk, base) = (&groups[first].0, &groups[first].1);
+        let lod = paired_difference(rows, base, |r| r.accuracy.lod_flip_mean);
+        let total = paired_difference(rows, base, |r| r.accuracy.total_flip_mean);
+        let flip = paired_difference(rows, base, |r| r.accuracy.flip_mean);
+        let _ = writeln!(
+            out,
+            "| {k} | {fk} | {} | {} | {} | {} |",
+            lod.2.max(flip.2),
+            cell(lod),
+            cell(total),
+            cell(flip)
+        );
+    }
+    let _ = writeln!(out);
+}
+
 fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), InputError> {
     let folder = dir
         .file_name()
@@ -268,9 +377,29 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         .iter()
         .map(|(s, t, secs)| format!("{s}: {t} triangles, built in {secs:.2} s"))
         .collect();
+    let truth_cost = format!(
+        "traced on {}; {:.1} s tracing{}{}",
+        if m.ground_truth_layout.is_empty() {
+            "the full frame".to_string()
+        } else {
+            m.ground_truth_layout.join(", ")
+        },
+        m.ground_truth_seconds.unwrap_or(f64::NAN),
+        m.ground_truth_memory_bytes
+            .map(|b| format!(", {:.1} MB held (BVH, triangles, textures)", b as f64 / 1e6))
+            .unwrap_or_default(),
+        if m.total_error {
+            format!(
+                "; total error: our frames rendered again at {0}x{0} samples per pixel and box-filtered",
+                (m.ground_truth_spp as f64).sqrt().round()
+            )
+        } else {
+            "; total error not measured".to_string()
+        }
+    );
     let _ = writeln!(
         out,
-        "Setup: scenes {}; variants {}; backends {}{}; {}x{} pixels; ground truth {} rays/pixel ({} rays, BVH {}); \
+        "Setup: scenes {}; variants {}; backends {}{}; {}x{} pixels; ground truth {} rays/pixel ({} rays, BVH {}; {truth_cost}); \
          {} frames in {:.1} s{}. Data: [`{}`]({}).\n",
         m.scenes.join(", "),
         m.variants.join(", "),
@@ -318,16 +447,16 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         .collect();
     let _ = writeln!(
         out,
-        "| group | frames (no tree) | frame ms ±95% | select ms | draw ms | commands | trees finer / coarser | triangles | fragments | overdraw | memory MB | FLIP mean ±95% | FLIP p95 | FLIP p99 | coverage err | LOD error ±95% | LOD p99 | LOD changed |"
+        "| group | frames (no tree) | frame ms ±95% | select ms | draw ms | commands | trees finer / coarser | triangles | fragments | overdraw | memory MB | FLIP mean ±95% | FLIP p95 | FLIP p99 | coverage err | LOD error ±95% | LOD p99 | LOD changed | total error ±95% | total coverage err | truth traced |"
     );
     let _ = writeln!(
         out,
-        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
     );
     for (k, s) in &summaries {
         let _ = writeln!(
             out,
-            "| {k} | {} ({}) | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} |",
+            "| {k} | {} ({}) | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} | {} |",
             s.frames,
             s.empty,
             pm(s.frame_s * 1e3, s.frame_ci * 1e3, 2),
@@ -355,9 +484,21 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             } else {
                 format!("{:.2}%", s.lod_changed * 100.0)
             },
+            pm(s.total_flip_mean, s.total_flip_ci, 4),
+            opt(s.total_coverage_error, 4),
+            if s.frames == 0 {
+                "-".to_string()
+            } else {
+                format!("{:.1}%", s.truth_fraction * 100.0)
+            },
         );
     }
     let _ = writeln!(out);
+    let grouped: Vec<(String, Vec<&Row>)> = order
+        .iter()
+        .map(|k| (k.clone(), groups[k].clone()))
+        .collect();
+    noise_section(out, &grouped);
 
     // Ratios against the baselines, per camera (or overall).
     if m.variants.len() > 1 && m.variants.iter().any(|v| v == "ours") {
@@ -486,9 +627,9 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         let _ = writeln!(out, "### Frames\n");
         let _ = writeln!(
             out,
-            "| pose | variant / setting | ground truth | frame | FLIP error | LOD error | LOD ids |"
+            "| pose | variant / setting | ground truth | frame | FLIP error | LOD error | total error | LOD ids |"
         );
-        let _ = writeln!(out, "|---|---|---|---|---|---|---|");
+        let _ = writeln!(out, "|---|---|---|---|---|---|---|---|");
         // The worst frames first (FLIP against the truth).
         let mut images: Vec<_> = m.images.iter().collect();
         images.sort_by(|a, b| b.accuracy.flip_mean.total_cmp(&a.accuracy.flip_mean));
@@ -500,7 +641,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             };
             let _ = writeln!(
                 out,
-                "| {pose} | {} ({}) / {} (FLIP {:.4}, cov {:.4}, LOD error {}) | ![]({}) | ![]({}) | ![]({}) | {} | ![]({}) |",
+                "| {pose} | {} ({}) / {} (FLIP {:.4}, cov {:.4}, LOD error {}, total error {}) | ![]({}) | ![]({}) | ![]({}) | {} | {} | ![]({}) |",
                 im.variant,
                 if im.backend.is_empty() {
                     "reference"
@@ -511,6 +652,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                 im.accuracy.flip_mean,
                 im.accuracy.coverage_error,
                 opt(im.accuracy.lod_flip_mean, 4),
+                opt(im.accuracy.total_flip_mean, 4),
                 rel(&im.ground_truth),
                 rel(&im.color),
                 rel(&im.flip),
@@ -518,6 +660,11 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                     "-".to_string()
                 } else {
                     format!("![]({})", rel(&im.lod_flip))
+                },
+                if im.total_flip.is_empty() {
+                    "-".to_string()
+                } else {
+                    format!("![]({})", rel(&im.total_flip))
                 },
                 rel(&im.lod)
             );
@@ -527,7 +674,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         if !with_lod.is_empty() {
             let _ = writeln!(
                 out,
-                "Per-LOD FLIP maps of ours (the error where the frame drew LOD0, LOD1, the transition band, ground, sky; mean FLIP and pixel count in the caption), against the truth and, after them, the LOD error's:\n"
+                "Per-LOD FLIP maps of ours (the error where the frame drew LOD0, LOD1, the transition band, ground, sky; mean FLIP and pixel count in the caption): against the truth at 1 sample (`truth`, on the truth's tiles when sampled), the LOD error's (`LOD`, full frame) and the total error's (`total`, at the truth's sampling rate, on its tiles):\n"
             );
             for im in with_lod {
                 let cells: Vec<String> = im
@@ -535,6 +682,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                     .iter()
                     .map(|m| (m, "truth"))
                     .chain(im.per_lod_lod_error.iter().map(|m| (m, "LOD")))
+                    .chain(im.per_lod_total.iter().map(|m| (m, "total")))
                     .map(|((label, p, mean, px), against)| {
                         format!(
                             "![{label}]({})<br>{label} ({against}): {mean:.4} ({px} px)",
@@ -710,6 +858,60 @@ mod tests {
         assert!(s.flip_ci > 0.0 && s.frame_ci > 0.0);
         // Written before the LOD error existed: not measured, not zero.
         assert!(s.lod_flip_mean.is_nan());
+    }
+
+    #[test]
+    fn differences_are_paired_by_pose_and_marked_outside_or_within_the_noise() {
+        let committed =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("results/angles_texture/angles_texture.csv");
+        let template = read_rows(&committed).unwrap()[0].clone();
+        // Three poses whose errors differ a lot; setting b adds 0.010 ± 0.0002 to each (outside
+        // the noise once paired, though far inside the pose-to-pose spread), c adds ±0.001.
+        let row = |camera: &str, yaw: f32, setting: &str, lod: f64| {
+            let mut r = template.clone();
+            (r.camera, r.yaw_deg, r.setting) = (camera.into(), yaw, setting.into());
+            r.accuracy.gt_tree_fraction = 0.3;
+            r.accuracy.lod_flip_mean = lod;
+            r
+        };
+        let base = [0.01, 0.05, 0.09];
+        let mut rows = Vec::new();
+        for (i, (&l, yaw)) in base.iter().zip([0.0, 120.0, 240.0]).enumerate() {
+            rows.push(row("orbit", yaw, "a", l));
+            rows.push(row("orbit", yaw, "b", l + 0.010 + 0.0002 * i as f64));
+            rows.push(row("orbit", yaw, "c", l + [0.001, -0.001, 0.0005][i]));
+            rows.push(row("dolly", yaw, "a", 2.0 * l));
+            rows.push(row("dolly", yaw, "b", 2.0 * l + [0.001, -0.001, 0.0][i]));
+        }
+        let mut groups: Vec<(String, Vec<&Row>)> = Vec::new();
+        for r in &rows {
+            let k = group_key("angle_count", r);
+            match groups.iter_mut().find(|(g, _)| *g == k) {
+                Some((_, v)) => v.push(r),
+                None => groups.push((k, vec![r])),
+            }
+        }
+        let mut out = String::new();
+        noise_section(&mut out, &groups);
+        let line = |setting: &str, camera: &str| {
+            out.lines()
+                .find(|l| l.starts_with(&format!("| {camera}, ours (reference), {setting} |")))
+                .unwrap_or_else(|| panic!("{setting} {camera}:\n{out}"))
+                .to_string()
+        };
+        assert!(line("b", "orbit").contains("+0.0102 ± 0.0005 (**outside the noise**)"));
+        assert!(line("c", "orbit").contains("(within noise)"));
+        // Compared with its own camera's first group, not the orbit's.
+        let dolly = line("b", "dolly");
+        assert!(
+            dolly.contains("| dolly, ours (reference), a | 3 |"),
+            "{dolly}"
+        );
+        assert!(dolly.contains("(within noise)"), "{dolly}");
+        assert!(
+            !out.contains("| orbit, ours (reference), a | orbit"),
+            "no self-comparison"
+        );
     }
 
     fn s(frame_s: f64, flip_mean: f64) -> Summary {

@@ -2,7 +2,11 @@
 //! (`forestlod sweep --quick`: the `tiny` scene, small images, few steps), then the report. Each
 //! CSV must hold, for every variant the sweep lists, frames with a finite cost figure (frame time
 //! and work counters) and a finite accuracy figure (FLIP against the ray-traced ground truth,
-//! coverage error). No timing is asserted; the quick run's wall time is printed.
+//! coverage error), the LOD error and the total error (our frame at the truth's sampling rate),
+//! with the truth's cost. The quick tables exercise every measure of issue 12 on `tiny`: sampled
+//! truth tiles (`angles_texture`), two resolutions (`mip_mode`) and the four scene-defined camera
+//! paths (orbit, dolly, flyover, pan), each of whose frames must show trees. No timing is
+//! asserted; the quick run's wall time is printed.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -35,6 +39,8 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
         "quick sweeps: {:.1} s wall time",
         start.elapsed().as_secs_f64()
     );
+    let mut cameras: BTreeMap<String, usize> = BTreeMap::new();
+    let mut sizes: BTreeMap<(&str, u32, u32), usize> = BTreeMap::new();
     for (name, text) in BUILTIN_SWEEPS {
         let Some(spec) = configure(SweepSpec::parse(text, name).unwrap(), &args).unwrap() else {
             continue;
@@ -44,6 +50,18 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
             serde_json::from_str(&std::fs::read_to_string(dir.join("sweep.json")).unwrap())
                 .unwrap();
         assert!(manifest.quick);
+        // The truth's cost is reported per run.
+        assert!(
+            manifest
+                .ground_truth_seconds
+                .is_some_and(|s| s.is_finite() && s >= 0.0)
+                && manifest.ground_truth_memory_bytes.is_some_and(|b| b > 0)
+                && !manifest.ground_truth_layout.is_empty(),
+            "{name}: truth cost {:?} {:?} {:?}",
+            manifest.ground_truth_seconds,
+            manifest.ground_truth_memory_bytes,
+            manifest.ground_truth_layout
+        );
         for (plot, _) in &manifest.plots {
             assert!(dir.join(plot).is_file(), "{name}: plot {plot} missing");
         }
@@ -61,6 +79,23 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
             for (_, p, mean, _) in &im.per_lod_lod_error {
                 assert!(dir.join(p).is_file() && mean.is_finite(), "{name}: {p}");
             }
+            // The total error's map, and ours split by LOD class too.
+            assert!(dir.join(&im.total_flip).is_file(), "{name}: total map");
+            assert_eq!(
+                im.per_lod_total.is_empty(),
+                im.per_lod.is_empty(),
+                "{name}: per-LOD total maps of {}",
+                im.variant
+            );
+            for (_, p, mean, _) in &im.per_lod_total {
+                assert!(dir.join(p).is_file() && mean.is_finite(), "{name}: {p}");
+            }
+        }
+        if name == "angles_texture" {
+            assert!(
+                spec.truth_tiles.is_some(),
+                "the quick run samples truth tiles"
+            );
         }
         let rows = read_rows(&dir.join(&manifest.csv)).unwrap();
         let mut per_variant: BTreeMap<(&str, &str), usize> = BTreeMap::new();
@@ -74,6 +109,9 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
                 r.accuracy.lod_flip_mean,
                 r.accuracy.lod_flip_p99,
                 r.accuracy.lod_changed,
+                r.accuracy.total_flip_mean,
+                r.accuracy.total_flip_p99,
+                r.accuracy.total_coverage_error,
             ];
             assert!(
                 cost.iter().all(|v| v.is_finite() && *v >= 0.0) && r.frame_s > 0.0,
@@ -108,6 +146,27 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
                     r.backend
                 );
             }
+            // The truth: its time, and where it was traced: a quarter of the 16x16 tiles in
+            // angles_texture's quick run (3 of 12); the full frame elsewhere (the files' 80x80
+            // tiles do not fit a 64x48 frame, which is then traced whole).
+            assert!(
+                r.truth_s.is_some_and(|s| s.is_finite() && s >= 0.0),
+                "{name}"
+            );
+            let want = if name == "angles_texture" { 0.25 } else { 1.0 };
+            assert_eq!(r.truth_fraction, Some(want), "{name}: truth fraction");
+            // Scene-defined paths look at trees in every frame.
+            if forestlod_experiments::sweep::paths::is_path(&r.camera) {
+                assert!(
+                    r.accuracy.gt_tree_fraction > 0.0,
+                    "{name}: {} frame at yaw {} / {} m shows no tree",
+                    r.camera,
+                    r.yaw_deg,
+                    r.distance_m
+                );
+                *cameras.entry(r.camera.clone()).or_default() += 1;
+            }
+            *sizes.entry((name, r.width, r.height)).or_default() += 1;
             // Conservative selection: no tree misses a LOD the per-tree oracle gives it.
             assert_eq!(r.trees_missing_lod, 0, "{name}: {} {}", r.variant, r.camera);
             *per_variant
@@ -127,6 +186,14 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
             }
         }
     }
+    for path in ["orbit", "dolly", "flyover", "pan"] {
+        assert!(
+            cameras.contains_key(path),
+            "no quick sweep ran the {path} path"
+        );
+    }
+    // Resolution is an axis: mip_mode's quick run has two frame sizes.
+    assert!(sizes.contains_key(&("mip_mode", 64, 48)) && sizes.contains_key(&("mip_mode", 48, 32)));
     // Plots can be redrawn from the CSVs alone (`forestlod report --replot`).
     let sweeps = std::fs::read_dir(&out)
         .unwrap()

@@ -1,7 +1,8 @@
 //! `forestlod sweep --shard I/N` and `forestlod sweep merge` (issue 12): every built-in sweep in
 //! quick mode on the reference backend, unsharded and as 3 shards, then merged. The merged CSV
-//! must equal the unsharded one row for row in everything but wall-clock times (which differ
-//! between any two runs), and the merge must refuse an incomplete set of shards.
+//! must equal the unsharded one row for row in everything but wall-clock times (frame and truth
+//! times, which differ between any two runs), and the merge must refuse an incomplete set of
+//! shards.
 
 use std::path::{Path, PathBuf};
 
@@ -22,7 +23,7 @@ fn args(out: &Path, shard: Option<Shard>) -> SweepArgs {
 /// Everything of a row a second run must reproduce (all but the times).
 fn deterministic(r: &Row) -> String {
     format!(
-        "{} {} {} {} {} {} {} {} {} {:?} | {} {} {} {} {} {} {} {:?} {:?} {:?} {:?} {} | {:?}",
+        "{} {} {} {} {} {} {} {} {} {:?} {}x{} {:?} | {} {} {} {} {} {} {} {:?} {:?} {:?} {:?} {} | {:?}",
         r.frame,
         r.sweep,
         r.scene,
@@ -33,6 +34,9 @@ fn deterministic(r: &Row) -> String {
         r.backend,
         r.setting,
         r.params,
+        r.width,
+        r.height,
+        r.truth_fraction,
         r.batches_tested,
         r.commands,
         r.trees_drawn,

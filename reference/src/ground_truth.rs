@@ -327,6 +327,32 @@ impl GroundTruthScene {
         self.tree_triangle_count
     }
 
+    /// Bytes this scene's truth holds: the BVH's nodes and index, the leaf-order triangles, ids
+    /// and scene indices, the per-tree mesh ids, uvs, level-0 textures and ground colours (the
+    /// truth's memory cost; allocator slack not counted).
+    pub fn memory_bytes(&self) -> u64 {
+        let bytes = |n: usize, each: usize| (n * each) as u64;
+        bytes(
+            self.bvh.nodes.len(),
+            size_of::<obvhs::cwbvh::node::CwBvhNode>(),
+        ) + bytes(self.bvh.primitive_indices.len(), 4)
+            + bytes(self.triangles.len(), size_of::<BvhTriangle>())
+            + bytes(self.ids.len(), 4)
+            + bytes(self.scene_index.len(), 4)
+            + bytes(self.tree_mesh.len(), 4)
+            + self
+                .mesh_uvs
+                .iter()
+                .map(|m| bytes(m.len(), size_of::<[[f32; 2]; 3]>()))
+                .sum::<u64>()
+            + self
+                .textures
+                .iter()
+                .map(|t| bytes(t.width() as usize * t.height() as usize, 4))
+                .sum::<u64>()
+            + bytes(self.ground_colors.len(), size_of::<[[f32; 3]; 3]>())
+    }
+
     /// Wall time of [`GroundTruthScene::build`], seconds (placing triangles plus the BVH build).
     pub fn build_seconds(&self) -> f64 {
         self.build_seconds
@@ -409,13 +435,33 @@ impl GroundTruthScene {
     /// Renders the ground truth for a camera with `samples_per_axis`² samples per pixel (module
     /// docs). The camera must be valid.
     pub fn render(&self, camera: &Camera, samples_per_axis: u32) -> GroundTruthImage {
+        self.render_region(
+            camera,
+            samples_per_axis,
+            [0, 0, camera.width, camera.height],
+        )
+    }
+
+    /// Renders only the pixel rectangle `[x0, y0, w, h]` of the camera's frame (a `w x h` image
+    /// whose pixel `(x, y)` is the frame's pixel `(x0 + x, y0 + y)`, bit for bit what
+    /// [`GroundTruthScene::render`] gives there): the sampled tiles of a truth too slow to
+    /// trace in full. The rectangle must lie inside the frame.
+    pub fn render_region(
+        &self,
+        camera: &Camera,
+        samples_per_axis: u32,
+        [x0, y0, w, h]: [u32; 4],
+    ) -> GroundTruthImage {
+        assert!(
+            x0 + w <= camera.width && y0 + h <= camera.height,
+            "region outside the frame"
+        );
         let s = samples_per_axis.max(1);
-        let (w, h) = (camera.width, camera.height);
         let sky = SKY_SRGB.map(srgb_to_linear);
-        let rows: Vec<Vec<([f32; 3], PixelClass, f32)>> = (0..h)
+        let rows: Vec<Vec<([f32; 3], PixelClass, f32)>> = (y0..y0 + h)
             .into_par_iter()
             .map(|y| {
-                (0..w)
+                (x0..x0 + w)
                     .map(|x| {
                         let mut sum = [0.0f64; 3];
                         let mut counts = [0u32; 3];
@@ -596,6 +642,20 @@ mod tests {
             .unwrap()
             .install(|| gt.render(&camera, 2));
         assert_eq!(one, two);
+        // A region is the full frame's pixels there, bit for bit (the sweeps' sampled tiles).
+        let (x0, y0, rw, rh) = (13, 5, 20, 17);
+        let region = gt.render_region(&camera, 2, [x0, y0, rw, rh]);
+        assert_eq!((region.width, region.height), (rw, rh));
+        assert_eq!(region.rays, (rw * rh * 4) as u64);
+        for y in 0..rh {
+            for x in 0..rw {
+                let (r, f) = ((y * rw + x) as usize, ((y0 + y) * 48 + x0 + x) as usize);
+                assert_eq!(region.linear[r], one.linear[f], "({x}, {y})");
+                assert_eq!(region.class[r], one.class[f]);
+                assert_eq!(region.srgb.texels[r], one.srgb.texels[f]);
+            }
+        }
+        assert!(gt.memory_bytes() > (gt.triangle_count() * size_of::<BvhTriangle>()) as u64);
         for class in [PixelClass::Sky, PixelClass::Ground, PixelClass::Tree] {
             assert!(one.class.contains(&class), "{class:?} missing");
         }

@@ -1,7 +1,9 @@
 //! Popping: how much a frame changes, from one frame to the next along a camera path, that the
 //! motion itself does not explain (issue 12's temporal error), for each fade mode (E§4.4, G§4).
 //!
-//! The camera dollies towards the forest at a drone's height ([`dolly_camera`]) so that the
+//! The camera follows the sweeps' scene-defined **dolly**
+//! (`forestlod_experiments::sweep::paths`: towards the forest's west edge at `0.15 T` above the
+//! ground, 12 m at the default `T` = 80 m, from `T + W` to `T - 2W` before the edge) so that the
 //! front trees cross the fade band `[transition - fade width, transition]` while they are large
 //! on screen. For each consecutive pair
 //! of frames `(t, t + 1)` it renders, on the reference backend:
@@ -35,13 +37,12 @@ use clap::Parser;
 use forestlod_experiments::metrics::{error_image, flip_map, percentile};
 use forestlod_experiments::plot::{Axes, Series, Style, xy_plot};
 use forestlod_experiments::report::{mean_ci, within_noise};
+use forestlod_experiments::sweep::paths::{path_camera, path_fraction};
 use forestlod_reference::InputError;
 use forestlod_reference::baselines::{render_vegetation, tree_spheres};
-use forestlod_reference::cameras::NAMED_FOV_Y_DEGREES;
 use forestlod_reference::error::COMMAND_LINE;
 use forestlod_reference::output::write_png;
 use forestlod_reference::pipeline::prepare;
-use forestlod_reference::scene::Scene;
 use forestlod_reference::scene::builtin;
 use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::{Camera, FadeMode, Params};
@@ -64,11 +65,6 @@ struct Args {
     /// Fade band width, metres.
     #[arg(long, default_value_t = 30.0)]
     fade_width: f32,
-    /// Eye height above the ground, metres: a drone's view, low enough that trees in the band
-    /// are large on screen (at 150 m, the sweeps' distance path, a tree in the band is a dozen
-    /// pixels and a billboard is indistinguishable from its mesh: nothing can pop visibly).
-    #[arg(long, default_value_t = 12.0)]
-    eye_height: f32,
     /// Billboard texture side r: lower it to make the mesh-to-billboard switch itself visible
     /// (the check that the pop score sees a pop).
     #[arg(long, default_value_t = 128)]
@@ -77,13 +73,6 @@ struct Args {
     /// batches, not the whole forest, cross the band.
     #[arg(long, default_value_t = 50.0)]
     grid_size: f32,
-    /// Camera distance from the scene's centre at the first frame, metres (`tiny` is 200 m
-    /// wide: its edge is 100 m from the centre).
-    #[arg(long, default_value_t = 220.0)]
-    from: f32,
-    /// Camera distance at the last frame, metres.
-    #[arg(long, default_value_t = 130.0)]
-    to: f32,
     /// Frames along the path (pairs = frames - 1).
     #[arg(long, default_value_t = 61)]
     frames: u32,
@@ -162,13 +151,17 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     };
     base.validate().map_err(InputError::from)?;
     std::fs::create_dir_all(&args.out)?;
-    let distances: Vec<f32> = (0..args.frames)
-        .map(|i| args.from + (args.to - args.from) * i as f32 / (args.frames - 1) as f32)
-        .collect();
-    let cameras: Vec<_> = distances
-        .iter()
-        .map(|&d| dolly_camera(&scene, d, args.eye_height, args.width, args.height))
-        .collect();
+    // The scene-defined dolly: its eye height is 0.15 T, a drone's view low enough that trees
+    // in the band are large on screen (at 150 m, the sweeps' distance path, a tree in the band
+    // is a dozen pixels and a billboard is indistinguishable from its mesh).
+    let (cameras, distances): (Vec<Camera>, Vec<f32>) = (0..args.frames)
+        .map(|i| {
+            let t = path_fraction("dolly", i, args.frames);
+            let (c, _, d) = path_camera("dolly", &scene, &base, t, args.width, args.height)
+                .expect("dolly is a path");
+            (c, d)
+        })
+        .unzip();
     for c in &cameras {
         c.validate().map_err(InputError::from)?;
     }
@@ -318,7 +311,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                 args.transition - args.fade_width,
                 args.transition
             ),
-            "camera distance from the forest centre [m]",
+            "camera distance before the forest's west edge [m]",
             "pop score per frame pair (worst tile of excess FLIP)",
         ),
         &series,
@@ -342,18 +335,6 @@ fn pair_excess(v0: &Rgba8Image, v1: &Rgba8Image, full_map: &[f32]) -> (Vec<f32>,
         .map(|(v, f)| (v - f).max(0.0))
         .collect();
     (lod_map, excess)
-}
-
-/// The dolly's camera `distance` metres before the scene's centre on -X, `eye_height` above the
-/// ground, looking along +X and slightly down (at the ground 300 m ahead).
-fn dolly_camera(scene: &Scene, distance: f32, eye_height: f32, width: u32, height: u32) -> Camera {
-    let [x0, y0, x1, y1] = scene.bounds;
-    let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
-    let ex = cx - distance;
-    let eye = [ex, cy, scene.terrain.height(ex, cy) + eye_height];
-    let tx = ex + 300.0;
-    let target = [tx, cy, scene.terrain.height(tx, cy)];
-    Camera::look_at(eye, target, NAMED_FOV_Y_DEGREES, width, height)
 }
 
 /// Side of the pop score's tiles, pixels of the pooled frame: 4 (16 frame pixels at the

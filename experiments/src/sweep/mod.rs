@@ -27,6 +27,7 @@
 //! [`runner`] (renders every frame of a sweep), [`plots`] (the PNG plots); this file is the CLI
 //! glue (`forestlod sweep`: [`SweepArgs`], [`resolve`], [`configure`], [`run`]).
 
+pub mod paths;
 mod plots;
 mod rows;
 mod runner;
@@ -103,6 +104,16 @@ pub struct SweepArgs {
     /// Replace the yaw steps of every 360° camera.
     #[arg(long)]
     pub yaw_steps: Option<u32>,
+    /// Replace the frames of every scene-defined camera path (orbit, dolly, flyover, pan).
+    #[arg(long)]
+    pub path_steps: Option<u32>,
+    /// Replace the ground truth's samples per pixel side (the total error's too).
+    #[arg(long)]
+    pub samples: Option<u32>,
+    /// Trace the truth on sampled tiles, `SIZE/FRACTION` (e.g. `80/0.125`: an eighth of the
+    /// 80x80 tiles), or `full` for the whole frame.
+    #[arg(long, value_name = "SIZE/FRACTION|full")]
+    pub truth_tiles: Option<String>,
     /// Replace the number of timed renders per frame (the minimum is kept).
     #[arg(long)]
     pub repeats: Option<u32>,
@@ -150,6 +161,8 @@ pub fn configure(spec: SweepSpec, args: &SweepArgs) -> Result<Option<SweepSpec>,
         ("--yaw-steps", args.yaw_steps),
         ("--width", args.width),
         ("--height", args.height),
+        ("--path-steps", args.path_steps),
+        ("--samples", args.samples),
     ] {
         if value == Some(0) {
             return Err(InputError::new(
@@ -166,6 +179,13 @@ pub fn configure(spec: SweepSpec, args: &SweepArgs) -> Result<Option<SweepSpec>,
     }
     spec.width = args.width.unwrap_or(spec.width);
     spec.height = args.height.unwrap_or(spec.height);
+    if args.width.is_some() || args.height.is_some() {
+        spec.resolutions.clear();
+    }
+    spec.samples = args.samples.unwrap_or(spec.samples);
+    if let Some(t) = &args.truth_tiles {
+        spec.truth_tiles = parse_truth_tiles(t)?;
+    }
     spec.repeats = args.repeats.unwrap_or(spec.repeats);
     if let Some(b) = &args.backend {
         spec.backends = b.split(',').map(|s| s.trim().to_string()).collect();
@@ -194,12 +214,42 @@ pub fn configure(spec: SweepSpec, args: &SweepArgs) -> Result<Option<SweepSpec>,
     }
     if let Some(n) = args.yaw_steps {
         for c in &mut spec.cameras {
-            if c.name != "distance" {
+            if c.name != "distance" && !paths::is_path(&c.name) {
                 c.yaw_steps = Some(n);
             }
         }
     }
+    if let Some(n) = args.path_steps {
+        for c in &mut spec.cameras {
+            if paths::is_path(&c.name) {
+                c.steps = Some(n);
+            }
+        }
+    }
     spec.validate(&format!("<sweep {}>", spec.name))?;
+    Ok(Some(spec))
+}
+
+/// `--truth-tiles SIZE/FRACTION` or `full`.
+fn parse_truth_tiles(text: &str) -> Result<Option<crate::fair::TileSpec>, InputError> {
+    if text == "full" {
+        return Ok(None);
+    }
+    let bad = |reason: String| InputError::new("<command line>", "--truth-tiles", text, reason);
+    let (size, fraction) = text
+        .split_once('/')
+        .ok_or_else(|| bad("expected SIZE/FRACTION (e.g. 80/0.125) or full".into()))?;
+    let spec = crate::fair::TileSpec {
+        size: size
+            .trim()
+            .parse()
+            .map_err(|_| bad("the tile size must be a whole number of pixels".into()))?,
+        fraction: fraction
+            .trim()
+            .parse()
+            .map_err(|_| bad("the fraction must be a number in (0, 1]".into()))?,
+    };
+    spec.check().map_err(bad)?;
     Ok(Some(spec))
 }
 

@@ -50,6 +50,15 @@ pub struct Row {
     pub width: u32,
     /// Image size.
     pub height: u32,
+    /// Seconds the ground truth of this frame's pose took to trace (shared by every row of
+    /// the pose; empty in CSVs written before it was recorded).
+    #[serde(default)]
+    pub truth_s: Option<f64>,
+    /// Fraction of the frame's pixels the truth traced: 1 for the full frame, less for sampled
+    /// tiles (`crate::fair::TruthLayout`), on which every error against the truth is then
+    /// computed. Empty in older CSVs (full frame).
+    #[serde(default)]
+    pub truth_fraction: Option<f64>,
     /// Selection (ours) or per-tree culling (baselines), wall seconds (GPU: submit to completion).
     pub select_s: f64,
     /// Draw, ground included, wall seconds (GPU: submit to completion, readback excluded).
@@ -246,6 +255,13 @@ pub struct FrameImages {
     /// Per-LOD maps of the LOD error, likewise (ours only).
     #[serde(default)]
     pub per_lod_lod_error: Vec<(String, String, f64, u64)>,
+    /// The total error's map: our frame at the truth's sampling rate against the truth (empty
+    /// when not measured).
+    #[serde(default)]
+    pub total_flip: String,
+    /// Per-LOD maps of the total error, likewise (ours only; classes of the filtered frame).
+    #[serde(default)]
+    pub per_lod_total: Vec<(String, String, f64, u64)>,
     /// The ground truth.
     pub ground_truth: String,
     /// The ground truth's classes.
@@ -297,6 +313,18 @@ pub struct Manifest {
     pub ground_truth_bvh: Vec<(String, usize, f64)>,
     /// Ground-truth rays traced.
     pub ground_truth_rays: u64,
+    /// Seconds spent tracing ground-truth images (BVH builds not included: `ground_truth_bvh`).
+    #[serde(default)]
+    pub ground_truth_seconds: Option<f64>,
+    /// Bytes of the largest scene's ground truth ([`forestlod_reference::ground_truth::GroundTruthScene::memory_bytes`]).
+    #[serde(default)]
+    pub ground_truth_memory_bytes: Option<u64>,
+    /// Where the truth was traced, per frame size (`1280x720: 18 tiles of 80x80 (12.5% ...)`).
+    #[serde(default)]
+    pub ground_truth_layout: Vec<String>,
+    /// Whether the total error was measured.
+    #[serde(default)]
+    pub total_error: bool,
     /// `I/N` when this is shard `I` of `N` (`forestlod sweep --shard`), to be joined by
     /// `forestlod sweep merge`.
     #[serde(default)]

@@ -24,8 +24,10 @@ use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::{Camera, CommandData, DrawCommand, Params, TreeCull};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::metrics::{Accuracy, accuracy, error_image, lod_error, per_lod_error_maps};
+use crate::fair::{TruthLayout, box_filter, supersampled};
+use crate::metrics::{Accuracy, accuracy, error_image, lod_error, per_lod_error_maps, total_error};
 
+use super::paths::path_camera;
 use super::plots::write_plots;
 use super::rows::{FrameImages, Manifest, Row, write_csv};
 use super::shard::Shard;
@@ -83,8 +85,10 @@ impl VariantFrame {
 #[derive(Default)]
 pub struct Runner {
     scene: Option<(String, Scene, GroundTruthScene)>,
-    images: HashMap<String, GroundTruthImage>,
+    /// Ground-truth images by pose, size, sampling and layout, with the seconds each took.
+    images: HashMap<String, (GroundTruthImage, f64)>,
     rays: u64,
+    truth_seconds: f64,
     gpu: Option<&'static GpuContext>,
 }
 
@@ -153,6 +157,9 @@ impl Runner {
         let mut images = Vec::new();
         let mut bvh_info = Vec::new();
         let rays_before = self.rays;
+        let truth_seconds_before = self.truth_seconds;
+        let mut truth_memory = 0u64;
+        let mut truth_layouts: Vec<String> = Vec::new();
         for (scene_i, scene_name) in spec.scenes.iter().enumerate() {
             self.scene(scene_name, alpha_cutoff)?;
             let (_, scene, gt_scene) = self.scene.as_ref().expect("loaded");
@@ -161,6 +168,7 @@ impl Runner {
                 gt_scene.triangle_count(),
                 gt_scene.build_seconds(),
             ));
+            truth_memory = truth_memory.max(gt_scene.memory_bytes());
             for (set_i, set) in sets.iter().enumerate() {
                 // The unit of sharding is one pose of one parameter set of one scene: its
                 // ground truth and full-detail frames are shared by its variants and backends.
@@ -182,33 +190,51 @@ impl Runner {
                     None => None,
                 };
                 let mut gpu_warm = false;
+                let (width, height) = (set.width, set.height);
+                let layout = TruthLayout::new(width, height, spec.truth_tiles);
+                let layout_text = format!("{width}x{height}: {}", layout.describe(width, height));
+                if !truth_layouts.contains(&layout_text) {
+                    truth_layouts.push(layout_text);
+                }
                 for (pose_i, pose) in poses.iter().enumerate() {
                     let unit = unit_of(pose_i);
                     if !mine(unit) {
                         continue;
                     }
+                    // A path's pose gets its yaw and distance from the path (`super::paths`).
+                    let mut pose = pose.clone();
                     let camera = if pose.camera == "distance" {
-                        distance_camera(scene, pose.distance_m, spec.width, spec.height)
+                        distance_camera(scene, pose.distance_m, width, height)
+                    } else if let Some((c, yaw, d)) =
+                        path_camera(&pose.camera, scene, &set.params, pose.path_t, width, height)
+                    {
+                        (pose.yaw_deg, pose.distance_m) = (yaw, d);
+                        c
                     } else {
-                        named_camera(&pose.camera, scene, pose.yaw_deg, spec.width, spec.height)?
+                        named_camera(&pose.camera, scene, pose.yaw_deg, width, height)?
                     };
+                    let pose = &pose;
                     camera.validate().map_err(InputError::from)?;
                     let key = format!(
-                        "{}|{}|{}|{}|{}x{}|{}",
+                        "{}|{}|{}|{}|{}x{}|{}|{:?}",
                         scene.name,
                         pose.camera,
                         pose.yaw_deg,
                         pose.distance_m,
-                        spec.width,
-                        spec.height,
-                        spec.samples
+                        width,
+                        height,
+                        spec.samples,
+                        layout
                     );
                     if !self.images.contains_key(&key) {
-                        let img = gt_scene.render(&camera, spec.samples);
+                        let t0 = Instant::now();
+                        let img = layout.render_truth(gt_scene, &camera, spec.samples);
+                        let seconds = t0.elapsed().as_secs_f64();
                         self.rays += img.rays;
-                        self.images.insert(key.clone(), img);
+                        self.truth_seconds += seconds;
+                        self.images.insert(key.clone(), (img, seconds));
                     }
-                    let gt = &self.images[&key];
+                    let (gt, truth_s) = (&self.images[&key].0, self.images[&key].1);
                     let frame = Frame {
                         prepared: &prepared,
                         spheres: &spheres,
@@ -216,31 +242,54 @@ impl Runner {
                         camera: &camera,
                         params: &set.params,
                     };
+                    // The same frame at the truth's sampling rate (`crate::fair`).
+                    let camera_ss = supersampled(&camera, spec.samples);
+                    let frame_ss = Frame {
+                        camera: &camera_ss,
+                        ..frame
+                    };
                     for (backend_i, &backend) in backends.iter().enumerate() {
-                        let mut render = |variant: Variant, repeats: u32| {
+                        let mut render = |variant: Variant, frame: &Frame, repeats: u32| {
                             if backend == Backend::Gpu {
                                 let gs = gpu_scene.as_mut().expect("created when use_gpu");
                                 if !gpu_warm {
                                     // First frame of a parameter set: pipelines, bind groups and
                                     // lavapipe's shader JIT warm up outside the timed renders.
-                                    render_gpu_variant(gs, variant, &frame, 1)?;
+                                    render_gpu_variant(gs, variant, frame, 1)?;
                                     gpu_warm = true;
                                 }
-                                render_gpu_variant(gs, variant, &frame, repeats)
+                                render_gpu_variant(gs, variant, frame, repeats)
                             } else {
-                                render_variant(variant, &frame, repeats).map_err(Into::into)
+                                render_variant(variant, frame, repeats).map_err(Into::into)
                             }
                         };
                         // The LOD error's reference: this backend's full-detail frame (every
                         // visible tree at its full mesh, the Vegetation baseline), untimed.
-                        let full = render(Variant::Vegetation, 1)?.color;
+                        let full = render(Variant::Vegetation, &frame, 1)?.color;
                         for (variant_i, &variant) in variants.iter().enumerate() {
                             let frame_index =
                                 (unit * per_unit + backend_i * variants.len() + variant_i) as u64;
-                            let vf = render(variant, spec.repeats)?;
-                            let (mut acc, map) = accuracy(gt, &vf.color, &vf.aux);
+                            let vf = render(variant, &frame, spec.repeats)?;
+                            let truth_aux = layout.gather(&vf.aux, width);
+                            let (mut acc, map) = accuracy(
+                                gt,
+                                &layout.gather_image(&vf.color),
+                                &truth_aux,
+                                layout.tile(),
+                            );
                             let lod_map = lod_error(&mut acc, &full, &vf.color);
-                            let pixels = (spec.width as u64 * spec.height as u64).max(1);
+                            // The total error: this frame at the truth's sampling rate, untimed.
+                            let total = if spec.total_error {
+                                let big = render(variant, &frame_ss, 1)?;
+                                let (color, aux) = box_filter(&big.color, &big.aux, spec.samples);
+                                let aux = layout.gather(&aux, width);
+                                let color = layout.gather_image(&color);
+                                let map = total_error(&mut acc, gt, &color, &aux, layout.tile());
+                                Some((map, aux))
+                            } else {
+                                None
+                            };
+                            let pixels = (width as u64 * height as u64).max(1);
                             let p = &set.params;
                             rows.push(Row {
                                 frame: frame_index,
@@ -253,8 +302,10 @@ impl Runner {
                                 backend: backend.name().into(),
                                 setting: set.label.clone(),
                                 params: *p,
-                                width: spec.width,
-                                height: spec.height,
+                                width,
+                                height,
+                                truth_s: Some(truth_s),
+                                truth_fraction: Some(layout.fraction(width, height)),
                                 select_s: vf.select_s,
                                 draw_s: vf.draw_s,
                                 frame_s: vf.select_s + vf.draw_s,
@@ -283,8 +334,8 @@ impl Runner {
                                     (variant, backend),
                                     set,
                                     gt,
-                                    (&vf.color, &vf.aux),
-                                    (&map, &lod_map),
+                                    (&vf.color, &vf.aux, &truth_aux),
+                                    (&map, &lod_map, total.as_ref()),
                                     acc,
                                 )?);
                             }
@@ -314,8 +365,8 @@ impl Runner {
             variants: spec.variants.clone(),
             backends: spec.backends.clone(),
             gpu_adapter: gpu_ctx.map(GpuContext::describe),
-            width: spec.width,
-            height: spec.height,
+            width: sets.first().map_or(spec.width, |s| s.width),
+            height: sets.first().map_or(spec.height, |s| s.height),
             ground_truth_spp: spec.samples * spec.samples,
             frames: rows.len(),
             csv: csv_name,
@@ -324,6 +375,10 @@ impl Runner {
             wall_seconds: start.elapsed().as_secs_f64(),
             ground_truth_bvh: bvh_info,
             ground_truth_rays: self.rays - rays_before,
+            ground_truth_seconds: Some(self.truth_seconds - truth_seconds_before),
+            ground_truth_memory_bytes: Some(truth_memory),
+            ground_truth_layout: truth_layouts,
+            total_error: spec.total_error,
             spec: Some(spec.clone()),
             shard: shard.map(|s| s.to_string()),
         };
@@ -333,6 +388,9 @@ impl Runner {
         Ok(manifest)
     }
 }
+
+/// The total error's FLIP map and the filtered frame's LOD ids, on the truth's layout.
+type TotalMap = (Vec<f32>, Vec<u32>);
 
 /// One frame's inputs, shared by every variant and backend.
 struct Frame<'a> {
@@ -547,8 +605,8 @@ fn save_frame_images(
     (variant, backend): (Variant, Backend),
     set: &ParamSet,
     gt: &GroundTruthImage,
-    (color, aux): (&Rgba8Image, &[u32]),
-    (map, lod_map): (&[f32], &[f32]),
+    (color, aux, truth_aux): (&Rgba8Image, &[u32], &[u32]),
+    (map, lod_map, total): (&[f32], &[f32], Option<&TotalMap>),
     acc: Accuracy,
 ) -> Result<FrameImages, InputError> {
     let pose_slug = if pose.camera == "distance" {
@@ -577,9 +635,19 @@ fn save_frame_images(
     write_png(&dir.join(&lod_flip), &error_image(lod_map, w, h))?;
     write_png(&dir.join(&color_path), color)?;
     write_png(&dir.join(&lod), &lod_id_image(w, h, aux))?;
-    write_png(&dir.join(&flip), &error_image(map, w, h))?;
-    // Ours: both error maps split by the frame's LOD class (`{stem}_{kind}_{class}.png`).
-    let split = |map: &[f32], kind: &str| -> Result<Vec<_>, InputError> {
+    // The errors against the truth are on its layout (the mosaic of sampled tiles, or the frame).
+    let (tw, th) = (gt.width, gt.height);
+    write_png(&dir.join(&flip), &error_image(map, tw, th))?;
+    let total_flip = match total {
+        Some((total_map, _)) => {
+            let p = rel(format!("{stem}_total_flip.png"));
+            write_png(&dir.join(&p), &error_image(total_map, tw, th))?;
+            p
+        }
+        None => String::new(),
+    };
+    // Ours: every error map split by the frame's LOD class (`{stem}_{kind}_{class}.png`).
+    let split = |map: &[f32], aux: &[u32], (w, h), kind: &str| -> Result<Vec<_>, InputError> {
         let mut out = Vec::new();
         if variant.is_ours() {
             for m in per_lod_error_maps(map, aux, w, h) {
@@ -593,8 +661,12 @@ fn save_frame_images(
         }
         Ok(out)
     };
-    let per_lod = split(map, "flip")?;
-    let per_lod_lod_error = split(lod_map, "lod_flip")?;
+    let per_lod = split(map, truth_aux, (tw, th), "flip")?;
+    let per_lod_lod_error = split(lod_map, aux, (w, h), "lod_flip")?;
+    let per_lod_total = match total {
+        Some((total_map, total_aux)) => split(total_map, total_aux, (tw, th), "total_flip")?,
+        None => Vec::new(),
+    };
     Ok(FrameImages {
         frame,
         camera: pose.camera.clone(),
@@ -609,6 +681,8 @@ fn save_frame_images(
         lod_flip,
         per_lod,
         per_lod_lod_error,
+        total_flip,
+        per_lod_total,
         ground_truth: gt_path,
         ground_truth_class: gt_class,
         accuracy: acc,

@@ -175,6 +175,7 @@ pub fn merge(
             images: Vec::new(),
             wall_seconds: 0.0,
             ground_truth_rays: 0,
+            ground_truth_seconds: first.ground_truth_seconds.map(|_| 0.0),
             ..first.clone()
         };
         for (shard_dir, m) in &parts {
@@ -185,12 +186,14 @@ pub fn merge(
                     &im.lod,
                     &im.flip,
                     &im.lod_flip,
+                    &im.total_flip,
                     &im.ground_truth,
                     &im.ground_truth_class,
                 ]
                 .into_iter()
                 .chain(im.per_lod.iter().map(|(_, p, _, _)| p))
                 .chain(im.per_lod_lod_error.iter().map(|(_, p, _, _)| p))
+                .chain(im.per_lod_total.iter().map(|(_, p, _, _)| p))
                 .filter(|p| !p.is_empty())
                 {
                     std::fs::copy(shard_dir.join(p), dir.join(p))?;
@@ -199,6 +202,10 @@ pub fn merge(
             manifest.images.extend(m.images.iter().cloned());
             manifest.wall_seconds += m.wall_seconds;
             manifest.ground_truth_rays += m.ground_truth_rays;
+            if let (Some(a), Some(b)) = (&mut manifest.ground_truth_seconds, m.ground_truth_seconds)
+            {
+                *a += b;
+            }
         }
         rows.sort_by_key(|r| r.frame);
         if let Some(w) = rows.windows(2).find(|w| w[0].frame == w[1].frame) {

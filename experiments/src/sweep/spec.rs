@@ -12,13 +12,18 @@ use forestlod_shared::{Camera, Params};
 use serde::{Deserialize, Serialize};
 
 use super::variant::{Backend, Named, Variant};
+use crate::fair::TileSpec;
 
 /// One camera entry of a sweep file.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraSpec {
-    /// `far`, `medium`, `close` (E§5.0.1, [`forestlod_reference::cameras`]) or `distance`.
+    /// `far`, `medium`, `close` (E§5.0.1, [`forestlod_reference::cameras`]), `distance`, or a
+    /// scene-defined path: `orbit`, `dolly`, `flyover`, `pan` ([`super::paths`]).
     pub name: String,
+    /// For paths: frames along the path (default [`super::paths::DEFAULT_PATH_STEPS`]).
+    #[serde(default)]
+    pub steps: Option<u32>,
     /// For named cameras: a 360° sweep in this many equal yaw steps (default 1: yaw 0 only).
     #[serde(default)]
     pub yaw_steps: Option<u32>,
@@ -61,6 +66,8 @@ pub struct QuickSpec {
     pub samples: Option<u32>,
     /// Yaw steps of every named camera.
     pub yaw_steps: Option<u32>,
+    /// Frames of every camera path.
+    pub path_steps: Option<u32>,
     /// Distances of the distance path.
     pub distances: Option<Vec<f32>>,
     /// Values per axis parameter.
@@ -69,6 +76,10 @@ pub struct QuickSpec {
     pub params: Option<toml::Table>,
     /// Backends.
     pub backends: Option<Vec<String>>,
+    /// Frame sizes (replace `width`/`height` and the file's `resolutions`).
+    pub resolutions: Option<Vec<[u32; 2]>>,
+    /// Sampled-tile truth (replaces the file's).
+    pub truth_tiles: Option<TileSpec>,
 }
 
 /// A sweep file.
@@ -90,15 +101,26 @@ pub struct SweepSpec {
     /// Backends: `reference` (default), `gpu`.
     #[serde(default = "default_backends")]
     pub backends: Vec<String>,
-    /// Image width.
+    /// Image width (default 1280).
     #[serde(default = "default_width")]
     pub width: u32,
-    /// Image height.
+    /// Image height (default 720).
     #[serde(default = "default_height")]
     pub height: u32,
+    /// Frame sizes as an axis, `[[1280, 720], [1920, 1080]]`: every parameter set at each
+    /// (labelled with the size when there is more than one). Empty: `width` x `height`.
+    #[serde(default)]
+    pub resolutions: Vec<[u32; 2]>,
     /// Ground-truth samples per pixel side.
     #[serde(default = "default_samples")]
     pub samples: u32,
+    /// Trace the truth on sampled tiles only (`crate::fair::TruthLayout`); absent: the full frame.
+    #[serde(default)]
+    pub truth_tiles: Option<TileSpec>,
+    /// Measure the total error: every frame rendered again at the truth's sampling rate
+    /// (`samples`² times the pixels, untimed) and box-filtered (`crate::fair`). Default true.
+    #[serde(default = "default_true")]
+    pub total_error: bool,
     /// Timed renders per frame; the minimum is kept.
     #[serde(default = "default_repeats")]
     pub repeats: u32,
@@ -140,10 +162,13 @@ fn default_backends() -> Vec<String> {
     vec!["reference".into()]
 }
 fn default_width() -> u32 {
-    320
+    1280
 }
 fn default_height() -> u32 {
-    180
+    720
+}
+fn default_true() -> bool {
+    true
 }
 fn default_samples() -> u32 {
     forestlod_reference::ground_truth::DEFAULT_SAMPLES_PER_AXIS
@@ -216,6 +241,10 @@ pub struct ParamSet {
     pub x: Option<f64>,
     /// The parameters, validated.
     pub params: Params,
+    /// Frame width, pixels.
+    pub width: u32,
+    /// Frame height, pixels.
+    pub height: u32,
 }
 
 /// One camera pose.
@@ -229,6 +258,8 @@ pub struct Pose {
     pub distance_m: f32,
     /// Whether this pose's images are saved (the first pose of each camera entry).
     pub save_images: bool,
+    /// For a camera path: where along it, in `[0, 1]` ([`super::paths::path_fraction`]).
+    pub path_t: f32,
 }
 
 impl SweepSpec {
@@ -272,6 +303,22 @@ impl SweepSpec {
                     "expected at least 1 yaw step",
                 ));
             }
+            if c.steps == Some(0) {
+                return Err(InputError::new(
+                    file,
+                    "cameras.steps",
+                    0,
+                    "expected at least 1 frame along the path",
+                ));
+            }
+            if c.steps.is_some() && !super::paths::is_path(&c.name) {
+                return Err(InputError::new(
+                    file,
+                    "cameras.steps",
+                    &c.name,
+                    "`steps` is for the paths orbit, dolly, flyover and pan (use yaw_steps or distances)",
+                ));
+            }
             if c.name == "distance" {
                 if c.distances.as_ref().is_none_or(|d| d.is_empty()) {
                     return Err(InputError::new(
@@ -281,14 +328,36 @@ impl SweepSpec {
                         "a distance camera needs a non-empty `distances` list",
                     ));
                 }
-            } else if !forestlod_reference::cameras::CAMERA_NAMES.contains(&c.name.as_str()) {
+            } else if !forestlod_reference::cameras::CAMERA_NAMES.contains(&c.name.as_str())
+                && !super::paths::is_path(&c.name)
+            {
                 return Err(InputError::new(
                     file,
                     "cameras.name",
                     &c.name,
-                    "expected far, medium, close or distance",
+                    "expected far, medium, close, distance, orbit, dolly, flyover or pan",
                 ));
             }
+        }
+        for [w, h] in self.sizes() {
+            // The supersampled frame must stay within wgpu's 8192-texel limit (and the
+            // reference's memory): s·w x s·h.
+            let big = w.max(h) as u64 * self.samples as u64;
+            if w == 0 || h == 0 || (self.total_error && big > 8192) {
+                return Err(InputError::new(
+                    file,
+                    "width/height/resolutions",
+                    format!("{w}x{h}"),
+                    format!(
+                        "expected positive sizes whose supersampled frame (x{} per side, total_error) is at most 8192 pixels wide and high",
+                        self.samples
+                    ),
+                ));
+            }
+        }
+        if let Some(t) = &self.truth_tiles {
+            t.check()
+                .map_err(|e| InputError::new(file, "truth_tiles", format!("{t:?}"), e))?;
         }
         if self.width == 0 || self.height == 0 || self.samples == 0 || self.repeats == 0 {
             return Err(InputError::new(
@@ -325,11 +394,24 @@ impl SweepSpec {
         }
         self.width = q.width.unwrap_or(self.width);
         self.height = q.height.unwrap_or(self.height);
+        if q.width.is_some() || q.height.is_some() {
+            self.resolutions.clear();
+        }
+        if let Some(r) = q.resolutions {
+            self.resolutions = r;
+        }
+        if q.truth_tiles.is_some() {
+            self.truth_tiles = q.truth_tiles;
+        }
         self.samples = q.samples.unwrap_or(self.samples);
         for c in &mut self.cameras {
             if c.name == "distance" {
                 if let Some(d) = &q.distances {
                     c.distances = Some(d.clone());
+                }
+            } else if super::paths::is_path(&c.name) {
+                if q.path_steps.is_some() {
+                    c.steps = q.path_steps;
                 }
             } else if q.yaw_steps.is_some() {
                 c.yaw_steps = q.yaw_steps;
@@ -351,8 +433,40 @@ impl SweepSpec {
         self
     }
 
-    /// Every parameter set: settings (or one "default") times the axes' Cartesian product.
+    /// The frame sizes: `resolutions`, or `width` x `height`.
+    pub fn sizes(&self) -> Vec<[u32; 2]> {
+        if self.resolutions.is_empty() {
+            vec![[self.width, self.height]]
+        } else {
+            self.resolutions.clone()
+        }
+    }
+
+    /// Every parameter set: settings (or one "default") times the axes' Cartesian product, times
+    /// the frame sizes ([`SweepSpec::sizes`]; labelled `WxH` when there is more than one).
     pub fn param_sets(&self, file: &str) -> Result<Vec<ParamSet>, InputError> {
+        let sizes = self.sizes();
+        let mut out = Vec::new();
+        for set in self.param_sets_one_size(file)? {
+            for &[width, height] in &sizes {
+                let mut s = set.clone();
+                if sizes.len() > 1 {
+                    let size = format!("{width}x{height}");
+                    s.label = format!("{} {size}", s.label);
+                    s.series = [s.series.as_str(), size.as_str()]
+                        .into_iter()
+                        .filter(|p| !p.is_empty())
+                        .collect::<Vec<_>>()
+                        .join(" ");
+                }
+                (s.width, s.height) = (width, height);
+                out.push(s);
+            }
+        }
+        Ok(out)
+    }
+
+    fn param_sets_one_size(&self, file: &str) -> Result<Vec<ParamSet>, InputError> {
         let mut base = Params::default();
         for (k, v) in &self.params {
             set_param(&mut base, k, v, file)?;
@@ -423,6 +537,8 @@ impl SweepSpec {
                     series: series.join(" "),
                     x,
                     params,
+                    width: self.width,
+                    height: self.height,
                 });
             }
         }
@@ -440,6 +556,18 @@ impl SweepSpec {
                         yaw_deg: 0.0,
                         distance_m: d,
                         save_images: i == 0,
+                        path_t: 0.0,
+                    });
+                }
+            } else if super::paths::is_path(&c.name) {
+                let steps = c.steps.unwrap_or(super::paths::DEFAULT_PATH_STEPS);
+                for i in 0..steps {
+                    out.push(Pose {
+                        camera: c.name.clone(),
+                        yaw_deg: 0.0,
+                        distance_m: 0.0,
+                        save_images: i == 0,
+                        path_t: super::paths::path_fraction(&c.name, i, steps),
                     });
                 }
             } else {
@@ -451,6 +579,7 @@ impl SweepSpec {
                         yaw_deg: 360.0 * i as f32 / steps as f32,
                         distance_m: 0.0,
                         save_images: i == 0,
+                        path_t: 0.0,
                     });
                 }
             }

@@ -1,0 +1,198 @@
+//! Camera paths defined by the scene (issue 12: "cameras that look at trees"): placed from the
+//! scene's footprint `[x0, y0, x1, y1]` (centre `c`, half-size `R`, the larger half side) and,
+//! for the dolly, from the parameter set's fade band, so that every frame looks at trees
+//! whatever the scene's size. A sweep file names them as cameras with a frame count:
+//!
+//! ```toml
+//! [[cameras]]
+//! name = "orbit"     # orbit, dolly, flyover or pan
+//! steps = 8
+//! ```
+//!
+//! - **orbit**: around the forest looking in. The eye circles the centre at `1.5 R` (half a
+//!   footprint outside it), [`ORBIT_HEIGHT`]` · R` above the ground, looking at the ground at the
+//!   centre; `steps` equal angles over 360° from the west (row column `yaw_deg`).
+//! - **dolly**: through the fade band `[T - W, T]` (`T` = `lod1_transition`, `W` = `fade_width`,
+//!   E§4.4). The eye moves east on the centre line, [`DOLLY_HEIGHT`]` · T` above the ground (12 m
+//!   at popping's `T` = 80 m), looking at the ground `3.75 T` ahead; its distance before the
+//!   footprint's west edge goes from `T + W` to `max(0, T - 2W)` (row column `distance_m`), so the
+//!   front trees enter the band, cross it and leave it, and the trees behind them follow.
+//! - **flyover**: at 3D-GIS heights. The eye crosses the footprint west to east on the centre
+//!   line at [`FLYOVER_HEIGHT`]` · (x1 - x0)` above the ground (600 m over `synthetic`), pitched
+//!   down [`FLYOVER_PITCH_DEGREES`], from `x0 - h` to `x1 - h` (it sees the forest ahead of it);
+//!   `distance_m` is the distance flown.
+//! - **pan**: a 360° pan from inside the forest: the eye at the centre, [`PAN_HEIGHT_M`] above the
+//!   ground (above the built-in canopies), pitched down [`PAN_PITCH_DEGREES`]; `steps` yaws.
+//!
+//! Every frame records its tree fraction (the truth's and the frame's, `gt_tree_fraction`,
+//! `tree_fraction`), and the report leaves frames whose truth shows no tree out of the means.
+
+use forestlod_reference::cameras::NAMED_FOV_Y_DEGREES;
+use forestlod_reference::scene::Scene;
+use forestlod_shared::{Camera, Params};
+
+/// Names of the scene-defined paths.
+pub const PATH_NAMES: [&str; 4] = ["orbit", "dolly", "flyover", "pan"];
+
+/// Frames of a path when the sweep file gives no `steps`.
+pub const DEFAULT_PATH_STEPS: u32 = 8;
+
+/// The orbit's eye height above the ground, times `R`.
+pub const ORBIT_HEIGHT: f32 = 0.25;
+/// The dolly's eye height above the ground, times `T`.
+pub const DOLLY_HEIGHT: f32 = 0.15;
+/// The fly-over's height above the ground, times the footprint's width.
+pub const FLYOVER_HEIGHT: f32 = 0.3;
+/// The fly-over's pitch below the horizon, degrees.
+pub const FLYOVER_PITCH_DEGREES: f32 = 30.0;
+/// The pan's eye height above the ground, metres.
+pub const PAN_HEIGHT_M: f32 = 40.0;
+/// The pan's pitch below the horizon, degrees.
+pub const PAN_PITCH_DEGREES: f32 = 5.0;
+
+/// Whether `name` is a scene-defined path.
+pub fn is_path(name: &str) -> bool {
+    PATH_NAMES.contains(&name)
+}
+
+/// Where along its path frame `step` of `steps` is: `step / steps` for the closed paths (orbit,
+/// pan: 360° is the start again), `step / (steps - 1)` for the open ones (0 for one frame).
+pub fn path_fraction(name: &str, step: u32, steps: u32) -> f32 {
+    if matches!(name, "orbit" | "pan") {
+        step as f32 / steps.max(1) as f32
+    } else if steps <= 1 {
+        0.0
+    } else {
+        step as f32 / (steps - 1) as f32
+    }
+}
+
+/// A camera from `eye`, yawed `yaw` degrees from +X and pitched `pitch` degrees (negative: down).
+fn aimed(eye: [f32; 3], yaw: f32, pitch: f32, width: u32, height: u32) -> Camera {
+    let (yaw, pitch) = (yaw.to_radians(), pitch.to_radians());
+    let f = [
+        yaw.cos() * pitch.cos(),
+        yaw.sin() * pitch.cos(),
+        pitch.sin(),
+    ];
+    let target = [eye[0] + f[0], eye[1] + f[1], eye[2] + f[2]];
+    let mut c = Camera::look_at(eye, target, NAMED_FOV_Y_DEGREES, width, height);
+    c.forward = f;
+    c
+}
+
+/// Frame `t` in `[0, 1]` ([`path_fraction`]) of path `name`, with the row's `yaw_deg` and
+/// `distance_m` (module docs). `None` for a name that is no path.
+pub fn path_camera(
+    name: &str,
+    scene: &Scene,
+    params: &Params,
+    t: f32,
+    width: u32,
+    height: u32,
+) -> Option<(Camera, f32, f32)> {
+    let [x0, y0, x1, y1] = scene.bounds;
+    let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
+    let r = ((x1 - x0).max(y1 - y0) * 0.5).max(1.0);
+    let ground = |x: f32, y: f32| scene.terrain.height(x, y);
+    Some(match name {
+        "orbit" => {
+            let yaw = 360.0 * t;
+            let a = (180.0 + yaw).to_radians();
+            let (ex, ey) = (cx + 1.5 * r * a.cos(), cy + 1.5 * r * a.sin());
+            let eye = [ex, ey, ground(ex, ey) + ORBIT_HEIGHT * r];
+            let target = [cx, cy, ground(cx, cy)];
+            let c = Camera::look_at(eye, target, NAMED_FOV_Y_DEGREES, width, height);
+            (c, yaw, 0.0)
+        }
+        "dolly" => {
+            let (big_t, w) = (params.lod1_transition, params.fade_width);
+            let (from, to) = (big_t + w, (big_t - 2.0 * w).max(0.0));
+            let d = from + (to - from) * t;
+            let ex = x0 - d;
+            let h = (DOLLY_HEIGHT * big_t).max(1.0);
+            let eye = [ex, cy, ground(ex, cy) + h];
+            let tx = ex + 3.75 * big_t.max(1.0);
+            let target = [tx, cy, ground(tx, cy)];
+            let c = Camera::look_at(eye, target, NAMED_FOV_Y_DEGREES, width, height);
+            (c, 0.0, d)
+        }
+        "flyover" => {
+            let h = FLYOVER_HEIGHT * (x1 - x0).max(1.0);
+            let flown = (x1 - x0) * t;
+            let ex = x0 - h + flown;
+            let eye = [ex, cy, ground(ex, cy) + h];
+            (
+                aimed(eye, 0.0, -FLYOVER_PITCH_DEGREES, width, height),
+                0.0,
+                flown,
+            )
+        }
+        "pan" => {
+            let yaw = 360.0 * t;
+            let eye = [cx, cy, ground(cx, cy) + PAN_HEIGHT_M];
+            (aimed(eye, yaw, -PAN_PITCH_DEGREES, width, height), yaw, 0.0)
+        }
+        _ => return None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use forestlod_reference::scene::builtin;
+
+    /// Every path keeps the forest in view: the footprint's centre (orbit, pan: some tree) is in
+    /// front of the eye and, for orbit and fly-over, inside the frustum, on `tiny` and `synthetic`.
+    #[test]
+    fn every_path_looks_at_the_forest() {
+        for scene in [builtin::tiny(), builtin::synthetic()] {
+            let params = Params::default();
+            let [x0, y0, x1, y1] = scene.bounds;
+            let centre = glam::Vec3::new((x0 + x1) * 0.5, (y0 + y1) * 0.5, 0.0);
+            for name in PATH_NAMES {
+                for step in 0..8 {
+                    let t = path_fraction(name, step, 8);
+                    let (c, ..) = path_camera(name, &scene, &params, t, 320, 180).unwrap();
+                    c.validate().unwrap();
+                    // Some tree lies inside the frustum.
+                    let planes = c.frustum().planes;
+                    let eye = glam::Vec3::from(c.eye);
+                    let sees = |p: glam::Vec3| {
+                        planes
+                            .iter()
+                            .all(|q| glam::Vec3::new(q[0], q[1], q[2]).dot(p - eye) + q[3] >= 0.0)
+                    };
+                    let any = scene
+                        .instances
+                        .iter()
+                        .any(|i| sees(glam::Vec3::from(i.position)));
+                    assert!(any, "{} {name} step {step}: no tree in view", scene.name);
+                    if matches!(name, "orbit" | "flyover") && step == 4 {
+                        // Half-way: the orbit looks at the centre, the fly-over is over it.
+                        let z = scene.terrain.height(centre.x, centre.y);
+                        assert!(sees(centre.with_z(z)), "{} {name}", scene.name);
+                    }
+                }
+            }
+        }
+        assert!(path_camera("medium", &builtin::tiny(), &Params::default(), 0.0, 8, 8).is_none());
+    }
+
+    #[test]
+    fn the_dolly_crosses_the_fade_band() {
+        let scene = builtin::tiny();
+        let params = Params {
+            lod1_transition: 80.0,
+            fade_width: 30.0,
+            ..Params::default()
+        };
+        let d = |t| path_camera("dolly", &scene, &params, t, 64, 48).unwrap().2;
+        // The front trees start beyond the band's far end T and end nearer than its start T - W.
+        assert_eq!(d(0.0), 110.0);
+        assert_eq!(d(1.0), 20.0);
+        assert_eq!(path_fraction("dolly", 7, 8), 1.0);
+        assert_eq!(path_fraction("orbit", 4, 8), 0.5);
+        assert_eq!(path_fraction("flyover", 0, 1), 0.0);
+    }
+}
