@@ -126,6 +126,12 @@ stage_source!(
     REFINE_WGSL, refine_source, "refine.wgsl"
 );
 
+stage_source!(
+    /// The `hier_select` stage's own source (without [`COMMON_WGSL`]): the hierarchical cut
+    /// (issue 13).
+    HIER_SELECT_WGSL, hier_select_source, "hier_select.wgsl"
+);
+
 /// The depth read-back by compute (`DrawTarget::read`), standalone: [`COMMON_WGSL`] is not
 /// prepended.
 pub const DEPTH_COPY_WGSL: &str = include_str!("shaders/depth_copy.wgsl");
