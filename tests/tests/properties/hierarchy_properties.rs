@@ -330,7 +330,10 @@ fn hierarchy_frames_equal_grid_frames() {
                                 && **lb == forestlod_shared::LOD_ID_TRANSITION)
                     })
                     .count();
-                assert_eq!(unexplained, 0, "{mode:?} {camera_name} {fade:?}: pixels differ outside the fade band");
+                assert_eq!(
+                    unexplained, 0,
+                    "{mode:?} {camera_name} {fade:?}: pixels differ outside the fade band"
+                );
                 if fade != forestlod_shared::FadeMode::Alpha {
                     assert_eq!(
                         (color_diff, depth_diff, aux_diff),
