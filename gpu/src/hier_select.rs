@@ -25,7 +25,7 @@ use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
 use crate::select::{GpuSelection, SelectBuffers, check_mesh_indices};
 use crate::{GpuContext, GpuError};
 
-/// Invocations per workgroup of the per-node passes. Keep in sync with `hier_select.wgsl`.
+/// Invocations per workgroup of the per-node passes (generated into `hier_select.wgsl`).
 pub const HIER_WORKGROUP_SIZE: u32 = 64;
 
 /// The per-frame uniform of `hier_select.wgsl`. Keep in sync with `struct HierUniform` there.

@@ -35,10 +35,8 @@ use rayon::prelude::*;
 use crate::hierarchy::Hierarchy;
 use crate::select::Selection;
 
-/// Node state bit: every ancestor recursed.
-pub const NODE_VISITED: u32 = 1;
-/// Node state bit: visited, drawn, not recursing: the node emits its commands.
-pub const NODE_EMITTED: u32 = 2;
+/// The node state bits, defined with the per-node rule (`forestlod_shared::cut`).
+pub use forestlod_shared::{NODE_EMITTED, NODE_VISITED};
 
 /// What the cut produced for one frame.
 #[derive(Clone, Debug, Default, PartialEq)]

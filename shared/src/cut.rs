@@ -30,6 +30,11 @@ use crate::{
 /// Node code bit: a drawn interior node whose children decide instead (module docs).
 pub const NODE_RECURSE: u32 = 16;
 
+/// Node state bit of the cut: every ancestor recursed (the node is visited).
+pub const NODE_VISITED: u32 = 1;
+/// Node state bit of the cut: visited, drawn and not recursing: the node emits its commands.
+pub const NODE_EMITTED: u32 = 2;
+
 /// The most levels a hierarchy may have (root depth 0 .. `MAX_HIERARCHY_DEPTH - 1`): the GPU walks
 /// at most this many ancestors per node, far below llvmpipe's 65,535 iterations per loop.
 pub const MAX_HIERARCHY_DEPTH: u32 = 32;

@@ -52,8 +52,8 @@ pub use color::{
     linear_to_srgb, srgb_to_linear, unorm8,
 };
 pub use cut::{
-    MAX_HIERARCHY_DEPTH, NODE_RECURSE, aabb_distance, code_recurses, decide_node, emitted_needs,
-    node_code,
+    MAX_HIERARCHY_DEPTH, NODE_EMITTED, NODE_RECURSE, NODE_VISITED, aabb_distance, code_recurses,
+    decide_node, emitted_needs, node_code,
 };
 pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
 pub use interval::{

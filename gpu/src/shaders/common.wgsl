@@ -405,18 +405,8 @@ struct NodeMeta {
     child_count: u32,
 }
 
-// forestlod_shared::NO_PARENT.
-const NO_PARENT: u32 = 0xffffffffu;
-// forestlod_shared::NODE_RECURSE.
-const NODE_RECURSE: u32 = 16u;
-// forestlod_shared::MAX_HIERARCHY_DEPTH.
-const MAX_HIERARCHY_DEPTH: u32 = 32u;
-// forestlod_shared::Hierarchy ids.
-const HIERARCHY_GRID: u32 = 0u;
-const HIERARCHY_GRID_AABB: u32 = 1u;
-const HIERARCHY_QUADTREE: u32 = 2u;
-const HIERARCHY_OCTREE: u32 = 3u;
-const HIERARCHY_OCTREE_EUCLIDEAN: u32 = 4u;
+// NO_PARENT, NODE_RECURSE, MAX_HIERARCHY_DEPTH and the HIERARCHY_* mode ids are generated from
+// forestlod_shared (gpu/src/shaders.rs).
 
 // forestlod_shared::aabb_margin: `16 ε (|rel|₁ + e_x + e_y + e_z)`, summed left to right.
 fn aabb_margin(rel: vec3<f32>, extent: vec3<f32>) -> f32 {

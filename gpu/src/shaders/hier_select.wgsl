@@ -39,13 +39,8 @@ struct HierCountersAtomic {
     instances: atomic<u32>,
 }
 
-// Keep in sync with the reference's NODE_VISITED / NODE_EMITTED (reference/src/hier_select.rs).
-const NODE_VISITED: u32 = 1u;
-const NODE_EMITTED: u32 = 2u;
-
-// Keep in sync with HIER_WORKGROUP_SIZE / HIER_SCAN_WORKGROUP_SIZE in gpu/src/hier_select.rs.
-const HIER_WORKGROUP_SIZE: u32 = 64u;
-const HIER_SCAN_WORKGROUP_SIZE: u32 = 256u;
+// NODE_VISITED, NODE_EMITTED (forestlod_shared::cut), HIER_WORKGROUP_SIZE (gpu/src/hier_select.rs)
+// and SCAN_WORKGROUP_SIZE (gpu/src/select.rs) are generated (gpu/src/shaders.rs).
 
 @group(0) @binding(0) var<uniform> u: HierUniform;
 @group(0) @binding(1) var<storage, read> nodes: array<NodeMeta>;
@@ -135,28 +130,28 @@ fn hier_resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
     offsets[i] = count;
 }
 
-var<workgroup> scan_tmp: array<u32, HIER_SCAN_WORKGROUP_SIZE>;
+var<workgroup> scan_tmp: array<u32, SCAN_WORKGROUP_SIZE>;
 var<workgroup> scan_carry: u32;
 
 // select.wgsl's `select_scan` over `node_count` (one workgroup, chunks of 256: the loop runs
 // node_count / 256 times, within llvmpipe's limit for up to 16 M nodes).
-@compute @workgroup_size(HIER_SCAN_WORKGROUP_SIZE)
+@compute @workgroup_size(SCAN_WORKGROUP_SIZE)
 fn hier_scan(@builtin(local_invocation_index) lid: u32) {
     let n = u.node_count;
     if lid == 0u {
         scan_carry = 0u;
     }
     workgroupBarrier();
-    let chunks = (n + HIER_SCAN_WORKGROUP_SIZE - 1u) / HIER_SCAN_WORKGROUP_SIZE;
+    let chunks = (n + SCAN_WORKGROUP_SIZE - 1u) / SCAN_WORKGROUP_SIZE;
     for (var c = 0u; c < chunks; c++) {
-        let index = c * HIER_SCAN_WORKGROUP_SIZE + lid;
+        let index = c * SCAN_WORKGROUP_SIZE + lid;
         var value = 0u;
         if index < n {
             value = offsets[index];
         }
         scan_tmp[lid] = value;
         workgroupBarrier();
-        for (var step = 1u; step < HIER_SCAN_WORKGROUP_SIZE; step = step << 1u) {
+        for (var step = 1u; step < SCAN_WORKGROUP_SIZE; step = step << 1u) {
             var add = 0u;
             if lid >= step {
                 add = scan_tmp[lid - step];
@@ -170,7 +165,7 @@ fn hier_scan(@builtin(local_invocation_index) lid: u32) {
             offsets[index] = carry + scan_tmp[lid] - value;
         }
         workgroupBarrier();
-        if lid == HIER_SCAN_WORKGROUP_SIZE - 1u {
+        if lid == SCAN_WORKGROUP_SIZE - 1u {
             scan_carry = carry + scan_tmp[lid];
         }
         workgroupBarrier();
