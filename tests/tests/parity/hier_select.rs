@@ -105,7 +105,14 @@ fn gpu_cut_matches_reference() {
     };
     let started = Instant::now();
     let tally = std::cell::RefCell::new(Tally::default());
-    let strategy = (instances(300), cameras(), params(), 2u32..24, 0u32..9);
+    let strategy = (
+        instances(300),
+        cameras(),
+        params(),
+        2u32..24,
+        0u32..9,
+        0usize..MODES.len(),
+    );
     let mut runner = TestRunner::new(Config {
         cases: CASES,
         failure_persistence: None,
