@@ -297,3 +297,70 @@ fn gpu_hierarchy_frames_equal_grid_frames() {
         }
     }
 }
+
+/// The ancestor walk goes all the way up: in a chain of six nodes (depth 0..5) whose bounds are
+/// deliberately not nested, one culled node hides every node below it, however deep, although
+/// each of those is in view and its own parent recursed. Random scenes rarely produce this
+/// (nested bounds make a child of a non-recursing node rarely recurse), so it is built by hand.
+/// Mutation-checked: walking only to the parent (`p = NO_PARENT` after the first step in
+/// `hier_resolve`) visits and emits the deep nodes.
+#[test]
+fn gpu_cut_walks_every_ancestor() {
+    let Some(ctx) = gpu_context() else {
+        eprintln!("hier_select ancestors: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
+        return;
+    };
+    let packed = Packed::new(vec![forestlod_tests::tree_at_x(50.0)], 500.0);
+    let g = &packed.geometry;
+    let camera =
+        forestlod_shared::Camera::look_at([0.0, 0.0, 5.0], [100.0, 0.0, 5.0], 60.0, 64, 64);
+    let p = Params::default();
+    let node = |x: f32, parent: u32, depth: u32, children: u32| NodeMeta {
+        center: [x, 0.0, 5.0],
+        radius: 8.0,
+        extent: [5.0, 5.0, 5.0],
+        mesh: 0,
+        box_center: [x, 0.0, 5.0],
+        len: 1,
+        offset: 0,
+        parent,
+        depth,
+        child_count: children,
+    };
+    for culled in 0..5u32 {
+        let nodes: Vec<NodeMeta> = (0..6u32)
+            .map(|d| {
+                let x = if d == culled { -200.0 } else { 50.0 + d as f32 };
+                let parent = if d == 0 {
+                    forestlod_shared::NO_PARENT
+                } else {
+                    d - 1
+                };
+                node(x, parent, d, (d < 5) as u32)
+            })
+            .collect();
+        let h = Hierarchy {
+            mode: Mode::Quadtree,
+            nodes: nodes.clone(),
+            indirection: vec![0],
+        };
+        let want = hier_select(&h, &g.meshes, &g.billboard, &camera, &p);
+        let mut gpu =
+            GpuHierSelect::new(ctx, &nodes, Mode::Quadtree as u32, &g.meshes, &g.billboard)
+                .unwrap();
+        let sel = gpu.run(&camera, &p).unwrap();
+        let (codes, states) = gpu.read_codes_and_states().unwrap();
+        assert_eq!(codes, want.codes, "culled node {culled}");
+        assert_eq!(states, want.states, "culled node {culled}: states");
+        assert_eq!(
+            sel.commands, want.selection.commands,
+            "culled node {culled}"
+        );
+        // Nothing below the culled node is visited; nothing at all is emitted (the leaf is below).
+        assert!(
+            states[culled as usize + 1..].iter().all(|&s| s == 0),
+            "{states:?}"
+        );
+        assert!(sel.commands.is_empty());
+    }
+}
