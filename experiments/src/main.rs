@@ -173,15 +173,43 @@ fn select_frame(
     let scene = scene.load()?;
     let camera = camera.camera(&scene, 1280, 720)?;
     let geometry = pack_geometry(&scene);
-    let batches = build_batches(&scene, &geometry.meshes, params.grid_size)?;
+    // `--hierarchy` other than `grid`: the hierarchy's leaves are the batches, its cut the
+    // selection (as `Prepared::select`).
+    let hierarchy =
+        forestlod_reference::hierarchy::Hierarchy::build(&scene, &geometry.meshes, &params)?;
+    let batches = match &hierarchy {
+        Some(h) => h.leaf_batches(params.grid_size),
+        None => build_batches(&scene, &geometry.meshes, params.grid_size)?,
+    };
     let start = Instant::now();
-    let selection = select(
-        &batches.metas,
-        &geometry.meshes,
-        &geometry.billboard,
-        &camera,
-        &params,
-    );
+    let selection = match &hierarchy {
+        Some(h) => {
+            forestlod_reference::hier_select::hier_select(
+                h,
+                &geometry.meshes,
+                &geometry.billboard,
+                &camera,
+                &params,
+            )
+            .selection
+        }
+        None => select(
+            &batches.metas,
+            &geometry.meshes,
+            &geometry.billboard,
+            &camera,
+            &params,
+        ),
+    };
+    if let Some(h) = &hierarchy {
+        println!(
+            "hierarchy {}: {} nodes, {} leaves, {} levels (batches below are its leaves; \"batches tested\" counts the nodes the cut visits)",
+            h.mode.name(),
+            h.nodes.len(),
+            h.leaf_count(),
+            h.levels()
+        );
+    }
     let grouped_seconds = start.elapsed().as_secs_f64();
     let spheres: Vec<_> = scene
         .instances

@@ -13,7 +13,7 @@ use forestlod_shared::{PARAMS, Params};
 /// Which scene to use.
 #[derive(Args, Clone, Debug)]
 pub struct SceneArgs {
-    /// A built-in scene name (tiny, synthetic, stress) or a path to a TOML scene file.
+    /// A built-in scene name (tiny, synthetic, stress, patchy) or a path to a TOML scene file.
     #[arg(long, default_value = "synthetic")]
     pub scene: String,
     /// A bare instance CSV (x,y,z,yaw,scale,species) drawn with the built-in species meshes;

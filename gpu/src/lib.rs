@@ -60,6 +60,7 @@ pub mod bake;
 pub mod context;
 pub mod cull;
 pub mod draw;
+pub mod hier_select;
 pub mod mips;
 pub mod primitive;
 pub mod readback;
@@ -80,6 +81,7 @@ pub use draw::{
     DrawVertex, DrawnImages, GpuDraw, IndirectMode, MipLevel, TerrainVertex, terrain_vertices,
     upload_texture_array,
 };
+pub use hier_select::{GpuHierSelect, HierUniform};
 pub use mips::{GpuMips, MipArray, MipLevelStats, MipTexels};
 pub use primitive::{GpuPrimitive, GpuProxies, PrimitiveInputs};
 pub use refine::{GpuRefine, GpuRefined, RefineCounters, RefineDispatch};

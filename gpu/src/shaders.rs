@@ -13,7 +13,7 @@ pub const COMMON_WGSL: &str = include_str!("shaders/common.wgsl");
 
 /// The `(name, value)` of every generated `u32` constant ([`constants_wgsl`]).
 pub fn generated_constants() -> Vec<(String, u32)> {
-    use crate::{cull, mips, refine, select};
+    use crate::{cull, hier_select, mips, refine, select};
     use forestlod_shared as s;
     let mut out: Vec<(String, u32)> = [
         ("COMMAND_SHIFT", s::COMMAND_SHIFT),
@@ -33,6 +33,12 @@ pub fn generated_constants() -> Vec<(String, u32)> {
         ("SCAN_WORKGROUP_SIZE", select::SCAN_WORKGROUP_SIZE),
         ("CULL_WORKGROUP_SIZE", cull::CULL_WORKGROUP_SIZE),
         ("REFINE_WORKGROUP_SIZE", refine::REFINE_WORKGROUP_SIZE),
+        ("HIER_WORKGROUP_SIZE", hier_select::HIER_WORKGROUP_SIZE),
+        ("NO_PARENT", s::NO_PARENT),
+        ("NODE_RECURSE", s::NODE_RECURSE),
+        ("NODE_VISITED", s::NODE_VISITED),
+        ("NODE_EMITTED", s::NODE_EMITTED),
+        ("MAX_HIERARCHY_DEPTH", s::MAX_HIERARCHY_DEPTH),
         ("MIPS_TILE", mips::MIPS_TILE),
         ("MIPS_LAYER_WORKGROUP_SIZE", mips::MIPS_LAYER_WORKGROUP_SIZE),
         ("COVERAGE_BISECTION_STEPS", mips::COVERAGE_BISECTION_STEPS),
@@ -56,6 +62,7 @@ pub fn generated_constants() -> Vec<(String, u32)> {
         ("MIP", s::MipMode::choices()),
         ("ANGLE_INDEX", s::AngleIndexMode::choices()),
         ("TREE_CULL", s::TreeCull::choices()),
+        ("HIERARCHY", s::Hierarchy::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {
@@ -126,6 +133,12 @@ stage_source!(
     REFINE_WGSL, refine_source, "refine.wgsl"
 );
 
+stage_source!(
+    /// The `hier_select` stage's own source (without [`COMMON_WGSL`]): the hierarchical cut
+    /// (issue 13).
+    HIER_SELECT_WGSL, hier_select_source, "hier_select.wgsl"
+);
+
 /// The depth read-back by compute (`DrawTarget::read`), standalone: [`COMMON_WGSL`] is not
 /// prepended.
 pub const DEPTH_COPY_WGSL: &str = include_str!("shaders/depth_copy.wgsl");
@@ -154,6 +167,7 @@ mod tests {
             ("cull.wgsl", CULL_WGSL),
             ("primitive.wgsl", PRIMITIVE_WGSL),
             ("refine.wgsl", REFINE_WGSL),
+            ("hier_select.wgsl", HIER_SELECT_WGSL),
             ("depth_copy.wgsl", DEPTH_COPY_WGSL),
         ] {
             for name in &names {
@@ -173,6 +187,8 @@ mod tests {
             "const MIP_COVERAGE: u32 = 2u;",
             "const ANGLE_INDEX_EQ31_CLAMPED: u32 = 1u;",
             "const TREE_CULL_ALL: u32 = 2u;",
+            "const HIERARCHY_OCTREE_EUCLIDEAN: u32 = 4u;",
+            "const NO_PARENT: u32 = 4294967295u;",
             "const LOD_ID_TERRAIN: u32 = 4u;",
             "const TABLE_UNORM_ENCODE: u32 = 768u;",
         ] {

@@ -6,11 +6,13 @@
 //! and `SelectUniform` (with the `ViewUniform` every selection-like stage embeds) are legal in the
 //! uniform address space.
 
-use forestlod_gpu::shaders::{cull_source, primitive_source, select_source, with_common};
-use forestlod_gpu::{CullTree, SelectUniform};
+use forestlod_gpu::shaders::{
+    cull_source, hier_select_source, primitive_source, select_source, with_common,
+};
+use forestlod_gpu::{CullTree, HierUniform, SelectUniform};
 use forestlod_shared::{
-    BatchMeta, Camera, CommandData, DrawCommand, FrustumPlanes, MeshMeta, Params, ProxyRecord,
-    SelectCounters,
+    BatchMeta, Camera, CommandData, DrawCommand, FrustumPlanes, MeshMeta, NodeMeta, Params,
+    ProxyRecord, SelectCounters,
 };
 
 /// The crate's own layout-test support (`gpu/src/wgsl_layout.rs`), shared with its unit tests.
@@ -34,7 +36,11 @@ fn rust_layouts() -> Vec<RustLayout> {
             mip_mode,
             angle_index_mode,
             alpha_cutoff,
-            tree_cull
+            tree_cull,
+            hierarchy,
+            nodes_per_node,
+            max_cull_depth,
+            _pad0
         }),
         rust_layout!(Camera {
             eye,
@@ -169,6 +175,50 @@ fn cull_and_primitive_modules_validate() {
             );
         }
     }
+}
+
+/// `hier_select.wgsl`'s structs (issue 13): `NodeMeta` (from `common.wgsl`) and the stage's
+/// uniform have their Rust twins' layouts; its atomic counters have `SelectCounters`' layout (one
+/// buffer, the draw stage's count buffer).
+#[test]
+fn hier_select_structs_match_their_rust_twins() {
+    let module = validate(&format!(
+        "{}\n@group(9) @binding(0) var<uniform> layout_hier: HierUniform;\n",
+        hier_select_source()
+    ));
+    assert_layout(
+        &module,
+        &rust_layout!(NodeMeta {
+            center,
+            radius,
+            extent,
+            mesh,
+            box_center,
+            len,
+            offset,
+            parent,
+            depth,
+            child_count
+        }),
+    );
+    assert_layout(
+        &module,
+        &rust_layout!(HierUniform {
+            view,
+            node_count,
+            mode,
+            max_cull_depth,
+            billboard_first_index,
+            billboard_index_count,
+            _pad0,
+            _pad1,
+            _pad2
+        }),
+    );
+    let (plain, plain_span) = wgsl_layout(&module, "SelectCounters").unwrap();
+    let (atomic, atomic_span) = wgsl_layout(&module, "HierCountersAtomic").unwrap();
+    assert_eq!(plain, atomic);
+    assert_eq!(plain_span, atomic_span);
 }
 
 /// The atomic counters struct must have the plain counters' layout, since both name one buffer.

@@ -454,12 +454,7 @@ pub fn render_gpu(
         };
         (&cpu_buffers, indirection)
     } else {
-        gpu_select = GpuSelect::new(
-            ctx,
-            &prepared.batches.metas,
-            &prepared.geometry.meshes,
-            &prepared.geometry.billboard,
-        )?;
+        gpu_select = OursSelect::new(ctx, prepared)?;
         gpu_select.dispatch(camera, params, Compaction::Stable)?;
         let indirection = if refining {
             gpu_refine = GpuRefine::new(ctx, &cull_trees(prepared), &prepared.batches.indirection)?;
@@ -483,6 +478,81 @@ pub fn render_gpu(
         calls,
         from_cpu,
     })
+}
+
+/// Our selection stage on the GPU for a prepared scene: `select.wgsl` over the batches, or
+/// `hier_select.wgsl` over the hierarchy when the scene was prepared with one (issue 13). Both
+/// write a [`forestlod_gpu::SelectBuffers`] that `refine` and the draw stage read.
+pub enum OursSelect<'a> {
+    /// Flat selection over the grid batches.
+    Flat(GpuSelect<'a>),
+    /// The hierarchical cut (always the stable order: it has no atomic compaction).
+    Hier(forestlod_gpu::GpuHierSelect<'a>),
+}
+
+impl<'a> OursSelect<'a> {
+    /// Uploads the prepared scene's batches or hierarchy.
+    pub fn new(ctx: &'a GpuContext, prepared: &Prepared) -> Result<Self, GpuError> {
+        let g = &prepared.geometry;
+        Ok(match &prepared.hierarchy {
+            Some(h) => OursSelect::Hier(forestlod_gpu::GpuHierSelect::new(
+                ctx,
+                &h.nodes,
+                h.mode as u32,
+                &g.meshes,
+                &g.billboard,
+            )?),
+            None => OursSelect::Flat(GpuSelect::new(
+                ctx,
+                &prepared.batches.metas,
+                &g.meshes,
+                &g.billboard,
+            )?),
+        })
+    }
+
+    /// Records one frame's selection (`compaction` applies to the flat selection only).
+    pub fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        params: &Params,
+        compaction: Compaction,
+    ) {
+        match self {
+            OursSelect::Flat(s) => s.encode(encoder, camera, params, compaction),
+            OursSelect::Hier(s) => s.encode(encoder, camera, params),
+        }
+    }
+
+    /// Runs one frame's selection, leaving the commands on the GPU.
+    pub fn dispatch(
+        &mut self,
+        camera: &Camera,
+        params: &Params,
+        compaction: Compaction,
+    ) -> Result<&forestlod_gpu::SelectBuffers, GpuError> {
+        match self {
+            OursSelect::Flat(s) => s.dispatch(camera, params, compaction),
+            OursSelect::Hier(s) => s.dispatch(camera, params),
+        }
+    }
+
+    /// The output buffers.
+    pub fn buffers(&self) -> &forestlod_gpu::SelectBuffers {
+        match self {
+            OursSelect::Flat(s) => s.buffers(),
+            OursSelect::Hier(s) => s.buffers(),
+        }
+    }
+
+    /// The output buffers, for `refine` to rewrite in place.
+    pub fn buffers_mut(&mut self) -> &mut forestlod_gpu::SelectBuffers {
+        match self {
+            OursSelect::Flat(s) => s.buffers_mut(),
+            OursSelect::Hier(s) => s.buffers_mut(),
+        }
+    }
 }
 
 /// The draw pipelines of this test binary's context (compiled once).
@@ -728,7 +798,7 @@ pub struct GpuSweepScene {
     ctx: &'static GpuContext,
     scene: DrawScene,
     textures: DrawTextures,
-    select: GpuSelect<'static>,
+    select: OursSelect<'static>,
     refine: GpuRefine<'static>,
     cull: GpuCull<'static>,
     proxies: GpuProxies,
@@ -750,12 +820,7 @@ impl GpuSweepScene {
         let scene = DrawScene::new(ctx, &data.desc(prepared))?;
         let (mesh, billboards) = gpu_textures(ctx, prepared, params)?;
         let textures = DrawTextures::new(&mesh, &billboards)?;
-        let select = GpuSelect::new(
-            ctx,
-            &prepared.batches.metas,
-            &prepared.geometry.meshes,
-            &prepared.geometry.billboard,
-        )?;
+        let select = OursSelect::new(ctx, prepared)?;
         let trees = cull_trees(prepared);
         let refine = GpuRefine::new(ctx, &trees, &prepared.batches.indirection)?;
         let cull = GpuCull::new(ctx, &trees, &prepared.geometry.meshes)?;

@@ -234,6 +234,8 @@ pub struct MemoryReport {
     pub commands: u64,
     /// Per-(mesh, LOD) counters `4 l m` plus the frame's [`forestlod_shared::SelectCounters`].
     pub counters: u64,
+    /// Interior nodes of a hierarchy (64 bytes each; the leaves are the batches): 0 for the grid.
+    pub hierarchy_nodes: u64,
     /// Sum of the above.
     pub total: u64,
     /// E Eq. 4.1 for the same n, t, m, a, r, l.
@@ -286,6 +288,7 @@ pub fn memory_report(trees: usize, batches: usize, meshes: usize, params: &Param
         billboards,
         commands,
         counters,
+        hierarchy_nodes: 0,
         total: indirection + batch_meta + mesh_meta + billboards + commands + counters,
         eq41: eq41_bytes(n, t, m, a, r, l),
     }

@@ -31,6 +31,8 @@ pub mod draw;
 pub mod error;
 pub mod geometry;
 pub mod ground_truth;
+pub mod hier_select;
+pub mod hierarchy;
 pub mod mips;
 pub mod output;
 pub mod pipeline;

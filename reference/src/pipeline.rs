@@ -15,6 +15,8 @@ use crate::bake::{BakedBillboards, bake, mesh_textures};
 use crate::batches::{Batches, MemoryReport, build_batches, memory_report};
 use crate::draw::{DrawResources, DrawnFrame, draw_frame, draw_frame_cutoffs};
 use crate::geometry::{PackedGeometry, pack_geometry};
+use crate::hier_select::{HierSelection, hier_select};
+use crate::hierarchy::Hierarchy;
 use crate::refine::{Refined, refine};
 use crate::sampler::Texture;
 use crate::scene::{Scene, tree_sphere};
@@ -39,8 +41,12 @@ pub struct Prepared {
     pub scene: Scene,
     /// Packed geometry.
     pub geometry: PackedGeometry,
-    /// Batches and indirection.
+    /// Batches and indirection: the grid's, or the hierarchy's leaves over its indirection
+    /// ([`Hierarchy::leaf_batches`]) when `params.hierarchy` is not `grid`.
     pub batches: Batches,
+    /// The tree hierarchy when `params.hierarchy` is not `grid` ([`Hierarchy::build`]); then
+    /// [`Prepared::select`] evaluates its cut ([`hier_select`]) instead of deciding the batches.
+    pub hierarchy: Option<Hierarchy>,
     /// Mesh textures with mips.
     pub mesh_textures: Vec<Texture>,
     /// The billboard array texture.
@@ -61,7 +67,11 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
     let geometry = pack_geometry(&scene);
     timings.pack = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let batches = build_batches(&scene, &geometry.meshes, params.grid_size)?;
+    let hierarchy = Hierarchy::build(&scene, &geometry.meshes, params)?;
+    let batches = match &hierarchy {
+        Some(h) => h.leaf_batches(params.grid_size),
+        None => build_batches(&scene, &geometry.meshes, params.grid_size)?,
+    };
     timings.batches = t.elapsed().as_secs_f64();
     let mode = params.mips()?;
     let t = Instant::now();
@@ -70,12 +80,18 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
     let t = Instant::now();
     let billboards = bake(&scene, &geometry.meshes, &textures, params)?;
     timings.bake = t.elapsed().as_secs_f64();
-    let memory = memory_report(
+    let mut memory = memory_report(
         scene.instances.len(),
         batches.metas.len(),
         scene.meshes.len(),
         params,
     );
+    if let Some(h) = &hierarchy {
+        // Interior nodes beside the leaves (which `batch_meta` already counts, 64 bytes each).
+        let interior = h.node_bytes() - memory.batch_meta;
+        memory.hierarchy_nodes = interior;
+        memory.total += interior;
+    }
     let tree_spheres = {
         use rayon::prelude::*;
         scene
@@ -88,6 +104,7 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
         scene,
         geometry,
         batches,
+        hierarchy,
         mesh_textures: textures,
         billboards,
         memory,
@@ -143,8 +160,11 @@ impl Prepared {
         }
     }
 
-    /// Selection for one frame.
+    /// Selection for one frame: the hierarchy's cut when there is one, else the grid's batches.
     pub fn select(&self, camera: &Camera, params: &Params) -> Selection {
+        if let Some(h) = self.hier_select(camera, params) {
+            return h.selection;
+        }
         select(
             &self.batches.metas,
             &self.geometry.meshes,
@@ -152,6 +172,18 @@ impl Prepared {
             camera,
             params,
         )
+    }
+
+    /// The hierarchy's cut with its per-node codes and states (`None` without a hierarchy).
+    pub fn hier_select(&self, camera: &Camera, params: &Params) -> Option<HierSelection> {
+        let h = self.hierarchy.as_ref()?;
+        Some(hier_select(
+            h,
+            &self.geometry.meshes,
+            &self.geometry.billboard,
+            camera,
+            params,
+        ))
     }
 
     /// Selection, then `refine` when `params.tree_cull` asks for it (untimed; for experiments and

@@ -448,8 +448,8 @@ fn obj_files_are_checked() {
 #[test]
 fn every_builtin_loads_valid_and_deterministic() {
     for name in builtin::BUILTIN_NAMES {
-        if *name == "stress" {
-            continue; // covered by the library's own test (1.47M trees)
+        if *name == "stress" || *name == "patchy" {
+            continue; // covered by the library's own tests (1.47M trees; patchy thins stress)
         }
         let a = builtin::by_name(name).unwrap();
         a.validate(name).unwrap();

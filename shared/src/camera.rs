@@ -227,6 +227,33 @@ impl FrustumPlanes {
     }
 }
 
+impl FrustumPlanes {
+    /// Whether the axis-aligned box `center ± extent` may intersect the frustum: the plane test with
+    /// the box's effective radius `Σ_k |n_k| e_k` per plane (C§4.5, C§4.6.3), widened by
+    /// [`crate::interval::aabb_margin`]. Conservative like [`FrustumPlanes::sphere_visible`]. Keep in
+    /// sync with `aabb_visible` in `gpu/src/shaders/common.wgsl`.
+    pub fn aabb_visible(&self, center: [f32; 3], extent: [f32; 3], eye: [f32; 3]) -> bool {
+        let rel = [center[0] - eye[0], center[1] - eye[1], center[2] - eye[2]];
+        let m = crate::interval::aabb_margin(rel, extent);
+        self.planes.iter().all(|p| {
+            let r = p[0].abs() * extent[0] + p[1].abs() * extent[1] + p[2].abs() * extent[2];
+            p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3] >= -r - m
+        })
+    }
+
+    /// Whether the box lies wholly inside every plane (no margin: a box within the margin of a
+    /// plane counts as partially visible). Guerrero's `partially_visible` (G§3 Fig. 4) is its
+    /// negation. Keep in sync with `aabb_inside` in `gpu/src/shaders/common.wgsl`.
+    pub fn aabb_inside(&self, center: [f32; 3], extent: [f32; 3], eye: [f32; 3]) -> bool {
+        let rel = [center[0] - eye[0], center[1] - eye[1], center[2] - eye[2]];
+        let m = crate::interval::aabb_margin(rel, extent);
+        self.planes.iter().all(|p| {
+            let r = p[0].abs() * extent[0] + p[1].abs() * extent[1] + p[2].abs() * extent[2];
+            p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3] >= r + m
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -271,6 +298,20 @@ mod tests {
                 "{p:?} ndc {ndc:?}"
             );
         }
+    }
+
+    #[test]
+    fn aabb_test_keeps_boxes_that_reach_in() {
+        let c = cam();
+        let f = c.frustum();
+        // Centre outside the left plane, but the box reaches in; the sphere of radius 1 does not.
+        // At x = 50 the side planes are at |y| = 50 tan(45.7°) = 51.3.
+        assert!(f.aabb_visible([50.0, 55.0, 10.0], [1.0, 5.0, 1.0], c.eye));
+        assert!(!f.sphere_visible([50.0, 55.0, 10.0], 1.0, c.eye));
+        assert!(!f.aabb_visible([50.0, 60.0, 10.0], [1.0, 5.0, 1.0], c.eye));
+        assert!(!f.aabb_visible([-50.0, 0.0, 10.0], [1.0, 1.0, 1.0], c.eye));
+        assert!(f.aabb_inside([50.0, 0.0, 10.0], [1.0, 1.0, 1.0], c.eye));
+        assert!(!f.aabb_inside([50.0, 48.0, 10.0], [1.0, 5.0, 1.0], c.eye));
     }
 
     #[test]

@@ -47,6 +47,37 @@ pub fn view_interval(
     }
 }
 
+/// Widening of an axis-aligned box's interval and plane test (the box twin of
+/// [`selection_margin`]): `16 ε (|c - e|₁ + e_x + e_y + e_z)`. Four times the sphere's, so that a box
+/// that contains a tree's sphere also contains the tree's *computed* interval (the tree's own
+/// margin, `4 ε (|c_t - e|₁ + r_t) <= 4 ε (|c - e|₁ + Σ e_k)`, plus both evaluations' rounding):
+/// the per-tree oracle decides on those computed intervals.
+pub fn aabb_margin(rel: [f32; 3], extent: [f32; 3]) -> f32 {
+    16.0 * f32::EPSILON
+        * (rel[0].abs() + rel[1].abs() + rel[2].abs() + extent[0] + extent[1] + extent[2])
+}
+
+/// Projects the axis-aligned box `center ± extent` onto the view direction (E§7 "tighter bounding
+/// volumes", C§4.5's effective radius): `d ± (|f_x| e_x + |f_y| e_y + |f_z| e_z)`, widened by
+/// [`aabb_margin`]. Every point of the box has its view depth inside it.
+pub fn aabb_view_interval(
+    center: [f32; 3],
+    extent: [f32; 3],
+    eye: [f32; 3],
+    forward: [f32; 3],
+) -> ViewInterval {
+    let rel = [center[0] - eye[0], center[1] - eye[1], center[2] - eye[2]];
+    let d = rel[0] * forward[0] + rel[1] * forward[1] + rel[2] * forward[2];
+    let r =
+        forward[0].abs() * extent[0] + forward[1].abs() * extent[1] + forward[2].abs() * extent[2];
+    let m = aabb_margin(rel, extent);
+    ViewInterval {
+        d,
+        lo: d - r - m,
+        hi: d + r + m,
+    }
+}
+
 /// Which LODs an interval needs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct LodNeeds {
@@ -97,6 +128,16 @@ mod tests {
         assert_eq!(i.d, 10.0);
         assert!(i.lo < 8.0 && i.lo > 7.9999);
         assert!(i.hi > 12.0 && i.hi < 12.0001);
+    }
+
+    #[test]
+    fn aabb_interval_uses_the_effective_radius() {
+        let f = [0.6f32, 0.8, 0.0];
+        let i = aabb_view_interval([10.0, 0.0, 0.0], [1.0, 2.0, 3.0], [0.0; 3], f);
+        assert_eq!(i.d, 6.0);
+        // |f| · e = 0.6 + 1.6 = 2.2 (the z extent does not count: f_z = 0).
+        assert!(i.lo < 3.8 && i.lo > 3.7999, "{i:?}");
+        assert!(i.hi > 8.2 && i.hi < 8.2001, "{i:?}");
     }
 
     #[test]

@@ -32,6 +32,7 @@ pub mod angle;
 pub mod billboard;
 pub mod camera;
 pub mod color;
+pub mod cut;
 pub mod fade;
 pub mod interval;
 pub mod modes;
@@ -50,14 +51,23 @@ pub use color::{
     LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION, SKY_SRGB,
     linear_to_srgb, srgb_to_linear, unorm8,
 };
+pub use cut::{
+    MAX_HIERARCHY_DEPTH, NODE_EMITTED, NODE_RECURSE, NODE_VISITED, aabb_distance, code_recurses,
+    decide_node, emitted_needs, node_code,
+};
 pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
-pub use interval::{LodNeeds, ViewInterval, lod_needs, selection_margin, view_interval};
-pub use params::{AngleIndexMode, MipMode, ParamError, Params, TreeCull};
+pub use interval::{
+    LodNeeds, ViewInterval, aabb_margin, aabb_view_interval, lod_needs, selection_margin,
+    view_interval,
+};
+pub use params::{AngleIndexMode, Hierarchy, MipMode, ParamError, Params, TreeCull};
 pub use registry::{PARAMS, ParamKind, ParamSpec, param};
 pub use terrain::{
     TERRAIN_CELLS, TERRAIN_MARGIN, TERRAIN_SINK, ground_color, terrain_grid, terrain_vertex,
 };
-pub use types::{BatchMeta, CommandData, DrawCommand, MeshMeta, ProxyRecord, SelectCounters};
+pub use types::{
+    BatchMeta, CommandData, DrawCommand, MeshMeta, NO_PARENT, NodeMeta, ProxyRecord, SelectCounters,
+};
 pub use view::{
     DECISION_CULLED_DISTANCE, DECISION_CULLED_FRUSTUM, DECISION_DRAW, DECISION_KIND_MASK,
     DECISION_LOD0, DECISION_LOD1, Decision, ViewUniform,

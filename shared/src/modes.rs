@@ -47,7 +47,7 @@ pub(crate) use modes;
 
 #[cfg(test)]
 mod tests {
-    use crate::{AngleIndexMode, FadeMode, MipMode, TreeCull};
+    use crate::{AngleIndexMode, FadeMode, Hierarchy, MipMode, TreeCull};
 
     fn check(choices: Vec<(&'static str, u32)>) {
         for (i, (name, id)) in choices.iter().enumerate() {
@@ -61,6 +61,7 @@ mod tests {
         check(MipMode::choices());
         check(AngleIndexMode::choices());
         check(TreeCull::choices());
+        check(Hierarchy::choices());
         assert_eq!(
             MipMode::from_name("coverage"),
             Some(MipMode::CoveragePreserving)

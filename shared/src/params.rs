@@ -47,6 +47,41 @@ modes! {
     }
 }
 
+modes! {
+    /// How trees are grouped for selection (issue 13; beyond the thesis's grid). Every mode other
+    /// than `grid` builds a [`crate::NodeMeta`] hierarchy (`reference/src/hierarchy.rs`) whose
+    /// leaves replace the grid batches and whose cut is evaluated per frame
+    /// (`reference/src/hier_select.rs`, `gpu/src/shaders/hier_select.wgsl`). The images are those of
+    /// the grid for the same fade mode (the fade is per fragment); only the work changes.
+    pub enum Hierarchy {
+        /// The thesis (E§3.4, §4.2): grid batches, one sphere each, decided flat.
+        Grid = 0 => "grid",
+        /// The grid's batches as a depth-1 hierarchy decided on the intersection of the sphere's
+        /// and the bounding box's view-depth intervals, culled by either (E§7 "tighter bounding
+        /// volumes").
+        GridAabb = 1 => "grid-aabb",
+        /// Celba 2007 §4.5: bottom-up quadtree of at most `nodes_per_node` children per node, AABB
+        /// frustum culling; interior nodes never draw as a unit.
+        Quadtree = 2 => "quadtree",
+        /// Guerrero 2006 §3 (Fig. 4): octree with leaves of at most `nodes_per_node` trees; a node
+        /// wholly past the fade band's end (view-depth interval) draws as one LOD1 command unless
+        /// partially visible above `max_cull_depth`.
+        Octree = 3 => "octree",
+        /// [`Hierarchy::Octree`] with the seed's Euclidean `dist_to(octant.bound) < LOD_dist`
+        /// deciding whether to recurse, and units drawn as billboards only: **not conservative**
+        /// (view depth <= Euclidean distance, so a unit can hold fragments that need LOD0). Kept to
+        /// reproduce the seed; never the default.
+        OctreeEuclidean = 4 => "octree-euclidean",
+    }
+}
+
+impl Hierarchy {
+    /// Whether this mode builds a node hierarchy (everything but the thesis grid).
+    pub fn is_hierarchical(self) -> bool {
+        self != Hierarchy::Grid
+    }
+}
+
 impl TreeCull {
     /// Whether commands of `lod` (`LOD_MESH` or `LOD_BILLBOARD`) are refined.
     pub fn refines(self, lod: u32) -> bool {
@@ -89,10 +124,20 @@ pub struct Params {
     pub angle_index_mode: u32,
     /// Alpha-test reference: fragments with alpha below it are discarded (SPEC §5.5).
     pub alpha_cutoff: f32,
-    /// [`TreeCull`] as `u32`. Default `None` (the thesis). Also pads the struct to 48 bytes.
+    /// [`TreeCull`] as `u32`. Default `None` (the thesis).
     pub tree_cull: u32,
+    /// [`Hierarchy`] as `u32`. Default `Grid` (the thesis).
+    pub hierarchy: u32,
+    /// Celba's `NodesPerNode` (C§4.5, default 64): the most children of a quadtree node and the
+    /// most trees of a quadtree or octree leaf.
+    pub nodes_per_node: u32,
+    /// Guerrero's `max_cull_depth` (G§3 Fig. 4; G§6 uses 7): octree nodes at a smaller depth
+    /// that are only partially visible recurse instead of drawing as one unit.
+    pub max_cull_depth: u32,
+    /// Explicit padding (to 64 bytes).
+    pub _pad0: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 48);
+const _: () = assert!(core::mem::size_of::<Params>() == 64);
 
 impl Default for Params {
     fn default() -> Self {
@@ -109,6 +154,10 @@ impl Default for Params {
             angle_index_mode: AngleIndexMode::Nearest as u32,
             alpha_cutoff: 0.5,
             tree_cull: TreeCull::None as u32,
+            hierarchy: Hierarchy::Grid as u32,
+            nodes_per_node: 64,
+            max_cull_depth: 7,
+            _pad0: 0,
         }
     }
 }
@@ -177,6 +226,11 @@ impl Params {
     /// Per-tree culling mode, validated.
     pub fn tree_culling(&self) -> Result<TreeCull, ParamError> {
         TreeCull::from_id(self.tree_cull).ok_or_else(|| rejected("tree_cull", self))
+    }
+
+    /// Tree grouping, validated.
+    pub fn hierarchy_mode(&self) -> Result<Hierarchy, ParamError> {
+        Hierarchy::from_id(self.hierarchy).ok_or_else(|| rejected("hierarchy", self))
     }
 
     /// Number of mip levels of a billboard layer, `log2(r) + 1` (r = 1 has one level).

@@ -39,6 +39,50 @@ pub struct BatchMeta {
 }
 const _: () = assert!(core::mem::size_of::<BatchMeta>() == 64);
 
+/// One node of a tree hierarchy (issue 13; `reference/src/hierarchy.rs`): a quadtree (C§4.5) or
+/// octree (G§3) node over the trees of one mesh, or a grid batch as a depth-1 root.
+///
+/// Invariants (built by `reference::hierarchy`, property-tested in
+/// `tests/tests/properties/hierarchy_properties.rs`):
+/// - nodes are stored in depth-first pre-order, roots (one per mesh and tree, mesh-major) one after
+///   another, so a node's subtree is the index range right after it;
+/// - the indirection is ordered by (mesh, depth-first leaf order), so every node owns one contiguous
+///   range `offset .. offset + len` and its children's ranges tile it in child order (Guerrero's
+///   "two indices per octant", G§3): any node is one `DrawCommand`;
+/// - the sphere (`center`, `radius`) and the box (`box_center` ± `extent`) each contain the bounding
+///   sphere of every tree in the node's range (both rounded outwards, so containment is exact).
+///
+/// Keep in sync with `struct NodeMeta` in `gpu/src/shaders/common.wgsl` (layout checked by
+/// `gpu/tests/layout.rs`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct NodeMeta {
+    /// Bounding-sphere centre (the centre of its trees' sphere centres' box, as a batch's).
+    pub center: [f32; 3],
+    /// Bounding-sphere radius, rounded up.
+    pub radius: f32,
+    /// Half-size of the box of the trees' spheres around `box_center`, rounded up.
+    pub extent: [f32; 3],
+    /// Mesh of every tree of the node.
+    pub mesh: u32,
+    /// Box centre.
+    pub box_center: [f32; 3],
+    /// Trees in the node's range.
+    pub len: u32,
+    /// Start of the node's range in the hierarchy's indirection array.
+    pub offset: u32,
+    /// Parent node index, [`NO_PARENT`] for a root.
+    pub parent: u32,
+    /// Depth: 0 for a root.
+    pub depth: u32,
+    /// Number of children; 0 for a leaf.
+    pub child_count: u32,
+}
+const _: () = assert!(core::mem::size_of::<NodeMeta>() == 64);
+
+/// [`NodeMeta::parent`] of a root.
+pub const NO_PARENT: u32 = u32::MAX;
+
 /// `wgpu::util::DrawIndexedIndirectArgs`, field for field (and `VkDrawIndexedIndirectCommand`).
 ///
 /// How the draw stage finds its per-command data without `gl_DrawID` (which WGSL lacks): mesh index

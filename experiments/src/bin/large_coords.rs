@@ -185,6 +185,7 @@ fn prepared_like(base: &Prepared, scene: Scene, membership: &Batches) -> Prepare
             indirection: membership.indirection.clone(),
             grid_size: membership.grid_size,
         },
+        hierarchy: None,
         mesh_textures: base.mesh_textures.clone(),
         billboards: base.billboards.clone(),
         memory: base.memory.clone(),

@@ -53,7 +53,7 @@ pub use spec::{
 pub use variant::{Backend, Named, ReferenceRenderer, Variant};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 11] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 12] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -71,6 +71,7 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 11] = [
     ("compaction", include_str!("../../sweeps/compaction.toml")),
     ("grid_stress", include_str!("../../sweeps/grid_stress.toml")),
     ("tree_cull", include_str!("../../sweeps/tree_cull.toml")),
+    ("hierarchy", include_str!("../../sweeps/hierarchy.toml")),
 ];
 
 /// Options of `forestlod sweep` (`Default`: no file, no override, an empty `out`).

@@ -533,7 +533,9 @@ fn render_gpu_variant(
                 let batching =
                     batching_counts(f.spheres, indirection, &selection, f.camera, f.params);
                 (
-                    f.prepared.batches.metas.len() as u64,
+                    // Batches tested (the grid) or nodes the cut visits (a hierarchy), from
+                    // the reference's selection of the same frame.
+                    selection.counters.batches_tested as u64,
                     trees.len() as u64,
                     batching,
                     ours_memory(f.prepared, f.params),

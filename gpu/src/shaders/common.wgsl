@@ -34,6 +34,10 @@ struct Params {
     angle_index_mode: u32,
     alpha_cutoff: f32,
     tree_cull: u32,
+    hierarchy: u32,
+    nodes_per_node: u32,
+    max_cull_depth: u32,
+    _pad0: u32,
 }
 
 // Keep in sync with forestlod_shared::Camera (shared/src/camera.rs).
@@ -380,4 +384,114 @@ fn lod_weights(mode: u32, d: f32, fade_start: f32, fade_end: f32, dither: f32) -
     let cover1 = min(2.0 * t, 1.0);
     let cover0 = min(2.0 - 2.0 * t, 1.0);
     return LodWeights(select(0.0, 1.0, dither < cover0), select(0.0, 1.0, dither < cover1));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Hierarchies (issue 13): twins of forestlod_shared::NodeMeta (shared/src/types.rs), the AABB
+// interval and plane tests (shared/src/interval.rs, shared/src/camera.rs) and the per-node rule of
+// the cut (shared/src/cut.rs), used by hier_select.wgsl.
+
+// Keep in sync with forestlod_shared::NodeMeta (shared/src/types.rs).
+struct NodeMeta {
+    center: array<f32, 3>,
+    radius: f32,
+    extent: array<f32, 3>,
+    mesh: u32,
+    box_center: array<f32, 3>,
+    len: u32,
+    offset: u32,
+    parent: u32,
+    depth: u32,
+    child_count: u32,
+}
+
+// NO_PARENT, NODE_RECURSE, MAX_HIERARCHY_DEPTH and the HIERARCHY_* mode ids are generated from
+// forestlod_shared (gpu/src/shaders.rs).
+
+// forestlod_shared::aabb_margin: `16 ε (|rel|₁ + e_x + e_y + e_z)`, summed left to right.
+fn aabb_margin(rel: vec3<f32>, extent: vec3<f32>) -> f32 {
+    let sum = abs(rel.x) + abs(rel.y) + abs(rel.z) + extent.x + extent.y + extent.z;
+    return 16.0 * F32_EPSILON * sum;
+}
+
+// forestlod_shared::aabb_view_interval: `d ± Σ|f_k| e_k ± m`.
+fn aabb_view_interval(center: vec3<f32>, extent: vec3<f32>, eye: vec3<f32>, forward: vec3<f32>) -> ViewInterval {
+    let rel = vec3<f32>(center.x - eye.x, center.y - eye.y, center.z - eye.z);
+    let d = rel.x * forward.x + rel.y * forward.y + rel.z * forward.z;
+    let r = abs(forward.x) * extent.x + abs(forward.y) * extent.y + abs(forward.z) * extent.z;
+    let m = aabb_margin(rel, extent);
+    return ViewInterval(d, d - r - m, d + r + m);
+}
+
+// forestlod_shared::FrustumPlanes::aabb_visible (inside = false) and aabb_inside (inside = true):
+// per plane `n · rel + w >= -r_eff - m`, resp. `>= r_eff + m`, with `r_eff = Σ|n_k| e_k`.
+fn aabb_planes(planes: array<vec4<f32>, 6>, center: vec3<f32>, extent: vec3<f32>, eye: vec3<f32>, inside: bool) -> bool {
+    let rel = vec3<f32>(center.x - eye.x, center.y - eye.y, center.z - eye.z);
+    let m = aabb_margin(rel, extent);
+    var ok = true;
+    for (var i = 0u; i < 6u; i++) {
+        let p = planes[i];
+        let r = abs(p.x) * extent.x + abs(p.y) * extent.y + abs(p.z) * extent.z;
+        let s = p.x * rel.x + p.y * rel.y + p.z * rel.z + p.w;
+        if inside {
+            ok = ok && (s >= r + m);
+        } else {
+            ok = ok && (s >= -r - m);
+        }
+    }
+    return ok;
+}
+
+// forestlod_shared::aabb_distance: Euclidean distance from the eye to the box (G§3 dist_to).
+fn aabb_distance(center: vec3<f32>, extent: vec3<f32>, eye: vec3<f32>) -> f32 {
+    let g = max(abs(center - eye) - extent, vec3<f32>(0.0));
+    var s = 0.0;
+    s += g.x * g.x;
+    s += g.y * g.y;
+    s += g.z * g.z;
+    return sqrt(s);
+}
+
+// forestlod_shared::decide_node: the sphere rule for `grid`, the sphere ∩ box rule otherwise.
+fn decide_node(n: NodeMeta, mode: u32, v: ViewUniform) -> u32 {
+    let center = vec3<f32>(n.center[0], n.center[1], n.center[2]);
+    if mode == HIERARCHY_GRID {
+        return decide_view(center, n.radius, v);
+    }
+    let bc = vec3<f32>(n.box_center[0], n.box_center[1], n.box_center[2]);
+    let e = vec3<f32>(n.extent[0], n.extent[1], n.extent[2]);
+    let s = view_interval(center, n.radius, v.eye, v.forward);
+    let b = aabb_view_interval(bc, e, v.eye, v.forward);
+    let lo = max(s.lo, b.lo);
+    let hi = min(s.hi, b.hi);
+    if lo > v.draw_distance {
+        return DECISION_CULLED_DISTANCE;
+    }
+    if !sphere_visible(v.frustum.planes, center, n.radius, v.eye)
+        || !aabb_planes(v.frustum.planes, bc, e, v.eye, false) {
+        return DECISION_CULLED_FRUSTUM;
+    }
+    let needs = lod_needs(lo, hi, v.fade_start, v.fade_end, v.lod_levels);
+    return DECISION_DRAW | select(0u, DECISION_LOD0, needs.lod0) | select(0u, DECISION_LOD1, needs.lod1);
+}
+
+// forestlod_shared::node_code: the decision plus NODE_RECURSE for a drawn interior node whose
+// children decide.
+fn node_code(n: NodeMeta, mode: u32, max_cull_depth: u32, v: ViewUniform) -> u32 {
+    let code = decide_node(n, mode, v);
+    if (code & DECISION_KIND_MASK) != DECISION_DRAW || n.child_count == 0u {
+        return code;
+    }
+    let bc = vec3<f32>(n.box_center[0], n.box_center[1], n.box_center[2]);
+    let e = vec3<f32>(n.extent[0], n.extent[1], n.extent[2]);
+    let partial = n.depth < max_cull_depth && !aabb_planes(v.frustum.planes, bc, e, v.eye, true);
+    var recurse = false;
+    if mode == HIERARCHY_QUADTREE {
+        recurse = true;
+    } else if mode == HIERARCHY_OCTREE {
+        recurse = (code & DECISION_LOD0) != 0u || partial;
+    } else if mode == HIERARCHY_OCTREE_EUCLIDEAN {
+        recurse = v.lod_levels < 2u || aabb_distance(bc, e, v.eye) < v.fade_end || partial;
+    }
+    return code | select(0u, NODE_RECURSE, recurse);
 }

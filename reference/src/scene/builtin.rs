@@ -40,7 +40,7 @@ use crate::InputError;
 use crate::texture::Rgba8Image;
 
 /// Names accepted by [`by_name`], smallest first.
-pub const BUILTIN_NAMES: &[&str] = &["single", "pair", "tiny", "synthetic", "stress"];
+pub const BUILTIN_NAMES: &[&str] = &["single", "pair", "tiny", "synthetic", "stress", "patchy"];
 
 /// Normal forest density in trees per km²: the Austrian average of E§4.5.1 (from [Cro+15]).
 pub const NORMAL_DENSITY_PER_KM2: f64 = 36_700.0;
@@ -955,6 +955,8 @@ pub fn by_name(name: &str) -> Result<Scene, InputError> {
         "tiny" => Ok(tiny()),
         "synthetic" => Ok(synthetic()),
         "stress" => Ok(stress()),
+        // Patches and clearings over the stress candidates (issue 13): `super::patchy`.
+        "patchy" => Ok(super::patchy::patchy()),
         _ => Err(InputError::new(
             "<built-in scenes>",
             "scene name",

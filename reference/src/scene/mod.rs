@@ -11,6 +11,7 @@
 
 pub mod builtin;
 pub mod load;
+pub mod patchy;
 
 use forestlod_shared::{MAX_MESH_VERTICES, MeshMeta};
 use glam::Vec3;

@@ -1,6 +1,7 @@
 //! Parity: everything that needs a GPU adapter (wgpu; lavapipe in CI), one test binary so the
 //! suite links once instead of once per stage. Each module checks one GPU stage or concern
 //! against the reference pipeline:
+//! - [`hier_select`]: the hierarchical cut (issue 13) against the reference, frames against the grid's;
 //! - [`select`], [`refine`], [`draw`], [`mips`], [`bake`]: the GPU twin of each reference stage;
 //! - [`baselines`]: the GPU Vegetation and Primitive baselines against the reference's;
 //! - [`threads`]: frames recorded from several threads on one context equal single-thread ones;
@@ -14,6 +15,7 @@
 mod bake;
 mod baselines;
 mod draw;
+mod hier_select;
 mod mips;
 mod refine;
 mod sampler_lod;

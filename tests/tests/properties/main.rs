@@ -3,6 +3,8 @@
 //! - [`select_properties`]: grouped selection against the per-tree oracle;
 //! - [`refine_properties`]: the `refine` stage against the per-tree oracle, refined frames
 //!   against unrefined ones;
+//! - [`hierarchy_properties`]: hierarchies (issue 13) and their cut against the per-tree oracle
+//!   and the grid, frames against the grid's;
 //! - [`extremes`]: the numerical-extremes catalogue of SPEC §7.
 //!
 //! Run one module with `cargo test -p forestlod-tests --test properties <module>::`. proptest
@@ -10,5 +12,6 @@
 //! (`select_properties.proptest-regressions` beside `select_properties.rs`).
 
 mod extremes;
+mod hierarchy_properties;
 mod refine_properties;
 mod select_properties;

@@ -1,0 +1,226 @@
+//! The hierarchical cut on the GPU (issue 13; G§3 Fig. 4, C§4.5): the driver of
+//! `shaders/hier_select.wgsl`, twin of `reference/src/hier_select.rs`.
+//!
+//! ## Contract
+//! Exactly the reference's cut: per node `node_code` (`forestlod_shared::cut`), visited when every
+//! ancestor recursed, emitted when visited, drawn and not recursing; emitted nodes' commands in
+//! node order, LOD0 before LOD1, `base_vertex = slot << COMMAND_SHIFT`. Four dispatches per frame
+//! (decide, resolve, scan, write) whatever the hierarchy's size or depth, no CPU recursion; the
+//! ancestor walk is bounded by `MAX_HIERARCHY_DEPTH` (llvmpipe stops loops after 65,535
+//! iterations). The output is a [`SelectBuffers`], so the draw stage and `refine` take it as they
+//! take `select`'s. Equal to the reference bit for bit up to decisions within ε of a threshold
+//! (fused multiply-add on the GPU), which the parity tests classify and count.
+
+use std::sync::Arc;
+
+use bytemuck::{Pod, Zeroable};
+use forestlod_shared::{
+    Camera, MAX_COMMANDS, MeshMeta, NodeMeta, Params, SelectCounters, ViewUniform,
+};
+
+use crate::context::{
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
+};
+use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
+use crate::select::{GpuSelection, SelectBuffers, check_mesh_indices};
+use crate::{GpuContext, GpuError};
+
+/// Invocations per workgroup of the per-node passes (generated into `hier_select.wgsl`).
+pub const HIER_WORKGROUP_SIZE: u32 = 64;
+
+/// The per-frame uniform of `hier_select.wgsl`. Keep in sync with `struct HierUniform` there.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct HierUniform {
+    /// The shared view constants ([`ViewUniform::new`]).
+    pub view: ViewUniform,
+    /// Number of nodes.
+    pub node_count: u32,
+    /// [`forestlod_shared::Hierarchy`] id: the per-node rule.
+    pub mode: u32,
+    /// `Params::max_cull_depth`.
+    pub max_cull_depth: u32,
+    /// First index of the billboard quad.
+    pub billboard_first_index: u32,
+    /// Index count of the billboard quad.
+    pub billboard_index_count: u32,
+    /// Explicit padding.
+    pub _pad0: u32,
+    /// Explicit padding.
+    pub _pad1: u32,
+    /// Explicit padding.
+    pub _pad2: u32,
+}
+const _: () = assert!(size_of::<HierUniform>() == 176);
+
+compute_pipelines! {
+    /// The compiled pipelines of `hier_select.wgsl`, one set per [`GpuContext`] (cached there).
+    pub struct HierSelectPipelines = "hier_select", crate::shaders::hier_select_source(), [
+        Slot::Uniform(size_of::<HierUniform>() as u64),
+        READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE,
+        Slot::Write(size_of::<SelectCounters>() as u64),
+    ],
+    {
+        decide: "hier_decide",
+        resolve: "hier_resolve",
+        scan: "hier_scan",
+        write: "hier_write",
+    }
+}
+
+/// One scene's hierarchy on the GPU, ready to cut for any camera and parameters.
+pub struct GpuHierSelect<'a> {
+    ctx: &'a GpuContext,
+    pipelines: Arc<HierSelectPipelines>,
+    uniform: wgpu::Buffer,
+    codes: wgpu::Buffer,
+    states: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    out: SelectBuffers,
+    node_count: u32,
+    mode: u32,
+    billboard: MeshMeta,
+}
+
+impl<'a> GpuHierSelect<'a> {
+    /// Uploads the nodes (of a hierarchy built for `mode`, a `forestlod_shared::Hierarchy` id)
+    /// and meshes, and allocates two commands per node. Fails on a node whose mesh index is out of
+    /// range or on more commands than `base_vertex` can address.
+    pub fn new(
+        ctx: &'a GpuContext,
+        nodes: &[NodeMeta],
+        mode: u32,
+        meshes: &[MeshMeta],
+        billboard: &MeshMeta,
+    ) -> Result<Self, GpuError> {
+        check_mesh_indices(
+            "node.mesh",
+            "node",
+            nodes.iter().map(|n| n.mesh),
+            meshes.len(),
+        )?;
+        let capacity = nodes.len().saturating_mul(2);
+        if capacity > MAX_COMMANDS as usize {
+            return Err(GpuError::Input {
+                field: "nodes",
+                value: nodes.len().to_string(),
+                reason: "two commands per node exceed MAX_COMMANDS (base_vertex is an i32)",
+            });
+        }
+        let pipelines = ctx.pipelines::<HierSelectPipelines>()?;
+        use wgpu::BufferUsages as U;
+        let n = (nodes.len() as u64).max(1);
+        let node_buffer = upload_storage(ctx, "hier nodes", nodes, U::empty());
+        let mesh_buffer = upload_storage(ctx, "hier meshes", meshes, U::empty());
+        let uniform = stage_uniform::<HierUniform>(ctx, "hier uniform");
+        let codes = zeroed_buffer(ctx, "hier codes", n * 4, U::STORAGE | U::COPY_SRC);
+        let states = zeroed_buffer(ctx, "hier states", n * 4, U::STORAGE | U::COPY_SRC);
+        let offsets = zeroed_buffer(ctx, "hier offsets", n * 4, U::STORAGE | U::COPY_SRC);
+        let out = SelectBuffers::with_capacity(ctx, capacity as u32);
+        let bind_group = ctx.checked("hier bind group", || {
+            buffer_bind_group(
+                &ctx.device,
+                "hier_select",
+                &pipelines.layout,
+                &[
+                    &uniform,
+                    &node_buffer,
+                    &mesh_buffer,
+                    &codes,
+                    &states,
+                    &offsets,
+                    &out.commands,
+                    &out.data,
+                    &out.counters,
+                ],
+            )
+        })?;
+        Ok(Self {
+            ctx,
+            pipelines: pipelines.clone(),
+            uniform,
+            codes,
+            states,
+            bind_group,
+            out,
+            node_count: nodes.len() as u32,
+            mode,
+            billboard: *billboard,
+        })
+    }
+
+    /// The output buffers (valid after a dispatch).
+    pub fn buffers(&self) -> &SelectBuffers {
+        &self.out
+    }
+
+    /// The output buffers, for a later stage of the same frame that rewrites them in place
+    /// (`GpuRefine::encode`).
+    pub fn buffers_mut(&mut self) -> &mut SelectBuffers {
+        &mut self.out
+    }
+
+    /// Records one frame's cut into `encoder` (uniform through the queue, counters cleared, four
+    /// dispatches).
+    pub fn encode(&mut self, encoder: &mut wgpu::CommandEncoder, camera: &Camera, params: &Params) {
+        let uniform = HierUniform {
+            view: ViewUniform::new(camera, params),
+            node_count: self.node_count,
+            mode: self.mode,
+            max_cull_depth: params.max_cull_depth,
+            billboard_first_index: self.billboard.first_index,
+            billboard_index_count: self.billboard.index_count,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
+        };
+        self.ctx
+            .queue
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
+        encoder.clear_buffer(&self.out.counters, 0, None);
+        let (x, y) = self
+            .ctx
+            .workgroup_grid(self.node_count.div_ceil(HIER_WORKGROUP_SIZE));
+        let p = &self.pipelines;
+        compute_pass(
+            encoder,
+            "hier_select",
+            &self.bind_group,
+            &[
+                (&p.decide, Dispatch::Groups(x, y)),
+                (&p.resolve, Dispatch::Groups(x, y)),
+                (&p.scan, Dispatch::Groups(1, 1)),
+                (&p.write, Dispatch::Groups(x, y)),
+            ],
+        );
+    }
+
+    /// Runs one frame's cut, leaving the commands on the GPU. Does not wait.
+    pub fn dispatch(
+        &mut self,
+        camera: &Camera,
+        params: &Params,
+    ) -> Result<&SelectBuffers, GpuError> {
+        let ctx = self.ctx;
+        ctx.submit("hier_select dispatch", "hier_select", |encoder| {
+            self.encode(encoder, camera, params)
+        })?;
+        Ok(&self.out)
+    }
+
+    /// Runs one frame's cut and reads the commands back. Blocks.
+    pub fn run(&mut self, camera: &Camera, params: &Params) -> Result<GpuSelection, GpuError> {
+        self.dispatch(camera, params)?;
+        self.out.read(self.ctx)
+    }
+
+    /// Per-node codes (`forestlod_shared::node_code`) and states (visited 1, emitted 2) of the
+    /// last run.
+    pub fn read_codes_and_states(&self) -> Result<(Vec<u32>, Vec<u32>), GpuError> {
+        let n = self.node_count as usize;
+        Ok((
+            read_buffer(self.ctx, &self.codes, 0, n)?,
+            read_buffer(self.ctx, &self.states, 0, n)?,
+        ))
+    }
+}

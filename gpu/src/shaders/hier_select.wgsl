@@ -1,0 +1,206 @@
+// hier_select.wgsl: the hierarchical cut (issue 13; G§3 Fig. 4, C§4.5) as a parallel evaluation.
+// The GPU twin of reference/src/hier_select.rs, driven by gpu/src/hier_select.rs; common.wgsl
+// (NodeMeta, node_code) is prepended.
+//
+// Contract (the reference's module docs, repeated): per node `node_code` (decision on its bounds
+// plus NODE_RECURSE); a node is visited when every ancestor recursed, emitted when visited, drawn
+// and not recursing; emitted nodes become commands in node order, LOD0 before LOD1.
+//
+// Entry points, O(1) dispatches per frame whatever the hierarchy:
+//   `hier_decide`  (one invocation per node): codes[i] = node_code;
+//   `hier_resolve` (one invocation per node): walk the ancestors (at most MAX_HIERARCHY_DEPTH,
+//                  far below llvmpipe's 65,535 iterations per loop), states[i], command count,
+//                  counters;
+//   `hier_scan`    (one workgroup): exclusive prefix sum of the counts (select.wgsl's scan);
+//   `hier_write`   (one invocation per node): the emitted node's commands at its offset.
+
+// Keep in sync with forestlod_gpu::hier_select::HierUniform (gpu/src/hier_select.rs).
+struct HierUniform {
+    view: ViewUniform,
+    node_count: u32,
+    mode: u32,
+    max_cull_depth: u32,
+    billboard_first_index: u32,
+    billboard_index_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+// SelectCounters with atomic members (the same layout, 8 x u32), plus nodes_visited = batches_tested.
+struct HierCountersAtomic {
+    batches_tested: atomic<u32>,
+    culled_distance: atomic<u32>,
+    culled_frustum: atomic<u32>,
+    commands: atomic<u32>,
+    lod0_commands: atomic<u32>,
+    lod1_commands: atomic<u32>,
+    transition_batches: atomic<u32>,
+    instances: atomic<u32>,
+}
+
+// NODE_VISITED, NODE_EMITTED (forestlod_shared::cut), HIER_WORKGROUP_SIZE (gpu/src/hier_select.rs)
+// and SCAN_WORKGROUP_SIZE (gpu/src/select.rs) are generated (gpu/src/shaders.rs).
+
+@group(0) @binding(0) var<uniform> u: HierUniform;
+@group(0) @binding(1) var<storage, read> nodes: array<NodeMeta>;
+@group(0) @binding(2) var<storage, read> meshes: array<MeshMeta>;
+@group(0) @binding(3) var<storage, read_write> codes: array<u32>;
+@group(0) @binding(4) var<storage, read_write> states: array<u32>;
+@group(0) @binding(5) var<storage, read_write> offsets: array<u32>;
+@group(0) @binding(6) var<storage, read_write> commands: array<DrawCommand>;
+@group(0) @binding(7) var<storage, read_write> command_data: array<CommandData>;
+@group(0) @binding(8) var<storage, read_write> counters: HierCountersAtomic;
+
+fn node_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
+    return gid.y * (groups.x * HIER_WORKGROUP_SIZE) + gid.x;
+}
+
+// forestlod_shared::emitted_needs as (lod0, lod1) bits: the code's LODs, billboards only for an
+// octree-euclidean interior unit.
+fn emitted_bits(code: u32, n: NodeMeta) -> u32 {
+    var bits = code & (DECISION_LOD0 | DECISION_LOD1);
+    if u.mode == HIERARCHY_OCTREE_EUCLIDEAN && n.child_count > 0u && u.view.lod_levels >= 2u
+        && (bits & DECISION_LOD1) != 0u {
+        bits = DECISION_LOD1;
+    }
+    return bits;
+}
+
+@compute @workgroup_size(HIER_WORKGROUP_SIZE)
+fn hier_decide(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = node_index(gid, groups);
+    if i >= u.node_count {
+        return;
+    }
+    codes[i] = node_code(nodes[i], u.mode, u.max_cull_depth, u.view);
+}
+
+@compute @workgroup_size(HIER_WORKGROUP_SIZE)
+fn hier_resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = node_index(gid, groups);
+    if i >= u.node_count {
+        return;
+    }
+    let n = nodes[i];
+    var visited = true;
+    var p = n.parent;
+    for (var k = 0u; k < MAX_HIERARCHY_DEPTH && p != NO_PARENT; k++) {
+        let c = codes[p];
+        if (c & DECISION_KIND_MASK) != DECISION_DRAW || (c & NODE_RECURSE) == 0u {
+            visited = false;
+            break;
+        }
+        p = nodes[p].parent;
+    }
+    offsets[i] = 0u;
+    if !visited {
+        states[i] = 0u;
+        return;
+    }
+    atomicAdd(&counters.batches_tested, 1u);
+    let code = codes[i];
+    let kind = code & DECISION_KIND_MASK;
+    if kind == DECISION_CULLED_DISTANCE {
+        atomicAdd(&counters.culled_distance, 1u);
+    }
+    if kind == DECISION_CULLED_FRUSTUM {
+        atomicAdd(&counters.culled_frustum, 1u);
+    }
+    if kind != DECISION_DRAW || (code & NODE_RECURSE) != 0u {
+        states[i] = NODE_VISITED;
+        return;
+    }
+    states[i] = NODE_VISITED | NODE_EMITTED;
+    let bits = emitted_bits(code, n);
+    let lod0 = (bits & DECISION_LOD0) != 0u;
+    let lod1 = (bits & DECISION_LOD1) != 0u;
+    let count = u32(lod0) + u32(lod1);
+    if lod0 && lod1 {
+        atomicAdd(&counters.transition_batches, 1u);
+    }
+    if lod0 {
+        atomicAdd(&counters.lod0_commands, 1u);
+    }
+    if lod1 {
+        atomicAdd(&counters.lod1_commands, 1u);
+    }
+    atomicAdd(&counters.instances, n.len * count);
+    atomicAdd(&counters.commands, count);
+    offsets[i] = count;
+}
+
+var<workgroup> scan_tmp: array<u32, SCAN_WORKGROUP_SIZE>;
+var<workgroup> scan_carry: u32;
+
+// select.wgsl's `select_scan` over `node_count` (one workgroup, chunks of 256: the loop runs
+// node_count / 256 times, within llvmpipe's limit for up to 16 M nodes).
+@compute @workgroup_size(SCAN_WORKGROUP_SIZE)
+fn hier_scan(@builtin(local_invocation_index) lid: u32) {
+    let n = u.node_count;
+    if lid == 0u {
+        scan_carry = 0u;
+    }
+    workgroupBarrier();
+    let chunks = (n + SCAN_WORKGROUP_SIZE - 1u) / SCAN_WORKGROUP_SIZE;
+    for (var c = 0u; c < chunks; c++) {
+        let index = c * SCAN_WORKGROUP_SIZE + lid;
+        var value = 0u;
+        if index < n {
+            value = offsets[index];
+        }
+        scan_tmp[lid] = value;
+        workgroupBarrier();
+        for (var step = 1u; step < SCAN_WORKGROUP_SIZE; step = step << 1u) {
+            var add = 0u;
+            if lid >= step {
+                add = scan_tmp[lid - step];
+            }
+            workgroupBarrier();
+            scan_tmp[lid] = scan_tmp[lid] + add;
+            workgroupBarrier();
+        }
+        let carry = scan_carry;
+        if index < n {
+            offsets[index] = carry + scan_tmp[lid] - value;
+        }
+        workgroupBarrier();
+        if lid == SCAN_WORKGROUP_SIZE - 1u {
+            scan_carry = carry + scan_tmp[lid];
+        }
+        workgroupBarrier();
+    }
+}
+
+fn emit(slot: u32, i: u32, n: NodeMeta, lod: u32, fading: bool) {
+    var first_index = u.billboard_first_index;
+    var index_count = u.billboard_index_count;
+    if lod == LOD_MESH {
+        let m = meshes[n.mesh];
+        first_index = m.first_index;
+        index_count = m.index_count;
+    }
+    commands[slot] = DrawCommand(index_count, n.len, first_index, i32(slot << COMMAND_SHIFT), n.offset);
+    command_data[slot] = CommandData(
+        u.view.fade_start, u.view.fade_end, i, n.mesh, lod, u32(lod == LOD_BILLBOARD), u32(fading), 0u
+    );
+}
+
+@compute @workgroup_size(HIER_WORKGROUP_SIZE)
+fn hier_write(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = node_index(gid, groups);
+    if i >= u.node_count || (states[i] & NODE_EMITTED) == 0u {
+        return;
+    }
+    let n = nodes[i];
+    let bits = emitted_bits(codes[i], n);
+    let lod0 = (bits & DECISION_LOD0) != 0u;
+    let lod1 = (bits & DECISION_LOD1) != 0u;
+    let slot = offsets[i];
+    if lod0 {
+        emit(slot, i, n, LOD_MESH, lod0 && lod1);
+    }
+    if lod1 {
+        emit(slot + u32(lod0), i, n, LOD_BILLBOARD, lod0 && lod1);
+    }
+}

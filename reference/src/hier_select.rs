@@ -1,0 +1,165 @@
+//! The hierarchical cut (issue 13): which nodes of a [`Hierarchy`] draw this frame, as draw
+//! commands. The CPU twin of `gpu/src/shaders/hier_select.wgsl`, written shader-shaped: the
+//! seeds' recursive traversals (G§3 Fig. 4 `draw_geometry`, C§4.5) become a **parallel cut
+//! evaluation** with no recursion per frame:
+//! 1. *decide* (one invocation per node): [`forestlod_shared::node_code`], the node's decision
+//!    on its bounds plus whether a drawn interior node recurses;
+//! 2. *resolve* (one invocation per node): walk the node's ancestors (at most
+//!    [`forestlod_shared::MAX_HIERARCHY_DEPTH`]); the node is **visited** when every ancestor
+//!    recursed, and **emitted** when it is visited, drawn and does not recurse;
+//! 3. the stable compaction of `select` (scan, write): emitted nodes in node (depth-first) order,
+//!    LOD0 before LOD1, command `i` with `base_vertex = i << COMMAND_SHIFT`, `first_instance` the
+//!    node's range in the hierarchy's indirection, `CommandData::batch` the node index.
+//!
+//! This equals the seeds' recursion: the recursion reaches exactly the visited nodes and draws
+//! exactly the emitted ones, in depth-first order.
+//!
+//! ## Invariants (`tests/tests/properties/hierarchy_properties.rs`)
+//! - **Conservative** against the per-tree oracle for every mode but `octree-euclidean`: every
+//!   (tree, LOD) the oracle draws is covered by exactly one command; no tree is covered twice at
+//!   one LOD (the emitted nodes form an antichain).
+//! - The `grid` mode on the depth-1 hierarchy of grid batches equals `select` bit for bit.
+//! - Deterministic for any thread count.
+//!
+//! Counters: `batches_tested` counts the **visited** nodes (C§5's "nodes walked", what the
+//! recursion would touch; [`HierSelection::nodes_visited`]), the culls are those of visited nodes,
+//! `transition_batches` the emitted nodes with both LODs.
+
+use forestlod_shared::{
+    COMMAND_SHIFT, Camera, CommandData, DECISION_DRAW, DECISION_KIND_MASK, Decision, DrawCommand,
+    LOD_BILLBOARD, LOD_MESH, MeshMeta, NO_PARENT, NODE_RECURSE, Params, ViewUniform, code_recurses,
+    emitted_needs, node_code,
+};
+use rayon::prelude::*;
+
+use crate::hierarchy::Hierarchy;
+use crate::select::Selection;
+
+/// The node state bits, defined with the per-node rule (`forestlod_shared::cut`).
+pub use forestlod_shared::{NODE_EMITTED, NODE_VISITED};
+
+/// What the cut produced for one frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct HierSelection {
+    /// Commands, data and counters, as `select`'s.
+    pub selection: Selection,
+    /// Per node: [`forestlod_shared::node_code`].
+    pub codes: Vec<u32>,
+    /// Per node: [`NODE_VISITED`] | [`NODE_EMITTED`] bits.
+    pub states: Vec<u32>,
+}
+
+impl HierSelection {
+    /// Nodes the recursion would visit (C§5 "nodes walked").
+    pub fn nodes_visited(&self) -> u32 {
+        self.selection.counters.batches_tested
+    }
+}
+
+/// Pass 2 for node `i`: its state bits from the codes of its ancestors and its own.
+pub fn node_state(nodes: &[forestlod_shared::NodeMeta], codes: &[u32], i: usize) -> u32 {
+    let mut p = nodes[i].parent;
+    // Bounded by the depth (< MAX_HIERARCHY_DEPTH), as the shader's loop.
+    while p != NO_PARENT {
+        if !code_recurses(codes[p as usize]) {
+            return 0;
+        }
+        p = nodes[p as usize].parent;
+    }
+    let code = codes[i];
+    let drawn = code & DECISION_KIND_MASK == DECISION_DRAW;
+    NODE_VISITED
+        | if drawn && code & NODE_RECURSE == 0 {
+            NODE_EMITTED
+        } else {
+            0
+        }
+}
+
+/// The cut of `h` for one frame (module docs). `meshes` carry their packed index ranges.
+pub fn hier_select(
+    h: &Hierarchy,
+    meshes: &[MeshMeta],
+    billboard: &MeshMeta,
+    camera: &Camera,
+    params: &Params,
+) -> HierSelection {
+    let u = ViewUniform::new(camera, params);
+    let codes: Vec<u32> = h
+        .nodes
+        .par_iter()
+        .map(|n| node_code(&u, n, h.mode, params.max_cull_depth))
+        .collect();
+    resolve_and_compact(h, codes, meshes, billboard, &u)
+}
+
+/// Passes 2 and 3 on given per-node codes (the reference's, or a GPU's read back, to check the
+/// GPU's resolution and compaction on its own decisions).
+pub fn resolve_and_compact(
+    h: &Hierarchy,
+    codes: Vec<u32>,
+    meshes: &[MeshMeta],
+    billboard: &MeshMeta,
+    u: &ViewUniform,
+) -> HierSelection {
+    let states: Vec<u32> = (0..h.nodes.len())
+        .into_par_iter()
+        .map(|i| node_state(&h.nodes, &codes, i))
+        .collect();
+    let mut out = Selection::default();
+    for (i, (n, (&code, &state))) in h.nodes.iter().zip(codes.iter().zip(&states)).enumerate() {
+        if state & NODE_VISITED == 0 {
+            continue;
+        }
+        out.counters.batches_tested += 1;
+        match Decision::from_code(code & !NODE_RECURSE) {
+            Decision::CulledDistance => out.counters.culled_distance += 1,
+            Decision::CulledFrustum => out.counters.culled_frustum += 1,
+            Decision::Draw(_) => {}
+        }
+        if state & NODE_EMITTED == 0 {
+            continue;
+        }
+        let needs = emitted_needs(code, n, h.mode, u.lod_levels);
+        out.counters.transition_batches += needs.both() as u32;
+        for (lod, wanted) in [(LOD_MESH, needs.lod0), (LOD_BILLBOARD, needs.lod1)] {
+            if !wanted {
+                continue;
+            }
+            let range = if lod == LOD_MESH {
+                &meshes[n.mesh as usize]
+            } else {
+                billboard
+            };
+            out.commands.push(DrawCommand {
+                index_count: range.index_count,
+                instance_count: n.len,
+                first_index: range.first_index,
+                base_vertex: (out.commands.len() as i32) << COMMAND_SHIFT,
+                first_instance: n.offset,
+            });
+            out.data.push(CommandData {
+                fade_start: u.fade_start,
+                fade_end: u.fade_end,
+                batch: i as u32,
+                mesh: n.mesh,
+                lod,
+                billboard: (lod == LOD_BILLBOARD) as u32,
+                fading: needs.both() as u32,
+                _pad0: 0,
+            });
+            out.counters.instances += n.len;
+            if lod == LOD_MESH {
+                out.counters.lod0_commands += 1;
+            } else {
+                out.counters.lod1_commands += 1;
+            }
+        }
+    }
+    out.counters.commands = out.commands.len() as u32;
+    HierSelection {
+        selection: out,
+        codes,
+        states,
+    }
+}

@@ -1,0 +1,169 @@
+//! The per-node rule of the hierarchical cut (issue 13): what one node of a [`NodeMeta`]
+//! hierarchy decides for a frame, and the `u32` code the GPU writes for it. Used by
+//! `reference/src/hier_select.rs` and mirrored by `node_code` in `gpu/src/shaders/common.wgsl`.
+//!
+//! ## Contract
+//! - [`decide_node`]: the batch rule of [`ViewUniform::decide`] on the node's bounds. With
+//!   [`Hierarchy::Grid`] only the sphere counts (the thesis, so a depth-1 hierarchy of grid batches
+//!   decides exactly as `select`); every other mode intersects the sphere's and the box's view-depth
+//!   intervals ([`view_interval`], [`aabb_view_interval`]) and culls when either volume is outside a
+//!   frustum plane (E§7 "tighter bounding volumes"; C§4.5's AABB culling). Both volumes contain every
+//!   tree's sphere, so the intersection is still conservative.
+//! - [`node_code`]: the decision's `DECISION_*` code, plus [`NODE_RECURSE`] when a drawn interior
+//!   node hands the frame to its children instead of drawing as one unit:
+//!   - `grid`, `grid-aabb`: never (depth-1: every node is a leaf);
+//!   - `quadtree` (C§4.5): always ("forest node → children"; interior nodes only cull);
+//!   - `octree` (G§3 Fig. 4, conservative reading): when the node needs LOD0 (its interval starts
+//!     before the fade band's end, the seed's `dist_to(bound) < LOD_dist` on view depth) or when
+//!     its box is only partially inside the frustum and `depth < max_cull_depth`;
+//!   - `octree-euclidean` (G§3 as written): the same with the Euclidean distance from the eye to
+//!     the box instead of the interval, **not conservative** (module docs of [`Hierarchy`]).
+//! - A node is *visited* when every ancestor is drawn with [`NODE_RECURSE`]; a visited node that
+//!   is drawn without it is *emitted* with [`emitted_needs`] (its interval's LODs; billboards only
+//!   for an `octree-euclidean` unit, as the seed's static billboard geometry).
+
+use crate::{
+    DECISION_DRAW, DECISION_KIND_MASK, Decision, Hierarchy, LodNeeds, NodeMeta, ViewUniform,
+    aabb_view_interval, lod_needs, view_interval,
+};
+
+/// Node code bit: a drawn interior node whose children decide instead (module docs).
+pub const NODE_RECURSE: u32 = 16;
+
+/// Node state bit of the cut: every ancestor recursed (the node is visited).
+pub const NODE_VISITED: u32 = 1;
+/// Node state bit of the cut: visited, drawn and not recursing: the node emits its commands.
+pub const NODE_EMITTED: u32 = 2;
+
+/// The most levels a hierarchy may have (root depth 0 .. `MAX_HIERARCHY_DEPTH - 1`): the GPU walks
+/// at most this many ancestors per node, far below llvmpipe's 65,535 iterations per loop.
+pub const MAX_HIERARCHY_DEPTH: u32 = 32;
+
+/// Euclidean distance from the eye to the box `center ± extent` (0 inside): Guerrero's `dist_to`.
+pub fn aabb_distance(center: [f32; 3], extent: [f32; 3], eye: [f32; 3]) -> f32 {
+    let mut s = 0.0f32;
+    for k in 0..3 {
+        let g = ((center[k] - eye[k]).abs() - extent[k]).max(0.0);
+        s += g * g;
+    }
+    s.sqrt()
+}
+
+/// The node's decision under `mode`'s bounds (module docs).
+pub fn decide_node(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy) -> Decision {
+    if mode == Hierarchy::Grid {
+        return u.decide(n.center, n.radius);
+    }
+    let s = view_interval(n.center, n.radius, u.eye, u.forward);
+    let b = aabb_view_interval(n.box_center, n.extent, u.eye, u.forward);
+    let lo = s.lo.max(b.lo);
+    let hi = s.hi.min(b.hi);
+    if lo > u.draw_distance {
+        Decision::CulledDistance
+    } else if !u.frustum.sphere_visible(n.center, n.radius, u.eye)
+        || !u.frustum.aabb_visible(n.box_center, n.extent, u.eye)
+    {
+        Decision::CulledFrustum
+    } else {
+        Decision::Draw(lod_needs(lo, hi, u.fade_start, u.fade_end, u.lod_levels))
+    }
+}
+
+/// The node's code: [`Decision::code`] plus [`NODE_RECURSE`] (module docs).
+pub fn node_code(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy, max_cull_depth: u32) -> u32 {
+    let decision = decide_node(u, n, mode);
+    let code = decision.code();
+    let Decision::Draw(needs) = decision else {
+        return code;
+    };
+    if n.child_count == 0 {
+        return code;
+    }
+    let partial =
+        || n.depth < max_cull_depth && !u.frustum.aabb_inside(n.box_center, n.extent, u.eye);
+    let recurse = match mode {
+        Hierarchy::Grid | Hierarchy::GridAabb => false,
+        Hierarchy::Quadtree => true,
+        Hierarchy::Octree => needs.lod0 || partial(),
+        Hierarchy::OctreeEuclidean => {
+            u.lod_levels < 2
+                || aabb_distance(n.box_center, n.extent, u.eye) < u.fade_end
+                || partial()
+        }
+    };
+    code | if recurse { NODE_RECURSE } else { 0 }
+}
+
+/// Whether a node code says "drawn and recurse" (its children are visited).
+pub fn code_recurses(code: u32) -> bool {
+    code & DECISION_KIND_MASK == DECISION_DRAW && code & NODE_RECURSE != 0
+}
+
+/// The LODs an emitted node draws (module docs): its interval's, except an `octree-euclidean`
+/// interior unit, which draws billboards only when there are two LOD levels.
+pub fn emitted_needs(code: u32, n: &NodeMeta, mode: Hierarchy, lod_levels: u32) -> LodNeeds {
+    let needs = Decision::from_code(code & !NODE_RECURSE).needs();
+    if mode == Hierarchy::OctreeEuclidean && n.child_count > 0 && lod_levels >= 2 && needs.lod1 {
+        return LodNeeds {
+            lod0: false,
+            lod1: true,
+        };
+    }
+    needs
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Camera, Params};
+
+    fn node(center: [f32; 3], half: f32, depth: u32, children: u32) -> NodeMeta {
+        NodeMeta {
+            center,
+            radius: half * 3f32.sqrt(),
+            extent: [half; 3],
+            mesh: 0,
+            box_center: center,
+            len: 1,
+            offset: 0,
+            parent: crate::NO_PARENT,
+            depth,
+            child_count: children,
+        }
+    }
+
+    #[test]
+    fn octree_recurses_near_and_draws_far_units() {
+        let c = Camera::look_at([0.0, 0.0, 10.0], [100.0, 0.0, 10.0], 60.0, 160, 90);
+        let u = ViewUniform::new(&c, &Params::default());
+        let near = node_code(
+            &u,
+            &node([200.0, 0.0, 10.0], 50.0, 3, 8),
+            Hierarchy::Octree,
+            7,
+        );
+        assert!(code_recurses(near), "{near}");
+        let far = node([2000.0, 0.0, 10.0], 50.0, 3, 8);
+        let code = node_code(&u, &far, Hierarchy::Octree, 7);
+        assert!(!code_recurses(code));
+        assert_eq!(
+            Decision::from_code(code),
+            Decision::Draw(LodNeeds {
+                lod0: false,
+                lod1: true
+            })
+        );
+        // Straddling a side plane at a depth below max_cull_depth: recurse; at it: draw whole.
+        let side = node([2000.0, 2050.0, 10.0], 50.0, 3, 8);
+        assert!(code_recurses(node_code(&u, &side, Hierarchy::Octree, 7)));
+        assert!(!code_recurses(node_code(&u, &side, Hierarchy::Octree, 3)));
+        // Leaves never recurse; the quadtree always does when drawn.
+        assert!(!code_recurses(node_code(
+            &u,
+            &node([200.0, 0.0, 10.0], 5.0, 3, 0),
+            Hierarchy::Quadtree,
+            7
+        )));
+        assert!(code_recurses(node_code(&u, &far, Hierarchy::Quadtree, 7)));
+    }
+}
