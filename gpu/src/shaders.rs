@@ -89,23 +89,32 @@ pub fn with_common(stage: &str) -> String {
     format!("{}{COMMON_WGSL}\n{stage}", constants_wgsl())
 }
 
+/// The stable compaction's exclusive prefix sum (`scan_offsets`), appended to the modules that
+/// scan an `offsets` array: `select.wgsl` and `hier_select.wgsl`.
+pub const SCAN_WGSL: &str = include_str!("shaders/scan.wgsl");
+
 /// A stage's own source `shaders/<file>` (const `$own`, documented by the given doc) and its full
-/// module source (fn `$full`: [`with_common`] of it).
+/// module source (fn `$full`: [`with_common`] of it, then any shared parts named after it).
 macro_rules! stage_source {
-    ($(#[$doc:meta])* $own:ident, $full:ident, $file:literal) => {
+    ($(#[$doc:meta])* $own:ident, $full:ident, $file:literal $(, $part:ident)*) => {
         $(#[$doc])*
         pub const $own: &str = include_str!(concat!("shaders/", $file));
 
-        #[doc = concat!("The full `", $file, "` module source: [`COMMON_WGSL`] then [`", stringify!($own), "`].")]
+        #[doc = concat!("The full `", $file, "` module source: [`COMMON_WGSL`], [`", stringify!($own), "`]", $(", [`", stringify!($part), "`]",)* ".")]
         pub fn $full() -> String {
-            with_common($own)
+            let mut source = with_common($own);
+            $(
+                source.push('\n');
+                source.push_str($part);
+            )*
+            source
         }
     };
 }
 
 stage_source!(
     /// The `select` stage's own source (without [`COMMON_WGSL`]).
-    SELECT_WGSL, select_source, "select.wgsl"
+    SELECT_WGSL, select_source, "select.wgsl", SCAN_WGSL
 );
 stage_source!(
     /// The `draw` stage's own source (without [`COMMON_WGSL`]).
@@ -136,7 +145,7 @@ stage_source!(
 stage_source!(
     /// The `hier_select` stage's own source (without [`COMMON_WGSL`]): the hierarchical cut
     /// (issue 13).
-    HIER_SELECT_WGSL, hier_select_source, "hier_select.wgsl"
+    HIER_SELECT_WGSL, hier_select_source, "hier_select.wgsl", SCAN_WGSL
 );
 
 /// The depth read-back by compute (`DrawTarget::read`), standalone: [`COMMON_WGSL`] is not
@@ -169,6 +178,7 @@ mod tests {
             ("refine.wgsl", REFINE_WGSL),
             ("hier_select.wgsl", HIER_SELECT_WGSL),
             ("depth_copy.wgsl", DEPTH_COPY_WGSL),
+            ("scan.wgsl", SCAN_WGSL),
         ] {
             for name in &names {
                 let decl = format!("const {name}:");

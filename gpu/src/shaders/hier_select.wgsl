@@ -130,46 +130,11 @@ fn hier_resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
     offsets[i] = count;
 }
 
-var<workgroup> scan_tmp: array<u32, SCAN_WORKGROUP_SIZE>;
-var<workgroup> scan_carry: u32;
-
-// select.wgsl's `select_scan` over `node_count` (one workgroup, chunks of 256: the loop runs
-// node_count / 256 times, within llvmpipe's limit for up to 16 M nodes).
+// Exclusive prefix sum of the per-node command counts (scan.wgsl `scan_offsets`, as
+// select.wgsl's `select_scan`).
 @compute @workgroup_size(SCAN_WORKGROUP_SIZE)
 fn hier_scan(@builtin(local_invocation_index) lid: u32) {
-    let n = u.node_count;
-    if lid == 0u {
-        scan_carry = 0u;
-    }
-    workgroupBarrier();
-    let chunks = (n + SCAN_WORKGROUP_SIZE - 1u) / SCAN_WORKGROUP_SIZE;
-    for (var c = 0u; c < chunks; c++) {
-        let index = c * SCAN_WORKGROUP_SIZE + lid;
-        var value = 0u;
-        if index < n {
-            value = offsets[index];
-        }
-        scan_tmp[lid] = value;
-        workgroupBarrier();
-        for (var step = 1u; step < SCAN_WORKGROUP_SIZE; step = step << 1u) {
-            var add = 0u;
-            if lid >= step {
-                add = scan_tmp[lid - step];
-            }
-            workgroupBarrier();
-            scan_tmp[lid] = scan_tmp[lid] + add;
-            workgroupBarrier();
-        }
-        let carry = scan_carry;
-        if index < n {
-            offsets[index] = carry + scan_tmp[lid] - value;
-        }
-        workgroupBarrier();
-        if lid == SCAN_WORKGROUP_SIZE - 1u {
-            scan_carry = carry + scan_tmp[lid];
-        }
-        workgroupBarrier();
-    }
+    scan_offsets(lid, u.node_count);
 }
 
 fn emit(slot: u32, i: u32, n: NodeMeta, lod: u32, fading: bool) {

@@ -154,47 +154,11 @@ fn select_decide(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wor
     offsets[index] = command_count(decision);
 }
 
-var<workgroup> scan_tmp: array<u32, SCAN_WORKGROUP_SIZE>;
-var<workgroup> scan_carry: u32;
-
-// Stable, pass 2: exclusive prefix sum of `offsets`, in place, by one workgroup walking the array
-// in chunks (Hillis-Steele within a chunk, a running carry across chunks). O(n log 256) work, one
-// dispatch; plenty for the batch counts of E§5 (tens of thousands).
+// Stable, pass 2: exclusive prefix sum of `offsets`, in place (scan.wgsl `scan_offsets`, one
+// workgroup; plenty for the batch counts of E§5, tens of thousands).
 @compute @workgroup_size(SCAN_WORKGROUP_SIZE)
 fn select_scan(@builtin(local_invocation_index) lid: u32) {
-    let n = u.batch_count;
-    if lid == 0u {
-        scan_carry = 0u;
-    }
-    workgroupBarrier();
-    let chunks = (n + SCAN_WORKGROUP_SIZE - 1u) / SCAN_WORKGROUP_SIZE;
-    for (var c = 0u; c < chunks; c++) {
-        let index = c * SCAN_WORKGROUP_SIZE + lid;
-        var value = 0u;
-        if index < n {
-            value = offsets[index];
-        }
-        scan_tmp[lid] = value;
-        workgroupBarrier();
-        for (var step = 1u; step < SCAN_WORKGROUP_SIZE; step = step << 1u) {
-            var add = 0u;
-            if lid >= step {
-                add = scan_tmp[lid - step];
-            }
-            workgroupBarrier();
-            scan_tmp[lid] = scan_tmp[lid] + add;
-            workgroupBarrier();
-        }
-        let carry = scan_carry;
-        if index < n {
-            offsets[index] = carry + scan_tmp[lid] - value;
-        }
-        workgroupBarrier();
-        if lid == SCAN_WORKGROUP_SIZE - 1u {
-            scan_carry = carry + scan_tmp[lid];
-        }
-        workgroupBarrier();
-    }
+    scan_offsets(lid, u.batch_count);
 }
 
 // Stable, pass 3: commands at the scanned offsets, in batch order, LOD0 before LOD1.
