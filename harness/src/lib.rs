@@ -9,7 +9,9 @@
 //! - [`stage`]: the one family of backend traits, `Backend<S: Stage>` for every stage, and the
 //!   reference backend of every stage ("one test body, several backends", SPEC §8);
 //! - [`texel_compare`]: the GPU mips and bake backends and the RGBA8 texel tally (SPEC §5.1, §5.2);
-//! - [`image_compare`]: the image parity classes, every tolerance a named constant (SPEC §8).
+//! - [`image_compare`]: the image parity classes, every tolerance a named constant (SPEC §8);
+//! - [`stats`]: statistical parity, the signed-difference histogram and bias gate of every
+//!   compared buffer (issue 15).
 //!
 //! Rules:
 //! - nothing here depends on a test framework (no proptest): the shipped CLI links this crate, and
@@ -24,4 +26,5 @@
 pub mod backend;
 pub mod image_compare;
 pub mod stage;
+pub mod stats;
 pub mod texel_compare;

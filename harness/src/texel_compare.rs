@@ -29,6 +29,7 @@ use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::MipMode;
 use rayon::prelude::*;
 
+use crate::stats::SignedHistogram;
 use crate::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Named};
 
 use crate::backend::gpu_context;
@@ -37,6 +38,17 @@ use crate::backend::gpu_context;
 pub fn channel_diff(a: [u8; 4], b: [u8; 4]) -> u8 {
     (0..4).map(|c| a[c].abs_diff(b[c])).max().unwrap_or(0)
 }
+
+/// Largest mean signed difference (GPU minus reference, per channel, sRGB8 or UNORM8 units over
+/// every texel compared) of a texel comparison ([`TexelTally::bias_failures`], gated together
+/// with the sign test of [`crate::stats`]).
+///
+/// Why 1e-3: a correct GPU mips or bake stage differs from the reference by a rare one-step
+/// rounding of either sign (measured: 0 to 3 texels of ~600k per mode in `parity::mips`, a bias
+/// under 1e-5), so its mean is two orders of magnitude below this; a changed rounding rule that
+/// moves one texel in a thousand by one unit in the same direction reaches it, one that moves
+/// every texel (the class of bug a ±1 tolerance cannot see) exceeds it a thousandfold.
+pub const TEXEL_BIAS_MAX: f64 = 1e-3;
 
 /// Running totals of a texel-by-texel comparison.
 #[derive(Clone, Debug, Default)]
@@ -51,6 +63,9 @@ pub struct TexelTally {
     pub max_diff: u8,
     /// The first texel beyond the tolerance: where, GPU value, reference value.
     pub first_over: Option<(String, [u8; 4], [u8; 4])>,
+    /// Signed differences (GPU minus reference) per channel R, G, B, A, over every texel
+    /// (statistical parity, [`crate::stats`]).
+    pub channels: [SignedHistogram; 4],
 }
 
 impl TexelTally {
@@ -72,6 +87,10 @@ impl TexelTally {
         tolerance: u8,
     ) {
         self.texels += 1;
+        for (c, h) in self.channels.iter_mut().enumerate() {
+            h.tolerance = i64::from(tolerance);
+            h.record(i64::from(got[c]) - i64::from(want[c]));
+        }
         let d = channel_diff(got, want);
         if d == 0 {
             return;
@@ -95,14 +114,31 @@ impl TexelTally {
         if self.first_over.is_none() {
             self.first_over.clone_from(&other.first_over);
         }
+        for (h, o) in self.channels.iter_mut().zip(&other.channels) {
+            h.merge(o);
+        }
     }
 
-    /// One line for the test log.
+    /// Why the signed differences are biased (one line per channel), empty when they are not:
+    /// [`SignedHistogram::bias_failure`] with `max_bias` (normally [`TEXEL_BIAS_MAX`]).
+    pub fn bias_failures(&self, what: &str, max_bias: f64) -> Vec<String> {
+        self.channels
+            .iter()
+            .zip(["R", "G", "B", "A"])
+            .filter_map(|(h, c)| h.bias_failure(&format!("{what} channel {c}"), max_bias))
+            .collect()
+    }
+
+    /// One line for the test log, then one per channel with its signed-difference statistics.
     pub fn summary(&self) -> String {
-        format!(
+        let mut s = format!(
             "{} texels compared, {} differing, {} beyond tolerance, max channel difference {}",
             self.texels, self.differing, self.over_tolerance, self.max_diff
-        )
+        );
+        for (h, c) in self.channels.iter().zip(["R", "G", "B", "A"]) {
+            s.push_str(&format!("\n    {c}: {h}"));
+        }
+        s
     }
 }
 

@@ -1,0 +1,232 @@
+//! Statistical parity (issue 15): beside the per-element tolerances of [`crate::texel_compare`]
+//! and [`crate::image_compare`], the *distribution* of the signed differences (GPU minus
+//! reference) of every compared buffer: its histogram, its mean (the bias) and the fraction of
+//! elements at the tolerance edge.
+//!
+//! Why: a per-element tolerance of ±1 cannot see a rounding rule changed so that many texels move
+//! by one unit in the same direction; every element stays within ±1 and the comparison passes.
+//! Rounding noise of a correct port is symmetric (round-to-nearest on either side of a boundary,
+//! an `f32` vs `f64` interpolation error of either sign), so its mean is near 0 however many
+//! elements differ; a systematic error moves the mean. The gate ([`SignedHistogram::bias_failure`])
+//! fails when both
+//! - the mean exceeds a per-buffer limit (the effect size, a named constant at each call site,
+//!   measured on a correct build), and
+//! - the signs are unbalanced beyond chance: `|positive - negative| > BIAS_SIGN_Z · sqrt(positive
+//!   + negative)` (a sign test), so that three one-signed roundings in a 4x4 texture, a large
+//!   mean over few elements, are not a failure, while a one-signed shift over thousands is.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// The sign-test threshold of the bias gate, in standard deviations of the difference between
+/// the positive and negative counts under "no bias" (a fair coin per differing element).
+///
+/// Why 5: the suite runs hundreds of comparisons; at 5 σ a symmetric rounding noise trips the
+/// sign test with probability under 1e-6 per comparison, while a one-signed shift of `n`
+/// elements has `|P - N| = n` against `5 sqrt(n)`: it is caught from 26 elements on.
+pub const BIAS_SIGN_Z: f64 = 5.0;
+
+/// Signed differences of one buffer (or one channel): a histogram with the tolerance they were
+/// judged against.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct SignedHistogram {
+    /// Count per signed difference (GPU minus reference), zero included.
+    pub bins: BTreeMap<i64, u64>,
+    /// Elements recorded.
+    pub n: u64,
+    /// Sum of the signed differences.
+    pub sum: i128,
+    /// Elements with a positive difference.
+    pub positive: u64,
+    /// Elements with a negative difference.
+    pub negative: u64,
+    /// Elements whose `|difference|` equals the tolerance (the edge of what is accepted).
+    pub at_edge: u64,
+    /// The per-element tolerance (`0` for an exact buffer).
+    pub tolerance: i64,
+}
+
+impl SignedHistogram {
+    /// An empty histogram for a buffer judged with `tolerance` per element.
+    pub fn new(tolerance: i64) -> Self {
+        Self {
+            tolerance,
+            ..Self::default()
+        }
+    }
+
+    /// Records one signed difference.
+    pub fn record(&mut self, d: i64) {
+        *self.bins.entry(d).or_insert(0) += 1;
+        self.n += 1;
+        self.sum += i128::from(d);
+        if d > 0 {
+            self.positive += 1;
+        } else if d < 0 {
+            self.negative += 1;
+        }
+        if d != 0 && d.abs() == self.tolerance {
+            self.at_edge += 1;
+        }
+    }
+
+    /// Adds another histogram's counts (same tolerance).
+    pub fn merge(&mut self, other: &SignedHistogram) {
+        for (&d, &c) in &other.bins {
+            *self.bins.entry(d).or_insert(0) += c;
+        }
+        self.n += other.n;
+        self.sum += other.sum;
+        self.positive += other.positive;
+        self.negative += other.negative;
+        self.at_edge += other.at_edge;
+        self.tolerance = self.tolerance.max(other.tolerance);
+    }
+
+    /// The mean signed difference (the bias), 0 when empty.
+    pub fn mean(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            self.sum as f64 / self.n as f64
+        }
+    }
+
+    /// The fraction of the elements at the tolerance edge.
+    pub fn edge_fraction(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            self.at_edge as f64 / self.n as f64
+        }
+    }
+
+    /// Whether the signs of the differing elements are unbalanced beyond chance
+    /// ([`BIAS_SIGN_Z`]).
+    pub fn signs_unbalanced(&self) -> bool {
+        let (p, q) = (self.positive as f64, self.negative as f64);
+        (p - q).abs() > BIAS_SIGN_Z * (p + q).sqrt()
+    }
+
+    /// Why the differences are biased, or `None`: the mean exceeds `max_bias` in magnitude and
+    /// the signs are unbalanced ([`Self::signs_unbalanced`]). `what` names the buffer.
+    pub fn bias_failure(&self, what: &str, max_bias: f64) -> Option<String> {
+        (self.mean().abs() > max_bias && self.signs_unbalanced()).then(|| {
+            format!(
+                "{what}: bias {:+.5} exceeds ±{max_bias} ({} elements +, {} -, of {}; histogram {})",
+                self.mean(),
+                self.positive,
+                self.negative,
+                self.n,
+                self.histogram()
+            )
+        })
+    }
+
+    /// The non-zero bins, `difference:count`, grouped into power-of-two ranges when there are
+    /// more than 12.
+    pub fn histogram(&self) -> String {
+        let bins: Vec<(i64, u64)> = self
+            .bins
+            .iter()
+            .filter(|&(&d, _)| d != 0)
+            .map(|(&d, &c)| (d, c))
+            .collect();
+        if bins.is_empty() {
+            return "[all 0]".into();
+        }
+        if bins.len() <= 12 {
+            let parts: Vec<String> = bins.iter().map(|(d, c)| format!("{d:+}:{c}")).collect();
+            return format!("[{}]", parts.join(" "));
+        }
+        // Power-of-two ranges: ±1, ±2..3, ±4..7, ...
+        let mut grouped: BTreeMap<i64, u64> = BTreeMap::new();
+        for (d, c) in bins {
+            let k = 64 - (d.unsigned_abs()).leading_zeros() as i64; // 1 for 1, 2 for 2..3, ...
+            *grouped.entry(d.signum() * k).or_insert(0) += c;
+        }
+        let parts: Vec<String> = grouped
+            .iter()
+            .map(|(&k, &c)| {
+                let lo = 1i64 << (k.abs() - 1);
+                let hi = (1i64 << k.abs()) - 1;
+                let s = if k < 0 { "-" } else { "+" };
+                if lo == hi {
+                    format!("{s}{lo}:{c}")
+                } else {
+                    format!("{s}{lo}..{hi}:{c}")
+                }
+            })
+            .collect();
+        format!("[{}]", parts.join(" "))
+    }
+}
+
+impl fmt::Display for SignedHistogram {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "bias {:+.2e} over {} ({} +, {} -), {:.2e} at the ±{} edge, histogram {}",
+            self.mean(),
+            self.n,
+            self.positive,
+            self.negative,
+            self.edge_fraction(),
+            self.tolerance,
+            self.histogram()
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn symmetric_noise_has_no_bias() {
+        let mut h = SignedHistogram::new(1);
+        for i in 0..10_000 {
+            h.record(match i % 10 {
+                0 => 1,
+                1 => -1,
+                _ => 0,
+            });
+        }
+        assert_eq!(h.mean(), 0.0);
+        assert_eq!(h.edge_fraction(), 0.2);
+        assert!(h.bias_failure("noise", 1e-3).is_none(), "{h}");
+    }
+
+    #[test]
+    fn a_one_signed_shift_within_tolerance_is_a_bias() {
+        let mut h = SignedHistogram::new(1);
+        for _ in 0..1000 {
+            h.record(1);
+        }
+        let why = h.bias_failure("all +1", 1e-3).expect("a bias");
+        assert!(why.contains("all +1") && why.contains("+1.00000"), "{why}");
+    }
+
+    #[test]
+    fn few_one_signed_roundings_are_not_a_bias() {
+        // Three +1 in a 4x4 texture: a large mean, but not beyond chance.
+        let mut h = SignedHistogram::new(1);
+        for i in 0..16 {
+            h.record(i64::from(i < 3));
+        }
+        assert!(h.mean() > 0.1);
+        assert!(h.bias_failure("small", 1e-3).is_none(), "{h}");
+    }
+
+    #[test]
+    fn many_bins_are_grouped() {
+        let mut h = SignedHistogram::new(64);
+        for d in -40..=40 {
+            h.record(d);
+        }
+        assert_eq!(
+            h.histogram(),
+            "[-32..63:9 -16..31:16 -8..15:8 -4..7:4 -2..3:2 -1:1 +1:1 +2..3:2 +4..7:4 +8..15:8 +16..31:16 +32..63:9]"
+        );
+    }
+}
