@@ -14,6 +14,11 @@
 //! - the signs are unbalanced beyond chance: `|positive - negative| > BIAS_SIGN_Z · sqrt(positive
 //!   + negative)` (a sign test), so that three one-signed roundings in a 4x4 texture, a large
 //!   mean over few elements, are not a failure, while a one-signed shift over thousands is.
+//!
+//! Colour and texel buffers are gated *per distinct reference value*
+//! ([`SignedHistogram::value_bias_failure`]): a flat surface repeats one rounding thousands of
+//! times, which is one sample, not thousands (measured: the Primitive's near-fallback quads, one
+//! colour, +1 in R on 56 % of a frame's pixels, on a correct build).
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -44,6 +49,9 @@ pub struct SignedHistogram {
     pub at_edge: u64,
     /// The per-element tolerance (`0` for an exact buffer).
     pub tolerance: i64,
+    /// Per reference value (a byte of a colour channel; empty for buffers recorded without
+    /// one): how many elements had it and the sum of their signed differences.
+    pub by_value: BTreeMap<i64, (u64, i64)>,
 }
 
 impl SignedHistogram {
@@ -70,6 +78,55 @@ impl SignedHistogram {
         }
     }
 
+    /// Records one signed difference `d` of an element whose reference value is `value` (see
+    /// [`Self::value_bias`]).
+    pub fn record_at(&mut self, value: i64, d: i64) {
+        self.record(d);
+        let e = self.by_value.entry(value).or_insert((0, 0));
+        e.0 += 1;
+        e.1 += d;
+    }
+
+    /// The bias per distinct reference value: `(mean over the values of their mean signed
+    /// difference, values with a positive mean, values with a negative mean)`.
+    ///
+    /// Why per value: pixels are not independent samples. A flat-coloured surface whose one
+    /// colour lies a few ulp from an sRGB rounding boundary shows thousands of one-signed +1s (one
+    /// rounding, repeated), while a changed rounding rule moves *many distinct values* the same
+    /// way. Counting each reference value once tells the two apart.
+    pub fn value_bias(&self) -> (f64, u64, u64) {
+        let means: Vec<f64> = self
+            .by_value
+            .values()
+            .map(|&(n, sum)| sum as f64 / n.max(1) as f64)
+            .collect();
+        let mean = if means.is_empty() {
+            0.0
+        } else {
+            means.iter().sum::<f64>() / means.len() as f64
+        };
+        let positive = means.iter().filter(|&&m| m > 0.0).count() as u64;
+        let negative = means.iter().filter(|&&m| m < 0.0).count() as u64;
+        (mean, positive, negative)
+    }
+
+    /// Why the differences are biased per distinct reference value, or `None`: the mean over the
+    /// values exceeds `max_bias` and the values' signs are unbalanced beyond chance
+    /// ([`BIAS_SIGN_Z`]). For buffers recorded with [`Self::record_at`].
+    pub fn value_bias_failure(&self, what: &str, max_bias: f64) -> Option<String> {
+        let (mean, p, q) = self.value_bias();
+        let unbalanced = (p as f64 - q as f64).abs() > BIAS_SIGN_Z * ((p + q) as f64).sqrt();
+        (mean.abs() > max_bias && unbalanced).then(|| {
+            format!(
+                "{what}: bias per reference value {mean:+.4} exceeds ±{max_bias} ({p} values \
+                 shifted up, {q} down, of {}; element bias {:+.4}, histogram {})",
+                self.by_value.len(),
+                self.mean(),
+                self.histogram()
+            )
+        })
+    }
+
     /// Adds another histogram's counts (same tolerance).
     pub fn merge(&mut self, other: &SignedHistogram) {
         for (&d, &c) in &other.bins {
@@ -81,6 +138,11 @@ impl SignedHistogram {
         self.negative += other.negative;
         self.at_edge += other.at_edge;
         self.tolerance = self.tolerance.max(other.tolerance);
+        for (&v, &(n, sum)) in &other.by_value {
+            let e = self.by_value.entry(v).or_insert((0, 0));
+            e.0 += n;
+            e.1 += sum;
+        }
     }
 
     /// The mean signed difference (the bias), 0 when empty.
@@ -174,7 +236,16 @@ impl fmt::Display for SignedHistogram {
             self.edge_fraction(),
             self.tolerance,
             self.histogram()
-        )
+        )?;
+        if !self.by_value.is_empty() {
+            let (mean, p, q) = self.value_bias();
+            write!(
+                f,
+                "; per value {mean:+.2e} ({p} values up, {q} down, of {})",
+                self.by_value.len()
+            )?;
+        }
+        Ok(())
     }
 }
 
@@ -216,6 +287,25 @@ mod tests {
         }
         assert!(h.mean() > 0.1);
         assert!(h.bias_failure("small", 1e-3).is_none(), "{h}");
+    }
+
+    #[test]
+    fn a_repeated_rounding_is_one_value_a_changed_rule_is_many() {
+        // One flat colour (value 77) one step up everywhere: no bias per value.
+        let mut flat = SignedHistogram::new(1);
+        for i in 0..10_000 {
+            flat.record_at(77, 1);
+            flat.record_at(i64::from(i % 200), 0);
+        }
+        assert!(flat.bias_failure("flat", 1e-3).is_some());
+        assert!(flat.value_bias_failure("flat", 0.1).is_none(), "{flat}");
+        // Every value one step up: biased.
+        let mut shifted = SignedHistogram::new(1);
+        for i in 0..10_000 {
+            shifted.record_at(i64::from(i % 256), 1);
+        }
+        let why = shifted.value_bias_failure("shifted", 0.1).expect("biased");
+        assert!(why.contains("256 values shifted up"), "{why}");
     }
 
     #[test]

@@ -29,8 +29,8 @@ use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::MipMode;
 use rayon::prelude::*;
 
-use crate::stats::SignedHistogram;
 use crate::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Named};
+use crate::stats::SignedHistogram;
 
 use crate::backend::gpu_context;
 
@@ -39,16 +39,19 @@ pub fn channel_diff(a: [u8; 4], b: [u8; 4]) -> u8 {
     (0..4).map(|c| a[c].abs_diff(b[c])).max().unwrap_or(0)
 }
 
-/// Largest mean signed difference (GPU minus reference, per channel, sRGB8 or UNORM8 units over
-/// every texel compared) of a texel comparison ([`TexelTally::bias_failures`], gated together
-/// with the sign test of [`crate::stats`]).
+/// Largest bias of a texel comparison per distinct reference value (GPU minus reference, per
+/// channel, in sRGB8 or UNORM8 units; [`TexelTally::bias_failures`], gated together with the
+/// sign test of [`crate::stats`]).
 ///
-/// Why 1e-3: a correct GPU mips or bake stage differs from the reference by a rare one-step
-/// rounding of either sign (measured: 0 to 3 texels of ~600k per mode in `parity::mips`, a bias
-/// under 1e-5), so its mean is two orders of magnitude below this; a changed rounding rule that
-/// moves one texel in a thousand by one unit in the same direction reaches it, one that moves
-/// every texel (the class of bug a ±1 tolerance cannot see) exceeds it a thousandfold.
-pub const TEXEL_BIAS_MAX: f64 = 1e-3;
+/// Why 0.05: a correct GPU mips stage differs from the reference by a rare one-step rounding of
+/// either sign (0 to 3 texels of ~600k per mode in `parity::mips`); the bake, rasterized by
+/// lavapipe, differs by ±1 on 15 % of its texels, and *per element* leans one way (green +0.069,
+/// blue -0.045 at r = 128: a few texture colours near an sRGB rounding boundary, repeated over
+/// many texels), but per distinct value the signs balance except in one of 104 measured channel
+/// comparisons (alpha of the r = 4 bake: +0.015). 0.05 keeps a factor 3 over that; a changed
+/// rounding rule that moves one value in twenty by one step the same way reaches it, one that
+/// moves every texel (what a ±1 tolerance cannot see) exceeds it twentyfold.
+pub const TEXEL_BIAS_MAX: f64 = 0.05;
 
 /// Running totals of a texel-by-texel comparison.
 #[derive(Clone, Debug, Default)]
@@ -89,7 +92,7 @@ impl TexelTally {
         self.texels += 1;
         for (c, h) in self.channels.iter_mut().enumerate() {
             h.tolerance = i64::from(tolerance);
-            h.record(i64::from(got[c]) - i64::from(want[c]));
+            h.record_at(i64::from(want[c]), i64::from(got[c]) - i64::from(want[c]));
         }
         let d = channel_diff(got, want);
         if d == 0 {
@@ -120,12 +123,12 @@ impl TexelTally {
     }
 
     /// Why the signed differences are biased (one line per channel), empty when they are not:
-    /// [`SignedHistogram::bias_failure`] with `max_bias` (normally [`TEXEL_BIAS_MAX`]).
+    /// [`SignedHistogram::value_bias_failure`] with `max_bias` (normally [`TEXEL_BIAS_MAX`]).
     pub fn bias_failures(&self, what: &str, max_bias: f64) -> Vec<String> {
         self.channels
             .iter()
             .zip(["R", "G", "B", "A"])
-            .filter_map(|(h, c)| h.bias_failure(&format!("{what} channel {c}"), max_bias))
+            .filter_map(|(h, c)| h.value_bias_failure(&format!("{what} channel {c}"), max_bias))
             .collect()
     }
 
@@ -139,6 +142,52 @@ impl TexelTally {
             s.push_str(&format!("\n    {c}: {h}"));
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_texel_one_step_up_is_within_tolerance_but_biased() {
+        let want: Vec<[u8; 4]> = (0..4096u32)
+            .map(|i| {
+                [
+                    (i % 250) as u8,
+                    (i / 17) as u8,
+                    (i * 3 % 250) as u8,
+                    (i % 240) as u8,
+                ]
+            })
+            .collect();
+        let got: Vec<[u8; 4]> = want.iter().map(|t| t.map(|c| c + 1)).collect();
+        let mut tally = TexelTally::default();
+        tally.compare("shifted", &got, &want, 1);
+        assert_eq!(tally.over_tolerance, 0);
+        let failures = tally.bias_failures("shifted", TEXEL_BIAS_MAX);
+        assert_eq!(failures.len(), 4, "{failures:?}");
+        // Symmetric ±1 noise is not.
+        let noisy: Vec<[u8; 4]> = want
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                t.map(|c| {
+                    if i % 2 == 0 {
+                        c + 1
+                    } else {
+                        c.saturating_sub(1)
+                    }
+                })
+            })
+            .collect();
+        let mut tally = TexelTally::default();
+        tally.compare("noise", &noisy, &want, 1);
+        assert!(
+            tally.bias_failures("noise", TEXEL_BIAS_MAX).is_empty(),
+            "{}",
+            tally.summary()
+        );
     }
 }
 

@@ -42,10 +42,10 @@ use std::time::Instant;
 
 use forestlod_gpu::GpuError;
 use forestlod_harness::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Reference};
+use forestlod_harness::stats::SignedHistogram;
 use forestlod_harness::texel_compare::{
     GpuBakeBackend, TEXEL_BIAS_MAX, TexelTally, bake_mesh, channel_diff, gpu_bake,
 };
-use forestlod_harness::stats::SignedHistogram;
 use forestlod_reference::bake::bake_clip;
 use forestlod_reference::sampler::Texture;
 use forestlod_reference::scene::TreeMesh;
@@ -383,7 +383,7 @@ fn check_bake(
                 if d <= COLOR_TOLERANCE {
                     for (c, h) in tally.signed.iter_mut().enumerate() {
                         h.tolerance = i64::from(COLOR_TOLERANCE);
-                        h.record(i64::from(gt[c]) - i64::from(wt[c]));
+                        h.record_at(i64::from(wt[c]), i64::from(gt[c]) - i64::from(wt[c]));
                     }
                 }
                 if d == 0 {
@@ -460,7 +460,7 @@ fn report(what: &str, tally: &BakeTally, started: Instant) {
         .signed
         .iter()
         .zip(["R", "G", "B", "A"])
-        .filter_map(|(h, c)| h.bias_failure(&format!("{what} channel {c}"), TEXEL_BIAS_MAX))
+        .filter_map(|(h, c)| h.value_bias_failure(&format!("{what} channel {c}"), TEXEL_BIAS_MAX))
         .collect();
     assert!(biased.is_empty(), "biased bake:\n{}", biased.join("\n"));
     assert_eq!(

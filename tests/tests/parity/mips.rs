@@ -89,7 +89,9 @@ impl Tally {
         let failures: Vec<String> = MipMode::ALL
             .iter()
             .zip(&self.texels)
-            .flat_map(|(mode, t)| t.bias_failures(&format!("{what} {}", mode.name()), TEXEL_BIAS_MAX))
+            .flat_map(|(mode, t)| {
+                t.bias_failures(&format!("{what} {}", mode.name()), TEXEL_BIAS_MAX)
+            })
             .collect();
         assert!(failures.is_empty(), "biased mips:\n{}", failures.join("\n"));
     }
