@@ -34,9 +34,13 @@ pub const STAGE_TEXEL_MAX_FRACTION: f64 = 6e-3;
 /// Largest bias per reference value ([`crate::stats::SignedHistogram::value_bias_failure`]) of
 /// a texture stage rendered by the GPU's rasterizer (the bake).
 ///
-/// Why [`crate::texel_compare::TEXEL_BIAS_MAX`]: the same per-value statistic as `parity::bake`
-/// and `parity::mips` gate with it.
-pub const BAKE_BIAS_MAX: f64 = crate::texel_compare::TEXEL_BIAS_MAX;
+/// Why 0.5, ten times `parity::bake`'s [`crate::texel_compare::TEXEL_BIAS_MAX`]: the billboards
+/// here are small (r = 32 in `parity::draw`'s `tiny` scenarios) and every mip level is compared,
+/// so a lean of lavapipe's bake propagates through the chain: measured +0.16 per value in green
+/// (108 values up, 30 down) at r = 32, K = 8 on a correct build (at r = 128 the same bake
+/// balances to 0.015). 0.5 keeps a factor 3; a bake or mip rule that moves every colour a step
+/// the same way (bias 1) still exceeds it.
+pub const BAKE_BIAS_MAX: f64 = 0.5;
 
 /// One stage's comparison.
 #[derive(Clone, Debug)]
