@@ -301,8 +301,8 @@ fn rank(d: Decision) -> u8 {
         Decision::Draw(n) if n.lod0 && !n.lod1 => 0,
         Decision::Draw(n) if n.lod0 && n.lod1 => 1,
         Decision::Draw(n) if n.lod1 => 2,
-        Decision::Draw(_) => panic!("a drawn batch without a LOD: {d:?}"),
-        Decision::CulledDistance | Decision::CulledFrustum => 3,
+        // A drawn batch without a LOD draws nothing: as culled.
+        Decision::Draw(_) | Decision::CulledDistance | Decision::CulledFrustum => 3,
     }
 }
 
