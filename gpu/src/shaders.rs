@@ -86,7 +86,24 @@ pub fn constants_wgsl() -> String {
 
 /// The full source of a stage: [`constants_wgsl`], [`COMMON_WGSL`], then `stage`.
 pub fn with_common(stage: &str) -> String {
-    format!("{}{COMMON_WGSL}\n{stage}", constants_wgsl())
+    let common = mutant_or("common.wgsl", COMMON_WGSL);
+    format!("{}{common}\n{stage}", constants_wgsl())
+}
+
+/// The mutation-testing hook (`forestlod-experiments`' `mutate`, issue 15): when the environment
+/// variable `FORESTLOD_MUTANT_WGSL` is `<file>=<path>` (e.g. `select.wgsl=/tmp/m17.wgsl`), the
+/// module source of `<file>` is read from `<path>` instead of the compiled-in text, so a WGSL
+/// mutant costs a test run, not a rebuild. Unset (always, outside `mutate`), the compiled-in text.
+pub fn mutant_or(file: &str, own: &str) -> String {
+    if let Ok(v) = std::env::var("FORESTLOD_MUTANT_WGSL") {
+        if let Some((f, path)) = v.split_once('=') {
+            if f == file {
+                return std::fs::read_to_string(path)
+                    .unwrap_or_else(|e| panic!("FORESTLOD_MUTANT_WGSL: {path}: {e}"));
+            }
+        }
+    }
+    own.to_string()
 }
 
 /// A stage's own source `shaders/<file>` (const `$own`, documented by the given doc) and its full
@@ -98,7 +115,7 @@ macro_rules! stage_source {
 
         #[doc = concat!("The full `", $file, "` module source: [`COMMON_WGSL`] then [`", stringify!($own), "`].")]
         pub fn $full() -> String {
-            with_common($own)
+            with_common(&mutant_or($file, $own))
         }
     };
 }
