@@ -53,6 +53,17 @@ pub fn channel_diff(a: [u8; 4], b: [u8; 4]) -> u8 {
 /// moves every texel (what a ±1 tolerance cannot see) exceeds it twentyfold.
 pub const TEXEL_BIAS_MAX: f64 = 0.05;
 
+/// Largest bias per distinct reference value of the *mips* stage ([`TexelTally::bias_failures`]
+/// in `parity::mips` and on the GPU bake's own level 0 in `parity::bake`).
+///
+/// Why 1e-3, fifty times stricter than [`TEXEL_BIAS_MAX`]: the GPU mips stage encodes through
+/// tables of the reference's own formulas, so a correct build differs on 0 to 3 texels of ~600k
+/// per mode, too few for the sign test to ever fire; a rounding rule changed in one channel
+/// (measured with the deliberate bug `encode_byte(raw.y * 1.002, …)` in `mips.wgsl`: 0.4 % of
+/// the texels +1, 168 of 232 green values up and none down) has a per-value bias of 0.0175, which
+/// the bake's looser limit would let through and this one does not.
+pub const MIPS_BIAS_MAX: f64 = 1e-3;
+
 /// Running totals of a texel-by-texel comparison.
 #[derive(Clone, Debug, Default)]
 pub struct TexelTally {

@@ -44,7 +44,7 @@ use forestlod_gpu::GpuError;
 use forestlod_harness::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Reference};
 use forestlod_harness::stats::SignedHistogram;
 use forestlod_harness::texel_compare::{
-    GpuBakeBackend, TEXEL_BIAS_MAX, TexelTally, bake_mesh, channel_diff, gpu_bake,
+    GpuBakeBackend, MIPS_BIAS_MAX, TEXEL_BIAS_MAX, TexelTally, bake_mesh, channel_diff, gpu_bake,
 };
 use forestlod_reference::bake::bake_clip;
 use forestlod_reference::sampler::Texture;
@@ -527,7 +527,7 @@ fn run(angle_count: u32, r: u32, full_path: bool) {
             texels.summary()
         );
         assert_eq!(texels.over_tolerance, 0, "{:?}", texels.first_over);
-        let biased = texels.bias_failures(&format!("{what} {}", mode.name()), TEXEL_BIAS_MAX);
+        let biased = texels.bias_failures(&format!("{what} {}", mode.name()), MIPS_BIAS_MAX);
         assert!(biased.is_empty(), "biased mips:\n{}", biased.join("\n"));
     }
     eprintln!("{what}: {:.2} s in all", started.elapsed().as_secs_f64());

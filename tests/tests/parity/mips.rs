@@ -32,7 +32,7 @@ use forestlod_gpu::mips::{
 };
 use forestlod_harness::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Reference};
 use forestlod_harness::texel_compare::{
-    GpuMipsBackend, LevelOut, TEXEL_BIAS_MAX, TexelTally, gpu_bake,
+    GpuMipsBackend, LevelOut, MIPS_BIAS_MAX, TexelTally, gpu_bake,
 };
 use forestlod_reference::mips::AlphaAdjust;
 use forestlod_reference::scene::builtin::species_meshes;
@@ -84,13 +84,13 @@ impl Tally {
     }
 
     /// Statistical parity over the whole run, per mode: panics when a mode's signed differences
-    /// are biased ([`TEXEL_BIAS_MAX`] and the sign test of `forestlod_harness::stats`).
+    /// are biased ([`MIPS_BIAS_MAX`] and the sign test of `forestlod_harness::stats`).
     fn assert_unbiased(&self, what: &str) {
         let failures: Vec<String> = MipMode::ALL
             .iter()
             .zip(&self.texels)
             .flat_map(|(mode, t)| {
-                t.bias_failures(&format!("{what} {}", mode.name()), TEXEL_BIAS_MAX)
+                t.bias_failures(&format!("{what} {}", mode.name()), MIPS_BIAS_MAX)
             })
             .collect();
         assert!(failures.is_empty(), "biased mips:\n{}", failures.join("\n"));
