@@ -180,6 +180,8 @@ fn mutants_of(root: &Path, file: &Path) -> Vec<Mutant> {
             && t.ends_with(';')
             && !t.starts_with("let ")
             && !t.starts_with("var ")
+            && !t.starts_with("const ")
+            && !t.starts_with("override ")
             && !t.starts_with("return")
             && t.contains(" = ")
         {
@@ -228,7 +230,29 @@ fn run_tests(
     mutant_file: Option<&Path>,
     timeout: Duration,
 ) -> Result<Option<String>, String> {
-    for (binary, filter) in targets(&m.file) {
+    // A WGSL mutant that does not parse or validate is not a behaviour: the `forestlod-gpu` unit
+    // and layout tests validate every module with naga (through the same hook) and say so.
+    if let Some(f) = mutant_file {
+        let name = m.file.file_name().unwrap().to_string_lossy();
+        let out = Command::new("cargo")
+            .current_dir(root)
+            .args(["test", "-q", "-p", "forestlod-gpu", "--lib", "--test", "layout"])
+            .args(["--", "--test-threads", "1"])
+            .env("FORESTLOD_MUTANT_WGSL", format!("{name}={}", f.display()))
+            .output()
+            .map_err(|e| e.to_string())?;
+        let text = String::from_utf8_lossy(&out.stdout).to_string()
+            + &String::from_utf8_lossy(&out.stderr);
+        if text.contains("WGSL parse error") || text.contains("WGSL validation error") {
+            return Err("WGSL does not validate (naga)".into());
+        }
+    }
+    // A WGSL mutant changes only the GPU: the CPU-only `properties` binary cannot see it.
+    let targets: Vec<_> = targets(&m.file)
+        .into_iter()
+        .filter(|(binary, _)| !(mutant_file.is_some() && *binary == "properties"))
+        .collect();
+    for (binary, filter) in targets {
         let mut cmd = Command::new("cargo");
         cmd.current_dir(root)
             .args([
@@ -275,7 +299,8 @@ fn run_tests(
                     return Err("does not compile".into());
                 }
                 if text.contains("Shader validation error")
-                    || text.contains("naga") && text.contains("validation")
+                    || text.contains("Validation Error")
+                    || text.contains("parsing error")
                 {
                     return Err("WGSL does not validate".into());
                 }
