@@ -95,13 +95,12 @@ pub fn with_common(stage: &str) -> String {
 /// module source of `<file>` is read from `<path>` instead of the compiled-in text, so a WGSL
 /// mutant costs a test run, not a rebuild. Unset (always, outside `mutate`), the compiled-in text.
 pub fn mutant_or(file: &str, own: &str) -> String {
-    if let Ok(v) = std::env::var("FORESTLOD_MUTANT_WGSL") {
-        if let Some((f, path)) = v.split_once('=') {
-            if f == file {
-                return std::fs::read_to_string(path)
-                    .unwrap_or_else(|e| panic!("FORESTLOD_MUTANT_WGSL: {path}: {e}"));
-            }
-        }
+    if let Ok(v) = std::env::var("FORESTLOD_MUTANT_WGSL")
+        && let Some((f, path)) = v.split_once('=')
+        && f == file
+    {
+        return std::fs::read_to_string(path)
+            .unwrap_or_else(|e| panic!("FORESTLOD_MUTANT_WGSL: {path}: {e}"));
     }
     own.to_string()
 }

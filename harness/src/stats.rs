@@ -11,8 +11,8 @@
 //! fails when both
 //! - the mean exceeds a per-buffer limit (the effect size, a named constant at each call site,
 //!   measured on a correct build), and
-//! - the signs are unbalanced beyond chance: `|positive - negative| > BIAS_SIGN_Z · sqrt(positive
-//!   + negative)` (a sign test), so that three one-signed roundings in a 4x4 texture, a large
+//! - the signs are unbalanced beyond chance: `|positive - negative| >
+//!   BIAS_SIGN_Z · sqrt(positive + negative)` (a sign test), so that three one-signed roundings in a 4x4 texture, a large
 //!   mean over few elements, are not a failure, while a one-signed shift over thousands is.
 //!
 //! Colour and texel buffers are gated *per distinct reference value*

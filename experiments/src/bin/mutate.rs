@@ -25,7 +25,8 @@
 //! all pass, *invalid* when it does not compile (Rust) or its module does not validate (counted
 //! apart: not a behaviour). Rust mutants are applied in place and always restored.
 //! `--sample N` runs every `M/N`-th mutant of the list (a deterministic stride), so a slow machine
-//! can run a representative slice. Writes `experiments/results/mutation/mutants.csv` (mutant,
+//! can run a representative slice; `--only ID,ID` runs those ids of the list (a re-run after a
+//! survivor got a sharper test); `--csv NAME` names the table. Writes `experiments/results/mutation/mutants.csv` (mutant,
 //! file, line, operator, before, after, verdict, killed by, seconds) and prints the kill rate,
 //! Rust and WGSL apart.
 
@@ -203,14 +204,14 @@ fn targets(file: &Path) -> Vec<(&'static str, String)> {
             parity("metamorphic"),
             ("properties", String::new()),
         ],
-        "select" | "refine" | "mips" | "bake" | "draw" | "cull" => {
+        "select" | "refine" | "mips" | "bake" | "draw" => {
             let mut t = vec![parity(&stem)];
             if file.starts_with("reference") || file.starts_with("shared") {
                 t.push(("properties", String::new()));
             }
             t
         }
-        "primitive" => vec![parity("baselines")],
+        "primitive" | "cull" | "baselines" => vec![parity("baselines")],
         "raster" | "sampler" => vec![parity("draw"), parity("bake"), parity("sampler_lod")],
         "batches" => vec![parity("metamorphic"), ("properties", String::new())],
         "depth_copy" => vec![parity("draw")],
@@ -236,7 +237,15 @@ fn run_tests(
         let name = m.file.file_name().unwrap().to_string_lossy();
         let out = Command::new("cargo")
             .current_dir(root)
-            .args(["test", "-q", "-p", "forestlod-gpu", "--lib", "--test", "layout"])
+            .args([
+                "test",
+                "-q",
+                "-p",
+                "forestlod-gpu",
+                "--lib",
+                "--test",
+                "layout",
+            ])
             .args(["--", "--test-threads", "1"])
             .env("FORESTLOD_MUTANT_WGSL", format!("{name}={}", f.display()))
             .output()
@@ -367,13 +376,22 @@ fn main() {
             .unwrap_or(600),
     );
     let stride = (mutants.len() / sample.max(1)).max(1);
-    let chosen: Vec<(usize, Mutant)> = mutants
-        .iter()
-        .cloned()
-        .enumerate()
-        .step_by(stride)
-        .take(sample)
-        .collect();
+    let only: Option<Vec<usize>> =
+        flag("--only").map(|s| s.split(',').filter_map(|x| x.trim().parse().ok()).collect());
+    let chosen: Vec<(usize, Mutant)> = match &only {
+        // `--only 88,110`: these ids of the list (after survivors got a sharper test).
+        Some(ids) => ids
+            .iter()
+            .filter_map(|&i| mutants.get(i).cloned().map(|m| (i, m)))
+            .collect(),
+        None => mutants
+            .iter()
+            .cloned()
+            .enumerate()
+            .step_by(stride)
+            .take(sample)
+            .collect(),
+    };
     let out_dir = root.join("experiments/results/mutation");
     std::fs::create_dir_all(&out_dir).expect("create experiments/results/mutation");
     let csv_path = out_dir.join(flag("--csv").unwrap_or_else(|| "mutants.csv".into()));

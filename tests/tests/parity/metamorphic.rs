@@ -259,8 +259,7 @@ fn lod0_everywhere_equals_the_vegetation_baseline() {
     let vegetation = images_of(&render_vegetation(&p, &p.tree_spheres, &camera, &params).target);
     assert!(
         ours.lod_id
-            .iter()
-            .any(|&id| id == forestlod_reference::draw::LOD_ID_MESH),
+            .contains(&forestlod_reference::draw::LOD_ID_MESH),
         "the frame shows meshes"
     );
     failures.extend(judge(
