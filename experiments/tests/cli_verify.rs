@@ -1,7 +1,7 @@
 //! `forestlod export-case` and `forestlod verify` through the binary (issue 15): this project's
 //! own GPU frame, written in the case format by `export-case --with-gpu`, passes `verify`; the
 //! same frame deliberately broken fails it with exit code 2 naming the class that caught it
-//! (a wrong block: colour mismatches; a one-step shift of every green value, invisible to the
+//! (a wrong block: the depth-tie gate; a two-step shift of every green value, invisible to the
 //! per-pixel tolerance: the bias gate); a missing file is bad input (1) naming the file.
 //!
 //! Needs a GPU adapter (lavapipe in CI), like the parity tests.
@@ -129,14 +129,14 @@ fn own_gpu_output_passes_and_broken_outputs_fail_naming_the_class() {
         "{last}"
     );
 
-    // 3. Every green value one step up: within the per-pixel tolerance everywhere, caught by
+    // 3. Every green value two steps up: within the per-pixel tolerance everywhere, caught by
     //    the bias gate only.
     let shifted = case.join("broken-shift");
     copy_outputs(&case.join("gpu"), &shifted);
     let reference = read_png(&case.join("reference/color.png")).unwrap();
     let mut img = reference.clone();
     for t in &mut img.texels {
-        t[1] = t[1].saturating_add(1);
+        t[1] = t[1].saturating_add(2);
     }
     write_png(&shifted.join("color.png"), &img).unwrap();
     let o = verify(&case, &shifted);

@@ -92,13 +92,27 @@ fn scenarios() -> (Vec<Prepared>, Vec<FrameScenario>) {
             params: crop_params(fade),
         });
     }
-    let pair = builtin::pair();
-    prepared.push(prepare(pair, &billboard_params()).expect("prepare pair"));
+    prepared.push(prepare(builtin::pair(), &billboard_params()).expect("prepare pair"));
     out.push(FrameScenario {
         name: "pair-billboards-elevation31".into(),
         prepared_key: 2,
         camera: Camera::look_at([0.0, -50.0, 30.0], [0.0, 0.0, 8.0], 40.0, 128, 128),
         params: billboard_params(),
+    });
+    // K = 2 (layers at 0° and 90°) from an elevation of ~58°: the nearest-angle index is 1, the
+    // top layer. Added for a survivor of `mutate` (issue 15): `angle_index`'s `K <= 1` guard
+    // moved to `K <= 2` in `common.wgsl` (every view then used the level layer) passed every
+    // scenario, which all bake 8 or 10 angles.
+    let k2 = Params {
+        angle_count: 2,
+        ..billboard_params()
+    };
+    prepared.push(prepare(builtin::pair(), &k2).expect("prepare pair K=2"));
+    out.push(FrameScenario {
+        name: "pair-billboards-k2-elevation58".into(),
+        prepared_key: 3,
+        camera: Camera::look_at([0.0, -20.0, 40.0], [0.0, 0.0, 8.0], 50.0, 96, 96),
+        params: k2,
     });
     (prepared, out)
 }
