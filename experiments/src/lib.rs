@@ -6,6 +6,7 @@
 //! errors the brief asks for (field and value, never a panic).
 
 pub mod camera;
+pub mod case;
 pub mod fair;
 pub mod html;
 pub mod legend;

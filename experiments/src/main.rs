@@ -3,6 +3,8 @@
 //! - `forestlod scene info --scene stress`: trees, batches, meshes, memory beside E Eq. 4.1.
 //! - `forestlod select --scene synthetic --camera medium`: what selection emits for one frame, and
 //!   how long grouped and per-tree selection take.
+//! - `forestlod export-case --scene tiny --out CASE` / `forestlod verify --case CASE --outputs
+//!   DIR`: judge another implementation's frame through files (`case.rs`).
 //! - `forestlod sweep [FILE] --out DIR [--quick]`: the speed–accuracy sweeps
 //!   (`experiments/sweeps/README.md`); `forestlod report --run DIR` summarizes them.
 //!
@@ -53,6 +55,12 @@ enum Command {
     Sweep(forestlod_experiments::sweep::SweepArgs),
     /// Write DIR/report.md over the sweeps in DIR.
     Report(forestlod_experiments::report::ReportArgs),
+    /// Write a parity case (scene, camera, parameters, the oracle's buffers and images) that
+    /// another implementation can be verified against (`forestlod verify`).
+    ExportCase(forestlod_experiments::case::ExportArgs),
+    /// Judge another implementation's outputs for a case with the in-process parity's classes;
+    /// exit 0 pass, 2 fail, 1 bad input.
+    Verify(forestlod_experiments::case::VerifyArgs),
     /// Run selection for one frame and print what it emitted.
     Select {
         #[command(flatten)]
@@ -374,6 +382,8 @@ fn run() -> u8 {
             list,
         }) => select_frame(scene, params, camera, *list).map(|()| exit_code::SUCCESS),
         Some(Command::GpuInfo) => gpu_info().map(|()| exit_code::SUCCESS),
+        Some(Command::ExportCase(args)) => forestlod_experiments::case::export(args),
+        Some(Command::Verify(args)) => forestlod_experiments::case::verify(args),
         Some(Command::Sweep(args)) => {
             forestlod_experiments::sweep::run(args).map(|()| exit_code::SUCCESS)
         }

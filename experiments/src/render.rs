@@ -373,12 +373,26 @@ pub fn parity_json(outcome: &GpuOutcome) -> serde_json::Value {
                     "counts": counts_json(&r.depth),
                 },
                 "lod_id": { "counts": counts_json(&r.lod_id) },
+                "class_budgets": r.class_budgets().iter().map(|(buffer, class, count, budget)| {
+                    json!({ "buffer": buffer, "class": class, "count": count, "budget": budget })
+                }).collect::<Vec<_>>(),
+                "signed_differences": {
+                    "color": r.color_signed.iter().zip(["r", "g", "b", "a"]).map(|(h, c)| {
+                        let (per_value, up, down) = h.value_bias();
+                        (c.to_string(), json!({ "bias": h.mean(), "bias_per_value": per_value,
+                            "values_up": up, "values_down": down, "edge_fraction": h.edge_fraction(),
+                            "histogram": h.histogram() }))
+                    }).collect::<serde_json::Map<_, _>>(),
+                    "depth_ulps": { "bias": r.depth_signed.mean(), "edge_fraction": r.depth_signed.edge_fraction(),
+                        "histogram": r.depth_signed.histogram() },
+                },
                 "tolerances": {
                     "color": ic::COLOR_TOLERANCE, "edge_color_margin": ic::EDGE_COLOR_MARGIN,
                     "depth_ulps": ic::DEPTH_MAX_ULPS, "depth_edge_rel": ic::DEPTH_EDGE_REL,
                     "alpha_test_shifts": ic::ALPHA_TEST_SHIFTS, "depth_tie_max_fraction": ic::DEPTH_TIE_MAX_FRACTION,
                     "compound_max_fraction": ic::MAX_COMPOUND_FRACTION,
                     "flip_mean_max": ic::FLIP_MEAN_MAX,
+                    "color_bias_max": ic::COLOR_BIAS_MAX, "depth_bias_max_ulps": ic::DEPTH_BIAS_MAX_ULPS,
                 },
             })
         }

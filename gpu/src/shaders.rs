@@ -86,7 +86,23 @@ pub fn constants_wgsl() -> String {
 
 /// The full source of a stage: [`constants_wgsl`], [`COMMON_WGSL`], then `stage`.
 pub fn with_common(stage: &str) -> String {
-    format!("{}{COMMON_WGSL}\n{stage}", constants_wgsl())
+    let common = mutant_or("common.wgsl", COMMON_WGSL);
+    format!("{}{common}\n{stage}", constants_wgsl())
+}
+
+/// The mutation-testing hook (`forestlod-experiments`' `mutate`, issue 15): when the environment
+/// variable `FORESTLOD_MUTANT_WGSL` is `<file>=<path>` (e.g. `select.wgsl=/tmp/m17.wgsl`), the
+/// module source of `<file>` is read from `<path>` instead of the compiled-in text, so a WGSL
+/// mutant costs a test run, not a rebuild. Unset (always, outside `mutate`), the compiled-in text.
+pub fn mutant_or(file: &str, own: &str) -> String {
+    if let Ok(v) = std::env::var("FORESTLOD_MUTANT_WGSL")
+        && let Some((f, path)) = v.split_once('=')
+        && f == file
+    {
+        return std::fs::read_to_string(path)
+            .unwrap_or_else(|e| panic!("FORESTLOD_MUTANT_WGSL: {path}: {e}"));
+    }
+    own.to_string()
 }
 
 /// The stable compaction's exclusive prefix sum (`scan_offsets`), appended to the modules that
@@ -96,16 +112,16 @@ pub const SCAN_WGSL: &str = include_str!("shaders/scan.wgsl");
 /// A stage's own source `shaders/<file>` (const `$own`, documented by the given doc) and its full
 /// module source (fn `$full`: [`with_common`] of it, then any shared parts named after it).
 macro_rules! stage_source {
-    ($(#[$doc:meta])* $own:ident, $full:ident, $file:literal $(, $part:ident)*) => {
+    ($(#[$doc:meta])* $own:ident, $full:ident, $file:literal $(, $part:ident = $pfile:literal)*) => {
         $(#[$doc])*
         pub const $own: &str = include_str!(concat!("shaders/", $file));
 
         #[doc = concat!("The full `", $file, "` module source: [`COMMON_WGSL`], [`", stringify!($own), "`]", $(", [`", stringify!($part), "`]",)* ".")]
         pub fn $full() -> String {
-            let mut source = with_common($own);
+            let mut source = with_common(&mutant_or($file, $own));
             $(
                 source.push('\n');
-                source.push_str($part);
+                source.push_str(&mutant_or($pfile, $part));
             )*
             source
         }
@@ -114,7 +130,7 @@ macro_rules! stage_source {
 
 stage_source!(
     /// The `select` stage's own source (without [`COMMON_WGSL`]).
-    SELECT_WGSL, select_source, "select.wgsl", SCAN_WGSL
+    SELECT_WGSL, select_source, "select.wgsl", SCAN_WGSL = "scan.wgsl"
 );
 stage_source!(
     /// The `draw` stage's own source (without [`COMMON_WGSL`]).
@@ -145,7 +161,7 @@ stage_source!(
 stage_source!(
     /// The `hier_select` stage's own source (without [`COMMON_WGSL`]): the hierarchical cut
     /// (issue 13).
-    HIER_SELECT_WGSL, hier_select_source, "hier_select.wgsl", SCAN_WGSL
+    HIER_SELECT_WGSL, hier_select_source, "hier_select.wgsl", SCAN_WGSL = "scan.wgsl"
 );
 
 /// The depth read-back by compute (`DrawTarget::read`), standalone: [`COMMON_WGSL`] is not

@@ -77,6 +77,8 @@ use forestlod_reference::output::{lod_id_image, write_png};
 use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::Camera;
 
+use crate::stats::SignedHistogram;
+
 /// Largest per-channel difference (sRGB8 units) between a GPU pixel and a reference pixel that
 /// still counts as equal.
 ///
@@ -200,6 +202,84 @@ pub const FLIP_MEAN_MAX: f32 = 0.03;
 /// Pixels per degree passed to FLIP: its default (a 0.7 m viewing distance from a 24" 4K screen).
 pub const FLIP_PIXELS_PER_DEGREE: f32 = nv_flip::DEFAULT_PIXELS_PER_DEGREE;
 
+/// Largest mean signed colour difference (GPU minus reference, per channel R, G, B, A, in sRGB8
+/// units) over the pixels within [`COLOR_TOLERANCE`] at the same position (statistical parity,
+/// `crate::stats`; gated together with its sign test).
+///
+/// Gated per distinct reference value (`SignedHistogram::value_bias_failure`: one flat surface
+/// repeating one rounding is one sample).
+///
+/// Why 1.5: lavapipe's bake, trilinear filter (8-bit weights, λ with 4 fractional bits) and sRGB
+/// encode lean one way on real frames: measured +0.27 per value (green, 74 values up, 15 down) on
+/// the sweep runner's `synthetic-crop600-medium`, and +0.67 (green, 52 up, 2 down) on
+/// `parity::draw`'s `pair-billboards-k2-elevation58` drawn entirely from the GPU's own baked
+/// billboards, whose green leans +1 on lavapipe (`parity::bake`: 59,787 texels +1, 3,368 -1 at
+/// r = 128; not triaged: lavapipe's sRGB conversion or a rounding of `bake.wgsl`). 1.5 keeps a
+/// factor 2.2 over the worst and fails a stage that moves every colour two steps the same way,
+/// a shift the per-pixel tolerance of 8 cannot see (tested by
+/// `a_one_signed_shift_within_tolerance_fails_on_bias`); a one-step shift is within what
+/// lavapipe itself shows and is left to the texture stages' tighter gates.
+pub const COLOR_BIAS_MAX: f64 = 1.5;
+
+/// Largest mean signed depth difference (GPU minus reference, in units in the last place) over
+/// the pixels within [`DEPTH_MAX_ULPS`] (statistical parity).
+///
+/// Why 8: depth is interpolated in `f32` plane equations by lavapipe and in `f64` by the
+/// reference, and the vertex positions differ by a few ulp; the error has a sign per triangle, so
+/// a frame dominated by a few large triangles (the ground, a close trunk) shows a small
+/// systematic mean: measured at most 2.7 ulp (of 116 frames of the parity suite, e.g. `pair`
+/// from up close). A wrong depth mapping or an offset inside the ±64 ulp tolerance (a biased
+/// projection, a polygon offset) moves every pixel by tens of ulp.
+pub const DEPTH_BIAS_MAX_ULPS: f64 = 8.0;
+
+/// Budgets of the forgiving classes (issue 15, "bounded ambiguity"): each class may hold at most
+/// this fraction of the pixels of a frame (the edge-ambiguous classes: of its *edge* pixels),
+/// rounded up, plus [`CLASS_BUDGET_FLOOR`] pixels. A count above its budget fails the comparison
+/// naming the buffer and the class: a wrong stage whose every pixel a class forgives (a bug at a
+/// classified boundary, or a difference diluted by the window) still fails, and by a margin.
+///
+/// How they were set: every frame the GPU parity suite compares (116 reports: `parity::draw`,
+/// `baselines`, `refine`, `threads`, the sweep runner; 96² to 160², on lavapipe, correct build)
+/// printed its class fractions (the report's `class fractions` line); each budget is about 3x the
+/// largest fraction measured (named below), so a correct build stays well inside it on other
+/// scenes and adapters, while a stage that is wrong on a whole surface (tens of percent of the
+/// pixels or of the edge pixels) exceeds it by an order of magnitude.
+pub mod budget {
+    /// Colour pixels matched only within the ±1 px window, of all pixels. Measured at most
+    /// 0.93 % (`synthetic-crop600-medium/vegetation`).
+    pub const WINDOW: f64 = 0.03;
+    /// Colour pixels matched only by an alternative (cutoff-shifted) frame, of all pixels.
+    /// Measured at most 0.22 % (`synthetic-crop600-medium/vegetation`).
+    pub const THRESHOLD_COLOR: f64 = 0.007;
+    /// Depth pixels matched only by an alternative frame, of all pixels. Measured at most 1.14 %
+    /// (`synthetic-crop600-medium/vegetation`: a faint alpha-tested fragment writes depth but
+    /// barely colour, so depth flips more often than colour).
+    pub const THRESHOLD_DEPTH: f64 = 0.035;
+    /// LOD-id pixels matched only by an alternative frame, of all pixels. Measured at most 0.25 %
+    /// (the sweep runner's `ours-atomic`).
+    pub const THRESHOLD_ID: f64 = 0.008;
+    /// Depth pixels forgiven as translucent, of all pixels. Measured at most 0.033 % (the sweep
+    /// runner's `ours-stable`).
+    pub const TRANSLUCENT: f64 = 0.001;
+    /// Colour pixels forgiven as edge-ambiguous, of the edge pixels. Measured at most 0.018 %
+    /// (`tiny-medium-yaw0/vegetation`): nearly every coverage flip is already explained by the
+    /// window.
+    pub const EDGE_COLOR: f64 = 0.0006;
+    /// Depth pixels forgiven as edge-ambiguous, of the edge pixels. Measured at most 1.07 %
+    /// (`pair-near-oak-trunk/vegetation`).
+    pub const EDGE_DEPTH: f64 = 0.033;
+    /// LOD-id pixels forgiven as edge-ambiguous, of the edge pixels. Measured at most 0.06 %
+    /// (`synthetic-crop600-medium/vegetation`).
+    pub const EDGE_ID: f64 = 0.002;
+}
+
+/// Pixels every class budget allows on top of its fraction.
+///
+/// Why 4: a 96² frame has 9,216 pixels, so a fraction of 1e-4 alone would allow one pixel and a
+/// single compound near-threshold flip would fail a correct build; 4 pixels are far below what
+/// a wrong stage changes (a tree crown at 96² covers tens of pixels).
+pub const CLASS_BUDGET_FLOOR: usize = 4;
+
 /// The buffers of one rendered frame, from either backend, row-major from the top-left pixel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Images {
@@ -298,6 +378,11 @@ pub struct ImageReport {
     pub lod_id: ClassCounts,
     /// FLIP mean of the colour images.
     pub flip_mean: f32,
+    /// Signed colour differences per channel R, G, B, A over the pixels within
+    /// [`COLOR_TOLERANCE`] at the same position (statistical parity).
+    pub color_signed: [SignedHistogram; 4],
+    /// Signed depth differences in ulp over the pixels within [`DEPTH_MAX_ULPS`].
+    pub depth_signed: SignedHistogram,
     /// Per-pixel class of the colour buffer, for the class map (0 match, 1 window,
     /// 2 threshold- or edge-ambiguous, 3 mismatch).
     pub color_classes: Vec<u8>,
@@ -313,6 +398,64 @@ impl ImageReport {
     /// pixels, rounded down.
     pub fn compound_budget(&self) -> usize {
         (MAX_COMPOUND_FRACTION * self.color.pixels as f64).floor() as usize
+    }
+
+    /// The budget of a class holding a fraction `f` of `of` pixels ([`budget`]).
+    fn class_budget(f: f64, of: usize) -> usize {
+        (f * of as f64).ceil() as usize + CLASS_BUDGET_FLOOR
+    }
+
+    /// Every budgeted class: `(buffer, class, count, budget)` ([`budget`]; the depth-tie class
+    /// keeps its own gate, [`DEPTH_TIE_MAX_FRACTION`]).
+    pub fn class_budgets(&self) -> Vec<(&'static str, &'static str, usize, usize)> {
+        let n = self.color.pixels;
+        let e = self.edge_pixels;
+        let b = Self::class_budget;
+        vec![
+            ("colour", "window", self.color.window, b(budget::WINDOW, n)),
+            (
+                "colour",
+                "threshold-ambiguous",
+                self.color.threshold_ambiguous,
+                b(budget::THRESHOLD_COLOR, n),
+            ),
+            (
+                "colour",
+                "edge-ambiguous",
+                self.color.edge_ambiguous,
+                b(budget::EDGE_COLOR, e),
+            ),
+            (
+                "depth",
+                "threshold-ambiguous",
+                self.depth.threshold_ambiguous,
+                b(budget::THRESHOLD_DEPTH, n),
+            ),
+            (
+                "depth",
+                "translucent",
+                self.depth.translucent,
+                b(budget::TRANSLUCENT, n),
+            ),
+            (
+                "depth",
+                "edge-ambiguous",
+                self.depth.edge_ambiguous,
+                b(budget::EDGE_DEPTH, e),
+            ),
+            (
+                "LOD id",
+                "threshold-ambiguous",
+                self.lod_id.threshold_ambiguous,
+                b(budget::THRESHOLD_ID, n),
+            ),
+            (
+                "LOD id",
+                "edge-ambiguous",
+                self.lod_id.edge_ambiguous,
+                b(budget::EDGE_ID, e),
+            ),
+        ]
     }
 
     /// Why the comparison fails, one line per reason; empty when it passes.
@@ -345,6 +488,26 @@ impl ImageReport {
                 100.0 * ties,
                 100.0 * DEPTH_TIE_MAX_FRACTION
             ));
+        }
+        for (buffer, class, count, budget) in self.class_budgets() {
+            if count > budget {
+                out.push(format!(
+                    "{buffer}: {count} {class} pixels exceed the class budget {budget} \
+                     (a correct build stays far below it: a wrong stage hidden by this class)"
+                ));
+            }
+        }
+        for (h, c) in self.color_signed.iter().zip(["R", "G", "B", "A"]) {
+            if let Some(why) = h.value_bias_failure(&format!("colour channel {c}"), COLOR_BIAS_MAX)
+            {
+                out.push(why);
+            }
+        }
+        if let Some(why) = self
+            .depth_signed
+            .bias_failure("depth (ulp)", DEPTH_BIAS_MAX_ULPS)
+        {
+            out.push(why);
         }
         if self.flip_mean.is_nan() || self.flip_mean > FLIP_MEAN_MAX {
             out.push(format!(
@@ -401,7 +564,29 @@ impl fmt::Display for ImageReport {
             self.depth_max_interior_ulps,
             c(&self.depth)
         )?;
-        write!(f, "  LOD id: {}", c(&self.lod_id))?;
+        writeln!(f, "  LOD id: {}", c(&self.lod_id))?;
+        let budgets: Vec<String> = self
+            .class_budgets()
+            .iter()
+            .map(|(buffer, class, count, budget)| format!("{buffer} {class} {count}/{budget}"))
+            .collect();
+        writeln!(f, "  class budgets (count/budget): {}", budgets.join(", "))?;
+        writeln!(
+            f,
+            "  class fractions: colour window {:.2e}, threshold {:.2e} {:.2e} {:.2e} (colour depth id), translucent {:.2e}, edge-ambiguous per edge pixel {:.2e} {:.2e} {:.2e}",
+            self.color.window as f64 / self.color.pixels.max(1) as f64,
+            self.color.threshold_ambiguous as f64 / self.color.pixels.max(1) as f64,
+            self.depth.threshold_ambiguous as f64 / self.color.pixels.max(1) as f64,
+            self.lod_id.threshold_ambiguous as f64 / self.color.pixels.max(1) as f64,
+            self.depth.translucent as f64 / self.color.pixels.max(1) as f64,
+            self.color.edge_ambiguous as f64 / self.edge_pixels.max(1) as f64,
+            self.depth.edge_ambiguous as f64 / self.edge_pixels.max(1) as f64,
+            self.lod_id.edge_ambiguous as f64 / self.edge_pixels.max(1) as f64,
+        )?;
+        for (h, c) in self.color_signed.iter().zip(["R", "G", "B", "A"]) {
+            writeln!(f, "  colour {c} signed: {h}")?;
+        }
+        write!(f, "  depth signed (ulp): {}", self.depth_signed)?;
         for e in &self.examples {
             write!(f, "\n    mismatch: {e}")?;
         }
@@ -582,6 +767,8 @@ pub fn compare_images(
             ..Default::default()
         },
         flip_mean: flip_mean(&reference.color, &gpu.color, w, h),
+        color_signed: core::array::from_fn(|_| SignedHistogram::new(i64::from(COLOR_TOLERANCE))),
+        depth_signed: SignedHistogram::new(i64::from(DEPTH_MAX_ULPS)),
         color_classes: vec![0; n],
         examples: Vec::new(),
     };
@@ -604,6 +791,11 @@ pub fn compare_images(
             .unwrap_or(d);
         report.color_max_diff = report.color_max_diff.max(d);
         report.color_max_window_diff = report.color_max_window_diff.max(window_diff);
+        if d <= COLOR_TOLERANCE {
+            for (c, hist) in report.color_signed.iter_mut().enumerate() {
+                hist.record_at(i64::from(r[c]), i64::from(g[c]) - i64::from(r[c]));
+            }
+        }
         if !is_edge {
             report.color_max_interior_diff = report.color_max_interior_diff.max(window_diff);
         }
@@ -676,6 +868,11 @@ pub fn compare_images(
         report.depth_max_diff = report.depth_max_diff.max((gz - rz).abs());
         if !is_edge {
             report.depth_max_interior_ulps = report.depth_max_interior_ulps.max(u);
+        }
+        if u <= DEPTH_MAX_ULPS {
+            report
+                .depth_signed
+                .record(i64::from(gz.to_bits()) - i64::from(rz.to_bits()));
         }
         if u == 0 {
             report.depth.exact += 1;
@@ -893,6 +1090,91 @@ mod tests {
         assert_eq!(r.lod_id.mismatches, 0, "{r}");
         assert_eq!(r.lod_id.edge_ambiguous, 1, "{r}");
         assert_eq!(r.color.window + r.color.edge_ambiguous, 1, "{r}");
+    }
+
+    /// A frame of many colours (so the per-value bias sees many values), flat depth and id.
+    fn ramp() -> Images {
+        let mut a = flat(1, [0; 4], 0.9);
+        a.width = 32;
+        a.height = 32;
+        a.color = (0..1024u32)
+            .map(|i| {
+                [
+                    (i * 37 % 200) as u8 + 20,
+                    (i / 8) as u8 + 10,
+                    (i * 53 % 200) as u8 + 20,
+                    255,
+                ]
+            })
+            .collect();
+        a.depth = vec![0.9; 1024];
+        a.lod_id = vec![1; 1024];
+        a
+    }
+
+    #[test]
+    fn a_one_signed_shift_within_tolerance_fails_on_bias() {
+        let reference = ramp();
+        let camera = Camera::look_at([0.0; 3], [1.0, 0.0, 0.0], 60.0, 32, 32);
+        // Every pixel two steps up in green: within the tolerance of 8 everywhere.
+        let mut gpu = reference.clone();
+        for p in &mut gpu.color {
+            p[1] += 2;
+        }
+        let r = compare_images("shift", &gpu, &reference, &[], &camera);
+        assert_eq!(r.color.mismatches, 0, "{r}");
+        let failures = r.failures();
+        assert!(
+            failures
+                .iter()
+                .any(|f| f.contains("colour channel G") && f.contains("bias")),
+            "{failures:?}"
+        );
+        // Symmetric noise of the same size passes.
+        let mut noisy = reference.clone();
+        for (i, p) in noisy.color.iter_mut().enumerate() {
+            p[1] = if i % 2 == 0 { p[1] + 1 } else { p[1] - 1 };
+        }
+        let r = compare_images("noise", &noisy, &reference, &[], &camera);
+        assert!(r.passed(), "{r}");
+        // Depth: every pixel 20 ulp further, within the 64 ulp tolerance: biased.
+        let mut deeper = reference.clone();
+        for z in &mut deeper.depth {
+            *z = f32::from_bits(z.to_bits() + 20);
+        }
+        let r = compare_images("deeper", &deeper, &reference, &[], &camera);
+        assert_eq!(r.depth.mismatches, 0, "{r}");
+        assert!(
+            r.failures().iter().any(|f| f.contains("depth (ulp)")),
+            "{r}"
+        );
+    }
+
+    #[test]
+    fn a_class_over_its_budget_fails_naming_it() {
+        let reference = ramp();
+        let camera = Camera::look_at([0.0; 3], [1.0, 0.0, 0.0], 60.0, 32, 32);
+        // Shift the image one pixel right: every pixel whose colour changes is matched only by
+        // the ±1 px window, far more than the window's budget.
+        let mut gpu = reference.clone();
+        for y in 0..32 {
+            for x in (1..32).rev() {
+                gpu.color[y * 32 + x] = reference.color[y * 32 + x - 1];
+            }
+        }
+        let r = compare_images("shifted", &gpu, &reference, &[], &camera);
+        assert_eq!(r.color.mismatches, 0, "{r}");
+        assert!(r.color.window > 500, "{r}");
+        let failures = r.failures();
+        assert!(
+            failures
+                .iter()
+                .any(|f| f.starts_with("colour:")
+                    && f.contains("window pixels exceed the class budget")),
+            "{failures:?}"
+        );
+        // The budget is reported beside the count.
+        assert!(format!("{r}").contains(&format!("colour window {}/", r.color.window)));
     }
 
     #[test]

@@ -30,6 +30,7 @@ use forestlod_shared::MipMode;
 use rayon::prelude::*;
 
 use crate::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Named};
+use crate::stats::SignedHistogram;
 
 use crate::backend::gpu_context;
 
@@ -37,6 +38,31 @@ use crate::backend::gpu_context;
 pub fn channel_diff(a: [u8; 4], b: [u8; 4]) -> u8 {
     (0..4).map(|c| a[c].abs_diff(b[c])).max().unwrap_or(0)
 }
+
+/// Largest bias of a texel comparison per distinct reference value (GPU minus reference, per
+/// channel, in sRGB8 or UNORM8 units; [`TexelTally::bias_failures`], gated together with the
+/// sign test of [`crate::stats`]).
+///
+/// Why 0.05: a correct GPU mips stage differs from the reference by a rare one-step rounding of
+/// either sign (0 to 3 texels of ~600k per mode in `parity::mips`); the bake, rasterized by
+/// lavapipe, differs by ±1 on 15 % of its texels, and *per element* leans one way (green +0.069,
+/// blue -0.045 at r = 128: a few texture colours near an sRGB rounding boundary, repeated over
+/// many texels), but per distinct value the signs balance except in one of 104 measured channel
+/// comparisons (alpha of the r = 4 bake: +0.015). 0.05 keeps a factor 3 over that; a changed
+/// rounding rule that moves one value in twenty by one step the same way reaches it, one that
+/// moves every texel (what a ±1 tolerance cannot see) exceeds it twentyfold.
+pub const TEXEL_BIAS_MAX: f64 = 0.05;
+
+/// Largest bias per distinct reference value of the *mips* stage ([`TexelTally::bias_failures`]
+/// in `parity::mips` and on the GPU bake's own level 0 in `parity::bake`).
+///
+/// Why 1e-3, fifty times stricter than [`TEXEL_BIAS_MAX`]: the GPU mips stage encodes through
+/// tables of the reference's own formulas, so a correct build differs on 0 to 3 texels of ~600k
+/// per mode, too few for the sign test to ever fire; a rounding rule changed in one channel
+/// (measured with the deliberate bug `encode_byte(raw.y * 1.002, …)` in `mips.wgsl`: 0.4 % of
+/// the texels +1, 168 of 232 green values up and none down) has a per-value bias of 0.0175, which
+/// the bake's looser limit would let through and this one does not.
+pub const MIPS_BIAS_MAX: f64 = 1e-3;
 
 /// Running totals of a texel-by-texel comparison.
 #[derive(Clone, Debug, Default)]
@@ -51,6 +77,9 @@ pub struct TexelTally {
     pub max_diff: u8,
     /// The first texel beyond the tolerance: where, GPU value, reference value.
     pub first_over: Option<(String, [u8; 4], [u8; 4])>,
+    /// Signed differences (GPU minus reference) per channel R, G, B, A, over every texel
+    /// (statistical parity, [`crate::stats`]).
+    pub channels: [SignedHistogram; 4],
 }
 
 impl TexelTally {
@@ -72,6 +101,10 @@ impl TexelTally {
         tolerance: u8,
     ) {
         self.texels += 1;
+        for (c, h) in self.channels.iter_mut().enumerate() {
+            h.tolerance = i64::from(tolerance);
+            h.record_at(i64::from(want[c]), i64::from(got[c]) - i64::from(want[c]));
+        }
         let d = channel_diff(got, want);
         if d == 0 {
             return;
@@ -95,14 +128,77 @@ impl TexelTally {
         if self.first_over.is_none() {
             self.first_over.clone_from(&other.first_over);
         }
+        for (h, o) in self.channels.iter_mut().zip(&other.channels) {
+            h.merge(o);
+        }
     }
 
-    /// One line for the test log.
+    /// Why the signed differences are biased (one line per channel), empty when they are not:
+    /// [`SignedHistogram::value_bias_failure`] with `max_bias` (normally [`TEXEL_BIAS_MAX`]).
+    pub fn bias_failures(&self, what: &str, max_bias: f64) -> Vec<String> {
+        self.channels
+            .iter()
+            .zip(["R", "G", "B", "A"])
+            .filter_map(|(h, c)| h.value_bias_failure(&format!("{what} channel {c}"), max_bias))
+            .collect()
+    }
+
+    /// One line for the test log, then one per channel with its signed-difference statistics.
     pub fn summary(&self) -> String {
-        format!(
+        let mut s = format!(
             "{} texels compared, {} differing, {} beyond tolerance, max channel difference {}",
             self.texels, self.differing, self.over_tolerance, self.max_diff
-        )
+        );
+        for (h, c) in self.channels.iter().zip(["R", "G", "B", "A"]) {
+            s.push_str(&format!("\n    {c}: {h}"));
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_texel_one_step_up_is_within_tolerance_but_biased() {
+        let want: Vec<[u8; 4]> = (0..4096u32)
+            .map(|i| {
+                [
+                    (i % 250) as u8,
+                    (i / 17) as u8,
+                    (i * 3 % 250) as u8,
+                    (i % 240) as u8,
+                ]
+            })
+            .collect();
+        let got: Vec<[u8; 4]> = want.iter().map(|t| t.map(|c| c + 1)).collect();
+        let mut tally = TexelTally::default();
+        tally.compare("shifted", &got, &want, 1);
+        assert_eq!(tally.over_tolerance, 0);
+        let failures = tally.bias_failures("shifted", TEXEL_BIAS_MAX);
+        assert_eq!(failures.len(), 4, "{failures:?}");
+        // Symmetric ±1 noise is not.
+        let noisy: Vec<[u8; 4]> = want
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                t.map(|c| {
+                    if i % 2 == 0 {
+                        c + 1
+                    } else {
+                        c.saturating_sub(1)
+                    }
+                })
+            })
+            .collect();
+        let mut tally = TexelTally::default();
+        tally.compare("noise", &noisy, &want, 1);
+        assert!(
+            tally.bias_failures("noise", TEXEL_BIAS_MAX).is_empty(),
+            "{}",
+            tally.summary()
+        );
     }
 }
 

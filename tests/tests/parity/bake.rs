@@ -42,8 +42,9 @@ use std::time::Instant;
 
 use forestlod_gpu::GpuError;
 use forestlod_harness::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Reference};
+use forestlod_harness::stats::SignedHistogram;
 use forestlod_harness::texel_compare::{
-    GpuBakeBackend, TexelTally, bake_mesh, channel_diff, gpu_bake,
+    GpuBakeBackend, MIPS_BIAS_MAX, TEXEL_BIAS_MAX, TexelTally, bake_mesh, channel_diff, gpu_bake,
 };
 use forestlod_reference::bake::bake_clip;
 use forestlod_reference::sampler::Texture;
@@ -346,6 +347,9 @@ struct BakeTally {
     /// Largest difference over all classified pixels.
     max_diff_classified: u8,
     failures: Vec<String>,
+    /// Signed differences (GPU minus reference) per channel over the pixels within
+    /// [`COLOR_TOLERANCE`] at the same position, equal ones included (statistical parity).
+    signed: [SignedHistogram; 4],
 }
 
 /// The one test body: both backends bake `meshes`; the GPU judged pixel by pixel.
@@ -376,6 +380,12 @@ fn check_bake(
                 let (gt, wt) = (g.get(x, y), w.get(x, y));
                 tally.covered += u64::from(wt[3] > 0);
                 let d = channel_diff(gt, wt);
+                if d <= COLOR_TOLERANCE {
+                    for (c, h) in tally.signed.iter_mut().enumerate() {
+                        h.tolerance = i64::from(COLOR_TOLERANCE);
+                        h.record_at(i64::from(wt[c]), i64::from(gt[c]) - i64::from(wt[c]));
+                    }
+                }
                 if d == 0 {
                     continue;
                 }
@@ -440,9 +450,19 @@ fn report(what: &str, tally: &BakeTally, started: Instant) {
         tally.max_diff_classified,
         started.elapsed().as_secs_f64()
     );
+    for (h, c) in tally.signed.iter().zip(["R", "G", "B", "A"]) {
+        eprintln!("  {c}: {h}");
+    }
     for f in tally.failures.iter().filter(|f| !f.is_empty()) {
         eprintln!("  {f}");
     }
+    let biased: Vec<String> = tally
+        .signed
+        .iter()
+        .zip(["R", "G", "B", "A"])
+        .filter_map(|(h, c)| h.value_bias_failure(&format!("{what} channel {c}"), TEXEL_BIAS_MAX))
+        .collect();
+    assert!(biased.is_empty(), "biased bake:\n{}", biased.join("\n"));
     assert_eq!(
         failures, 0,
         "{what}: {failures} pixels differ beyond tolerance outside every ambiguity class"
@@ -507,6 +527,8 @@ fn run(angle_count: u32, r: u32, full_path: bool) {
             texels.summary()
         );
         assert_eq!(texels.over_tolerance, 0, "{:?}", texels.first_over);
+        let biased = texels.bias_failures(&format!("{what} {}", mode.name()), MIPS_BIAS_MAX);
+        assert!(biased.is_empty(), "biased mips:\n{}", biased.join("\n"));
     }
     eprintln!("{what}: {:.2} s in all", started.elapsed().as_secs_f64());
 }

@@ -29,6 +29,7 @@ use forestlod_harness::backend::{
 };
 use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
 use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
+use forestlod_harness::stats::decision_budget_failure;
 use forestlod_reference::baselines::{
     self, BaselineFrame, Proxy, primitive_quad, proxies, render_primitive, render_vegetation,
     tree_spheres, vegetation_commands, visible_trees,
@@ -321,6 +322,11 @@ fn gpu_cull_matches_per_tree_culling() {
         started.elapsed().as_secs_f64()
     );
     assert!(tally.cases >= 64 + 36, "too few cases ran: {}", tally.cases);
+    failures.extend(decision_budget_failure(
+        "cull near-threshold trees",
+        tally.ambiguous_trees,
+        tally.trees + tally.visible,
+    ));
     assert_no_failures("cull parity failed", &failures);
 }
 

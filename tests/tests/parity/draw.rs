@@ -17,6 +17,10 @@
 //! billboards only ("no LOD0", E Fig. 5.7) from an elevation of ~31°, where the nearest-angle
 //! layer (3) and E Eq. 3.1's (4) differ, so a wrong layer index cannot hide.
 //!
+//! Before each image, the GPU stages a backend runs (textures, select) are compared with the
+//! reference's in pipeline order (`forestlod_harness::diagnose`), so a failure names the first
+//! stage that differs rather than blaming the image.
+//!
 //! Without an adapter the test fails with an install hint unless `FORESTLOD_ALLOW_NO_GPU=1`.
 
 use std::time::Instant;
@@ -27,6 +31,7 @@ use forestlod_harness::backend::{
     DrawSceneData, GpuRenderer, StagesFromCpu, alpha_test_alternatives, gpu_context, gpu_draw,
     render_gpu, upload_reference_textures,
 };
+use forestlod_harness::diagnose::{check_stages, first_differing};
 use forestlod_harness::image_compare::{Images, compare_images, write_failure_images};
 use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_reference::pipeline::{Prepared, prepare};
@@ -87,13 +92,27 @@ fn scenarios() -> (Vec<Prepared>, Vec<FrameScenario>) {
             params: crop_params(fade),
         });
     }
-    let pair = builtin::pair();
-    prepared.push(prepare(pair, &billboard_params()).expect("prepare pair"));
+    prepared.push(prepare(builtin::pair(), &billboard_params()).expect("prepare pair"));
     out.push(FrameScenario {
         name: "pair-billboards-elevation31".into(),
         prepared_key: 2,
         camera: Camera::look_at([0.0, -50.0, 30.0], [0.0, 0.0, 8.0], 40.0, 128, 128),
         params: billboard_params(),
+    });
+    // K = 2 (layers at 0° and 90°) from an elevation of ~58°: the nearest-angle index is 1, the
+    // top layer. Added for a survivor of `mutate` (issue 15): `angle_index`'s `K <= 1` guard
+    // moved to `K <= 2` in `common.wgsl` (every view then used the level layer) passed every
+    // scenario, which all bake 8 or 10 angles.
+    let k2 = Params {
+        angle_count: 2,
+        ..billboard_params()
+    };
+    prepared.push(prepare(builtin::pair(), &k2).expect("prepare pair K=2"));
+    out.push(FrameScenario {
+        name: "pair-billboards-k2-elevation58".into(),
+        prepared_key: 3,
+        camera: Camera::look_at([0.0, -20.0, 40.0], [0.0, 0.0, 8.0], 50.0, 96, 96),
+        params: k2,
     });
     (prepared, out)
 }
@@ -108,23 +127,18 @@ fn gpu_draw_matches_the_reference() {
         prepared.len(),
         start.elapsed().as_secs_f64()
     );
-    let backends: Vec<Box<dyn Backend<Draw>>> = vec![
-        Box::new(GpuRenderer {
-            ctx,
-            option: StagesFromCpu::ALL,
-        }),
-        Box::new(GpuRenderer {
-            ctx,
-            option: StagesFromCpu {
-                select: false,
-                textures: true,
-            },
-        }),
-        Box::new(GpuRenderer {
-            ctx,
-            option: StagesFromCpu::NONE,
-        }),
+    let options = [
+        StagesFromCpu::ALL,
+        StagesFromCpu {
+            select: false,
+            textures: true,
+        },
+        StagesFromCpu::NONE,
     ];
+    let backends: Vec<Box<dyn Backend<Draw>>> = options
+        .iter()
+        .map(|&option| Box::new(GpuRenderer { ctx, option }) as Box<dyn Backend<Draw>>)
+        .collect();
     let mut failures = Vec::new();
     for s in &scenarios {
         let p = &prepared[s.prepared_key];
@@ -137,7 +151,21 @@ fn gpu_draw_matches_the_reference() {
         let want = Backend::<Draw>::run(&Reference, input);
         let reference_seconds = t.elapsed().as_secs_f64();
         let alternatives = alpha_test_alternatives(p, &s.camera, &s.params);
-        for backend in &backends {
+        for (backend, option) in backends.iter().zip(&options) {
+            // Stage outputs before images: the first GPU stage that differs is named.
+            let checks = check_stages(ctx, p, &s.camera, &s.params, option.textures, option.select);
+            for c in &checks {
+                eprintln!(
+                    "{}/{}: stage {}: {}",
+                    s.name,
+                    backend.name(),
+                    c.stage,
+                    c.summary
+                );
+            }
+            if let Some(f) = first_differing(&checks) {
+                failures.push(format!("{}/{}: {f}", s.name, backend.name()));
+            }
             let t = Instant::now();
             let got = backend.run(input);
             let gpu_seconds = t.elapsed().as_secs_f64();

@@ -4,6 +4,8 @@
 //! - [`hier_select`]: the hierarchical cut (issue 13) against the reference, frames against the grid's;
 //! - [`select`], [`refine`], [`draw`], [`mips`], [`bake`]: the GPU twin of each reference stage;
 //! - [`baselines`]: the GPU Vegetation and Primitive baselines against the reference's;
+//! - [`metamorphic`]: relations between two runs of one backend (translation, permutation,
+//!   LOD0 everywhere = Vegetation, LOD monotone in distance), on the reference and the GPU;
 //! - [`threads`]: frames recorded from several threads on one context equal single-thread ones;
 //! - [`sampler_lod`]: the adapter's implicit level of detail, measured (the data behind the
 //!   tolerances of `forestlod_harness::image_compare`).
@@ -16,6 +18,7 @@ mod bake;
 mod baselines;
 mod draw;
 mod hier_select;
+mod metamorphic;
 mod mips;
 mod refine;
 mod sampler_lod;

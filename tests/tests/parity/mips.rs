@@ -31,7 +31,9 @@ use forestlod_gpu::mips::{
     mip_tables,
 };
 use forestlod_harness::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Reference};
-use forestlod_harness::texel_compare::{GpuMipsBackend, LevelOut, TexelTally, gpu_bake};
+use forestlod_harness::texel_compare::{
+    GpuMipsBackend, LevelOut, MIPS_BIAS_MAX, TexelTally, gpu_bake,
+};
 use forestlod_reference::mips::AlphaAdjust;
 use forestlod_reference::scene::builtin::species_meshes;
 use forestlod_reference::texture::{Rgba8Image, linear_to_srgb, srgb_to_linear, unorm8};
@@ -79,6 +81,19 @@ impl Tally {
                 eprintln!("  first beyond tolerance: {where_}: gpu {got:?} reference {want:?}");
             }
         }
+    }
+
+    /// Statistical parity over the whole run, per mode: panics when a mode's signed differences
+    /// are biased ([`MIPS_BIAS_MAX`] and the sign test of `forestlod_harness::stats`).
+    fn assert_unbiased(&self, what: &str) {
+        let failures: Vec<String> = MipMode::ALL
+            .iter()
+            .zip(&self.texels)
+            .flat_map(|(mode, t)| {
+                t.bias_failures(&format!("{what} {}", mode.name()), MIPS_BIAS_MAX)
+            })
+            .collect();
+        assert!(failures.is_empty(), "biased mips:\n{}", failures.join("\n"));
     }
 }
 
@@ -210,6 +225,7 @@ fn check_all(
         }
     }
     tally.report(report, started);
+    tally.assert_unbiased(report);
 }
 
 /// The GPU mips stage, or `None` (saying the test is skipped) without an adapter.
@@ -332,6 +348,7 @@ fn gpu_mips_equal_the_reference_on_random_layers() {
     if let Err(e) = result {
         panic!("{e}");
     }
+    tally.borrow().assert_unbiased("random layers");
 }
 
 #[test]

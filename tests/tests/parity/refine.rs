@@ -36,6 +36,7 @@ use forestlod_harness::backend::{
     images_of, render_gpu,
 };
 use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
+use forestlod_harness::stats::decision_budget_failure;
 use forestlod_reference::batches::{Batches, build_batches};
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::geometry::PackedGeometry;
@@ -564,6 +565,11 @@ fn gpu_refine_matches_the_reference() {
         tally.trees_kept,
         tally.trees_tested
     );
+    failures.extend(decision_budget_failure(
+        "refine near-threshold trees",
+        tally.ambiguous_trees,
+        tally.trees_tested,
+    ));
     assert_no_failures(
         &format!("refine parity failed ({} frames)", failures.len()),
         &failures,

@@ -18,6 +18,8 @@
 use std::collections::BTreeSet;
 use std::time::Instant;
 
+use forestlod_harness::stats::decision_budget_failure;
+
 use forestlod_gpu::{Compaction, GpuSelect, SelectBuffers};
 use forestlod_harness::backend::{BackendSelection, GpuSelectBackend, gpu_backends, gpu_context};
 use forestlod_harness::stage::{Backend, Named, Reference, Select, SelectInput};
@@ -337,6 +339,13 @@ fn run_property<S: Strategy>(
     report(what, &backends, &tallies.borrow(), started);
     if let Err(e) = result {
         panic!("{what}: {e}");
+    }
+    // Bounded ambiguity: the forgiven near-threshold batches, against their budget.
+    for (backend, t) in backends.iter().zip(tallies.borrow().iter()) {
+        let name = format!("{what} {} near-threshold batches", backend.name());
+        if let Some(f) = decision_budget_failure(&name, t.ambiguous_batches, t.batches_compared) {
+            panic!("{f}");
+        }
     }
 }
 

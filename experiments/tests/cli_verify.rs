@@ -1,0 +1,171 @@
+//! `forestlod export-case` and `forestlod verify` through the binary (issue 15): this project's
+//! own GPU frame, written in the case format by `export-case --with-gpu`, passes `verify`; the
+//! same frame deliberately broken fails it with exit code 2 naming the class that caught it
+//! (a wrong block: the depth-tie gate; a two-step shift of every green value, invisible to the
+//! per-pixel tolerance: the bias gate); a missing file is bad input (1) naming the file.
+//!
+//! Needs a GPU adapter (lavapipe in CI), like the parity tests.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use forestlod_reference::output::{read_png, write_png};
+
+#[path = "../../reference/tests/common/mod.rs"]
+mod common;
+
+fn forestlod(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_forestlod"))
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("run forestlod")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn last_line(o: &Output) -> String {
+    text(&o.stdout).lines().last().unwrap_or("").to_string()
+}
+
+/// Copies the three image files (and the commands) of `from` into a fresh `to`.
+fn copy_outputs(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for f in ["color.png", "depth.exr", "lod_id.png", "commands.csv"] {
+        std::fs::copy(from.join(f), to.join(f)).unwrap();
+    }
+}
+
+/// Exports the `tiny` case from `medium` at 96² with this project's GPU frame, once.
+fn case() -> PathBuf {
+    let dir = common::fresh_dir("cli-verify", "case");
+    let o = forestlod(&[
+        "export-case",
+        "--scene",
+        "tiny",
+        "--camera",
+        "medium",
+        "--grid-size",
+        "50",
+        "--angles",
+        "8",
+        "--texture-size",
+        "32",
+        "--transition",
+        "400",
+        "--fade-width",
+        "80",
+        "--width",
+        "96",
+        "--height",
+        "96",
+        "--with-gpu",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(
+        o.status.success(),
+        "export-case failed: {}{}",
+        text(&o.stdout),
+        text(&o.stderr)
+    );
+    for f in [
+        "case.json",
+        "instances.csv",
+        "reference/color.png",
+        "reference/depth.exr",
+        "reference/lod_id.png",
+        "reference/commands.csv",
+        "alternatives/0/color.png",
+        "gpu/color.png",
+        "gpu/commands.csv",
+    ] {
+        assert!(dir.join(f).is_file(), "{f} missing");
+    }
+    dir
+}
+
+fn verify(case: &Path, outputs: &Path) -> Output {
+    forestlod(&[
+        "verify",
+        "--case",
+        case.to_str().unwrap(),
+        "--outputs",
+        outputs.to_str().unwrap(),
+    ])
+}
+
+#[test]
+fn own_gpu_output_passes_and_broken_outputs_fail_naming_the_class() {
+    let case = case();
+    // 1. This project's GPU frame (whole GPU pipeline, atomic selection order) passes.
+    let o = verify(&case, &case.join("gpu"));
+    let out = text(&o.stdout);
+    eprintln!("{out}");
+    assert_eq!(o.status.code(), Some(0), "{out}{}", text(&o.stderr));
+    assert_eq!(last_line(&o), "parity passed");
+    assert!(out.contains("class budgets (count/budget)"), "{out}");
+    assert!(out.contains("0 missing, 0 extra"), "{out}");
+
+    // 2. A 10x10 block of the wrong colour in the middle of the frame. Its depth and LOD id are
+    //    right, so every pixel looks like a depth tie (a second surface at the same depth); the
+    //    depth-tie gate names it: 100 pixels, over 1 % of the 96² frame.
+    let broken = case.join("broken-block");
+    copy_outputs(&case.join("gpu"), &broken);
+    let mut img = read_png(&broken.join("color.png")).unwrap();
+    for y in 40..50 {
+        for x in 40..50 {
+            img.texels[y * 96 + x] = [255, 0, 255, 255];
+        }
+    }
+    write_png(&broken.join("color.png"), &img).unwrap();
+    let o = verify(&case, &broken);
+    let last = last_line(&o);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stdout));
+    assert!(
+        last.starts_with("parity FAILED: colour: 100 depth-tie pixels"),
+        "{last}"
+    );
+
+    // 3. Every green value two steps up: within the per-pixel tolerance everywhere, caught by
+    //    the bias gate only.
+    let shifted = case.join("broken-shift");
+    copy_outputs(&case.join("gpu"), &shifted);
+    let reference = read_png(&case.join("reference/color.png")).unwrap();
+    let mut img = reference.clone();
+    for t in &mut img.texels {
+        t[1] = t[1].saturating_add(2);
+    }
+    write_png(&shifted.join("color.png"), &img).unwrap();
+    let o = verify(&case, &shifted);
+    let last = last_line(&o);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stdout));
+    assert!(
+        last.contains("colour channel G: bias per reference value") && !last.contains("colour:"),
+        "{last}"
+    );
+
+    // 4. A command missing from the implementation's selection: the select stage is named.
+    let fewer = case.join("broken-commands");
+    copy_outputs(&case.join("gpu"), &fewer);
+    let csv = std::fs::read_to_string(fewer.join("commands.csv")).unwrap();
+    let kept: Vec<&str> = csv.lines().take(csv.lines().count() - 1).collect();
+    std::fs::write(fewer.join("commands.csv"), kept.join("\n") + "\n").unwrap();
+    let o = verify(&case, &fewer);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stdout));
+    assert!(
+        last_line(&o).contains("stage select: the command multisets differ (1 missing, 0 extra)"),
+        "{}",
+        last_line(&o)
+    );
+
+    // 5. Bad input: a missing file is exit 1 naming it.
+    let missing = case.join("missing-depth");
+    copy_outputs(&case.join("gpu"), &missing);
+    std::fs::remove_file(missing.join("depth.exr")).unwrap();
+    let o = verify(&case, &missing);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stdout));
+    assert!(text(&o.stderr).contains("depth.exr"), "{}", text(&o.stderr));
+}

@@ -1,0 +1,183 @@
+//! Which stage differs first (issue 15, "a failure names the first stage whose output differs"):
+//! a frame drawn by the GPU from its own textures and selection passes through four stages
+//! before the image (mesh mips, billboard bake + mips, select, then draw). When the image
+//! comparison is the only check, a wrong bake shows up as an image failure blamed on "colour";
+//! this module compares each stage's output with the reference's, in pipeline order, **before**
+//! the images, so a test can name the stage.
+//!
+//! Per stage:
+//! - **textures** (mesh mips; billboard bake + mips): every level of every layer read back and
+//!   compared texel by texel; the stage differs when more than [`STAGE_TEXEL_MAX_FRACTION`] of
+//!   its texels are beyond ±1 per channel, or when its texels are biased
+//!   ([`crate::texel_compare::TexelTally::bias_failures`] at [`BAKE_BIAS_MAX`]);
+//! - **select**: `select.wgsl` (stable compaction) against the reference's commands and
+//!   per-command data, exactly.
+
+use forestlod_gpu::{Compaction, GpuContext, MipArray};
+use forestlod_reference::pipeline::Prepared;
+use forestlod_shared::{Camera, Params};
+
+use crate::backend::{GpuSelectBackend, gpu_textures};
+use crate::stage::{Backend, Reference, Select, SelectInput};
+use crate::texel_compare::TexelTally;
+
+/// Fraction of a texture stage's texels that may differ by more than ±1 per channel before the
+/// stage counts as differing.
+///
+/// Why 6e-3: `parity::bake` classifies the texels a correct bake may get wrong by more than 1
+/// (discard-ambiguous and filter-window texels, up to 255 apart, which the mips then spread over
+/// the coarser levels): measured over every level 5.6e-4 of the texels at r = 64 and 2.05e-3 at
+/// r = 32 (`parity::draw`, lavapipe); 6e-3 keeps a factor 3 over the worst. A wrong layer, angle
+/// or mip rule changes most covered texels (~30 % of all).
+pub const STAGE_TEXEL_MAX_FRACTION: f64 = 6e-3;
+
+/// Largest bias per reference value ([`crate::stats::SignedHistogram::value_bias_failure`]) of
+/// a texture stage rendered by the GPU's rasterizer (the bake).
+///
+/// Why 0.5, ten times `parity::bake`'s [`crate::texel_compare::TEXEL_BIAS_MAX`]: the billboards
+/// here are small (r = 32 in `parity::draw`'s `tiny` scenarios) and every mip level is compared,
+/// so a lean of lavapipe's bake propagates through the chain: measured +0.16 per value in green
+/// (108 values up, 30 down) at r = 32, K = 8 on a correct build (at r = 128 the same bake
+/// balances to 0.015). 0.5 keeps a factor 3; a bake or mip rule that moves every colour a step
+/// the same way (bias 1) still exceeds it.
+pub const BAKE_BIAS_MAX: f64 = 0.5;
+
+/// One stage's comparison.
+#[derive(Clone, Debug)]
+pub struct StageCheck {
+    /// The stage, e.g. `billboards (bake + mips)`.
+    pub stage: &'static str,
+    /// What was compared and found.
+    pub summary: String,
+    /// Whether the stage's output differs beyond what a correct build shows.
+    pub differs: bool,
+}
+
+fn texel_check(stage: &'static str, tally: &TexelTally) -> StageCheck {
+    let fraction = tally.over_tolerance as f64 / tally.texels.max(1) as f64;
+    let bias = tally.bias_failures(stage, BAKE_BIAS_MAX);
+    StageCheck {
+        stage,
+        summary: format!(
+            "{} texels, {} beyond ±1 ({fraction:.2e}, at most {STAGE_TEXEL_MAX_FRACTION}), max \
+             difference {}{}",
+            tally.texels,
+            tally.over_tolerance,
+            tally.max_diff,
+            if bias.is_empty() {
+                String::new()
+            } else {
+                format!("; {}", bias.join("; "))
+            }
+        ),
+        differs: fraction > STAGE_TEXEL_MAX_FRACTION || !bias.is_empty(),
+    }
+}
+
+/// Compares the GPU's textures (mesh mips, billboards) with the reference's.
+pub fn check_textures(ctx: &GpuContext, prepared: &Prepared, params: &Params) -> Vec<StageCheck> {
+    let (mesh, billboards) = gpu_textures(ctx, prepared, params).expect("GPU textures");
+    let mode = params.mips().expect("valid mip mode");
+    let read = |t: wgpu::Texture| {
+        MipArray::from_texture(ctx, t, mode, params.alpha_cutoff)
+            .expect("wrap texture")
+            .read_chains(ctx)
+            .expect("read chains")
+    };
+    let mut out = Vec::new();
+    let mut tally = TexelTally::default();
+    for (layer, chain) in read(mesh).iter().enumerate() {
+        let t = &prepared.mesh_textures[layer];
+        for (k, level) in chain.iter().enumerate() {
+            tally.compare(
+                &format!("mesh {layer} level {k}"),
+                &level.texels,
+                &t.level(0, k).texels,
+                1,
+            );
+        }
+    }
+    out.push(texel_check("mesh textures (mips)", &tally));
+    let mut tally = TexelTally::default();
+    let reference = &prepared.billboards.texture;
+    for (layer, chain) in read(billboards).iter().enumerate() {
+        for (k, level) in chain.iter().enumerate() {
+            tally.compare(
+                &format!("billboard layer {layer} level {k}"),
+                &level.texels,
+                &reference.level(layer as u32, k).texels,
+                1,
+            );
+        }
+    }
+    out.push(texel_check("billboards (bake + mips)", &tally));
+    out
+}
+
+/// Compares `select.wgsl` (stable compaction) with the reference's selection, exactly.
+pub fn check_select(
+    ctx: &'static GpuContext,
+    prepared: &Prepared,
+    camera: &Camera,
+    params: &Params,
+) -> StageCheck {
+    let input = SelectInput {
+        batches: &prepared.batches.metas,
+        meshes: &prepared.geometry.meshes,
+        billboard: &prepared.geometry.billboard,
+        camera,
+        params,
+    };
+    let want = Backend::<Select>::run(&Reference, input).selection;
+    let got = GpuSelectBackend {
+        ctx,
+        option: Compaction::Stable,
+    }
+    .run(input)
+    .selection;
+    let n = want.commands.len().max(got.commands.len());
+    let differing = (0..n)
+        .filter(|&i| {
+            want.commands.get(i) != got.commands.get(i) || want.data.get(i) != got.data.get(i)
+        })
+        .count();
+    StageCheck {
+        stage: "select",
+        summary: format!(
+            "{} reference commands, {} GPU commands, {differing} differing",
+            want.commands.len(),
+            got.commands.len()
+        ),
+        differs: differing > 0,
+    }
+}
+
+/// The stages the GPU ran before its draw (textures unless `textures_from_cpu`, select unless
+/// `select_from_cpu`), compared in pipeline order.
+pub fn check_stages(
+    ctx: &'static GpuContext,
+    prepared: &Prepared,
+    camera: &Camera,
+    params: &Params,
+    textures_from_cpu: bool,
+    select_from_cpu: bool,
+) -> Vec<StageCheck> {
+    let mut out = Vec::new();
+    if !textures_from_cpu {
+        out.extend(check_textures(ctx, prepared, params));
+    }
+    if !select_from_cpu {
+        out.push(check_select(ctx, prepared, camera, params));
+    }
+    out
+}
+
+/// The first stage of `checks` that differs, as a failure line, else `None`.
+pub fn first_differing(checks: &[StageCheck]) -> Option<String> {
+    checks.iter().find(|c| c.differs).map(|c| {
+        format!(
+            "first differing stage: {} ({}); the image comparison below it is a consequence",
+            c.stage, c.summary
+        )
+    })
+}
