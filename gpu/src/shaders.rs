@@ -118,12 +118,9 @@ macro_rules! stage_source {
 
         #[doc = concat!("The full `", $file, "` module source: [`COMMON_WGSL`], [`", stringify!($own), "`]", $(", [`", stringify!($part), "`]",)* ".")]
         pub fn $full() -> String {
-            let mut source = with_common(&mutant_or($file, $own));
-            $(
-                source.push('\n');
-                source.push_str(&mutant_or($pfile, $part));
-            )*
-            source
+            let parts: Vec<String> =
+                vec![with_common(&mutant_or($file, $own)) $(, mutant_or($pfile, $part))*];
+            parts.join("\n")
         }
     };
 }
