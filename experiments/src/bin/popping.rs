@@ -525,7 +525,11 @@ fn explain_pair(
         // The pair itself.
         let frames: Vec<Rgba8Image> = cameras[p..p + 2]
             .iter()
-            .map(|c| prepared.render(c, &params).map(|f| f.drawn.target.color_image()))
+            .map(|c| {
+                prepared
+                    .render(c, &params)
+                    .map(|f| f.drawn.target.color_image())
+            })
             .collect::<Result<_, _>>()?;
         let pooled: Vec<Rgba8Image> = frames.iter().map(|f| pool(f, k)).collect();
         let (_, excess) = pair_excess(&pooled[0], &pooled[1], &full_map);
@@ -626,7 +630,8 @@ fn explain_pair(
             );
         }
         std::fs::write(
-            args.out.join(format!("explain_pair{pair}_{}.csv", mode.name())),
+            args.out
+                .join(format!("explain_pair{pair}_{}.csv", mode.name())),
             csv,
         )?;
         // The image: both LOD frames and the excess map, on which red circles mark trees that
@@ -643,7 +648,13 @@ fn explain_pair(
             circle(&mut marked, x * s, y * s, (r * s).max(2.0), colour);
         }
         let t = (TILE as u32) * k;
-        rectangle(&mut marked, wx as u32 * t, wy as u32 * t, t, [255, 255, 255, 255]);
+        rectangle(
+            &mut marked,
+            wx as u32 * t,
+            wy as u32 * t,
+            t,
+            [255, 255, 255, 255],
+        );
         let full_change = upscale(&error_image(&full_map, pw as u32, ph as u32), w, h);
         let strip = tile(
             &[
@@ -657,11 +668,16 @@ fn explain_pair(
             3,
         );
         write_png(
-            &args.out.join(format!("explain_pair{pair}_{}.png", mode.name())),
+            &args
+                .out
+                .join(format!("explain_pair{pair}_{}.png", mode.name())),
             &strip,
         )?;
         // The worst tile's surroundings, enlarged: LOD frames on top, full-detail frames below.
-        let (cx, cy) = ((wx as u32 * t + t / 2) as i64, (wy as u32 * t + t / 2) as i64);
+        let (cx, cy) = (
+            (wx as u32 * t + t / 2) as i64,
+            (wy as u32 * t + t / 2) as i64,
+        );
         let zoom = |img: &Rgba8Image| crop_zoom(img, cx, cy, ZOOM_SIDE, ZOOM_FACTOR);
         let zoomed = [
             zoom(&frames[0]),
@@ -670,7 +686,9 @@ fn explain_pair(
             zoom(&full_frames[1]),
         ];
         write_png(
-            &args.out.join(format!("explain_pair{pair}_{}_zoom.png", mode.name())),
+            &args
+                .out
+                .join(format!("explain_pair{pair}_{}_zoom.png", mode.name())),
             &tile(&zoomed.iter().collect::<Vec<_>>(), 2),
         )?;
         let (both, layer, lod) = pair_changes(a, b);
@@ -709,7 +727,11 @@ fn interior_worst_tile(map: &[f32], width: usize, height: usize) -> f64 {
         return 0.0;
     }
     let inner: Vec<f32> = (TILE..(th - 1) * TILE)
-        .flat_map(|y| map[y * width + TILE..y * width + (tw - 1) * TILE].iter().copied())
+        .flat_map(|y| {
+            map[y * width + TILE..y * width + (tw - 1) * TILE]
+                .iter()
+                .copied()
+        })
         .collect();
     worst_tile(&inner, (tw - 2) * TILE, (th - 2) * TILE)
 }
@@ -724,7 +746,10 @@ const ZOOM_FACTOR: u32 = 4;
 fn crop_zoom(img: &Rgba8Image, cx: i64, cy: i64, side: u32, factor: u32) -> Rgba8Image {
     let half = side as i64 / 2;
     Rgba8Image::from_fn(side * factor, side * factor, |x, y| {
-        let (sx, sy) = (cx - half + (x / factor) as i64, cy - half + (y / factor) as i64);
+        let (sx, sy) = (
+            cx - half + (x / factor) as i64,
+            cy - half + (y / factor) as i64,
+        );
         if sx < 0 || sy < 0 || sx >= img.width as i64 || sy >= img.height as i64 {
             [0, 0, 0, 255]
         } else {
@@ -750,7 +775,12 @@ fn circle(img: &mut Rgba8Image, x: f32, y: f32, r: f32, colour: [u8; 4]) {
 fn rectangle(img: &mut Rgba8Image, x: u32, y: u32, side: u32, colour: [u8; 4]) {
     let w = img.width as usize;
     for i in 0..side {
-        for (px, py) in [(x + i, y), (x + i, y + side - 1), (x, y + i), (x + side - 1, y + i)] {
+        for (px, py) in [
+            (x + i, y),
+            (x + i, y + side - 1),
+            (x, y + i),
+            (x + side - 1, y + i),
+        ] {
             if px < img.width && py < img.height {
                 img.texels[py as usize * w + px as usize] = colour;
             }
@@ -891,18 +921,30 @@ mod tests {
         let prepared = prepare(scene.clone(), &params).unwrap();
         let camera = |i| {
             let t = path_fraction("dolly", i, 61);
-            path_camera("dolly", &scene, &params, t, 640, 360).unwrap().0
+            path_camera("dolly", &scene, &params, t, 640, 360)
+                .unwrap()
+                .0
         };
         let a = tree_states(&prepared, &camera(21), &params);
         let b = tree_states(&prepared, &camera(22), &params);
         let (both, layer, crossed) = pair_changes(&a, &b);
-        assert_eq!(both, scene.instances.len(), "every tree is a billboard or fading");
+        assert_eq!(
+            both,
+            scene.instances.len(),
+            "every tree is a billboard or fading"
+        );
         assert_eq!(layer, 0, "billboards changing layer in pair 21");
-        assert!(crossed >= 20, "a band edge crosses {crossed} trees in pair 21");
+        assert!(
+            crossed >= 20,
+            "a band edge crosses {crossed} trees in pair 21"
+        );
         let mut raised = camera(22);
         raised.eye[2] += 15.0;
         let (_, layer, _) = pair_changes(&a, &tree_states(&prepared, &raised, &params));
-        assert!(layer > 1000, "{layer} billboards change layer under a 15 m rise");
+        assert!(
+            layer > 1000,
+            "{layer} billboards change layer under a 15 m rise"
+        );
     }
 
     /// A tree-sized block that changes in the LOD frames only is a pop; the same change in
