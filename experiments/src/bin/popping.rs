@@ -905,8 +905,8 @@ mod tests {
     /// between frames 21 and 22 of the dolly (78.5 m to 77 m before the forest) no billboard
     /// changes baked elevation layer (the eye is 12 m up, the trees 80 to 130 m away: about 1°
     /// of elevation, layer 0 of K = 10, whose first edge is at 5°), while the band's far end
-    /// crosses the front row. With the eye raised 15 m in the second frame most trees change
-    /// layer: the count can see a layer switch.
+    /// crosses the front row. With the eye raised 15 m in the second frame hundreds of trees
+    /// change layer (277): the count can see a layer switch.
     #[test]
     fn the_worst_dolly_pair_changes_no_billboard_layer() {
         let scene = builtin::tiny();
@@ -942,7 +942,7 @@ mod tests {
         raised.eye[2] += 15.0;
         let (_, layer, _) = pair_changes(&a, &tree_states(&prepared, &raised, &params));
         assert!(
-            layer > 1000,
+            layer > 100,
             "{layer} billboards change layer under a 15 m rise"
         );
     }
