@@ -903,8 +903,8 @@ mod tests {
 
     /// The finding of `--explain-pair 21` (`experiments/popping/README.md`, "What it means"):
     /// between frames 21 and 22 of the dolly (78.5 m to 77 m before the forest) no billboard
-    /// changes baked elevation layer (the eye is 12 m up, the trees 80 to 130 m away: about 1°
-    /// of elevation, layer 0 of K = 10, whose first edge is at 5°), while the band's far end
+    /// changes baked elevation layer (the eye is 12 m up, the trees 80 to 130 m away on hills:
+    /// −4.7° to +0.9° of elevation, all layer 0 of K = 10, whose first edge is at +5°), while the band's far end
     /// crosses the front row. With the eye raised 15 m in the second frame hundreds of trees
     /// change layer (277): the count can see a layer switch.
     #[test]
