@@ -108,6 +108,19 @@ impl<'a> DrawUniform<'a> {
     }
 }
 
+/// The baked elevation layer `k` (in `0..K`) a billboard standing at `base` shows to an eye at
+/// `eye`: the angle index ([`forestlod_shared::angle_index_for`], `params`' mode) of `V · U` with
+/// `V` from the tree base to the eye (E Eq. 3.1). The vertex stage's choice, exposed so that
+/// experiments can say which trees change layer between two poses.
+pub fn billboard_layer(base: Vec3, eye: Vec3, params: &Params) -> u32 {
+    let to_eye = eye - base;
+    let v_dot_u = to_eye.z / to_eye.length();
+    let mode = params
+        .angle_mode()
+        .unwrap_or(forestlod_shared::AngleIndexMode::Nearest);
+    angle_index_for(mode, v_dot_u, params.angle_count)
+}
+
 /// The vertex shader: clip position and varyings of vertex `vertex_index` (index value plus
 /// `base_vertex`) of instance `instance_index` (plus `first_instance`). `None` when the tree is
 /// discarded by the draw distance (the GPU twin emits a degenerate position instead).
@@ -154,12 +167,8 @@ pub fn vertex_stage(
         let corner =
             res.geometry.vertices[(res.geometry.billboard.first_vertex + local) as usize].uv;
         let to_eye = eye - tree.base;
-        let v_dot_u = to_eye.z / to_eye.length();
         let k_count = params.angle_count;
-        let mode = params
-            .angle_mode()
-            .unwrap_or(forestlod_shared::AngleIndexMode::Nearest);
-        let k = angle_index_for(mode, v_dot_u, k_count);
+        let k = billboard_layer(tree.base, eye, params);
         let elevation = bake_elevation(k, k_count);
         let mut h = Vec3::new(to_eye.x, to_eye.y, 0.0);
         if h.length_squared() < 1e-12 {
