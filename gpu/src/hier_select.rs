@@ -14,15 +14,13 @@
 use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
-use forestlod_shared::{
-    Camera, MAX_COMMANDS, MeshMeta, NodeMeta, Params, SelectCounters, ViewUniform,
-};
+use forestlod_shared::{Camera, MeshMeta, NodeMeta, Params, SelectCounters, ViewUniform};
 
 use crate::context::{
     Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
 };
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
-use crate::select::{GpuSelection, SelectBuffers, check_mesh_indices};
+use crate::select::{GpuSelection, SelectBuffers, check_command_capacity, check_mesh_indices};
 use crate::{GpuContext, GpuError};
 
 /// Invocations per workgroup of the per-node passes (generated into `hier_select.wgsl`).
@@ -99,14 +97,11 @@ impl<'a> GpuHierSelect<'a> {
             nodes.iter().map(|n| n.mesh),
             meshes.len(),
         )?;
-        let capacity = nodes.len().saturating_mul(2);
-        if capacity > MAX_COMMANDS as usize {
-            return Err(GpuError::Input {
-                field: "nodes",
-                value: nodes.len().to_string(),
-                reason: "two commands per node exceed MAX_COMMANDS (base_vertex is an i32)",
-            });
-        }
+        let capacity = check_command_capacity(
+            "nodes",
+            nodes.len(),
+            "two commands per node exceed MAX_COMMANDS (base_vertex is an i32)",
+        )?;
         let pipelines = ctx.pipelines::<HierSelectPipelines>()?;
         use wgpu::BufferUsages as U;
         let n = (nodes.len() as u64).max(1);

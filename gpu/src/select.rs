@@ -224,6 +224,25 @@ impl SelectBuffers {
     }
 }
 
+/// Refuses `count` selectable items (batches, hierarchy nodes) whose two commands each (LOD0 and
+/// LOD1) could exceed [`MAX_COMMANDS`], naming `field` and `reason`; else the command capacity,
+/// two per item.
+pub(crate) fn check_command_capacity(
+    field: &'static str,
+    count: usize,
+    reason: &'static str,
+) -> Result<usize, GpuError> {
+    let capacity = count.saturating_mul(2);
+    if capacity > MAX_COMMANDS as usize {
+        return Err(GpuError::Input {
+            field,
+            value: count.to_string(),
+            reason,
+        });
+    }
+    Ok(capacity)
+}
+
 /// Fails with [`GpuError::Input`] on `field` (`"{item}.mesh"`) at the first `item` whose mesh
 /// index (`mesh_indices`, in order) is not below `mesh_count`.
 pub(crate) fn check_mesh_indices(
@@ -292,14 +311,11 @@ impl<'a> GpuSelect<'a> {
             batches.iter().map(|b| b.mesh),
             meshes.len(),
         )?;
-        let capacity = batches.len().saturating_mul(2);
-        if capacity > MAX_COMMANDS as usize {
-            return Err(GpuError::Input {
-                field: "batches",
-                value: batches.len().to_string(),
-                reason: "two commands per batch exceed MAX_COMMANDS (base_vertex is an i32)",
-            });
-        }
+        let capacity = check_command_capacity(
+            "batches",
+            batches.len(),
+            "two commands per batch exceed MAX_COMMANDS (base_vertex is an i32)",
+        )?;
         let pipelines = ctx.pipelines::<SelectPipelines>()?;
         use wgpu::BufferUsages as U;
         let n = batches.len() as u64;
