@@ -14,8 +14,15 @@
 //!     perspective-correct varyings compute);
 //!   - beyond both, the sky colour [`SKY_SRGB`].
 //! - **Rays** are traced with the [obvhs](https://docs.rs/obvhs) crate: one compressed wide BVH
-//!   (CWBVH, PLOC build) over every triangle of the scene, built once per scene
-//!   ([`GroundTruthScene::build`]) and reused for every camera. A ray from the eye through a point
+//!   (CWBVH, PLOC build) per scene, built once ([`GroundTruthScene::build`]) and reused for every
+//!   camera. Its primitives are [`TruthLayout`]'s clusters: at most `max_triangles` (default 2)
+//!   consecutive triangles of one tree, boxed together, and each ground triangle alone; a leaf
+//!   tests every triangle of its cluster. Whatever the cluster size, the same world-space
+//!   triangles are tested with the same intersection and the same tie rule, so the image is the
+//!   same bit for bit (a unit test checks sizes 1, 2, 4 and whole trees). One primitive per
+//!   triangle (the first design) peaked at 5.2 GB and built in 51 s on `stress`; two per
+//!   primitive peak at 3.0 GB, build in 22 s and trace no slower (`truth_bench`,
+//!   `experiments/truth_bvh/README.md`). A ray from the eye through a point
 //!   of the image plane has direction `forward + x·right + y·up` (not normalized), so its parameter
 //!   `t` **is** the view depth, and the interval `[near, far]` is the rasterizer's near/far clip.
 //! - **Alpha test as an any-hit filter**: the intersection callback obvhs calls for every
@@ -38,6 +45,7 @@
 use forestlod_shared::Camera;
 use glam::Vec3A;
 use obvhs::BvhBuildParams;
+use obvhs::aabb::Aabb;
 use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::ray::{Ray, RayHit};
@@ -54,13 +62,6 @@ use crate::texture::{Rgba8Image, linear_to_srgb, srgb_to_linear};
 /// crown card's partially covered pixels then get their coverage to 1/16, well under the FLIP and
 /// coverage differences the LOD variants show.
 pub const DEFAULT_SAMPLES_PER_AXIS: u32 = 4;
-
-/// Bits of a packed triangle id that hold the triangle's index within its mesh (meshes have at most
-/// [`crate::scene::MAX_TREE_TRIANGLES`] = 19 < 32 triangles).
-const LOCAL_BITS: u32 = 5;
-const _: () = assert!(crate::scene::MAX_TREE_TRIANGLES < 1 << LOCAL_BITS);
-/// Packed ids at or above this are ground triangles (`GROUND_BASE + k`).
-const GROUND_BASE: u32 = 0xF000_0000;
 
 /// What a ray (or a pixel) sees.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -88,15 +89,46 @@ pub struct TraceHit {
     pub color: [f32; 3],
 }
 
+/// What the ground truth's BVH holds as primitives (module docs): clusters of at most
+/// `max_triangles` consecutive triangles of one tree (in mesh index order), and each ground
+/// triangle alone. The image does not depend on it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TruthLayout {
+    /// Triangles per cluster at most, >= 1; 1 is one primitive per triangle (the first design).
+    pub max_triangles: u32,
+}
+
+impl TruthLayout {
+    /// One primitive per triangle: the first design, kept to check and measure the default by.
+    pub const TRIANGLES: Self = Self { max_triangles: 1 };
+    /// One primitive per tree ([`crate::scene::MAX_TREE_TRIANGLES`] covers every mesh).
+    pub const TREES: Self = Self {
+        max_triangles: crate::scene::MAX_TREE_TRIANGLES as u32,
+    };
+}
+
+impl Default for TruthLayout {
+    /// Two triangles per primitive: traces as fast as one per triangle (or faster), builds in half
+    /// the time and peaks at ~0.6x the memory; one per tree would halve the memory again but
+    /// traces up to 1.2x slower on `patchy` (`truth_bench`, `experiments/truth_bvh/README.md`).
+    fn default() -> Self {
+        Self { max_triangles: 2 }
+    }
+}
+
 /// The BVH and shading data of one scene, built once and traced for any camera.
 pub struct GroundTruthScene {
     bvh: CwBvh,
-    /// Triangles in BVH leaf order (`bvh.primitive_indices` applied), for cache-friendly tests.
+    layout: TruthLayout,
+    /// Every triangle in scene order: trees in instance order, each its mesh's triangles in index
+    /// order, then the ground.
     triangles: Vec<BvhTriangle>,
-    /// Packed ids in the same order (tree index << [`LOCAL_BITS`] | local triangle, or ground).
-    ids: Vec<u32>,
-    /// Scene-order index of each leaf-order triangle.
-    scene_index: Vec<u32>,
+    /// Scene index of tree `i`'s first triangle; `tree_first[n]` = the tree triangle count.
+    tree_first: Vec<u32>,
+    /// Scene index of each cluster's first triangle, and one past the last cluster's last.
+    cluster_first: Vec<u32>,
+    /// The tree of each cluster.
+    cluster_tree: Vec<u32>,
     /// Tree mesh index per tree.
     tree_mesh: Vec<u32>,
     /// Per mesh: uvs of each triangle's three corners.
@@ -106,7 +138,6 @@ pub struct GroundTruthScene {
     /// Ground vertex colours per ground triangle (linear RGB at each corner).
     ground_colors: Vec<[[f32; 3]; 3]>,
     alpha_cutoff: f32,
-    tree_triangle_count: usize,
     build_seconds: f64,
 }
 
@@ -181,23 +212,22 @@ pub fn terrain_vertex(scene: &Scene, i: u32, j: u32) -> ([f32; 3], [f32; 3]) {
 }
 
 impl GroundTruthScene {
-    /// Builds the BVH over every tree triangle and the ground of a validated scene.
-    /// `alpha_cutoff` is the alpha test's reference (`Params::alpha_cutoff`).
+    /// Builds the BVH over every tree triangle and the ground of a validated scene, one primitive
+    /// per tree ([`TruthLayout::TREES`]). `alpha_cutoff` is the alpha test's reference
+    /// (`Params::alpha_cutoff`).
     pub fn build(scene: &Scene, alpha_cutoff: f32) -> Result<Self, InputError> {
+        Self::build_with(scene, alpha_cutoff, TruthLayout::default())
+    }
+
+    /// [`GroundTruthScene::build`] with the BVH's primitives chosen by `layout`; the images are the
+    /// same whatever the layout (module docs).
+    pub fn build_with(
+        scene: &Scene,
+        alpha_cutoff: f32,
+        layout: TruthLayout,
+    ) -> Result<Self, InputError> {
         let start = std::time::Instant::now();
         scene.validate(&scene.name)?;
-        if scene.instances.len() >= (GROUND_BASE >> LOCAL_BITS) as usize {
-            return Err(InputError::new(
-                scene.name.clone(),
-                "instances",
-                scene.instances.len(),
-                format!(
-                    "the ground truth packs tree ids in {} bits: at most {} trees",
-                    32 - LOCAL_BITS,
-                    GROUND_BASE >> LOCAL_BITS
-                ),
-            ));
-        }
         let mesh_tris: Vec<Vec<[[f32; 3]; 3]>> = scene
             .meshes
             .iter()
@@ -208,6 +238,24 @@ impl GroundTruthScene {
                     .collect()
             })
             .collect();
+        // Scene indices are u32: the trees' and the ground's triangles must fit.
+        let tree_triangle_total: u64 = scene
+            .instances
+            .iter()
+            .map(|t| mesh_tris[t.mesh as usize].len() as u64)
+            .sum();
+        let ground_triangles = 2 * u64::from(TERRAIN_CELLS) * u64::from(TERRAIN_CELLS);
+        if tree_triangle_total + ground_triangles > u64::from(u32::MAX) {
+            return Err(InputError::new(
+                scene.name.clone(),
+                "instances",
+                scene.instances.len(),
+                format!(
+                    "the ground truth indexes triangles in 32 bits: {tree_triangle_total} tree \
+                     triangles are too many"
+                ),
+            ));
+        }
         let mesh_uvs: Vec<Vec<[[f32; 2]; 3]>> = scene
             .meshes
             .iter()
@@ -234,39 +282,48 @@ impl GroundTruthScene {
             .collect::<Result<Vec<_>, _>>()?;
 
         // Tree triangles in scene order, placed as the vertex stage places them.
-        let per_tree: Vec<(Vec<BvhTriangle>, Vec<u32>)> = scene
-            .instances
-            .par_iter()
-            .enumerate()
-            .map(|(i, t)| {
+        let mut tree_first = Vec::with_capacity(scene.instances.len() + 1);
+        let mut first = 0u32;
+        for t in &scene.instances {
+            tree_first.push(first);
+            first += mesh_tris[t.mesh as usize].len() as u32;
+        }
+        tree_first.push(first);
+        let tree_triangle_count = first as usize;
+        let mut triangles = vec![
+            BvhTriangle {
+                v0: Vec3A::ZERO,
+                v1: Vec3A::ZERO,
+                v2: Vec3A::ZERO,
+            };
+            tree_triangle_count
+        ];
+        // Each tree writes its own disjoint range, so the result is thread-independent.
+        let mut ranges: Vec<&mut [BvhTriangle]> = Vec::with_capacity(scene.instances.len());
+        let mut rest = triangles.as_mut_slice();
+        for w in tree_first.windows(2) {
+            let (head, tail) = rest.split_at_mut((w[1] - w[0]) as usize);
+            ranges.push(head);
+            rest = tail;
+        }
+        ranges
+            .into_par_iter()
+            .zip(scene.instances.par_iter())
+            .for_each(|(out, t)| {
                 let (s, c) = t.yaw.sin_cos();
                 let place = |p: [f32; 3]| {
                     let p = glam::Vec3::from(p) * t.scale;
                     let rotated = glam::Vec3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
                     Vec3A::from(glam::Vec3::from(t.position) + rotated)
                 };
-                let tris = &mesh_tris[t.mesh as usize];
-                let out = tris
-                    .iter()
-                    .map(|tri| BvhTriangle {
+                for (o, tri) in out.iter_mut().zip(&mesh_tris[t.mesh as usize]) {
+                    *o = BvhTriangle {
                         v0: place(tri[0]),
                         v1: place(tri[1]),
                         v2: place(tri[2]),
-                    })
-                    .collect();
-                let ids = (0..tris.len() as u32)
-                    .map(|k| ((i as u32) << LOCAL_BITS) | k)
-                    .collect();
-                (out, ids)
-            })
-            .collect();
-        let mut triangles = Vec::new();
-        let mut ids = Vec::new();
-        for (t, i) in per_tree {
-            triangles.extend(t);
-            ids.extend(i);
-        }
-        let tree_triangle_count = triangles.len();
+                    };
+                }
+            });
         // The ground grid, in terrain_triangles' order: (a, b, c) and (a, c, d) per cell.
         let mut ground_colors = Vec::new();
         for j in 0..TERRAIN_CELLS {
@@ -276,7 +333,6 @@ impl GroundTruthScene {
                 let c = terrain_vertex(scene, i + 1, j + 1);
                 let d = terrain_vertex(scene, i, j + 1);
                 for (p, q, r) in [(a, b, c), (a, c, d)] {
-                    ids.push(GROUND_BASE + ground_colors.len() as u32);
                     triangles.push(BvhTriangle {
                         v0: Vec3A::from(p.0),
                         v1: Vec3A::from(q.0),
@@ -286,50 +342,75 @@ impl GroundTruthScene {
                 }
             }
         }
+        // Clusters of at most `max_triangles` consecutive triangles of one tree.
+        let max = layout.max_triangles.max(1);
+        let mut cluster_first = Vec::new();
+        let mut cluster_tree = Vec::new();
+        for (tree, w) in tree_first.windows(2).enumerate() {
+            for first in (w[0]..w[1]).step_by(max as usize) {
+                cluster_first.push(first);
+                cluster_tree.push(tree as u32);
+            }
+        }
+        cluster_first.push(first);
+        let boxes: Vec<Aabb> = cluster_first
+            .par_windows(2)
+            .map(|w| {
+                triangles[w[0] as usize..w[1] as usize]
+                    .iter()
+                    .fold(Aabb::INVALID, |b, t| b.union(&t.aabb()))
+            })
+            .chain(
+                triangles[tree_triangle_count..]
+                    .par_iter()
+                    .map(|t| t.aabb()),
+            )
+            .collect();
         let bvh = build_cwbvh(
-            &triangles,
+            &boxes,
             BvhBuildParams::fast_build(),
             &mut std::time::Duration::default(),
         );
-        let ordered: Vec<BvhTriangle> = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| triangles[i as usize])
-            .collect();
-        let ordered_ids: Vec<u32> = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| ids[i as usize])
-            .collect();
-        let scene_index = bvh.primitive_indices.clone();
+        drop(boxes);
         Ok(Self {
             bvh,
-            triangles: ordered,
-            ids: ordered_ids,
-            scene_index,
+            layout,
+            triangles,
+            tree_first,
+            cluster_first,
+            cluster_tree,
             tree_mesh: scene.instances.iter().map(|t| t.mesh).collect(),
             mesh_uvs,
             textures,
             ground_colors,
             alpha_cutoff,
-            tree_triangle_count,
             build_seconds: start.elapsed().as_secs_f64(),
         })
     }
 
-    /// Triangles in the BVH (trees and ground).
+    /// The BVH's primitives.
+    pub fn layout(&self) -> TruthLayout {
+        self.layout
+    }
+
+    /// Triangles in the scene (trees and ground).
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
     }
 
-    /// Tree triangles in the BVH.
+    /// Tree triangles in the scene.
     pub fn tree_triangle_count(&self) -> usize {
-        self.tree_triangle_count
+        *self.tree_first.last().expect("n + 1 entries") as usize
     }
 
-    /// Bytes this scene's truth holds: the BVH's nodes and index, the leaf-order triangles, ids
-    /// and scene indices, the per-tree mesh ids, uvs, level-0 textures and ground colours (the
-    /// truth's memory cost; allocator slack not counted).
+    /// Primitives in the BVH: one per tree and ground triangle, or one per triangle.
+    pub fn primitive_count(&self) -> usize {
+        self.bvh.primitive_indices.len()
+    }
+
+    /// Bytes this scene's truth holds: the BVH's nodes and index, the triangles, the per-tree
+    /// ranges and mesh ids, uvs, level-0 textures and ground colours (the truth's memory cost;
+    /// allocator slack and the build's transient memory not counted).
     pub fn memory_bytes(&self) -> u64 {
         let bytes = |n: usize, each: usize| (n * each) as u64;
         bytes(
@@ -337,8 +418,9 @@ impl GroundTruthScene {
             size_of::<obvhs::cwbvh::node::CwBvhNode>(),
         ) + bytes(self.bvh.primitive_indices.len(), 4)
             + bytes(self.triangles.len(), size_of::<BvhTriangle>())
-            + bytes(self.ids.len(), 4)
-            + bytes(self.scene_index.len(), 4)
+            + bytes(self.tree_first.len(), 4)
+            + bytes(self.cluster_first.len(), 4)
+            + bytes(self.cluster_tree.len(), 4)
             + bytes(self.tree_mesh.len(), 4)
             + self
                 .mesh_uvs
@@ -361,20 +443,26 @@ impl GroundTruthScene {
     /// Every triangle in scene order (trees in instance order, each its mesh's triangles in index
     /// order, then the ground): what the Embree cross-check loads.
     pub fn triangles(&self) -> Vec<[[f32; 3]; 3]> {
-        let mut out = vec![[[0.0; 3]; 3]; self.triangles.len()];
-        for (tri, &i) in self.triangles.iter().zip(&self.scene_index) {
-            out[i as usize] = [tri.v0.to_array(), tri.v1.to_array(), tri.v2.to_array()];
-        }
-        out
+        self.triangles
+            .iter()
+            .map(|t| [t.v0.to_array(), t.v1.to_array(), t.v2.to_array()])
+            .collect()
     }
 
-    /// The uv of a tree hit.
-    fn tree_uv(&self, id: u32, u: f32, v: f32) -> (u32, [f32; 2]) {
-        let tree = id >> LOCAL_BITS;
-        let local = id & ((1 << LOCAL_BITS) - 1);
+    /// The texture coordinate of a hit on tree `tree`'s scene triangle `index`, and its mesh.
+    fn tree_uv(&self, tree: u32, index: u32, u: f32, v: f32) -> (u32, [f32; 2]) {
+        let local = index - self.tree_first[tree as usize];
         let mesh = self.tree_mesh[tree as usize];
         let uvs = &self.mesh_uvs[mesh as usize][local as usize];
         (mesh, lerp3(uvs, u, v))
+    }
+
+    /// The tree of a tree triangle (`None` for the ground); once per traced ray (its colour).
+    fn tree_of(&self, index: u32) -> Option<u32> {
+        if index as usize >= self.tree_triangle_count() {
+            return None;
+        }
+        Some((self.tree_first.partition_point(|&f| f <= index) - 1) as u32)
     }
 
     /// Nearest hit in `[tmin, tmax]` along `origin + t·direction`. With `alpha_test`, tree hits
@@ -389,40 +477,55 @@ impl GroundTruthScene {
         alpha_test: bool,
     ) -> Option<TraceHit> {
         let ray = Ray::new(Vec3A::from(origin), Vec3A::from(direction), tmin, tmax);
-        // Best (t, scene index, leaf index), ties to the lowest scene index.
-        let mut best: Option<(f32, u32, usize, f32, f32)> = None;
-        let mut hit = RayHit::none();
-        self.bvh.ray_traverse(ray, &mut hit, |r, leaf| {
-            let Some((t, u, v)) = intersect_triangle(&self.triangles[leaf], r) else {
+        // Best (t, scene index, u, v), ties to the lowest scene index.
+        let mut best: Option<(f32, u32, f32, f32)> = None;
+        // Tests scene triangle `index` (of tree `tree`, or the ground), keeps it when it is the
+        // best so far, and returns its `t` (infinity when it is missed or alpha-rejected).
+        let mut test = |r: &Ray, index: u32, tree: Option<u32>| -> f32 {
+            let Some((t, u, v)) = intersect_triangle(&self.triangles[index as usize], r) else {
                 return f32::INFINITY;
             };
-            let id = self.ids[leaf];
-            if alpha_test && id < GROUND_BASE {
-                let (mesh, uv) = self.tree_uv(id, u, v);
+            if let (true, Some(tree)) = (alpha_test, tree) {
+                let (mesh, uv) = self.tree_uv(tree, index, u, v);
                 let alpha = self.textures[mesh as usize].bilinear(0, 0, uv)[3];
                 if alpha < self.alpha_cutoff {
                     return f32::INFINITY;
                 }
             }
-            let scene_index = self.scene_index[leaf];
             let better = match best {
                 None => true,
-                Some((bt, bi, ..)) => t < bt || (t == bt && scene_index < bi),
+                Some((bt, bi, ..)) => t < bt || (t == bt && index < bi),
             };
             if better {
-                best = Some((t, scene_index, leaf, u, v));
+                best = Some((t, index, u, v));
             }
             t
+        };
+        let mut hit = RayHit::none();
+        let clusters = self.cluster_tree.len();
+        let ground_first = self.tree_triangle_count();
+        self.bvh.ray_traverse(ray, &mut hit, |r, leaf| {
+            let p = self.bvh.primitive_indices[leaf] as usize;
+            if p >= clusters {
+                return test(r, (ground_first + p - clusters) as u32, None);
+            }
+            // Every triangle of the cluster, each against the same ray: the candidates and the
+            // tie rule are those of one primitive per triangle.
+            let tree = self.cluster_tree[p];
+            (self.cluster_first[p]..self.cluster_first[p + 1])
+                .fold(f32::INFINITY, |m, i| m.min(test(r, i, Some(tree))))
         });
-        let (t, triangle, leaf, u, v) = best?;
-        let id = self.ids[leaf];
-        let (class, color) = if id >= GROUND_BASE {
-            let c = &self.ground_colors[(id - GROUND_BASE) as usize];
-            (PixelClass::Ground, lerp3(c, u, v))
-        } else {
-            let (mesh, uv) = self.tree_uv(id, u, v);
-            let texel = self.textures[mesh as usize].bilinear(0, 0, uv);
-            (PixelClass::Tree, [texel[0], texel[1], texel[2]])
+        let (t, triangle, u, v) = best?;
+        let (class, color) = match self.tree_of(triangle) {
+            None => {
+                let c = &self.ground_colors[triangle as usize - ground_first];
+                (PixelClass::Ground, lerp3(c, u, v))
+            }
+            Some(tree) => {
+                let (mesh, uv) = self.tree_uv(tree, triangle, u, v);
+                let texel = self.textures[mesh as usize].bilinear(0, 0, uv);
+                (PixelClass::Tree, [texel[0], texel[1], texel[2]])
+            }
         };
         Some(TraceHit {
             t,
@@ -431,7 +534,6 @@ impl GroundTruthScene {
             color,
         })
     }
-
     /// Renders the ground truth for a camera with `samples_per_axis`² samples per pixel (module
     /// docs). The camera must be valid.
     pub fn render(&self, camera: &Camera, samples_per_axis: u32) -> GroundTruthImage {
@@ -617,6 +719,80 @@ mod tests {
                     k += 1;
                 }
             }
+        }
+    }
+
+    /// The per-tree BVH (the default) and the per-triangle one give the same images and the same
+    /// hits, bit for bit: both test the same triangles with the same tie rule (module docs).
+    #[test]
+    fn the_tree_and_triangle_layouts_trace_the_same_hits() {
+        use crate::cameras::named_camera;
+        for scene in [builtin::pair(), builtin::tiny()] {
+            let tris = GroundTruthScene::build_with(&scene, 0.5, TruthLayout::TRIANGLES).unwrap();
+            let default = GroundTruthScene::build(&scene, 0.5).unwrap();
+            assert_eq!(default.layout(), TruthLayout::default());
+            let trees = GroundTruthScene::build_with(&scene, 0.5, TruthLayout::TREES).unwrap();
+            let fours = TruthLayout { max_triangles: 4 };
+            let fours = GroundTruthScene::build_with(&scene, 0.5, fours).unwrap();
+            assert_eq!(trees.triangles(), tris.triangles());
+            assert_eq!(tris.primitive_count(), tris.triangle_count());
+            assert_eq!(
+                trees.primitive_count(),
+                scene.instances.len() + trees.triangle_count() - trees.tree_triangle_count()
+            );
+            assert!(fours.primitive_count() > trees.primitive_count());
+            let mut tree_pixels = 0;
+            let mut cameras: Vec<(String, Camera)> =
+                [("far", 0.0), ("medium", 30.0), ("close", 200.0)]
+                    .iter()
+                    .map(|(n, yaw)| {
+                        (
+                            n.to_string(),
+                            named_camera(n, &scene, *yaw, 40, 24).unwrap(),
+                        )
+                    })
+                    .collect();
+            // Looking at the first tree from 40 m, so both scenes show trees.
+            let p = scene.instances[0].position;
+            let eye = [p[0] - 30.0, p[1] - 25.0, p[2] + 10.0];
+            let at = [p[0], p[1], p[2] + 8.0];
+            cameras.push(("tree".into(), Camera::look_at(eye, at, 60.0, 40, 24)));
+            for (name, camera) in cameras {
+                let b = tris.render(&camera, 2);
+                for other in [&default, &trees, &fours] {
+                    let a = other.render(&camera, 2);
+                    let differing = (0..a.linear.len())
+                        .filter(|&i| a.linear[i] != b.linear[i] || a.class[i] != b.class[i])
+                        .count();
+                    assert!(
+                        a == b,
+                        "{} {name}: {differing} pixels differ between {:?} and one triangle per \
+                         primitive",
+                        scene.name,
+                        other.layout()
+                    );
+                }
+                let a = trees.render(&camera, 2);
+                tree_pixels += a.class.iter().filter(|c| **c == PixelClass::Tree).count();
+                for y in 0..24 {
+                    for x in 0..40 {
+                        let (o, d) = primary_ray(&camera, x as f32 + 0.3, y as f32 + 0.7);
+                        for alpha in [false, true] {
+                            let expected = tris.trace(o, d, camera.near, camera.far, alpha);
+                            for other in [&trees, &fours] {
+                                assert_eq!(
+                                    other.trace(o, d, camera.near, camera.far, alpha),
+                                    expected,
+                                    "{} {name} ({x}, {y}) alpha {alpha} {:?}",
+                                    scene.name,
+                                    other.layout()
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+            assert!(tree_pixels > 0, "{}: no tree seen", scene.name);
         }
     }
 
