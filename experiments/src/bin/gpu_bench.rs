@@ -42,6 +42,11 @@ struct Args {
     /// Output folder.
     #[arg(long, default_value = "out/gpu_bench")]
     out: PathBuf,
+    /// Skip the reference's draw (its selection is still timed): for large frames on a real GPU,
+    /// where the reference would take minutes per frame (`scripts/gpu-check`). Its columns are
+    /// then empty.
+    #[arg(long)]
+    no_reference: bool,
 }
 
 /// GPU seconds spent by the commands `record` adds to an encoder, from timestamps written by empty
@@ -180,29 +185,40 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 median_opt(ts_select.split_off(1)),
                 median_opt(ts_draw.split_off(1)),
             );
-            let frame = prepared.render(&camera, &params)?;
-            let (ref_select, ref_draw) = (frame.timings.select, frame.timings.draw);
+            let (commands, ref_select, ref_draw) = if args.no_reference {
+                let start = Instant::now();
+                let selection = prepared.select(&camera, &params);
+                let seconds = start.elapsed().as_secs_f64();
+                (selection.counters.commands, seconds, None)
+            } else {
+                let frame = prepared.render(&camera, &params)?;
+                let counters = frame.selection.counters;
+                (
+                    counters.commands,
+                    frame.timings.select,
+                    Some(frame.timings.draw),
+                )
+            };
             println!(
-                "{name}/{camera_name}: {} commands | select ref {:.3} ms, gpu stable {:.3} ms (timestamps {:?} ms), atomic {:.3} ms | draw ref {:.1} ms, gpu {:.1} ms (timestamps {:?} ms)",
-                frame.selection.counters.commands,
+                "{name}/{camera_name}: {commands} commands | select ref {:.3} ms, gpu stable {:.3} ms (timestamps {:?} ms), atomic {:.3} ms | draw ref {:?} ms, gpu {:.1} ms (timestamps {:?} ms)",
                 ref_select * 1e3,
                 select_stable * 1e3,
                 ts_select.map(|s| s * 1e3),
                 select_atomic * 1e3,
-                ref_draw * 1e3,
+                ref_draw.map(|s| s * 1e3),
                 gpu_draw * 1e3,
                 ts_draw.map(|s| s * 1e3)
             );
             csv.push_str(&format!(
-                "\"{}\",{name},{camera_name},{},{},{},{ref_select:.6},{select_stable:.6},{select_atomic:.6},{ref_draw:.6},{gpu_draw:.6},{},{},{:.3},{:.3}\n",
+                "\"{}\",{name},{camera_name},{},{},{commands},{ref_select:.6},{select_stable:.6},{select_atomic:.6},{},{gpu_draw:.6},{},{},{:.3},{}\n",
                 ctx.info.name.replace(',', ";"),
                 args.width,
                 args.height,
-                frame.selection.counters.commands,
+                fmt_opt(ref_draw),
                 fmt_opt(ts_select),
                 fmt_opt(ts_draw),
                 ref_select / select_stable,
-                ref_draw / gpu_draw
+                ref_draw.map_or_else(String::new, |d| format!("{:.3}", d / gpu_draw))
             ));
         }
     }
