@@ -213,6 +213,9 @@ pub struct TreeShader<'a> {
     selection: &'a Selection,
     fade: FadeMode,
     alpha_cutoff: f32,
+    /// `Camera::pixel_origin`: the frame pixel of the viewport's (0, 0) (a tile camera's is
+    /// non-zero); the dither threshold is the frame pixel's.
+    pixel_origin: [u32; 2],
 }
 
 impl TreeShader<'_> {
@@ -239,7 +242,7 @@ impl TreeShader<'_> {
                 depth,
                 data.fade_start,
                 data.fade_end,
-                dither_threshold(f.x, f.y),
+                dither_threshold(f.x + self.pixel_origin[0], f.y + self.pixel_origin[1]),
             )
             .of(data.lod)
         } else {
@@ -379,6 +382,7 @@ pub fn draw_frame_cutoffs(
             selection,
             fade: params.fade().unwrap_or(FadeMode::Alpha),
             alpha_cutoff,
+            pixel_origin: camera.pixel_origin(),
         })
         .collect();
     let closures: Vec<_> = shaders
