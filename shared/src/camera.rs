@@ -317,8 +317,23 @@ impl FrustumPlanes {
         let m = crate::selection_margin(rel, radius);
         self.planes
             .iter()
-            .all(|p| p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3] >= -radius - m)
+            .all(|p| sphere_inside_plane(p, rel, radius, m))
     }
+
+    /// Per plane (left, right, bottom, top, near, far): whether the sphere is outside it, by the
+    /// test of [`FrustumPlanes::sphere_visible`] (which is "outside none"). For threshold
+    /// coverage (`crate::coverage`).
+    pub fn sphere_outside_planes(&self, center: [f32; 3], radius: f32, eye: [f32; 3]) -> [bool; 6] {
+        let rel = [center[0] - eye[0], center[1] - eye[1], center[2] - eye[2]];
+        let m = crate::selection_margin(rel, radius);
+        self.planes.map(|p| !sphere_inside_plane(&p, rel, radius, m))
+    }
+}
+
+/// The sphere's plane test: `n · (c - e) + w >= -r - margin`.
+#[inline(always)]
+fn sphere_inside_plane(p: &[f32; 4], rel: [f32; 3], radius: f32, m: f32) -> bool {
+    p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3] >= -radius - m
 }
 
 impl FrustumPlanes {
