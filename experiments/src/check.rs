@@ -129,7 +129,11 @@ pub fn random_case(seed: u64, index: u64) -> Case {
     let (eye, forward) = if r.u(0, 2) == 0 {
         let (yaw, pitch) = (r.f(0.0, 360.0).to_radians(), r.f(-89.0, 30.0).to_radians());
         (
-            [r.f(-4000.0, 4000.0), r.f(-4000.0, 4000.0), r.f(-10.0, 1500.0)],
+            [
+                r.f(-4000.0, 4000.0),
+                r.f(-4000.0, 4000.0),
+                r.f(-10.0, 1500.0),
+            ],
             [
                 yaw.cos() * pitch.cos(),
                 yaw.sin() * pitch.cos(),
@@ -146,7 +150,11 @@ pub fn random_case(seed: u64, index: u64) -> Case {
         );
         let dir = [az.cos() * el.cos(), az.sin() * el.cos(), el.sin()];
         (
-            [t[0] + d * dir[0], t[1] + d * dir[1], t[2] + 5.0 + d * dir[2]],
+            [
+                t[0] + d * dir[0],
+                t[1] + d * dir[1],
+                t[2] + 5.0 + d * dir[2],
+            ],
             [-dir[0], -dir[1], -dir[2]],
         )
     };
@@ -239,7 +247,11 @@ impl Case {
                 .and_then(|t| t.get(key))
                 .and_then(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
                 .ok_or_else(|| {
-                    io(&path, format!("field {table}.{key}: missing or not a number")).into()
+                    io(
+                        &path,
+                        format!("field {table}.{key}: missing or not a number"),
+                    )
+                    .into()
                 })
         };
         let vec3 = |key: &str| -> Result<[f64; 3]> {
@@ -264,7 +276,12 @@ impl Case {
         let text = std::fs::read_to_string(&csv).map_err(|e| io(&csv, e))?;
         let mut rows = Vec::new();
         for (n, line) in text.lines().enumerate().skip(1) {
-            let bad = || io(&csv, format!("line {}: expected x,y,z,yaw,scale,species", n + 1));
+            let bad = || {
+                io(
+                    &csv,
+                    format!("line {}: expected x,y,z,yaw,scale,species", n + 1),
+                )
+            };
             let cols: Vec<&str> = line.split(',').collect();
             if cols.len() != 6 {
                 return Err(bad().into());
@@ -459,16 +476,22 @@ pub fn run(args: &CheckArgs) -> Result<u8> {
         });
     }
     std::fs::create_dir_all(&args.out).map_err(|e| io(&args.out, e))?;
-    let limit = args
-        .cases
-        .unwrap_or(if args.seconds.is_some() { u64::MAX } else { 1000 });
+    let limit = args.cases.unwrap_or(if args.seconds.is_some() {
+        u64::MAX
+    } else {
+        1000
+    });
     let started = Instant::now();
     let mut done = 0u64;
     let mut skipped = 0u64;
     let mut index = 0u64;
     let mut last_progress = Instant::now();
     let mut failure = None;
-    while done < limit && args.seconds.is_none_or(|s| started.elapsed().as_secs_f64() < s) {
+    while done < limit
+        && args
+            .seconds
+            .is_none_or(|s| started.elapsed().as_secs_f64() < s)
+    {
         let case = random_case(args.seed, index);
         index += 1;
         match run_case(ctx, &case, &scratch) {

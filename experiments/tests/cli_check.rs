@@ -37,7 +37,10 @@ fn random_cases_pass_and_report_their_rate() {
     let t = text(&o);
     assert_eq!(o.status.code(), Some(0), "{t}");
     assert!(t.contains("check (select, seed 1): 8 cases in"), "{t}");
-    assert!(t.contains("cases/min") && t.contains("every case passed"), "{t}");
+    assert!(
+        t.contains("cases/min") && t.contains("every case passed"),
+        "{t}"
+    );
 }
 
 #[test]

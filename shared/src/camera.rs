@@ -326,7 +326,8 @@ impl FrustumPlanes {
     pub fn sphere_outside_planes(&self, center: [f32; 3], radius: f32, eye: [f32; 3]) -> [bool; 6] {
         let rel = [center[0] - eye[0], center[1] - eye[1], center[2] - eye[2]];
         let m = crate::selection_margin(rel, radius);
-        self.planes.map(|p| !sphere_inside_plane(&p, rel, radius, m))
+        self.planes
+            .map(|p| !sphere_inside_plane(&p, rel, radius, m))
     }
 }
 
@@ -443,7 +444,10 @@ mod tests {
                 let fy = (1.0 - a.y / a.w) * 0.5 * 90.0;
                 let tx = (b.x / b.w + 1.0) * 0.5 * 70.0;
                 let ty = (1.0 - b.y / b.w) * 0.5 * 50.0;
-                assert!((fx - 40.0 - tx).abs() < 1e-3 && (fy - 30.0 - ty).abs() < 1e-3, "{p:?}");
+                assert!(
+                    (fx - 40.0 - tx).abs() < 1e-3 && (fy - 30.0 - ty).abs() < 1e-3,
+                    "{p:?}"
+                );
                 assert!((a.z / a.w - b.z / b.w).abs() < 1e-6, "{p:?}");
                 // The tile's frustum planes bound exactly its rectangle (away from the edges,
                 // where the selection margin widens them).

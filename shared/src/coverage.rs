@@ -110,7 +110,11 @@ impl Threshold {
             SelectPlaneFar => ("select: batch vs far plane", "inside", "outside"),
             SelectFadeEnd => ("select: batch vs fade end (LOD0)", "no LOD0", "LOD0"),
             SelectFadeStart => ("select: batch vs fade start (LOD1)", "no LOD1", "LOD1"),
-            RefineNeeded => ("refine: tree needed in its command's LOD", "dropped", "needed"),
+            RefineNeeded => (
+                "refine: tree needed in its command's LOD",
+                "dropped",
+                "needed",
+            ),
             RefineDrawDistance => ("refine: needed tree vs draw distance", "dropped", "kept"),
             CullDrawDistance => ("cull: tree vs draw distance", "within", "beyond"),
             CullFrustum => ("cull: tree vs frustum", "inside", "outside"),
@@ -190,7 +194,10 @@ pub fn disable() -> Vec<(Threshold, [u64; 2])> {
         ALL.iter()
             .map(|&t| {
                 let c = &counters::COUNTS[t as usize];
-                (t, [c[0].load(Ordering::Relaxed), c[1].load(Ordering::Relaxed)])
+                (
+                    t,
+                    [c[0].load(Ordering::Relaxed), c[1].load(Ordering::Relaxed)],
+                )
             })
             .collect()
     }

@@ -16,13 +16,15 @@
 use forestlod_reference::batches::build_batches;
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::geometry::pack_geometry;
+use forestlod_reference::hierarchy::Hierarchy as Tree;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
 use forestlod_reference::select::{select, select_per_tree};
 use forestlod_shared::coverage::{self, ALL, Threshold};
 use forestlod_shared::{Camera, FadeMode, Hierarchy, Params, TreeCull};
-use forestlod_reference::hierarchy::Hierarchy as Tree;
-use forestlod_tests::scenarios::{golden_scenarios, named_views, tiny_and_crop_frames, tiny_params};
+use forestlod_tests::scenarios::{
+    golden_scenarios, named_views, tiny_and_crop_frames, tiny_params,
+};
 use forestlod_tests::{Packed, cameras, far_plane_cases, instances, params, scene_of};
 use proptest::strategy::{Strategy, ValueTree};
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
@@ -115,13 +117,20 @@ fn tile_frames() {
     let params = tiny_params(FadeMode::DitherSequential);
     let camera = named_camera("medium", &scene, 0.0, 96, 96).expect("camera");
     let p = prepare(scene, &params).expect("prepare");
-    for (x0, y0, w, h) in [(0, 0, 40, 80), (40, 0, 56, 80), (0, 80, 40, 16), (40, 80, 56, 16)] {
+    for (x0, y0, w, h) in [
+        (0, 0, 40, 80),
+        (40, 0, 56, 80),
+        (0, 80, 40, 16),
+        (40, 80, 56, 16),
+    ] {
         p.render(&camera.tile(x0, y0, w, h), &params)
             .expect("render");
     }
 }
 
-fn select_cases(strategy: impl Strategy<Value = (Vec<forestlod_reference::scene::Instance>, Camera, Params)>) {
+fn select_cases(
+    strategy: impl Strategy<Value = (Vec<forestlod_reference::scene::Instance>, Camera, Params)>,
+) {
     let mut runner = runner();
     for _ in 0..PROPERTY_CASES {
         let (trees, camera, p) = strategy.new_tree(&mut runner).expect("a case").current();
@@ -190,8 +199,10 @@ fn refine_and_baseline_images() {
         draw_distance: d,
         ..p
     };
-    let (prepared, frames) =
-        tiny_and_crop_frames(&[("draw-distance-150", dd(150.0)), ("draw-distance-300", dd(300.0))]);
+    let (prepared, frames) = tiny_and_crop_frames(&[
+        ("draw-distance-150", dd(150.0)),
+        ("draw-distance-300", dd(300.0)),
+    ]);
     for f in frames.iter().filter(|f| f.prepared_key == 0) {
         let pr = &prepared[f.prepared_key];
         for tree_cull in [TreeCull::None, TreeCull::All] {
@@ -253,7 +264,10 @@ fn every_threshold_is_straddled_by_a_parity_case() {
         record("parity::select property", select_property_cases),
         record("parity::select far plane", far_plane_property_cases),
         record("parity::hier_select property", hier_property_cases),
-        record("parity::refine + baselines images", refine_and_baseline_images),
+        record(
+            "parity::refine + baselines images",
+            refine_and_baseline_images,
+        ),
     ];
     let table = table(&columns);
     println!("{table}");

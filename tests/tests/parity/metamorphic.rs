@@ -400,7 +400,10 @@ fn stitch(width: u32, height: u32, tiles: &[(u32, u32, Images)]) -> Images {
             }
         }
     }
-    assert!(covered.iter().all(|&c| c == 1), "the tiles cover the frame once");
+    assert!(
+        covered.iter().all(|&c| c == 1),
+        "the tiles cover the frame once"
+    );
     out
 }
 
