@@ -336,7 +336,7 @@ pub fn verify(args: &VerifyArgs) -> Result<u8> {
         far: number(&case, &path, "/camera/far")? as f32,
         width,
         height,
-        _pad0: [0; 2],
+        tile: [0; 2],
     };
     camera
         .validate()

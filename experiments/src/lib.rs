@@ -7,6 +7,7 @@
 
 pub mod camera;
 pub mod case;
+pub mod check;
 pub mod fair;
 pub mod html;
 pub mod legend;

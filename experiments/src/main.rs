@@ -61,6 +61,10 @@ enum Command {
     /// Judge another implementation's outputs for a case with the in-process parity's classes;
     /// exit 0 pass, 2 fail, 1 bad input.
     Verify(forestlod_experiments::case::VerifyArgs),
+    /// Random selection parity cases on the current adapter (`--cases N` or `--seconds T`); a
+    /// failing case is shrunk and written with the command that replays it. Exit 0 all passed,
+    /// 2 a case failed, 1 bad input, 4 no adapter.
+    Check(forestlod_experiments::check::CheckArgs),
     /// Run selection for one frame and print what it emitted.
     Select {
         #[command(flatten)]
@@ -384,6 +388,7 @@ fn run() -> u8 {
         Some(Command::GpuInfo) => gpu_info().map(|()| exit_code::SUCCESS),
         Some(Command::ExportCase(args)) => forestlod_experiments::case::export(args),
         Some(Command::Verify(args)) => forestlod_experiments::case::verify(args),
+        Some(Command::Check(args)) => forestlod_experiments::check::run(args),
         Some(Command::Sweep(args)) => {
             forestlod_experiments::sweep::run(args).map(|()| exit_code::SUCCESS)
         }

@@ -124,10 +124,11 @@ pub struct DrawUniform {
     pub alpha_cutoff: f32,
     /// First vertex of the billboard quad in the shared vertex buffer.
     pub billboard_first_vertex: u32,
-    /// Explicit padding.
-    pub _pad0: u32,
-    /// Explicit padding.
-    pub _pad1: u32,
+    /// The frame pixel of the viewport's pixel (0, 0) (`Camera::pixel_origin`: non-zero for a
+    /// tile camera): the dither threshold is the frame pixel's.
+    pub pixel_origin_x: u32,
+    /// See `pixel_origin_x`.
+    pub pixel_origin_y: u32,
     /// Explicit padding.
     pub _pad2: u32,
 }
@@ -146,8 +147,8 @@ impl DrawUniform {
             angle_index_mode: params.angle_index_mode,
             alpha_cutoff: params.alpha_cutoff,
             billboard_first_vertex,
-            _pad0: 0,
-            _pad1: 0,
+            pixel_origin_x: camera.pixel_origin()[0],
+            pixel_origin_y: camera.pixel_origin()[1],
             _pad2: 0,
         }
     }
@@ -1159,8 +1160,8 @@ pub(crate) mod tests {
                 angle_index_mode,
                 alpha_cutoff,
                 billboard_first_vertex,
-                _pad0,
-                _pad1,
+                pixel_origin_x,
+                pixel_origin_y,
                 _pad2
             }),
             rust_layout!(DrawVertex { position, uv }),

@@ -51,7 +51,7 @@ fn rust_layouts() -> Vec<RustLayout> {
             far,
             width,
             height,
-            _pad0
+            tile
         }),
         rust_layout!(BatchMeta {
             center,

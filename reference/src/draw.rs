@@ -31,6 +31,7 @@
 //!   of a fading command whose view depth lies strictly inside the band, in every fade mode).
 //! - A flat terrain-following ground grid is drawn first ([`terrain_triangles`]), opaque.
 
+use forestlod_shared::coverage;
 use forestlod_shared::{
     COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, Params, angle_index_for, bake_elevation,
     billboard_extent, dither_threshold, fade_progress, lod_weights, view_interval,
@@ -152,7 +153,9 @@ pub fn vertex_stage(
         sphere_center,
         sphere_radius,
     };
-    if !tree_within_draw_distance(u, tree.sphere_center) {
+    let within = tree_within_draw_distance(u, tree.sphere_center);
+    coverage::hit(coverage::Threshold::DrawTreeDistance, !within);
+    if !within {
         return None;
     }
     let eye = Vec3::from(camera.eye);
@@ -213,6 +216,9 @@ pub struct TreeShader<'a> {
     selection: &'a Selection,
     fade: FadeMode,
     alpha_cutoff: f32,
+    /// `Camera::pixel_origin`: the frame pixel of the viewport's (0, 0) (a tile camera's is
+    /// non-zero); the dither threshold is the frame pixel's.
+    pixel_origin: [u32; 2],
 }
 
 impl TreeShader<'_> {
@@ -230,8 +236,17 @@ impl TreeShader<'_> {
                 .texture
                 .sample(&Sampler::TRILINEAR, layer, uv, ddx, ddy)
         };
+        coverage::hit(
+            coverage::Threshold::DrawAlphaCutoff,
+            texel[3] < self.alpha_cutoff,
+        );
         if texel[3] < self.alpha_cutoff {
             return None;
+        }
+        if coverage::enabled() && data.fading != 0 {
+            use coverage::{Threshold::*, hit};
+            hit(DrawFadeStart, depth >= data.fade_start);
+            hit(DrawFadeEnd, depth >= data.fade_end);
         }
         let weight = if data.fading != 0 {
             lod_weights(
@@ -239,12 +254,18 @@ impl TreeShader<'_> {
                 depth,
                 data.fade_start,
                 data.fade_end,
-                dither_threshold(f.x, f.y),
+                dither_threshold(f.x + self.pixel_origin[0], f.y + self.pixel_origin[1]),
             )
             .of(data.lod)
         } else {
             1.0
         };
+        if coverage::enabled()
+            && data.fading != 0
+            && matches!(self.fade, FadeMode::Dither | FadeMode::DitherSequential)
+        {
+            coverage::hit(coverage::Threshold::DrawDither, weight > 0.0);
+        }
         if weight <= 0.0 {
             return None;
         }
@@ -252,6 +273,9 @@ impl TreeShader<'_> {
             let t = fade_progress(depth, data.fade_start, data.fade_end);
             t > 0.0 && t < 1.0
         };
+        if data.fading != 0 {
+            coverage::hit(coverage::Threshold::DrawTransitionId, in_band);
+        }
         let id = if in_band {
             LOD_ID_TRANSITION
         } else if data.billboard == 0 {
@@ -379,6 +403,7 @@ pub fn draw_frame_cutoffs(
             selection,
             fade: params.fade().unwrap_or(FadeMode::Alpha),
             alpha_cutoff,
+            pixel_origin: camera.pixel_origin(),
         })
         .collect();
     let closures: Vec<_> = shaders

@@ -108,6 +108,16 @@ pub fn resolve_and_compact(
         .collect();
     let mut out = Selection::default();
     for (i, (n, (&code, &state))) in h.nodes.iter().zip(codes.iter().zip(&states)).enumerate() {
+        if forestlod_shared::coverage::enabled() {
+            use forestlod_shared::coverage::{Threshold::*, hit};
+            hit(CutVisited, state & NODE_VISITED != 0);
+            if state & NODE_VISITED != 0
+                && n.child_count > 0
+                && code & DECISION_KIND_MASK == DECISION_DRAW
+            {
+                hit(CutRecurse, code_recurses(code));
+            }
+        }
         if state & NODE_VISITED == 0 {
             continue;
         }

@@ -39,7 +39,7 @@
 //! - **Deterministic**: identical output for any thread count (commands are refined in parallel,
 //!   each writing only its own range).
 
-use forestlod_shared::{Camera, Params, TreeCull};
+use forestlod_shared::{Camera, Params, TreeCull, coverage};
 use rayon::prelude::*;
 
 use crate::select::{Decision, SelectUniform, Selection, tree_within_draw_distance};
@@ -86,7 +86,15 @@ pub fn refine_command(
             }
             _ => false,
         };
-        if needed && tree_within_draw_distance(u, center) {
+        let kept_here = needed && tree_within_draw_distance(u, center);
+        if coverage::enabled() {
+            use coverage::{Threshold::*, hit};
+            hit(RefineNeeded, needed);
+            if needed {
+                hit(RefineDrawDistance, kept_here);
+            }
+        }
+        if kept_here {
             out[kept] = tree;
             kept += 1;
         }

@@ -25,6 +25,7 @@
 //!   [`select_per_tree`]'s.
 //! - **Deterministic**: identical output for any rayon thread count.
 
+use forestlod_shared::coverage;
 use forestlod_shared::{
     BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, LOD_BILLBOARD, LOD_MESH, MeshMeta,
     Params, SelectCounters, ViewUniform, view_interval,
@@ -68,6 +69,9 @@ pub fn select_batch(
     billboard: &MeshMeta,
 ) -> (Decision, [Option<(DrawCommand, CommandData)>; 2]) {
     let decision = u.decide(batch.center, batch.radius);
+    if coverage::enabled() {
+        cover_select(u, batch, decision);
+    }
     let needs = decision.needs();
     let emit = |lod: u32| {
         let range = if lod == LOD_MESH {
@@ -101,6 +105,35 @@ pub fn select_batch(
             needs.lod1.then(|| emit(LOD_BILLBOARD)),
         ],
     )
+}
+
+/// Threshold coverage (test-only, [`forestlod_shared::coverage`]): the sides of `select`'s
+/// thresholds one batch's decision reached.
+fn cover_select(u: &SelectUniform, batch: &BatchMeta, decision: Decision) {
+    use coverage::{Threshold::*, hit};
+    hit(SelectDrawDistance, decision == Decision::CulledDistance);
+    if decision == Decision::CulledDistance {
+        return;
+    }
+    hit(SelectFrustum, decision == Decision::CulledFrustum);
+    let planes = [
+        SelectPlaneLeft,
+        SelectPlaneRight,
+        SelectPlaneBottom,
+        SelectPlaneTop,
+        SelectPlaneNear,
+        SelectPlaneFar,
+    ];
+    let outside = u
+        .frustum
+        .sphere_outside_planes(batch.center, batch.radius, u.eye);
+    for (t, out) in planes.into_iter().zip(outside) {
+        hit(t, out);
+    }
+    if let Decision::Draw(n) = decision {
+        hit(SelectFadeEnd, n.lod0);
+        hit(SelectFadeStart, n.lod1);
+    }
 }
 
 /// Selection for one frame over all batches, stably compacted (see the module docs).
@@ -164,11 +197,23 @@ pub fn select_per_tree(
         .par_iter()
         .map(|&(c, r)| {
             let d = u.decide(c, r);
-            if matches!(d, Decision::Draw(_)) && !tree_within_draw_distance(&u, c) {
+            let d = if matches!(d, Decision::Draw(_)) && !tree_within_draw_distance(&u, c) {
                 Decision::CulledDistance
             } else {
                 d
+            };
+            if coverage::enabled() {
+                use coverage::{Threshold::*, hit};
+                hit(CullDrawDistance, d == Decision::CulledDistance);
+                if d != Decision::CulledDistance {
+                    hit(CullFrustum, d == Decision::CulledFrustum);
+                }
+                if let Decision::Draw(n) = d {
+                    hit(CullFadeEnd, n.lod0);
+                    hit(CullFadeStart, n.lod1);
+                }
             }
+            d
         })
         .collect()
 }

@@ -23,12 +23,16 @@ pub struct Camera {
     pub up: [f32; 3],
     /// Far plane distance (> near).
     pub far: f32,
-    /// Viewport width in pixels.
+    /// Viewport width in pixels (of the tile, for a tile camera).
     pub width: u32,
-    /// Viewport height in pixels.
+    /// Viewport height in pixels (of the tile, for a tile camera).
     pub height: u32,
-    /// Explicit padding.
-    pub _pad0: [u32; 2],
+    /// `[0, 0]` for a whole frame. A tile camera ([`Camera::tile`]) renders the pixels
+    /// `x0..x0 + width`, `y0..y0 + height` of a `frame_w x frame_h` frame of the same camera:
+    /// `[x0 | y0 << 16, frame_w | frame_h << 16]` (an off-centre projection; issue 15's
+    /// four-tiles relation). The GPU reads none of it: the projection, the frustum planes and
+    /// the dither origin are derived on the CPU.
+    pub tile: [u32; 2],
 }
 const _: () = assert!(core::mem::size_of::<Camera>() == 64);
 
@@ -72,7 +76,43 @@ impl Camera {
             far: 20_000.0,
             width,
             height,
-            _pad0: [0; 2],
+            tile: [0; 2],
+        }
+    }
+
+    /// The camera of the tile `x0..x0 + w`, `y0..y0 + h` (pixels, from the top-left) of this
+    /// whole-frame camera's frame: its projection is this camera's, followed by the map of that
+    /// rectangle of NDC onto the tile's own NDC (an off-centre frustum), its frustum planes bound
+    /// the tile's pyramid, and its fragments use the frame's pixel coordinates for the dither
+    /// ([`Camera::pixel_origin`]). Call on a validated whole-frame camera; the rectangle must lie
+    /// inside the frame ([`Camera::validate`] checks).
+    pub fn tile(&self, x0: u32, y0: u32, w: u32, h: u32) -> Camera {
+        assert!(self.tile == [0; 2], "a tile of a tile");
+        Camera {
+            width: w,
+            height: h,
+            tile: [x0 | (y0 << 16), self.width | (self.height << 16)],
+            ..*self
+        }
+    }
+
+    /// Whether this is a tile camera ([`Camera::tile`]).
+    pub fn is_tile(&self) -> bool {
+        self.tile != [0; 2]
+    }
+
+    /// The frame's pixel of this viewport's pixel `(0, 0)`: `(x0, y0)` of a tile, `(0, 0)` of a
+    /// whole frame. The dither threshold of a fragment is that of its frame pixel.
+    pub fn pixel_origin(&self) -> [u32; 2] {
+        [self.tile[0] & 0xffff, self.tile[0] >> 16]
+    }
+
+    /// The whole frame's size: `(width, height)` of a whole-frame camera.
+    pub fn frame_size(&self) -> [u32; 2] {
+        if self.is_tile() {
+            [self.tile[1] & 0xffff, self.tile[1] >> 16]
+        } else {
+            [self.width, self.height]
         }
     }
 
@@ -143,6 +183,20 @@ impl Camera {
                 "expected 1..=16384 pixels per side",
             );
         }
+        if self.is_tile() {
+            let [x0, y0] = self.pixel_origin();
+            let [fw, fh] = self.frame_size();
+            if fw == 0 || fh == 0 || x0 + self.width > fw || y0 + self.height > fh {
+                return bad(
+                    "camera.tile",
+                    format!(
+                        "{}x{} at ({x0}, {y0}) of {fw}x{fh}",
+                        self.width, self.height
+                    ),
+                    "expected a tile inside its frame",
+                );
+            }
+        }
         Ok(())
     }
 
@@ -154,9 +208,10 @@ impl Camera {
         CameraBasis { forward, right, up }
     }
 
-    /// Width over height.
+    /// Width over height (of the whole frame, for a tile camera).
     pub fn aspect(&self) -> f32 {
-        self.width as f32 / self.height as f32
+        let [w, h] = self.frame_size();
+        w as f32 / h as f32
     }
 
     /// World-to-view matrix (right-handed, looking down -Z in view space).
@@ -172,17 +227,35 @@ impl Camera {
         )
     }
 
-    /// View-to-clip matrix with wgpu's depth range 0..1.
+    /// View-to-clip matrix with wgpu's depth range 0..1. For a tile camera: the frame's
+    /// projection followed by the map of the tile's NDC rectangle onto `[-1, 1]²` (x and y only:
+    /// depth and `w` are the frame's).
     pub fn projection_matrix(&self) -> Mat4 {
         // Right-handed view space (looking down -Z) to wgpu clip space with depth 0 at near, 1 at far.
         let f = 1.0 / (self.fov_y * 0.5).tan();
         let range = self.far / (self.near - self.far);
-        Mat4::from_cols(
+        let frame = Mat4::from_cols(
             glam::Vec4::new(f / self.aspect(), 0.0, 0.0, 0.0),
             glam::Vec4::new(0.0, f, 0.0, 0.0),
             glam::Vec4::new(0.0, 0.0, range, -1.0),
             glam::Vec4::new(0.0, 0.0, range * self.near, 0.0),
-        )
+        );
+        if !self.is_tile() {
+            return frame;
+        }
+        // Frame pixel px = (x_ndc + 1) W / 2; tile pixel px - x0 = (x'_ndc + 1) w / 2, so
+        // x' = x W / w + (W - 2 x0 - w) / w; y points up in NDC and down in pixels:
+        // y' = y H / h + (h - H + 2 y0) / h. In clip space the offsets multiply w.
+        let [x0, y0] = self.pixel_origin().map(|v| v as f32);
+        let [fw, fh] = self.frame_size().map(|v| v as f32);
+        let (w, h) = (self.width as f32, self.height as f32);
+        let to_tile = Mat4::from_cols(
+            glam::Vec4::new(fw / w, 0.0, 0.0, 0.0),
+            glam::Vec4::new(0.0, fh / h, 0.0, 0.0),
+            glam::Vec4::new(0.0, 0.0, 1.0, 0.0),
+            glam::Vec4::new((fw - 2.0 * x0 - w) / w, (h - fh + 2.0 * y0) / h, 0.0, 1.0),
+        );
+        to_tile * frame
     }
 
     /// `projection * view`.
@@ -191,7 +264,7 @@ impl Camera {
     }
 
     /// The six frustum planes, built directly from the basis (no matrix inversion, so they are as
-    /// exact as `f32` allows).
+    /// exact as `f32` allows). A tile camera's side planes bound the tile's (off-centre) pyramid.
     pub fn frustum(&self) -> FrustumPlanes {
         let b = self.basis();
         let ty = (self.fov_y * 0.5).tan();
@@ -200,6 +273,27 @@ impl Camera {
             let len = n.length();
             [n.x / len, n.y / len, n.z / len, w / len]
         };
+        if self.is_tile() {
+            // The tangents of the tile's edges (left, right, bottom, top) as fractions of the
+            // frame's half-extents; the whole frame's are -tx, tx, -ty, ty.
+            let [x0, y0] = self.pixel_origin().map(|v| v as f32);
+            let [fw, fh] = self.frame_size().map(|v| v as f32);
+            let (w, h) = (self.width as f32, self.height as f32);
+            let left = tx * (2.0 * x0 / fw - 1.0);
+            let right = tx * (2.0 * (x0 + w) / fw - 1.0);
+            let top = ty * (1.0 - 2.0 * y0 / fh);
+            let bottom = ty * (1.0 - 2.0 * (y0 + h) / fh);
+            return FrustumPlanes {
+                planes: [
+                    plane(b.right - b.forward * left, 0.0),
+                    plane(b.forward * right - b.right, 0.0),
+                    plane(b.up - b.forward * bottom, 0.0),
+                    plane(b.forward * top - b.up, 0.0),
+                    plane(b.forward, -self.near),
+                    plane(-b.forward, self.far),
+                ],
+            };
+        }
         FrustumPlanes {
             planes: [
                 plane(b.forward * tx + b.right, 0.0),
@@ -223,8 +317,24 @@ impl FrustumPlanes {
         let m = crate::selection_margin(rel, radius);
         self.planes
             .iter()
-            .all(|p| p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3] >= -radius - m)
+            .all(|p| sphere_inside_plane(p, rel, radius, m))
     }
+
+    /// Per plane (left, right, bottom, top, near, far): whether the sphere is outside it, by the
+    /// test of [`FrustumPlanes::sphere_visible`] (which is "outside none"). For threshold
+    /// coverage (`crate::coverage`).
+    pub fn sphere_outside_planes(&self, center: [f32; 3], radius: f32, eye: [f32; 3]) -> [bool; 6] {
+        let rel = [center[0] - eye[0], center[1] - eye[1], center[2] - eye[2]];
+        let m = crate::selection_margin(rel, radius);
+        self.planes
+            .map(|p| !sphere_inside_plane(&p, rel, radius, m))
+    }
+}
+
+/// The sphere's plane test: `n · (c - e) + w >= -r - margin`.
+#[inline(always)]
+fn sphere_inside_plane(p: &[f32; 4], rel: [f32; 3], radius: f32, m: f32) -> bool {
+    p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3] >= -radius - m
 }
 
 impl FrustumPlanes {
@@ -312,6 +422,46 @@ mod tests {
         assert!(!f.aabb_visible([-50.0, 0.0, 10.0], [1.0, 1.0, 1.0], c.eye));
         assert!(f.aabb_inside([50.0, 0.0, 10.0], [1.0, 1.0, 1.0], c.eye));
         assert!(!f.aabb_inside([50.0, 48.0, 10.0], [1.0, 5.0, 1.0], c.eye));
+    }
+
+    #[test]
+    fn a_tile_sees_its_rectangle_of_the_frame() {
+        let c = cam();
+        let t = c.tile(40, 30, 70, 50);
+        t.validate().unwrap();
+        assert_eq!((t.pixel_origin(), t.frame_size()), ([40, 30], [160, 90]));
+        let (vp, tp, tf) = (c.view_projection(), t.view_projection(), t.frustum());
+        let mut inside = 0;
+        for i in 0..40 {
+            for j in 0..20 {
+                let p = [60.0f32, -60.0 + 3.0 * i as f32, -20.0 + 3.0 * j as f32];
+                let (a, b) = (
+                    vp * glam::Vec4::new(p[0], p[1], p[2], 1.0),
+                    tp * glam::Vec4::new(p[0], p[1], p[2], 1.0),
+                );
+                // Frame pixel and tile pixel (wgpu: y down), and depth.
+                let fx = (a.x / a.w + 1.0) * 0.5 * 160.0;
+                let fy = (1.0 - a.y / a.w) * 0.5 * 90.0;
+                let tx = (b.x / b.w + 1.0) * 0.5 * 70.0;
+                let ty = (1.0 - b.y / b.w) * 0.5 * 50.0;
+                assert!(
+                    (fx - 40.0 - tx).abs() < 1e-3 && (fy - 30.0 - ty).abs() < 1e-3,
+                    "{p:?}"
+                );
+                assert!((a.z / a.w - b.z / b.w).abs() < 1e-6, "{p:?}");
+                // The tile's frustum planes bound exactly its rectangle (away from the edges,
+                // where the selection margin widens them).
+                let in_tile = (0.0..70.0).contains(&tx) && (0.0..50.0).contains(&ty);
+                let near_edge = [tx, 70.0 - tx, ty, 50.0 - ty].iter().any(|d| d.abs() < 0.5);
+                if !near_edge {
+                    assert_eq!(tf.sphere_visible(p, 0.0, c.eye), in_tile, "{p:?}");
+                    inside += usize::from(in_tile);
+                }
+            }
+        }
+        assert!(inside > 50 && inside < 700, "{inside} points in the tile");
+        let outside = Camera { width: 121, ..t };
+        assert_eq!(outside.validate().unwrap_err().field, "camera.tile");
     }
 
     #[test]

@@ -32,6 +32,7 @@ pub mod angle;
 pub mod billboard;
 pub mod camera;
 pub mod color;
+pub mod coverage;
 pub mod cut;
 pub mod fade;
 pub mod interval;

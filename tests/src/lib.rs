@@ -131,6 +131,23 @@ pub fn cameras() -> impl Strategy<Value = Camera> {
         })
 }
 
+/// `parity::select`'s far-plane cases (and the coverage test's): random trees, cameras and
+/// parameters with the far plane 50..3000 m past the near plane and the draw distance 100 km, so
+/// the far plane culls before the draw distance does.
+pub fn far_plane_cases() -> impl Strategy<Value = (Vec<Instance>, Camera, Params)> {
+    (instances(300), cameras(), params(), 50.0f32..3000.0).prop_map(|(trees, camera, p, far)| {
+        let camera = Camera {
+            far: camera.near + far,
+            ..camera
+        };
+        let p = Params {
+            draw_distance: 100_000.0,
+            ..p
+        };
+        (trees, camera, p)
+    })
+}
+
 /// Random cameras around a scene's footprint `bounds` (`[x0, y0, x1, y1]`): the eye within half a
 /// footprint of it, 0.5..400 m up, looking at a random point of it (-20..40 m high); field of view
 /// 20°..100°, 64..256 pixels a side; only valid cameras.

@@ -50,7 +50,7 @@ struct Camera {
     far: f32,
     width: u32,
     height: u32,
-    _pad0: vec2<u32>,
+    tile: vec2<u32>,
 }
 
 // Keep in sync with forestlod_shared::BatchMeta (shared/src/types.rs).

@@ -29,8 +29,10 @@ struct DrawUniform {
     angle_index_mode: u32,
     alpha_cutoff: f32,
     billboard_first_vertex: u32,
-    _pad0: u32,
-    _pad1: u32,
+    // Camera::pixel_origin: the frame pixel of the viewport's (0, 0), non-zero for a tile camera;
+    // the dither threshold is the frame pixel's.
+    pixel_origin_x: u32,
+    pixel_origin_y: u32,
     _pad2: u32,
 }
 
@@ -209,7 +211,7 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
             in.depth,
             data.fade_start,
             data.fade_end,
-            dither_threshold(pixel.x, pixel.y),
+            dither_threshold(pixel.x + u.pixel_origin_x, pixel.y + u.pixel_origin_y),
         );
         weight = lod_weight_of(w, data.lod);
     }

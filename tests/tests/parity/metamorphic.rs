@@ -19,8 +19,12 @@
 //! - **Monotone LOD**: a lone tree moved away from the camera goes through LOD0, LOD0 + LOD1 (the
 //!   band), LOD1 and culled, in that order and never back; every state is reached.
 //!
-//! Not here (issue 15 asks for it): four viewport tiles equal to the full frame. `Camera` has no
-//! off-centre (tile) projection, and adding one changes `shared::Camera` and both rasterizers.
+//! - **Four tiles are the frame**: the frame rendered as four tiles of unequal sizes (each a
+//!   tile camera, `Camera::tile`: an off-centre projection, the tile's own frustum planes for
+//!   selection, refine and cull, the frame's pixel coordinates for the dither) and stitched
+//!   together equals the frame rendered whole, up to the classified rounding ambiguities (the
+//!   tile's projection is the frame's times a scale and offset, so vertex positions may round
+//!   differently by an ulp).
 
 use forestlod_harness::backend::{
     GpuRenderer, GpuSweepScene, GpuVariant, StagesFromCpu, alpha_test_alternatives, gpu_backends,
@@ -368,4 +372,116 @@ fn a_trees_lod_is_monotone_in_its_distance() {
         }
     }
     assert_no_failures("LOD not monotone in distance", &failures);
+}
+
+/// Stitches `tiles` (each `(x0, y0, images)`) into a `width x height` frame; every pixel must be
+/// covered exactly once.
+fn stitch(width: u32, height: u32, tiles: &[(u32, u32, Images)]) -> Images {
+    let n = (width * height) as usize;
+    let mut out = Images {
+        width,
+        height,
+        color: vec![[0; 4]; n],
+        depth: vec![f32::NAN; n],
+        lod_id: vec![u32::MAX; n],
+    };
+    let mut covered = vec![0u8; n];
+    for (x0, y0, t) in tiles {
+        for y in 0..t.height {
+            for x in 0..t.width {
+                let (src, dst) = (
+                    (y * t.width + x) as usize,
+                    ((y0 + y) * width + x0 + x) as usize,
+                );
+                out.color[dst] = t.color[src];
+                out.depth[dst] = t.depth[src];
+                out.lod_id[dst] = t.lod_id[src];
+                covered[dst] += 1;
+            }
+        }
+    }
+    assert!(
+        covered.iter().all(|&c| c == 1),
+        "the tiles cover the frame once"
+    );
+    out
+}
+
+#[test]
+fn four_tiles_equal_the_whole_frame() {
+    let scene = flat_tiny();
+    let (camera, params) = medium_case(&scene);
+    let (w, h) = (camera.width, camera.height);
+    // Unequal tiles (40 + 56 wide, 80 + 16 high: the trees start at row 73 of this view, so every
+    // tile shows some): the off-centre maps are not powers of two.
+    let (sx, sy) = (40, 80);
+    let rects = [
+        (0, 0, sx, sy),
+        (sx, 0, w - sx, sy),
+        (0, sy, sx, h - sy),
+        (sx, sy, w - sx, h - sy),
+    ];
+    let tiles: Vec<Camera> = rects
+        .iter()
+        .map(|&(x0, y0, tw, th)| {
+            let t = camera.tile(x0, y0, tw, th);
+            t.validate().expect("a valid tile camera");
+            t
+        })
+        .collect();
+    let p = prepare(scene, &params).expect("prepare");
+    let alternatives = alpha_test_alternatives(&p, &camera, &params);
+    let mut failures = Vec::new();
+    // Each tile's frustum is its own: a tile selects fewer trees than the frame, and no tree the
+    // frame does not select.
+    for backend in select_backends() {
+        let trees = |c: &Camera| -> std::collections::BTreeSet<u32> {
+            command_multiset(&p, c, &params, backend.as_ref(), &|t| t)
+                .into_iter()
+                .flat_map(|k| k.4)
+                .collect()
+        };
+        let whole = trees(&camera);
+        let per_tile: Vec<_> = tiles.iter().map(trees).collect();
+        eprintln!(
+            "tiles/{}: {} trees in the frame, per tile {:?}",
+            backend.name(),
+            whole.len(),
+            per_tile.iter().map(|t| t.len()).collect::<Vec<_>>()
+        );
+        for (i, t) in per_tile.iter().enumerate() {
+            if !t.is_subset(&whole) || t.len() >= whole.len() || t.is_empty() {
+                failures.push(format!(
+                    "tiles/{}: tile {i} selects {} trees, {} of them not the frame's ({} trees): \
+                     its frustum is not a non-empty part of the frame's",
+                    backend.name(),
+                    t.len(),
+                    t.difference(&whole).count(),
+                    whole.len()
+                ));
+            }
+        }
+    }
+    for backend in draw_backends() {
+        let want = frame(backend.as_ref(), &p, &camera, &params);
+        let parts: Vec<(u32, u32, Images)> = rects
+            .iter()
+            .zip(&tiles)
+            .map(|(r, t)| (r.0, r.1, frame(backend.as_ref(), &p, t, &params)))
+            .collect();
+        let got = stitch(w, h, &parts);
+        assert!(
+            want.lod_id
+                .contains(&forestlod_reference::draw::LOD_ID_TRANSITION),
+            "the frame shows the fade band (the dither origin matters)"
+        );
+        failures.extend(judge(
+            &format!("tiles/{}", backend.name()),
+            &got,
+            &want,
+            &alternatives,
+            &camera,
+        ));
+    }
+    assert_no_failures("four tiles differ from the whole frame", &failures);
 }

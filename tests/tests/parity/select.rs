@@ -32,7 +32,8 @@ use forestlod_shared::{
     SelectCounters, view_interval,
 };
 use forestlod_tests::{
-    AxisFrame, Thresholds, cameras, instances, params, scene_of, threshold_ambiguity, tree_at_x,
+    AxisFrame, Thresholds, cameras, far_plane_cases, instances, params, scene_of,
+    threshold_ambiguity, tree_at_x,
 };
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
@@ -400,6 +401,24 @@ fn gpu_select_matches_reference() {
         "parity",
         CASES,
         parity_cases(),
+        |(trees, camera, p), backends, tallies| check_case(trees, &camera, &p, backends, tallies),
+    );
+}
+
+/// Cases of the far-plane property.
+const FAR_PLANE_CASES: u32 = 32;
+
+/// The far plane nearer than the draw distance (`camera.far` 50..3000 m past the near plane, the
+/// draw distance 100 km), so batches are culled by the far plane and not by the distance: no
+/// other case reaches that side of the far plane (the named and random cameras keep
+/// `look_at`'s 20 km far plane, and every draw distance is at most 6 km; the threshold-coverage
+/// test `tests/tests/coverage.rs` found the gap).
+#[test]
+fn gpu_select_with_the_far_plane_before_the_draw_distance() {
+    run_property(
+        "far-plane",
+        FAR_PLANE_CASES,
+        far_plane_cases(),
         |(trees, camera, p), backends, tallies| check_case(trees, &camera, &p, backends, tallies),
     );
 }

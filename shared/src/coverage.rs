@@ -1,0 +1,218 @@
+//! Threshold coverage (issue 15, part 4): which side of each decision threshold of `select`,
+//! `refine`, the per-tree cull (`cull.wgsl`'s oracle), the hierarchy's cut and `draw` a run of the
+//! reference reached. Test-only: the counters exist only with the `coverage` feature (enabled by
+//! `forestlod-tests`, never by a shipped binary's own build), and even then record only between
+//! [`enable`] and [`disable`]. Without the feature [`hit`] is an empty inline function and
+//! [`enabled`] the constant `false`, so the reference stages compile to what they were.
+//!
+//! Each [`Threshold`] has two sides (`false`: the first label of [`Threshold::sides`], `true`: the
+//! second). A threshold is *straddled* by a case when the case reaches both sides; the test
+//! `coverage` (`tests/tests/coverage.rs`) requires every threshold to be straddled by at least one
+//! parity scenario or property case and prints the table of which case reaches which side.
+
+/// A decision threshold of a reference stage, with two sides.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[repr(u8)]
+pub enum Threshold {
+    /// `select`: a batch's interval starts within / beyond the draw distance.
+    SelectDrawDistance,
+    /// `select`: a batch (within the draw distance) is inside / outside the frustum.
+    SelectFrustum,
+    /// `select`: a batch (within the draw distance) is inside / outside the left plane.
+    SelectPlaneLeft,
+    /// `select`: the same, right plane.
+    SelectPlaneRight,
+    /// `select`: the same, bottom plane.
+    SelectPlaneBottom,
+    /// `select`: the same, top plane.
+    SelectPlaneTop,
+    /// `select`: the same, near plane.
+    SelectPlaneNear,
+    /// `select`: the same, far plane.
+    SelectPlaneFar,
+    /// `select`: a drawn batch's interval starts at or past / before the fade band's end (LOD0).
+    SelectFadeEnd,
+    /// `select`: a drawn batch's interval ends before / at or past the fade band's start (LOD1).
+    SelectFadeStart,
+    /// `refine`: a tree of a refined command is needed in that LOD (decided alone) or not.
+    RefineNeeded,
+    /// `refine`: a needed tree's centre is within / beyond the draw distance (kept or dropped).
+    RefineDrawDistance,
+    /// Per-tree cull: a tree's interval starts within / beyond the draw distance.
+    CullDrawDistance,
+    /// Per-tree cull: a tree (within the draw distance) is inside / outside the frustum.
+    CullFrustum,
+    /// Per-tree cull: a drawn tree's interval starts at or past / before the fade end (LOD0).
+    CullFadeEnd,
+    /// Per-tree cull: a drawn tree's interval ends before / at or past the fade start (LOD1).
+    CullFadeStart,
+    /// Hierarchy cut: a node is not visited / visited (every ancestor recursed).
+    CutVisited,
+    /// Hierarchy cut: a drawn interior node is drawn as one unit / hands over to its children.
+    CutRecurse,
+    /// `draw`, vertex stage: a tree's centre is within / beyond the draw distance (discarded).
+    DrawTreeDistance,
+    /// `draw`: a tree texel's alpha is at or above / below the alpha cutoff (discarded).
+    DrawAlphaCutoff,
+    /// `draw`: a fading fragment's depth is before / at or past the fade band's start.
+    DrawFadeStart,
+    /// `draw`: a fading fragment's depth is before / at or past the fade band's end.
+    DrawFadeEnd,
+    /// `draw`: a fading fragment's weight in a dithered mode is 0 (discarded) / 1.
+    DrawDither,
+    /// `draw`: a drawn fading fragment writes a LOD id other than / the transition id.
+    DrawTransitionId,
+}
+
+/// Every threshold, in table order.
+pub const ALL: [Threshold; 24] = {
+    use Threshold::*;
+    [
+        SelectDrawDistance,
+        SelectFrustum,
+        SelectPlaneLeft,
+        SelectPlaneRight,
+        SelectPlaneBottom,
+        SelectPlaneTop,
+        SelectPlaneNear,
+        SelectPlaneFar,
+        SelectFadeEnd,
+        SelectFadeStart,
+        RefineNeeded,
+        RefineDrawDistance,
+        CullDrawDistance,
+        CullFrustum,
+        CullFadeEnd,
+        CullFadeStart,
+        CutVisited,
+        CutRecurse,
+        DrawTreeDistance,
+        DrawAlphaCutoff,
+        DrawFadeStart,
+        DrawFadeEnd,
+        DrawDither,
+        DrawTransitionId,
+    ]
+};
+
+impl Threshold {
+    /// The threshold's name and its two sides' names (`false`, `true`).
+    pub fn sides(self) -> (&'static str, &'static str, &'static str) {
+        use Threshold::*;
+        match self {
+            SelectDrawDistance => ("select: batch vs draw distance", "within", "beyond"),
+            SelectFrustum => ("select: batch vs frustum", "inside", "outside"),
+            SelectPlaneLeft => ("select: batch vs left plane", "inside", "outside"),
+            SelectPlaneRight => ("select: batch vs right plane", "inside", "outside"),
+            SelectPlaneBottom => ("select: batch vs bottom plane", "inside", "outside"),
+            SelectPlaneTop => ("select: batch vs top plane", "inside", "outside"),
+            SelectPlaneNear => ("select: batch vs near plane", "inside", "outside"),
+            SelectPlaneFar => ("select: batch vs far plane", "inside", "outside"),
+            SelectFadeEnd => ("select: batch vs fade end (LOD0)", "no LOD0", "LOD0"),
+            SelectFadeStart => ("select: batch vs fade start (LOD1)", "no LOD1", "LOD1"),
+            RefineNeeded => (
+                "refine: tree needed in its command's LOD",
+                "dropped",
+                "needed",
+            ),
+            RefineDrawDistance => ("refine: needed tree vs draw distance", "dropped", "kept"),
+            CullDrawDistance => ("cull: tree vs draw distance", "within", "beyond"),
+            CullFrustum => ("cull: tree vs frustum", "inside", "outside"),
+            CullFadeEnd => ("cull: tree vs fade end (LOD0)", "no LOD0", "LOD0"),
+            CullFadeStart => ("cull: tree vs fade start (LOD1)", "no LOD1", "LOD1"),
+            CutVisited => ("cut: node visited", "not visited", "visited"),
+            CutRecurse => ("cut: drawn interior node", "as one unit", "recurses"),
+            DrawTreeDistance => ("draw: tree centre vs draw distance", "within", "beyond"),
+            DrawAlphaCutoff => ("draw: texel alpha vs cutoff", "kept", "discarded"),
+            DrawFadeStart => ("draw: fading fragment vs fade start", "before", "at/past"),
+            DrawFadeEnd => ("draw: fading fragment vs fade end", "before", "at/past"),
+            DrawDither => ("draw: dithered weight", "0 (discarded)", "1"),
+            DrawTransitionId => ("draw: fading fragment's LOD id", "other", "transition"),
+        }
+    }
+}
+
+#[cfg(feature = "coverage")]
+mod counters {
+    use super::{ALL, Threshold};
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+    pub static ENABLED: AtomicBool = AtomicBool::new(false);
+    #[allow(clippy::declare_interior_mutable_const)]
+    const ZERO: AtomicU64 = AtomicU64::new(0);
+    #[allow(clippy::declare_interior_mutable_const)]
+    const ROW: [AtomicU64; 2] = [ZERO, ZERO];
+    pub static COUNTS: [[AtomicU64; 2]; ALL.len()] = [ROW; ALL.len()];
+
+    pub fn hit(t: Threshold, side: bool) {
+        if ENABLED.load(Ordering::Relaxed) {
+            COUNTS[t as usize][usize::from(side)].fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// Records that `t`'s side `side` was reached (only with the `coverage` feature, while enabled).
+#[inline(always)]
+pub fn hit(t: Threshold, side: bool) {
+    #[cfg(feature = "coverage")]
+    counters::hit(t, side);
+    #[cfg(not(feature = "coverage"))]
+    let _ = (t, side);
+}
+
+/// Whether counters are recording (the constant `false` without the `coverage` feature): guards
+/// work done only to record (the per-plane tests of a batch).
+#[inline(always)]
+pub fn enabled() -> bool {
+    #[cfg(feature = "coverage")]
+    return counters::ENABLED.load(std::sync::atomic::Ordering::Relaxed);
+    #[cfg(not(feature = "coverage"))]
+    false
+}
+
+/// Zeroes the counters and starts recording. Panics without the `coverage` feature.
+pub fn enable() {
+    #[cfg(feature = "coverage")]
+    {
+        use std::sync::atomic::Ordering;
+        for c in counters::COUNTS.iter().flatten() {
+            c.store(0, Ordering::Relaxed);
+        }
+        counters::ENABLED.store(true, Ordering::SeqCst);
+    }
+    #[cfg(not(feature = "coverage"))]
+    panic!("forestlod-shared was built without the `coverage` feature");
+}
+
+/// Stops recording and returns the counts since [`enable`], `[side false, side true]` per
+/// threshold of [`ALL`].
+pub fn disable() -> Vec<(Threshold, [u64; 2])> {
+    #[cfg(feature = "coverage")]
+    {
+        use std::sync::atomic::Ordering;
+        counters::ENABLED.store(false, Ordering::SeqCst);
+        ALL.iter()
+            .map(|&t| {
+                let c = &counters::COUNTS[t as usize];
+                (
+                    t,
+                    [c[0].load(Ordering::Relaxed), c[1].load(Ordering::Relaxed)],
+                )
+            })
+            .collect()
+    }
+    #[cfg(not(feature = "coverage"))]
+    ALL.iter().map(|&t| (t, [0, 0])).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_lists_every_threshold_once_in_order() {
+        for (i, t) in ALL.iter().enumerate() {
+            assert_eq!(*t as usize, i, "{t:?}");
+        }
+    }
+}

@@ -1,0 +1,296 @@
+//! Scenario coverage (issue 15, part 4): every decision threshold of the reference's `select`,
+//! `refine`, per-tree cull, hierarchy cut and `draw` (`forestlod_shared::coverage::ALL`: draw
+//! distance, each frustum plane, the fade band's ends, the alpha cutoff, the dither, the
+//! transition id, the cut's visits and recursion) must be *straddled* (both sides reached) by at
+//! least one parity scenario or property case. The cases below are those the parity tests feed
+//! to both backends (the reference's run of a case is what the GPU is compared with, so a side
+//! the reference reaches in a case is a side the parity test compares), run on the reference
+//! with the test-only counters of `forestlod_shared::coverage` (feature `coverage`, enabled for
+//! this crate only).
+//!
+//! The test prints the table (threshold x case: `a/b` = times side one / side two was reached)
+//! and writes it to `$CARGO_TARGET_TMPDIR/coverage.md`; the committed copy is
+//! `experiments/results/coverage/README.md`. It runs in its own test binary so that no other test
+//! records into the global counters while it runs.
+
+use forestlod_reference::batches::build_batches;
+use forestlod_reference::cameras::named_camera;
+use forestlod_reference::geometry::pack_geometry;
+use forestlod_reference::hierarchy::Hierarchy as Tree;
+use forestlod_reference::pipeline::prepare;
+use forestlod_reference::scene::builtin;
+use forestlod_reference::select::{select, select_per_tree};
+use forestlod_shared::coverage::{self, ALL, Threshold};
+use forestlod_shared::{Camera, FadeMode, Hierarchy, Params, TreeCull};
+use forestlod_tests::scenarios::{
+    golden_scenarios, named_views, tiny_and_crop_frames, tiny_params,
+};
+use forestlod_tests::{Packed, cameras, far_plane_cases, instances, params, scene_of};
+use proptest::strategy::{Strategy, ValueTree};
+use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+
+/// Random cases of each property's strategy run here (a fixed seed; the properties run more:
+/// `parity::select` 256 and 32 far-plane cases, `parity::hier_select` its own count).
+const PROPERTY_CASES: u32 = 48;
+
+/// A deterministic runner for the property sources.
+fn runner() -> TestRunner {
+    TestRunner::new_with_rng(
+        Config::default(),
+        TestRng::from_seed(RngAlgorithm::ChaCha, &[15; 32]),
+    )
+}
+
+/// One case source and its counts, per threshold of [`ALL`].
+struct Column {
+    name: &'static str,
+    counts: Vec<(Threshold, [u64; 2])>,
+}
+
+fn record(name: &'static str, run: impl FnOnce()) -> Column {
+    coverage::enable();
+    run();
+    Column {
+        name,
+        counts: coverage::disable(),
+    }
+}
+
+fn golden_frames() {
+    let tiny = builtin::tiny();
+    for s in golden_scenarios() {
+        let p = prepare(tiny.clone(), &s.params).expect("prepare");
+        p.render(&s.camera(&tiny), &s.params).expect("render");
+    }
+}
+
+fn refine_and_cull_views() {
+    let tiny = builtin::tiny();
+    let params = tiny_params(FadeMode::Alpha);
+    let p = prepare(tiny.clone(), &params).expect("prepare");
+    for v in named_views(&tiny, &params, 96) {
+        let params = Params {
+            tree_cull: TreeCull::All as u32,
+            ..v.params
+        };
+        p.select_refined(&v.camera, &params);
+        select_per_tree(&p.tree_spheres, &v.camera, &params);
+    }
+}
+
+fn hierarchy_frames() {
+    let tiny = builtin::tiny();
+    for mode in [Hierarchy::Quadtree, Hierarchy::Octree] {
+        let params = Params {
+            hierarchy: mode as u32,
+            ..tiny_params(FadeMode::DitherSequential)
+        };
+        let p = prepare(tiny.clone(), &params).expect("prepare");
+        for camera in ["medium", "close", "far"] {
+            let c = named_camera(camera, &tiny, 0.0, 96, 96).expect("camera");
+            p.hier_select(&c, &params).expect("a hierarchy");
+        }
+    }
+}
+
+fn monotone_sweep() {
+    let params = Params {
+        grid_size: 50.0,
+        lod1_transition: 400.0,
+        fade_width: 80.0,
+        draw_distance: 900.0,
+        lod_levels: 2,
+        texture_size: 16,
+        angle_count: 2,
+        ..Params::default()
+    };
+    let p = prepare(builtin::single(), &params).expect("prepare");
+    for step in 0..150u32 {
+        let x = 2.0 + step as f32 * 8.0;
+        let camera = Camera::look_at([-x, 0.3, 10.0], [0.0, 0.0, 8.0], 50.0, 64, 64);
+        p.select(&camera, &params);
+    }
+}
+
+fn tile_frames() {
+    let scene = builtin::tiny();
+    let params = tiny_params(FadeMode::DitherSequential);
+    let camera = named_camera("medium", &scene, 0.0, 96, 96).expect("camera");
+    let p = prepare(scene, &params).expect("prepare");
+    for (x0, y0, w, h) in [
+        (0, 0, 40, 80),
+        (40, 0, 56, 80),
+        (0, 80, 40, 16),
+        (40, 80, 56, 16),
+    ] {
+        p.render(&camera.tile(x0, y0, w, h), &params)
+            .expect("render");
+    }
+}
+
+fn select_cases(
+    strategy: impl Strategy<Value = (Vec<forestlod_reference::scene::Instance>, Camera, Params)>,
+) {
+    let mut runner = runner();
+    for _ in 0..PROPERTY_CASES {
+        let (trees, camera, p) = strategy.new_tree(&mut runner).expect("a case").current();
+        let scene = scene_of(trees);
+        let geometry = pack_geometry(&scene);
+        let batches = build_batches(&scene, &geometry.meshes, p.grid_size).expect("batches");
+        select(
+            &batches.metas,
+            &geometry.meshes,
+            &geometry.billboard,
+            &camera,
+            &p,
+        );
+    }
+}
+
+fn select_property_cases() {
+    select_cases((instances(300), cameras(), params()));
+}
+
+fn far_plane_property_cases() {
+    select_cases(far_plane_cases());
+}
+
+/// `parity::hier_select`'s property: its strategy (every hierarchical mode), the cut alone.
+fn hier_property_cases() {
+    let modes = [
+        Hierarchy::GridAabb,
+        Hierarchy::Quadtree,
+        Hierarchy::Octree,
+        Hierarchy::OctreeEuclidean,
+    ];
+    let strategy = (
+        instances(300),
+        cameras(),
+        params(),
+        2u32..24,
+        0u32..9,
+        0usize..modes.len(),
+    );
+    let mut runner = runner();
+    for _ in 0..PROPERTY_CASES {
+        let (trees, camera, p, npn, mcd, mode_i) =
+            strategy.new_tree(&mut runner).expect("a case").current();
+        let p = Params {
+            nodes_per_node: npn,
+            max_cull_depth: mcd,
+            grid_size: p.grid_size.min(400.0),
+            hierarchy: modes[mode_i] as u32,
+            ..p
+        };
+        let packed = Packed::new(trees, p.grid_size);
+        let g = &packed.geometry;
+        let h = Tree::build(&packed.scene, &g.meshes, &p)
+            .expect("a hierarchy")
+            .expect("a hierarchical mode");
+        forestlod_reference::hier_select::hier_select(&h, &g.meshes, &g.billboard, &camera, &p);
+    }
+}
+
+/// The image frames of `parity::refine` (`tree_cull` all, the draw distance pulled in to 150 m)
+/// and `parity::baselines` (our pipeline, the draw distance 300 m): `tiny`'s frames only.
+fn refine_and_baseline_images() {
+    let p = tiny_params(FadeMode::Alpha);
+    let dd = |d: f32| Params {
+        draw_distance: d,
+        ..p
+    };
+    let (prepared, frames) = tiny_and_crop_frames(&[
+        ("draw-distance-150", dd(150.0)),
+        ("draw-distance-300", dd(300.0)),
+    ]);
+    for f in frames.iter().filter(|f| f.prepared_key == 0) {
+        let pr = &prepared[f.prepared_key];
+        for tree_cull in [TreeCull::None, TreeCull::All] {
+            let params = Params {
+                tree_cull: tree_cull as u32,
+                ..f.params
+            };
+            pr.render(&f.camera, &params).expect("render");
+        }
+    }
+}
+
+fn table(columns: &[Column]) -> String {
+    let mut out = String::from("| threshold | sides |");
+    for c in columns {
+        out.push_str(&format!(" {} |", c.name));
+    }
+    out.push_str(" straddled by |\n|---|---|");
+    out.push_str(&"---|".repeat(columns.len() + 1));
+    out.push('\n');
+    for (i, &t) in ALL.iter().enumerate() {
+        let (name, a, b) = t.sides();
+        out.push_str(&format!("| {name} | {a} / {b} |"));
+        let mut by = Vec::new();
+        for c in columns {
+            let [x, y] = c.counts[i].1;
+            out.push_str(&if x == 0 && y == 0 {
+                " – |".to_string()
+            } else {
+                format!(" {x}/{y} |")
+            });
+            if x > 0 && y > 0 {
+                by.push(c.name);
+            }
+        }
+        out.push_str(&format!(
+            " {} |\n",
+            if by.is_empty() {
+                "**none**".to_string()
+            } else {
+                by.join(", ")
+            }
+        ));
+    }
+    out
+}
+
+#[test]
+fn every_threshold_is_straddled_by_a_parity_case() {
+    let columns = vec![
+        record("parity::draw goldens", golden_frames),
+        record(
+            "parity::refine + baselines (cull) views",
+            refine_and_cull_views,
+        ),
+        record("parity::hier_select frames", hierarchy_frames),
+        record("metamorphic monotone", monotone_sweep),
+        record("metamorphic tiles", tile_frames),
+        record("parity::select property", select_property_cases),
+        record("parity::select far plane", far_plane_property_cases),
+        record("parity::hier_select property", hier_property_cases),
+        record(
+            "parity::refine + baselines images",
+            refine_and_baseline_images,
+        ),
+    ];
+    let table = table(&columns);
+    println!("{table}");
+    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("coverage.md");
+    std::fs::write(&path, &table).expect("write the table");
+    println!("table: {}", path.display());
+    let missing: Vec<String> = ALL
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| {
+            !columns.iter().any(|c| {
+                let [x, y] = c.counts[i].1;
+                x > 0 && y > 0
+            })
+        })
+        .map(|(_, t)| {
+            let (name, a, b) = t.sides();
+            format!("{name} ({a} / {b})")
+        })
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "thresholds no parity case straddles: {}",
+        missing.join("; ")
+    );
+}
