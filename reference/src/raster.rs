@@ -82,6 +82,30 @@
 //!   snapped coordinates exceed `M` anyway (only possible when a vertex has `w` so close to zero that
 //!   the division overflows) is dropped. So is any triangle with a non-finite clip coordinate
 //!   (Vulkan leaves those undefined).
+//!
+//! ## Speed-ups (issue 14), and what each relies on
+//!
+//! None changes a bit of any buffer or counter; each is an equality, not an approximation.
+//!
+//! - **Binning by tile**: a triangle is listed only in the bins of the tiles its pixel box
+//!   touches, in submission order; a tile renders only its bin. Relies on coverage being confined
+//!   to the box (pixel centres outside it fail an edge test).
+//! - **No per-triangle allocation in setup**: setup runs over runs of [`SETUP_RUN`] triangles,
+//!   one output vector each, concatenated in order; a triangle that crosses no clip plane skips the
+//!   clipper (its polygon would be itself). A set-up piece whose box holds no pixel centre is
+//!   counted but not kept (it can cover nothing).
+//! - **Tile buffers loaded once per draw**: a tile's private copy of its pixels lives from the
+//!   first chunk that reaches it to the end of the draw (tiles own disjoint pixels, so nothing
+//!   else reads them meanwhile); a masked target's tiles with no pixel in the mask are never
+//!   loaded.
+//! - **Shared barycentrics; helpers only where read**: a pixel's barycentrics are computed once
+//!   (same expression) for depth and varyings; the bottom-right pixel of a quad is interpolated
+//!   only when it is shaded, since the coarse derivatives read the other three only.
+//! - **Table sRGB encoder** (`srgb8`): relies on `linear_to_srgb` being non-decreasing in its
+//!   `f32` input (module `srgb8` docs; checked exhaustively by an ignored test).
+//! - Not done: hierarchical depth rejection per tile. [`DrawStats::fragments_covered`] counts
+//!   covered samples *before* the depth test, so a rejected block would still need its coverage
+//!   counted; what it could save is only the depth interpolation of occluded samples.
 
 use std::ops::{Add, AddAssign};
 
