@@ -1427,6 +1427,58 @@ mod tests {
         assert!(checked > 10_000, "only {checked} pixels checked");
     }
 
+    /// One draw of more than two setup chunks equals the same triangles drawn as consecutive
+    /// draws of one chunk each (the shader ignores the primitive id, which restarts per draw):
+    /// the per-draw tile buffers carry every chunk's writes to the next, in submission order.
+    #[test]
+    fn a_draw_across_setup_chunks_equals_consecutive_draws() {
+        let (w, h) = (72, 40);
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let n = 2 * SETUP_CHUNK + 1000;
+        let tris: Vec<Triangle<1>> = (0..n)
+            .map(|i| {
+                let (cx, cy) = (next() * 2.2 - 1.1, next() * 2.2 - 1.1);
+                let z = next();
+                [0, 1, 2].map(|_| {
+                    Vertex::new(
+                        [cx + next() * 0.15, cy + next() * 0.15, z, 1.0],
+                        [(i % 251) as f32 / 251.0],
+                    )
+                })
+            })
+            .collect();
+        let shader = |f: &Fragment<1>| {
+            (f.varyings[0] > 0.1).then_some(FragmentOutput {
+                color: [f.varyings[0], 1.0 - f.varyings[0], 0.5, 0.6],
+                id: (f.varyings[0] * 251.0) as u32,
+                depth: None,
+            })
+        };
+        let state = DrawState {
+            depth_write: true,
+            ..DrawState::TRANSPARENT
+        };
+        let mut one = RenderTarget::new(w, h, ClearValues::default());
+        let s1 = one.draw(&tris, &shader, &state);
+        let mut parts = RenderTarget::new(w, h, ClearValues::default());
+        let mut s2 = DrawStats::default();
+        for chunk in tris.chunks(SETUP_CHUNK) {
+            s2 += parts.draw(chunk, &shader, &state);
+        }
+        assert_eq!(s1, s2);
+        assert!(s1.fragments_written > 10_000, "{s1:?}");
+        assert_eq!(one.color(), parts.color());
+        assert_eq!(one.aux(), parts.aux());
+        let bits = |t: &RenderTarget| t.depth().iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&one), bits(&parts));
+    }
+
     /// A masked draw writes exactly the unmasked draw's values inside the mask and nothing
     /// outside it; `draw_each` gives each target what its own `draw` gives.
     #[test]

@@ -253,7 +253,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ref_draw.map_or_else(String::new, |d| format!("{:.3}", d / gpu_draw))
             ));
                 if let Some(d) = ref_draw {
-                    groups.push(format!("{name} {width}x{height} {camera_name}"));
+                    // Short labels ("syn 320 med") so that the bars' names fit under them.
+                    let short = |s: &str| s.chars().take(3).collect::<String>();
+                    groups.push(format!("{} {width} {}", short(name), short(camera_name)));
                     ratios.push(vec![d / gpu_draw]);
                 }
             }
@@ -268,8 +270,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         forestlod_experiments::plot::bar_plot(
             &plot,
             &forestlod_experiments::plot::Axes::linear(
-                "reference draw / lavapipe draw (wall), per frame in CSV order".into(),
-                "frames (scene, size, camera) in CSV row order",
+                "reference draw / GPU draw (wall)".into(),
+                "scene, width, camera (CSV row order)",
                 "ratio",
             ),
             &groups,
