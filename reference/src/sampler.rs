@@ -410,7 +410,7 @@ fn floor_index(c: f32) -> i64 {
 /// rounded a negative value up. Checked against `f32::floor` by `floor_exact_equals_floor`.
 #[inline]
 fn floor_exact(c: f32) -> f32 {
-    if !(c.abs() < 8_388_608.0) || c == 0.0 {
+    if c.is_nan() || c.abs() >= 8_388_608.0 || c == 0.0 {
         return c;
     }
     let t = c as i32 as f32;
