@@ -336,23 +336,54 @@ pub fn tree_triangles(
             (0..cmd.instance_count).map(move |j| (c as u32, cmd.first_instance + j))
         })
         .collect();
-    let per_instance: Vec<Option<Vec<Triangle<TREE_VARYINGS>>>> = items
-        .par_iter()
-        .map(|&(c, instance)| {
-            let cmd = &selection.commands[c as usize];
+    // The index range of each command, for the per-instance vertex cache below.
+    let index_ranges: Vec<(u32, u32)> = selection
+        .commands
+        .iter()
+        .map(|cmd| {
             let indices = &res.geometry.indices
                 [cmd.first_index as usize..(cmd.first_index + cmd.index_count) as usize];
-            let mut tris = Vec::with_capacity(indices.len() / 3);
-            for t in indices.chunks_exact(3) {
-                let mut tri = [Vertex::new([0.0; 4], [0.0; TREE_VARYINGS]); 3];
-                for (k, &index) in t.iter().enumerate() {
-                    let vertex_index = (index as i32 + cmd.base_vertex) as u32;
-                    tri[k] = vertex_stage(res, selection, &uniform, vertex_index, instance)?;
-                }
-                tris.push(tri);
-            }
-            Some(tris)
+            let lo = indices.iter().copied().min().unwrap_or(0);
+            let hi = indices.iter().copied().max().unwrap_or(0);
+            (lo, hi)
         })
+        .collect();
+    // Speed-up (issue 14): the vertex stage runs once per distinct index of an instance, not once
+    // per index (a mesh vertex is shared by several triangles; a GPU's post-transform cache does
+    // the same). `vertex_stage` is a pure function of its arguments, so the cached vertex is the
+    // one a second call would return, bit for bit. The cache is per rayon worker, reused.
+    let per_instance: Vec<Option<Vec<Triangle<TREE_VARYINGS>>>> = items
+        .par_iter()
+        .map_init(
+            Vec::new,
+            |cache: &mut Vec<Option<Vertex<TREE_VARYINGS>>>, &(c, instance)| {
+                let cmd = &selection.commands[c as usize];
+                let indices = &res.geometry.indices
+                    [cmd.first_index as usize..(cmd.first_index + cmd.index_count) as usize];
+                let (lo, hi) = index_ranges[c as usize];
+                cache.clear();
+                cache.resize((hi - lo) as usize + 1, None);
+                let mut tris = Vec::with_capacity(indices.len() / 3);
+                for t in indices.chunks_exact(3) {
+                    let mut tri = [Vertex::new([0.0; 4], [0.0; TREE_VARYINGS]); 3];
+                    for (k, &index) in t.iter().enumerate() {
+                        let slot = &mut cache[(index - lo) as usize];
+                        tri[k] = match slot {
+                            Some(v) => *v,
+                            None => {
+                                let vertex_index = (index as i32 + cmd.base_vertex) as u32;
+                                let v =
+                                    vertex_stage(res, selection, &uniform, vertex_index, instance)?;
+                                *slot = Some(v);
+                                v
+                            }
+                        };
+                    }
+                    tris.push(tri);
+                }
+                Some(tris)
+            },
+        )
         .collect();
     let discarded = per_instance.iter().filter(|t| t.is_none()).count() as u64;
     // Exact capacity: a collect through `flatten` has no size hint and grows by doubling, which

@@ -82,6 +82,30 @@
 //!   snapped coordinates exceed `M` anyway (only possible when a vertex has `w` so close to zero that
 //!   the division overflows) is dropped. So is any triangle with a non-finite clip coordinate
 //!   (Vulkan leaves those undefined).
+//!
+//! ## Speed-ups (issue 14), and what each relies on
+//!
+//! None changes a bit of any buffer or counter; each is an equality, not an approximation.
+//!
+//! - **Binning by tile**: a triangle is listed only in the bins of the tiles its pixel box
+//!   touches, in submission order; a tile renders only its bin. Relies on coverage being confined
+//!   to the box (pixel centres outside it fail an edge test).
+//! - **No per-triangle allocation in setup**: setup runs over runs of [`SETUP_RUN`] triangles,
+//!   one output vector each, concatenated in order; a triangle that crosses no clip plane skips the
+//!   clipper (its polygon would be itself). A set-up piece whose box holds no pixel centre is
+//!   counted but not kept (it can cover nothing).
+//! - **Tile buffers loaded once per draw**: a tile's private copy of its pixels lives from the
+//!   first chunk that reaches it to the end of the draw (tiles own disjoint pixels, so nothing
+//!   else reads them meanwhile); a masked target's tiles with no pixel in the mask are never
+//!   loaded.
+//! - **Shared barycentrics; helpers only where read**: a pixel's barycentrics are computed once
+//!   (same expression) for depth and varyings; the bottom-right pixel of a quad is interpolated
+//!   only when it is shaded, since the coarse derivatives read the other three only.
+//! - **Table sRGB encoder** (`srgb8`): relies on `linear_to_srgb` being non-decreasing in its
+//!   `f32` input (module `srgb8` docs; checked exhaustively by an ignored test).
+//! - Not done: hierarchical depth rejection per tile. [`DrawStats::fragments_covered`] counts
+//!   covered samples *before* the depth test, so a rejected block would still need its coverage
+//!   counted; what it could save is only the depth interpolation of occluded samples.
 
 use std::ops::{Add, AddAssign};
 
@@ -483,6 +507,14 @@ impl RenderTarget {
         b
     }
 
+    /// Whether a draw may touch any pixel of `rect` (always, without a pixel mask).
+    fn tile_has_pixels(&self, rect: PixelRect) -> bool {
+        self.mask.as_ref().is_none_or(|mask| {
+            (rect.y0..rect.y1)
+                .any(|y| mask[self.index(rect.x0, y)..self.index(rect.x1, y)].contains(&true))
+        })
+    }
+
     fn store_tile(&mut self, b: &TileBuffers) {
         let w = b.rect.width() as usize;
         for (j, y) in (b.rect.y0..b.rect.y1).enumerate() {
@@ -690,33 +722,75 @@ fn is_top_left(a: [i64; 2], b: [i64; 2]) -> bool {
     dy < 0 || (dy == 0 && dx > 0)
 }
 
-/// Clips, projects and sets up one submitted triangle. Returns how many triangles left the clipper
-/// and those that survived setup.
+/// What [`setup_primitive`] did with one submitted triangle (its [`DrawStats`] shares).
+#[derive(Clone, Copy, Default)]
+struct SetupCounts {
+    /// Triangles that left the clipper.
+    clipped: u64,
+    /// Of those, triangles with non-zero snapped area that were not culled.
+    rasterized: u64,
+}
+
+/// Clips, projects and sets up one submitted triangle, appending to `out` the pieces that survive
+/// setup **and cover at least one pixel centre of the target** (a piece with no pixel in its box
+/// can produce no fragment, so it is counted in [`SetupCounts::rasterized`] but not kept: that is
+/// most of a far forest's triangles).
+///
+/// Speed-up (issue 14): a triangle inside every clip plane (the common case) skips the clipper's
+/// polygon and is projected and set up directly, with no allocation; it is exactly what the clipper
+/// would return (the polygon of a triangle that crosses no plane is the triangle itself).
 fn setup_primitive<const N: usize>(
     id: u32,
     tri: &Triangle<N>,
     viewport: &Viewport,
     state: &DrawState,
-) -> (u64, Vec<SetupTriangle<N>>) {
+    out: &mut Vec<SetupTriangle<N>>,
+) -> SetupCounts {
+    let mut counts = SetupCounts::default();
     if tri.iter().any(|v| v.clip.iter().any(|c| !c.is_finite())) {
-        return (0, Vec::new());
+        return counts;
+    }
+    let mut keep = |t: Option<SetupTriangle<N>>| {
+        if let Some(t) = t {
+            counts.rasterized += 1;
+            if t.bbox.is_some() {
+                out.push(t);
+            }
+        }
+    };
+    if tri.iter().all(|v| viewport.outcode(&v.clip) == 0) {
+        counts.clipped = 1;
+        let [a, b, c] = tri;
+        if let (Some(a), Some(b), Some(c)) = (
+            project(a, viewport),
+            project(b, viewport),
+            project(c, viewport),
+        ) {
+            keep(setup_triangle(id, [a, b, c], viewport, state));
+        }
+        return counts;
     }
     let poly = clip_triangle(tri, viewport);
     if poly.is_empty() {
-        return (0, Vec::new());
+        return counts;
     }
-    let fan = poly.len() as u64 - 2;
+    counts.clipped = poly.len() as u64 - 2;
     let Some(screen) = poly
         .iter()
         .map(|v| project(v, viewport))
         .collect::<Option<Vec<_>>>()
     else {
-        return (fan, Vec::new());
+        return counts;
     };
-    let pieces = (1..screen.len() - 1)
-        .filter_map(|i| setup_triangle(id, [screen[0], screen[i], screen[i + 1]], viewport, state))
-        .collect();
-    (fan, pieces)
+    for i in 1..screen.len() - 1 {
+        keep(setup_triangle(
+            id,
+            [screen[0], screen[i], screen[i + 1]],
+            viewport,
+            state,
+        ));
+    }
+    counts
 }
 
 fn setup_triangle<const N: usize>(
@@ -822,17 +896,16 @@ impl<const N: usize> SetupTriangle<N> {
         e.map(|ei| ei as f64 / self.area as f64)
     }
 
-    /// Depth at a sample with edge functions `e`: linear in screen space, clamped to `[0, 1]`.
-    fn depth(&self, e: &[i64; 3]) -> f32 {
-        let b = self.barycentrics(e);
+    /// Depth at a sample with barycentrics `b` ([`SetupTriangle::barycentrics`]): linear in
+    /// screen space, clamped to `[0, 1]`.
+    fn depth(&self, b: &[f64; 3]) -> f32 {
         let z: f64 = (0..3).map(|i| b[i] * self.v[i].z as f64).sum();
         (z as f32).clamp(0.0, 1.0)
     }
 
-    /// Perspective-correct varyings at a sample with edge functions `e` (inside the triangle or,
+    /// Perspective-correct varyings at a sample with barycentrics `b` (inside the triangle or,
     /// for helper pixels, outside it).
-    fn varyings(&self, e: &[i64; 3]) -> [f32; N] {
-        let b = self.barycentrics(e);
+    fn varyings(&self, b: &[f64; 3]) -> [f32; N] {
         let q: [f64; 3] = std::array::from_fn(|i| b[i] * self.v[i].inv_w);
         let denom = q[0] + q[1] + q[2];
         std::array::from_fn(|j| {
@@ -847,6 +920,9 @@ impl<const N: usize> SetupTriangle<N> {
 /// changing any pixel: chunks go in submission order and each tile renders a chunk's triangles in
 /// order before the next chunk's, so every pixel still merges its fragments in submission order.
 pub const SETUP_CHUNK: usize = 1 << 16;
+
+/// Triangles per parallel work item of the setup (one output vector each).
+const SETUP_RUN: usize = 256;
 
 /// Draws one triangle list into several targets of one size, each with its own shader, sharing
 /// the clipping, setup and binning (they depend only on the triangles, the size and `state`):
@@ -893,19 +969,42 @@ where
     let viewport = Viewport::new(width, height);
     let tiles = first.tiles();
     let tiles_x = width.div_ceil(TILE_SIZE) as usize;
+    // Per pass, per tile: whether the target's pixel mask leaves it any pixel, and its private
+    // copy of its pixels, loaded when a triangle first reaches it and written back after the last
+    // chunk (one copy each way per draw, not per chunk).
+    let live: Vec<Vec<bool>> = passes
+        .iter()
+        .map(|(target, _)| tiles.iter().map(|r| target.tile_has_pixels(*r)).collect())
+        .collect();
+    let mut tile_buffers: Vec<Vec<Option<TileBuffers>>> = passes
+        .iter()
+        .map(|_| tiles.iter().map(|_| None).collect())
+        .collect();
     for (c, chunk) in triangles.chunks(SETUP_CHUNK).enumerate() {
         let base = c * SETUP_CHUNK;
-        // Clip, project, snap and set up, in parallel but collected in submission order.
-        let per_primitive: Vec<(u64, Vec<SetupTriangle<N>>)> = chunk
-            .par_iter()
+        // Clip, project, snap and set up, in parallel over runs of triangles (one output vector
+        // per run, not per triangle), concatenated in submission order.
+        let runs: Vec<(SetupCounts, Vec<SetupTriangle<N>>)> = chunk
+            .par_chunks(SETUP_RUN)
             .enumerate()
-            .map(|(i, tri)| setup_primitive((base + i) as u32, tri, &viewport, state))
+            .map(|(r, run)| {
+                let mut out = Vec::with_capacity(run.len());
+                let mut counts = SetupCounts::default();
+                for (i, tri) in run.iter().enumerate() {
+                    let id = (base + r * SETUP_RUN + i) as u32;
+                    let c = setup_primitive(id, tri, &viewport, state, &mut out);
+                    counts.clipped += c.clipped;
+                    counts.rasterized += c.rasterized;
+                }
+                (counts, out)
+            })
             .collect();
-        let mut setup = Vec::with_capacity(chunk.len());
-        let mut clipped = 0;
-        for (k, pieces) in per_primitive {
-            clipped += k;
-            setup.extend(pieces);
+        let mut setup = Vec::with_capacity(runs.iter().map(|(_, t)| t.len()).sum());
+        let (mut clipped, mut rasterized) = (0, 0);
+        for (counts, tris) in runs {
+            clipped += counts.clipped;
+            rasterized += counts.rasterized;
+            setup.extend(tris);
         }
         // Bin by bounding box; each bin lists setup indices in increasing, i.e. submission, order.
         let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles.len()];
@@ -917,35 +1016,41 @@ where
                 }
             }
         }
-        for ((target, shader), stats) in passes.iter_mut().zip(&mut stats) {
+        for ((((target, shader), stats), buffers), live) in passes
+            .iter()
+            .zip(&mut stats)
+            .zip(&mut tile_buffers)
+            .zip(&live)
+        {
             stats.triangles_clipped += clipped;
-            stats.triangles_rasterized += setup.len() as u64;
+            stats.triangles_rasterized += rasterized;
             let shader: &S = shader;
             let read: &RenderTarget = target;
-            // Render tiles in parallel, each into a private copy of its pixels.
-            let rendered: Vec<Option<(TileBuffers, FragmentCounts)>> = tiles
+            // Render tiles in parallel, each into its private copy of its pixels.
+            let counts: Vec<FragmentCounts> = tiles
                 .par_iter()
                 .zip(bins.par_iter())
-                .map(|(rect, bin)| {
-                    if bin.is_empty() {
-                        return None;
+                .zip(buffers.par_iter_mut())
+                .zip(live.par_iter())
+                .map(|(((rect, bin), buffers), &live)| {
+                    if bin.is_empty() || !live {
+                        return FragmentCounts::default();
                     }
-                    let mut buffers = read.load_tile(*rect);
-                    if buffers.mask.as_ref().is_some_and(|m| !m.contains(&true)) {
-                        return None;
-                    }
-                    let counts = render_tile(&mut buffers, bin, &setup, shader, state);
-                    Some((buffers, counts))
+                    let buffers = buffers.get_or_insert_with(|| read.load_tile(*rect));
+                    render_tile(buffers, bin, &setup, shader, state)
                 })
                 .collect();
-            // Write back in tile order (tiles are disjoint, so the order only fixes the sum's
-            // order).
-            for (buffers, counts) in rendered.into_iter().flatten() {
-                stats.fragments_covered += counts.covered;
-                stats.fragments_shaded += counts.shaded;
-                stats.fragments_written += counts.written;
-                target.store_tile(&buffers);
+            for c in counts {
+                stats.fragments_covered += c.covered;
+                stats.fragments_shaded += c.shaded;
+                stats.fragments_written += c.written;
             }
+        }
+    }
+    // Write back (tiles are disjoint).
+    for ((target, _), buffers) in passes.iter_mut().zip(tile_buffers) {
+        for b in buffers.into_iter().flatten() {
+            target.store_tile(&b);
         }
     }
     stats
@@ -1012,19 +1117,29 @@ where
                 let at = QUAD.map(|(dx, dy)| {
                     ((qy + dy - tile.y0) * tile.width() + (qx + dx - tile.x0)) as usize
                 });
+                // Barycentrics are computed once per pixel and shared by depth and varyings.
+                let mut bary = [[0.0f64; 3]; 4];
                 let mut depth = [0.0f32; 4];
                 let mut passed = [false; 4];
                 for k in (0..4).filter(|&k| covered[k]) {
                     counts.covered += 1;
-                    depth[k] = tri.depth(&edges[k]);
+                    bary[k] = tri.barycentrics(&edges[k]);
+                    depth[k] = tri.depth(&bary[k]);
                     // `at[k]` may lie outside the tile only for uncovered pixels.
                     passed[k] = !state.depth_test || depth[k] < buffers.depth[at[k]];
                 }
                 if !passed.iter().any(|&p| p) {
                     continue;
                 }
-                // All four pixels are interpolated, covered or not (helpers), for the derivatives.
-                let values = edges.map(|e| tri.varyings(&e));
+                // The derivatives need the top three pixels, covered or not (helpers); the
+                // bottom-right one is interpolated only if it is shaded.
+                for k in (0..3).filter(|&k| !covered[k]) {
+                    bary[k] = tri.barycentrics(&edges[k]);
+                }
+                let mut values = [[0.0f32; N]; 4];
+                for k in (0..4).filter(|&k| k < 3 || passed[k]) {
+                    values[k] = tri.varyings(&bary[k]);
+                }
                 let ddx = std::array::from_fn(|j| values[1][j] - values[0][j]);
                 let ddy = std::array::from_fn(|j| values[2][j] - values[0][j]);
                 for k in (0..4).filter(|&k| passed[k]) {
@@ -1076,12 +1191,48 @@ fn clamp_color(c: [f32; 4]) -> [f32; 4] {
 
 /// sRGB8 colour, UNORM8 alpha, rounded to nearest.
 fn encode(c: [f32; 4]) -> [u8; 4] {
-    [
-        linear_to_srgb(c[0]),
-        linear_to_srgb(c[1]),
-        linear_to_srgb(c[2]),
-        unorm8(c[3]),
-    ]
+    [srgb8(c[0]), srgb8(c[1]), srgb8(c[2]), unorm8(c[3])]
+}
+
+/// [`linear_to_srgb`] bit for bit, by table (speed-up, issue 14: the exact function takes an
+/// `f64` `powf` per channel of every written fragment). `linear_to_srgb` is a non-decreasing step
+/// function of its `f32` argument (`powf` is accurate to far less than the relative gap between
+/// two neighbouring `f32`s, and every later step is monotone), so it equals "the largest byte
+/// whose first input is at most `l`", found by binary search in [`srgb_thresholds`]. Checked at
+/// every step's edge and on a dense sample by `srgb8_equals_linear_to_srgb`; the exhaustive check
+/// over every `f32` in `[0, 1]` is the ignored `srgb8_equals_linear_to_srgb_everywhere`.
+fn srgb8(l: f32) -> u8 {
+    // NaN, negative values and zero encode to 0, as in `linear_to_srgb`.
+    if l.is_nan() || l <= 0.0 {
+        return 0;
+    }
+    if l >= 1.0 {
+        return 255;
+    }
+    (srgb_thresholds().partition_point(|&t| t <= l) - 1) as u8
+}
+
+/// `t[c]`: the smallest `f32` in `[0, 1]` that [`linear_to_srgb`] encodes to `c` or more (found by
+/// bisection on the bit patterns, which order non-negative `f32`s); `t[0] = 0`.
+fn srgb_thresholds() -> &'static [f32; 256] {
+    static THRESHOLDS: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    THRESHOLDS.get_or_init(|| {
+        let mut t = [0.0f32; 256];
+        for (c, slot) in t.iter_mut().enumerate().skip(1) {
+            // Invariant: encode(lo) < c <= encode(hi).
+            let (mut lo, mut hi) = (0.0f32.to_bits(), 1.0f32.to_bits());
+            while hi - lo > 1 {
+                let mid = lo + (hi - lo) / 2;
+                if linear_to_srgb(f32::from_bits(mid)) as usize >= c {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            *slot = f32::from_bits(hi);
+        }
+        t
+    })
 }
 
 fn decode(c: [u8; 4]) -> [f32; 4] {
@@ -1186,6 +1337,61 @@ mod tests {
         assert_eq!(out[3], unorm8(0.5));
     }
 
+    /// The table encoder equals the exact one at both sides of every step, at the special values
+    /// and on a sample of about 260,000 `f32`s spread over `[0, 1]`.
+    #[test]
+    fn srgb8_equals_linear_to_srgb() {
+        let mut checked = 0;
+        let mut check = |l: f32| {
+            assert_eq!(
+                srgb8(l),
+                linear_to_srgb(l),
+                "l = {l:e} ({:#x})",
+                l.to_bits()
+            );
+            checked += 1;
+        };
+        for &t in &srgb_thresholds()[1..] {
+            check(t);
+            check(f32::from_bits(t.to_bits() - 1));
+        }
+        for l in [
+            0.0,
+            -0.0,
+            -1.0,
+            1.0,
+            2.0,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::MIN_POSITIVE,
+            0.0031308,
+        ] {
+            check(l);
+        }
+        for bits in (0..=1.0f32.to_bits()).step_by(4099) {
+            check(f32::from_bits(bits));
+        }
+        assert!(checked > 250_000);
+        // Every byte round-trips through the decoder.
+        for c in 0..=255u8 {
+            assert_eq!(srgb8(srgb_to_linear(c)), c);
+        }
+    }
+
+    /// Every `f32` in `[0, 1]` (about 10^9 of them, a minute in release): run with
+    /// `cargo test --release -p forestlod-reference srgb8_equals -- --ignored`.
+    #[test]
+    #[ignore = "exhaustive, about 10^9 values: run explicitly with --ignored in release"]
+    fn srgb8_equals_linear_to_srgb_everywhere() {
+        let end = 1.0f32.to_bits();
+        let bad = (0..=end)
+            .into_par_iter()
+            .filter(|&b| srgb8(f32::from_bits(b)) != linear_to_srgb(f32::from_bits(b)))
+            .count();
+        assert_eq!(bad, 0);
+    }
+
     /// `quad_edges` (incremental) equals `edges` evaluated at each of the quad's pixels, for
     /// triangles of every size up to the guard band, both windings.
     #[test]
@@ -1203,7 +1409,8 @@ mod tests {
             let scale = [1.0, 4.0, 4000.0][case % 3];
             let tri = [0, 1, 2]
                 .map(|_| vertex((next() * 2.0 - 1.0) * scale, (next() * 2.0 - 1.0) * scale));
-            let (_, pieces) = setup_primitive(case as u32, &tri, &vp, &DrawState::OPAQUE);
+            let mut pieces = Vec::new();
+            setup_primitive(case as u32, &tri, &vp, &DrawState::OPAQUE, &mut pieces);
             for t in &pieces {
                 let Some(b) = t.bbox else { continue };
                 for qy in ((b.y0 & !1)..b.y1.min(b.y0 + 40)).step_by(2) {
@@ -1218,6 +1425,58 @@ mod tests {
             }
         }
         assert!(checked > 10_000, "only {checked} pixels checked");
+    }
+
+    /// One draw of more than two setup chunks equals the same triangles drawn as consecutive
+    /// draws of one chunk each (the shader ignores the primitive id, which restarts per draw):
+    /// the per-draw tile buffers carry every chunk's writes to the next, in submission order.
+    #[test]
+    fn a_draw_across_setup_chunks_equals_consecutive_draws() {
+        let (w, h) = (72, 40);
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let n = 2 * SETUP_CHUNK + 1000;
+        let tris: Vec<Triangle<1>> = (0..n)
+            .map(|i| {
+                let (cx, cy) = (next() * 2.2 - 1.1, next() * 2.2 - 1.1);
+                let z = next();
+                [0, 1, 2].map(|_| {
+                    Vertex::new(
+                        [cx + next() * 0.15, cy + next() * 0.15, z, 1.0],
+                        [(i % 251) as f32 / 251.0],
+                    )
+                })
+            })
+            .collect();
+        let shader = |f: &Fragment<1>| {
+            (f.varyings[0] > 0.1).then_some(FragmentOutput {
+                color: [f.varyings[0], 1.0 - f.varyings[0], 0.5, 0.6],
+                id: (f.varyings[0] * 251.0) as u32,
+                depth: None,
+            })
+        };
+        let state = DrawState {
+            depth_write: true,
+            ..DrawState::TRANSPARENT
+        };
+        let mut one = RenderTarget::new(w, h, ClearValues::default());
+        let s1 = one.draw(&tris, &shader, &state);
+        let mut parts = RenderTarget::new(w, h, ClearValues::default());
+        let mut s2 = DrawStats::default();
+        for chunk in tris.chunks(SETUP_CHUNK) {
+            s2 += parts.draw(chunk, &shader, &state);
+        }
+        assert_eq!(s1, s2);
+        assert!(s1.fragments_written > 10_000, "{s1:?}");
+        assert_eq!(one.color(), parts.color());
+        assert_eq!(one.aux(), parts.aux());
+        let bits = |t: &RenderTarget| t.depth().iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&one), bits(&parts));
     }
 
     /// A masked draw writes exactly the unmasked draw's values inside the mask and nothing

@@ -29,6 +29,7 @@ pub const LOD_ID_TERRAIN: u32 = 4;
 /// Sky colour (sRGB8), the clear colour of every frame.
 pub const SKY_SRGB: [u8; 3] = [168, 198, 226];
 
+#[inline]
 fn decode_table() -> &'static [f32; 256] {
     static TABLE: OnceLock<[f32; 256]> = OnceLock::new();
     TABLE.get_or_init(|| {
@@ -46,6 +47,7 @@ fn decode_table() -> &'static [f32; 256] {
 }
 
 /// sRGB-encoded byte to linear light in `[0, 1]`: the exact curve in `f64`, rounded once to `f32`.
+#[inline]
 pub fn srgb_to_linear(c: u8) -> f32 {
     decode_table()[c as usize]
 }

@@ -8,7 +8,12 @@
 //! `TIMESTAMP_QUERY`, GPU time between timestamps written by empty compute passes recorded just
 //! before and just after the stage in the same command encoder. The reference stages are timed in
 //! the same process on the same frames (one repetition: the reference draw of `stress` takes
-//! seconds). Writes `gpu_bench.csv`, one row per (scene, camera).
+//! seconds). Writes `gpu_bench.csv`, one row per (scene, size, camera), and, when the reference
+//! draws, `draw_ratio.png`: the reference draw time over the GPU's per frame (issue 14: the
+//! reference at least as fast as lavapipe means every bar at or below 1).
+//!
+//! Issue 14's runs (`experiments/results/raster_speed/`):
+//! `gpu_bench --sizes 320x180,1280x720 --reps 1 --out <folder>`.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -36,6 +41,13 @@ struct Args {
     /// Viewport height.
     #[arg(long, default_value_t = 180)]
     height: u32,
+    /// Viewport sizes `WxH`, comma-separated, every scene run at each; replaces `--width` and
+    /// `--height`.
+    #[arg(long, value_delimiter = ',', value_parser = parse_size)]
+    sizes: Option<Vec<(u32, u32)>>,
+    /// Named cameras to run, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "far,medium,close")]
+    cameras: Vec<String>,
     /// GPU repetitions per stage (median reported).
     #[arg(long, default_value_t = 3)]
     reps: usize,
@@ -97,6 +109,19 @@ fn timestamped(
     ))
 }
 
+/// `WxH` as a viewport size, each side in `1..=16384` (the render targets' limit).
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("--sizes: value {s:?}: expected WIDTHxHEIGHT, e.g. 320x180");
+    let (w, h) = s.split_once('x').ok_or_else(bad)?;
+    let side = |v: &str| {
+        v.parse::<u32>()
+            .ok()
+            .filter(|n| (1..=forestlod_reference::raster::MAX_TARGET_SIZE).contains(n))
+            .ok_or_else(bad)
+    };
+    Ok((side(w)?, side(h)?))
+}
+
 fn median_opt(v: Vec<Option<f64>>) -> Option<f64> {
     let v: Vec<f64> = v.into_iter().flatten().collect();
     (!v.is_empty()).then(|| median(v))
@@ -115,6 +140,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut csv = String::from(
         "adapter,scene,camera,width,height,commands,ref_select_s,gpu_select_stable_s,gpu_select_atomic_s,ref_draw_s,gpu_draw_s,gpu_select_stable_timestamp_s,gpu_draw_timestamp_s,select_ratio_ref_over_gpu,draw_ratio_ref_over_gpu\n",
     );
+    let sizes = args
+        .sizes
+        .clone()
+        .unwrap_or(vec![(args.width, args.height)]);
+    let (mut groups, mut ratios) = (Vec::new(), Vec::new());
     for name in &args.scenes {
         let scene = builtin::by_name(name)?;
         let prepared = prepare(scene, &params)?;
@@ -122,16 +152,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let gpu_scene = DrawScene::new(&ctx, &data.desc(&prepared))?;
         let (mesh, billboards) = gpu_textures(&ctx, &prepared, &params)?;
         let textures = DrawTextures::new(&mesh, &billboards)?;
-        let target = DrawTarget::new(&ctx, args.width, args.height)?;
         let mut select = GpuSelect::new(
             &ctx,
             &prepared.batches.metas,
             &prepared.geometry.meshes,
             &prepared.geometry.billboard,
         )?;
-        for camera_name in ["far", "medium", "close"] {
-            let camera = named_camera(camera_name, &prepared.scene, 0.0, args.width, args.height)?;
-            let time_gpu = |f: &mut dyn FnMut() -> Result<(), forestlod_gpu::GpuError>| -> Result<f64, Box<dyn std::error::Error>> {
+        for &(width, height) in &sizes {
+            let target = DrawTarget::new(&ctx, width, height)?;
+            for camera_name in &args.cameras {
+                let camera_name = camera_name.as_str();
+                let camera = named_camera(camera_name, &prepared.scene, 0.0, width, height)?;
+                let time_gpu = |f: &mut dyn FnMut() -> Result<(), forestlod_gpu::GpuError>| -> Result<f64, Box<dyn std::error::Error>> {
                 let mut times = Vec::new();
                 for rep in 0..=args.reps {
                     let t = Instant::now();
@@ -143,87 +175,110 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
                 Ok(median(times))
             };
-            let select_atomic = time_gpu(&mut || {
-                select
-                    .dispatch(&camera, &params, Compaction::Atomic)
-                    .map(|_| ())
-            })?;
-            let select_stable = time_gpu(&mut || {
-                select
-                    .dispatch(&camera, &params, Compaction::Stable)
-                    .map(|_| ())
-            })?;
-            let mut ts_select = Vec::new();
-            for _ in 0..=args.reps {
-                ts_select.push(timestamped(&ctx, &mut |e| {
-                    select.encode(e, &camera, &params, Compaction::Stable);
-                    Ok(())
-                })?);
-            }
-            // The draw pass of the last (stable) selection: `select` is borrowed for reading
-            // from here on (a frame in flight can't be selected into: `encode` takes `&mut`).
-            let buffers = select.dispatch(&camera, &params, Compaction::Stable)?;
-            ctx.wait()?;
-            let inputs = DrawInputs {
-                scene: &gpu_scene,
-                textures: &textures,
-                selection: buffers,
-                indirection: None,
-            };
-            let gpu_draw = time_gpu(&mut || {
-                draw.render(&ctx, &inputs, &camera, &params, &target)
-                    .map(|_| ())
-            })?;
-            let mut ts_draw = Vec::new();
-            for _ in 0..=args.reps {
-                ts_draw.push(timestamped(&ctx, &mut |e| {
-                    draw.encode(&ctx, e, &inputs, &camera, &params, &target)
+                let select_atomic = time_gpu(&mut || {
+                    select
+                        .dispatch(&camera, &params, Compaction::Atomic)
                         .map(|_| ())
-                })?);
-            }
-            let (ts_select, ts_draw) = (
-                median_opt(ts_select.split_off(1)),
-                median_opt(ts_draw.split_off(1)),
-            );
-            let (commands, ref_select, ref_draw) = if args.no_reference {
-                let start = Instant::now();
-                let selection = prepared.select(&camera, &params);
-                let seconds = start.elapsed().as_secs_f64();
-                (selection.counters.commands, seconds, None)
-            } else {
-                let frame = prepared.render(&camera, &params)?;
-                let counters = frame.selection.counters;
-                (
-                    counters.commands,
-                    frame.timings.select,
-                    Some(frame.timings.draw),
-                )
-            };
-            println!(
-                "{name}/{camera_name}: {commands} commands | select ref {:.3} ms, gpu stable {:.3} ms (timestamps {:?} ms), atomic {:.3} ms | draw ref {:?} ms, gpu {:.1} ms (timestamps {:?} ms)",
-                ref_select * 1e3,
-                select_stable * 1e3,
-                ts_select.map(|s| s * 1e3),
-                select_atomic * 1e3,
-                ref_draw.map(|s| s * 1e3),
-                gpu_draw * 1e3,
-                ts_draw.map(|s| s * 1e3)
-            );
-            csv.push_str(&format!(
+                })?;
+                let select_stable = time_gpu(&mut || {
+                    select
+                        .dispatch(&camera, &params, Compaction::Stable)
+                        .map(|_| ())
+                })?;
+                let mut ts_select = Vec::new();
+                for _ in 0..=args.reps {
+                    ts_select.push(timestamped(&ctx, &mut |e| {
+                        select.encode(e, &camera, &params, Compaction::Stable);
+                        Ok(())
+                    })?);
+                }
+                // The draw pass of the last (stable) selection: `select` is borrowed for reading
+                // from here on (a frame in flight can't be selected into: `encode` takes `&mut`).
+                let buffers = select.dispatch(&camera, &params, Compaction::Stable)?;
+                ctx.wait()?;
+                let inputs = DrawInputs {
+                    scene: &gpu_scene,
+                    textures: &textures,
+                    selection: buffers,
+                    indirection: None,
+                };
+                let gpu_draw = time_gpu(&mut || {
+                    draw.render(&ctx, &inputs, &camera, &params, &target)
+                        .map(|_| ())
+                })?;
+                let mut ts_draw = Vec::new();
+                for _ in 0..=args.reps {
+                    ts_draw.push(timestamped(&ctx, &mut |e| {
+                        draw.encode(&ctx, e, &inputs, &camera, &params, &target)
+                            .map(|_| ())
+                    })?);
+                }
+                let (ts_select, ts_draw) = (
+                    median_opt(ts_select.split_off(1)),
+                    median_opt(ts_draw.split_off(1)),
+                );
+                let (commands, ref_select, ref_draw) = if args.no_reference {
+                    let start = Instant::now();
+                    let selection = prepared.select(&camera, &params);
+                    let seconds = start.elapsed().as_secs_f64();
+                    (selection.counters.commands, seconds, None)
+                } else {
+                    let frame = prepared.render(&camera, &params)?;
+                    let counters = frame.selection.counters;
+                    (
+                        counters.commands,
+                        frame.timings.select,
+                        Some(frame.timings.draw),
+                    )
+                };
+                println!(
+                    "{name} {width}x{height} {camera_name}: {commands} commands | select ref {:.3} ms, gpu stable {:.3} ms (timestamps {:?} ms), atomic {:.3} ms | draw ref {:?} ms, gpu {:.1} ms (timestamps {:?} ms)",
+                    ref_select * 1e3,
+                    select_stable * 1e3,
+                    ts_select.map(|s| s * 1e3),
+                    select_atomic * 1e3,
+                    ref_draw.map(|s| s * 1e3),
+                    gpu_draw * 1e3,
+                    ts_draw.map(|s| s * 1e3)
+                );
+                csv.push_str(&format!(
                 "\"{}\",{name},{camera_name},{},{},{commands},{ref_select:.6},{select_stable:.6},{select_atomic:.6},{},{gpu_draw:.6},{},{},{:.3},{}\n",
                 ctx.info.name.replace(',', ";"),
-                args.width,
-                args.height,
+                width,
+                height,
                 fmt_opt(ref_draw),
                 fmt_opt(ts_select),
                 fmt_opt(ts_draw),
                 ref_select / select_stable,
                 ref_draw.map_or_else(String::new, |d| format!("{:.3}", d / gpu_draw))
             ));
+                if let Some(d) = ref_draw {
+                    // Short labels ("syn 320 med") so that the bars' names fit under them.
+                    let short = |s: &str| s.chars().take(3).collect::<String>();
+                    groups.push(format!("{} {width} {}", short(name), short(camera_name)));
+                    ratios.push(vec![d / gpu_draw]);
+                }
+            }
         }
     }
     std::fs::create_dir_all(&args.out)?;
     std::fs::write(args.out.join("gpu_bench.csv"), csv)?;
     println!("wrote {}", args.out.join("gpu_bench.csv").display());
+    if !ratios.is_empty() {
+        // One bar per frame, in CSV row order (the frames' names are too long for the x axis).
+        let plot = args.out.join("draw_ratio.png");
+        forestlod_experiments::plot::bar_plot(
+            &plot,
+            &forestlod_experiments::plot::Axes::linear(
+                "reference draw / GPU draw (wall)".into(),
+                "scene, width, camera (CSV row order)",
+                "ratio",
+            ),
+            &groups,
+            &["ref / gpu".to_string()],
+            &ratios,
+        )?;
+        println!("wrote {}", plot.display());
+    }
     Ok(())
 }
