@@ -394,3 +394,56 @@ fn gpu_cut_walks_every_ancestor() {
         assert!(sel.commands.is_empty());
     }
 }
+
+/// Coalescing on the GPU where the command list spans several scan chunks (over 256 commands:
+/// `tiny`'s quadtree of 8-tree leaves at medium range emits some 280): the coalesced and the
+/// uncoalesced commands, data and counters equal the reference's exactly, and merging happened.
+/// The random cases of `gpu_cut_matches_reference` hold few commands each.
+#[test]
+fn gpu_coalescing_spans_scan_chunks() {
+    let Some(ctx) = gpu_context() else {
+        eprintln!("hier_select coalescing: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
+        return;
+    };
+    let scene = builtin::by_name("tiny").unwrap();
+    let p = Params {
+        grid_size: 50.0,
+        lod1_transition: 120.0,
+        fade_width: 40.0,
+        texture_size: 32,
+        nodes_per_node: 8,
+        max_cull_depth: 3,
+        hierarchy: Mode::Quadtree as u32,
+        ..Params::default()
+    };
+    let prepared = prepare(scene, &p).unwrap();
+    let h = prepared.hierarchy.as_ref().unwrap();
+    let g = &prepared.geometry;
+    let mut gpu =
+        GpuHierSelect::new(ctx, &h.nodes, h.mode as u32, &g.meshes, &g.billboard).unwrap();
+    let mut most = 0;
+    for yaw in [0.0, 330.0] {
+        let camera =
+            forestlod_reference::cameras::named_camera("medium", &prepared.scene, yaw, 96, 72)
+                .unwrap();
+        let u = ViewUniform::new(&camera, &p);
+        let want = hier_select(h, &g.meshes, &g.billboard, &camera, &p);
+        let sel = gpu.run(&camera, &p).unwrap();
+        let raw = gpu.read_uncoalesced().unwrap();
+        let (codes, _) = gpu.read_codes_and_states().unwrap();
+        assert_eq!(codes, want.codes, "yaw {yaw}: codes");
+        let want_raw = resolve_and_compact(h, codes, &g.meshes, &g.billboard, &u, Coalesce::Off);
+        eprintln!(
+            "GPU coalescing on tiny, quadtree, medium, yaw {yaw}: {} commands -> {}",
+            raw.commands.len(),
+            sel.commands.len()
+        );
+        most = most.max(raw.commands.len());
+        assert!(sel.commands.len() < raw.commands.len());
+        assert_eq!(raw.commands, want_raw.selection.commands);
+        assert_eq!(sel.commands, want.selection.commands, "yaw {yaw}");
+        assert_eq!(sel.data, want.selection.data, "yaw {yaw}");
+        assert_eq!(sel.counters, want.selection.counters, "yaw {yaw}");
+    }
+    assert!(most > 256, "at most {most} commands: one scan chunk");
+}
