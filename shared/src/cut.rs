@@ -11,7 +11,7 @@
 //!   tree's sphere, so the intersection is still conservative.
 //! - [`node_code`]: the decision's `DECISION_*` code, plus [`NODE_RECURSE`] when a drawn interior
 //!   node hands the frame to its children instead of drawing as one unit:
-//!   - `grid`, `grid-aabb`: never (depth-1: every node is a leaf);
+//!   - `grid`, `grid-aabb`, `kmeans`: never (depth-1: every node is a leaf);
 //!   - `quadtree` (C§4.5): always ("forest node → children"; interior nodes only cull);
 //!   - `octree` (G§3 Fig. 4, conservative reading): when the node needs LOD0 (its interval starts
 //!     before the fade band's end, the seed's `dist_to(bound) < LOD_dist` on view depth) or when
@@ -90,7 +90,7 @@ pub fn node_code(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy, max_cull_depth:
     let partial =
         || n.depth < max_cull_depth && !u.frustum.aabb_inside(n.box_center, n.extent, u.eye);
     let recurse = match mode {
-        Hierarchy::Grid | Hierarchy::GridAabb => false,
+        Hierarchy::Grid | Hierarchy::GridAabb | Hierarchy::Kmeans => false,
         Hierarchy::Quadtree => true,
         Hierarchy::Octree => needs.lod0 || partial(),
         Hierarchy::OctreeEuclidean => {

@@ -72,6 +72,12 @@ modes! {
         /// (view depth <= Euclidean distance, so a unit can hold fragments that need LOD0). Kept to
         /// reproduce the seed; never the default.
         OctreeEuclidean = 4 => "octree-euclidean",
+        /// E§7 "density-aware batches": the trees of each mesh clustered by size-constrained
+        /// k-means (deterministic seeds from balanced bisection, a bounded number of Lloyd
+        /// iterations, clusters above `nodes_per_node` trees split at the median) into batches
+        /// of about `nodes_per_node` trees whatever the local density; a depth-1 hierarchy
+        /// decided as `grid-aabb`.
+        Kmeans = 5 => "kmeans",
     }
 }
 

@@ -42,11 +42,12 @@ const AMBIGUITY_REL: f32 = 1e-5;
 const CASES: u32 = 256;
 
 /// Every hierarchical mode (the GPU must match the reference on all of them).
-const MODES: [Mode; 4] = [
+const MODES: [Mode; 5] = [
     Mode::GridAabb,
     Mode::Quadtree,
     Mode::Octree,
     Mode::OctreeEuclidean,
+    Mode::Kmeans,
 ];
 
 /// Why node `n`'s code is ambiguous under `u`, or `None`.
@@ -260,7 +261,7 @@ fn gpu_hierarchy_frames_equal_grid_frames() {
         ..Params::default()
     };
     let grid = prepare(scene.clone(), &base).unwrap();
-    for mode in [Mode::GridAabb, Mode::Quadtree, Mode::Octree] {
+    for mode in [Mode::GridAabb, Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
         let p = Params {
             hierarchy: mode as u32,
             ..base

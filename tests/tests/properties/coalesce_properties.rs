@@ -14,11 +14,12 @@ use forestlod_shared::{
 use forestlod_tests::{Packed, cameras, instances, params, property_config};
 use proptest::prelude::*;
 
-const MODES: [Mode; 4] = [
+const MODES: [Mode; 5] = [
     Mode::GridAabb,
     Mode::Quadtree,
     Mode::Octree,
     Mode::OctreeEuclidean,
+    Mode::Kmeans,
 ];
 
 fn hier_params() -> impl Strategy<Value = Params> {
@@ -106,7 +107,7 @@ proptest! {
 fn coalescing_merges_commands_on_tiny_and_keeps_the_frame() {
     use forestlod_reference::pipeline::prepare;
     let scene = forestlod_reference::scene::builtin::by_name("tiny").unwrap();
-    for mode in [Mode::Quadtree, Mode::Octree] {
+    for mode in [Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
         let off = Params {
             grid_size: 50.0,
             lod1_transition: 120.0,

@@ -15,7 +15,7 @@ use forestlod_tests::{Packed, cameras, instances, params, property_config, with_
 use proptest::prelude::*;
 
 /// The conservative hierarchical modes (everything but the grid and `octree-euclidean`).
-const CONSERVATIVE: [Mode; 3] = [Mode::GridAabb, Mode::Quadtree, Mode::Octree];
+const CONSERVATIVE: [Mode; 4] = [Mode::GridAabb, Mode::Quadtree, Mode::Octree, Mode::Kmeans];
 
 fn hier_params() -> impl Strategy<Value = Params> {
     (params(), 2u32..24, 0u32..9).prop_map(|(p, npn, mcd)| Params {
@@ -78,6 +78,11 @@ proptest! {
                     prop_assert_eq!(packed.scene.instances[t as usize].mesh, n.mesh);
                     let (c, r) = packed.spheres[t as usize];
                     prop_assert!(contains(n, c, r), "{:?} node {} {:?} misses tree {} {:?} {}", mode, i, n, t, c, r);
+                }
+                if mode == Mode::Kmeans {
+                    // E§7 density-aware batches: depth 1, at most nodes_per_node trees each.
+                    prop_assert_eq!((n.depth, n.child_count), (0, 0));
+                    prop_assert!(n.len >= 1 && n.len <= p.nodes_per_node.max(2));
                 }
                 if n.child_count == 0 {
                     if mode == Mode::Quadtree {
@@ -184,7 +189,7 @@ proptest! {
     fn hierarchy_and_cut_are_thread_count_independent(trees in instances(300), camera in cameras(), p in hier_params()) {
         let packed = Packed::new(trees, p.grid_size);
         let g = &packed.geometry;
-        for mode in [Mode::Quadtree, Mode::Octree] {
+        for mode in [Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
             let run = || {
                 let h = build(&packed, &p, mode);
                 let s = hier_select(&h, &g.meshes, &g.billboard, &camera, &p);
