@@ -684,7 +684,8 @@ mod tests {
     }
 
     /// The centre grid's ring search is the brute-force nearest centre (ties to the lower index),
-    /// for points inside and outside the centres' box.
+    /// for points inside and outside the centres' box. Mutation-checked: stopping at the first
+    /// ring with a centre fails it.
     #[test]
     fn centre_grid_finds_the_nearest_centre() {
         let centres: Vec<[f64; 2]> = (0..200)
@@ -703,6 +704,8 @@ mod tests {
 
     /// Density-aware: a dense patch (100x the density of its surroundings) gets clusters of
     /// about `cap` trees like the sparse part, never more than `cap`; every tree in exactly one.
+    /// Mutation-checked: dropping the median split of oversized clusters fails it (and
+    /// `hierarchy_properties`' leaf-size check).
     #[test]
     fn kmeans_clusters_hold_at_most_cap_trees_whatever_the_density() {
         let mut spheres = Vec::new();

@@ -399,7 +399,10 @@ fn gpu_cut_walks_every_ancestor() {
 /// Coalescing on the GPU where the command list spans several scan chunks (over 256 commands:
 /// `tiny`'s quadtree of 8-tree leaves at medium range emits some 280): the coalesced and the
 /// uncoalesced commands, data and counters equal the reference's exactly, and merging happened.
-/// The random cases of `gpu_cut_matches_reference` hold few commands each.
+/// The random cases of `gpu_cut_matches_reference` hold few commands each. Mutation-checked
+/// (`FORESTLOD_MUTANT_WGSL=coalesce.wgsl=...`): the run index taken without the head's own flag,
+/// no `coalesce_finish` subtraction, `continues_run` without the contiguity test, and the run's
+/// last command found by `j + 1 == n` only each fail it.
 #[test]
 fn gpu_coalescing_spans_scan_chunks() {
     let Some(ctx) = gpu_context() else {

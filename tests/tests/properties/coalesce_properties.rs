@@ -50,7 +50,9 @@ proptest! {
     /// (instance, LOD) multiset and the same pixels); its runs are maximal (no command continues
     /// its predecessor); ranges of one LOD never overlap; `base_vertex` numbers the commands; each
     /// command's data is its first node's; the counters count the merged commands; `off` is the
-    /// identity. Mutation-checked (report of the session that built it).
+    /// identity. Mutation-checked: `continues_run` without the fading comparison (merges a
+    /// fading LOD0 command into a plain one), without the contiguity test, the run's count set to
+    /// its last command's, and `lod0_commands` left uncounted each fail it.
     #[test]
     fn coalesced_commands_draw_exactly_the_uncoalesced(trees in instances(300), camera in cameras(), p in hier_params()) {
         let packed = Packed::new(trees, p.grid_size);
@@ -103,6 +105,7 @@ proptest! {
 /// On `tiny` with each hierarchy (small cells, so the cut emits many sibling nodes) coalescing
 /// merges commands, draws the same instances, and leaves the frame bit-identical (every fade
 /// mode but `alpha`, whose blending order is also unchanged: the instance order is the same).
+/// Mutation-checked: `coalesce` ignoring `off` (it then merges either way) fails the count.
 #[test]
 fn coalescing_merges_commands_on_tiny_and_keeps_the_frame() {
     use forestlod_reference::pipeline::prepare;
