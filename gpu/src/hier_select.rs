@@ -8,13 +8,17 @@
 //! (decide, resolve, scan, write) whatever the hierarchy's size or depth, no CPU recursion; the
 //! ancestor walk is bounded by `MAX_HIERARCHY_DEPTH` (llvmpipe stops loops after 65,535
 //! iterations). The output is a [`SelectBuffers`], so the draw stage and `refine` take it as they
-//! take `select`'s. Equal to the reference bit for bit up to decisions within ε of a threshold
+//! take `select`'s. The commands are then coalesced (`crate::coalesce`, four more dispatches) as
+//! `params.coalesce` says; [`GpuHierSelect::read_uncoalesced`] reads the list before. Equal to the
+//! reference bit for bit up to decisions within ε of a threshold
 //! (fused multiply-add on the GPU), which the parity tests classify and count.
 
 use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MeshMeta, NodeMeta, Params, SelectCounters, ViewUniform};
+
+use crate::coalesce::GpuCoalesce;
 
 use crate::context::{
     Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
@@ -74,7 +78,10 @@ pub struct GpuHierSelect<'a> {
     codes: wgpu::Buffer,
     states: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
-    out: SelectBuffers,
+    /// The cut's commands, one per emitted node and LOD.
+    raw: SelectBuffers,
+    /// Their coalescing, the stage's output.
+    coalesce: GpuCoalesce<'a>,
     node_count: u32,
     mode: u32,
     billboard: MeshMeta,
@@ -111,7 +118,8 @@ impl<'a> GpuHierSelect<'a> {
         let codes = zeroed_buffer(ctx, "hier codes", n * 4, U::STORAGE | U::COPY_SRC);
         let states = zeroed_buffer(ctx, "hier states", n * 4, U::STORAGE | U::COPY_SRC);
         let offsets = zeroed_buffer(ctx, "hier offsets", n * 4, U::STORAGE | U::COPY_SRC);
-        let out = SelectBuffers::with_capacity(ctx, capacity as u32);
+        let raw = SelectBuffers::with_capacity(ctx, capacity as u32);
+        let coalesce = GpuCoalesce::new(ctx, &raw)?;
         let bind_group = ctx.checked("hier bind group", || {
             buffer_bind_group(
                 &ctx.device,
@@ -124,9 +132,9 @@ impl<'a> GpuHierSelect<'a> {
                     &codes,
                     &states,
                     &offsets,
-                    &out.commands,
-                    &out.data,
-                    &out.counters,
+                    &raw.commands,
+                    &raw.data,
+                    &raw.counters,
                 ],
             )
         })?;
@@ -137,7 +145,8 @@ impl<'a> GpuHierSelect<'a> {
             codes,
             states,
             bind_group,
-            out,
+            raw,
+            coalesce,
             node_count: nodes.len() as u32,
             mode,
             billboard: *billboard,
@@ -146,17 +155,17 @@ impl<'a> GpuHierSelect<'a> {
 
     /// The output buffers (valid after a dispatch).
     pub fn buffers(&self) -> &SelectBuffers {
-        &self.out
+        self.coalesce.buffers()
     }
 
     /// The output buffers, for a later stage of the same frame that rewrites them in place
     /// (`GpuRefine::encode`).
     pub fn buffers_mut(&mut self) -> &mut SelectBuffers {
-        &mut self.out
+        self.coalesce.buffers_mut()
     }
 
     /// Records one frame's cut into `encoder` (uniform through the queue, counters cleared, four
-    /// dispatches).
+    /// dispatches), then its coalescing (four more). `params` must be valid.
     pub fn encode(&mut self, encoder: &mut wgpu::CommandEncoder, camera: &Camera, params: &Params) {
         let uniform = HierUniform {
             view: ViewUniform::new(camera, params),
@@ -172,7 +181,7 @@ impl<'a> GpuHierSelect<'a> {
         self.ctx
             .queue
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
-        encoder.clear_buffer(&self.out.counters, 0, None);
+        encoder.clear_buffer(&self.raw.counters, 0, None);
         let (x, y) = self
             .ctx
             .workgroup_grid(self.node_count.div_ceil(HIER_WORKGROUP_SIZE));
@@ -188,6 +197,10 @@ impl<'a> GpuHierSelect<'a> {
                 (&p.write, Dispatch::Groups(x, y)),
             ],
         );
+        let mode = params
+            .coalescing()
+            .expect("parameters are validated before selection");
+        self.coalesce.encode(encoder, mode);
     }
 
     /// Runs one frame's cut, leaving the commands on the GPU. Does not wait.
@@ -200,13 +213,18 @@ impl<'a> GpuHierSelect<'a> {
         ctx.submit("hier_select dispatch", "hier_select", |encoder| {
             self.encode(encoder, camera, params)
         })?;
-        Ok(&self.out)
+        Ok(self.coalesce.buffers())
     }
 
     /// Runs one frame's cut and reads the commands back. Blocks.
     pub fn run(&mut self, camera: &Camera, params: &Params) -> Result<GpuSelection, GpuError> {
         self.dispatch(camera, params)?;
-        self.out.read(self.ctx)
+        self.coalesce.buffers().read(self.ctx)
+    }
+
+    /// The last run's commands before coalescing (one per emitted node and LOD). Blocks.
+    pub fn read_uncoalesced(&self) -> Result<GpuSelection, GpuError> {
+        self.raw.read(self.ctx)
     }
 
     /// Per-node codes (`forestlod_shared::node_code`) and states (visited 1, emitted 2) of the

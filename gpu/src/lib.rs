@@ -57,6 +57,7 @@
 //! ambiguous instead of failing them (SPEC §8).
 
 pub mod bake;
+pub mod coalesce;
 pub mod context;
 pub mod cull;
 pub mod draw;
@@ -71,6 +72,7 @@ pub mod shaders;
 mod wgsl_layout;
 
 pub use bake::{BakeMesh, GpuBake, GpuBaked};
+pub use coalesce::{CoalesceUniform, GpuCoalesce};
 pub use context::{
     ALLOW_NO_GPU_ENV, GpuContext, GpuError, NO_GPU_HINT, REQUIRED_DOWNLEVEL, REQUIRED_FEATURES,
     StagePipelines, adapter_shortfall, gpu_or_explain,

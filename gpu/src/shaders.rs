@@ -13,7 +13,7 @@ pub const COMMON_WGSL: &str = include_str!("shaders/common.wgsl");
 
 /// The `(name, value)` of every generated `u32` constant ([`constants_wgsl`]).
 pub fn generated_constants() -> Vec<(String, u32)> {
-    use crate::{cull, hier_select, mips, refine, select};
+    use crate::{coalesce, cull, hier_select, mips, refine, select};
     use forestlod_shared as s;
     let mut out: Vec<(String, u32)> = [
         ("COMMAND_SHIFT", s::COMMAND_SHIFT),
@@ -34,6 +34,7 @@ pub fn generated_constants() -> Vec<(String, u32)> {
         ("CULL_WORKGROUP_SIZE", cull::CULL_WORKGROUP_SIZE),
         ("REFINE_WORKGROUP_SIZE", refine::REFINE_WORKGROUP_SIZE),
         ("HIER_WORKGROUP_SIZE", hier_select::HIER_WORKGROUP_SIZE),
+        ("COALESCE_WORKGROUP_SIZE", coalesce::COALESCE_WORKGROUP_SIZE),
         ("NO_PARENT", s::NO_PARENT),
         ("NODE_RECURSE", s::NODE_RECURSE),
         ("NODE_VISITED", s::NODE_VISITED),
@@ -63,6 +64,7 @@ pub fn generated_constants() -> Vec<(String, u32)> {
         ("ANGLE_INDEX", s::AngleIndexMode::choices()),
         ("TREE_CULL", s::TreeCull::choices()),
         ("HIERARCHY", s::Hierarchy::choices()),
+        ("COALESCE", s::Coalesce::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {
@@ -106,7 +108,7 @@ pub fn mutant_or(file: &str, own: &str) -> String {
 }
 
 /// The stable compaction's exclusive prefix sum (`scan_offsets`), appended to the modules that
-/// scan an `offsets` array: `select.wgsl` and `hier_select.wgsl`.
+/// scan an `offsets` array: `select.wgsl`, `hier_select.wgsl` and `coalesce.wgsl`.
 pub const SCAN_WGSL: &str = include_str!("shaders/scan.wgsl");
 
 /// A stage's own source `shaders/<file>` (const `$own`, documented by the given doc) and its full
@@ -161,6 +163,12 @@ stage_source!(
     HIER_SELECT_WGSL, hier_select_source, "hier_select.wgsl", SCAN_WGSL = "scan.wgsl"
 );
 
+stage_source!(
+    /// The `coalesce` stage's own source (without [`COMMON_WGSL`]): command coalescing of the
+    /// hierarchical cut (issue 13).
+    COALESCE_WGSL, coalesce_source, "coalesce.wgsl", SCAN_WGSL = "scan.wgsl"
+);
+
 /// The depth read-back by compute (`DrawTarget::read`), standalone: [`COMMON_WGSL`] is not
 /// prepended.
 pub const DEPTH_COPY_WGSL: &str = include_str!("shaders/depth_copy.wgsl");
@@ -190,6 +198,7 @@ mod tests {
             ("primitive.wgsl", PRIMITIVE_WGSL),
             ("refine.wgsl", REFINE_WGSL),
             ("hier_select.wgsl", HIER_SELECT_WGSL),
+            ("coalesce.wgsl", COALESCE_WGSL),
             ("depth_copy.wgsl", DEPTH_COPY_WGSL),
             ("scan.wgsl", SCAN_WGSL),
         ] {

@@ -7,9 +7,9 @@
 //! uniform address space.
 
 use forestlod_gpu::shaders::{
-    cull_source, hier_select_source, primitive_source, select_source, with_common,
+    coalesce_source, cull_source, hier_select_source, primitive_source, select_source, with_common,
 };
-use forestlod_gpu::{CullTree, HierUniform, SelectUniform};
+use forestlod_gpu::{CoalesceUniform, CullTree, HierUniform, SelectUniform};
 use forestlod_shared::{
     BatchMeta, Camera, CommandData, DrawCommand, FrustumPlanes, MeshMeta, NodeMeta, Params,
     ProxyRecord, SelectCounters,
@@ -40,7 +40,7 @@ fn rust_layouts() -> Vec<RustLayout> {
             hierarchy,
             nodes_per_node,
             max_cull_depth,
-            _pad0
+            coalesce
         }),
         rust_layout!(Camera {
             eye,
@@ -217,6 +217,29 @@ fn hier_select_structs_match_their_rust_twins() {
     );
     let (plain, plain_span) = wgsl_layout(&module, "SelectCounters").unwrap();
     let (atomic, atomic_span) = wgsl_layout(&module, "HierCountersAtomic").unwrap();
+    assert_eq!(plain, atomic);
+    assert_eq!(plain_span, atomic_span);
+}
+
+/// `coalesce.wgsl`'s uniform has its Rust twin's layout and its atomic counters
+/// `SelectCounters`' (they are the draw stage's count buffer).
+#[test]
+fn coalesce_structs_match_their_rust_twins() {
+    let module = validate(&format!(
+        "{}\n@group(9) @binding(0) var<uniform> layout_coalesce: CoalesceUniform;\n",
+        coalesce_source()
+    ));
+    assert_layout(
+        &module,
+        &rust_layout!(CoalesceUniform {
+            capacity,
+            mode,
+            _pad0,
+            _pad1
+        }),
+    );
+    let (plain, plain_span) = wgsl_layout(&module, "SelectCounters").unwrap();
+    let (atomic, atomic_span) = wgsl_layout(&module, "CoalesceCountersAtomic").unwrap();
     assert_eq!(plain, atomic);
     assert_eq!(plain_span, atomic_span);
 }

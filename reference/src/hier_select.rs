@@ -11,6 +11,9 @@
 //!    LOD0 before LOD1, command `i` with `base_vertex = i << COMMAND_SHIFT`, `first_instance` the
 //!    node's range in the hierarchy's indirection, `CommandData::batch` the node index.
 //!
+//! 4. [`crate::coalesce`] when `params.coalesce` is `on` (the default): runs of commands with
+//!    adjacent ranges and the same mesh, LOD and fading flag merged into one.
+//!
 //! This equals the seeds' recursion: the recursion reaches exactly the visited nodes and draws
 //! exactly the emitted ones, in depth-first order.
 //!
@@ -26,9 +29,9 @@
 //! `transition_batches` the emitted nodes with both LODs.
 
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, CommandData, DECISION_DRAW, DECISION_KIND_MASK, Decision, DrawCommand,
-    LOD_BILLBOARD, LOD_MESH, MeshMeta, NO_PARENT, NODE_RECURSE, Params, ViewUniform, code_recurses,
-    emitted_needs, node_code,
+    COMMAND_SHIFT, Camera, Coalesce, CommandData, DECISION_DRAW, DECISION_KIND_MASK, Decision,
+    DrawCommand, LOD_BILLBOARD, LOD_MESH, MeshMeta, NO_PARENT, NODE_RECURSE, Params, ViewUniform,
+    code_recurses, emitted_needs, node_code,
 };
 use rayon::prelude::*;
 
@@ -76,7 +79,8 @@ pub fn node_state(nodes: &[forestlod_shared::NodeMeta], codes: &[u32], i: usize)
         }
 }
 
-/// The cut of `h` for one frame (module docs). `meshes` carry their packed index ranges.
+/// The cut of `h` for one frame (module docs). `meshes` carry their packed index ranges; `params`
+/// must be valid ([`Params::validate`]).
 pub fn hier_select(
     h: &Hierarchy,
     meshes: &[MeshMeta],
@@ -90,10 +94,13 @@ pub fn hier_select(
         .par_iter()
         .map(|n| node_code(&u, n, h.mode, params.max_cull_depth))
         .collect();
-    resolve_and_compact(h, codes, meshes, billboard, &u)
+    let coalesce = params
+        .coalescing()
+        .expect("parameters are validated before selection");
+    resolve_and_compact(h, codes, meshes, billboard, &u, coalesce)
 }
 
-/// Passes 2 and 3 on given per-node codes (the reference's, or a GPU's read back, to check the
+/// Passes 2 to 4 on given per-node codes (the reference's, or a GPU's read back, to check the
 /// GPU's resolution and compaction on its own decisions).
 pub fn resolve_and_compact(
     h: &Hierarchy,
@@ -101,6 +108,7 @@ pub fn resolve_and_compact(
     meshes: &[MeshMeta],
     billboard: &MeshMeta,
     u: &ViewUniform,
+    coalesce: Coalesce,
 ) -> HierSelection {
     let states: Vec<u32> = (0..h.nodes.len())
         .into_par_iter()
@@ -168,7 +176,7 @@ pub fn resolve_and_compact(
     }
     out.counters.commands = out.commands.len() as u32;
     HierSelection {
-        selection: out,
+        selection: crate::coalesce::coalesce(&out, coalesce),
         codes,
         states,
     }

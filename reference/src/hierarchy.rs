@@ -24,6 +24,16 @@
 //! - **Octree** (G§3): the cube around a mesh's tree sphere centres is split into octants (child
 //!   order `x + 2y + 4z`, empty octants dropped) while a node holds more than `nodes_per_node` trees
 //!   and has non-zero size, down to depth [`MAX_HIERARCHY_DEPTH`]` - 1`.
+//! - **K-means** (E§7 "density-aware batches", depth 1 like the grid): per mesh, `k =
+//!   ceil(trees / nodes_per_node)` clusters of the trees' X/Y sphere centres. Seeds: the centroids
+//!   of a balanced bisection (the point set split at the median of its longer side, `k` divided
+//!   in proportion), so seeding is deterministic and already density-aware. Then at most
+//!   [`KMEANS_ITERATIONS`] Lloyd iterations (exact nearest centre through a uniform grid of the
+//!   centres, ties to the lower index; centroids summed in `f64` in tree order; stop when no
+//!   assignment changes). Size constraint: a cluster of more than `nodes_per_node` trees is split
+//!   at the median of its longer side until every part fits. Clusters keep the seed order (the
+//!   bisection's, spatially coherent), splits in place, empty clusters dropped; trees keep scene
+//!   order within a cluster.
 //! - Deterministic: no hash iteration order, no thread-count dependence (node bounds are computed
 //!   in parallel, each from its own range).
 
@@ -80,6 +90,21 @@ impl Hierarchy {
             HierarchyMode::Octree | HierarchyMode::OctreeEuclidean => {
                 per_mesh(scene, |trees| octree(trees, &spheres, cap, 0))
             }
+            // Depth 1: every cluster is a root leaf of its mesh.
+            HierarchyMode::Kmeans => per_mesh(scene, |trees| {
+                Build::Interior(
+                    kmeans(&trees, &spheres, cap)
+                        .into_iter()
+                        .map(Build::Leaf)
+                        .collect(),
+                )
+            })
+            .into_iter()
+            .flat_map(|(mesh, b)| match b {
+                Build::Interior(leaves) => leaves.into_iter().map(move |l| (mesh, l)),
+                Build::Leaf(_) => unreachable!("kmeans returns its clusters as children"),
+            })
+            .collect(),
         };
         let h = Self::serialize(roots, &spheres, scene, mode);
         if let Some(n) = h.nodes.iter().find(|n| n.depth >= MAX_HIERARCHY_DEPTH) {
@@ -446,6 +471,199 @@ fn octant(
     Build::Interior(children)
 }
 
+/// Most Lloyd iterations of the `kmeans` builder (module docs): bounded so the build time is
+/// bounded; the assignment rarely changes after a few, as the seeds are already balanced.
+pub const KMEANS_ITERATIONS: usize = 8;
+
+/// The X/Y point of tree `t` (its sphere centre), in `f64`.
+fn xy(spheres: &[([f32; 3], f32)], t: u32) -> [f64; 2] {
+    let c = spheres[t as usize].0;
+    [c[0] as f64, c[1] as f64]
+}
+
+/// Splits `trees` into `parts` groups of sizes as equal as possible, by recursive bisection at
+/// the median of the longer side of their X/Y box (ties by tree index), appending to `out` in
+/// bisection order (left before right). Deterministic.
+fn bisect(trees: &mut [u32], parts: usize, spheres: &[([f32; 3], f32)], out: &mut Vec<Vec<u32>>) {
+    if parts <= 1 || trees.len() <= 1 {
+        out.push(trees.to_vec());
+        return;
+    }
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    for &t in trees.iter() {
+        let p = xy(spheres, t);
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let axis = usize::from(hi[1] - lo[1] > hi[0] - lo[0]);
+    trees.sort_unstable_by(|&a, &b| {
+        xy(spheres, a)[axis]
+            .total_cmp(&xy(spheres, b)[axis])
+            .then(a.cmp(&b))
+    });
+    let left_parts = parts / 2;
+    let mid = trees.len() * left_parts / parts;
+    let (l, r) = trees.split_at_mut(mid);
+    bisect(l, left_parts, spheres, out);
+    bisect(r, parts - left_parts, spheres, out);
+}
+
+/// A uniform grid over centres for exact nearest-centre queries.
+struct CentreGrid {
+    origin: [f64; 2],
+    cell: f64,
+    dims: [usize; 2],
+    /// Per cell, the indices of its centres (ascending).
+    cells: Vec<Vec<u32>>,
+}
+
+impl CentreGrid {
+    fn new(centres: &[[f64; 2]]) -> Self {
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        for c in centres {
+            for k in 0..2 {
+                lo[k] = lo[k].min(c[k]);
+                hi[k] = hi[k].max(c[k]);
+            }
+        }
+        let side = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(1e-6);
+        // About one centre per cell.
+        let per_side = (centres.len() as f64).sqrt().ceil().max(1.0);
+        let cell = side / per_side;
+        let dims = [0, 1].map(|k| (((hi[k] - lo[k]) / cell) as usize + 1).min(1 << 12));
+        let mut cells = vec![Vec::new(); dims[0] * dims[1]];
+        let grid = Self {
+            origin: lo,
+            cell,
+            dims,
+            cells: Vec::new(),
+        };
+        for (i, c) in centres.iter().enumerate() {
+            let [x, y] = grid.cell_of(*c);
+            cells[y * dims[0] + x].push(i as u32);
+        }
+        Self { cells, ..grid }
+    }
+
+    fn cell_of(&self, p: [f64; 2]) -> [usize; 2] {
+        [0, 1].map(|k| {
+            (((p[k] - self.origin[k]) / self.cell).max(0.0) as usize).min(self.dims[k] - 1)
+        })
+    }
+
+    /// The nearest centre to `p` (squared distance, ties to the lower index): rings of cells
+    /// around `p`'s cell until no unvisited cell can hold a nearer centre.
+    fn nearest(&self, p: [f64; 2], centres: &[[f64; 2]]) -> u32 {
+        let [cx, cy] = self.cell_of(p);
+        let mut best = (f64::INFINITY, u32::MAX);
+        let max_ring = self.dims[0].max(self.dims[1]);
+        for ring in 0..=max_ring {
+            let (x0, x1) = (cx as i64 - ring as i64, cx as i64 + ring as i64);
+            let (y0, y1) = (cy as i64 - ring as i64, cy as i64 + ring as i64);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let on_ring = x == x0 || x == x1 || y == y0 || y == y1;
+                    if !on_ring
+                        || x < 0
+                        || y < 0
+                        || x >= self.dims[0] as i64
+                        || y >= self.dims[1] as i64
+                    {
+                        continue;
+                    }
+                    for &i in &self.cells[y as usize * self.dims[0] + x as usize] {
+                        let c = centres[i as usize];
+                        let d = (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2);
+                        if d < best.0 || (d == best.0 && i < best.1) {
+                            best = (d, i);
+                        }
+                    }
+                }
+            }
+            // Every centre in a later ring is at least `ring * cell` away (p may lie outside
+            // the grid's box, then the bound only grows: the clamp moves p's cell towards it).
+            let reach = ring as f64 * self.cell;
+            if best.1 != u32::MAX && best.0 <= reach * reach {
+                break;
+            }
+        }
+        best.1
+    }
+}
+
+/// Size-constrained k-means over one mesh's trees (module docs): clusters of at most `cap`.
+fn kmeans(trees: &[u32], spheres: &[([f32; 3], f32)], cap: usize) -> Vec<Vec<u32>> {
+    let k = trees.len().div_ceil(cap);
+    let mut seeds = Vec::with_capacity(k);
+    bisect(&mut trees.to_vec(), k, spheres, &mut seeds);
+    let centroid = |members: &[u32]| {
+        let mut s = [0.0f64; 2];
+        for &t in members {
+            let p = xy(spheres, t);
+            s[0] += p[0];
+            s[1] += p[1];
+        }
+        let n = members.len().max(1) as f64;
+        [s[0] / n, s[1] / n]
+    };
+    let mut centres: Vec<[f64; 2]> = seeds.iter().map(|m| centroid(m)).collect();
+    // Trees in scene order (the indirection order within a cluster).
+    let mut order = trees.to_vec();
+    order.sort_unstable();
+    let mut assign: Vec<u32> = vec![u32::MAX; order.len()];
+    for _ in 0..KMEANS_ITERATIONS {
+        let grid = CentreGrid::new(&centres);
+        let next: Vec<u32> = order
+            .par_iter()
+            .map(|&t| grid.nearest(xy(spheres, t), &centres))
+            .collect();
+        if next == assign {
+            break;
+        }
+        assign = next;
+        let mut sums = vec![([0.0f64; 2], 0usize); centres.len()];
+        for (&t, &c) in order.iter().zip(&assign) {
+            let p = xy(spheres, t);
+            let s = &mut sums[c as usize];
+            s.0[0] += p[0];
+            s.0[1] += p[1];
+            s.1 += 1;
+        }
+        for (c, (s, n)) in centres.iter_mut().zip(sums) {
+            if n > 0 {
+                *c = [s[0] / n as f64, s[1] / n as f64];
+            }
+        }
+    }
+    let mut clusters: Vec<Vec<u32>> = vec![Vec::new(); centres.len()];
+    for (&t, &c) in order.iter().zip(&assign) {
+        clusters[c as usize].push(t);
+    }
+    // The size constraint: split oversized clusters in place; drop empty ones.
+    let mut out = Vec::with_capacity(clusters.len());
+    for mut c in clusters {
+        if c.is_empty() {
+            continue;
+        }
+        if c.len() <= cap {
+            out.push(c);
+            continue;
+        }
+        let mut parts = Vec::new();
+        let parts_wanted = c.len().div_ceil(cap);
+        bisect(&mut c, parts_wanted, spheres, &mut parts);
+        for mut p in parts {
+            p.sort_unstable();
+            out.push(p);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -463,5 +681,52 @@ mod tests {
         // Coincident points are cut into runs.
         let same: Vec<([f64; 2], u32)> = (0..10).map(|i| ([1.0, 1.0], i)).collect();
         assert_eq!(quadtree_groups(&same, 4).len(), 3);
+    }
+
+    /// The centre grid's ring search is the brute-force nearest centre (ties to the lower index),
+    /// for points inside and outside the centres' box. Mutation-checked: stopping at the first
+    /// ring with a centre fails it.
+    #[test]
+    fn centre_grid_finds_the_nearest_centre() {
+        let centres: Vec<[f64; 2]> = (0..200)
+            .map(|i| [((i * 37) % 113) as f64 * 1.7, ((i * 91) % 61) as f64 * 3.1])
+            .collect();
+        let grid = CentreGrid::new(&centres);
+        for j in 0..2000 {
+            let p = [(j % 97) as f64 * 2.5 - 20.0, (j % 89) as f64 * 2.6 - 20.0];
+            let d = |c: &[f64; 2]| (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2);
+            let want = (0..centres.len())
+                .min_by(|&a, &b| d(&centres[a]).total_cmp(&d(&centres[b])).then(a.cmp(&b)))
+                .unwrap() as u32;
+            assert_eq!(grid.nearest(p, &centres), want, "point {p:?}");
+        }
+    }
+
+    /// Density-aware: a dense patch (100x the density of its surroundings) gets clusters of
+    /// about `cap` trees like the sparse part, never more than `cap`; every tree in exactly one.
+    /// Mutation-checked: dropping the median split of oversized clusters fails it (and
+    /// `hierarchy_properties`' leaf-size check).
+    #[test]
+    fn kmeans_clusters_hold_at_most_cap_trees_whatever_the_density() {
+        let mut spheres = Vec::new();
+        for i in 0..2000u32 {
+            // 1000 trees in a 100 m square, 1000 in a 1 km square.
+            let (side, k) = if i < 1000 {
+                (100.0, i)
+            } else {
+                (1000.0, i - 1000)
+            };
+            let x = ((k * 7919) % 1000) as f32 / 1000.0 * side;
+            let y = ((k * 104_729) % 997) as f32 / 997.0 * side;
+            spheres.push(([x, y, 0.0], 5.0));
+        }
+        let trees: Vec<u32> = (0..2000).collect();
+        let clusters = kmeans(&trees, &spheres, 50);
+        let mut all: Vec<u32> = clusters.concat();
+        all.sort_unstable();
+        assert_eq!(all, trees);
+        assert!(clusters.iter().all(|c| !c.is_empty() && c.len() <= 50));
+        let mean = 2000.0 / clusters.len() as f64;
+        assert!(mean >= 25.0, "{} clusters, mean {mean}", clusters.len());
     }
 }

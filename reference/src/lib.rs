@@ -27,6 +27,7 @@ pub mod bake;
 pub mod baselines;
 pub mod batches;
 pub mod cameras;
+pub mod coalesce;
 pub mod draw;
 pub mod error;
 pub mod geometry;

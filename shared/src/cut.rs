@@ -11,7 +11,7 @@
 //!   tree's sphere, so the intersection is still conservative.
 //! - [`node_code`]: the decision's `DECISION_*` code, plus [`NODE_RECURSE`] when a drawn interior
 //!   node hands the frame to its children instead of drawing as one unit:
-//!   - `grid`, `grid-aabb`: never (depth-1: every node is a leaf);
+//!   - `grid`, `grid-aabb`, `kmeans`: never (depth-1: every node is a leaf);
 //!   - `quadtree` (C§4.5): always ("forest node → children"; interior nodes only cull);
 //!   - `octree` (G§3 Fig. 4, conservative reading): when the node needs LOD0 (its interval starts
 //!     before the fade band's end, the seed's `dist_to(bound) < LOD_dist` on view depth) or when
@@ -21,10 +21,18 @@
 //! - A node is *visited* when every ancestor is drawn with [`NODE_RECURSE`]; a visited node that
 //!   is drawn without it is *emitted* with [`emitted_needs`] (its interval's LODs; billboards only
 //!   for an `octree-euclidean` unit, as the seed's static billboard geometry).
+//! - [`continues_run`]: the command coalescing rule (`reference/src/coalesce.rs`, twinned in
+//!   `gpu/src/shaders/coalesce.wgsl`). The cut emits commands in depth-first node order and a
+//!   node's range is its subtree's leaves' (one contiguous range per node, G§3 "two indices per
+//!   octant"), so emitted siblings at one LOD often own adjacent ranges: a command *continues* its
+//!   predecessor in the list when both draw the same geometry (`first_index`, `index_count`,
+//!   mesh), the same LOD with the same fading flag (the draw stage's only per-command switches),
+//!   and its range starts where the predecessor's ends. G§3 draws each octant as one render
+//!   call; merging them is the point of its contiguous serialization.
 
 use crate::{
-    DECISION_DRAW, DECISION_KIND_MASK, Decision, Hierarchy, LodNeeds, NodeMeta, ViewUniform,
-    aabb_view_interval, lod_needs, view_interval,
+    CommandData, DECISION_DRAW, DECISION_KIND_MASK, Decision, DrawCommand, Hierarchy, LodNeeds,
+    NodeMeta, ViewUniform, aabb_view_interval, lod_needs, view_interval,
 };
 
 /// Node code bit: a drawn interior node whose children decide instead (module docs).
@@ -82,7 +90,7 @@ pub fn node_code(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy, max_cull_depth:
     let partial =
         || n.depth < max_cull_depth && !u.frustum.aabb_inside(n.box_center, n.extent, u.eye);
     let recurse = match mode {
-        Hierarchy::Grid | Hierarchy::GridAabb => false,
+        Hierarchy::Grid | Hierarchy::GridAabb | Hierarchy::Kmeans => false,
         Hierarchy::Quadtree => true,
         Hierarchy::Octree => needs.lod0 || partial(),
         Hierarchy::OctreeEuclidean => {
@@ -110,6 +118,24 @@ pub fn emitted_needs(code: u32, n: &NodeMeta, mode: Hierarchy, lod_levels: u32) 
         };
     }
     needs
+}
+
+/// Whether command `cur` (with its data) continues command `prev`, its predecessor in the list, so
+/// that coalescing merges them (module docs). Fields the rule does not compare are equal for every
+/// command of one cut (`fade_start`, `fade_end`) or follow from the compared ones (`billboard`
+/// from `lod`); `batch` is the run's first node and `base_vertex` its slot.
+pub fn continues_run(
+    prev: &DrawCommand,
+    prev_data: &CommandData,
+    cur: &DrawCommand,
+    cur_data: &CommandData,
+) -> bool {
+    prev.first_index == cur.first_index
+        && prev.index_count == cur.index_count
+        && prev_data.mesh == cur_data.mesh
+        && prev_data.lod == cur_data.lod
+        && prev_data.fading == cur_data.fading
+        && prev.first_instance.wrapping_add(prev.instance_count) == cur.first_instance
 }
 
 #[cfg(test)]

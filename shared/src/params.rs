@@ -72,6 +72,27 @@ modes! {
         /// (view depth <= Euclidean distance, so a unit can hold fragments that need LOD0). Kept to
         /// reproduce the seed; never the default.
         OctreeEuclidean = 4 => "octree-euclidean",
+        /// E§7 "density-aware batches": the trees of each mesh clustered by size-constrained
+        /// k-means (deterministic seeds from balanced bisection, a bounded number of Lloyd
+        /// iterations, clusters above `nodes_per_node` trees split at the median) into batches
+        /// of about `nodes_per_node` trees whatever the local density; a depth-1 hierarchy
+        /// decided as `grid-aabb`.
+        Kmeans = 5 => "kmeans",
+    }
+}
+
+modes! {
+    /// Whether the hierarchical cut merges adjacent draw commands (issue 13): a command that
+    /// continues its predecessor (same mesh, LOD and fading flag, instance range starting where
+    /// the predecessor's ends) joins it, so a run of emitted sibling nodes becomes one command
+    /// (`reference/src/coalesce.rs`, `gpu/src/shaders/coalesce.wgsl`). The instances drawn, and
+    /// their order, are unchanged, so the images are too; only the number of draws drops. Applies
+    /// to the hierarchies only: the thesis's flat grid selection never coalesces.
+    pub enum Coalesce {
+        /// One command per emitted node and LOD (the seeds' render calls).
+        Off = 0 => "off",
+        /// Runs of contiguous commands merged (default for hierarchies).
+        On = 1 => "on",
     }
 }
 
@@ -134,8 +155,9 @@ pub struct Params {
     /// Guerrero's `max_cull_depth` (G§3 Fig. 4; G§6 uses 7): octree nodes at a smaller depth
     /// that are only partially visible recurse instead of drawing as one unit.
     pub max_cull_depth: u32,
-    /// Explicit padding (to 64 bytes).
-    pub _pad0: u32,
+    /// [`Coalesce`] as `u32`. Default `On`; read by the hierarchical cut only (the grid's flat
+    /// `select` is untouched, so the main job's images and counters do not depend on it).
+    pub coalesce: u32,
 }
 const _: () = assert!(core::mem::size_of::<Params>() == 64);
 
@@ -157,7 +179,7 @@ impl Default for Params {
             hierarchy: Hierarchy::Grid as u32,
             nodes_per_node: 64,
             max_cull_depth: 7,
-            _pad0: 0,
+            coalesce: Coalesce::On as u32,
         }
     }
 }
@@ -231,6 +253,11 @@ impl Params {
     /// Tree grouping, validated.
     pub fn hierarchy_mode(&self) -> Result<Hierarchy, ParamError> {
         Hierarchy::from_id(self.hierarchy).ok_or_else(|| rejected("hierarchy", self))
+    }
+
+    /// Command coalescing of the hierarchical cut, validated.
+    pub fn coalescing(&self) -> Result<Coalesce, ParamError> {
+        Coalesce::from_id(self.coalesce).ok_or_else(|| rejected("coalesce", self))
     }
 
     /// Number of mip levels of a billboard layer, `log2(r) + 1` (r = 1 has one level).

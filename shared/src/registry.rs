@@ -14,7 +14,7 @@
 //! keys), as before issue 11: a parameter added to one was silently missing from the others.
 
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
-use crate::{AngleIndexMode, FadeMode, Hierarchy, MipMode, Params, TreeCull};
+use crate::{AngleIndexMode, Coalesce, FadeMode, Hierarchy, MipMode, Params, TreeCull};
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.
 #[derive(Clone, Copy, Debug)]
@@ -231,7 +231,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 15] = [
+pub const PARAMS: [ParamSpec; 16] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -261,12 +261,14 @@ pub const PARAMS: [ParamSpec; 15] = [
     param!(tree_cull, "tree-cull", ParamKind::Choice(TreeCull::choices), "expected 0 (none), 1 (lod0) or 2 (all)",
         "Per-tree culling after selection (refine, beyond the thesis): none, lod0, all"),
     param!(hierarchy, "hierarchy", ParamKind::Choice(Hierarchy::choices),
-        "expected 0 (grid), 1 (grid-aabb), 2 (quadtree), 3 (octree) or 4 (octree-euclidean)",
-        "Tree grouping: grid (E§4.2), grid-aabb (E§7 bounds), quadtree (C§4.5), octree (G§3), octree-euclidean (G§3 as written, not conservative)"),
+        "expected 0 (grid), 1 (grid-aabb), 2 (quadtree), 3 (octree), 4 (octree-euclidean) or 5 (kmeans)",
+        "Tree grouping: grid (E§4.2), grid-aabb (E§7 bounds), quadtree (C§4.5), octree (G§3), octree-euclidean (G§3 as written, not conservative), kmeans (E§7 density-aware batches)"),
     param!(nodes_per_node, "nodes-per-node", uint(2, 1 << 20), "expected 2..=1048576 children or trees per node",
         "Most children of a quadtree node and most trees of a hierarchy leaf (C§4.5 NodesPerNode)"),
     param!(max_cull_depth, "max-cull-depth", uint(0, 64), "expected a depth in 0..=64",
         "Octree depth below which partially visible nodes recurse (G§3 max_cull_depth)"),
+    param!(coalesce, "coalesce", ParamKind::Choice(Coalesce::choices), "expected 0 (off) or 1 (on)",
+        "Merge adjacent draw commands of the hierarchical cut (issue 13): off, on"),
 ];
 
 /// The parameter `key` names (canonical name, flag in either form, or alias).

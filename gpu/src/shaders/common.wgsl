@@ -37,7 +37,7 @@ struct Params {
     hierarchy: u32,
     nodes_per_node: u32,
     max_cull_depth: u32,
-    _pad0: u32,
+    coalesce: u32,
 }
 
 // Keep in sync with forestlod_shared::Camera (shared/src/camera.rs).

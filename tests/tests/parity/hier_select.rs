@@ -6,7 +6,8 @@
 //!   fade band, plane distances against the cull and "wholly inside" limits, the Euclidean box
 //!   distance against the transition): those are classified *ambiguous*, counted and reported;
 //! - whatever the codes, the GPU's states, commands, data and counters equal the reference's
-//!   resolution and compaction of the **GPU's own codes** exactly (stable order);
+//!   resolution and compaction of the **GPU's own codes** exactly (stable order), both the cut's
+//!   list before coalescing and the coalesced list (`coalesce` on or off at random, issue 13);
 //! - where no code differs, they equal the reference's output exactly; the only floats
 //!   (`fade_start`, `fade_end`) are copied from the uniform, max difference 0.
 //!
@@ -24,8 +25,8 @@ use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
 use forestlod_shared::{
-    FadeMode, Hierarchy as Mode, LOD_ID_TRANSITION, NodeMeta, Params, ViewUniform, aabb_distance,
-    aabb_margin, aabb_view_interval,
+    Coalesce, FadeMode, Hierarchy as Mode, LOD_ID_TRANSITION, NodeMeta, Params, ViewUniform,
+    aabb_distance, aabb_margin, aabb_view_interval,
 };
 use forestlod_tests::{Packed, Thresholds, cameras, instances, params, threshold_ambiguity};
 use proptest::prelude::*;
@@ -41,11 +42,12 @@ const AMBIGUITY_REL: f32 = 1e-5;
 const CASES: u32 = 256;
 
 /// Every hierarchical mode (the GPU must match the reference on all of them).
-const MODES: [Mode; 4] = [
+const MODES: [Mode; 5] = [
     Mode::GridAabb,
     Mode::Quadtree,
     Mode::Octree,
     Mode::OctreeEuclidean,
+    Mode::Kmeans,
 ];
 
 /// Why node `n`'s code is ambiguous under `u`, or `None`.
@@ -95,6 +97,9 @@ struct Tally {
     ambiguous_nodes: u64,
     commands_compared: u64,
     max_float_diff: f32,
+    coalesced_cases: u64,
+    commands_before: u64,
+    commands_after: u64,
 }
 
 #[test]
@@ -112,17 +117,20 @@ fn gpu_cut_matches_reference() {
         2u32..24,
         0u32..9,
         0usize..MODES.len(),
+        any::<bool>(),
     );
     let mut runner = TestRunner::new(Config {
         cases: CASES,
         failure_persistence: None,
         ..Config::default()
     });
-    let result = runner.run(&strategy, |(trees, camera, p, npn, mcd, mode_i)| {
+    let result = runner.run(&strategy, |(trees, camera, p, npn, mcd, mode_i, merge)| {
         let mut tally = tally.borrow_mut();
+        let coalesce = if merge { Coalesce::On } else { Coalesce::Off };
         let p = Params {
             nodes_per_node: npn,
             max_cull_depth: mcd,
+            coalesce: coalesce as u32,
             grid_size: p.grid_size.min(400.0),
             ..p
         };
@@ -169,7 +177,21 @@ fn gpu_cut_matches_reference() {
             }
             tally.ambiguous_nodes += ambiguous;
             // 2. The GPU's resolution and compaction of its own codes: exact.
-            let own = resolve_and_compact(&h, codes.clone(), &g.meshes, &g.billboard, &u);
+            let own = resolve_and_compact(&h, codes.clone(), &g.meshes, &g.billboard, &u, coalesce);
+            // The cut's list before coalescing, and the coalescing of it, each exact.
+            let raw = gpu
+                .read_uncoalesced()
+                .map_err(|e| TestCaseError::fail(e.to_string()))?;
+            let own_raw =
+                resolve_and_compact(&h, codes.clone(), &g.meshes, &g.billboard, &u, Coalesce::Off);
+            prop_assert_eq!(&raw.commands, &own_raw.selection.commands, "{:?}: uncoalesced commands", mode);
+            prop_assert_eq!(&raw.data, &own_raw.selection.data, "{:?}: uncoalesced data", mode);
+            prop_assert_eq!(raw.counters, own_raw.selection.counters, "{:?}: uncoalesced counters", mode);
+            if merge {
+                tally.coalesced_cases += 1;
+                tally.commands_before += raw.commands.len() as u64;
+                tally.commands_after += sel.commands.len() as u64;
+            }
             prop_assert_eq!(&states, &own.states, "{:?}: states", mode);
             prop_assert_eq!(&sel.commands, &own.selection.commands, "{:?}: commands", mode);
             prop_assert_eq!(&sel.data, &own.selection.data, "{:?}: data", mode);
@@ -194,9 +216,12 @@ fn gpu_cut_matches_reference() {
     });
     let tally = tally.into_inner();
     eprintln!(
-        "hier_select parity: {} (case, mode) pairs ({} exact), {} nodes compared, {} ambiguous nodes, {} commands compared exactly, max fade float difference {}, {:.1} s",
+        "hier_select parity: {} (case, mode) pairs ({} exact, {} coalesced: {} commands -> {}), {} nodes compared, {} ambiguous nodes, {} commands compared exactly, max fade float difference {}, {:.1} s",
         tally.cases,
         tally.exact_cases,
+        tally.coalesced_cases,
+        tally.commands_before,
+        tally.commands_after,
         tally.nodes,
         tally.ambiguous_nodes,
         tally.commands_compared,
@@ -207,6 +232,12 @@ fn gpu_cut_matches_reference() {
         panic!("hier_select parity: {e}");
     }
     assert_eq!(tally.max_float_diff, 0.0);
+    // The merging path ran: random hierarchies of up to 300 trees have adjacent runs.
+    assert!(
+        tally.commands_after < tally.commands_before,
+        "coalescing merged nothing in {} cases",
+        tally.coalesced_cases
+    );
 }
 
 /// The GPU frame with a hierarchy equals the GPU frame with the grid: bit for bit with
@@ -230,7 +261,7 @@ fn gpu_hierarchy_frames_equal_grid_frames() {
         ..Params::default()
     };
     let grid = prepare(scene.clone(), &base).unwrap();
-    for mode in [Mode::GridAabb, Mode::Quadtree, Mode::Octree] {
+    for mode in [Mode::GridAabb, Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
         let p = Params {
             hierarchy: mode as u32,
             ..base
@@ -363,4 +394,60 @@ fn gpu_cut_walks_every_ancestor() {
         );
         assert!(sel.commands.is_empty());
     }
+}
+
+/// Coalescing on the GPU where the command list spans several scan chunks (over 256 commands:
+/// `tiny`'s quadtree of 8-tree leaves at medium range emits some 280): the coalesced and the
+/// uncoalesced commands, data and counters equal the reference's exactly, and merging happened.
+/// The random cases of `gpu_cut_matches_reference` hold few commands each. Mutation-checked
+/// (`FORESTLOD_MUTANT_WGSL=coalesce.wgsl=...`): the run index taken without the head's own flag,
+/// no `coalesce_finish` subtraction, `continues_run` without the contiguity test, and the run's
+/// last command found by `j + 1 == n` only each fail it.
+#[test]
+fn gpu_coalescing_spans_scan_chunks() {
+    let Some(ctx) = gpu_context() else {
+        eprintln!("hier_select coalescing: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
+        return;
+    };
+    let scene = builtin::by_name("tiny").unwrap();
+    let p = Params {
+        grid_size: 50.0,
+        lod1_transition: 120.0,
+        fade_width: 40.0,
+        texture_size: 32,
+        nodes_per_node: 8,
+        max_cull_depth: 3,
+        hierarchy: Mode::Quadtree as u32,
+        ..Params::default()
+    };
+    let prepared = prepare(scene, &p).unwrap();
+    let h = prepared.hierarchy.as_ref().unwrap();
+    let g = &prepared.geometry;
+    let mut gpu =
+        GpuHierSelect::new(ctx, &h.nodes, h.mode as u32, &g.meshes, &g.billboard).unwrap();
+    let mut most = 0;
+    for yaw in [0.0, 330.0] {
+        let camera =
+            forestlod_reference::cameras::named_camera("medium", &prepared.scene, yaw, 96, 72)
+                .unwrap();
+        let u = ViewUniform::new(&camera, &p);
+        let want = hier_select(h, &g.meshes, &g.billboard, &camera, &p);
+        let sel = gpu.run(&camera, &p).unwrap();
+        let raw = gpu.read_uncoalesced().unwrap();
+        let (codes, _) = gpu.read_codes_and_states().unwrap();
+        assert_eq!(codes, want.codes, "yaw {yaw}: codes");
+        let want_raw = resolve_and_compact(h, codes, &g.meshes, &g.billboard, &u, Coalesce::Off);
+        eprintln!(
+            "GPU coalescing on tiny, quadtree, medium, yaw {yaw}: {} commands -> {}",
+            raw.commands.len(),
+            sel.commands.len()
+        );
+        most = most.max(raw.commands.len());
+        assert!(sel.commands.len() < raw.commands.len());
+        assert_eq!(raw.commands, want_raw.selection.commands);
+        assert_eq!(sel.commands, want.selection.commands, "yaw {yaw}");
+        assert_eq!(sel.data, want.selection.data, "yaw {yaw}");
+        assert_eq!(sel.counters, want.selection.counters, "yaw {yaw}");
+    }
+    assert!(most > 256, "at most {most} commands: one scan chunk");
 }

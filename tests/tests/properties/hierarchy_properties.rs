@@ -9,13 +9,13 @@ use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
 use forestlod_reference::select::{select, select_per_tree};
 use forestlod_shared::{
-    Camera, Hierarchy as Mode, LOD_MESH, MAX_HIERARCHY_DEPTH, NO_PARENT, NodeMeta, Params,
+    Camera, Coalesce, Hierarchy as Mode, LOD_MESH, MAX_HIERARCHY_DEPTH, NO_PARENT, NodeMeta, Params,
 };
 use forestlod_tests::{Packed, cameras, instances, params, property_config, with_threads};
 use proptest::prelude::*;
 
 /// The conservative hierarchical modes (everything but the grid and `octree-euclidean`).
-const CONSERVATIVE: [Mode; 3] = [Mode::GridAabb, Mode::Quadtree, Mode::Octree];
+const CONSERVATIVE: [Mode; 4] = [Mode::GridAabb, Mode::Quadtree, Mode::Octree, Mode::Kmeans];
 
 fn hier_params() -> impl Strategy<Value = Params> {
     (params(), 2u32..24, 0u32..9).prop_map(|(p, npn, mcd)| Params {
@@ -79,6 +79,11 @@ proptest! {
                     let (c, r) = packed.spheres[t as usize];
                     prop_assert!(contains(n, c, r), "{:?} node {} {:?} misses tree {} {:?} {}", mode, i, n, t, c, r);
                 }
+                if mode == Mode::Kmeans {
+                    // E§7 density-aware batches: depth 1, at most nodes_per_node trees each.
+                    prop_assert_eq!((n.depth, n.child_count), (0, 0));
+                    prop_assert!(n.len >= 1 && n.len <= p.nodes_per_node.max(2));
+                }
                 if n.child_count == 0 {
                     if mode == Mode::Quadtree {
                         prop_assert!(n.len as usize <= p.nodes_per_node as usize);
@@ -123,8 +128,11 @@ proptest! {
             let out = hier_select(&h, &g.meshes, &g.billboard, &camera, &p);
             let mut covered = vec![[0u32; 2]; packed.spheres.len()];
             for (c, d) in out.selection.commands.iter().zip(&out.selection.data) {
+                // A command starts at its (first) node's range and covers at least it (more when
+                // coalescing merged the following nodes' adjacent ranges into it).
                 let n = &h.nodes[d.batch as usize];
-                prop_assert_eq!((c.first_instance, c.instance_count), (n.offset, n.len));
+                prop_assert_eq!(c.first_instance, n.offset);
+                prop_assert!(c.instance_count >= n.len);
                 prop_assert!(out.states[d.batch as usize] & NODE_EMITTED != 0);
                 for &t in &h.indirection[c.first_instance as usize..(c.first_instance + c.instance_count) as usize] {
                     covered[t as usize][d.lod as usize] += 1;
@@ -152,12 +160,14 @@ proptest! {
     }
 
     /// The thesis's grid is the depth-1 case: the grid batches as root leaves, decided on the
-    /// sphere alone (`grid`), give `select`'s output bit for bit; with the sphere ∩ box
+    /// sphere alone (`grid`), give `select`'s output bit for bit (uncoalesced); with the sphere ∩ box
     /// (`grid-aabb`) no batch needs a LOD the sphere did not ask for (the intersection only
     /// tightens). Mutation-checked: dropping the `Hierarchy::Grid` sphere-only branch of
     /// `decide_node` fails the equality.
     #[test]
     fn grid_is_the_depth_one_hierarchy(trees in instances(300), camera in cameras(), p in hier_params()) {
+        // `select` never coalesces; uncoalesced, the depth-1 cut must be it.
+        let p = Params { coalesce: Coalesce::Off as u32, ..p };
         let packed = Packed::new(trees, p.grid_size);
         let g = &packed.geometry;
         let want = select(&packed.batches.metas, &g.meshes, &g.billboard, &camera, &p);
@@ -179,7 +189,7 @@ proptest! {
     fn hierarchy_and_cut_are_thread_count_independent(trees in instances(300), camera in cameras(), p in hier_params()) {
         let packed = Packed::new(trees, p.grid_size);
         let g = &packed.geometry;
-        for mode in [Mode::Quadtree, Mode::Octree] {
+        for mode in [Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
             let run = || {
                 let h = build(&packed, &p, mode);
                 let s = hier_select(&h, &g.meshes, &g.billboard, &camera, &p);

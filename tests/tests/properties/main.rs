@@ -5,12 +5,15 @@
 //!   against unrefined ones;
 //! - [`hierarchy_properties`]: hierarchies (issue 13) and their cut against the per-tree oracle
 //!   and the grid, frames against the grid's;
+//! - [`coalesce_properties`]: command coalescing of the hierarchical cut (issue 13) against the
+//!   uncoalesced commands;
 //! - [`extremes`]: the numerical-extremes catalogue of SPEC §7.
 //!
 //! Run one module with `cargo test -p forestlod-tests --test properties <module>::`. proptest
 //! keeps its regressions next to the source file of each property
 //! (`select_properties.proptest-regressions` beside `select_properties.rs`).
 
+mod coalesce_properties;
 mod extremes;
 mod hierarchy_properties;
 mod refine_properties;
