@@ -1,0 +1,550 @@
+//! Where the GPU frame's time goes (issue 13): selection, `refine`, and the draw pass split into
+//! clear + ground, tree vertex work and tree fragment work, for ours over each hierarchy and for
+//! the Vegetation baseline, plus the per-command overhead of the indirect draw.
+//!
+//! `cargo run --release -p forestlod-experiments --bin draw_split -- --out out/draw_split`
+//!
+//! Every stage is timed by timestamp queries (`gpu_time::timestamped`), minimum of `--reps`
+//! repetitions after one warm-up, and by wall time from submit to completion beside it. The draw
+//! pass is split by difference between three recordings of the same frame
+//! ([`forestlod_gpu::draw::DrawProbe`]):
+//! - `full`: the frame;
+//! - `no_trees`: clear and ground only;
+//! - `no_tree_fragments`: the frame with the tree draw call under a 1x1 scissor, so every command,
+//!   instance and vertex is fetched, shaded, clipped and set up, but no tree triangle is
+//!   rasterized or shaded outside pixel (0, 0).
+//!
+//! `vertex = no_tree_fragments - no_trees`, `fragment = full - no_tree_fragments`. The instrument
+//! is checked on every row: the tree pixels (LOD id) of `no_tree_fragments` (at most 1) and
+//! `no_trees` (0) are written to the CSV. The per-command series draws Vegetation's visible trees
+//! (the same instances, the same triangles) with its commands split into commands of at most `c`
+//! instances, for each `c` of `--split-sizes`: time against the number of commands.
+//!
+//! Writes `draw_split.csv` (one row per scene, camera and variant), `commands.csv` (the series)
+//! and the plots `draw_split_<scene>.png` and `commands_<scene>.png` into `--out`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Parser;
+use forestlod_experiments::gpu_time::timestamped;
+use forestlod_experiments::options::ParamArgs;
+use forestlod_experiments::plot::{Axes, Series, Style, bar_plot, xy_plot};
+use forestlod_gpu::draw::{DrawInputs, DrawProbe, DrawScene, DrawTarget, DrawTextures};
+use forestlod_gpu::{
+    Compaction, GpuContext, GpuCull, GpuDraw, GpuError, GpuRefine, GpuSelection, SelectBuffers,
+};
+use forestlod_harness::backend::{DrawSceneData, OursSelect, cull_trees, gpu_textures};
+use forestlod_reference::cameras::named_camera;
+use forestlod_reference::pipeline::prepare;
+use forestlod_reference::scene::builtin;
+use forestlod_shared::{
+    COMMAND_SHIFT, Camera, DrawCommand, Hierarchy, LOD_ID_BACKGROUND, LOD_ID_TERRAIN, LOD_MESH,
+    Params, TreeCull,
+};
+
+#[derive(Parser, Debug)]
+struct Args {
+    #[command(flatten)]
+    params: ParamArgs,
+    /// Scenes to run.
+    #[arg(long, value_delimiter = ',', default_value = "stress")]
+    scenes: Vec<String>,
+    /// Named cameras (yaw 0).
+    #[arg(long, value_delimiter = ',', default_value = "close,medium")]
+    cameras: Vec<String>,
+    /// Hierarchies of ours (`hierarchy` parameter values).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "grid,grid-aabb,quadtree,octree"
+    )]
+    hierarchies: Vec<String>,
+    /// Also run the grid with `tree_cull = all` (select, then `refine`).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    refine: bool,
+    /// Most instances per command of the per-command series over Vegetation's visible trees
+    /// (0: Vegetation's own commands, one per mesh).
+    #[arg(long, value_delimiter = ',', default_value = "0,64,16,4,1")]
+    split_sizes: Vec<u32>,
+    /// Cameras of the per-command series.
+    #[arg(long, value_delimiter = ',', default_value = "close")]
+    split_cameras: Vec<String>,
+    /// Viewport width.
+    #[arg(long, default_value_t = 320)]
+    width: u32,
+    /// Viewport height.
+    #[arg(long, default_value_t = 180)]
+    height: u32,
+    /// Timed repetitions per measurement after one warm-up (the minimum is reported).
+    #[arg(long, default_value_t = 2)]
+    reps: usize,
+    /// Output folder.
+    #[arg(long, default_value = "out/draw_split")]
+    out: PathBuf,
+}
+
+type Res<T> = Result<T, Box<dyn std::error::Error>>;
+
+/// Minimum GPU (timestamp) and wall seconds of `record`, over `reps` runs after one warm-up.
+fn time(
+    ctx: &GpuContext,
+    reps: usize,
+    record: &mut dyn FnMut(&mut wgpu::CommandEncoder) -> Result<(), GpuError>,
+) -> Res<(f64, f64)> {
+    let (mut gpu, mut wall) = (f64::INFINITY, f64::INFINITY);
+    for rep in 0..=reps {
+        let t = Instant::now();
+        let g = timestamped(ctx, record)?;
+        let w = t.elapsed().as_secs_f64();
+        if rep > 0 {
+            wall = wall.min(w);
+            gpu = gpu.min(g.unwrap_or(f64::NAN));
+        }
+    }
+    Ok((gpu, wall))
+}
+
+/// What one selection asks the draw stage to do.
+#[derive(Clone, Copy, Debug, Default)]
+struct Work {
+    commands: u64,
+    mesh_trees: u64,
+    billboard_trees: u64,
+    /// Indices submitted (index count x instances over every command): the vertex invocations
+    /// without a post-transform cache.
+    indices: u64,
+}
+
+fn work_of(sel: &GpuSelection) -> Work {
+    let mut w = Work {
+        commands: sel.commands.len() as u64,
+        ..Work::default()
+    };
+    for (c, d) in sel.commands.iter().zip(&sel.data) {
+        let n = c.instance_count as u64;
+        if d.lod == LOD_MESH {
+            w.mesh_trees += n;
+        } else {
+            w.billboard_trees += n;
+        }
+        w.indices += n * c.index_count as u64;
+    }
+    w
+}
+
+/// The draw pass's parts for one selection.
+#[derive(Clone, Copy, Debug)]
+struct Split {
+    full: (f64, f64),
+    no_trees: (f64, f64),
+    no_fragments: (f64, f64),
+    /// Tree pixels left by `NoTrees` and by `NoTreeFragments` (instrument check).
+    leak: (u64, u64),
+}
+
+fn tree_pixels(ctx: &GpuContext, target: &DrawTarget) -> Res<u64> {
+    let img = target.read(ctx)?;
+    Ok(img
+        .lod_id
+        .iter()
+        .filter(|&&id| id != LOD_ID_BACKGROUND && id != LOD_ID_TERRAIN)
+        .count() as u64)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn split_draw(
+    ctx: &GpuContext,
+    draw: &GpuDraw,
+    inputs: &DrawInputs,
+    camera: &Camera,
+    params: &Params,
+    target: &DrawTarget,
+    reps: usize,
+    probes: &[DrawProbe],
+) -> Res<Split> {
+    let mut out = Split {
+        full: (f64::NAN, f64::NAN),
+        no_trees: (f64::NAN, f64::NAN),
+        no_fragments: (f64::NAN, f64::NAN),
+        leak: (0, 0),
+    };
+    for &probe in probes {
+        let t = time(ctx, reps, &mut |e| {
+            draw.encode_probe(ctx, e, inputs, camera, params, target, probe)
+                .map(|_| ())
+        })?;
+        match probe {
+            DrawProbe::Full => out.full = t,
+            DrawProbe::NoTrees => {
+                out.no_trees = t;
+                out.leak.0 = tree_pixels(ctx, target)?;
+            }
+            DrawProbe::NoTreeFragments => {
+                out.no_fragments = t;
+                out.leak.1 = tree_pixels(ctx, target)?;
+            }
+        }
+    }
+    Ok(out)
+}
+
+const ALL_PROBES: [DrawProbe; 3] = [
+    DrawProbe::Full,
+    DrawProbe::NoTrees,
+    DrawProbe::NoTreeFragments,
+];
+
+/// Vegetation's commands split into commands of at most `c` instances (0: unchanged), each with
+/// its own copy of the per-command data; same instances, same order.
+fn split_commands(sel: &GpuSelection, c: u32) -> (Vec<DrawCommand>, Vec<forestlod_shared::CommandData>) {
+    let (mut cmds, mut data) = (Vec::new(), Vec::new());
+    for (cmd, d) in sel.commands.iter().zip(&sel.data) {
+        let step = if c == 0 { cmd.instance_count.max(1) } else { c };
+        let mut first = 0;
+        while first < cmd.instance_count {
+            let n = step.min(cmd.instance_count - first);
+            cmds.push(DrawCommand {
+                instance_count: n,
+                first_instance: cmd.first_instance + first,
+                base_vertex: ((cmds.len() as u32) << COMMAND_SHIFT) as i32,
+                ..*cmd
+            });
+            data.push(*d);
+            first += n;
+        }
+    }
+    (cmds, data)
+}
+
+struct Row {
+    scene: String,
+    camera: String,
+    variant: String,
+    work: Work,
+    select: (f64, f64),
+    refine: (f64, f64),
+    split: Split,
+}
+
+fn main() -> Res<()> {
+    let args = Args::parse();
+    let base = args.params.params()?;
+    let ctx = GpuContext::new()?;
+    println!("adapter: {}", ctx.describe());
+    let draw = GpuDraw::new(&ctx)?;
+    let target = DrawTarget::new(&ctx, args.width, args.height)?;
+    let mut rows: Vec<Row> = Vec::new();
+    let mut series = String::from(
+        "scene,camera,max_instances_per_command,commands,trees,no_tree_fragments_gpu_s,full_gpu_s,no_trees_gpu_s,no_tree_fragments_wall_s,full_wall_s\n",
+    );
+    let mut series_points: Vec<(String, Vec<(f64, f64)>, Vec<(f64, f64)>)> = Vec::new();
+    for scene_name in &args.scenes {
+        let scene = builtin::by_name(scene_name)?;
+        for (hi, h_name) in args.hierarchies.iter().enumerate() {
+            let h = Hierarchy::from_name(h_name).ok_or_else(|| {
+                format!("--hierarchies: unknown hierarchy {h_name:?} (expected one of grid, grid-aabb, quadtree, octree, octree-euclidean)")
+            })?;
+            let params = Params {
+                hierarchy: h as u32,
+                ..base
+            };
+            let t = Instant::now();
+            let prepared = prepare(scene.clone(), &params)?;
+            let data = DrawSceneData::new(&prepared);
+            let gpu_scene = DrawScene::new(&ctx, &data.desc(&prepared))?;
+            let (mesh, billboards) = gpu_textures(&ctx, &prepared, &params)?;
+            let textures = DrawTextures::new(&mesh, &billboards)?;
+            let mut select = OursSelect::new(&ctx, &prepared)?;
+            let first = hi == 0;
+            let trees = cull_trees(&prepared);
+            // Vegetation and refine run on the first hierarchy's prepared scene (the grid by
+            // default): they read the trees, not the hierarchy.
+            let mut cull = if first {
+                Some(GpuCull::new(&ctx, &trees, &prepared.geometry.meshes)?)
+            } else {
+                None
+            };
+            let mut refine = if first && args.refine {
+                Some(GpuRefine::new(
+                    &ctx,
+                    &trees,
+                    &prepared.batches.indirection,
+                )?)
+            } else {
+                None
+            };
+            println!(
+                "{scene_name} {h_name}: prepared and uploaded in {:.1} s",
+                t.elapsed().as_secs_f64()
+            );
+            for camera_name in &args.cameras {
+                let camera =
+                    named_camera(camera_name, &prepared.scene, 0.0, args.width, args.height)?;
+                // Ours.
+                let sel_t = time(&ctx, args.reps, &mut |e| {
+                    select.encode(e, &camera, &params, Compaction::Stable);
+                    Ok(())
+                })?;
+                let sel = select.buffers().read(&ctx)?;
+                let inputs = DrawInputs {
+                    scene: &gpu_scene,
+                    textures: &textures,
+                    selection: select.buffers(),
+                    indirection: None,
+                };
+                let split = split_draw(
+                    &ctx, &draw, &inputs, &camera, &params, &target, args.reps, &ALL_PROBES,
+                )?;
+                let row = Row {
+                    scene: scene_name.clone(),
+                    camera: camera_name.clone(),
+                    variant: format!("ours {h_name}"),
+                    work: work_of(&sel),
+                    select: sel_t,
+                    refine: (0.0, 0.0),
+                    split,
+                };
+                report(&row);
+                rows.push(row);
+                // Ours with refine (select, then refine.wgsl, timed apart).
+                if let Some(refine) = refine.as_mut() {
+                    let rparams = Params {
+                        tree_cull: TreeCull::All as u32,
+                        ..params
+                    };
+                    let mut ts = (f64::INFINITY, f64::INFINITY);
+                    for rep in 0..=args.reps {
+                        let t = Instant::now();
+                        let g = timestamped(&ctx, &mut |e| {
+                            refine.encode(e, select.buffers_mut(), &camera, &rparams);
+                            Ok(())
+                        });
+                        // `refine` rewrites the selection in place: select again before each
+                        // refine (untimed here; the selection's own time is the row above).
+                        let w = t.elapsed().as_secs_f64();
+                        let g = g?;
+                        if rep > 0 {
+                            ts = (ts.0.min(g.unwrap_or(f64::NAN)), ts.1.min(w));
+                        }
+                        if rep < args.reps {
+                            select.dispatch(&camera, &rparams, Compaction::Stable)?;
+                            ctx.wait()?;
+                        }
+                    }
+                    let rsel = select.buffers().read(&ctx)?;
+                    let inputs = DrawInputs {
+                        scene: &gpu_scene,
+                        textures: &textures,
+                        selection: select.buffers(),
+                        indirection: Some(refine.indirection()),
+                    };
+                    let split = split_draw(
+                        &ctx, &draw, &inputs, &camera, &rparams, &target, args.reps, &ALL_PROBES,
+                    )?;
+                    let row = Row {
+                        scene: scene_name.clone(),
+                        camera: camera_name.clone(),
+                        variant: format!("ours {h_name} + refine all"),
+                        work: work_of(&rsel),
+                        select: sel_t,
+                        refine: ts,
+                        split,
+                    };
+                    report(&row);
+                    rows.push(row);
+                }
+                // Vegetation.
+                if let Some(cull) = cull.as_mut() {
+                    let cull_t = time(&ctx, args.reps, &mut |e| {
+                        cull.encode(e, &camera, &params);
+                        Ok(())
+                    })?;
+                    let vsel = cull.buffers().read(&ctx)?;
+                    let inputs = DrawInputs {
+                        scene: &gpu_scene,
+                        textures: &textures,
+                        selection: cull.buffers(),
+                        indirection: Some(cull.indirection()),
+                    };
+                    let split = split_draw(
+                        &ctx, &draw, &inputs, &camera, &params, &target, args.reps, &ALL_PROBES,
+                    )?;
+                    let row = Row {
+                        scene: scene_name.clone(),
+                        camera: camera_name.clone(),
+                        variant: "vegetation".into(),
+                        work: work_of(&vsel),
+                        select: cull_t,
+                        refine: (0.0, 0.0),
+                        split,
+                    };
+                    report(&row);
+                    rows.push(row);
+                    if args.split_cameras.contains(camera_name) {
+                        let (mut nofrag, mut full) = (Vec::new(), Vec::new());
+                        for &c in &args.split_sizes {
+                            let (cmds, cdata) = split_commands(&vsel, c);
+                            let counters = forestlod_shared::SelectCounters {
+                                commands: cmds.len() as u32,
+                                ..vsel.counters
+                            };
+                            let buffers = SelectBuffers::from_cpu(&ctx, &cmds, &cdata, &counters)?;
+                            let inputs = DrawInputs {
+                                scene: &gpu_scene,
+                                textures: &textures,
+                                selection: &buffers,
+                                indirection: Some(cull.indirection()),
+                            };
+                            let s = split_draw(
+                                &ctx, &draw, &inputs, &camera, &params, &target, args.reps,
+                                &ALL_PROBES,
+                            )?;
+                            let trees: u64 = cmds.iter().map(|c| c.instance_count as u64).sum();
+                            println!(
+                                "  split {c}: {} commands, {trees} trees: no-fragments {:.1} ms, full {:.1} ms, ground {:.1} ms",
+                                cmds.len(),
+                                s.no_fragments.0 * 1e3,
+                                s.full.0 * 1e3,
+                                s.no_trees.0 * 1e3
+                            );
+                            series.push_str(&format!(
+                                "{scene_name},{camera_name},{c},{},{trees},{:.6},{:.6},{:.6},{:.6},{:.6}\n",
+                                cmds.len(),
+                                s.no_fragments.0,
+                                s.full.0,
+                                s.no_trees.0,
+                                s.no_fragments.1,
+                                s.full.1
+                            ));
+                            nofrag.push((cmds.len() as f64, (s.no_fragments.0 - s.no_trees.0) * 1e3));
+                            full.push((cmds.len() as f64, (s.full.0 - s.no_trees.0) * 1e3));
+                        }
+                        series_points.push((format!("{scene_name} {camera_name}"), nofrag, full));
+                    }
+                }
+            }
+        }
+    }
+    std::fs::create_dir_all(&args.out)?;
+    let mut csv = String::from(
+        "adapter,scene,camera,variant,width,height,commands,mesh_trees,billboard_trees,indices,select_gpu_s,refine_gpu_s,draw_gpu_s,ground_gpu_s,vertex_gpu_s,fragment_gpu_s,frame_gpu_s,select_wall_s,refine_wall_s,draw_wall_s,no_trees_wall_s,no_tree_fragments_wall_s,no_trees_tree_pixels,no_tree_fragments_tree_pixels\n",
+    );
+    for r in &rows {
+        let s = &r.split;
+        let vertex = s.no_fragments.0 - s.no_trees.0;
+        let fragment = s.full.0 - s.no_fragments.0;
+        csv.push_str(&format!(
+            "\"{}\",{},{},{},{},{},{},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{},{}\n",
+            ctx.info.name.replace(',', ";"),
+            r.scene,
+            r.camera,
+            r.variant,
+            args.width,
+            args.height,
+            r.work.commands,
+            r.work.mesh_trees,
+            r.work.billboard_trees,
+            r.work.indices,
+            r.select.0,
+            r.refine.0,
+            s.full.0,
+            s.no_trees.0,
+            vertex,
+            fragment,
+            r.select.0 + r.refine.0 + s.full.0,
+            r.select.1,
+            r.refine.1,
+            s.full.1,
+            s.no_trees.1,
+            s.no_fragments.1,
+            s.leak.0,
+            s.leak.1
+        ));
+    }
+    std::fs::write(args.out.join("draw_split.csv"), csv)?;
+    std::fs::write(args.out.join("commands.csv"), series)?;
+    // Plots: per scene, grouped bars (camera / variant) of the frame's parts; the series.
+    for scene_name in &args.scenes {
+        let mine: Vec<&Row> = rows.iter().filter(|r| &r.scene == scene_name).collect();
+        let groups: Vec<String> = mine
+            .iter()
+            .map(|r| format!("{} {}", r.camera, r.variant.trim_start_matches("ours ")))
+            .collect();
+        let bars: Vec<String> = ["select+refine", "clear+ground", "tree vertex", "tree fragment"]
+            .map(String::from)
+            .to_vec();
+        let values: Vec<Vec<f64>> = mine
+            .iter()
+            .map(|r| {
+                let s = &r.split;
+                vec![
+                    r.select.0 + r.refine.0,
+                    s.no_trees.0,
+                    s.no_fragments.0 - s.no_trees.0,
+                    s.full.0 - s.no_fragments.0,
+                ]
+            })
+            .collect();
+        bar_plot(
+            &args.out.join(format!("draw_split_{scene_name}.png")),
+            &Axes::linear(
+                format!(
+                    "GPU frame parts, {scene_name}, {}x{} (timestamps, s)",
+                    args.width, args.height
+                ),
+                "camera / variant",
+                "GPU seconds",
+            ),
+            &groups,
+            &bars,
+            &values,
+        )?;
+    }
+    for (label, nofrag, full) in &series_points {
+        let mut axes = Axes::linear(
+            format!("Vegetation's trees in N commands, {label} (tree part of the pass)"),
+            "commands",
+            "ms (minus clear + ground)",
+        );
+        axes.log_x = true;
+        xy_plot(
+            &args.out.join(format!("commands_{}.png", label.replace(' ', "_"))),
+            &axes,
+            &[
+                Series {
+                    label: "no tree fragments (vertex + setup)".into(),
+                    points: nofrag.clone(),
+                },
+                Series {
+                    label: "full".into(),
+                    points: full.clone(),
+                },
+            ],
+            Style::Lines,
+        )?;
+    }
+    println!("wrote {}", args.out.display());
+    Ok(())
+}
+
+fn report(r: &Row) {
+    let s = &r.split;
+    println!(
+        "{} {} {}: {} commands, {} mesh + {} billboard trees, {} indices | select {:.1} ms, refine {:.1} ms | draw {:.1} ms = ground {:.1} + vertex {:.1} + fragment {:.1} | leaks {:?}",
+        r.scene,
+        r.camera,
+        r.variant,
+        r.work.commands,
+        r.work.mesh_trees,
+        r.work.billboard_trees,
+        r.work.indices,
+        r.select.0 * 1e3,
+        r.refine.0 * 1e3,
+        s.full.0 * 1e3,
+        s.no_trees.0 * 1e3,
+        (s.no_fragments.0 - s.no_trees.0) * 1e3,
+        (s.full.0 - s.no_fragments.0) * 1e3,
+        s.leak
+    );
+}
