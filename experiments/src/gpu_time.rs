@@ -51,4 +51,3 @@ pub fn timestamped(
         ticks[1].saturating_sub(ticks[0]) as f64 * period_ns * 1e-9,
     ))
 }
-

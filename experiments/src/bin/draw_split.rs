@@ -197,7 +197,10 @@ const ALL_PROBES: [DrawProbe; 3] = [
 
 /// Vegetation's commands split into commands of at most `c` instances (0: unchanged), each with
 /// its own copy of the per-command data; same instances, same order.
-fn split_commands(sel: &GpuSelection, c: u32) -> (Vec<DrawCommand>, Vec<forestlod_shared::CommandData>) {
+fn split_commands(
+    sel: &GpuSelection,
+    c: u32,
+) -> (Vec<DrawCommand>, Vec<forestlod_shared::CommandData>) {
     let (mut cmds, mut data) = (Vec::new(), Vec::new());
     for (cmd, d) in sel.commands.iter().zip(&sel.data) {
         let step = if c == 0 { cmd.instance_count.max(1) } else { c };
@@ -266,11 +269,7 @@ fn main() -> Res<()> {
                 None
             };
             let mut refine = if first && args.refine {
-                Some(GpuRefine::new(
-                    &ctx,
-                    &trees,
-                    &prepared.batches.indirection,
-                )?)
+                Some(GpuRefine::new(&ctx, &trees, &prepared.batches.indirection)?)
             } else {
                 None
             };
@@ -294,7 +293,14 @@ fn main() -> Res<()> {
                     indirection: None,
                 };
                 let split = split_draw(
-                    &ctx, &draw, &inputs, &camera, &params, &target, args.reps, &ALL_PROBES,
+                    &ctx,
+                    &draw,
+                    &inputs,
+                    &camera,
+                    &params,
+                    &target,
+                    args.reps,
+                    &ALL_PROBES,
                 )?;
                 let row = Row {
                     scene: scene_name.clone(),
@@ -340,7 +346,14 @@ fn main() -> Res<()> {
                         indirection: Some(refine.indirection()),
                     };
                     let split = split_draw(
-                        &ctx, &draw, &inputs, &camera, &rparams, &target, args.reps, &ALL_PROBES,
+                        &ctx,
+                        &draw,
+                        &inputs,
+                        &camera,
+                        &rparams,
+                        &target,
+                        args.reps,
+                        &ALL_PROBES,
                     )?;
                     let row = Row {
                         scene: scene_name.clone(),
@@ -368,7 +381,14 @@ fn main() -> Res<()> {
                         indirection: Some(cull.indirection()),
                     };
                     let split = split_draw(
-                        &ctx, &draw, &inputs, &camera, &params, &target, args.reps, &ALL_PROBES,
+                        &ctx,
+                        &draw,
+                        &inputs,
+                        &camera,
+                        &params,
+                        &target,
+                        args.reps,
+                        &ALL_PROBES,
                     )?;
                     let row = Row {
                         scene: scene_name.clone(),
@@ -397,7 +417,13 @@ fn main() -> Res<()> {
                                 indirection: Some(cull.indirection()),
                             };
                             let s = split_draw(
-                                &ctx, &draw, &inputs, &camera, &params, &target, args.reps,
+                                &ctx,
+                                &draw,
+                                &inputs,
+                                &camera,
+                                &params,
+                                &target,
+                                args.reps,
                                 &ALL_PROBES,
                             )?;
                             let trees: u64 = cmds.iter().map(|c| c.instance_count as u64).sum();
@@ -417,7 +443,8 @@ fn main() -> Res<()> {
                                 s.no_fragments.1,
                                 s.full.1
                             ));
-                            nofrag.push((cmds.len() as f64, (s.no_fragments.0 - s.no_trees.0) * 1e3));
+                            nofrag
+                                .push((cmds.len() as f64, (s.no_fragments.0 - s.no_trees.0) * 1e3));
                             full.push((cmds.len() as f64, (s.full.0 - s.no_trees.0) * 1e3));
                         }
                         series_points.push((format!("{scene_name} {camera_name}"), nofrag, full));
@@ -471,9 +498,14 @@ fn main() -> Res<()> {
             .iter()
             .map(|r| format!("{} {}", r.camera, r.variant.trim_start_matches("ours ")))
             .collect();
-        let bars: Vec<String> = ["select+refine", "clear+ground", "tree vertex", "tree fragment"]
-            .map(String::from)
-            .to_vec();
+        let bars: Vec<String> = [
+            "select+refine",
+            "clear+ground",
+            "tree vertex",
+            "tree fragment",
+        ]
+        .map(String::from)
+        .to_vec();
         let values: Vec<Vec<f64>> = mine
             .iter()
             .map(|r| {
@@ -509,7 +541,9 @@ fn main() -> Res<()> {
         );
         axes.log_x = true;
         xy_plot(
-            &args.out.join(format!("commands_{}.png", label.replace(' ', "_"))),
+            &args
+                .out
+                .join(format!("commands_{}.png", label.replace(' ', "_"))),
             &axes,
             &[
                 Series {
