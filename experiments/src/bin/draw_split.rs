@@ -86,23 +86,79 @@ struct Args {
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
 
-/// Minimum GPU (timestamp) and wall seconds of `record`, over `reps` runs after one warm-up.
+/// Seconds of one measurement, each the minimum over the timed repetitions.
+#[derive(Clone, Copy, Debug)]
+struct Secs {
+    /// Between timestamps.
+    gpu: f64,
+    /// Wall, submit to completion.
+    wall: f64,
+    /// CPU seconds of this process (user + system, every thread: lavapipe's included), which
+    /// other processes on a shared machine do not inflate as they inflate the other two.
+    cpu: f64,
+}
+
+impl Secs {
+    const NAN: Secs = Secs {
+        gpu: f64::NAN,
+        wall: f64::NAN,
+        cpu: f64::NAN,
+    };
+    const ZERO: Secs = Secs {
+        gpu: 0.0,
+        wall: 0.0,
+        cpu: 0.0,
+    };
+    fn minus(self, o: Secs) -> Secs {
+        Secs {
+            gpu: self.gpu - o.gpu,
+            wall: self.wall - o.wall,
+            cpu: self.cpu - o.cpu,
+        }
+    }
+    fn plus(self, o: Secs) -> Secs {
+        Secs {
+            gpu: self.gpu + o.gpu,
+            wall: self.wall + o.wall,
+            cpu: self.cpu + o.cpu,
+        }
+    }
+}
+
+/// User + system CPU seconds of this process so far.
+fn process_cpu_seconds() -> f64 {
+    // SAFETY: getrusage writes one `rusage` into the zeroed struct we own.
+    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) };
+    let tv = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    tv(u.ru_utime) + tv(u.ru_stime)
+}
+
+/// Minimum timestamp, wall and process-CPU seconds of `record`, over `reps` runs after one
+/// warm-up.
 fn time(
     ctx: &GpuContext,
     reps: usize,
     record: &mut dyn FnMut(&mut wgpu::CommandEncoder) -> Result<(), GpuError>,
-) -> Res<(f64, f64)> {
-    let (mut gpu, mut wall) = (f64::INFINITY, f64::INFINITY);
+) -> Res<Secs> {
+    let mut best = Secs {
+        gpu: f64::INFINITY,
+        wall: f64::INFINITY,
+        cpu: f64::INFINITY,
+    };
     for rep in 0..=reps {
-        let t = Instant::now();
+        let (t, c) = (Instant::now(), process_cpu_seconds());
         let g = timestamped(ctx, record)?;
-        let w = t.elapsed().as_secs_f64();
+        let (w, c) = (t.elapsed().as_secs_f64(), process_cpu_seconds() - c);
         if rep > 0 {
-            wall = wall.min(w);
-            gpu = gpu.min(g.unwrap_or(f64::NAN));
+            best = Secs {
+                gpu: best.gpu.min(g.unwrap_or(f64::NAN)),
+                wall: best.wall.min(w),
+                cpu: best.cpu.min(c),
+            };
         }
     }
-    Ok((gpu, wall))
+    Ok(best)
 }
 
 /// What one selection asks the draw stage to do.
@@ -136,9 +192,9 @@ fn work_of(sel: &GpuSelection) -> Work {
 /// The draw pass's parts for one selection.
 #[derive(Clone, Copy, Debug)]
 struct Split {
-    full: (f64, f64),
-    no_trees: (f64, f64),
-    no_fragments: (f64, f64),
+    full: Secs,
+    no_trees: Secs,
+    no_fragments: Secs,
     /// Tree pixels left by `NoTrees` and by `NoTreeFragments` (instrument check).
     leak: (u64, u64),
 }
@@ -164,9 +220,9 @@ fn split_draw(
     probes: &[DrawProbe],
 ) -> Res<Split> {
     let mut out = Split {
-        full: (f64::NAN, f64::NAN),
-        no_trees: (f64::NAN, f64::NAN),
-        no_fragments: (f64::NAN, f64::NAN),
+        full: Secs::NAN,
+        no_trees: Secs::NAN,
+        no_fragments: Secs::NAN,
         leak: (0, 0),
     };
     for &probe in probes {
@@ -225,8 +281,8 @@ struct Row {
     camera: String,
     variant: String,
     work: Work,
-    select: (f64, f64),
-    refine: (f64, f64),
+    select: Secs,
+    refine: Secs,
     split: Split,
 }
 
@@ -239,7 +295,7 @@ fn main() -> Res<()> {
     let target = DrawTarget::new(&ctx, args.width, args.height)?;
     let mut rows: Vec<Row> = Vec::new();
     let mut series = String::from(
-        "scene,camera,max_instances_per_command,commands,trees,no_tree_fragments_gpu_s,full_gpu_s,no_trees_gpu_s,no_tree_fragments_wall_s,full_wall_s\n",
+        "scene,camera,max_instances_per_command,commands,trees,no_trees_gpu_s,no_tree_fragments_gpu_s,full_gpu_s,no_trees_cpu_s,no_tree_fragments_cpu_s,full_cpu_s\n",
     );
     let mut series_points: Vec<(String, Vec<(f64, f64)>, Vec<(f64, f64)>)> = Vec::new();
     for scene_name in &args.scenes {
@@ -308,7 +364,7 @@ fn main() -> Res<()> {
                     variant: format!("ours {h_name}"),
                     work: work_of(&sel),
                     select: sel_t,
-                    refine: (0.0, 0.0),
+                    refine: Secs::ZERO,
                     split,
                 };
                 report(&row);
@@ -319,20 +375,28 @@ fn main() -> Res<()> {
                         tree_cull: TreeCull::All as u32,
                         ..params
                     };
-                    let mut ts = (f64::INFINITY, f64::INFINITY);
+                    let mut ts = Secs {
+                        gpu: f64::INFINITY,
+                        wall: f64::INFINITY,
+                        cpu: f64::INFINITY,
+                    };
                     for rep in 0..=args.reps {
-                        let t = Instant::now();
+                        let (t, c) = (Instant::now(), process_cpu_seconds());
                         let g = timestamped(&ctx, &mut |e| {
                             refine.encode(e, select.buffers_mut(), &camera, &rparams);
                             Ok(())
                         });
-                        // `refine` rewrites the selection in place: select again before each
-                        // refine (untimed here; the selection's own time is the row above).
-                        let w = t.elapsed().as_secs_f64();
+                        let (w, c) = (t.elapsed().as_secs_f64(), process_cpu_seconds() - c);
                         let g = g?;
                         if rep > 0 {
-                            ts = (ts.0.min(g.unwrap_or(f64::NAN)), ts.1.min(w));
+                            ts = Secs {
+                                gpu: ts.gpu.min(g.unwrap_or(f64::NAN)),
+                                wall: ts.wall.min(w),
+                                cpu: ts.cpu.min(c),
+                            };
                         }
+                        // `refine` rewrites the selection in place: select again before the next
+                        // refine (untimed; the selection's own time is the row above).
                         if rep < args.reps {
                             select.dispatch(&camera, &rparams, Compaction::Stable)?;
                             ctx.wait()?;
@@ -396,7 +460,7 @@ fn main() -> Res<()> {
                         variant: "vegetation".into(),
                         work: work_of(&vsel),
                         select: cull_t,
-                        refine: (0.0, 0.0),
+                        refine: Secs::ZERO,
                         split,
                     };
                     report(&row);
@@ -427,25 +491,28 @@ fn main() -> Res<()> {
                                 &ALL_PROBES,
                             )?;
                             let trees: u64 = cmds.iter().map(|c| c.instance_count as u64).sum();
+                            let (v, f) =
+                                (s.no_fragments.minus(s.no_trees), s.full.minus(s.no_trees));
                             println!(
-                                "  split {c}: {} commands, {trees} trees: no-fragments {:.1} ms, full {:.1} ms, ground {:.1} ms",
+                                "  split {c}: {} commands, {trees} trees: tree part without fragments {:.1} ms ({:.1} ms CPU), with {:.1} ms ({:.1} ms CPU)",
                                 cmds.len(),
-                                s.no_fragments.0 * 1e3,
-                                s.full.0 * 1e3,
-                                s.no_trees.0 * 1e3
+                                v.gpu * 1e3,
+                                v.cpu * 1e3,
+                                f.gpu * 1e3,
+                                f.cpu * 1e3
                             );
                             series.push_str(&format!(
-                                "{scene_name},{camera_name},{c},{},{trees},{:.6},{:.6},{:.6},{:.6},{:.6}\n",
+                                "{scene_name},{camera_name},{c},{},{trees},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}\n",
                                 cmds.len(),
-                                s.no_fragments.0,
-                                s.full.0,
-                                s.no_trees.0,
-                                s.no_fragments.1,
-                                s.full.1
+                                s.no_trees.gpu,
+                                s.no_fragments.gpu,
+                                s.full.gpu,
+                                s.no_trees.cpu,
+                                s.no_fragments.cpu,
+                                s.full.cpu
                             ));
-                            nofrag
-                                .push((cmds.len() as f64, (s.no_fragments.0 - s.no_trees.0) * 1e3));
-                            full.push((cmds.len() as f64, (s.full.0 - s.no_trees.0) * 1e3));
+                            nofrag.push((cmds.len() as f64, v.gpu * 1e3));
+                            full.push((cmds.len() as f64, v.cpu * 1e3));
                         }
                         series_points.push((format!("{scene_name} {camera_name}"), nofrag, full));
                     }
@@ -455,14 +522,21 @@ fn main() -> Res<()> {
     }
     std::fs::create_dir_all(&args.out)?;
     let mut csv = String::from(
-        "adapter,scene,camera,variant,width,height,commands,mesh_trees,billboard_trees,indices,select_gpu_s,refine_gpu_s,draw_gpu_s,ground_gpu_s,vertex_gpu_s,fragment_gpu_s,frame_gpu_s,select_wall_s,refine_wall_s,draw_wall_s,no_trees_wall_s,no_tree_fragments_wall_s,no_trees_tree_pixels,no_tree_fragments_tree_pixels\n",
+        "adapter,scene,camera,variant,width,height,commands,mesh_trees,billboard_trees,indices",
     );
+    const CLOCKS: [&str; 3] = ["gpu", "wall", "cpu"];
+    for clock in CLOCKS {
+        for part in [
+            "select", "refine", "draw", "ground", "vertex", "fragment", "frame",
+        ] {
+            csv.push_str(&format!(",{part}_{clock}_s"));
+        }
+    }
+    csv.push_str(",no_trees_tree_pixels,no_tree_fragments_tree_pixels\n");
     for r in &rows {
         let s = &r.split;
-        let vertex = s.no_fragments.0 - s.no_trees.0;
-        let fragment = s.full.0 - s.no_fragments.0;
         csv.push_str(&format!(
-            "\"{}\",{},{},{},{},{},{},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{},{}\n",
+            "\"{}\",{},{},{},{},{},{},{},{},{}",
             ctx.info.name.replace(',', ";"),
             r.scene,
             r.camera,
@@ -472,22 +546,23 @@ fn main() -> Res<()> {
             r.work.commands,
             r.work.mesh_trees,
             r.work.billboard_trees,
-            r.work.indices,
-            r.select.0,
-            r.refine.0,
-            s.full.0,
-            s.no_trees.0,
-            vertex,
-            fragment,
-            r.select.0 + r.refine.0 + s.full.0,
-            r.select.1,
-            r.refine.1,
-            s.full.1,
-            s.no_trees.1,
-            s.no_fragments.1,
-            s.leak.0,
-            s.leak.1
+            r.work.indices
         ));
+        let vertex = s.no_fragments.minus(s.no_trees);
+        let fragment = s.full.minus(s.no_fragments);
+        let frame = r.select.plus(r.refine).plus(s.full);
+        for pick in [
+            (|t: Secs| t.gpu) as fn(Secs) -> f64,
+            |t: Secs| t.wall,
+            |t: Secs| t.cpu,
+        ] {
+            for t in [
+                r.select, r.refine, s.full, s.no_trees, vertex, fragment, frame,
+            ] {
+                csv.push_str(&format!(",{:.6}", pick(t)));
+            }
+        }
+        csv.push_str(&format!(",{},{}\n", s.leak.0, s.leak.1));
     }
     std::fs::write(args.out.join("draw_split.csv"), csv)?;
     std::fs::write(args.out.join("commands.csv"), series)?;
@@ -506,38 +581,48 @@ fn main() -> Res<()> {
         ]
         .map(String::from)
         .to_vec();
-        let values: Vec<Vec<f64>> = mine
-            .iter()
-            .map(|r| {
-                let s = &r.split;
-                vec![
-                    r.select.0 + r.refine.0,
-                    s.no_trees.0,
-                    s.no_fragments.0 - s.no_trees.0,
-                    s.full.0 - s.no_fragments.0,
-                ]
-            })
-            .collect();
-        bar_plot(
-            &args.out.join(format!("draw_split_{scene_name}.png")),
-            &Axes::linear(
-                format!(
-                    "GPU frame parts, {scene_name}, {}x{} (timestamps, s)",
-                    args.width, args.height
+        for (clock, pick) in [
+            ("timestamps", (|t: Secs| t.gpu) as fn(Secs) -> f64),
+            ("process CPU", |t: Secs| t.cpu),
+        ] {
+            let values: Vec<Vec<f64>> = mine
+                .iter()
+                .map(|r| {
+                    let s = &r.split;
+                    [
+                        r.select.plus(r.refine),
+                        s.no_trees,
+                        s.no_fragments.minus(s.no_trees),
+                        s.full.minus(s.no_fragments),
+                    ]
+                    .map(pick)
+                    .to_vec()
+                })
+                .collect();
+            let suffix = if clock == "timestamps" { "" } else { "_cpu" };
+            bar_plot(
+                &args
+                    .out
+                    .join(format!("draw_split_{scene_name}{suffix}.png")),
+                &Axes::linear(
+                    format!(
+                        "GPU frame parts, {scene_name}, {}x{} ({clock}, s)",
+                        args.width, args.height
+                    ),
+                    "camera / variant",
+                    "seconds",
                 ),
-                "camera / variant",
-                "GPU seconds",
-            ),
-            &groups,
-            &bars,
-            &values,
-        )?;
+                &groups,
+                &bars,
+                &values,
+            )?;
+        }
     }
     for (label, nofrag, full) in &series_points {
         let mut axes = Axes::linear(
-            format!("Vegetation's trees in N commands, {label} (tree part of the pass)"),
+            format!("Vegetation's trees in N commands, {label}: tree vertex part (no fragments)"),
             "commands",
-            "ms (minus clear + ground)",
+            "ms",
         );
         axes.log_x = true;
         xy_plot(
@@ -547,11 +632,11 @@ fn main() -> Res<()> {
             &axes,
             &[
                 Series {
-                    label: "no tree fragments (vertex + setup)".into(),
+                    label: "timestamps".into(),
                     points: nofrag.clone(),
                 },
                 Series {
-                    label: "full".into(),
+                    label: "process CPU".into(),
                     points: full.clone(),
                 },
             ],
@@ -564,8 +649,12 @@ fn main() -> Res<()> {
 
 fn report(r: &Row) {
     let s = &r.split;
+    let (v, f) = (
+        s.no_fragments.minus(s.no_trees),
+        s.full.minus(s.no_fragments),
+    );
     println!(
-        "{} {} {}: {} commands, {} mesh + {} billboard trees, {} indices | select {:.1} ms, refine {:.1} ms | draw {:.1} ms = ground {:.1} + vertex {:.1} + fragment {:.1} | leaks {:?}",
+        "{} {} {}: {} commands, {} mesh + {} billboard trees, {} indices | select {:.1} ms, refine {:.1} ms | draw {:.1} ms = ground {:.1} + vertex {:.1} + fragment {:.1} | CPU: draw {:.1} ms = ground {:.1} + vertex {:.1} + fragment {:.1} | leaks {:?}",
         r.scene,
         r.camera,
         r.variant,
@@ -573,12 +662,16 @@ fn report(r: &Row) {
         r.work.mesh_trees,
         r.work.billboard_trees,
         r.work.indices,
-        r.select.0 * 1e3,
-        r.refine.0 * 1e3,
-        s.full.0 * 1e3,
-        s.no_trees.0 * 1e3,
-        (s.no_fragments.0 - s.no_trees.0) * 1e3,
-        (s.full.0 - s.no_fragments.0) * 1e3,
+        r.select.gpu * 1e3,
+        r.refine.gpu * 1e3,
+        s.full.gpu * 1e3,
+        s.no_trees.gpu * 1e3,
+        v.gpu * 1e3,
+        f.gpu * 1e3,
+        s.full.cpu * 1e3,
+        s.no_trees.cpu * 1e3,
+        v.cpu * 1e3,
+        f.cpu * 1e3,
         s.leak
     );
 }
