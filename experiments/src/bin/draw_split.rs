@@ -76,9 +76,12 @@ struct Args {
     /// Viewport height.
     #[arg(long, default_value_t = 180)]
     height: u32,
-    /// Timed repetitions per measurement after one warm-up (the minimum is reported).
+    /// Timed repetitions per measurement (the minimum is reported).
     #[arg(long, default_value_t = 2)]
     reps: usize,
+    /// Untimed warm-up runs before them (llvmpipe compiles shader variants on first use).
+    #[arg(long, default_value_t = 1)]
+    warmups: usize,
     /// Output folder.
     #[arg(long, default_value = "out/draw_split")]
     out: PathBuf,
@@ -134,11 +137,11 @@ fn process_cpu_seconds() -> f64 {
     tv(u.ru_utime) + tv(u.ru_stime)
 }
 
-/// Minimum timestamp, wall and process-CPU seconds of `record`, over `reps` runs after one
-/// warm-up.
+/// Minimum timestamp, wall and process-CPU seconds of `record`, over `reps` runs after `warmups`
+/// untimed ones.
 fn time(
     ctx: &GpuContext,
-    reps: usize,
+    (warmups, reps): (usize, usize),
     record: &mut dyn FnMut(&mut wgpu::CommandEncoder) -> Result<(), GpuError>,
 ) -> Res<Secs> {
     let mut best = Secs {
@@ -146,11 +149,11 @@ fn time(
         wall: f64::INFINITY,
         cpu: f64::INFINITY,
     };
-    for rep in 0..=reps {
+    for rep in 0..warmups + reps.max(1) {
         let (t, c) = (Instant::now(), process_cpu_seconds());
         let g = timestamped(ctx, record)?;
         let (w, c) = (t.elapsed().as_secs_f64(), process_cpu_seconds() - c);
-        if rep > 0 {
+        if rep >= warmups {
             best = Secs {
                 gpu: best.gpu.min(g.unwrap_or(f64::NAN)),
                 wall: best.wall.min(w),
@@ -216,7 +219,7 @@ fn split_draw(
     camera: &Camera,
     params: &Params,
     target: &DrawTarget,
-    reps: usize,
+    reps: (usize, usize),
     probes: &[DrawProbe],
 ) -> Res<Split> {
     let mut out = Split {
@@ -337,7 +340,7 @@ fn main() -> Res<()> {
                 let camera =
                     named_camera(camera_name, &prepared.scene, 0.0, args.width, args.height)?;
                 // Ours.
-                let sel_t = time(&ctx, args.reps, &mut |e| {
+                let sel_t = time(&ctx, (args.warmups, args.reps), &mut |e| {
                     select.encode(e, &camera, &params, Compaction::Stable);
                     Ok(())
                 })?;
@@ -355,7 +358,7 @@ fn main() -> Res<()> {
                     &camera,
                     &params,
                     &target,
-                    args.reps,
+                    (args.warmups, args.reps),
                     &ALL_PROBES,
                 )?;
                 let row = Row {
@@ -380,7 +383,8 @@ fn main() -> Res<()> {
                         wall: f64::INFINITY,
                         cpu: f64::INFINITY,
                     };
-                    for rep in 0..=args.reps {
+                    let runs = args.warmups + args.reps.max(1);
+                    for rep in 0..runs {
                         let (t, c) = (Instant::now(), process_cpu_seconds());
                         let g = timestamped(&ctx, &mut |e| {
                             refine.encode(e, select.buffers_mut(), &camera, &rparams);
@@ -388,7 +392,7 @@ fn main() -> Res<()> {
                         });
                         let (w, c) = (t.elapsed().as_secs_f64(), process_cpu_seconds() - c);
                         let g = g?;
-                        if rep > 0 {
+                        if rep >= args.warmups {
                             ts = Secs {
                                 gpu: ts.gpu.min(g.unwrap_or(f64::NAN)),
                                 wall: ts.wall.min(w),
@@ -397,7 +401,7 @@ fn main() -> Res<()> {
                         }
                         // `refine` rewrites the selection in place: select again before the next
                         // refine (untimed; the selection's own time is the row above).
-                        if rep < args.reps {
+                        if rep + 1 < runs {
                             select.dispatch(&camera, &rparams, Compaction::Stable)?;
                             ctx.wait()?;
                         }
@@ -416,7 +420,7 @@ fn main() -> Res<()> {
                         &camera,
                         &rparams,
                         &target,
-                        args.reps,
+                        (args.warmups, args.reps),
                         &ALL_PROBES,
                     )?;
                     let row = Row {
@@ -433,7 +437,7 @@ fn main() -> Res<()> {
                 }
                 // Vegetation.
                 if let Some(cull) = cull.as_mut() {
-                    let cull_t = time(&ctx, args.reps, &mut |e| {
+                    let cull_t = time(&ctx, (args.warmups, args.reps), &mut |e| {
                         cull.encode(e, &camera, &params);
                         Ok(())
                     })?;
@@ -451,7 +455,7 @@ fn main() -> Res<()> {
                         &camera,
                         &params,
                         &target,
-                        args.reps,
+                        (args.warmups, args.reps),
                         &ALL_PROBES,
                     )?;
                     let row = Row {
@@ -487,7 +491,7 @@ fn main() -> Res<()> {
                                 &camera,
                                 &params,
                                 &target,
-                                args.reps,
+                                (args.warmups, args.reps),
                                 &ALL_PROBES,
                             )?;
                             let trees: u64 = cmds.iter().map(|c| c.instance_count as u64).sum();
