@@ -153,9 +153,9 @@ fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
         params.grid_size,
         match &hierarchy {
             Some(h) => format!(
-                "; {} leaves of a {} of {} nodes",
-                memory.t,
+                "; hierarchy {}: {} leaves, {} nodes",
                 params.hierarchy_mode().map_or("?", |m| m.name()),
+                memory.t,
                 h.nodes.len()
             ),
             None => String::new(),

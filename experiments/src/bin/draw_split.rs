@@ -89,6 +89,9 @@ struct Args {
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
 
+/// Plot points `(x, y)`.
+type Points = Vec<(f64, f64)>;
+
 /// Seconds of one measurement, each the minimum over the timed repetitions.
 #[derive(Clone, Copy, Debug)]
 struct Secs {
@@ -300,7 +303,7 @@ fn main() -> Res<()> {
     let mut series = String::from(
         "scene,camera,max_instances_per_command,commands,trees,no_trees_gpu_s,no_tree_fragments_gpu_s,full_gpu_s,no_trees_cpu_s,no_tree_fragments_cpu_s,full_cpu_s\n",
     );
-    let mut series_points: Vec<(String, Vec<(f64, f64)>, Vec<(f64, f64)>)> = Vec::new();
+    let mut series_points: Vec<(String, Points, Points)> = Vec::new();
     for scene_name in &args.scenes {
         let scene = builtin::by_name(scene_name)?;
         for (hi, h_name) in args.hierarchies.iter().enumerate() {
