@@ -85,6 +85,9 @@ struct Args {
     /// Output folder.
     #[arg(long, default_value = "out/draw_split")]
     out: PathBuf,
+    /// Only redraw `draw_split_<scene>[_cpu].png` from the `draw_split.csv` in `--out`.
+    #[arg(long)]
+    replot: bool,
 }
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
@@ -294,6 +297,9 @@ struct Row {
 
 fn main() -> Res<()> {
     let args = Args::parse();
+    if args.replot {
+        return plot_parts(&args.out);
+    }
     let base = args.params.params()?;
     let ctx = GpuContext::new()?;
     println!("adapter: {}", ctx.describe());
@@ -573,58 +579,7 @@ fn main() -> Res<()> {
     }
     std::fs::write(args.out.join("draw_split.csv"), csv)?;
     std::fs::write(args.out.join("commands.csv"), series)?;
-    // Plots: per scene, grouped bars (camera / variant) of the frame's parts; the series.
-    for scene_name in &args.scenes {
-        let mine: Vec<&Row> = rows.iter().filter(|r| &r.scene == scene_name).collect();
-        let groups: Vec<String> = mine
-            .iter()
-            .map(|r| format!("{} {}", r.camera, r.variant.trim_start_matches("ours ")))
-            .collect();
-        let bars: Vec<String> = [
-            "select+refine",
-            "clear+ground",
-            "tree vertex",
-            "tree fragment",
-        ]
-        .map(String::from)
-        .to_vec();
-        for (clock, pick) in [
-            ("timestamps", (|t: Secs| t.gpu) as fn(Secs) -> f64),
-            ("process CPU", |t: Secs| t.cpu),
-        ] {
-            let values: Vec<Vec<f64>> = mine
-                .iter()
-                .map(|r| {
-                    let s = &r.split;
-                    [
-                        r.select.plus(r.refine),
-                        s.no_trees,
-                        s.no_fragments.minus(s.no_trees),
-                        s.full.minus(s.no_fragments),
-                    ]
-                    .map(pick)
-                    .to_vec()
-                })
-                .collect();
-            let suffix = if clock == "timestamps" { "" } else { "_cpu" };
-            bar_plot(
-                &args
-                    .out
-                    .join(format!("draw_split_{scene_name}{suffix}.png")),
-                &Axes::linear(
-                    format!(
-                        "GPU frame parts, {scene_name}, {}x{} ({clock}, s)",
-                        args.width, args.height
-                    ),
-                    "camera / variant",
-                    "seconds",
-                ),
-                &groups,
-                &bars,
-                &values,
-            )?;
-        }
-    }
+    plot_parts(&args.out)?;
     for (label, nofrag, full) in &series_points {
         let mut axes = Axes::linear(
             format!("Vegetation's trees in N commands, {label}: tree vertex part (no fragments)"),
@@ -651,6 +606,96 @@ fn main() -> Res<()> {
         )?;
     }
     println!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// Per scene, grouped bars (camera / variant) of the frame's parts, in timestamps
+/// (`draw_split_<scene>.png`) and in process CPU seconds (`draw_split_<scene>_cpu.png`), from the
+/// `draw_split.csv` in `out`.
+fn plot_parts(out: &std::path::Path) -> Res<()> {
+    let path = out.join("draw_split.csv");
+    let mut reader =
+        csv::Reader::from_path(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let headers = reader.headers()?.clone();
+    let records: Vec<csv::StringRecord> = reader.records().collect::<Result<_, _>>()?;
+    let col = |r: &csv::StringRecord, name: &str| -> Res<String> {
+        let i = headers
+            .iter()
+            .position(|h| h == name)
+            .ok_or_else(|| format!("{}: no column {name}", path.display()))?;
+        Ok(r[i].to_string())
+    };
+    let num = |r: &csv::StringRecord, name: &str| -> Res<f64> {
+        let v = col(r, name)?;
+        v.parse().map_err(|_| {
+            format!(
+                "{}: column {name}: value {v:?} is no number",
+                path.display()
+            )
+            .into()
+        })
+    };
+    let mut scenes: Vec<String> = Vec::new();
+    for r in &records {
+        let s = col(r, "scene")?;
+        if !scenes.contains(&s) {
+            scenes.push(s);
+        }
+    }
+    let bars: Vec<String> = [
+        "select+refine",
+        "clear+ground",
+        "tree vertex",
+        "tree fragment",
+    ]
+    .map(String::from)
+    .to_vec();
+    for scene in &scenes {
+        let mine: Vec<&csv::StringRecord> = records
+            .iter()
+            .filter(|r| col(r, "scene").is_ok_and(|s| &s == scene))
+            .collect();
+        // Short labels: the plot's group labels have room for about 8 characters.
+        let mut groups = Vec::new();
+        for r in &mine {
+            let variant = col(r, "variant")?
+                .replace("ours ", "")
+                .replace(" + refine all", "+ref")
+                .replace("vegetation", "Veg")
+                .replace("quadtree", "quad")
+                .replace("octree", "oct");
+            let camera = col(r, "camera")?;
+            groups.push(format!("{} {variant}", &camera[..1].to_uppercase()));
+        }
+        let (w, h) = (col(mine[0], "width")?, col(mine[0], "height")?);
+        for (clock, suffix) in [("gpu", ""), ("cpu", "_cpu")] {
+            let mut values = Vec::new();
+            for r in &mine {
+                values.push(vec![
+                    num(r, &format!("select_{clock}_s"))? + num(r, &format!("refine_{clock}_s"))?,
+                    num(r, &format!("ground_{clock}_s"))?,
+                    num(r, &format!("vertex_{clock}_s"))?,
+                    num(r, &format!("fragment_{clock}_s"))?,
+                ]);
+            }
+            let name = if clock == "gpu" {
+                "timestamps"
+            } else {
+                "process CPU"
+            };
+            bar_plot(
+                &out.join(format!("draw_split_{scene}{suffix}.png")),
+                &Axes::linear(
+                    format!("Frame parts, {scene}, {w}x{h} ({name}, s); C close, M medium"),
+                    "camera / variant",
+                    "seconds",
+                ),
+                &groups,
+                &bars,
+                &values,
+            )?;
+        }
+    }
     Ok(())
 }
 
