@@ -4,8 +4,10 @@
 //!
 //! `cargo run --release -p forestlod-experiments --bin draw_split -- --out out/draw_split`
 //!
-//! Every stage is timed by timestamp queries (`gpu_time::timestamped`), minimum of `--reps`
-//! repetitions after one warm-up, and by wall time from submit to completion beside it. The draw
+//! Every stage is timed three ways, each the minimum of `--reps` repetitions after `--warmups`
+//! (1) untimed ones: timestamp queries (`gpu_time::timestamped`), wall time from submit to
+//! completion, and this process's CPU seconds (`getrusage`: every thread, lavapipe's included),
+//! the one clock other processes on a shared machine barely inflate. The draw
 //! pass is split by difference between three recordings of the same frame
 //! ([`forestlod_gpu::draw::DrawProbe`]):
 //! - `full`: the frame;
@@ -21,7 +23,8 @@
 //! instances, for each `c` of `--split-sizes`: time against the number of commands.
 //!
 //! Writes `draw_split.csv` (one row per scene, camera and variant), `commands.csv` (the series)
-//! and the plots `draw_split_<scene>.png` and `commands_<scene>.png` into `--out`.
+//! and the plots `draw_split_<scene>[_cpu].png` and `commands_<scene>_<camera>.png` into `--out`;
+//! `--replot` redraws the first from the CSV. Results: `experiments/results/hierarchy_time/`.
 
 use std::path::PathBuf;
 use std::time::Instant;
