@@ -9,6 +9,7 @@ pub mod camera;
 pub mod case;
 pub mod check;
 pub mod fair;
+pub mod gpu_time;
 pub mod html;
 pub mod legend;
 pub mod metrics;

@@ -100,14 +100,25 @@ fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
     let scene = scene.load()?;
     let geometry = pack_geometry(&scene);
     let start = Instant::now();
-    let batches = build_batches(&scene, &geometry.meshes, params.grid_size)?;
+    // `--hierarchy` other than `grid`: the hierarchy's leaves are the batches and its interior
+    // nodes add to the memory (as `prepare` counts them).
+    let hierarchy =
+        forestlod_reference::hierarchy::Hierarchy::build(&scene, &geometry.meshes, &params)?;
+    let batches = match &hierarchy {
+        Some(h) => h.leaf_batches(params.grid_size),
+        None => build_batches(&scene, &geometry.meshes, params.grid_size)?,
+    };
     let batch_seconds = start.elapsed().as_secs_f64();
-    let memory = memory_report(
+    let mut memory = memory_report(
         scene.instances.len(),
         batches.metas.len(),
         scene.meshes.len(),
         &params,
     );
+    if let Some(h) = &hierarchy {
+        memory.hierarchy_nodes = h.node_bytes() - memory.batch_meta;
+        memory.total += memory.hierarchy_nodes;
+    }
     let stats = batches.stats();
     if json {
         let value = serde_json::json!({
@@ -136,8 +147,20 @@ fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
         scene.mesh_triangles()
     );
     println!(
-        "  t = {} batches over {} occupied cells (grid {} m), built in {:.3} s",
-        memory.t, stats.cells, params.grid_size, batch_seconds
+        "  t = {} batches over {} occupied cells (grid {} m{}), built in {:.3} s",
+        memory.t,
+        stats.cells,
+        params.grid_size,
+        match &hierarchy {
+            Some(h) => format!(
+                "; hierarchy {}: {} leaves, {} nodes",
+                params.hierarchy_mode().map_or("?", |m| m.name()),
+                memory.t,
+                h.nodes.len()
+            ),
+            None => String::new(),
+        },
+        batch_seconds
     );
     println!(
         "  trees per batch: min {} / mean {:.1} / max {}; sphere radius mean {:.1} m, max {:.1} m",
@@ -159,6 +182,7 @@ fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
         ),
         ("commands (52lt)", memory.commands, 52 * memory.l * memory.t),
         ("counters (4lm)", memory.counters, 4 * memory.l * memory.m),
+        ("interior nodes", memory.hierarchy_nodes, 0),
     ];
     for (name, ours, eq) in rows {
         println!("  {name:<22} {ours:>12} {eq:>12}");

@@ -64,30 +64,37 @@ pub struct Accuracy {
     pub tree_fraction: f64,
     /// LOD error ([`lod_error`]): mean FLIP against the same backend's full-detail frame. `NaN`
     /// in CSVs written before it existed.
-    #[serde(default = "not_measured")]
+    #[serde(default = "not_measured", deserialize_with = "nan_if_null")]
     pub lod_flip_mean: f64,
     /// LOD error: 99th percentile of that FLIP map.
-    #[serde(default = "not_measured")]
+    #[serde(default = "not_measured", deserialize_with = "nan_if_null")]
     pub lod_flip_p99: f64,
     /// LOD error: fraction of pixels whose colour differs from the full-detail frame by more
     /// than [`LOD_CHANGED_LEVELS`] in some channel.
-    #[serde(default = "not_measured")]
+    #[serde(default = "not_measured", deserialize_with = "nan_if_null")]
     pub lod_changed: f64,
     /// Total error ([`total_error`]): mean FLIP of our frame at the truth's sampling rate
     /// ([`crate::fair`]) against the truth. `NaN` where not measured.
-    #[serde(default = "not_measured")]
+    #[serde(default = "not_measured", deserialize_with = "nan_if_null")]
     pub total_flip_mean: f64,
     /// Total error: 99th percentile of that FLIP map.
-    #[serde(default = "not_measured")]
+    #[serde(default = "not_measured", deserialize_with = "nan_if_null")]
     pub total_flip_p99: f64,
     /// Total error: fraction of pixels whose tree / not-tree class (the truth's majority rule on
     /// both sides) differs from the truth's.
-    #[serde(default = "not_measured")]
+    #[serde(default = "not_measured", deserialize_with = "nan_if_null")]
     pub total_coverage_error: f64,
 }
 
 fn not_measured() -> f64 {
     f64::NAN
+}
+
+/// A figure read back from JSON, where serde_json writes a `NaN` (not measured: e.g. the total
+/// error of a sweep with `total_error = false`) as `null`.
+fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    use serde::Deserialize;
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 
 /// A pixel counts as changed by the LOD when a channel differs from the full-detail frame by

@@ -690,6 +690,21 @@ impl IndirectMode {
     }
 }
 
+/// What [`GpuDraw::encode_probe`] records: the frame, or the frame with part of the tree work
+/// removed so that the draw pass's time can be split by difference (vertex against fragment work,
+/// the method and its assumptions in `experiments/results/hierarchy_time/README.md`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum DrawProbe {
+    /// The frame ([`GpuDraw::encode`]).
+    Full,
+    /// Clear and ground only: the tree draw call is not recorded.
+    NoTrees,
+    /// The tree draw call under a 1x1 scissor rectangle (the ground is drawn in full first): every
+    /// command, instance and vertex is fetched and shaded, and every triangle clipped and set up,
+    /// but no tree triangle outside pixel (0, 0) reaches rasterization or the fragment stage.
+    NoTreeFragments,
+}
+
 /// The CPU-side draw calls one frame recorded: constant whatever the trees and batches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DrawCalls {
@@ -1006,7 +1021,8 @@ impl StagePipelines for DrawPipelines {
 }
 
 impl GpuDraw {
-    /// Records one frame's pass into `encoder`. The frame's uniform is a fresh buffer bound into
+    /// Records one frame's pass into `encoder` ([`GpuDraw::encode_probe`] with
+    /// [`DrawProbe::Full`]). The frame's uniform is a fresh buffer bound into
     /// this call's bind group ([`frame_uniform`]), so frames recorded from several threads with
     /// one `GpuDraw` never see each other's camera. `camera` and `params` should be validated, as for the reference.
     /// Errors: textures with fewer layers than the meshes (and `K` angles) need, or selection
@@ -1019,6 +1035,32 @@ impl GpuDraw {
         camera: &Camera,
         params: &Params,
         target: &DrawTarget,
+    ) -> Result<DrawCalls, GpuError> {
+        self.encode_probe(
+            ctx,
+            encoder,
+            inputs,
+            camera,
+            params,
+            target,
+            DrawProbe::Full,
+        )
+    }
+
+    /// [`GpuDraw::encode`] with a [`DrawProbe`]: the whole frame, or the frame with part of the
+    /// tree work removed, for timing the draw pass's parts (`experiments/src/bin/draw_split.rs`).
+    /// Only [`DrawProbe::Full`] draws the frame the reference twins; the others are measuring
+    /// instruments whose images are not compared.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_probe(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &DrawInputs,
+        camera: &Camera,
+        params: &Params,
+        target: &DrawTarget,
+        probe: DrawProbe,
     ) -> Result<DrawCalls, GpuError> {
         let DrawInputs {
             scene,
@@ -1074,6 +1116,18 @@ impl GpuDraw {
         pass.set_pipeline(&self.pipelines.terrain);
         pass.set_vertex_buffer(0, scene.terrain.slice(..));
         pass.draw(0..scene.terrain_vertex_count, 0..1);
+        match probe {
+            DrawProbe::Full => {}
+            DrawProbe::NoTrees => {
+                return Ok(DrawCalls {
+                    terrain: 1,
+                    trees: 0,
+                    mode: self.mode,
+                    max_commands: selection.capacity,
+                });
+            }
+            DrawProbe::NoTreeFragments => pass.set_scissor_rect(0, 0, 1, 1),
+        }
         pass.set_pipeline(&self.pipelines.trees);
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
         match self.mode {

@@ -53,7 +53,7 @@ pub use spec::{
 pub use variant::{Backend, Named, ReferenceRenderer, Variant};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 12] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 14] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -72,6 +72,14 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 12] = [
     ("grid_stress", include_str!("../../sweeps/grid_stress.toml")),
     ("tree_cull", include_str!("../../sweeps/tree_cull.toml")),
     ("hierarchy", include_str!("../../sweeps/hierarchy.toml")),
+    (
+        "hierarchy_paths",
+        include_str!("../../sweeps/hierarchy_paths.toml"),
+    ),
+    (
+        "hierarchy_params",
+        include_str!("../../sweeps/hierarchy_params.toml"),
+    ),
 ];
 
 /// Options of `forestlod sweep` (`Default`: no file, no override, an empty `out`).

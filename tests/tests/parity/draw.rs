@@ -337,3 +337,96 @@ fn draw_constants_agree_with_the_reference() {
         }
     }
 }
+
+/// The measuring probes of `GpuDraw::encode_probe` (`experiments/src/bin/draw_split.rs`) remove
+/// exactly what they say: `Full` is the frame `encode` draws, bit for bit; `NoTrees` leaves no tree
+/// pixel and, wherever the frame shows no tree, equals it (clear and ground drawn in full);
+/// `NoTreeFragments` equals `NoTrees` at every pixel but (0, 0), the one pixel its 1x1 scissor
+/// lets trees reach (so the ground is drawn before the scissor and no tree fragment lands
+/// elsewhere). On `tiny` from `close`, whose frame is mostly trees.
+#[test]
+fn draw_probes_remove_what_they_say() {
+    use forestlod_gpu::draw::DrawProbe;
+    use forestlod_shared::{LOD_ID_BACKGROUND, LOD_ID_TERRAIN};
+    let Some(ctx) = gpu_context() else { return };
+    let params = tiny_params(FadeMode::DitherSequential);
+    let tiny = builtin::tiny();
+    let prepared = prepare(tiny.clone(), &params).expect("prepare");
+    let camera = forestlod_reference::cameras::named_camera("close", &tiny, 0.0, 96, 96).unwrap();
+    let data = DrawSceneData::new(&prepared);
+    let scene = DrawScene::new(ctx, &data.desc(&prepared)).unwrap();
+    let (mesh, billboards) = upload_reference_textures(ctx, &prepared).unwrap();
+    let textures = DrawTextures::new(&mesh, &billboards).unwrap();
+    let mut select = GpuSelect::new(
+        ctx,
+        &prepared.batches.metas,
+        &prepared.geometry.meshes,
+        &prepared.geometry.billboard,
+    )
+    .unwrap();
+    select
+        .dispatch(&camera, &params, Compaction::Stable)
+        .unwrap();
+    let draw = gpu_draw(ctx);
+    let target = DrawTarget::new(ctx, 96, 96).unwrap();
+    let inputs = DrawInputs {
+        scene: &scene,
+        textures: &textures,
+        selection: select.buffers(),
+        indirection: None,
+    };
+    let frame = |probe: Option<DrawProbe>| {
+        match probe {
+            None => draw.render(ctx, &inputs, &camera, &params, &target),
+            Some(p) => ctx
+                .checked("probe", || {
+                    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                    let calls =
+                        draw.encode_probe(ctx, &mut encoder, &inputs, &camera, &params, &target, p);
+                    ctx.queue.submit([encoder.finish()]);
+                    calls
+                })
+                .unwrap(),
+        }
+        .unwrap();
+        target.read(ctx).unwrap()
+    };
+    let plain = frame(None);
+    let full = frame(Some(DrawProbe::Full));
+    let no_trees = frame(Some(DrawProbe::NoTrees));
+    let no_fragments = frame(Some(DrawProbe::NoTreeFragments));
+    assert!(full == plain, "DrawProbe::Full differs from encode's frame");
+    let is_tree = |id: u32| id != LOD_ID_BACKGROUND && id != LOD_ID_TERRAIN;
+    let trees = plain.lod_id.iter().filter(|&&id| is_tree(id)).count();
+    assert!(
+        trees > 96 * 96 / 4,
+        "the close frame shows only {trees} tree pixels"
+    );
+    let same =
+        |a: &forestlod_gpu::draw::DrawnImages, b: &forestlod_gpu::draw::DrawnImages, i: usize| {
+            a.color[i] == b.color[i]
+                && a.depth[i].to_bits() == b.depth[i].to_bits()
+                && a.lod_id[i] == b.lod_id[i]
+        };
+    let mut report = (0usize, 0usize, 0usize);
+    for i in 0..plain.lod_id.len() {
+        if is_tree(no_trees.lod_id[i]) {
+            report.0 += 1;
+        }
+        if !is_tree(plain.lod_id[i]) && !same(&plain, &no_trees, i) {
+            report.1 += 1;
+        }
+        if i != 0 && !same(&no_trees, &no_fragments, i) {
+            report.2 += 1;
+        }
+    }
+    eprintln!(
+        "probes: {trees} tree pixels in the frame; NoTrees: {} tree pixels, {} non-tree pixels unlike the frame; NoTreeFragments: {} pixels unlike NoTrees",
+        report.0, report.1, report.2
+    );
+    assert_eq!(
+        report,
+        (0, 0, 0),
+        "(tree pixels in NoTrees, non-tree pixels of NoTrees unlike the frame, pixels of NoTreeFragments unlike NoTrees)"
+    );
+}
