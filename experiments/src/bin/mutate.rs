@@ -202,8 +202,21 @@ fn mutants_of(root: &Path, file: &Path) -> Vec<Mutant> {
     out
 }
 
-/// The test filters that target `file`: `(test binary, filter)`.
+/// The test filters that target `file`: `(test binary, filter)`. The reference stages that
+/// record threshold coverage (`select`, `refine`, `hier_select`, `draw`) are also targeted by the
+/// `coverage` binary, which checks what those counters count.
 fn targets(file: &Path) -> Vec<(&'static str, String)> {
+    let mut t = targets_of_stage(file);
+    let stem = file.file_stem().unwrap().to_string_lossy();
+    if file.starts_with("reference")
+        && matches!(stem.as_ref(), "select" | "refine" | "hier_select" | "draw")
+    {
+        t.push(("coverage", String::new()));
+    }
+    t
+}
+
+fn targets_of_stage(file: &Path) -> Vec<(&'static str, String)> {
     let stem = file.file_stem().unwrap().to_string_lossy().to_string();
     let parity = |m: &str| ("parity", format!("{m}::"));
     match stem.as_str() {
