@@ -264,6 +264,59 @@ fn off_axis_mesh_near_the_draw_distance() {
     }
 }
 
+/// A tree whose sphere centre's view depth equals the draw distance exactly (an axis-aligned view:
+/// `forward` = +y exactly, the depth is an exact difference): "within" includes the bound on both
+/// sides (`tree_within_draw_distance`, `common.wgsl` `within_draw_distance`: `d <= draw_distance`),
+/// so the tree is drawn. Added for a survivor of `mutate` (issue 15, Rust mutant 1004: `<=` → `<`
+/// in `reference/src/select.rs`, which no scenario's centre depth ever tied).
+#[test]
+fn tree_centre_exactly_at_the_draw_distance_is_drawn() {
+    let Some(ctx) = gpu_context() else { return };
+    let scene = builtin::single();
+    let (centre, _) =
+        forestlod_reference::scene::tree_sphere(&scene.instances[0], &scene.mesh_metas()[0]);
+    let params = Params {
+        lod_levels: 1,
+        draw_distance: 44.0,
+        ..billboard_params()
+    };
+    let eye = [centre[0], centre[1] - 44.0, centre[2]];
+    let camera = Camera::look_at(eye, centre, 40.0, 64, 64);
+    let u = forestlod_reference::select::SelectUniform::new(&camera, &params);
+    let d = forestlod_shared::view_interval(centre, 0.0, u.eye, u.forward).d;
+    assert_eq!(d, params.draw_distance, "the centre's depth ties the draw distance");
+    let prepared = prepare(scene, &params).expect("prepare single");
+    let input = FrameInput {
+        prepared: &prepared,
+        camera: &camera,
+        params: &params,
+    };
+    let want = Backend::<Draw>::run(&Reference, input);
+    let tree_pixels = want
+        .lod_id
+        .iter()
+        .filter(|&&id| id == forestlod_reference::draw::LOD_ID_MESH)
+        .count();
+    assert!(tree_pixels > 100, "the reference draws the tree: {tree_pixels} mesh pixels");
+    let got = GpuRenderer {
+        ctx,
+        option: StagesFromCpu::ALL,
+    }
+    .run(input);
+    let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
+    let report = compare_images("centre-at-draw-distance", &got, &want, &alternatives, &camera);
+    eprintln!("{report}");
+    if !report.passed() {
+        let dir = write_failure_images(&report, &got, &want);
+        panic!(
+            "{}: {} (images in {})",
+            report.name,
+            report.failures().join("; "),
+            dir.display()
+        );
+    }
+}
+
 /// One multi-draw call draws every command whatever the command count, and the fallback without
 /// a count buffer (`multi_draw_indexed_indirect` over the whole capacity) ignores stale commands
 /// past the count: selection runs first with two LOD levels (meshes, the band and billboards:
