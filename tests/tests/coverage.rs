@@ -304,9 +304,7 @@ fn every_threshold_is_straddled_by_a_parity_case() {
 /// `n.child_count > 0` → `>= 0` in `reference/src/hier_select.rs` counted every drawn leaf as an
 /// interior node drawn "as one unit", and every test passed).
 fn cut_counters_count_what_they_name() {
-    use forestlod_shared::{
-        DECISION_DRAW, DECISION_KIND_MASK, NODE_VISITED, code_recurses,
-    };
+    use forestlod_shared::{DECISION_DRAW, DECISION_KIND_MASK, NODE_VISITED, code_recurses};
     let tiny = builtin::tiny();
     let (mut visited, mut recurse, mut drawn_leaves) = ([0u64; 2], [0u64; 2], 0u64);
     coverage::enable();
@@ -336,7 +334,11 @@ fn cut_counters_count_what_they_name() {
     }
     let counts = coverage::disable();
     let row = |t: Threshold| counts.iter().find(|(u, _)| *u == t).expect("a row").1;
-    assert_eq!(row(Threshold::CutVisited), visited, "CutVisited: [not visited, visited]");
+    assert_eq!(
+        row(Threshold::CutVisited),
+        visited,
+        "CutVisited: [not visited, visited]"
+    );
     assert_eq!(
         row(Threshold::CutRecurse),
         recurse,

@@ -203,10 +203,8 @@ fn off_axis_mesh_near_the_draw_distance() {
         p[0] += OFFSET;
         p[1] += OFFSET;
     }
-    let (centre, _) = forestlod_reference::scene::tree_sphere(
-        &scene.instances[0],
-        &scene.mesh_metas()[0],
-    );
+    let (centre, _) =
+        forestlod_reference::scene::tree_sphere(&scene.instances[0], &scene.mesh_metas()[0]);
     assert_eq!([centre[0], centre[1]], [OFFSET, OFFSET], "yaw 0, scale 1");
     // Looking at the centre along the horizontal diagonal (1, 1)/√2 from 40 m away: a centre
     // with three times the local offset in x or in y (the mutant and its `lx` twin) is
@@ -244,7 +242,10 @@ fn off_axis_mesh_near_the_draw_distance() {
         .iter()
         .filter(|&&id| id == forestlod_reference::draw::LOD_ID_MESH)
         .count();
-    assert!(tree_pixels > 100, "the reference draws the tree: {tree_pixels} mesh pixels");
+    assert!(
+        tree_pixels > 100,
+        "the reference draws the tree: {tree_pixels} mesh pixels"
+    );
     let backend = GpuRenderer {
         ctx,
         option: StagesFromCpu::ALL,
@@ -284,7 +285,10 @@ fn tree_centre_exactly_at_the_draw_distance_is_drawn() {
     let camera = Camera::look_at(eye, centre, 40.0, 64, 64);
     let u = forestlod_reference::select::SelectUniform::new(&camera, &params);
     let d = forestlod_shared::view_interval(centre, 0.0, u.eye, u.forward).d;
-    assert_eq!(d, params.draw_distance, "the centre's depth ties the draw distance");
+    assert_eq!(
+        d, params.draw_distance,
+        "the centre's depth ties the draw distance"
+    );
     let prepared = prepare(scene, &params).expect("prepare single");
     let input = FrameInput {
         prepared: &prepared,
@@ -297,14 +301,23 @@ fn tree_centre_exactly_at_the_draw_distance_is_drawn() {
         .iter()
         .filter(|&&id| id == forestlod_reference::draw::LOD_ID_MESH)
         .count();
-    assert!(tree_pixels > 100, "the reference draws the tree: {tree_pixels} mesh pixels");
+    assert!(
+        tree_pixels > 100,
+        "the reference draws the tree: {tree_pixels} mesh pixels"
+    );
     let got = GpuRenderer {
         ctx,
         option: StagesFromCpu::ALL,
     }
     .run(input);
     let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
-    let report = compare_images("centre-at-draw-distance", &got, &want, &alternatives, &camera);
+    let report = compare_images(
+        "centre-at-draw-distance",
+        &got,
+        &want,
+        &alternatives,
+        &camera,
+    );
     eprintln!("{report}");
     if !report.passed() {
         let dir = write_failure_images(&report, &got, &want);
