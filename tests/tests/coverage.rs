@@ -293,4 +293,62 @@ fn every_threshold_is_straddled_by_a_parity_case() {
         "thresholds no parity case straddles: {}",
         missing.join("; ")
     );
+    // In this test, not a test of its own: the counters are global.
+    cut_counters_count_what_they_name();
+}
+
+/// The cut's counters count what their rows name, recomputed from the cut's own per-node codes
+/// and states: `CutVisited` every node (split by the visited bit), `CutRecurse` exactly the
+/// visited, drawn **interior** nodes (split by whether they recurse). A counter that also counts
+/// other cases can fake a straddle: added for a survivor of `mutate` (issue 15, Rust mutant 616:
+/// `n.child_count > 0` → `>= 0` in `reference/src/hier_select.rs` counted every drawn leaf as an
+/// interior node drawn "as one unit", and every test passed).
+fn cut_counters_count_what_they_name() {
+    use forestlod_shared::{DECISION_DRAW, DECISION_KIND_MASK, NODE_VISITED, code_recurses};
+    let tiny = builtin::tiny();
+    let (mut visited, mut recurse, mut drawn_leaves) = ([0u64; 2], [0u64; 2], 0u64);
+    coverage::enable();
+    // `hierarchy_frames`' cases, each recomputed from its own cut.
+    for mode in [Hierarchy::Quadtree, Hierarchy::Octree] {
+        let params = Params {
+            hierarchy: mode as u32,
+            ..tiny_params(FadeMode::DitherSequential)
+        };
+        let p = prepare(tiny.clone(), &params).expect("prepare");
+        let h = p.hierarchy.as_ref().expect("a hierarchy");
+        for camera in ["medium", "close", "far"] {
+            let c = named_camera(camera, &tiny, 0.0, 96, 96).expect("camera");
+            let cut = p.hier_select(&c, &params).expect("a hierarchy");
+            for (i, n) in h.nodes.iter().enumerate() {
+                let (code, seen) = (cut.codes[i], cut.states[i] & NODE_VISITED != 0);
+                visited[usize::from(seen)] += 1;
+                if seen && code & DECISION_KIND_MASK == DECISION_DRAW {
+                    if n.child_count > 0 {
+                        recurse[usize::from(code_recurses(code))] += 1;
+                    } else {
+                        drawn_leaves += 1;
+                    }
+                }
+            }
+        }
+    }
+    let counts = coverage::disable();
+    let row = |t: Threshold| counts.iter().find(|(u, _)| *u == t).expect("a row").1;
+    assert_eq!(
+        row(Threshold::CutVisited),
+        visited,
+        "CutVisited: [not visited, visited]"
+    );
+    assert_eq!(
+        row(Threshold::CutRecurse),
+        recurse,
+        "CutRecurse: [drawn interior nodes as one unit, recursing]"
+    );
+    // The cases reach what the check is about: interior nodes that recurse, and drawn leaves
+    // (which `CutRecurse` must not count).
+    assert!(
+        recurse[1] > 0 && drawn_leaves > 0,
+        "recursing interior nodes {}, drawn leaves {drawn_leaves}",
+        recurse[1]
+    );
 }

@@ -13,8 +13,8 @@
 //! - `round`: `floor` → `ceil`, `ceil` → `floor`, `round` → `floor`;
 //! - `drop`: a WGSL assignment statement commented out.
 //!
-//! Rust mutants target `shared/src`, the reference stages (`reference/src/{select,refine,mips,
-//! bake,draw,raster,sampler,batches}.rs`) and the GPU drivers (`gpu/src/*.rs`), code before the
+//! Rust mutants target `shared/src`, the reference stages (`reference/src/{select,refine,
+//! hier_select,mips,bake,draw,raster,sampler,batches}.rs`) and the GPU drivers (`gpu/src/*.rs`), code before the
 //! first `#[cfg(test)]` and outside comments; each needs a rebuild of the test binary. WGSL
 //! mutants target every `gpu/src/shaders/*.wgsl` and need no rebuild: the mutated text is passed
 //! through `FORESTLOD_MUTANT_WGSL` (`gpu/src/shaders.rs`, `mutant_or`).
@@ -23,7 +23,8 @@
 //! the stage, plus `properties` for Rust mutants of `shared` and the reference) with a timeout;
 //! a mutant is *killed* when a test fails (the first failing test is recorded), *survived* when
 //! all pass, *invalid* when it does not compile (Rust) or its module does not validate (counted
-//! apart: not a behaviour). Rust mutants are applied in place and always restored.
+//! apart: not a behaviour). Rust mutants are applied in place and always restored; their test
+//! binaries are rebuilt before the timeout starts (the timeout bounds the tests only).
 //! `--sample N` runs every `M/N`-th mutant of the list (a deterministic stride), so a slow machine
 //! can run a representative slice; `--only ID,ID` runs those ids of the list (a re-run after a
 //! survivor got a sharper test); `--csv NAME` names the table. Writes `experiments/results/mutation/mutants.csv` (mutant,
@@ -79,7 +80,15 @@ fn rust_files(root: &Path) -> Vec<PathBuf> {
         }
     }
     for f in [
-        "select", "refine", "mips", "bake", "draw", "raster", "sampler", "batches",
+        "select",
+        "refine",
+        "hier_select",
+        "mips",
+        "bake",
+        "draw",
+        "raster",
+        "sampler",
+        "batches",
     ] {
         out.push(PathBuf::from(format!("reference/src/{f}.rs")));
     }
@@ -193,8 +202,21 @@ fn mutants_of(root: &Path, file: &Path) -> Vec<Mutant> {
     out
 }
 
-/// The test filters that target `file`: `(test binary, filter)`.
+/// The test filters that target `file`: `(test binary, filter)`. The reference stages that
+/// record threshold coverage (`select`, `refine`, `hier_select`, `draw`) are also targeted by the
+/// `coverage` binary, which checks what those counters count.
 fn targets(file: &Path) -> Vec<(&'static str, String)> {
+    let mut t = targets_of_stage(file);
+    let stem = file.file_stem().unwrap().to_string_lossy();
+    if file.starts_with("reference")
+        && matches!(stem.as_ref(), "select" | "refine" | "hier_select" | "draw")
+    {
+        t.push(("coverage", String::new()));
+    }
+    t
+}
+
+fn targets_of_stage(file: &Path) -> Vec<(&'static str, String)> {
     let stem = file.file_stem().unwrap().to_string_lossy().to_string();
     let parity = |m: &str| ("parity", format!("{m}::"));
     match stem.as_str() {
@@ -207,6 +229,15 @@ fn targets(file: &Path) -> Vec<(&'static str, String)> {
         "select" | "refine" | "mips" | "bake" | "draw" => {
             let mut t = vec![parity(&stem)];
             if file.starts_with("reference") || file.starts_with("shared") {
+                t.push(("properties", String::new()));
+            }
+            t
+        }
+        // The hierarchical cut: its parity module, plus `properties` (`hierarchy_properties`)
+        // for the reference; a GPU-driver or WGSL mutant needs only the parity side.
+        "hier_select" => {
+            let mut t = vec![parity("hier_select")];
+            if file.starts_with("reference") {
                 t.push(("properties", String::new()));
             }
             t
@@ -261,6 +292,22 @@ fn run_tests(
         .into_iter()
         .filter(|(binary, _)| !(mutant_file.is_some() && *binary == "properties"))
         .collect();
+    // A Rust mutant rebuilds the targeted test binaries first, outside the timeout: the timeout
+    // bounds the tests, not the compiler (a slow rebuild on a loaded machine is no kill), and a
+    // mutant that does not compile is invalid, not killed.
+    if mutant_file.is_none() {
+        let mut build = Command::new("cargo");
+        build
+            .current_dir(root)
+            .args(["test", "-q", "--no-run", "-p", "forestlod-tests"]);
+        for (binary, _) in &targets {
+            build.args(["--test", binary]);
+        }
+        let out = build.output().map_err(|e| e.to_string())?;
+        if !out.status.success() {
+            return Err("does not compile".into());
+        }
+    }
     for (binary, filter) in targets {
         let mut cmd = Command::new("cargo");
         cmd.current_dir(root)
@@ -313,11 +360,17 @@ fn run_tests(
                 {
                     return Err("WGSL does not validate".into());
                 }
+                // `-q` prints no `test NAME ... FAILED` lines: the failure section's
+                // `---- NAME stdout ----` header names the first failing test.
                 let failed = text
                     .lines()
                     .find_map(|l| {
                         l.strip_prefix("test ")
                             .and_then(|r| r.strip_suffix(" ... FAILED"))
+                            .or_else(|| {
+                                l.strip_prefix("---- ")
+                                    .and_then(|r| r.strip_suffix(" stdout ----"))
+                            })
                             .map(str::to_string)
                     })
                     .or_else(|| {

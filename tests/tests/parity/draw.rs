@@ -186,6 +186,150 @@ fn gpu_draw_matches_the_reference() {
     assert_no_failures("draw parity failed", &failures);
 }
 
+/// A mesh whose bounding box is off the trunk axis (a user OBJ/glTF mesh may be; every built-in
+/// species is symmetric in x and y, so their local sphere centre is 0 there and a wrong factor on
+/// it cannot show), one tree whose sphere centre lies just inside the draw distance: the draw
+/// stage's per-tree discard (E§4.4, `draw.wgsl` `tree_sphere`) must keep it. Added for a survivor
+/// of `mutate` (issue 15, WGSL mutant 158): `ly = (bbox_min.y + bbox_max.y) · 0.5` → `· 1.5`
+/// passed every scenario. Only the draw stage is judged (`from-cpu: select,textures`).
+#[test]
+fn off_axis_mesh_near_the_draw_distance() {
+    let Some(ctx) = gpu_context() else { return };
+    // Every vertex of the spruce moved by OFFSET in local y (and x, for the `lx` twin): the local
+    // sphere centre is (OFFSET, OFFSET, h/2) instead of (0, 0, h/2).
+    const OFFSET: f32 = 6.0;
+    let mut scene = builtin::single();
+    for p in &mut scene.meshes[0].positions {
+        p[0] += OFFSET;
+        p[1] += OFFSET;
+    }
+    let (centre, _) =
+        forestlod_reference::scene::tree_sphere(&scene.instances[0], &scene.mesh_metas()[0]);
+    assert_eq!([centre[0], centre[1]], [OFFSET, OFFSET], "yaw 0, scale 1");
+    // Looking at the centre along the horizontal diagonal (1, 1)/√2 from 40 m away: a centre
+    // with three times the local offset in x or in y (the mutant and its `lx` twin) is
+    // 2·OFFSET/√2 ≈ 8.5 m deeper, beyond the draw distance of 44 m.
+    let params = Params {
+        lod_levels: 1,
+        draw_distance: 44.0,
+        ..billboard_params()
+    };
+    let k = 40.0 / 2.0f32.sqrt();
+    let camera = Camera::look_at(
+        [centre[0] - k, centre[1] - k, centre[2]],
+        centre,
+        40.0,
+        64,
+        64,
+    );
+    let u = forestlod_reference::select::SelectUniform::new(&camera, &params);
+    let within = |c: [f32; 3]| forestlod_reference::select::tree_within_draw_distance(&u, c);
+    assert!(
+        within(centre)
+            && !within([3.0 * centre[0], centre[1], centre[2]])
+            && !within([centre[0], 3.0 * centre[1], centre[2]]),
+        "the scenario must straddle the draw distance: centre {centre:?}"
+    );
+    let prepared = prepare(scene, &params).expect("prepare off-axis");
+    let input = FrameInput {
+        prepared: &prepared,
+        camera: &camera,
+        params: &params,
+    };
+    let want = Backend::<Draw>::run(&Reference, input);
+    let tree_pixels = want
+        .lod_id
+        .iter()
+        .filter(|&&id| id == forestlod_reference::draw::LOD_ID_MESH)
+        .count();
+    assert!(
+        tree_pixels > 100,
+        "the reference draws the tree: {tree_pixels} mesh pixels"
+    );
+    let backend = GpuRenderer {
+        ctx,
+        option: StagesFromCpu::ALL,
+    };
+    let got = backend.run(input);
+    let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
+    let report = compare_images("off-axis-mesh", &got, &want, &alternatives, &camera);
+    eprintln!("{report}");
+    if !report.passed() {
+        let dir = write_failure_images(&report, &got, &want);
+        panic!(
+            "{}: {} (images in {})",
+            report.name,
+            report.failures().join("; "),
+            dir.display()
+        );
+    }
+}
+
+/// A tree whose sphere centre's view depth equals the draw distance exactly (an axis-aligned view:
+/// `forward` = +y exactly, the depth is an exact difference): "within" includes the bound on both
+/// sides (`tree_within_draw_distance`, `common.wgsl` `within_draw_distance`: `d <= draw_distance`),
+/// so the tree is drawn. Added for a survivor of `mutate` (issue 15, Rust mutant 1004: `<=` → `<`
+/// in `reference/src/select.rs`, which no scenario's centre depth ever tied).
+#[test]
+fn tree_centre_exactly_at_the_draw_distance_is_drawn() {
+    let Some(ctx) = gpu_context() else { return };
+    let scene = builtin::single();
+    let (centre, _) =
+        forestlod_reference::scene::tree_sphere(&scene.instances[0], &scene.mesh_metas()[0]);
+    let params = Params {
+        lod_levels: 1,
+        draw_distance: 44.0,
+        ..billboard_params()
+    };
+    let eye = [centre[0], centre[1] - 44.0, centre[2]];
+    let camera = Camera::look_at(eye, centre, 40.0, 64, 64);
+    let u = forestlod_reference::select::SelectUniform::new(&camera, &params);
+    let d = forestlod_shared::view_interval(centre, 0.0, u.eye, u.forward).d;
+    assert_eq!(
+        d, params.draw_distance,
+        "the centre's depth ties the draw distance"
+    );
+    let prepared = prepare(scene, &params).expect("prepare single");
+    let input = FrameInput {
+        prepared: &prepared,
+        camera: &camera,
+        params: &params,
+    };
+    let want = Backend::<Draw>::run(&Reference, input);
+    let tree_pixels = want
+        .lod_id
+        .iter()
+        .filter(|&&id| id == forestlod_reference::draw::LOD_ID_MESH)
+        .count();
+    assert!(
+        tree_pixels > 100,
+        "the reference draws the tree: {tree_pixels} mesh pixels"
+    );
+    let got = GpuRenderer {
+        ctx,
+        option: StagesFromCpu::ALL,
+    }
+    .run(input);
+    let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
+    let report = compare_images(
+        "centre-at-draw-distance",
+        &got,
+        &want,
+        &alternatives,
+        &camera,
+    );
+    eprintln!("{report}");
+    if !report.passed() {
+        let dir = write_failure_images(&report, &got, &want);
+        panic!(
+            "{}: {} (images in {})",
+            report.name,
+            report.failures().join("; "),
+            dir.display()
+        );
+    }
+}
+
 /// One multi-draw call draws every command whatever the command count, and the fallback without
 /// a count buffer (`multi_draw_indexed_indirect` over the whole capacity) ignores stale commands
 /// past the count: selection runs first with two LOD levels (meshes, the band and billboards:
