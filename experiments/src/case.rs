@@ -16,7 +16,9 @@
 //!
 //! ## What `verify --case CASE --outputs DIR` reads
 //! `DIR/color.png`, `DIR/depth.exr`, `DIR/lod_id.png` in the formats above and, when present,
-//! `DIR/commands.csv` (compared as a multiset: an implementation may order atomically). It prints
+//! `DIR/commands.csv` (compared as a multiset: an implementation may order atomically, so
+//! `base_vertex` is compared without its command index, `base_vertex & (MAX_MESH_VERTICES - 1)`:
+//! the index is the command's position, which an atomic order changes). It prints
 //! the report of `image_compare` (every class with its budget, the signed-difference statistics,
 //! FLIP) and the verdict as the last line; exit 0 when parity holds, 2 when it fails (the main
 //! job's code for "GPU parity failed"), 1 for bad input (a missing or malformed file, a size that
@@ -170,7 +172,9 @@ fn commands_csv(commands: &[DrawCommand], data: &[CommandData]) -> String {
     csv
 }
 
-/// Reads `commands.csv` as sorted rows (a multiset).
+/// Reads `commands.csv` as sorted rows (a multiset), each `base_vertex` (column 3) without the
+/// command index above [`forestlod_shared::COMMAND_SHIFT`]: the index is the command's position in
+/// the list, which an atomic compaction orders differently from run to run (module docs).
 fn read_commands(path: &Path) -> Result<Vec<Vec<i64>>> {
     let text = std::fs::read_to_string(path).map_err(|e| io(path, e))?;
     let mut rows = Vec::new();
@@ -181,7 +185,10 @@ fn read_commands(path: &Path) -> Result<Vec<Vec<i64>>> {
         let row: std::result::Result<Vec<i64>, _> =
             line.split(',').map(|v| v.trim().parse::<i64>()).collect();
         match row {
-            Ok(r) if r.len() == 9 => rows.push(r),
+            Ok(mut r) if r.len() == 9 => {
+                r[3] &= i64::from(forestlod_shared::MAX_MESH_VERTICES - 1);
+                rows.push(r)
+            }
             _ => {
                 return Err(io(
                     path,

@@ -161,6 +161,41 @@ fn own_gpu_output_passes_and_broken_outputs_fail_naming_the_class() {
         last_line(&o)
     );
 
+    // 4b. The same commands in another order, as an atomic compaction emits them on a busy
+    //     machine: each command's index (`base_vertex >> COMMAND_SHIFT`) is its new position.
+    //     Still the same multiset, so parity passes (a comparison that kept the index failed
+    //     this: every command missing and extra).
+    let reordered = case.join("reordered-commands");
+    copy_outputs(&case.join("gpu"), &reordered);
+    let csv = std::fs::read_to_string(reordered.join("commands.csv")).unwrap();
+    let mut lines = csv.lines();
+    let mut out = vec![lines.next().unwrap().to_string()];
+    let rows: Vec<&str> = lines.filter(|l| !l.trim().is_empty()).collect();
+    assert!(
+        rows.len() > 2,
+        "too few commands to reorder: {}",
+        rows.len()
+    );
+    for (i, row) in rows.iter().rev().enumerate() {
+        let mut f: Vec<i64> = row.split(',').map(|v| v.parse().unwrap()).collect();
+        f[3] = ((i as i64) << forestlod_shared::COMMAND_SHIFT)
+            | (f[3] & i64::from(forestlod_shared::MAX_MESH_VERTICES - 1));
+        out.push(
+            f.iter()
+                .map(|v| v.to_string())
+                .collect::<Vec<_>>()
+                .join(","),
+        );
+    }
+    std::fs::write(reordered.join("commands.csv"), out.join("\n") + "\n").unwrap();
+    let o = verify(&case, &reordered);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stdout));
+    assert!(
+        text(&o.stdout).contains("0 missing, 0 extra"),
+        "{}",
+        text(&o.stdout)
+    );
+
     // 5. Bad input: a missing file is exit 1 naming it.
     let missing = case.join("missing-depth");
     copy_outputs(&case.join("gpu"), &missing);
