@@ -3,7 +3,8 @@
 //!
 //! ```sh
 //! cargo run --release -p forestlod-experiments --bin hierarchy_ties -- --scene stress --distance 1000
-//! cargo run --release -p forestlod-experiments --bin hierarchy_ties -- --scene patchy --dolly 0.5
+//! cargo run --release -p forestlod-experiments --bin hierarchy_ties -- --scene patchy --dolly 1
+//! cargo run --release -p forestlod-experiments --bin hierarchy_ties -- --scene stress --distance 0 --backend gpu
 //! ```
 //!
 //! The conservative hierarchies (grid-aabb, quadtree, octree, kmeans) draw the same (tree, LOD)
@@ -14,12 +15,17 @@
 //! the dolly's, as the sweeps' `distance` and `dolly` cameras place them) with the grid and each
 //! hierarchy, lists every pixel whose colour, depth or LOD id differs from the grid's, and exits 2
 //! if one of a conservative hierarchy's is **not** at equal depth (a difference the draw order
-//! cannot explain). `octree-euclidean` decides on G§3's Euclidean distance, which is not
+//! cannot explain). With `--backend gpu` every frame is the GPU's (selection, cut, coalescing,
+//! textures and draw on the adapter, lavapipe in CI), compared with the GPU's grid frame: the
+//! same classification for the GPU's own ties. `octree-euclidean` decides on G§3's Euclidean distance, which is not
 //! conservative: its other differences are counted as such and expected.
 
 use clap::Parser;
 use forestlod_experiments::sweep::distance_camera;
 use forestlod_experiments::sweep::paths::path_camera;
+use forestlod_gpu::GpuContext;
+use forestlod_gpu::draw::GpuDraw;
+use forestlod_harness::backend::{StagesFromCpu, render_gpu};
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
 use forestlod_shared::Params;
@@ -46,6 +52,9 @@ struct Args {
         default_value = "grid-aabb,quadtree,octree,octree-euclidean,kmeans"
     )]
     hierarchies: Vec<String>,
+    /// `reference` or `gpu` (every stage on the adapter).
+    #[arg(long, default_value = "reference", value_parser = ["reference", "gpu"])]
+    backend: String,
     /// Frame width.
     #[arg(long, default_value_t = 160)]
     width: u32,
@@ -71,6 +80,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     {
         return Err(format!("--dolly: {t} is not in [0, 1]").into());
     }
+    let gpu = if args.backend == "gpu" {
+        let ctx = GpuContext::new()?;
+        let draw = GpuDraw::new(&ctx)?;
+        println!("adapter: {}", ctx.describe());
+        Some((ctx, draw))
+    } else {
+        None
+    };
     let mut frames = Vec::new();
     for h in order {
         let scene = builtin::by_name(&args.scene)?;
@@ -87,10 +104,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         };
         let prepared = prepare(scene, &params)?;
-        let frame = prepared.render(&camera, &params)?;
-        let t = frame.drawn.target;
-        println!("{h:?}: {} commands", frame.selection.counters.commands);
-        frames.push((h, t.color().to_vec(), t.depth().to_vec(), t.aux().to_vec()));
+        if let Some((ctx, draw)) = &gpu {
+            let g = render_gpu(ctx, draw, &prepared, &camera, &params, StagesFromCpu::NONE)?;
+            println!("{h:?}: GPU frame");
+            frames.push((h, g.images.color, g.images.depth, g.images.lod_id));
+        } else {
+            let frame = prepared.render(&camera, &params)?;
+            let t = frame.drawn.target;
+            println!("{h:?}: {} commands", frame.selection.counters.commands);
+            frames.push((h, t.color().to_vec(), t.depth().to_vec(), t.aux().to_vec()));
+        }
     }
     let (_, c0, d0, a0) = &frames[0];
     let mut unexplained = 0;
