@@ -863,55 +863,77 @@ impl<const N: usize> SetupTriangle<N> {
             x as i64 * SUBPIXEL_ONE + SUBPIXEL_HALF,
             y as i64 * SUBPIXEL_ONE + SUBPIXEL_HALF,
         ];
-        let p = self.v.map(|v| v.pos);
-        std::array::from_fn(|i| edge_function(p[(i + 1) % 3], p[(i + 2) % 3], s))
+        let p = [self.v[0].pos, self.v[1].pos, self.v[2].pos];
+        [
+            edge_function(p[1], p[2], s),
+            edge_function(p[2], p[0], s),
+            edge_function(p[0], p[1], s),
+        ]
     }
 
     /// The edge functions at the four pixel centres of the 2x2 quad at `(qx, qy)`, in [`QUAD`]
     /// order: those of the top-left pixel plus the exact integer steps of one pixel right and one
     /// down (an edge function is linear in the sample position), so each value equals
     /// [`SetupTriangle::edges`] at that pixel bit for bit, for a quarter of the multiplications.
+    #[cfg(test)]
     fn quad_edges(&self, qx: u32, qy: u32) -> [[i64; 3]; 4] {
-        let e = self.edges(qx, qy);
-        let p = self.v.map(|v| v.pos);
-        // Edge i runs from a = p[i+1] to b = p[i+2]: E = (b.x - a.x)(s.y - a.y) - (b.y - a.y)(s.x - a.x).
-        let step_x: [i64; 3] =
-            std::array::from_fn(|i| -(p[(i + 2) % 3][1] - p[(i + 1) % 3][1]) * SUBPIXEL_ONE);
-        let step_y: [i64; 3] =
-            std::array::from_fn(|i| (p[(i + 2) % 3][0] - p[(i + 1) % 3][0]) * SUBPIXEL_ONE);
-        QUAD.map(|(dx, dy)| {
-            std::array::from_fn(|i| {
-                e[i] + if dx == 1 { step_x[i] } else { 0 } + if dy == 1 { step_y[i] } else { 0 }
-            })
-        })
+        quad_edges(self.edges(qx, qy), &self.edge_steps())
     }
 
-    /// The top-left coverage test (module docs, step 5).
+    /// How the edge functions change one pixel right (`[0]`) and one pixel down (`[1]`): exact
+    /// integers, since an edge function is linear in the sample position.
+    fn edge_steps(&self) -> [[i64; 3]; 2] {
+        let p = self.v.map(|v| v.pos);
+        // Edge i runs from a = p[i+1] to b = p[i+2]: E = (b.x - a.x)(s.y - a.y) - (b.y - a.y)(s.x - a.x).
+        [
+            std::array::from_fn(|i| -(p[(i + 2) % 3][1] - p[(i + 1) % 3][1]) * SUBPIXEL_ONE),
+            std::array::from_fn(|i| (p[(i + 2) % 3][0] - p[(i + 1) % 3][0]) * SUBPIXEL_ONE),
+        ]
+    }
+
+    /// The top-left coverage test (module docs, step 5): `E_i + bias_i >= 0` for all three
+    /// edges, written as one sign test of their bitwise OR (negative exactly when one of them
+    /// is), which compiles without branches.
+    #[inline]
     fn covers(&self, e: &[i64; 3]) -> bool {
-        (0..3).all(|i| e[i] + self.bias[i] >= 0)
+        ((e[0] + self.bias[0]) | (e[1] + self.bias[1]) | (e[2] + self.bias[2])) >= 0
     }
 
     /// Screen-space barycentric weights of a sample with edge functions `e`.
+    #[inline]
     fn barycentrics(&self, e: &[i64; 3]) -> [f64; 3] {
-        e.map(|ei| ei as f64 / self.area as f64)
+        let area = self.area as f64;
+        [e[0] as f64 / area, e[1] as f64 / area, e[2] as f64 / area]
     }
 
     /// Depth at a sample with barycentrics `b` ([`SetupTriangle::barycentrics`]): linear in
     /// screen space, clamped to `[0, 1]`.
+    ///
+    /// The sums here and in [`SetupTriangle::varyings`] are written out left to right (they were
+    /// `Iterator::sum`, whose fold starts at `-0.0`, and `-0.0 + x = x`: the same value bit for
+    /// bit, without the iterator and `array::from_fn` overhead, issue 14).
+    #[inline]
     fn depth(&self, b: &[f64; 3]) -> f32 {
-        let z: f64 = (0..3).map(|i| b[i] * self.v[i].z as f64).sum();
+        let v = &self.v;
+        let z = b[0] * v[0].z as f64 + b[1] * v[1].z as f64 + b[2] * v[2].z as f64;
         (z as f32).clamp(0.0, 1.0)
     }
 
     /// Perspective-correct varyings at a sample with barycentrics `b` (inside the triangle or,
     /// for helper pixels, outside it).
+    #[inline]
     fn varyings(&self, b: &[f64; 3]) -> [f32; N] {
-        let q: [f64; 3] = std::array::from_fn(|i| b[i] * self.v[i].inv_w);
+        let v = &self.v;
+        let q = [b[0] * v[0].inv_w, b[1] * v[1].inv_w, b[2] * v[2].inv_w];
         let denom = q[0] + q[1] + q[2];
-        std::array::from_fn(|j| {
-            let num: f64 = (0..3).map(|i| q[i] * self.v[i].varyings[j] as f64).sum();
-            (num / denom) as f32
-        })
+        let mut out = [0.0f32; N];
+        for (j, o) in out.iter_mut().enumerate() {
+            let num = q[0] * v[0].varyings[j] as f64
+                + q[1] * v[1].varyings[j] as f64
+                + q[2] * v[2].varyings[j] as f64;
+            *o = (num / denom) as f32;
+        }
+        out
     }
 }
 
@@ -1076,6 +1098,24 @@ struct FragmentCounts {
 /// Pixel offsets within a quad: top-left, top-right, bottom-left, bottom-right.
 const QUAD: [(u32, u32); 4] = [(0, 0), (1, 0), (0, 1), (1, 1)];
 
+/// The edge functions at the four pixel centres of a quad, in [`QUAD`] order, from those `e` of
+/// its top-left pixel and the steps of [`SetupTriangle::edge_steps`]: each equals
+/// [`SetupTriangle::edges`] at that pixel bit for bit (integer arithmetic), for no
+/// multiplication. (Written out element by element: `std::array::from_fn` over `[i64; 3]`
+/// compiled to stack copies that were 18 % of a 1280x720 frame, issue 14.)
+#[inline]
+fn quad_edges(e: [i64; 3], steps: &[[i64; 3]; 2]) -> [[i64; 3]; 4] {
+    let [sx, sy] = steps;
+    let right = add3(e, *sx);
+    [e, right, add3(e, *sy), add3(right, *sy)]
+}
+
+/// `a + b` element by element.
+#[inline(always)]
+fn add3(a: [i64; 3], b: [i64; 3]) -> [i64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
 /// Rasterizes the triangles of `bin` (indices into `setup`, in submission order) into one tile.
 fn render_tile<const N: usize, S>(
     buffers: &mut TileBuffers,
@@ -1088,35 +1128,45 @@ where
     S: FragmentShader<N> + ?Sized,
 {
     let tile = buffers.rect;
+    let tile_w = tile.width();
     let mut counts = FragmentCounts::default();
     for tri in bin.iter().map(|&i| &setup[i as usize]) {
         let Some(r) = tri.bbox.and_then(|b| b.intersect(&tile)) else {
             continue;
         };
-        // Quads are aligned to even coordinates; tiles start at even coordinates too.
-        for qy in ((r.y0 & !1)..r.y1).step_by(2) {
-            for qx in ((r.x0 & !1)..r.x1).step_by(2) {
-                // Pixels of the quad this tile may write: inside the triangle's box and the tile,
-                // and inside the target's pixel mask if it has one.
-                let open: [bool; 4] = std::array::from_fn(|k| {
-                    let (x, y) = (qx + QUAD[k].0, qy + QUAD[k].1);
-                    r.contains(x, y)
-                        && buffers.mask.as_ref().is_none_or(|m| {
-                            m[((y - tile.y0) * tile.width() + (x - tile.x0)) as usize]
-                        })
-                });
-                if !open.iter().any(|&o| o) {
-                    continue;
+        // Quads are aligned to even coordinates; tiles start at even coordinates too. The edge
+        // functions walk the quads by exact integer steps (two pixels per quad) from those of
+        // the first quad's top-left pixel.
+        let (qx0, qy0) = (r.x0 & !1, r.y0 & !1);
+        let steps = tri.edge_steps();
+        let [two_sx, two_sy] = steps.map(|s| add3(s, s));
+        let mut row_edges = tri.edges(qx0, qy0);
+        for qy in (qy0..r.y1).step_by(2) {
+            let mut quad_e = row_edges;
+            row_edges = add3(row_edges, two_sy);
+            for qx in (qx0..r.x1).step_by(2) {
+                let edges = quad_edges(quad_e, &steps);
+                quad_e = add3(quad_e, two_sx);
+                // Covered pixels: inside the triangle, and pixels this tile may write (inside
+                // the triangle's box and the tile, and inside the target's pixel mask if it has
+                // one). `at`: each pixel's index in the tile buffers.
+                let first = ((qy - tile.y0) * tile_w + (qx - tile.x0)) as usize;
+                let at = [
+                    first,
+                    first + 1,
+                    first + tile_w as usize,
+                    first + tile_w as usize + 1,
+                ];
+                let mut covered = [false; 4];
+                for k in 0..4 {
+                    covered[k] = tri.covers(&edges[k])
+                        && r.contains(qx + QUAD[k].0, qy + QUAD[k].1)
+                        && buffers.mask.as_ref().is_none_or(|m| m[at[k]]);
                 }
-                let edges = tri.quad_edges(qx, qy);
-                let covered: [bool; 4] = std::array::from_fn(|k| open[k] && tri.covers(&edges[k]));
-                if !covered.iter().any(|&c| c) {
+                if covered == [false; 4] {
                     continue;
                 }
                 // The early depth test of the covered pixels (module docs, step 8).
-                let at = QUAD.map(|(dx, dy)| {
-                    ((qy + dy - tile.y0) * tile.width() + (qx + dx - tile.x0)) as usize
-                });
                 // Barycentrics are computed once per pixel and shared by depth and varyings.
                 let mut bary = [[0.0f64; 3]; 4];
                 let mut depth = [0.0f32; 4];
@@ -1245,17 +1295,26 @@ fn decode(c: [u8; 4]) -> [f32; 4] {
 }
 
 /// The output merge of one fragment into an sRGB8 pixel (module docs, step 9).
+///
+/// Speed-up (issue 14): source-over with an opaque source (`a = 1` after clamping) is the
+/// replace, without decoding the destination. Exact: a decoded destination channel `d` is finite
+/// and in `[0, 1]`, so `s·1 + d·0 = s + 0 = s` (`-0 + 0` gives `+0`, and both encode to 0) and
+/// `1 + d·0 = 1`. Checked against [`source_over`] by `opaque_source_over_equals_replace`.
 fn merge(dst: [u8; 4], src: [f32; 4], blend: Blend) -> [u8; 4] {
     let s = clamp_color(src);
     match blend {
         Blend::Replace => encode(s),
-        Blend::AlphaBlend => {
-            let d = decode(dst);
-            let a = s[3];
-            let rgb = |i: usize| s[i] * a + d[i] * (1.0 - a);
-            encode([rgb(0), rgb(1), rgb(2), a + d[3] * (1.0 - a)])
-        }
+        Blend::AlphaBlend if s[3] == 1.0 => encode(s),
+        Blend::AlphaBlend => source_over(dst, s),
     }
+}
+
+/// Straight-alpha source-over of a clamped source `s` onto an sRGB8 pixel, in linear light.
+fn source_over(dst: [u8; 4], s: [f32; 4]) -> [u8; 4] {
+    let d = decode(dst);
+    let a = s[3];
+    let rgb = |i: usize| s[i] * a + d[i] * (1.0 - a);
+    encode([rgb(0), rgb(1), rgb(2), a + d[3] * (1.0 - a)])
 }
 
 #[cfg(test)]
@@ -1339,6 +1398,52 @@ mod tests {
 
     /// The table encoder equals the exact one at both sides of every step, at the special values
     /// and on a sample of about 260,000 `f32`s spread over `[0, 1]`.
+    /// The opaque shortcut of [`merge`] gives what [`source_over`] gives, for every destination
+    /// byte in every channel and sources below, inside and above `[0, 1]`, signed zeros and NaN.
+    #[test]
+    fn opaque_source_over_equals_replace() {
+        let values = [
+            -0.0,
+            0.0,
+            -1.0,
+            1e-9,
+            0.0031308,
+            0.2,
+            0.5,
+            0.99999994,
+            1.0,
+            1.5,
+            f32::NAN,
+        ];
+        let alphas = [1.0, 1.5, 7.0, f32::INFINITY, 0.99999994, 0.5, 0.0];
+        let mut checked = 0;
+        for b in 0..=255u8 {
+            for dst in [
+                [b, b, b, b],
+                [b, 255 - b, b / 3, 255 - b],
+                [0, b, 255, b / 2],
+            ] {
+                for &r in &values {
+                    for (j, &a) in alphas.iter().enumerate() {
+                        let src = [
+                            r,
+                            values[j % values.len()],
+                            values[(j + 3) % values.len()],
+                            a,
+                        ];
+                        assert_eq!(
+                            merge(dst, src, Blend::AlphaBlend),
+                            source_over(dst, clamp_color(src)),
+                            "dst {dst:?} src {src:?}"
+                        );
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 50_000);
+    }
+
     #[test]
     fn srgb8_equals_linear_to_srgb() {
         let mut checked = 0;

@@ -46,7 +46,7 @@
 //! (the rasterizer's coarse derivatives; lavapipe's default per-quad LOD), so `λ` itself agrees up
 //! to the GPU's `log2` approximation.
 
-use crate::texture::{Rgba8Image, srgb_to_linear};
+use crate::texture::{Rgba8Image, decode_texel};
 
 /// A texture whose shape cannot be sampled: every variant names the layer/level and sizes.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -103,10 +103,54 @@ pub enum TextureShapeError {
 }
 
 /// A sampled texture: array layers, each a mip chain of sRGB RGBA8 levels of halving size.
-#[derive(Clone, Debug, PartialEq, Eq)]
+///
+/// Speed-up (issue 14): every texel is also held decoded to linear light ([`LinearLevel`]),
+/// decoded once when the texture is made instead of at every fetch. Decoding
+/// ([`crate::texture::decode_texel`]) is a pure function of the byte texel, so a fetch from the
+/// decoded copy returns exactly what decoding the fetched byte texel would (checked by
+/// `decoded_levels_equal_decoding_at_fetch`). Costs 16 bytes per texel beside the 4 of the sRGB
+/// level (about 11 MB for the built-in billboard atlas).
+#[derive(Clone, Debug)]
 pub struct Texture {
     /// `layers[layer][level]`.
     layers: Vec<Vec<Rgba8Image>>,
+    /// `linear[layer][level]`: the same levels decoded to linear light.
+    linear: Vec<Vec<LinearLevel>>,
+}
+
+/// Equal when the sRGB levels are (the decoded copies are a function of them).
+impl PartialEq for Texture {
+    fn eq(&self, other: &Self) -> bool {
+        self.layers == other.layers
+    }
+}
+
+impl Eq for Texture {}
+
+/// One mip level decoded to linear light, row-major from the top-left texel.
+#[derive(Clone, Debug)]
+struct LinearLevel {
+    width: u32,
+    height: u32,
+    texels: Vec<[f32; 4]>,
+}
+
+impl LinearLevel {
+    fn decode(img: &Rgba8Image) -> Self {
+        Self {
+            width: img.width,
+            height: img.height,
+            texels: img.texels.iter().map(|&t| decode_texel(t)).collect(),
+        }
+    }
+
+    /// Texel `(x, y)`, clamp-to-edge.
+    #[inline]
+    fn at(&self, x: i64, y: i64) -> [f32; 4] {
+        let x = x.clamp(0, self.width as i64 - 1) as usize;
+        let y = y.clamp(0, self.height as i64 - 1) as usize;
+        self.texels[y * self.width as usize + x]
+    }
 }
 
 /// How texels are filtered within one level (wgpu's `FilterMode`).
@@ -223,7 +267,11 @@ impl Texture {
                 }
             }
         }
-        Ok(Self { layers })
+        let linear = layers
+            .iter()
+            .map(|levels| levels.iter().map(LinearLevel::decode).collect())
+            .collect();
+        Ok(Self { layers, linear })
     }
 
     /// Width of level 0.
@@ -253,48 +301,49 @@ impl Texture {
         &levels[level.min(levels.len() - 1)]
     }
 
-    /// Texel `(x, y)` of a level, clamp-to-edge, decoded to linear light.
+    /// One level of one layer decoded to linear light, both clamped to what exists.
+    #[inline]
+    fn linear_level(&self, layer: u32, level: usize) -> &LinearLevel {
+        let levels = &self.linear[(layer as usize).min(self.linear.len() - 1)];
+        &levels[level.min(levels.len() - 1)]
+    }
+
+    /// Texel `(x, y)` of a level, clamp-to-edge, decoded to linear light (colour through the sRGB
+    /// curve, alpha as `a / 255`; read from the decoded copy, see [`Texture`]).
     #[inline]
     pub fn texel(&self, layer: u32, level: usize, x: i64, y: i64) -> [f32; 4] {
-        let img = self.level(layer, level);
-        let x = x.clamp(0, img.width as i64 - 1) as u32;
-        let y = y.clamp(0, img.height as i64 - 1) as u32;
-        let t = img.get(x, y);
-        [
-            srgb_to_linear(t[0]),
-            srgb_to_linear(t[1]),
-            srgb_to_linear(t[2]),
-            t[3] as f32 / 255.0,
-        ]
+        self.linear_level(layer, level).at(x, y)
     }
 
     /// Nearest-texel sample of one level: texel `floor(uv · size)`, clamped.
     pub fn nearest(&self, layer: u32, level: usize, uv: [f32; 2]) -> [f32; 4] {
-        let img = self.level(layer, level);
+        let img = self.linear_level(layer, level);
         let u = uv[0] * img.width as f32;
         let v = uv[1] * img.height as f32;
-        self.texel(layer, level, floor_index(u), floor_index(v))
+        img.at(floor_index(u), floor_index(v))
     }
 
     /// Bilinear sample of one level (module docs): exact `f32` weights, filtered in linear light.
     #[inline]
     pub fn bilinear(&self, layer: u32, level: usize, uv: [f32; 2]) -> [f32; 4] {
-        let img = self.level(layer, level);
+        let img = self.linear_level(layer, level);
         let u = uv[0] * img.width as f32 - 0.5;
         let v = uv[1] * img.height as f32 - 0.5;
         let (fu, fv) = (floor_exact(u), floor_exact(v));
         let (alpha, beta) = (u - fu, v - fv);
         let (i0, j0) = (floor_index(u), floor_index(v));
-        let t00 = self.texel(layer, level, i0, j0);
-        let t10 = self.texel(layer, level, i0 + 1, j0);
-        let t01 = self.texel(layer, level, i0, j0 + 1);
-        let t11 = self.texel(layer, level, i0 + 1, j0 + 1);
-        std::array::from_fn(|c| {
-            (1.0 - alpha) * (1.0 - beta) * t00[c]
+        let t00 = img.at(i0, j0);
+        let t10 = img.at(i0 + 1, j0);
+        let t01 = img.at(i0, j0 + 1);
+        let t11 = img.at(i0 + 1, j0 + 1);
+        let mut out = [0.0f32; 4];
+        for (c, o) in out.iter_mut().enumerate() {
+            *o = (1.0 - alpha) * (1.0 - beta) * t00[c]
                 + alpha * (1.0 - beta) * t10[c]
                 + (1.0 - alpha) * beta * t01[c]
-                + alpha * beta * t11[c]
-        })
+                + alpha * beta * t11[c];
+        }
+        out
     }
 
     /// Trilinear sample at fractional level `lambda` (clamped to `[0, levels - 1]`): bilinear in
@@ -304,6 +353,7 @@ impl Texture {
     }
 
     /// The level of detail for `uv` derivatives along framebuffer x (`ddx`) and y (`ddy`).
+    #[inline]
     pub fn lod(&self, ddx: [f32; 2], ddy: [f32; 2]) -> SamplerLod {
         let (w0, h0) = (self.width() as f32, self.height() as f32);
         let length = |d: [f32; 2]| {
@@ -328,6 +378,7 @@ impl Texture {
     }
 
     /// Samples with the implicit level of detail of `uv`'s derivatives, like WGSL `textureSample`.
+    #[inline]
     pub fn sample(
         &self,
         sampler: &Sampler,
@@ -340,6 +391,7 @@ impl Texture {
     }
 
     /// Samples at an explicit `λ` (before clamping to the chain), like WGSL `textureSampleLevel`.
+    #[inline]
     pub fn sample_level(
         &self,
         sampler: &Sampler,
@@ -373,11 +425,16 @@ impl Texture {
                     return t_hi;
                 }
                 let t_lo = self.filter(filter, layer, (hi + 1).min(q), uv);
-                std::array::from_fn(|c| (1.0 - delta) * t_hi[c] + delta * t_lo[c])
+                let mut out = [0.0f32; 4];
+                for (c, o) in out.iter_mut().enumerate() {
+                    *o = (1.0 - delta) * t_hi[c] + delta * t_lo[c];
+                }
+                out
             }
         }
     }
 
+    #[inline]
     fn filter(&self, mode: FilterMode, layer: u32, level: usize, uv: [f32; 2]) -> [f32; 4] {
         match mode {
             FilterMode::Nearest => self.nearest(layer, level, uv),
@@ -386,6 +443,7 @@ impl Texture {
     }
 
     /// `clamp(λ, 0, q)`, NaN read as `+∞`.
+    #[inline]
     fn clamp_lambda(&self, lambda: f32) -> f32 {
         let q = (self.level_count() - 1) as f32;
         if lambda.is_nan() {
@@ -420,7 +478,7 @@ fn floor_exact(c: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::texture::linear_to_srgb;
+    use crate::texture::{linear_to_srgb, srgb_to_linear};
 
     /// A `w` x `h` level whose texel `(x, y)` has red `8x`, green `8y`, blue `30·level`, alpha
     /// `255 - x` (all mod 256).
@@ -462,6 +520,50 @@ mod tests {
 
     fn close(a: [f32; 4], b: [f32; 4]) -> bool {
         a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-6)
+    }
+
+    /// The decoded copy (speed-up, [`Texture`]) returns, for every texel of every level and
+    /// layer and for indices past every edge, the bits that decoding the byte texel at the
+    /// clamped position gives.
+    #[test]
+    fn decoded_levels_equal_decoding_at_fetch() {
+        let mut second = chain(16, 8);
+        for level in &mut second {
+            for t in &mut level.texels {
+                *t = [t[1], t[0], t[3], t[2].wrapping_add(77)];
+            }
+        }
+        let tex = Texture::new_array(vec![chain(16, 8), second]).unwrap();
+        for layer in 0..3u32 {
+            for level in 0..tex.level_count() + 1 {
+                let img = tex.level(layer, level);
+                for y in -2..img.height as i64 + 2 {
+                    for x in -2..img.width as i64 + 2 {
+                        let byte = img.get(
+                            x.clamp(0, img.width as i64 - 1) as u32,
+                            y.clamp(0, img.height as i64 - 1) as u32,
+                        );
+                        let expected = linear(byte).map(f32::to_bits);
+                        let got = tex.texel(layer, level, x, y).map(f32::to_bits);
+                        assert_eq!(
+                            got, expected,
+                            "layer {layer} level {level} texel ({x}, {y})"
+                        );
+                    }
+                }
+            }
+        }
+        // Every byte value of every channel passes through the decoded copy.
+        let all = Rgba8Image {
+            width: 256,
+            height: 1,
+            texels: (0..=255u8).map(|b| [b, 255 - b, b ^ 0x5a, b]).collect(),
+        };
+        let tex = Texture::new(vec![all.clone()]).unwrap();
+        for (x, &t) in all.texels.iter().enumerate() {
+            let got = tex.texel(0, 0, x as i64, 0).map(f32::to_bits);
+            assert_eq!(got, linear(t).map(f32::to_bits), "byte texel {t:?}");
+        }
     }
 
     /// `floor_exact` equals `f32::floor` bit for bit: special values, both sides of every integer
