@@ -45,6 +45,16 @@
 //! shortcut is opt-in, `GALLIVM_PERF=brilinear`). The implicit LOD uses one derivative pair per 2x2 quad on both sides
 //! (the rasterizer's coarse derivatives; lavapipe's default per-quad LOD), so `λ` itself agrees up
 //! to the GPU's `log2` approximation.
+//!
+//! ## Speed-ups (issue 14), each an equality
+//!
+//! - Texels are decoded to linear light once, when the [`Texture`] is made, not at every fetch:
+//!   decoding is a pure function of the byte texel (relies on nothing else; checked by
+//!   `decoded_levels_equal_decoding_at_fetch`). Costs 16 bytes per texel beside the 4 of the
+//!   sRGB level.
+//! - A bilinear fetch clamps each of its two columns and two rows once, and takes its texel
+//!   indices from the floors it already computed for the weights.
+//! - `floor_exact` replaces libm's `floorf` (see there).
 
 use crate::texture::{Rgba8Image, decode_texel};
 
@@ -150,6 +160,18 @@ impl LinearLevel {
         let x = x.clamp(0, self.width as i64 - 1) as usize;
         let y = y.clamp(0, self.height as i64 - 1) as usize;
         self.texels[y * self.width as usize + x]
+    }
+
+    /// [`LinearLevel::at`] of `(i, j)`, `(i + 1, j)`, `(i, j + 1)` and `(i + 1, j + 1)`, each
+    /// coordinate clamped once.
+    #[inline]
+    fn quad(&self, i: i64, j: i64) -> [[f32; 4]; 4] {
+        let w = self.width as usize;
+        let column = |x: i64| x.clamp(0, self.width as i64 - 1) as usize;
+        let row = |y: i64| y.clamp(0, self.height as i64 - 1) as usize * w;
+        let (x0, x1, y0, y1) = (column(i), column(i + 1), row(j), row(j + 1));
+        let t = &self.texels;
+        [t[y0 + x0], t[y0 + x1], t[y1 + x0], t[y1 + x1]]
     }
 }
 
@@ -331,11 +353,9 @@ impl Texture {
         let v = uv[1] * img.height as f32 - 0.5;
         let (fu, fv) = (floor_exact(u), floor_exact(v));
         let (alpha, beta) = (u - fu, v - fv);
-        let (i0, j0) = (floor_index(u), floor_index(v));
-        let t00 = img.at(i0, j0);
-        let t10 = img.at(i0 + 1, j0);
-        let t01 = img.at(i0, j0 + 1);
-        let t11 = img.at(i0 + 1, j0 + 1);
+        // `floor_index(u)` is `floor_exact(u) as i64`: the floors above, not computed again.
+        let (i0, j0) = (fu as i64, fv as i64);
+        let [t00, t10, t01, t11] = img.quad(i0, j0);
         let mut out = [0.0f32; 4];
         for (c, o) in out.iter_mut().enumerate() {
             *o = (1.0 - alpha) * (1.0 - beta) * t00[c]
