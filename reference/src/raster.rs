@@ -1430,7 +1430,18 @@ mod tests {
             1.5,
             f32::NAN,
         ];
-        let alphas = [1.0, 1.5, 7.0, f32::INFINITY, 0.99999994, 0.5, 0.0];
+        let alphas = [
+            1.0,
+            1.5,
+            7.0,
+            f32::INFINITY,
+            0.99999994,
+            0.999,
+            0.99,
+            0.9,
+            0.5,
+            0.0,
+        ];
         let mut checked = 0;
         for b in 0..=255u8 {
             for dst in [
