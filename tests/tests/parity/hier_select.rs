@@ -634,3 +634,65 @@ fn gpu_front_to_back_spans_workgroups() {
     assert!(most > 256, "at most {most} commands: the sort stayed in one workgroup");
     assert!(moved > 0, "the sort moved nothing");
 }
+
+/// GPU frames on `tiny` (quadtree, octree, kmeans; medium and close; dither-sequential and
+/// alpha): `front-to-back` against `node` differs only at depth ties and, in `alpha`, where
+/// blending meets the fade band; every differing pixel is classified
+/// ([`forestlod_tests::classify_order_diffs`]), the test fails on an unclassified one and reports
+/// the counts.
+#[test]
+fn gpu_front_to_back_frames_differ_only_at_ties_and_blending() {
+    let Some(ctx) = gpu_context() else {
+        eprintln!("hier_select front-to-back frames: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
+        return;
+    };
+    let draw = gpu_draw(ctx);
+    let scene = builtin::by_name("tiny").unwrap();
+    let mut total = forestlod_tests::OrderDiffs::default();
+    for mode in [Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
+        let base = Params {
+            grid_size: 50.0,
+            lod1_transition: 120.0,
+            fade_width: 40.0,
+            texture_size: 32,
+            nodes_per_node: 8,
+            max_cull_depth: 3,
+            hierarchy: mode as u32,
+            ..Params::default()
+        };
+        let prepared = prepare(scene.clone(), &base).unwrap();
+        for (camera_name, yaw) in [("medium", 0.0), ("close", 30.0)] {
+            let camera = forestlod_reference::cameras::named_camera(
+                camera_name,
+                &prepared.scene,
+                yaw,
+                96,
+                72,
+            )
+            .unwrap();
+            for fade in [FadeMode::DitherSequential, FadeMode::Alpha] {
+                let node = Params {
+                    fade_mode: fade as u32,
+                    ..base
+                };
+                let ftb = Params {
+                    command_order: CommandOrder::FrontToBack as u32,
+                    ..node
+                };
+                let a = render_gpu(ctx, draw, &prepared, &camera, &node, StagesFromCpu::default())
+                    .unwrap()
+                    .images;
+                let b = render_gpu(ctx, draw, &prepared, &camera, &ftb, StagesFromCpu::default())
+                    .unwrap()
+                    .images;
+                let d = forestlod_tests::classify_order_diffs(&a, &b, fade == FadeMode::Alpha);
+                eprintln!("GPU {mode:?} {camera_name} {fade:?}: front-to-back vs node {d:?}");
+                assert_eq!(d.unclassified, 0, "{mode:?} {camera_name} {fade:?}: {d:?}");
+                total.differing += d.differing;
+                total.ties += d.ties;
+                total.blend_order += d.blend_order;
+            }
+        }
+    }
+    eprintln!("GPU front-to-back frames: {total:?}");
+}
