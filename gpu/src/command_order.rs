@@ -232,7 +232,9 @@ impl<'a> GpuCommandOrder<'a> {
             fn whole(b: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
                 b.as_entire_binding()
             }
-            fn entries(list: Vec<(u32, wgpu::BindingResource<'_>)>) -> Vec<wgpu::BindGroupEntry<'_>> {
+            fn entries(
+                list: Vec<(u32, wgpu::BindingResource<'_>)>,
+            ) -> Vec<wgpu::BindGroupEntry<'_>> {
                 list.into_iter()
                     .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
                     .collect()

@@ -31,9 +31,9 @@
 //! `transition_batches` the emitted nodes with both LODs.
 
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, Coalesce, CommandData, CommandOrder, DECISION_DRAW, DECISION_KIND_MASK, Decision,
-    DrawCommand, LOD_BILLBOARD, LOD_MESH, MeshMeta, NO_PARENT, NODE_RECURSE, Params, ViewUniform,
-    code_recurses, emitted_needs, node_code,
+    COMMAND_SHIFT, Camera, Coalesce, CommandData, CommandOrder, DECISION_DRAW, DECISION_KIND_MASK,
+    Decision, DrawCommand, LOD_BILLBOARD, LOD_MESH, MeshMeta, NO_PARENT, NODE_RECURSE, Params,
+    ViewUniform, code_recurses, emitted_needs, node_code,
 };
 use rayon::prelude::*;
 

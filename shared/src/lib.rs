@@ -61,7 +61,9 @@ pub use interval::{
     LodNeeds, ViewInterval, aabb_margin, aabb_view_interval, lod_needs, selection_margin,
     view_interval,
 };
-pub use params::{AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull};
+pub use params::{
+    AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,
+};
 pub use registry::{PARAMS, ParamKind, ParamSpec, param};
 pub use terrain::{
     TERRAIN_CELLS, TERRAIN_MARGIN, TERRAIN_SINK, ground_color, terrain_grid, terrain_vertex,

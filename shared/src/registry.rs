@@ -14,7 +14,9 @@
 //! keys), as before issue 11: a parameter added to one was silently missing from the others.
 
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
-use crate::{AngleIndexMode, Coalesce, CommandOrder, FadeMode, Hierarchy, MipMode, Params, TreeCull};
+use crate::{
+    AngleIndexMode, Coalesce, CommandOrder, FadeMode, Hierarchy, MipMode, Params, TreeCull,
+};
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.
 #[derive(Clone, Copy, Debug)]

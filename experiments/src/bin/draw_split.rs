@@ -46,8 +46,8 @@ use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, CommandOrder, DrawCommand, Hierarchy, LOD_ID_BACKGROUND, LOD_ID_TERRAIN, LOD_MESH,
-    Params, TreeCull,
+    COMMAND_SHIFT, Camera, CommandOrder, DrawCommand, Hierarchy, LOD_ID_BACKGROUND, LOD_ID_TERRAIN,
+    LOD_MESH, Params, TreeCull,
 };
 
 #[derive(Parser, Debug)]

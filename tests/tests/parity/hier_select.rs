@@ -28,13 +28,13 @@ use forestlod_gpu::{GpuHierSelect, GpuSelection};
 use forestlod_harness::backend::{StagesFromCpu, gpu_context, gpu_draw, render_gpu};
 use forestlod_reference::command_order::order;
 use forestlod_reference::hier_select::{hier_select, resolve_and_compact};
-use forestlod_reference::select::Selection;
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
+use forestlod_reference::select::Selection;
 use forestlod_shared::{
-    Coalesce, CommandOrder, FadeMode, Hierarchy as Mode, LOD_ID_TRANSITION, NodeMeta, Params, ViewUniform,
-    aabb_distance, aabb_margin, aabb_view_interval,
+    Coalesce, CommandOrder, FadeMode, Hierarchy as Mode, LOD_ID_TRANSITION, NodeMeta, Params,
+    ViewUniform, aabb_distance, aabb_margin, aabb_view_interval,
 };
 use forestlod_tests::{Packed, Thresholds, cameras, instances, params, threshold_ambiguity};
 use proptest::prelude::*;
@@ -132,7 +132,11 @@ fn check_order(
     ref_keys: &[u32],
 ) -> Result<u64, String> {
     if pairs.len() != merged.commands.len() {
-        return Err(format!("{} pairs for {} runs", pairs.len(), merged.commands.len()));
+        return Err(format!(
+            "{} pairs for {} runs",
+            pairs.len(),
+            merged.commands.len()
+        ));
     }
     let mut gpu_keys = vec![u32::MAX; ref_keys.len()];
     for &(k, r) in pairs {
@@ -616,12 +620,19 @@ fn gpu_front_to_back_spans_workgroups() {
             let a = check_order(&sel, &pairs, &unsorted.selection, &unsorted.keys)
                 .unwrap_or_else(|e| panic!("{coalesce:?} yaw {yaw}: {e}"));
             if a == 0 {
-                assert_eq!(sel.commands, want.selection.commands, "{coalesce:?} yaw {yaw}");
+                assert_eq!(
+                    sel.commands, want.selection.commands,
+                    "{coalesce:?} yaw {yaw}"
+                );
                 assert_eq!(sel.data, want.selection.data, "{coalesce:?} yaw {yaw}");
             }
             assert!(pairs.windows(2).all(|w| w[0] <= w[1]), "keys not sorted");
             ambiguous += a;
-            moved += pairs.iter().enumerate().filter(|(i, (_, r))| *i as u32 != *r).count();
+            moved += pairs
+                .iter()
+                .enumerate()
+                .filter(|(i, (_, r))| *i as u32 != *r)
+                .count();
             most = most.max(sel.commands.len());
             eprintln!(
                 "GPU front-to-back on tiny, quadtree, medium, {coalesce:?}, yaw {yaw}: {} commands, {} moved so far, {a} ambiguous keys",
@@ -631,7 +642,10 @@ fn gpu_front_to_back_spans_workgroups() {
         }
     }
     eprintln!("GPU front-to-back: {ambiguous} ambiguous keys in total (within {KEY_ULPS} ulp)");
-    assert!(most > 256, "at most {most} commands: the sort stayed in one workgroup");
+    assert!(
+        most > 256,
+        "at most {most} commands: the sort stayed in one workgroup"
+    );
     assert!(moved > 0, "the sort moved nothing");
 }
 
@@ -679,12 +693,26 @@ fn gpu_front_to_back_frames_differ_only_at_ties_and_blending() {
                     command_order: CommandOrder::FrontToBack as u32,
                     ..node
                 };
-                let a = render_gpu(ctx, draw, &prepared, &camera, &node, StagesFromCpu::default())
-                    .unwrap()
-                    .images;
-                let b = render_gpu(ctx, draw, &prepared, &camera, &ftb, StagesFromCpu::default())
-                    .unwrap()
-                    .images;
+                let a = render_gpu(
+                    ctx,
+                    draw,
+                    &prepared,
+                    &camera,
+                    &node,
+                    StagesFromCpu::default(),
+                )
+                .unwrap()
+                .images;
+                let b = render_gpu(
+                    ctx,
+                    draw,
+                    &prepared,
+                    &camera,
+                    &ftb,
+                    StagesFromCpu::default(),
+                )
+                .unwrap()
+                .images;
                 let d = forestlod_tests::classify_order_diffs(&a, &b, fade == FadeMode::Alpha);
                 eprintln!("GPU {mode:?} {camera_name} {fade:?}: front-to-back vs node {d:?}");
                 assert_eq!(d.unclassified, 0, "{mode:?} {camera_name} {fade:?}: {d:?}");

@@ -159,7 +159,10 @@ fn front_to_back_frames_differ_only_at_ties_and_blending() {
                     "reference {mode:?} {camera_name} yaw {yaw} {fade:?}: {} commands, {d:?}",
                     b.selection.commands.len()
                 );
-                assert_eq!(d.unclassified, 0, "{mode:?} {camera_name} {yaw} {fade:?}: {d:?}");
+                assert_eq!(
+                    d.unclassified, 0,
+                    "{mode:?} {camera_name} {yaw} {fade:?}: {d:?}"
+                );
                 total.differing += d.differing;
                 total.ties += d.ties;
                 total.blend_order += d.blend_order;
