@@ -83,10 +83,12 @@ pub struct GpuHierSelect<'a> {
     bind_group: wgpu::BindGroup,
     /// The cut's commands, one per emitted node and LOD.
     raw: SelectBuffers,
-    /// Their coalescing, the stage's output.
-    coalesce: GpuCoalesce<'a>,
-    /// Their front-to-back order (E§7), in place, when `params.command_order` asks.
-    order: GpuCommandOrder<'a>,
+    /// Their coalescing, the stage's output (boxed, as `order`).
+    coalesce: Box<GpuCoalesce<'a>>,
+    /// Their front-to-back order (E§7), in place, when `params.command_order` asks (boxed: its
+    /// buffers and bind groups would double the size of this driver, which `OursSelect` holds
+    /// by value).
+    order: Box<GpuCommandOrder<'a>>,
     node_count: u32,
     mode: u32,
     billboard: MeshMeta,
@@ -124,8 +126,8 @@ impl<'a> GpuHierSelect<'a> {
         let states = zeroed_buffer(ctx, "hier states", n * 4, U::STORAGE | U::COPY_SRC);
         let offsets = zeroed_buffer(ctx, "hier offsets", n * 4, U::STORAGE | U::COPY_SRC);
         let raw = SelectBuffers::with_capacity(ctx, capacity as u32);
-        let coalesce = GpuCoalesce::new(ctx, &raw)?;
-        let order = GpuCommandOrder::new(
+        let coalesce = Box::new(GpuCoalesce::new(ctx, &raw)?);
+        let order = Box::new(GpuCommandOrder::new(
             ctx,
             OrderInputs {
                 nodes: &node_buffer,
@@ -133,7 +135,7 @@ impl<'a> GpuHierSelect<'a> {
                 run_offsets: coalesce.run_offsets(),
                 out: coalesce.buffers(),
             },
-        )?;
+        )?);
         let bind_group = ctx.checked("hier bind group", || {
             buffer_bind_group(
                 &ctx.device,
