@@ -61,8 +61,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         let prepared = prepare(scene.clone(), &base)?;
         for camera_name in &args.cameras {
-            let camera =
-                named_camera(camera_name, &prepared.scene, 0.0, args.width, args.height)?;
+            let camera = named_camera(camera_name, &prepared.scene, 0.0, args.width, args.height)?;
             for order in [CommandOrder::Node, CommandOrder::FrontToBack] {
                 let p = Params {
                     command_order: order as u32,
