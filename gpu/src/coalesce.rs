@@ -62,6 +62,7 @@ pub struct GpuCoalesce<'a> {
     pipelines: Arc<CoalescePipelines>,
     uniform: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
+    offsets: wgpu::Buffer,
     out: SelectBuffers,
 }
 
@@ -100,8 +101,15 @@ impl<'a> GpuCoalesce<'a> {
             pipelines: pipelines.clone(),
             uniform,
             bind_group,
+            offsets,
             out,
         })
+    }
+
+    /// The exclusive scan of the head flags, one `u32` per raw slot: raw command `j + 1`'s entry
+    /// is the number of runs that start at or before `j` (read by `crate::command_order`).
+    pub fn run_offsets(&self) -> &wgpu::Buffer {
+        &self.offsets
     }
 
     /// The coalesced buffers (valid after an encoded frame has run).

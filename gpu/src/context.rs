@@ -487,7 +487,8 @@ pub(crate) const READ: Slot = Slot::Read(0);
 pub(crate) const WRITE: Slot = Slot::Write(0);
 
 impl Slot {
-    fn entry(self, binding: u32) -> wgpu::BindGroupLayoutEntry {
+    /// The layout entry of this slot at `binding`.
+    pub(crate) fn entry(self, binding: u32) -> wgpu::BindGroupLayoutEntry {
         use wgpu::BufferBindingType as B;
         let compute = wgpu::ShaderStages::COMPUTE;
         match self {

@@ -9,7 +9,9 @@
 //! ancestor walk is bounded by `MAX_HIERARCHY_DEPTH` (llvmpipe stops loops after 65,535
 //! iterations). The output is a [`SelectBuffers`], so the draw stage and `refine` take it as they
 //! take `select`'s. The commands are then coalesced (`crate::coalesce`, four more dispatches) as
-//! `params.coalesce` says; [`GpuHierSelect::read_uncoalesced`] reads the list before. Equal to the
+//! `params.coalesce` says; [`GpuHierSelect::read_uncoalesced`] reads the list before. With
+//! `params.command_order = front-to-back` they are then sorted by nearest view depth in place
+//! (`crate::command_order`, E§7). Equal to the
 //! reference bit for bit up to decisions within ε of a threshold
 //! (fused multiply-add on the GPU), which the parity tests classify and count.
 
@@ -19,6 +21,7 @@ use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MeshMeta, NodeMeta, Params, SelectCounters, ViewUniform};
 
 use crate::coalesce::GpuCoalesce;
+use crate::command_order::{GpuCommandOrder, OrderInputs};
 
 use crate::context::{
     Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
@@ -80,8 +83,12 @@ pub struct GpuHierSelect<'a> {
     bind_group: wgpu::BindGroup,
     /// The cut's commands, one per emitted node and LOD.
     raw: SelectBuffers,
-    /// Their coalescing, the stage's output.
-    coalesce: GpuCoalesce<'a>,
+    /// Their coalescing, the stage's output (boxed, as `order`).
+    coalesce: Box<GpuCoalesce<'a>>,
+    /// Their front-to-back order (E§7), in place, when `params.command_order` asks (boxed: its
+    /// buffers and bind groups would double the size of this driver, which `OursSelect` holds
+    /// by value).
+    order: Box<GpuCommandOrder<'a>>,
     node_count: u32,
     mode: u32,
     billboard: MeshMeta,
@@ -119,7 +126,16 @@ impl<'a> GpuHierSelect<'a> {
         let states = zeroed_buffer(ctx, "hier states", n * 4, U::STORAGE | U::COPY_SRC);
         let offsets = zeroed_buffer(ctx, "hier offsets", n * 4, U::STORAGE | U::COPY_SRC);
         let raw = SelectBuffers::with_capacity(ctx, capacity as u32);
-        let coalesce = GpuCoalesce::new(ctx, &raw)?;
+        let coalesce = Box::new(GpuCoalesce::new(ctx, &raw)?);
+        let order = Box::new(GpuCommandOrder::new(
+            ctx,
+            OrderInputs {
+                nodes: &node_buffer,
+                raw: &raw,
+                run_offsets: coalesce.run_offsets(),
+                out: coalesce.buffers(),
+            },
+        )?);
         let bind_group = ctx.checked("hier bind group", || {
             buffer_bind_group(
                 &ctx.device,
@@ -147,6 +163,7 @@ impl<'a> GpuHierSelect<'a> {
             bind_group,
             raw,
             coalesce,
+            order,
             node_count: nodes.len() as u32,
             mode,
             billboard: *billboard,
@@ -165,7 +182,8 @@ impl<'a> GpuHierSelect<'a> {
     }
 
     /// Records one frame's cut into `encoder` (uniform through the queue, counters cleared, four
-    /// dispatches), then its coalescing (four more). `params` must be valid.
+    /// dispatches), then its coalescing (four more), then its front-to-back order when asked
+    /// (`crate::command_order`: four kinds of dispatch, one per bitonic step). `params` must be valid.
     pub fn encode(&mut self, encoder: &mut wgpu::CommandEncoder, camera: &Camera, params: &Params) {
         let uniform = HierUniform {
             view: ViewUniform::new(camera, params),
@@ -201,6 +219,16 @@ impl<'a> GpuHierSelect<'a> {
             .coalescing()
             .expect("parameters are validated before selection");
         self.coalesce.encode(encoder, mode);
+        let order = params
+            .command_ordering()
+            .expect("parameters are validated before selection");
+        self.order.encode(encoder, &uniform.view, order);
+    }
+
+    /// The last run's front-to-back `(key, run)` pairs of the first `n` output slots, in output
+    /// order (valid after a run with `command_order = front-to-back`). Blocks.
+    pub fn read_order_pairs(&self, n: usize) -> Result<Vec<(u32, u32)>, GpuError> {
+        self.order.read_pairs(n)
     }
 
     /// Runs one frame's cut, leaving the commands on the GPU. Does not wait.

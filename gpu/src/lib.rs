@@ -58,6 +58,7 @@
 
 pub mod bake;
 pub mod coalesce;
+pub mod command_order;
 pub mod context;
 pub mod cull;
 pub mod draw;
@@ -73,6 +74,7 @@ mod wgsl_layout;
 
 pub use bake::{BakeMesh, GpuBake, GpuBaked};
 pub use coalesce::{CoalesceUniform, GpuCoalesce};
+pub use command_order::{GpuCommandOrder, OrderStep, OrderUniform};
 pub use context::{
     ALLOW_NO_GPU_ENV, GpuContext, GpuError, NO_GPU_HINT, REQUIRED_DOWNLEVEL, REQUIRED_FEATURES,
     StagePipelines, adapter_shortfall, gpu_or_explain,

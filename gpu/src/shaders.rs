@@ -13,7 +13,7 @@ pub const COMMON_WGSL: &str = include_str!("shaders/common.wgsl");
 
 /// The `(name, value)` of every generated `u32` constant ([`constants_wgsl`]).
 pub fn generated_constants() -> Vec<(String, u32)> {
-    use crate::{coalesce, cull, hier_select, mips, refine, select};
+    use crate::{coalesce, command_order, cull, hier_select, mips, refine, select};
     use forestlod_shared as s;
     let mut out: Vec<(String, u32)> = [
         ("COMMAND_SHIFT", s::COMMAND_SHIFT),
@@ -35,6 +35,10 @@ pub fn generated_constants() -> Vec<(String, u32)> {
         ("REFINE_WORKGROUP_SIZE", refine::REFINE_WORKGROUP_SIZE),
         ("HIER_WORKGROUP_SIZE", hier_select::HIER_WORKGROUP_SIZE),
         ("COALESCE_WORKGROUP_SIZE", coalesce::COALESCE_WORKGROUP_SIZE),
+        (
+            "COMMAND_ORDER_WORKGROUP_SIZE",
+            command_order::COMMAND_ORDER_WORKGROUP_SIZE,
+        ),
         ("NO_PARENT", s::NO_PARENT),
         ("NODE_RECURSE", s::NODE_RECURSE),
         ("NODE_VISITED", s::NODE_VISITED),
@@ -65,6 +69,7 @@ pub fn generated_constants() -> Vec<(String, u32)> {
         ("TREE_CULL", s::TreeCull::choices()),
         ("HIERARCHY", s::Hierarchy::choices()),
         ("COALESCE", s::Coalesce::choices()),
+        ("COMMAND_ORDER", s::CommandOrder::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {
@@ -169,6 +174,12 @@ stage_source!(
     COALESCE_WGSL, coalesce_source, "coalesce.wgsl", SCAN_WGSL = "scan.wgsl"
 );
 
+stage_source!(
+    /// The `command_order` stage's own source (without [`COMMON_WGSL`]): distance-sorted
+    /// commands of the hierarchical cut (issue 13, E§7).
+    COMMAND_ORDER_WGSL, command_order_source, "command_order.wgsl"
+);
+
 /// The depth read-back by compute (`DrawTarget::read`), standalone: [`COMMON_WGSL`] is not
 /// prepended.
 pub const DEPTH_COPY_WGSL: &str = include_str!("shaders/depth_copy.wgsl");
@@ -199,6 +210,7 @@ mod tests {
             ("refine.wgsl", REFINE_WGSL),
             ("hier_select.wgsl", HIER_SELECT_WGSL),
             ("coalesce.wgsl", COALESCE_WGSL),
+            ("command_order.wgsl", COMMAND_ORDER_WGSL),
             ("depth_copy.wgsl", DEPTH_COPY_WGSL),
             ("scan.wgsl", SCAN_WGSL),
         ] {

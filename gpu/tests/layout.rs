@@ -40,7 +40,11 @@ fn rust_layouts() -> Vec<RustLayout> {
             hierarchy,
             nodes_per_node,
             max_cull_depth,
-            coalesce
+            coalesce,
+            command_order,
+            _pad0,
+            _pad1,
+            _pad2
         }),
         rust_layout!(Camera {
             eye,

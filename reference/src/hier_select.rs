@@ -13,6 +13,8 @@
 //!
 //! 4. [`crate::coalesce`] when `params.coalesce` is `on` (the default): runs of commands with
 //!    adjacent ranges and the same mesh, LOD and fading flag merged into one.
+//! 5. [`crate::command_order`] when `params.command_order` is `front-to-back` (E§7): the
+//!    commands sorted by their nearest view depth, ties in list order (default `node`: as is).
 //!
 //! This equals the seeds' recursion: the recursion reaches exactly the visited nodes and draws
 //! exactly the emitted ones, in depth-first order.
@@ -29,9 +31,9 @@
 //! `transition_batches` the emitted nodes with both LODs.
 
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, Coalesce, CommandData, DECISION_DRAW, DECISION_KIND_MASK, Decision,
-    DrawCommand, LOD_BILLBOARD, LOD_MESH, MeshMeta, NO_PARENT, NODE_RECURSE, Params, ViewUniform,
-    code_recurses, emitted_needs, node_code,
+    COMMAND_SHIFT, Camera, Coalesce, CommandData, CommandOrder, DECISION_DRAW, DECISION_KIND_MASK,
+    Decision, DrawCommand, LOD_BILLBOARD, LOD_MESH, MeshMeta, NO_PARENT, NODE_RECURSE, Params,
+    ViewUniform, code_recurses, emitted_needs, node_code,
 };
 use rayon::prelude::*;
 
@@ -50,6 +52,9 @@ pub struct HierSelection {
     pub codes: Vec<u32>,
     /// Per node: [`NODE_VISITED`] | [`NODE_EMITTED`] bits.
     pub states: Vec<u32>,
+    /// Per output command: its front-to-back key ([`crate::command_order::run_keys`]), in the
+    /// output order (computed whatever `command_order` is).
+    pub keys: Vec<u32>,
 }
 
 impl HierSelection {
@@ -97,10 +102,13 @@ pub fn hier_select(
     let coalesce = params
         .coalescing()
         .expect("parameters are validated before selection");
-    resolve_and_compact(h, codes, meshes, billboard, &u, coalesce)
+    let order = params
+        .command_ordering()
+        .expect("parameters are validated before selection");
+    resolve_and_compact(h, codes, meshes, billboard, &u, coalesce, order)
 }
 
-/// Passes 2 to 4 on given per-node codes (the reference's, or a GPU's read back, to check the
+/// Passes 2 to 5 on given per-node codes (the reference's, or a GPU's read back, to check the
 /// GPU's resolution and compaction on its own decisions).
 pub fn resolve_and_compact(
     h: &Hierarchy,
@@ -109,6 +117,7 @@ pub fn resolve_and_compact(
     billboard: &MeshMeta,
     u: &ViewUniform,
     coalesce: Coalesce,
+    order: CommandOrder,
 ) -> HierSelection {
     let states: Vec<u32> = (0..h.nodes.len())
         .into_par_iter()
@@ -175,9 +184,13 @@ pub fn resolve_and_compact(
         }
     }
     out.counters.commands = out.commands.len() as u32;
+    let merged = crate::coalesce::coalesce(&out, coalesce);
+    let keys = crate::command_order::run_keys(&h.nodes, &out, &merged, u, coalesce);
+    let (selection, keys) = crate::command_order::order(merged, keys, order);
     HierSelection {
-        selection: crate::coalesce::coalesce(&out, coalesce),
+        selection,
         codes,
         states,
+        keys,
     }
 }

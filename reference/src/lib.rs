@@ -28,6 +28,7 @@ pub mod baselines;
 pub mod batches;
 pub mod cameras;
 pub mod coalesce;
+pub mod command_order;
 pub mod draw;
 pub mod error;
 pub mod geometry;

@@ -29,6 +29,17 @@
 //!   mesh), the same LOD with the same fading flag (the draw stage's only per-command switches),
 //!   and its range starts where the predecessor's ends. G§3 draws each octant as one render
 //!   call; merging them is the point of its contiguous serialization.
+//! - [`command_depth_key`]: the sort key of `command_order = front-to-back` (E§7 "distance-sorted
+//!   commands", `reference/src/command_order.rs`, twinned in `gpu/src/shaders/command_order.wgsl`).
+//!   A node's key is its [`node_near_depth`], the lower end of the same sphere ∩ box view-depth
+//!   interval the cut decides on, clamped at 0 and taken as its `f32` bits; a coalesced command's
+//!   key is the minimum over the nodes it merged. Why it is a valid front-to-back key: both volumes
+//!   contain every tree's sphere, so every fragment a command draws lies at or beyond its key's view
+//!   depth; sorting ascending puts first the commands whose nearest possible fragment is nearest,
+//!   which is the order E§7 asks for (commands whose intervals overlap cannot be ordered exactly by
+//!   any per-command key). Non-negative `f32`s order like their `u32` bits, and the clamp makes
+//!   `-0.0` and a negative lower end (a node around the eye) key 0, so the key is a plain `u32`
+//!   both backends compare the same way; ties are broken by the position in the unsorted list.
 
 use crate::{
     CommandData, DECISION_DRAW, DECISION_KIND_MASK, Decision, DrawCommand, Hierarchy, LodNeeds,
@@ -100,6 +111,26 @@ pub fn node_code(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy, max_cull_depth:
         }
     };
     code | if recurse { NODE_RECURSE } else { 0 }
+}
+
+/// The lower end of the view-depth interval `decide_node` decides on for a hierarchy node (every
+/// mode but `grid`): `max(sphere.lo, box.lo)`. Every point of every tree of the node lies at or
+/// beyond it (module docs). Twin of `node_near_depth` in `gpu/src/shaders/common.wgsl`.
+pub fn node_near_depth(u: &ViewUniform, n: &NodeMeta) -> f32 {
+    let s = view_interval(n.center, n.radius, u.eye, u.forward);
+    let b = aabb_view_interval(n.box_center, n.extent, u.eye, u.forward);
+    s.lo.max(b.lo)
+}
+
+/// The front-to-back sort key of a view depth (module docs): its `f32` bits when it is positive,
+/// else 0, so that keys order as the depths do and `-0.0` or a negative depth is never a huge
+/// `u32`. A coalesced command's key is the minimum of its nodes' keys.
+pub fn command_depth_key(near_depth: f32) -> u32 {
+    if near_depth > 0.0 {
+        near_depth.to_bits()
+    } else {
+        0
+    }
 }
 
 /// Whether a node code says "drawn and recurse" (its children are visited).

@@ -54,14 +54,16 @@ pub use color::{
 };
 pub use cut::{
     MAX_HIERARCHY_DEPTH, NODE_EMITTED, NODE_RECURSE, NODE_VISITED, aabb_distance, code_recurses,
-    continues_run, decide_node, emitted_needs, node_code,
+    command_depth_key, continues_run, decide_node, emitted_needs, node_code, node_near_depth,
 };
 pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
 pub use interval::{
     LodNeeds, ViewInterval, aabb_margin, aabb_view_interval, lod_needs, selection_margin,
     view_interval,
 };
-pub use params::{AngleIndexMode, Coalesce, Hierarchy, MipMode, ParamError, Params, TreeCull};
+pub use params::{
+    AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,
+};
 pub use registry::{PARAMS, ParamKind, ParamSpec, param};
 pub use terrain::{
     TERRAIN_CELLS, TERRAIN_MARGIN, TERRAIN_SINK, ground_color, terrain_grid, terrain_vertex,

@@ -96,6 +96,24 @@ modes! {
     }
 }
 
+modes! {
+    /// The order of the hierarchical cut's commands (issue 13, E§7 "distance-sorted commands",
+    /// front to back): after coalescing, `front-to-back` sorts the commands by
+    /// [`crate::command_depth_key`] (the nearest view depth of the nodes a command draws),
+    /// ties broken by the command's position in the unsorted list
+    /// (`reference/src/command_order.rs`, `gpu/src/shaders/command_order.wgsl`). Near trees first
+    /// lets the depth test reject the hidden fragments of the trees behind them before they are
+    /// shaded. The same fragments are drawn, so the images are identical except where two
+    /// fragments tie in depth (the first drawn wins under `LESS`) and where order-dependent
+    /// blending (the `alpha` fade mode) meets. Applies to the hierarchies only.
+    pub enum CommandOrder {
+        /// The cut's order: depth-first node order, LOD0 before LOD1 (the default).
+        Node = 0 => "node",
+        /// Sorted by nearest view depth, ascending (E§7).
+        FrontToBack = 1 => "front-to-back",
+    }
+}
+
 impl Hierarchy {
     /// Whether this mode builds a node hierarchy (everything but the thesis grid).
     pub fn is_hierarchical(self) -> bool {
@@ -158,8 +176,17 @@ pub struct Params {
     /// [`Coalesce`] as `u32`. Default `On`; read by the hierarchical cut only (the grid's flat
     /// `select` is untouched, so the main job's images and counters do not depend on it).
     pub coalesce: u32,
+    /// [`CommandOrder`] as `u32`. Default `Node`; read by the hierarchical cut only (after
+    /// coalescing), so the grid path and the main job do not depend on it.
+    pub command_order: u32,
+    /// Explicit padding (keeps the uniform a multiple of 16 B).
+    pub _pad0: u32,
+    /// Explicit padding.
+    pub _pad1: u32,
+    /// Explicit padding.
+    pub _pad2: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 64);
+const _: () = assert!(core::mem::size_of::<Params>() == 80);
 
 impl Default for Params {
     fn default() -> Self {
@@ -180,6 +207,10 @@ impl Default for Params {
             nodes_per_node: 64,
             max_cull_depth: 7,
             coalesce: Coalesce::On as u32,
+            command_order: CommandOrder::Node as u32,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         }
     }
 }
@@ -258,6 +289,11 @@ impl Params {
     /// Command coalescing of the hierarchical cut, validated.
     pub fn coalescing(&self) -> Result<Coalesce, ParamError> {
         Coalesce::from_id(self.coalesce).ok_or_else(|| rejected("coalesce", self))
+    }
+
+    /// Command order of the hierarchical cut, validated.
+    pub fn command_ordering(&self) -> Result<CommandOrder, ParamError> {
+        CommandOrder::from_id(self.command_order).ok_or_else(|| rejected("command_order", self))
     }
 
     /// Number of mip levels of a billboard layer, `log2(r) + 1` (r = 1 has one level).

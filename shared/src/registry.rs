@@ -14,7 +14,9 @@
 //! keys), as before issue 11: a parameter added to one was silently missing from the others.
 
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
-use crate::{AngleIndexMode, Coalesce, FadeMode, Hierarchy, MipMode, Params, TreeCull};
+use crate::{
+    AngleIndexMode, Coalesce, CommandOrder, FadeMode, Hierarchy, MipMode, Params, TreeCull,
+};
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.
 #[derive(Clone, Copy, Debug)]
@@ -231,7 +233,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 16] = [
+pub const PARAMS: [ParamSpec; 17] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -269,6 +271,9 @@ pub const PARAMS: [ParamSpec; 16] = [
         "Octree depth below which partially visible nodes recurse (G§3 max_cull_depth)"),
     param!(coalesce, "coalesce", ParamKind::Choice(Coalesce::choices), "expected 0 (off) or 1 (on)",
         "Merge adjacent draw commands of the hierarchical cut (issue 13): off, on"),
+    param!(command_order, "command-order", ParamKind::Choice(CommandOrder::choices),
+        "expected 0 (node) or 1 (front-to-back)",
+        "Order of the hierarchical cut's commands after coalescing: node, front-to-back (E§7 distance-sorted)"),
 ];
 
 /// The parameter `key` names (canonical name, flag in either form, or alias).

@@ -432,3 +432,48 @@ pub fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T 
 pub fn assert_no_failures(what: &str, failures: &[String]) {
     assert!(failures.is_empty(), "{what}:\n{}", failures.join("\n"));
 }
+
+/// The differing pixels of a frame drawn with `command_order = node` against the same frame drawn
+/// `front-to-back` (issue 13, E§7), each classified ([`classify_order_diffs`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct OrderDiffs {
+    /// Pixels whose colour, depth bits or LOD id differ.
+    pub differing: usize,
+    /// Differing pixels of equal depth: two fragments tie and `LESS` keeps whichever came first.
+    pub ties: usize,
+    /// Differing pixels where either frame shows a fading (transition) fragment in the `alpha`
+    /// fade mode: blending is order-dependent there.
+    pub blend_order: usize,
+    /// Differing pixels neither class explains: a bug of the reorder.
+    pub unclassified: usize,
+}
+
+/// Classifies every pixel where `a` and `b` differ (module of [`OrderDiffs`]): in the `alpha`
+/// fade mode (`alpha`), a pixel whose LOD id is [`forestlod_shared::LOD_ID_TRANSITION`] in either
+/// frame is *blend order*; otherwise a pixel whose depth bits are equal is a *tie*; the rest are
+/// *unclassified*. A reorder draws the same fragments, and with depth `LESS` and no blending the
+/// nearest fragment wins whatever the order, so the depth buffer never differs outside blending.
+pub fn classify_order_diffs(
+    a: &forestlod_harness::image_compare::Images,
+    b: &forestlod_harness::image_compare::Images,
+    alpha: bool,
+) -> OrderDiffs {
+    let mut out = OrderDiffs::default();
+    for i in 0..a.color.len() {
+        let same_depth = a.depth[i].to_bits() == b.depth[i].to_bits();
+        if a.color[i] == b.color[i] && same_depth && a.lod_id[i] == b.lod_id[i] {
+            continue;
+        }
+        out.differing += 1;
+        let transition = a.lod_id[i] == forestlod_shared::LOD_ID_TRANSITION
+            || b.lod_id[i] == forestlod_shared::LOD_ID_TRANSITION;
+        if alpha && transition {
+            out.blend_order += 1;
+        } else if same_depth {
+            out.ties += 1;
+        } else {
+            out.unclassified += 1;
+        }
+    }
+    out
+}

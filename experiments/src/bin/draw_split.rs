@@ -4,6 +4,10 @@
 //!
 //! `cargo run --release -p forestlod-experiments --bin draw_split -- --out out/draw_split`
 //!
+//! `--orders node,front-to-back` measures each hierarchy in both command orders (issue 13, E§7
+//! distance-sorted commands; `experiments/results/hierarchy/command_order.md`): the select time
+//! then includes the sort.
+//!
 //! Every stage is timed three ways, each the minimum of `--reps` repetitions after `--warmups`
 //! (1) untimed ones: timestamp queries (`gpu_time::timestamped`), wall time from submit to
 //! completion, and this process's CPU seconds (`getrusage`: every thread, lavapipe's included),
@@ -42,8 +46,8 @@ use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, DrawCommand, Hierarchy, LOD_ID_BACKGROUND, LOD_ID_TERRAIN, LOD_MESH,
-    Params, TreeCull,
+    COMMAND_SHIFT, Camera, CommandOrder, DrawCommand, Hierarchy, LOD_ID_BACKGROUND, LOD_ID_TERRAIN,
+    LOD_MESH, Params, TreeCull,
 };
 
 #[derive(Parser, Debug)]
@@ -63,6 +67,10 @@ struct Args {
         default_value = "grid,grid-aabb,quadtree,octree"
     )]
     hierarchies: Vec<String>,
+    /// Command orders of ours (`command_order` values, issue 13 E§7): each hierarchy is measured
+    /// once per order, back to back in the same run (rows `ours <h>` and `ours <h> <order>`).
+    #[arg(long, value_delimiter = ',', default_value = "node")]
+    orders: Vec<String>,
     /// Also run the grid with `tree_cull = all` (select, then `refine`).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     refine: bool,
@@ -351,39 +359,53 @@ fn main() -> Res<()> {
             for camera_name in &args.cameras {
                 let camera =
                     named_camera(camera_name, &prepared.scene, 0.0, args.width, args.height)?;
-                // Ours.
-                let sel_t = time(&ctx, (args.warmups, args.reps), &mut |e| {
-                    select.encode(e, &camera, &params, Compaction::Stable);
-                    Ok(())
-                })?;
-                let sel = select.buffers().read(&ctx)?;
-                let inputs = DrawInputs {
-                    scene: &gpu_scene,
-                    textures: &textures,
-                    selection: select.buffers(),
-                    indirection: None,
-                };
-                let split = split_draw(
-                    &ctx,
-                    &draw,
-                    &inputs,
-                    &camera,
-                    &params,
-                    &target,
-                    (args.warmups, args.reps),
-                    &ALL_PROBES,
-                )?;
-                let row = Row {
-                    scene: scene_name.clone(),
-                    camera: camera_name.clone(),
-                    variant: format!("ours {h_name}"),
-                    work: work_of(&sel),
-                    select: sel_t,
-                    refine: Secs::ZERO,
-                    split,
-                };
-                report(&row);
-                rows.push(row);
+                // Ours, once per command order (the last one's selection stays for refine).
+                let mut sel_t = Secs::NAN;
+                for order_name in &args.orders {
+                    let order = CommandOrder::from_name(order_name).ok_or_else(|| {
+                        format!("--orders: unknown command order {order_name:?} (expected node or front-to-back)")
+                    })?;
+                    let params = Params {
+                        command_order: order as u32,
+                        ..params
+                    };
+                    sel_t = time(&ctx, (args.warmups, args.reps), &mut |e| {
+                        select.encode(e, &camera, &params, Compaction::Stable);
+                        Ok(())
+                    })?;
+                    let sel = select.buffers().read(&ctx)?;
+                    let inputs = DrawInputs {
+                        scene: &gpu_scene,
+                        textures: &textures,
+                        selection: select.buffers(),
+                        indirection: None,
+                    };
+                    let split = split_draw(
+                        &ctx,
+                        &draw,
+                        &inputs,
+                        &camera,
+                        &params,
+                        &target,
+                        (args.warmups, args.reps),
+                        &ALL_PROBES,
+                    )?;
+                    let row = Row {
+                        scene: scene_name.clone(),
+                        camera: camera_name.clone(),
+                        variant: if order == CommandOrder::Node {
+                            format!("ours {h_name}")
+                        } else {
+                            format!("ours {h_name} {order_name}")
+                        },
+                        work: work_of(&sel),
+                        select: sel_t,
+                        refine: Secs::ZERO,
+                        split,
+                    };
+                    report(&row);
+                    rows.push(row);
+                }
                 // Ours with refine (select, then refine.wgsl, timed apart).
                 if let Some(refine) = refine.as_mut() {
                     let rparams = Params {

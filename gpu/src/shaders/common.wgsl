@@ -38,6 +38,10 @@ struct Params {
     nodes_per_node: u32,
     max_cull_depth: u32,
     coalesce: u32,
+    command_order: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // Keep in sync with forestlod_shared::Camera (shared/src/camera.rs).
@@ -473,6 +477,21 @@ fn decide_node(n: NodeMeta, mode: u32, v: ViewUniform) -> u32 {
     }
     let needs = lod_needs(lo, hi, v.fade_start, v.fade_end, v.lod_levels);
     return DECISION_DRAW | select(0u, DECISION_LOD0, needs.lod0) | select(0u, DECISION_LOD1, needs.lod1);
+}
+
+// forestlod_shared::node_near_depth: the lower end of decide_node's sphere ∩ box interval.
+fn node_near_depth(n: NodeMeta, v: ViewUniform) -> f32 {
+    let center = vec3<f32>(n.center[0], n.center[1], n.center[2]);
+    let bc = vec3<f32>(n.box_center[0], n.box_center[1], n.box_center[2]);
+    let e = vec3<f32>(n.extent[0], n.extent[1], n.extent[2]);
+    let s = view_interval(center, n.radius, v.eye, v.forward);
+    let b = aabb_view_interval(bc, e, v.eye, v.forward);
+    return max(s.lo, b.lo);
+}
+
+// forestlod_shared::command_depth_key: the f32 bits of a positive depth, else 0.
+fn command_depth_key(near_depth: f32) -> u32 {
+    return select(0u, bitcast<u32>(near_depth), near_depth > 0.0);
 }
 
 // forestlod_shared::node_code: the decision plus NODE_RECURSE for a drawn interior node whose

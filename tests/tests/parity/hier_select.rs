@@ -11,6 +11,12 @@
 //! - where no code differs, they equal the reference's output exactly; the only floats
 //!   (`fade_start`, `fade_end`) are copied from the uniform, max difference 0.
 //!
+//! - with `command_order = front-to-back` (at random, issue 13, E§7), the GPU's sorted commands
+//!   equal the reference's order of the same coalesced list exactly; a run key
+//!   (`command_depth_key`) the GPU computed one ulp away from the reference's (fused multiply-add
+//!   in the view depth) is classified *ambiguous* and counted, and then the GPU's order must equal
+//!   the reference's sort under the GPU's keys; a key further away fails.
+//!
 //! And the frame: the GPU renders `tiny` with each hierarchy bit-identically to its grid frame
 //! (dither-sequential), and in `alpha` mode differs only inside the fade band.
 //!
@@ -18,15 +24,17 @@
 
 use std::time::Instant;
 
-use forestlod_gpu::GpuHierSelect;
+use forestlod_gpu::{GpuHierSelect, GpuSelection};
 use forestlod_harness::backend::{StagesFromCpu, gpu_context, gpu_draw, render_gpu};
+use forestlod_reference::command_order::order;
 use forestlod_reference::hier_select::{hier_select, resolve_and_compact};
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
+use forestlod_reference::select::Selection;
 use forestlod_shared::{
-    Coalesce, FadeMode, Hierarchy as Mode, LOD_ID_TRANSITION, NodeMeta, Params, ViewUniform,
-    aabb_distance, aabb_margin, aabb_view_interval,
+    Coalesce, CommandOrder, FadeMode, Hierarchy as Mode, LOD_ID_TRANSITION, NodeMeta, Params,
+    ViewUniform, aabb_distance, aabb_margin, aabb_view_interval,
 };
 use forestlod_tests::{Packed, Thresholds, cameras, instances, params, threshold_ambiguity};
 use proptest::prelude::*;
@@ -100,6 +108,69 @@ struct Tally {
     coalesced_cases: u64,
     commands_before: u64,
     commands_after: u64,
+    ordered_cases: u64,
+    keys_compared: u64,
+    ambiguous_keys: u64,
+    moved_commands: u64,
+}
+
+/// Largest difference, in `u32` steps of the `f32` bits, between a GPU run key and the
+/// reference's for the same run that is classified ambiguous rather than a bug: one ulp of the
+/// near view depth, what a fused multiply-add in its dot product can move it by (the key is
+/// the depth's bits, so one ulp is one step). A wrong key (another node, the maximum instead of
+/// the minimum, a sphere-only interval) moves it by far more.
+const KEY_ULPS: u32 = 1;
+
+/// Checks the GPU's front-to-back order `sel` (with the sort's pairs `pairs`) against the
+/// reference's order of `merged` (the coalesced list, unsorted) with keys `ref_keys` (per run):
+/// every GPU key within [`KEY_ULPS`] of the reference's (those not equal counted ambiguous), and
+/// `sel` exactly the reference's sort under the GPU's keys. Returns the ambiguous keys.
+fn check_order(
+    sel: &GpuSelection,
+    pairs: &[(u32, u32)],
+    merged: &Selection,
+    ref_keys: &[u32],
+) -> Result<u64, String> {
+    if pairs.len() != merged.commands.len() {
+        return Err(format!(
+            "{} pairs for {} runs",
+            pairs.len(),
+            merged.commands.len()
+        ));
+    }
+    let mut gpu_keys = vec![u32::MAX; ref_keys.len()];
+    for &(k, r) in pairs {
+        let slot = gpu_keys
+            .get_mut(r as usize)
+            .ok_or(format!("pair index {r} past {} runs", ref_keys.len()))?;
+        *slot = k;
+    }
+    let mut ambiguous = 0;
+    for (r, (&g, &w)) in gpu_keys.iter().zip(ref_keys).enumerate() {
+        if g != w {
+            if g.abs_diff(w) > KEY_ULPS {
+                return Err(format!(
+                    "run {r}: GPU key {g:#x} ({}) vs reference {w:#x} ({})",
+                    f32::from_bits(g),
+                    f32::from_bits(w)
+                ));
+            }
+            ambiguous += 1;
+        }
+    }
+    let (want, _) = order(merged.clone(), gpu_keys, CommandOrder::FrontToBack);
+    if sel.commands != want.commands || sel.data != want.data || sel.counters != want.counters {
+        let first = sel
+            .commands
+            .iter()
+            .zip(&want.commands)
+            .position(|(a, b)| a != b);
+        return Err(format!(
+            "sorted commands differ from the reference's sort (first at {first:?} of {})",
+            want.commands.len()
+        ));
+    }
+    Ok(ambiguous)
 }
 
 #[test]
@@ -118,19 +189,22 @@ fn gpu_cut_matches_reference() {
         0u32..9,
         0usize..MODES.len(),
         any::<bool>(),
+        any::<bool>(),
     );
     let mut runner = TestRunner::new(Config {
         cases: CASES,
         failure_persistence: None,
         ..Config::default()
     });
-    let result = runner.run(&strategy, |(trees, camera, p, npn, mcd, mode_i, merge)| {
+    let result = runner.run(&strategy, |(trees, camera, p, npn, mcd, mode_i, merge, sort)| {
         let mut tally = tally.borrow_mut();
         let coalesce = if merge { Coalesce::On } else { Coalesce::Off };
+        let order_mode = if sort { CommandOrder::FrontToBack } else { CommandOrder::Node };
         let p = Params {
             nodes_per_node: npn,
             max_cull_depth: mcd,
             coalesce: coalesce as u32,
+            command_order: order_mode as u32,
             grid_size: p.grid_size.min(400.0),
             ..p
         };
@@ -177,13 +251,13 @@ fn gpu_cut_matches_reference() {
             }
             tally.ambiguous_nodes += ambiguous;
             // 2. The GPU's resolution and compaction of its own codes: exact.
-            let own = resolve_and_compact(&h, codes.clone(), &g.meshes, &g.billboard, &u, coalesce);
+            let own = resolve_and_compact(&h, codes.clone(), &g.meshes, &g.billboard, &u, coalesce, CommandOrder::Node);
             // The cut's list before coalescing, and the coalescing of it, each exact.
             let raw = gpu
                 .read_uncoalesced()
                 .map_err(|e| TestCaseError::fail(e.to_string()))?;
             let own_raw =
-                resolve_and_compact(&h, codes.clone(), &g.meshes, &g.billboard, &u, Coalesce::Off);
+                resolve_and_compact(&h, codes.clone(), &g.meshes, &g.billboard, &u, Coalesce::Off, CommandOrder::Node);
             prop_assert_eq!(&raw.commands, &own_raw.selection.commands, "{:?}: uncoalesced commands", mode);
             prop_assert_eq!(&raw.data, &own_raw.selection.data, "{:?}: uncoalesced data", mode);
             prop_assert_eq!(raw.counters, own_raw.selection.counters, "{:?}: uncoalesced counters", mode);
@@ -193,17 +267,36 @@ fn gpu_cut_matches_reference() {
                 tally.commands_after += sel.commands.len() as u64;
             }
             prop_assert_eq!(&states, &own.states, "{:?}: states", mode);
-            prop_assert_eq!(&sel.commands, &own.selection.commands, "{:?}: commands", mode);
-            prop_assert_eq!(&sel.data, &own.selection.data, "{:?}: data", mode);
-            prop_assert_eq!(sel.counters, own.selection.counters, "{:?}: counters", mode);
+            let mut ambiguous_keys = 0;
+            if sort {
+                // The GPU's sort of its own coalesced list, against the reference's (own: the
+                // unsorted list and its keys per run).
+                let pairs = gpu
+                    .read_order_pairs(sel.commands.len())
+                    .map_err(|e| TestCaseError::fail(e.to_string()))?;
+                ambiguous_keys = check_order(&sel, &pairs, &own.selection, &own.keys)
+                    .map_err(|e| TestCaseError::fail(format!("{mode:?}: {e}")))?;
+                tally.ordered_cases += 1;
+                tally.keys_compared += pairs.len() as u64;
+                tally.ambiguous_keys += ambiguous_keys;
+                tally.moved_commands += pairs
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, (_, r))| *i as u32 != *r)
+                    .count() as u64;
+            } else {
+                prop_assert_eq!(&sel.commands, &own.selection.commands, "{:?}: commands", mode);
+                prop_assert_eq!(&sel.data, &own.selection.data, "{:?}: data", mode);
+                prop_assert_eq!(sel.counters, own.selection.counters, "{:?}: counters", mode);
+            }
             for d in &sel.data {
                 let diff = (d.fade_start - u.fade_start)
                     .abs()
                     .max((d.fade_end - u.fade_end).abs());
                 tally.max_float_diff = tally.max_float_diff.max(diff);
             }
-            // 3. Exact against the reference where no code differs.
-            if ambiguous == 0 {
+            // 3. Exact against the reference where no code and no key differs.
+            if ambiguous == 0 && ambiguous_keys == 0 {
                 prop_assert_eq!(&sel.commands, &want.selection.commands, "{:?}", mode);
                 prop_assert_eq!(&sel.data, &want.selection.data, "{:?}", mode);
                 prop_assert_eq!(sel.counters, want.selection.counters, "{:?}", mode);
@@ -216,7 +309,7 @@ fn gpu_cut_matches_reference() {
     });
     let tally = tally.into_inner();
     eprintln!(
-        "hier_select parity: {} (case, mode) pairs ({} exact, {} coalesced: {} commands -> {}), {} nodes compared, {} ambiguous nodes, {} commands compared exactly, max fade float difference {}, {:.1} s",
+        "hier_select parity: {} (case, mode) pairs ({} exact, {} coalesced: {} commands -> {}), {} nodes compared, {} ambiguous nodes, {} commands compared exactly, max fade float difference {}; front-to-back: {} cases, {} run keys compared, {} ambiguous (within {} ulp), {} commands moved by the sort; {:.1} s",
         tally.cases,
         tally.exact_cases,
         tally.coalesced_cases,
@@ -226,6 +319,11 @@ fn gpu_cut_matches_reference() {
         tally.ambiguous_nodes,
         tally.commands_compared,
         tally.max_float_diff,
+        tally.ordered_cases,
+        tally.keys_compared,
+        tally.ambiguous_keys,
+        KEY_ULPS,
+        tally.moved_commands,
         started.elapsed().as_secs_f64()
     );
     if let Err(e) = result {
@@ -237,6 +335,12 @@ fn gpu_cut_matches_reference() {
         tally.commands_after < tally.commands_before,
         "coalescing merged nothing in {} cases",
         tally.coalesced_cases
+    );
+    // The sort ran and moved commands (random cameras see nodes out of depth-first depth order).
+    assert!(
+        tally.moved_commands > 0,
+        "front-to-back moved nothing in {} cases",
+        tally.ordered_cases
     );
 }
 
@@ -436,7 +540,15 @@ fn gpu_coalescing_spans_scan_chunks() {
         let raw = gpu.read_uncoalesced().unwrap();
         let (codes, _) = gpu.read_codes_and_states().unwrap();
         assert_eq!(codes, want.codes, "yaw {yaw}: codes");
-        let want_raw = resolve_and_compact(h, codes, &g.meshes, &g.billboard, &u, Coalesce::Off);
+        let want_raw = resolve_and_compact(
+            h,
+            codes,
+            &g.meshes,
+            &g.billboard,
+            &u,
+            Coalesce::Off,
+            CommandOrder::Node,
+        );
         eprintln!(
             "GPU coalescing on tiny, quadtree, medium, yaw {yaw}: {} commands -> {}",
             raw.commands.len(),
@@ -450,4 +562,165 @@ fn gpu_coalescing_spans_scan_chunks() {
         assert_eq!(sel.counters, want.selection.counters, "yaw {yaw}");
     }
     assert!(most > 256, "at most {most} commands: one scan chunk");
+}
+
+/// The front-to-back sort on the GPU over lists that span many workgroups and bitonic steps
+/// (`tiny`'s quadtree of 8-tree leaves at medium range: some 280 commands uncoalesced, 512 pair
+/// slots, and the coalesced list), coalescing off and on, two yaws: the sorted commands, data and
+/// counters equal the reference's exactly (keys within [`KEY_ULPS`], counted), keys
+/// non-decreasing, and the sort moved commands. Mutation-checked in the report of issue 13.
+#[test]
+fn gpu_front_to_back_spans_workgroups() {
+    let Some(ctx) = gpu_context() else {
+        eprintln!("hier_select front-to-back: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
+        return;
+    };
+    let scene = builtin::by_name("tiny").unwrap();
+    let base = Params {
+        grid_size: 50.0,
+        lod1_transition: 120.0,
+        fade_width: 40.0,
+        texture_size: 32,
+        nodes_per_node: 8,
+        max_cull_depth: 3,
+        hierarchy: Mode::Quadtree as u32,
+        command_order: CommandOrder::FrontToBack as u32,
+        ..Params::default()
+    };
+    let prepared = prepare(scene, &base).unwrap();
+    let h = prepared.hierarchy.as_ref().unwrap();
+    let g = &prepared.geometry;
+    let mut gpu =
+        GpuHierSelect::new(ctx, &h.nodes, h.mode as u32, &g.meshes, &g.billboard).unwrap();
+    let (mut ambiguous, mut moved, mut most) = (0, 0, 0);
+    for coalesce in [Coalesce::Off, Coalesce::On] {
+        let p = Params {
+            coalesce: coalesce as u32,
+            ..base
+        };
+        for yaw in [0.0, 330.0] {
+            let camera =
+                forestlod_reference::cameras::named_camera("medium", &prepared.scene, yaw, 96, 72)
+                    .unwrap();
+            let u = ViewUniform::new(&camera, &p);
+            let want = hier_select(h, &g.meshes, &g.billboard, &camera, &p);
+            let sel = gpu.run(&camera, &p).unwrap();
+            let (codes, _) = gpu.read_codes_and_states().unwrap();
+            assert_eq!(codes, want.codes, "{coalesce:?} yaw {yaw}: codes");
+            let unsorted = resolve_and_compact(
+                h,
+                codes,
+                &g.meshes,
+                &g.billboard,
+                &u,
+                coalesce,
+                CommandOrder::Node,
+            );
+            let pairs = gpu.read_order_pairs(sel.commands.len()).unwrap();
+            let a = check_order(&sel, &pairs, &unsorted.selection, &unsorted.keys)
+                .unwrap_or_else(|e| panic!("{coalesce:?} yaw {yaw}: {e}"));
+            if a == 0 {
+                assert_eq!(
+                    sel.commands, want.selection.commands,
+                    "{coalesce:?} yaw {yaw}"
+                );
+                assert_eq!(sel.data, want.selection.data, "{coalesce:?} yaw {yaw}");
+            }
+            assert!(pairs.windows(2).all(|w| w[0] <= w[1]), "keys not sorted");
+            ambiguous += a;
+            moved += pairs
+                .iter()
+                .enumerate()
+                .filter(|(i, (_, r))| *i as u32 != *r)
+                .count();
+            most = most.max(sel.commands.len());
+            eprintln!(
+                "GPU front-to-back on tiny, quadtree, medium, {coalesce:?}, yaw {yaw}: {} commands, {} moved so far, {a} ambiguous keys",
+                sel.commands.len(),
+                moved
+            );
+        }
+    }
+    eprintln!("GPU front-to-back: {ambiguous} ambiguous keys in total (within {KEY_ULPS} ulp)");
+    assert!(
+        most > 256,
+        "at most {most} commands: the sort stayed in one workgroup"
+    );
+    assert!(moved > 0, "the sort moved nothing");
+}
+
+/// GPU frames on `tiny` (quadtree, octree, kmeans; medium and close; dither-sequential and
+/// alpha): `front-to-back` against `node` differs only at depth ties and, in `alpha`, where
+/// blending meets the fade band; every differing pixel is classified
+/// ([`forestlod_tests::classify_order_diffs`]), the test fails on an unclassified one and reports
+/// the counts.
+#[test]
+fn gpu_front_to_back_frames_differ_only_at_ties_and_blending() {
+    let Some(ctx) = gpu_context() else {
+        eprintln!("hier_select front-to-back frames: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
+        return;
+    };
+    let draw = gpu_draw(ctx);
+    let scene = builtin::by_name("tiny").unwrap();
+    let mut total = forestlod_tests::OrderDiffs::default();
+    for mode in [Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
+        let base = Params {
+            grid_size: 50.0,
+            lod1_transition: 120.0,
+            fade_width: 40.0,
+            texture_size: 32,
+            nodes_per_node: 8,
+            max_cull_depth: 3,
+            hierarchy: mode as u32,
+            ..Params::default()
+        };
+        let prepared = prepare(scene.clone(), &base).unwrap();
+        for (camera_name, yaw) in [("medium", 0.0), ("close", 30.0)] {
+            let camera = forestlod_reference::cameras::named_camera(
+                camera_name,
+                &prepared.scene,
+                yaw,
+                96,
+                72,
+            )
+            .unwrap();
+            for fade in [FadeMode::DitherSequential, FadeMode::Alpha] {
+                let node = Params {
+                    fade_mode: fade as u32,
+                    ..base
+                };
+                let ftb = Params {
+                    command_order: CommandOrder::FrontToBack as u32,
+                    ..node
+                };
+                let a = render_gpu(
+                    ctx,
+                    draw,
+                    &prepared,
+                    &camera,
+                    &node,
+                    StagesFromCpu::default(),
+                )
+                .unwrap()
+                .images;
+                let b = render_gpu(
+                    ctx,
+                    draw,
+                    &prepared,
+                    &camera,
+                    &ftb,
+                    StagesFromCpu::default(),
+                )
+                .unwrap()
+                .images;
+                let d = forestlod_tests::classify_order_diffs(&a, &b, fade == FadeMode::Alpha);
+                eprintln!("GPU {mode:?} {camera_name} {fade:?}: front-to-back vs node {d:?}");
+                assert_eq!(d.unclassified, 0, "{mode:?} {camera_name} {fade:?}: {d:?}");
+                total.differing += d.differing;
+                total.ties += d.ties;
+                total.blend_order += d.blend_order;
+            }
+        }
+    }
+    eprintln!("GPU front-to-back frames: {total:?}");
 }

@@ -7,6 +7,8 @@
 //!   and the grid, frames against the grid's;
 //! - [`coalesce_properties`]: command coalescing of the hierarchical cut (issue 13) against the
 //!   uncoalesced commands;
+//! - [`command_order_properties`]: the front-to-back command order (issue 13, E§7) against the
+//!   node order;
 //! - [`extremes`]: the numerical-extremes catalogue of SPEC §7.
 //!
 //! Run one module with `cargo test -p forestlod-tests --test properties <module>::`. proptest
@@ -14,6 +16,7 @@
 //! (`select_properties.proptest-regressions` beside `select_properties.rs`).
 
 mod coalesce_properties;
+mod command_order_properties;
 mod extremes;
 mod hierarchy_properties;
 mod refine_properties;
