@@ -53,7 +53,7 @@ pub use spec::{
 pub use variant::{Backend, Named, ReferenceRenderer, Variant};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 14] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 15] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -79,6 +79,10 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 14] = [
     (
         "hierarchy_params",
         include_str!("../../sweeps/hierarchy_params.toml"),
+    ),
+    (
+        "command_order",
+        include_str!("../../sweeps/command_order.toml"),
     ),
 ];
 
