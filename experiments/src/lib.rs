@@ -17,4 +17,5 @@ pub mod options;
 pub mod plot;
 pub mod render;
 pub mod report;
+pub mod resident;
 pub mod sweep;

@@ -32,6 +32,7 @@ use forestlod_reference::output::{depth_preview, lod_id_image, write_depth_exr, 
 use forestlod_reference::pipeline::{Frame, Prepared, prepare};
 use forestlod_reference::texture::Rgba8Image;
 use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
 use serde_json::json;
 
 use forestlod_gpu::{GpuContext, GpuDraw};
@@ -44,6 +45,7 @@ use forestlod_shared::{Camera, Params};
 use crate::camera::{CameraArgs, no_tree_warning};
 use crate::legend::{difference_heatmap, with_class_legend, with_diff_scale, with_lod_legend};
 use crate::options::{ParamArgs, SceneArgs};
+use crate::resident::Resident;
 
 /// Exit codes of the main job (`forestlod render`, and `forestlod` with no subcommand).
 pub mod exit_code {
@@ -258,6 +260,8 @@ pub struct GpuPhases {
     pub alternative_pixels: usize,
     /// How many alternative frames were drawn (0 when no pixel needed one).
     pub alternative_frames: usize,
+    /// Resident memory at the end of `init`, `frame`, `alternatives` and `comparison`.
+    pub resident: [Option<Resident>; 4],
 }
 
 /// Renders the frame on the GPU, when an adapter exists, and compares it with the reference's.
@@ -296,17 +300,20 @@ pub fn gpu_frame(
         Err(e) => return failed(e.to_string()),
     };
     phases.init = t.elapsed().as_secs_f64();
+    phases.resident[0] = Resident::sample();
     let t = Instant::now();
     let gpu = match render_gpu(&ctx, &draw, prepared, camera, params, from_cpu) {
         Ok(g) => g,
         Err(e) => return failed(e.to_string()),
     };
     phases.frame = t.elapsed().as_secs_f64();
+    phases.resident[1] = Resident::sample();
     let seconds = t_draw.elapsed().as_secs_f64();
     // The device goes before the reference draws its alternatives: peak memory is the larger of
     // the two sides, not their sum (issue 14; lavapipe keeps every buffer in host memory).
     drop(draw);
     drop(ctx);
+    crate::resident::release_free_heap();
     let target = &frame.drawn.target;
     let reference = Images {
         width: target.width(),
@@ -319,11 +326,13 @@ pub fn gpu_frame(
     let pixels = alternative_pixels(&gpu.images, &reference);
     let alternatives = alpha_test_alternatives_at(prepared, camera, params, &pixels);
     phases.alternatives = t.elapsed().as_secs_f64();
+    phases.resident[2] = Resident::sample();
     phases.alternative_pixels = pixels.iter().filter(|&&p| p).count();
     phases.alternative_frames = alternatives.len();
     let t = Instant::now();
     let report = compare_images(name, &gpu.images, &reference, &alternatives, camera);
     phases.comparison = t.elapsed().as_secs_f64();
+    phases.resident[3] = Resident::sample();
     GpuOutcome::Rendered(Box::new(GpuRender {
         adapter,
         images: gpu.images,
@@ -545,15 +554,22 @@ pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
     let wall = Instant::now();
     let (scene, scene_seconds) = stage("loading scene", || args.scene.load());
     let scene = scene?;
+    let mut resident = vec![("scene", Resident::sample())];
     let camera = args.camera.camera(&scene, args.width, args.height)?;
     let (prepared, prepare_seconds) = stage("batches, mips and billboard bake", || {
         prepare(scene, &params)
     });
     let prepared = prepared?;
+    resident.push(("prepare", Resident::sample()));
     let (frame, frame_seconds) = stage("selection and reference draw", || {
         prepared.render(&camera, &params)
     });
     let frame = frame?;
+    resident.push(("reference_frame", Resident::sample()));
+    // The reference frame's vertex stage and setup freed over 200 MB that the allocator keeps
+    // resident; handing it back first keeps it from stacking under the GPU twin's memory (issue 14).
+    crate::resident::release_free_heap();
+    resident.push(("heap_trim", Resident::sample()));
     if let Some(warning) = no_tree_warning(
         &prepared.scene,
         frame.selection.counters.commands,
@@ -589,6 +605,11 @@ pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
             ("alternatives", g.phases.alternatives),
             ("comparison", g.phases.comparison),
         ]);
+        resident.extend(
+            ["gpu_init", "gpu_frame", "alternatives", "comparison"]
+                .into_iter()
+                .zip(g.phases.resident),
+        );
     }
     let target = &frame.drawn.target;
     let (w, h) = (target.width(), target.height());
@@ -598,37 +619,65 @@ pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
         &args.out,
         |dir, written| {
             let encoding = Instant::now();
-            let mut png = |name: &'static str, image: &Rgba8Image| {
-                written.push(name);
-                write_png(&dir.join(name), image)
-            };
-            png("color.png", &target.color_image())?;
-            png("depth_preview.png", &depth_preview(w, h, target.depth()))?;
-            png(
-                "lod.png",
-                &with_lod_legend(&lod_id_image(w, h, target.aux())),
-            )?;
-            png(
-                "atlas.png",
-                &contact_sheet(&prepared.billboards, prepared.scene.meshes.len()),
-            )?;
+            // Every image is made and encoded on its own (in parallel, issue 14); the files are
+            // the same bytes whatever the order.
+            let png = png_job;
+            let mut jobs: Vec<(&'static str, Encode<'_>)> = vec![
+                png("color.png", Box::new(|| target.color_image())),
+                png(
+                    "depth_preview.png",
+                    Box::new(|| depth_preview(w, h, target.depth())),
+                ),
+                png(
+                    "lod.png",
+                    Box::new(|| with_lod_legend(&lod_id_image(w, h, target.aux()))),
+                ),
+                png(
+                    "atlas.png",
+                    Box::new(|| contact_sheet(&prepared.billboards, prepared.scene.meshes.len())),
+                ),
+            ];
             if let GpuOutcome::Rendered(g) = &gpu {
-                png("gpu_color.png", &g.images.color_image())?;
-                png("gpu_lod.png", &with_lod_legend(&g.images.lod_image()))?;
-                png(
-                    "parity_classes.png",
-                    &with_class_legend(&class_image(&g.report)),
-                )?;
-                png(
-                    "diff.png",
-                    &with_diff_scale(&difference_heatmap(w, h, &g.images.color, target.color())),
-                )?;
+                jobs.extend([
+                    png("gpu_color.png", Box::new(|| g.images.color_image())),
+                    png(
+                        "gpu_lod.png",
+                        Box::new(|| with_lod_legend(&g.images.lod_image())),
+                    ),
+                    png(
+                        "parity_classes.png",
+                        Box::new(|| with_class_legend(&class_image(&g.report))),
+                    ),
+                    png(
+                        "diff.png",
+                        Box::new(|| {
+                            with_diff_scale(&difference_heatmap(
+                                w,
+                                h,
+                                &g.images.color,
+                                target.color(),
+                            ))
+                        }),
+                    ),
+                ]);
             }
-            written.push("depth.exr");
-            write_depth_exr(&dir.join("depth.exr"), w, h, target.depth())?;
+            let exr: Encode<'_> = Box::new(|dir: &Path| {
+                write_depth_exr(&dir.join("depth.exr"), w, h, target.depth())
+            });
+            jobs.push(("depth.exr", exr));
+            written.extend(jobs.iter().map(|(name, _)| *name));
+            let results: Vec<Result<(), InputError>> =
+                jobs.into_par_iter().map(|(_, job)| job(dir)).collect();
+            results.into_iter().collect::<Result<Vec<()>, _>>()?;
             // The summary and metrics are written last, so that they can account for the image
             // encoding and for the whole run's wall time up to here.
             phases.push(("image_encoding", encoding.elapsed().as_secs_f64()));
+            resident.push(("image_encoding", Resident::sample()));
+            metrics["resident_memory_mb"] = resident
+                .iter()
+                .filter_map(|&(name, r)| Some((name.to_string(), r?.json())))
+                .collect::<serde_json::Map<_, _>>()
+                .into();
             let accounted: f64 = phases.iter().map(|p| p.1).sum();
             let wall_seconds = wall.elapsed().as_secs_f64();
             metrics["times_seconds"]["phases"] = phases
@@ -642,10 +691,11 @@ pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
                 metrics["parity"]["alternative_frames"] = json!(g.phases.alternative_frames);
             }
             details = format!(
-                "{}{}{}",
+                "{}{}{}{}",
                 summary_text(&metrics),
                 parity_text(&gpu),
-                phases_text(&phases, accounted, wall_seconds, &gpu)
+                phases_text(&phases, accounted, wall_seconds, &gpu),
+                resident_text(&resident)
             );
             for (name, text) in [
                 (
@@ -672,6 +722,20 @@ pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
     println!("wrote {} to {}", written.join(", "), args.out.display());
     println!("{verdict}");
     Ok(code)
+}
+
+/// One output file's work: make it and write it into the given folder.
+type Encode<'e> = Box<dyn FnOnce(&Path) -> Result<(), InputError> + Send + 'e>;
+
+/// The job that makes the image `image` returns and writes it as the PNG `name`.
+fn png_job<'e>(
+    name: &'static str,
+    image: Box<dyn FnOnce() -> Rgba8Image + Send + 'e>,
+) -> (&'static str, Encode<'e>) {
+    (
+        name,
+        Box::new(move |dir: &Path| write_png(&dir.join(name), &image())),
+    )
 }
 
 /// Writes into a fresh sibling temp folder, then moves the files into `out`: a failure midway
@@ -723,6 +787,31 @@ fn phases_text(phases: &[(&str, f64)], accounted: f64, wall: f64, gpu: &GpuOutco
     };
     format!(
         "phases: {}; sum {accounted:.2} s of {wall:.2} s wall{alternatives}\n",
+        list.join(", ")
+    )
+}
+
+/// The resident-memory line of the summary: the process's peak and the first phase at whose end
+/// it had been reached (empty where memory cannot be sampled).
+fn resident_text(resident: &[(&str, Option<Resident>)]) -> String {
+    let Some(peak) = resident
+        .iter()
+        .filter_map(|(_, r)| r.map(|r| r.peak_mb))
+        .reduce(f64::max)
+    else {
+        return String::new();
+    };
+    let phase = resident
+        .iter()
+        .find(|(_, r)| r.is_some_and(|r| r.peak_mb >= peak))
+        .map_or("", |(name, _)| name);
+    let list: Vec<String> = resident
+        .iter()
+        .filter_map(|&(name, r)| Some(format!("{} {:.0}", name.replace('_', " "), r?.rss_mb)))
+        .collect();
+    format!(
+        "resident memory: peak {peak:.0} MB, reached by the end of {}; MB resident after each phase: {}\n",
+        phase.replace('_', " "),
         list.join(", ")
     )
 }

@@ -226,7 +226,8 @@ pub fn alpha_test_alternatives_at(
     prepared
         .render_cutoffs(camera, params, &cutoffs, Some(pixels.to_vec()))
         .expect("reference render")
-        .iter()
+        .into_iter()
+        // Each target goes as soon as its images are copied: one frame's buffers twice at most.
         .map(|drawn| images_of(&drawn.target))
         .collect()
 }

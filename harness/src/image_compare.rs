@@ -76,6 +76,7 @@ use forestlod_reference::draw::LOD_ID_TRANSITION;
 use forestlod_reference::output::{lod_id_image, write_png};
 use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::Camera;
+use rayon::prelude::*;
 
 use crate::stats::SignedHistogram;
 
@@ -347,6 +348,32 @@ pub struct ClassCounts {
     pub mismatches: usize,
 }
 
+impl ClassCounts {
+    /// Adds `other`'s counts, field by field.
+    fn add(&mut self, other: &ClassCounts) {
+        let ClassCounts {
+            pixels,
+            exact,
+            within_tolerance,
+            window,
+            threshold_ambiguous,
+            depth_tie,
+            translucent,
+            edge_ambiguous,
+            mismatches,
+        } = *other;
+        self.pixels += pixels;
+        self.exact += exact;
+        self.within_tolerance += within_tolerance;
+        self.window += window;
+        self.threshold_ambiguous += threshold_ambiguous;
+        self.depth_tie += depth_tie;
+        self.translucent += translucent;
+        self.edge_ambiguous += edge_ambiguous;
+        self.mismatches += mismatches;
+    }
+}
+
 /// The verdict on one frame.
 #[derive(Clone, Debug)]
 pub struct ImageReport {
@@ -394,6 +421,60 @@ pub struct ImageReport {
 pub const MAX_EXAMPLES: usize = 12;
 
 impl ImageReport {
+    /// A report of no pixels, every class 0 and every maximum at its least.
+    fn empty(name: &str, width: u32, height: u32) -> Self {
+        Self {
+            name: name.to_string(),
+            width,
+            height,
+            edge_pixels: 0,
+            color: ClassCounts::default(),
+            color_max_diff: 0,
+            color_max_window_diff: 0,
+            color_max_interior_diff: 0,
+            depth: ClassCounts::default(),
+            depth_max_diff: 0.0,
+            depth_max_interior_ulps: 0,
+            lod_id: ClassCounts::default(),
+            flip_mean: 0.0,
+            color_signed: core::array::from_fn(|_| {
+                SignedHistogram::new(i64::from(COLOR_TOLERANCE))
+            }),
+            depth_signed: SignedHistogram::new(i64::from(DEPTH_MAX_ULPS)),
+            color_classes: Vec::new(),
+            examples: Vec::new(),
+        }
+    }
+
+    /// Adds the classes, maxima, histograms and examples of `part`, a report of pixels that all
+    /// come after this report's (so the examples stay in pixel order, the first
+    /// [`MAX_EXAMPLES`]).
+    fn absorb(&mut self, part: ImageReport) {
+        for (mine, theirs) in [
+            (&mut self.color, part.color),
+            (&mut self.depth, part.depth),
+            (&mut self.lod_id, part.lod_id),
+        ] {
+            mine.add(&theirs);
+        }
+        self.edge_pixels += part.edge_pixels;
+        self.color_max_diff = self.color_max_diff.max(part.color_max_diff);
+        self.color_max_window_diff = self.color_max_window_diff.max(part.color_max_window_diff);
+        self.color_max_interior_diff = self
+            .color_max_interior_diff
+            .max(part.color_max_interior_diff);
+        self.depth_max_diff = self.depth_max_diff.max(part.depth_max_diff);
+        self.depth_max_interior_ulps = self
+            .depth_max_interior_ulps
+            .max(part.depth_max_interior_ulps);
+        for (mine, theirs) in self.color_signed.iter_mut().zip(&part.color_signed) {
+            mine.merge(theirs);
+        }
+        self.depth_signed.merge(&part.depth_signed);
+        let room = MAX_EXAMPLES.saturating_sub(self.examples.len());
+        self.examples.extend(part.examples.into_iter().take(room));
+    }
+
     /// How many unexplained pixels each buffer may have: [`MAX_COMPOUND_FRACTION`] of the
     /// pixels, rounded down.
     pub fn compound_budget(&self) -> usize {
@@ -697,6 +778,26 @@ pub fn compare_images(
     alternatives: &[Images],
     camera: &Camera,
 ) -> ImageReport {
+    compare_in_bands(
+        name,
+        gpu,
+        reference,
+        alternatives,
+        camera,
+        COMPARE_BAND_ROWS,
+    )
+}
+
+/// [`compare_images`], classifying in bands of `band_rows` rows (any positive number gives the
+/// same report; one band of the whole image is the plain pixel loop).
+fn compare_in_bands(
+    name: &str,
+    gpu: &Images,
+    reference: &Images,
+    alternatives: &[Images],
+    camera: &Camera,
+    band_rows: usize,
+) -> ImageReport {
     let (w, h) = (reference.width, reference.height);
     assert_eq!(
         (gpu.width, gpu.height),
@@ -729,10 +830,11 @@ pub fn compare_images(
     let (near, far) = (camera.near as f64, camera.far as f64);
     let lin: Vec<f64> = reference
         .depth
-        .iter()
+        .par_iter()
         .map(|&z| linear_depth(z, near, far))
         .collect();
     let edge: Vec<bool> = (0..n)
+        .into_par_iter()
         .map(|i| {
             let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
             neighbourhood(x, y, w, h).any(|q| {
@@ -743,42 +845,65 @@ pub fn compare_images(
             })
         })
         .collect();
+    drop(lin);
 
-    let mut report = ImageReport {
-        name: name.to_string(),
-        width: w,
-        height: h,
-        edge_pixels: edge.iter().filter(|&&e| e).count(),
-        color: ClassCounts {
-            pixels: n,
-            ..Default::default()
+    // Speed-up (issue 14): FLIP runs beside the classification, and the classification runs in
+    // bands of rows in parallel, each into a report of its own pixels, merged in band order
+    // ([`ImageReport::absorb`]: counts add, maxima are maxima, histograms add exactly, examples
+    // keep pixel order). The report is the same for every thread count and band size
+    // (`the_report_does_not_depend_on_the_band_size`).
+    let mut color_classes = vec![0u8; n];
+    let band = band_rows.max(1) * w as usize;
+    let (flip, parts) = rayon::join(
+        || flip_mean(&reference.color, &gpu.color, w, h),
+        || {
+            color_classes
+                .par_chunks_mut(band)
+                .enumerate()
+                .map(|(b, classes)| {
+                    classify_pixels(name, gpu, reference, alternatives, &edge, b * band, classes)
+                })
+                .collect::<Vec<_>>()
         },
-        color_max_diff: 0,
-        color_max_window_diff: 0,
-        color_max_interior_diff: 0,
-        depth: ClassCounts {
-            pixels: n,
-            ..Default::default()
-        },
-        depth_max_diff: 0.0,
-        depth_max_interior_ulps: 0,
-        lod_id: ClassCounts {
-            pixels: n,
-            ..Default::default()
-        },
-        flip_mean: flip_mean(&reference.color, &gpu.color, w, h),
-        color_signed: core::array::from_fn(|_| SignedHistogram::new(i64::from(COLOR_TOLERANCE))),
-        depth_signed: SignedHistogram::new(i64::from(DEPTH_MAX_ULPS)),
-        color_classes: vec![0; n],
-        examples: Vec::new(),
-    };
+    );
+    let mut report = ImageReport::empty(name, w, h);
+    for part in parts {
+        report.absorb(part);
+    }
+    report.color.pixels = n;
+    report.depth.pixels = n;
+    report.lod_id.pixels = n;
+    report.edge_pixels = edge.iter().filter(|&&e| e).count();
+    report.flip_mean = flip;
+    report.color_classes = color_classes;
+    report
+}
+
+/// Rows per parallel work item of [`compare_images`]'s classification.
+const COMPARE_BAND_ROWS: usize = 16;
+
+/// Classifies the pixels `start..start + classes.len()` (module docs, rules in order), writing
+/// their colour classes into `classes`: a report of those pixels only (no pixel totals, edge
+/// count, FLIP or class map; [`compare_images`] fills them in).
+fn classify_pixels(
+    name: &str,
+    gpu: &Images,
+    reference: &Images,
+    alternatives: &[Images],
+    edge: &[bool],
+    start: usize,
+    classes: &mut [u8],
+) -> ImageReport {
+    let (w, h) = (reference.width, reference.height);
+    let mut report = ImageReport::empty(name, w, h);
     let example = |report: &mut ImageReport, what: String| {
         if report.examples.len() < MAX_EXAMPLES {
             report.examples.push(what);
         }
     };
-
-    for (i, &is_edge) in edge.iter().enumerate() {
+    for k in 0..classes.len() {
+        let i = start + k;
+        let is_edge = edge[i];
         let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
         let near_ids = || neighbourhood(x, y, w, h).any(|q| reference.lod_id[q] == gpu.lod_id[i]);
 
@@ -860,7 +985,7 @@ pub fn compare_images(
             );
             3
         };
-        report.color_classes[i] = class;
+        classes[k] = class;
 
         // Depth.
         let (gz, rz) = (gpu.depth[i], reference.depth[i]);
@@ -1186,5 +1311,92 @@ mod tests {
         let r = compare_images("depth", &gpu, &reference, &[], &camera());
         assert_eq!(r.depth.within_tolerance, 1);
         assert_eq!(r.depth.mismatches, 1);
+    }
+
+    /// A frame pair with every class populated, for the banding test: a hash decides per pixel
+    /// what the GPU changed (nothing, a small shift, a large one, the id, the depth) and what the
+    /// two alternative frames show.
+    fn scrambled(width: u32, height: u32) -> (Images, Images, Vec<Images>) {
+        let n = (width * height) as usize;
+        let hash = |i: usize, salt: u64| {
+            let mut z = (i as u64 ^ salt.wrapping_mul(0x9E37_79B9_7F4A_7C15)).wrapping_add(1);
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        };
+        let reference = Images {
+            width,
+            height,
+            color: (0..n)
+                .map(|i| {
+                    let v = hash(i, 1);
+                    [v as u8, (v >> 8) as u8, (v >> 16) as u8, 255]
+                })
+                .collect(),
+            depth: (0..n)
+                .map(|i| 0.5 + (hash(i / 7, 2) % 1000) as f32 * 4e-4)
+                .collect(),
+            lod_id: (0..n).map(|i| 1 + (hash(i / 5, 3) % 4) as u32).collect(),
+        };
+        let mut gpu = reference.clone();
+        for i in 0..n {
+            match hash(i, 4) % 10 {
+                0 => gpu.color[i][0] = gpu.color[i][0].wrapping_add(3),
+                1 => gpu.color[i][1] = gpu.color[i][1].wrapping_sub(5),
+                2 => gpu.color[i] = [200, 10, 90, 255],
+                3 => gpu.lod_id[i] = 1 + (gpu.lod_id[i] % 4),
+                4 => gpu.depth[i] = f32::from_bits(gpu.depth[i].to_bits() + 40),
+                5 => gpu.depth[i] = f32::from_bits(gpu.depth[i].to_bits() + 500),
+                _ => {}
+            }
+        }
+        let alternatives = (5..7u64)
+            .map(|salt| {
+                let mut a = reference.clone();
+                for i in (0..n).filter(|&i| hash(i, salt) % 3 == 0) {
+                    a.color[i] = gpu.color[i];
+                    a.lod_id[i] = gpu.lod_id[i];
+                    a.depth[i] = gpu.depth[i];
+                }
+                a
+            })
+            .collect();
+        (gpu, reference, alternatives)
+    }
+
+    /// The classification in parallel bands of rows gives the plain loop's report (one band of
+    /// the whole image), whatever the band size: counts, maxima, histograms, examples and their
+    /// order, the class map.
+    #[test]
+    fn the_report_does_not_depend_on_the_band_size() {
+        let (w, h) = (48, 40);
+        let (gpu, reference, alternatives) = scrambled(w, h);
+        let camera = Camera::look_at([0.0; 3], [1.0, 0.0, 0.0], 60.0, w, h);
+        let report =
+            |rows| compare_in_bands("bands", &gpu, &reference, &alternatives, &camera, rows);
+        let plain = report(h as usize);
+        // Every class the merge adds is populated, and there are more mismatches than examples.
+        for (what, counts) in [("colour", plain.color), ("depth", plain.depth)] {
+            assert!(
+                counts.exact > 0 && counts.within_tolerance > 0,
+                "{what}: {plain}"
+            );
+            assert!(counts.threshold_ambiguous > 0, "{what}: {plain}");
+            assert!(counts.mismatches > MAX_EXAMPLES, "{what}: {plain}");
+        }
+        assert!(
+            plain.color.window > 0 && plain.lod_id.threshold_ambiguous > 0,
+            "{plain}"
+        );
+        assert!(
+            plain.color.edge_ambiguous + plain.depth.edge_ambiguous > 0,
+            "{plain}"
+        );
+        assert_eq!(plain.examples.len(), MAX_EXAMPLES);
+        let expected = format!("{plain:?}");
+        for rows in [1, 3, 16, 39] {
+            let banded = report(rows);
+            assert_eq!(format!("{banded:?}"), expected, "{rows} rows per band");
+        }
     }
 }

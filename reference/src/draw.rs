@@ -352,46 +352,54 @@ pub fn tree_triangles(
     // per index (a mesh vertex is shared by several triangles; a GPU's post-transform cache does
     // the same). `vertex_stage` is a pure function of its arguments, so the cached vertex is the
     // one a second call would return, bit for bit. The cache is per rayon worker, reused.
-    let per_instance: Vec<Option<Vec<Triangle<TREE_VARYINGS>>>> = items
-        .par_iter()
-        .map_init(
-            Vec::new,
-            |cache: &mut Vec<Option<Vertex<TREE_VARYINGS>>>, &(c, instance)| {
-                let cmd = &selection.commands[c as usize];
-                let indices = &res.geometry.indices
-                    [cmd.first_index as usize..(cmd.first_index + cmd.index_count) as usize];
-                let (lo, hi) = index_ranges[c as usize];
-                cache.clear();
-                cache.resize((hi - lo) as usize + 1, None);
-                let mut tris = Vec::with_capacity(indices.len() / 3);
-                for t in indices.chunks_exact(3) {
-                    let mut tri = [Vertex::new([0.0; 4], [0.0; TREE_VARYINGS]); 3];
-                    for (k, &index) in t.iter().enumerate() {
-                        let slot = &mut cache[(index - lo) as usize];
-                        tri[k] = match slot {
-                            Some(v) => *v,
-                            None => {
-                                let vertex_index = (index as i32 + cmd.base_vertex) as u32;
-                                let v =
-                                    vertex_stage(res, selection, &uniform, vertex_index, instance)?;
-                                *slot = Some(v);
-                                v
-                            }
-                        };
+    let shade_instance = |cache: &mut Vec<Option<Vertex<TREE_VARYINGS>>>,
+                          &(c, instance): &(u32, u32)| {
+        let cmd = &selection.commands[c as usize];
+        let indices = &res.geometry.indices
+            [cmd.first_index as usize..(cmd.first_index + cmd.index_count) as usize];
+        let (lo, hi) = index_ranges[c as usize];
+        cache.clear();
+        cache.resize((hi - lo) as usize + 1, None);
+        let mut tris = Vec::with_capacity(indices.len() / 3);
+        for t in indices.chunks_exact(3) {
+            let mut tri = [Vertex::new([0.0; 4], [0.0; TREE_VARYINGS]); 3];
+            for (k, &index) in t.iter().enumerate() {
+                let slot = &mut cache[(index - lo) as usize];
+                tri[k] = match slot {
+                    Some(v) => *v,
+                    None => {
+                        let vertex_index = (index as i32 + cmd.base_vertex) as u32;
+                        let v = vertex_stage(res, selection, &uniform, vertex_index, instance)?;
+                        *slot = Some(v);
+                        v
                     }
-                    tris.push(tri);
-                }
-                Some(tris)
-            },
-        )
-        .collect();
-    let discarded = per_instance.iter().filter(|t| t.is_none()).count() as u64;
-    // Exact capacity: a collect through `flatten` has no size hint and grows by doubling, which
-    // held up to three copies of a million-triangle frame at once (issue 14).
-    let total = per_instance.iter().flatten().map(Vec::len).sum();
-    let mut triangles = Vec::with_capacity(total);
-    for tris in per_instance.into_iter().flatten() {
-        triangles.extend(tris);
+                };
+            }
+            tris.push(tri);
+        }
+        Some(tris)
+    };
+    // Memory (issue 14): the instances are shaded in runs of `VERTEX_RUN`, each run's triangles
+    // appended to the output before the next run is shaded, so that the per-instance vectors of
+    // one run, not of the whole frame, live beside the output (the whole frame's doubled a
+    // million-triangle frame's 117 MB). The output reserves the upper bound (no instance
+    // discarded) once; pages past its length are never touched, so never resident.
+    const VERTEX_RUN: usize = 8192;
+    let bound: usize = items
+        .iter()
+        .map(|&(c, _)| selection.commands[c as usize].index_count as usize / 3)
+        .sum();
+    let mut triangles = Vec::with_capacity(bound);
+    let mut discarded = 0u64;
+    for run in items.chunks(VERTEX_RUN) {
+        let per_instance: Vec<Option<Vec<Triangle<TREE_VARYINGS>>>> =
+            run.par_iter().map_init(Vec::new, shade_instance).collect();
+        for tris in per_instance {
+            match tris {
+                Some(tris) => triangles.extend(tris),
+                None => discarded += 1,
+            }
+        }
     }
     (triangles, discarded)
 }
