@@ -809,10 +809,19 @@ fn resident_text(resident: &[(&str, Option<Resident>)]) -> String {
         .iter()
         .filter_map(|&(name, r)| Some(format!("{} {:.0}", name.replace('_', " "), r?.rss_mb)))
         .collect();
+    let mut cpu = Vec::new();
+    let mut last = 0.0;
+    for &(name, r) in resident {
+        if let Some(r) = r {
+            cpu.push(format!("{} {:.2}", name.replace('_', " "), r.cpu_s - last));
+            last = r.cpu_s;
+        }
+    }
     format!(
-        "resident memory: peak {peak:.0} MB, reached by the end of {}; MB resident after each phase: {}\n",
+        "resident memory: peak {peak:.0} MB, reached by the end of {}; MB resident after each phase: {}\ncpu seconds (user + system, all threads) per phase: {}; total {last:.2}\n",
         phase.replace('_', " "),
-        list.join(", ")
+        list.join(", "),
+        cpu.join(", ")
     )
 }
 

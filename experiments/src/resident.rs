@@ -1,5 +1,7 @@
-//! The process's resident memory, sampled at the main job's phase boundaries (issue 14: "what is
-//! resident at the peak"). Linux only (`/proc/self/status`); elsewhere every sample is `None`.
+//! The process's resident memory and CPU time, sampled at the main job's phase boundaries (issue
+//! 14: "what is resident at the peak", and where the CPU seconds go on a machine too busy for wall
+//! times to mean much). Linux only (`/proc/self/status`, `getrusage`); elsewhere every sample is
+//! `None`.
 //!
 //! Read-only on purpose: resetting the peak (`/proc/self/clear_refs`, as `truth_bench` does)
 //! would also lower the peak that `getrusage` and `/usr/bin/time -v` report for the whole run.
@@ -13,6 +15,8 @@ pub struct Resident {
     pub rss_mb: f64,
     /// The process's peak resident set so far (`VmHWM`).
     pub peak_mb: f64,
+    /// CPU seconds (user + system) of all the process's threads so far, lavapipe's included.
+    pub cpu_s: f64,
 }
 
 impl Resident {
@@ -26,14 +30,27 @@ impl Resident {
         Some(Self {
             rss_mb: kb("VmRSS:")? * 1024.0 / 1e6,
             peak_mb: kb("VmHWM:")? * 1024.0 / 1e6,
+            cpu_s: cpu_seconds()?,
         })
     }
 
-    /// `{"rss": .., "peak": ..}` in MB, one decimal.
+    /// `{"rss": .., "peak": .., "cpu_s": ..}`: MB with one decimal, CPU seconds so far with three.
     pub fn json(&self) -> serde_json::Value {
         let r = |v: f64| (v * 10.0).round() / 10.0;
-        json!({ "rss": r(self.rss_mb), "peak": r(self.peak_mb) })
+        let ms = |v: f64| (v * 1000.0).round() / 1000.0;
+        json!({ "rss": r(self.rss_mb), "peak": r(self.peak_mb), "cpu_s": ms(self.cpu_s) })
     }
+}
+
+/// User + system CPU seconds of the whole process so far (`getrusage(RUSAGE_SELF)`).
+fn cpu_seconds() -> Option<f64> {
+    // SAFETY: `getrusage` writes one `rusage` into the zeroed struct it is given.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } != 0 {
+        return None;
+    }
+    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
+    Some(t(usage.ru_utime) + t(usage.ru_stime))
 }
 
 /// Returns the heap's free pages to the system (glibc `malloc_trim`; a no-op elsewhere). glibc
@@ -71,5 +88,7 @@ mod tests {
             "64 MB not seen: {before:?} -> {during:?}"
         );
         assert!(during.peak_mb >= during.rss_mb && after.peak_mb >= during.peak_mb);
+        // Touching 64 MB took CPU time, and the clock never runs back.
+        assert!(during.cpu_s > before.cpu_s && after.cpu_s >= during.cpu_s);
     }
 }

@@ -1324,6 +1324,9 @@ mod tests {
             z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
             z ^ (z >> 31)
         };
+        // Blocks of 8x8 pixels of one id and one depth (interior pixels inside, edges between),
+        // each pixel its own colour.
+        let block = |i: usize| (i % width as usize) / 8 + 100 * ((i / width as usize) / 8);
         let reference = Images {
             width,
             height,
@@ -1334,19 +1337,23 @@ mod tests {
                 })
                 .collect(),
             depth: (0..n)
-                .map(|i| 0.5 + (hash(i / 7, 2) % 1000) as f32 * 4e-4)
+                .map(|i| 0.5 + (hash(block(i), 2) % 1000) as f32 * 4e-4)
                 .collect(),
-            lod_id: (0..n).map(|i| 1 + (hash(i / 5, 3) % 4) as u32).collect(),
+            lod_id: (0..n).map(|i| 1 + (hash(block(i), 3) % 4) as u32).collect(),
         };
         let mut gpu = reference.clone();
         for i in 0..n {
-            match hash(i, 4) % 10 {
+            match hash(i, 4) % 12 {
                 0 => gpu.color[i][0] = gpu.color[i][0].wrapping_add(3),
                 1 => gpu.color[i][1] = gpu.color[i][1].wrapping_sub(5),
-                2 => gpu.color[i] = [200, 10, 90, 255],
-                3 => gpu.lod_id[i] = 1 + (gpu.lod_id[i] % 4),
-                4 => gpu.depth[i] = f32::from_bits(gpu.depth[i].to_bits() + 40),
-                5 => gpu.depth[i] = f32::from_bits(gpu.depth[i].to_bits() + 500),
+                2 => gpu.color[i] = reference.color[(i + 1) % n],
+                3 => {
+                    gpu.color[i] = [200, 10, 90, 255];
+                    gpu.depth[i] = f32::from_bits(gpu.depth[i].to_bits() + 500);
+                }
+                4 => gpu.lod_id[i] = 1 + (gpu.lod_id[i] % 4),
+                5 => gpu.depth[i] = f32::from_bits(gpu.depth[i].to_bits() + 40),
+                6 => gpu.depth[i] = f32::from_bits(gpu.depth[i].to_bits() + 500),
                 _ => {}
             }
         }
@@ -1385,11 +1392,12 @@ mod tests {
             assert!(counts.mismatches > MAX_EXAMPLES, "{what}: {plain}");
         }
         assert!(
-            plain.color.window > 0 && plain.lod_id.threshold_ambiguous > 0,
+            plain.color.window > 0 && plain.color.depth_tie > 0,
             "{plain}"
         );
+        assert!(plain.lod_id.threshold_ambiguous > 0, "{plain}");
         assert!(
-            plain.color.edge_ambiguous + plain.depth.edge_ambiguous > 0,
+            plain.lod_id.mismatches > 0 && plain.depth.edge_ambiguous > 0,
             "{plain}"
         );
         assert_eq!(plain.examples.len(), MAX_EXAMPLES);
