@@ -87,7 +87,12 @@ mod tests {
             during.rss_mb >= before.rss_mb + 60.0,
             "64 MB not seen: {before:?} -> {during:?}"
         );
-        assert!(during.peak_mb >= during.rss_mb && after.peak_mb >= during.peak_mb);
+        // The block was resident, so the peak holds it after it is freed (1 MB of slack: the
+        // kernel batches its resident-page counters per CPU).
+        assert!(
+            after.peak_mb + 1.0 >= during.rss_mb,
+            "peak {after:?} below {during:?}"
+        );
         // Touching 64 MB took CPU time, and the clock never runs back.
         assert!(during.cpu_s > before.cpu_s && after.cpu_s >= during.cpu_s);
     }
