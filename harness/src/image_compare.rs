@@ -901,7 +901,7 @@ fn classify_pixels(
             report.examples.push(what);
         }
     };
-    for k in 0..classes.len() {
+    for (k, slot) in classes.iter_mut().enumerate() {
         let i = start + k;
         let is_edge = edge[i];
         let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
@@ -985,7 +985,7 @@ fn classify_pixels(
             );
             3
         };
-        classes[k] = class;
+        *slot = class;
 
         // Depth.
         let (gz, rz) = (gpu.depth[i], reference.depth[i]);
