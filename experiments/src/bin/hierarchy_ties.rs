@@ -5,6 +5,7 @@
 //! cargo run --release -p forestlod-experiments --bin hierarchy_ties -- --scene stress --distance 1000
 //! cargo run --release -p forestlod-experiments --bin hierarchy_ties -- --scene patchy --dolly 1
 //! cargo run --release -p forestlod-experiments --bin hierarchy_ties -- --scene stress --distance 0 --backend gpu
+//! cargo run --release -p forestlod-experiments --bin hierarchy_ties -- --scene stress --camera medium --command-order front-to-back
 //! ```
 //!
 //! The conservative hierarchies (grid-aabb, quadtree, octree, kmeans) draw the same (tree, LOD)
@@ -15,7 +16,9 @@
 //! the dolly's, as the sweeps' `distance` and `dolly` cameras place them) with the grid and each
 //! hierarchy, lists every pixel whose colour, depth or LOD id differs from the grid's, and exits 2
 //! if one of a conservative hierarchy's is **not** at equal depth (a difference the draw order
-//! cannot explain). With `--backend gpu` every frame is the GPU's (selection, cut, coalescing,
+//! cannot explain). With `--command-order front-to-back` the hierarchies draw their commands
+//! sorted front to back (E§7), a second change of draw order with the same rule: only ties may
+//! differ in `dither-sequential` (the default fade mode, opaque fragments only). With `--backend gpu` every frame is the GPU's (selection, cut, coalescing,
 //! textures and draw on the adapter, lavapipe in CI), compared with the GPU's grid frame: the
 //! same classification for the GPU's own ties. `octree-euclidean` decides on G§3's Euclidean distance, which is not
 //! conservative: its other differences are counted as such and expected.
@@ -26,10 +29,11 @@ use forestlod_experiments::sweep::paths::path_camera;
 use forestlod_gpu::GpuContext;
 use forestlod_gpu::draw::GpuDraw;
 use forestlod_harness::backend::{StagesFromCpu, render_gpu};
+use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
 use forestlod_shared::Params;
-use forestlod_shared::params::Hierarchy;
+use forestlod_shared::params::{CommandOrder, Hierarchy};
 
 /// Differing pixels listed one per line, per hierarchy (the rest are counted).
 const MAX_LISTED: u32 = 12;
@@ -42,9 +46,16 @@ struct Args {
     /// Distance-path pose: metres before the footprint.
     #[arg(long, default_value_t = 1000.0, conflicts_with = "dolly")]
     distance: f32,
-    /// Dolly pose instead: the fraction of the path, in [0, 1] (the sweeps' 2 steps are 0 and 0.5).
-    #[arg(long)]
+    /// Dolly pose instead: the fraction of the path, in [0, 1] (the sweeps' 2 steps are 0 and 1).
+    #[arg(long, conflicts_with = "camera")]
     dolly: Option<f32>,
+    /// A named camera instead (`far`, `medium`, `close`, E§5.0.1), at yaw 0.
+    #[arg(long, conflicts_with = "distance")]
+    camera: Option<String>,
+    /// The hierarchies' command order (`node`, or `front-to-back`: E§7 distance-sorted
+    /// commands); the grid's flat selection does not read it.
+    #[arg(long, default_value = "node")]
+    command_order: String,
     /// Hierarchies compared with the grid, comma-separated.
     #[arg(
         long,
@@ -65,7 +76,7 @@ struct Args {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
-    let mut order = vec![Hierarchy::Grid];
+    let mut hierarchies = vec![Hierarchy::Grid];
     for name in &args.hierarchies {
         let h = Hierarchy::from_name(name).ok_or_else(|| {
             format!(
@@ -73,13 +84,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 Hierarchy::choices().iter().map(|c| c.0).collect::<Vec<_>>()
             )
         })?;
-        order.push(h);
+        hierarchies.push(h);
     }
     if let Some(t) = args.dolly
         && !(0.0..=1.0).contains(&t)
     {
         return Err(format!("--dolly: {t} is not in [0, 1]").into());
     }
+    let order = CommandOrder::from_name(&args.command_order).ok_or_else(|| {
+        format!(
+            "--command-order: unknown order {:?} (expected one of {:?})",
+            args.command_order,
+            CommandOrder::choices()
+                .iter()
+                .map(|c| c.0)
+                .collect::<Vec<_>>()
+        )
+    })?;
     let gpu = if args.backend == "gpu" {
         let ctx = GpuContext::new()?;
         let draw = GpuDraw::new(&ctx)?;
@@ -89,15 +110,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None
     };
     let mut frames = Vec::new();
-    for h in order {
+    for h in hierarchies {
         let scene = builtin::by_name(&args.scene)?;
         let params = Params {
             hierarchy: h as u32,
+            command_order: order as u32,
             ..Params::default()
         };
-        let camera = match args.dolly {
-            None => distance_camera(&scene, args.distance, args.width, args.height),
-            Some(t) => {
+        let camera = match (args.dolly, &args.camera) {
+            (None, Some(name)) => named_camera(name, &scene, 0.0, args.width, args.height)?,
+            (None, None) => distance_camera(&scene, args.distance, args.width, args.height),
+            (Some(t), _) => {
                 path_camera("dolly", &scene, &params, t, args.width, args.height)
                     .ok_or("the dolly path is not defined")?
                     .0
