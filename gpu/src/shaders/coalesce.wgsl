@@ -26,17 +26,7 @@ struct CoalesceUniform {
     _pad1: u32,
 }
 
-// SelectCounters with atomic members (the same layout): the output counters.
-struct CoalesceCountersAtomic {
-    batches_tested: atomic<u32>,
-    culled_distance: atomic<u32>,
-    culled_frustum: atomic<u32>,
-    commands: atomic<u32>,
-    lod0_commands: atomic<u32>,
-    lod1_commands: atomic<u32>,
-    transition_batches: atomic<u32>,
-    instances: atomic<u32>,
-}
+// The atomic view of the counters buffer, SelectCountersAtomic, is in common.wgsl.
 
 @group(0) @binding(0) var<uniform> u: CoalesceUniform;
 @group(0) @binding(1) var<storage, read> raw_commands: array<DrawCommand>;
@@ -45,7 +35,7 @@ struct CoalesceCountersAtomic {
 @group(0) @binding(4) var<storage, read_write> offsets: array<u32>;
 @group(0) @binding(5) var<storage, read_write> commands: array<DrawCommand>;
 @group(0) @binding(6) var<storage, read_write> command_data: array<CommandData>;
-@group(0) @binding(7) var<storage, read_write> counters: CoalesceCountersAtomic;
+@group(0) @binding(7) var<storage, read_write> counters: SelectCountersAtomic;
 
 fn slot_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
     return gid.y * (groups.x * COALESCE_WORKGROUP_SIZE) + gid.x;

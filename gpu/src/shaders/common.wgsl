@@ -116,6 +116,20 @@ struct SelectCounters {
     instances: u32,
 }
 
+// SelectCounters with atomic members, the same layout (8 x u32; `gpu/tests/layout.rs` checks it):
+// how select.wgsl, hier_select.wgsl and coalesce.wgsl write the one counters buffer the draw stage
+// reads. `nodes_visited` of the hierarchical cut is `batches_tested`.
+struct SelectCountersAtomic {
+    batches_tested: atomic<u32>,
+    culled_distance: atomic<u32>,
+    culled_frustum: atomic<u32>,
+    commands: atomic<u32>,
+    lod0_commands: atomic<u32>,
+    lod1_commands: atomic<u32>,
+    transition_batches: atomic<u32>,
+    instances: atomic<u32>,
+}
+
 // One tree's bounding sphere and mesh, the per-tree input of cull.wgsl and refine.wgsl (not in
 // forestlod-shared: the GPU crate's own). Keep in sync with forestlod_gpu::cull::CullTree
 // (gpu/src/cull.rs).

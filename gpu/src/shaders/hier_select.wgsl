@@ -27,17 +27,7 @@ struct HierUniform {
     _pad2: u32,
 }
 
-// SelectCounters with atomic members (the same layout, 8 x u32), plus nodes_visited = batches_tested.
-struct HierCountersAtomic {
-    batches_tested: atomic<u32>,
-    culled_distance: atomic<u32>,
-    culled_frustum: atomic<u32>,
-    commands: atomic<u32>,
-    lod0_commands: atomic<u32>,
-    lod1_commands: atomic<u32>,
-    transition_batches: atomic<u32>,
-    instances: atomic<u32>,
-}
+// The atomic view of the counters buffer, SelectCountersAtomic, is in common.wgsl.
 
 // NODE_VISITED, NODE_EMITTED (forestlod_shared::cut), HIER_WORKGROUP_SIZE (gpu/src/hier_select.rs)
 // and SCAN_WORKGROUP_SIZE (gpu/src/select.rs) are generated (gpu/src/shaders.rs).
@@ -50,7 +40,7 @@ struct HierCountersAtomic {
 @group(0) @binding(5) var<storage, read_write> offsets: array<u32>;
 @group(0) @binding(6) var<storage, read_write> commands: array<DrawCommand>;
 @group(0) @binding(7) var<storage, read_write> command_data: array<CommandData>;
-@group(0) @binding(8) var<storage, read_write> counters: HierCountersAtomic;
+@group(0) @binding(8) var<storage, read_write> counters: SelectCountersAtomic;
 
 fn node_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
     return gid.y * (groups.x * HIER_WORKGROUP_SIZE) + gid.x;

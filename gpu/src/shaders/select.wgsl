@@ -27,17 +27,7 @@ struct SelectUniform {
     billboard_index_count: u32,
 }
 
-// SelectCounters with atomic members: the same layout (8 x u32).
-struct SelectCountersAtomic {
-    batches_tested: atomic<u32>,
-    culled_distance: atomic<u32>,
-    culled_frustum: atomic<u32>,
-    commands: atomic<u32>,
-    lod0_commands: atomic<u32>,
-    lod1_commands: atomic<u32>,
-    transition_batches: atomic<u32>,
-    instances: atomic<u32>,
-}
+// The atomic view of the counters buffer, SelectCountersAtomic, is in common.wgsl.
 
 // Decision codes (DECISION_*) and `decide_sphere` live in common.wgsl (shared with cull.wgsl).
 
