@@ -359,6 +359,33 @@ fn main() -> Res<()> {
             for camera_name in &args.cameras {
                 let camera =
                     named_camera(camera_name, &prepared.scene, 0.0, args.width, args.height)?;
+                // Every variant's draw, split into its parts, over the same scene, textures,
+                // camera and target: only the selection, its indirection and the parameters vary.
+                let split_of = |selection: &SelectBuffers,
+                                indirection: Option<&wgpu::Buffer>,
+                                params: &Params|
+                 -> Res<Split> {
+                    let inputs = DrawInputs {
+                        scene: &gpu_scene,
+                        textures: &textures,
+                        selection,
+                        indirection,
+                    };
+                    split_draw(
+                        &ctx,
+                        &draw,
+                        &inputs,
+                        &camera,
+                        params,
+                        &target,
+                        (args.warmups, args.reps),
+                        &ALL_PROBES,
+                    )
+                };
+                let mut push = |row: Row| {
+                    report(&row);
+                    rows.push(row);
+                };
                 // Ours, once per command order (the last one's selection stays for refine).
                 let mut sel_t = Secs::NAN;
                 for order_name in &args.orders {
@@ -374,23 +401,8 @@ fn main() -> Res<()> {
                         Ok(())
                     })?;
                     let sel = select.buffers().read(&ctx)?;
-                    let inputs = DrawInputs {
-                        scene: &gpu_scene,
-                        textures: &textures,
-                        selection: select.buffers(),
-                        indirection: None,
-                    };
-                    let split = split_draw(
-                        &ctx,
-                        &draw,
-                        &inputs,
-                        &camera,
-                        &params,
-                        &target,
-                        (args.warmups, args.reps),
-                        &ALL_PROBES,
-                    )?;
-                    let row = Row {
+                    let split = split_of(select.buffers(), None, &params)?;
+                    push(Row {
                         scene: scene_name.clone(),
                         camera: camera_name.clone(),
                         variant: if order == CommandOrder::Node {
@@ -402,9 +414,7 @@ fn main() -> Res<()> {
                         select: sel_t,
                         refine: Secs::ZERO,
                         split,
-                    };
-                    report(&row);
-                    rows.push(row);
+                    });
                 }
                 // Ours with refine (select, then refine.wgsl, timed apart).
                 if let Some(refine) = refine.as_mut() {
@@ -441,23 +451,8 @@ fn main() -> Res<()> {
                         }
                     }
                     let rsel = select.buffers().read(&ctx)?;
-                    let inputs = DrawInputs {
-                        scene: &gpu_scene,
-                        textures: &textures,
-                        selection: select.buffers(),
-                        indirection: Some(refine.indirection()),
-                    };
-                    let split = split_draw(
-                        &ctx,
-                        &draw,
-                        &inputs,
-                        &camera,
-                        &rparams,
-                        &target,
-                        (args.warmups, args.reps),
-                        &ALL_PROBES,
-                    )?;
-                    let row = Row {
+                    let split = split_of(select.buffers(), Some(refine.indirection()), &rparams)?;
+                    push(Row {
                         scene: scene_name.clone(),
                         camera: camera_name.clone(),
                         variant: format!("ours {h_name} + refine all"),
@@ -465,9 +460,7 @@ fn main() -> Res<()> {
                         select: sel_t,
                         refine: ts,
                         split,
-                    };
-                    report(&row);
-                    rows.push(row);
+                    });
                 }
                 // Vegetation.
                 if let Some(cull) = cull.as_mut() {
@@ -476,23 +469,8 @@ fn main() -> Res<()> {
                         Ok(())
                     })?;
                     let vsel = cull.buffers().read(&ctx)?;
-                    let inputs = DrawInputs {
-                        scene: &gpu_scene,
-                        textures: &textures,
-                        selection: cull.buffers(),
-                        indirection: Some(cull.indirection()),
-                    };
-                    let split = split_draw(
-                        &ctx,
-                        &draw,
-                        &inputs,
-                        &camera,
-                        &params,
-                        &target,
-                        (args.warmups, args.reps),
-                        &ALL_PROBES,
-                    )?;
-                    let row = Row {
+                    let split = split_of(cull.buffers(), Some(cull.indirection()), &params)?;
+                    push(Row {
                         scene: scene_name.clone(),
                         camera: camera_name.clone(),
                         variant: "vegetation".into(),
@@ -500,9 +478,7 @@ fn main() -> Res<()> {
                         select: cull_t,
                         refine: Secs::ZERO,
                         split,
-                    };
-                    report(&row);
-                    rows.push(row);
+                    });
                     if args.split_cameras.contains(camera_name) {
                         let (mut nofrag, mut full) = (Vec::new(), Vec::new());
                         for &c in &args.split_sizes {
@@ -512,22 +488,7 @@ fn main() -> Res<()> {
                                 ..vsel.counters
                             };
                             let buffers = SelectBuffers::from_cpu(&ctx, &cmds, &cdata, &counters)?;
-                            let inputs = DrawInputs {
-                                scene: &gpu_scene,
-                                textures: &textures,
-                                selection: &buffers,
-                                indirection: Some(cull.indirection()),
-                            };
-                            let s = split_draw(
-                                &ctx,
-                                &draw,
-                                &inputs,
-                                &camera,
-                                &params,
-                                &target,
-                                (args.warmups, args.reps),
-                                &ALL_PROBES,
-                            )?;
+                            let s = split_of(&buffers, Some(cull.indirection()), &params)?;
                             let trees: u64 = cmds.iter().map(|c| c.instance_count as u64).sum();
                             let (v, f) =
                                 (s.no_fragments.minus(s.no_trees), s.full.minus(s.no_trees));
