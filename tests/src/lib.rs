@@ -477,3 +477,20 @@ pub fn classify_order_diffs(
     }
     out
 }
+
+/// The frame tests' small poses: a 96x72 [`named_camera`](forestlod_reference::cameras::named_camera)
+/// of `scene` for each `(name, yaw in degrees)` of `poses`, with the name and yaw for messages (the
+/// hierarchy and command-order frame comparisons loop over these, then over fade modes).
+pub fn small_poses(
+    scene: &Scene,
+    poses: &[(&'static str, f32)],
+) -> Vec<(&'static str, f32, Camera)> {
+    poses
+        .iter()
+        .map(|&(name, yaw)| {
+            let camera = forestlod_reference::cameras::named_camera(name, scene, yaw, 96, 72)
+                .unwrap_or_else(|e| panic!("camera {name} at yaw {yaw}: {e}"));
+            (name, yaw, camera)
+        })
+        .collect()
+}

@@ -371,15 +371,9 @@ fn gpu_hierarchy_frames_equal_grid_frames() {
             ..base
         };
         let prepared = prepare(scene.clone(), &p).unwrap();
-        for (camera_name, yaw) in [("medium", 0.0), ("close", 30.0)] {
-            let camera = forestlod_reference::cameras::named_camera(
-                camera_name,
-                &prepared.scene,
-                yaw,
-                96,
-                72,
-            )
-            .unwrap();
+        for (camera_name, yaw, camera) in
+            forestlod_tests::small_poses(&prepared.scene, &[("medium", 0.0), ("close", 30.0)])
+        {
             for fade in [FadeMode::DitherSequential, FadeMode::Alpha] {
                 let p = Params {
                     fade_mode: fade as u32,
@@ -418,14 +412,14 @@ fn gpu_hierarchy_frames_equal_grid_frames() {
                     })
                     .count();
                 eprintln!(
-                    "GPU {mode:?} {camera_name} {fade:?}: differing pixels colour {colour} (outside the band {outside_band}) depth {depth} lod {lod}"
+                    "GPU {mode:?} {camera_name} yaw {yaw} {fade:?}: differing pixels colour {colour} (outside the band {outside_band}) depth {depth} lod {lod}"
                 );
-                assert_eq!(outside_band, 0, "{mode:?} {camera_name} {fade:?}");
+                assert_eq!(outside_band, 0, "{mode:?} {camera_name} yaw {yaw} {fade:?}");
                 if fade != FadeMode::Alpha {
                     assert_eq!(
                         (colour, depth, lod),
                         (0, 0, 0),
-                        "{mode:?} {camera_name} {fade:?}"
+                        "{mode:?} {camera_name} yaw {yaw} {fade:?}"
                     );
                 }
             }
@@ -675,15 +669,9 @@ fn gpu_front_to_back_frames_differ_only_at_ties_and_blending() {
             ..Params::default()
         };
         let prepared = prepare(scene.clone(), &base).unwrap();
-        for (camera_name, yaw) in [("medium", 0.0), ("close", 30.0)] {
-            let camera = forestlod_reference::cameras::named_camera(
-                camera_name,
-                &prepared.scene,
-                yaw,
-                96,
-                72,
-            )
-            .unwrap();
+        for (camera_name, yaw, camera) in
+            forestlod_tests::small_poses(&prepared.scene, &[("medium", 0.0), ("close", 30.0)])
+        {
             for fade in [FadeMode::DitherSequential, FadeMode::Alpha] {
                 let node = Params {
                     fade_mode: fade as u32,
@@ -714,8 +702,13 @@ fn gpu_front_to_back_frames_differ_only_at_ties_and_blending() {
                 .unwrap()
                 .images;
                 let d = forestlod_tests::classify_order_diffs(&a, &b, fade == FadeMode::Alpha);
-                eprintln!("GPU {mode:?} {camera_name} {fade:?}: front-to-back vs node {d:?}");
-                assert_eq!(d.unclassified, 0, "{mode:?} {camera_name} {fade:?}: {d:?}");
+                eprintln!(
+                    "GPU {mode:?} {camera_name} yaw {yaw} {fade:?}: front-to-back vs node {d:?}"
+                );
+                assert_eq!(
+                    d.unclassified, 0,
+                    "{mode:?} {camera_name} yaw {yaw} {fade:?}: {d:?}"
+                );
                 total.differing += d.differing;
                 total.ties += d.ties;
                 total.blend_order += d.blend_order;

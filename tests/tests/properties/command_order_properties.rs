@@ -127,15 +127,10 @@ fn front_to_back_frames_differ_only_at_ties_and_blending() {
             ..Params::default()
         };
         let prepared = prepare(scene.clone(), &base).unwrap();
-        for (camera_name, yaw) in [("medium", 0.0), ("close", 30.0), ("close", 200.0)] {
-            let camera = forestlod_reference::cameras::named_camera(
-                camera_name,
-                &prepared.scene,
-                yaw,
-                96,
-                72,
-            )
-            .unwrap();
+        for (camera_name, yaw, camera) in forestlod_tests::small_poses(
+            &prepared.scene,
+            &[("medium", 0.0), ("close", 30.0), ("close", 200.0)],
+        ) {
             for fade in [FadeMode::DitherSequential, FadeMode::Alpha] {
                 let node = Params {
                     fade_mode: fade as u32,

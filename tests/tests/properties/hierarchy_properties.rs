@@ -281,15 +281,10 @@ fn hierarchy_frames_equal_grid_frames() {
             ..base
         };
         let prepared = prepare(scene.clone(), &p).unwrap();
-        for (camera_name, yaw) in [("medium", 0.0), ("close", 30.0), ("medium", 330.0)] {
-            let camera = forestlod_reference::cameras::named_camera(
-                camera_name,
-                &prepared.scene,
-                yaw,
-                96,
-                72,
-            )
-            .unwrap();
+        for (camera_name, yaw, camera) in forestlod_tests::small_poses(
+            &prepared.scene,
+            &[("medium", 0.0), ("close", 30.0), ("medium", 330.0)],
+        ) {
             for fade in forestlod_shared::FadeMode::ALL {
                 let p = Params {
                     fade_mode: fade as u32,
@@ -321,7 +316,7 @@ fn hierarchy_frames_equal_grid_frames() {
                     .filter(|(x, y)| x != y)
                     .count();
                 println!(
-                    "{mode:?} {camera_name} {fade:?}: commands {} -> {}, instances {} -> {}, differing pixels colour {color_diff} depth {depth_diff} lod {aux_diff}",
+                    "{mode:?} {camera_name} yaw {yaw} {fade:?}: commands {} -> {}, instances {} -> {}, differing pixels colour {color_diff} depth {depth_diff} lod {aux_diff}",
                     a.selection.commands.len(),
                     b.selection.commands.len(),
                     a.selection.counters.instances,
@@ -342,13 +337,13 @@ fn hierarchy_frames_equal_grid_frames() {
                     .count();
                 assert_eq!(
                     unexplained, 0,
-                    "{mode:?} {camera_name} {fade:?}: pixels differ outside the fade band"
+                    "{mode:?} {camera_name} yaw {yaw} {fade:?}: pixels differ outside the fade band"
                 );
                 if fade != forestlod_shared::FadeMode::Alpha {
                     assert_eq!(
                         (color_diff, depth_diff, aux_diff),
                         (0, 0, 0),
-                        "{mode:?} {camera_name} {fade:?}"
+                        "{mode:?} {camera_name} yaw {yaw} {fade:?}"
                     );
                 }
             }
