@@ -33,7 +33,7 @@
 
 use forestlod_shared::coverage;
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, Params, angle_index_for, bake_elevation,
+    COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, MeshMeta, Params, angle_index_for, bake_elevation,
     billboard_extent, dither_threshold, fade_progress, lod_weights, view_interval,
 };
 use glam::{Mat4, Vec3, Vec4};
@@ -41,11 +41,11 @@ use glam::{Mat4, Vec3, Vec4};
 use crate::bake::BakedBillboards;
 use crate::geometry::PackedGeometry;
 use crate::raster::{
-    ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, RenderTarget, Triangle, Vertex,
-    draw_each,
+    ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, MaskCounts, RenderTarget,
+    Triangle, Vertex, draw_each,
 };
 use crate::sampler::{Sampler, Texture};
-use crate::scene::{Scene, tree_sphere};
+use crate::scene::{Instance, Scene, tree_sphere};
 use crate::select::{SelectUniform, Selection, tree_within_draw_distance};
 use crate::texture::srgb_to_linear;
 
@@ -311,7 +311,10 @@ pub struct DrawnFrame {
     pub target: RenderTarget,
     /// Ground draw counters.
     pub terrain_stats: DrawStats,
-    /// Tree draw counters.
+    /// Tree draw counters. In a frame drawn under a pixel mask ([`draw_frame_cutoffs`]) they count
+    /// only the trees whose screen footprint meets the mask ([`tree_footprint_meets_mask`]):
+    /// `triangles_in`, clipping and setup counts are then lower than an unmasked draw's, while
+    /// the fragment counters (which count only masked pixels) are unchanged.
     pub tree_stats: DrawStats,
     /// Trees dropped by the per-tree draw-distance discard.
     pub trees_discarded: u64,
@@ -324,6 +327,90 @@ pub fn tree_triangles(
     selection: &Selection,
     camera: &Camera,
     params: &Params,
+) -> (Vec<Triangle<TREE_VARYINGS>>, u64) {
+    assemble_trees(res, selection, camera, params, None)
+}
+
+/// A radius about the tree's base point (`instance.position`) that contains every vertex the
+/// vertex stage can give the tree: its mesh (every LOD's vertices lie in [`tree_sphere`], whose
+/// centre is `|centre - base|` from the base) and its billboard quad at any layer, for any eye.
+/// The quad is `base + R·a + U·b` with unit, orthogonal `R` and `U` (`shared::billboard`),
+/// `|a| <= W·scale` and `b` in `[bottom, bottom + height]·scale`, whose ends
+/// `z_min cos e - W sin e` and `z_max cos e + W sin e` are at most `max(|z_min|, |z_max|) + W` in
+/// size: the quad lies within `scale·sqrt(W² + (max|z| + W)²)` of the base.
+pub fn tree_footprint_radius(instance: &Instance, mesh: &MeshMeta) -> f32 {
+    let (center, radius) = tree_sphere(instance, mesh);
+    let mesh_r = (Vec3::from(center) - Vec3::from(instance.position)).length() + radius;
+    let w = mesh.billboard_half_width.abs();
+    let z = mesh.bbox_min[2].abs().max(mesh.bbox_max[2].abs()) + w;
+    let quad_r = (w * w + z * z).sqrt() * instance.scale.abs();
+    mesh_r.max(quad_r)
+}
+
+/// Pixels of slack around a tree's projected footprint ([`tree_footprint_meets_mask`]): a pixel
+/// whose centre lies half a pixel outside the projected box is never covered, and f32 rounding
+/// of the projection is far below a pixel; two pixels cover both with room.
+const FOOTPRINT_SLACK_PX: f32 = 2.0;
+
+/// Relative slack on the footprint radius: the vertex stage's world positions are rounded f32
+/// sums (a few ulps of the coordinates' size), the radius and the box corners too.
+const FOOTPRINT_SLACK_REL: f32 = 1.0e-3;
+
+/// Whether a tree whose vertices lie within `radius` of `base` may cover a pixel of `mask` in a
+/// `width x height` target drawn with `view_proj` (conservative: true when in doubt). The
+/// sphere's axis-aligned box is projected corner by corner; when every corner lies in front of
+/// the eye (clip `w` above half the near distance) the box's projection, hence every triangle's
+/// and every clipped piece's, lies in the corners' screen rectangle, which is widened by
+/// [`FOOTPRINT_SLACK_PX`] and looked up in the mask's summed-area table. A box reaching behind
+/// half the near plane (a tree at or around the eye), or any non-finite value, counts as the
+/// whole screen. A rectangle wholly off screen meets nothing: such a tree's triangles are
+/// clipped or cover no pixel centre.
+fn tree_footprint_meets_mask(
+    view_proj: &Mat4,
+    near: f32,
+    base: Vec3,
+    radius: f32,
+    mask: &MaskCounts,
+    width: u32,
+    height: u32,
+) -> bool {
+    let whole = || mask.any_in(0, 0, width, height);
+    let r = radius * (1.0 + FOOTPRINT_SLACK_REL) + base.abs().max_element() * FOOTPRINT_SLACK_REL;
+    if !(r.is_finite() && base.is_finite()) {
+        return whole();
+    }
+    let (half_w, half_h) = (width as f32 * 0.5, height as f32 * 0.5);
+    let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
+    for corner in 0..8 {
+        let sign = |bit: u32| if corner & bit != 0 { r } else { -r };
+        let p = base + Vec3::new(sign(1), sign(2), sign(4));
+        let clip = *view_proj * Vec4::new(p.x, p.y, p.z, 1.0);
+        if !(clip.w > 0.5 * near) || !clip.is_finite() {
+            return whole();
+        }
+        // The viewport transform of `raster` (module docs, step 2).
+        let x = (clip.x / clip.w) * half_w + half_w;
+        let y = half_h - (clip.y / clip.w) * half_h;
+        (x_lo, x_hi) = (x_lo.min(x), x_hi.max(x));
+        (y_lo, y_hi) = (y_lo.min(y), y_hi.max(y));
+    }
+    let to_px = |v: f32, size: u32| v.clamp(0.0, size as f32) as u32;
+    let x0 = to_px((x_lo - FOOTPRINT_SLACK_PX).floor(), width);
+    let x1 = to_px((x_hi + FOOTPRINT_SLACK_PX).ceil(), width);
+    let y0 = to_px((y_lo - FOOTPRINT_SLACK_PX).floor(), height);
+    let y1 = to_px((y_hi + FOOTPRINT_SLACK_PX).ceil(), height);
+    mask.any_in(x0, y0, x1, y1)
+}
+
+/// [`tree_triangles`], leaving out (as if they had no triangles) the trees within the draw
+/// distance whose footprint misses `mask` ([`tree_footprint_meets_mask`]) when given: they
+/// cannot write a masked pixel. Trees beyond the draw distance are still counted as discarded.
+fn assemble_trees(
+    res: &DrawResources,
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+    mask: Option<&MaskCounts>,
 ) -> (Vec<Triangle<TREE_VARYINGS>>, u64) {
     use rayon::prelude::*;
     let uniform = DrawUniform::new(camera, params);
@@ -357,6 +444,25 @@ pub fn tree_triangles(
         let cmd = &selection.commands[c as usize];
         let indices = &res.geometry.indices
             [cmd.first_index as usize..(cmd.first_index + cmd.index_count) as usize];
+        if let Some(mask) = mask {
+            let t = &res.scene.instances[res.indirection[instance as usize] as usize];
+            let meta = &res.geometry.meshes[t.mesh as usize];
+            let base = Vec3::from(t.position);
+            // Beyond the draw distance the vertex stage discards the tree (and counts it).
+            if tree_within_draw_distance(&uniform.select, tree_sphere(t, meta).0)
+                && !tree_footprint_meets_mask(
+                    &uniform.view_proj,
+                    camera.near,
+                    base,
+                    tree_footprint_radius(t, meta),
+                    mask,
+                    camera.width,
+                    camera.height,
+                )
+            {
+                return Some(Vec::new());
+            }
+        }
         let (lo, hi) = index_ranges[c as usize];
         cache.clear();
         cache.resize((hi - lo) as usize + 1, None);
@@ -419,9 +525,13 @@ pub fn draw_frame(
 /// [`draw_frame`] once per alpha-test cutoff of `cutoffs` (every other parameter `params`'),
 /// restricted to the pixels of `mask` when given ([`RenderTarget::with_pixel_mask`]). The vertex
 /// stage, clipping, setup and binning are done once for all ([`draw_each`]: the cutoff enters only
-/// the fragment shader); each frame's buffers and counters are those of its own [`draw_frame`]
-/// (at the masked pixels when masked; the others keep the sky's clear values). What it is for: the
-/// parity's alternative frames, the cutoff moved within the GPU's precision (issue 14).
+/// the fragment shader); each frame's buffers are those of its own [`draw_frame`] (at the masked
+/// pixels when masked; the others keep the sky's clear values), and so are its counters when
+/// unmasked. Under a mask, the trees whose screen footprint misses it are left out before the
+/// vertex stage ([`tree_footprint_meets_mask`]; they could write no masked pixel): the tree
+/// counters' `triangles_in` and clipping and setup counts cover only the trees kept, the fragment
+/// counters and `trees_discarded` are a plain draw's. What it is for: the parity's alternative
+/// frames, the cutoff moved within the GPU's precision (issue 14).
 pub fn draw_frame_cutoffs(
     res: &DrawResources,
     selection: &Selection,
@@ -434,7 +544,11 @@ pub fn draw_frame_cutoffs(
         .iter()
         .map(|_| sky_and_ground_masked(res.scene, camera, mask.clone()))
         .collect();
-    let (triangles, trees_discarded) = tree_triangles(res, selection, camera, params);
+    let counts = mask
+        .as_ref()
+        .map(|m| MaskCounts::new(m, camera.width, camera.height));
+    let (triangles, trees_discarded) =
+        assemble_trees(res, selection, camera, params, counts.as_ref());
     let shaders: Vec<TreeShader> = cutoffs
         .iter()
         .map(|&alpha_cutoff| TreeShader {

@@ -553,14 +553,14 @@ impl RenderTarget {
 /// How many pixels of a pixel mask lie in any rectangle, in four lookups: the mask's summed-area
 /// table, `(width + 1) x (height + 1)` counts, `sums[y][x]` the mask pixels above and left of
 /// `(x, y)`. [`draw_each`] uses it to leave out, per tile, the triangles whose box meets no
-/// pixel of a masked target (issue 14).
-struct MaskCounts {
+/// pixel of a masked target (issue 14), and [`crate::draw`] to leave out whole trees.
+pub(crate) struct MaskCounts {
     stride: usize,
     sums: Vec<u32>,
 }
 
 impl MaskCounts {
-    fn new(mask: &[bool], width: u32, height: u32) -> Self {
+    pub(crate) fn new(mask: &[bool], width: u32, height: u32) -> Self {
         let (w, h) = (width as usize, height as usize);
         let stride = w + 1;
         let mut sums = vec![0u32; stride * (h + 1)];
@@ -578,6 +578,12 @@ impl MaskCounts {
     fn any(&self, r: &PixelRect) -> bool {
         let at = |x: u32, y: u32| self.sums[y as usize * self.stride + x as usize];
         at(r.x1, r.y1) + at(r.x0, r.y0) > at(r.x0, r.y1) + at(r.x1, r.y0)
+    }
+
+    /// Whether the half-open rectangle `[x0, x1) x [y0, y1)` (within the mask) holds a pixel of
+    /// the mask; an empty rectangle holds none.
+    pub(crate) fn any_in(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> bool {
+        x0 < x1 && y0 < y1 && self.any(&PixelRect { x0, y0, x1, y1 })
     }
 }
 
