@@ -33,8 +33,8 @@
 
 use forestlod_shared::coverage;
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, MeshMeta, Params, angle_index_for, bake_elevation,
-    billboard_extent, dither_threshold, fade_progress, lod_weights, view_interval,
+    COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, MeshMeta, Params, angle_index_for,
+    bake_elevation, billboard_extent, dither_threshold, fade_progress, lod_weights, view_interval,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -312,9 +312,9 @@ pub struct DrawnFrame {
     /// Ground draw counters.
     pub terrain_stats: DrawStats,
     /// Tree draw counters. In a frame drawn under a pixel mask ([`draw_frame_cutoffs`]) they count
-    /// only the trees whose screen footprint meets the mask ([`tree_footprint_meets_mask`]):
-    /// `triangles_in`, clipping and setup counts are then lower than an unmasked draw's, while
-    /// the fragment counters (which count only masked pixels) are unchanged.
+    /// only the trees and triangles whose screen box meets the mask ([`assemble_trees`]):
+    /// `triangles_in`, clipping and setup counts are then lower than an unmasked draw's; the
+    /// fragment counters count the masked pixels' fragments, which are an unmasked draw's.
     pub tree_stats: DrawStats,
     /// Trees dropped by the per-tree draw-distance discard.
     pub trees_discarded: u64,
@@ -356,37 +356,25 @@ const FOOTPRINT_SLACK_PX: f32 = 2.0;
 /// sums (a few ulps of the coordinates' size), the radius and the box corners too.
 const FOOTPRINT_SLACK_REL: f32 = 1.0e-3;
 
-/// Whether a tree whose vertices lie within `radius` of `base` may cover a pixel of `mask` in a
-/// `width x height` target drawn with `view_proj` (conservative: true when in doubt). The
-/// sphere's axis-aligned box is projected corner by corner; when every corner lies in front of
-/// the eye (clip `w` above half the near distance) the box's projection, hence every triangle's
-/// and every clipped piece's, lies in the corners' screen rectangle, which is widened by
-/// [`FOOTPRINT_SLACK_PX`] and looked up in the mask's summed-area table. A box reaching behind
-/// half the near plane (a tree at or around the eye), or any non-finite value, counts as the
-/// whole screen. A rectangle wholly off screen meets nothing: such a tree's triangles are
-/// clipped or cover no pixel centre.
-fn tree_footprint_meets_mask(
-    view_proj: &Mat4,
-    near: f32,
-    base: Vec3,
-    radius: f32,
+/// Whether a convex shape with clip-space corners `corners` may cover a pixel of `mask` in a
+/// `width x height` target (conservative: true when in doubt). When every corner lies in front
+/// of the eye (clip `w` above `min_w > 0`), the shape's projection, and every clipped piece of
+/// it, lies in the corners' screen rectangle, which is widened by [`FOOTPRINT_SLACK_PX`] and
+/// looked up in the mask's summed-area table. A corner at or behind `min_w`, or a non-finite
+/// value, counts as the whole screen. A rectangle wholly off screen meets nothing: what lies in
+/// it is clipped away or covers no pixel centre.
+fn projection_meets_mask(
+    corners: impl IntoIterator<Item = Vec4>,
+    min_w: f32,
     mask: &MaskCounts,
     width: u32,
     height: u32,
 ) -> bool {
-    let whole = || mask.any_in(0, 0, width, height);
-    let r = radius * (1.0 + FOOTPRINT_SLACK_REL) + base.abs().max_element() * FOOTPRINT_SLACK_REL;
-    if !(r.is_finite() && base.is_finite()) {
-        return whole();
-    }
     let (half_w, half_h) = (width as f32 * 0.5, height as f32 * 0.5);
     let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
-    for corner in 0..8 {
-        let sign = |bit: u32| if corner & bit != 0 { r } else { -r };
-        let p = base + Vec3::new(sign(1), sign(2), sign(4));
-        let clip = *view_proj * Vec4::new(p.x, p.y, p.z, 1.0);
-        if !(clip.w > 0.5 * near) || !clip.is_finite() {
-            return whole();
+    for clip in corners {
+        if !(clip.w > min_w) || !clip.is_finite() {
+            return mask.any_in(0, 0, width, height);
         }
         // The viewport transform of `raster` (module docs, step 2).
         let x = (clip.x / clip.w) * half_w + half_w;
@@ -402,9 +390,49 @@ fn tree_footprint_meets_mask(
     mask.any_in(x0, y0, x1, y1)
 }
 
-/// [`tree_triangles`], leaving out (as if they had no triangles) the trees within the draw
-/// distance whose footprint misses `mask` ([`tree_footprint_meets_mask`]) when given: they
-/// cannot write a masked pixel. Trees beyond the draw distance are still counted as discarded.
+/// Whether a tree whose vertices lie within `radius` of `base` may cover a pixel of `mask`
+/// ([`projection_meets_mask`] of the eight corners of the sphere's axis-aligned box, widened by
+/// [`FOOTPRINT_SLACK_REL`]): a box reaching behind half the near plane (a tree at or around the
+/// eye) counts as the whole screen.
+fn tree_footprint_meets_mask(
+    view_proj: &Mat4,
+    near: f32,
+    base: Vec3,
+    radius: f32,
+    mask: &MaskCounts,
+    width: u32,
+    height: u32,
+) -> bool {
+    let r = radius * (1.0 + FOOTPRINT_SLACK_REL) + base.abs().max_element() * FOOTPRINT_SLACK_REL;
+    if !(r.is_finite() && base.is_finite()) {
+        return mask.any_in(0, 0, width, height);
+    }
+    let corners = (0..8).map(|corner| {
+        let sign = |bit: u32| if corner & bit != 0 { r } else { -r };
+        let p = base + Vec3::new(sign(1), sign(2), sign(4));
+        *view_proj * Vec4::new(p.x, p.y, p.z, 1.0)
+    });
+    projection_meets_mask(corners, 0.5 * near, mask, width, height)
+}
+
+/// Whether one tree triangle may cover a pixel of `mask` ([`projection_meets_mask`] of its
+/// three vertices; any vertex within half the near distance of the eye plane keeps it).
+fn triangle_meets_mask(
+    tri: &Triangle<TREE_VARYINGS>,
+    near: f32,
+    mask: &MaskCounts,
+    width: u32,
+    height: u32,
+) -> bool {
+    let corners = tri.iter().map(|v| Vec4::from(v.clip));
+    projection_meets_mask(corners, 0.5 * near, mask, width, height)
+}
+
+/// [`tree_triangles`], leaving out, when `mask` is given, what cannot write a pixel of it: the
+/// trees within the draw distance whose footprint misses it ([`tree_footprint_meets_mask`], as
+/// if they had no triangles: before their vertex stage), then the triangles of the trees kept
+/// whose screen box misses it ([`triangle_meets_mask`], before clipping and setup). Trees beyond
+/// the draw distance are still counted as discarded.
 fn assemble_trees(
     res: &DrawResources,
     selection: &Selection,
@@ -483,6 +511,9 @@ fn assemble_trees(
             }
             tris.push(tri);
         }
+        if let Some(mask) = mask {
+            tris.retain(|t| triangle_meets_mask(t, camera.near, mask, camera.width, camera.height));
+        }
         Some(tris)
     };
     // Memory (issue 14): the instances are shaded in runs of `VERTEX_RUN`, each run's triangles
@@ -527,10 +558,10 @@ pub fn draw_frame(
 /// stage, clipping, setup and binning are done once for all ([`draw_each`]: the cutoff enters only
 /// the fragment shader); each frame's buffers are those of its own [`draw_frame`] (at the masked
 /// pixels when masked; the others keep the sky's clear values), and so are its counters when
-/// unmasked. Under a mask, the trees whose screen footprint misses it are left out before the
-/// vertex stage ([`tree_footprint_meets_mask`]; they could write no masked pixel): the tree
-/// counters' `triangles_in` and clipping and setup counts cover only the trees kept, the fragment
-/// counters and `trees_discarded` are a plain draw's. What it is for: the parity's alternative
+/// unmasked. Under a mask, the trees and then the triangles whose screen box misses it are left
+/// out before the vertex stage and before setup ([`assemble_trees`]; they could write no masked
+/// pixel): the tree counters' `triangles_in` and clipping and setup counts cover only what was
+/// kept; `trees_discarded` is a plain draw's. What it is for: the parity's alternative
 /// frames, the cutoff moved within the GPU's precision (issue 14).
 pub fn draw_frame_cutoffs(
     res: &DrawResources,

@@ -137,9 +137,24 @@ fn masked_draws_equal_unmasked_draws_at_the_mask() {
     let metas = prepared.scene.mesh_metas();
     let (skipped_cases, near_cases, billboard_cases) = (Cell::new(0), Cell::new(0), Cell::new(0));
     let strategy = (
-        (0..trees, -6.0f32..6.0, -6.0f32..6.0, 0.3f32..25.0, any::<bool>()),
-        (0.0f32..360.0, -70.0f32..25.0, 25.0f32..100.0, 40u32..112, 40u32..112),
-        (prop_oneof![Just(0.002f64), Just(0.02), Just(0.2)], any::<u64>()),
+        (
+            0..trees,
+            -6.0f32..6.0,
+            -6.0f32..6.0,
+            0.3f32..25.0,
+            any::<bool>(),
+        ),
+        (
+            0.0f32..360.0,
+            -70.0f32..25.0,
+            25.0f32..100.0,
+            40u32..112,
+            40u32..112,
+        ),
+        (
+            prop_oneof![Just(0.002f64), Just(0.02), Just(0.2)],
+            any::<u64>(),
+        ),
     );
     run_cases(
         "masked draws equal unmasked draws at the mask",
@@ -149,14 +164,17 @@ fn masked_draws_equal_unmasked_draws_at_the_mask() {
             let t = &prepared.scene.instances[tree];
             // A far eye: 60..200 m back along the view direction, 40..150 m up.
             let (yaw, pitch) = (yaw.to_radians(), pitch.to_radians());
-            let forward = Vec3::new(yaw.cos() * pitch.cos(), yaw.sin() * pitch.cos(), pitch.sin());
+            let forward = Vec3::new(
+                yaw.cos() * pitch.cos(),
+                yaw.sin() * pitch.cos(),
+                pitch.sin(),
+            );
             let eye = if far {
                 Vec3::from(t.position) - forward * (60.0 + 7.0 * dz) + Vec3::Z * (40.0 + 4.0 * dz)
             } else {
                 Vec3::from(t.position) + Vec3::new(dx, dy, dz)
             };
-            let mut camera =
-                Camera::look_at(eye.to_array(), (eye + forward).to_array(), fov, w, h);
+            let mut camera = Camera::look_at(eye.to_array(), (eye + forward).to_array(), fov, w, h);
             camera.forward = forward.to_array();
             if camera.validate().is_err() {
                 return Ok(());
@@ -226,6 +244,11 @@ fn masked_draws_equal_unmasked_draws_at_the_mask() {
         },
     );
     let (s, n, b) = (skipped_cases.get(), near_cases.get(), billboard_cases.get());
-    println!("of 96 cases: trees left out in {s}, a tree around the eye in {n}, billboards in {b}");
-    assert!(s >= 20 && n >= 10 && b >= 20, "the cases missed what they must exercise");
+    println!(
+        "of 96 cases: triangles left out in {s}, a tree around the eye in {n}, billboards in {b}"
+    );
+    assert!(
+        s >= 20 && n >= 10 && b >= 20,
+        "the cases missed what they must exercise"
+    );
 }
