@@ -158,6 +158,11 @@ const _: () = assert!(
 );
 const _: () = assert!(TILE_SIZE.is_multiple_of(2));
 
+/// Tile side of a draw whose every target is masked ([`RenderTarget::with_pixel_mask`]): the
+/// parity's alternatives, masked to ~1 % of the pixels in small clusters (issue 14).
+pub const MASKED_TILE_SIZE: u32 = 16;
+const _: () = assert!(MASKED_TILE_SIZE.is_multiple_of(2));
+
 /// A vertex as the vertex stage outputs it: a clip-space position (wgpu conventions: after the
 /// divide by `w`, x and y in `-1..1` with y up, depth in `0..1`) and `N` varyings.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -490,15 +495,15 @@ impl RenderTarget {
     }
 
     /// Screen tiles, row by row.
-    fn tiles(&self) -> Vec<PixelRect> {
+    fn tiles(&self, size: u32) -> Vec<PixelRect> {
         let mut tiles = Vec::new();
-        for y0 in (0..self.height).step_by(TILE_SIZE as usize) {
-            for x0 in (0..self.width).step_by(TILE_SIZE as usize) {
+        for y0 in (0..self.height).step_by(size as usize) {
+            for x0 in (0..self.width).step_by(size as usize) {
                 tiles.push(PixelRect {
                     x0,
                     y0,
-                    x1: (x0 + TILE_SIZE).min(self.width),
-                    y1: (y0 + TILE_SIZE).min(self.height),
+                    x1: (x0 + size).min(self.width),
+                    y1: (y0 + size).min(self.height),
                 });
             }
         }
@@ -1045,8 +1050,17 @@ where
         "draw_each: targets differ in size"
     );
     let viewport = Viewport::new(width, height);
-    let tiles = first.tiles();
-    let tiles_x = width.div_ceil(TILE_SIZE) as usize;
+    // Draws whose every pass is masked use smaller tiles (issue 14): a masked tile's quad loop
+    // still walks each listed triangle's whole box within the tile, so the tile bounds that walk
+    // around the few masked pixels. Tiles are disjoint and keep submission order, so the tile
+    // size changes no pixel and no counter.
+    let tile_size = if passes.iter().all(|(target, _)| target.mask.is_some()) {
+        MASKED_TILE_SIZE
+    } else {
+        TILE_SIZE
+    };
+    let tiles = first.tiles(tile_size);
+    let tiles_x = width.div_ceil(tile_size) as usize;
     // Per pass, per tile: whether the target's pixel mask leaves it any pixel, and its private
     // copy of its pixels, loaded when a triangle first reaches it and written back after the last
     // chunk (one copy each way per draw, not per chunk).
@@ -1108,22 +1122,35 @@ where
         let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles.len()];
         for (i, tri) in setup.iter().enumerate() {
             let Some(b) = tri.bbox else { continue };
-            for ty in (b.y0 / TILE_SIZE)..=((b.y1 - 1) / TILE_SIZE) {
-                for tx in (b.x0 / TILE_SIZE)..=((b.x1 - 1) / TILE_SIZE) {
+            for ty in (b.y0 / tile_size)..=((b.y1 - 1) / tile_size) {
+                for tx in (b.x0 / tile_size)..=((b.x1 - 1) / tile_size) {
                     bins[ty as usize * tiles_x + tx as usize].push(i as u32);
                 }
             }
         }
-        // Per masked pass owning its mask, each tile's triangles that may reach the mask there.
+        // Per masked pass owning its mask, each tile's triangles that cover a pixel of the mask
+        // there: a box meeting the mask (four lookups), then the same coverage test as the quad
+        // loop's at each masked pixel of the box (`edges` equals the quad loop's stepped edge
+        // functions bit for bit), done once for all passes sharing the mask (issue 14).
         let masked_bins: Vec<Option<Vec<Vec<u32>>>> = mask_counts
             .iter()
-            .map(|counts| {
+            .zip(passes.iter())
+            .map(|(counts, (target, _))| {
                 let counts = counts.as_ref()?;
+                let mask = target.mask.as_ref()?;
+                let covers_mask = |tri: &SetupTriangle<N>, r: &PixelRect| {
+                    (r.y0..r.y1).any(|y| {
+                        (r.x0..r.x1).any(|x| {
+                            mask[y as usize * width as usize + x as usize]
+                                && tri.covers(&tri.edges(x, y))
+                        })
+                    })
+                };
                 let meets = |i: u32, rect: &PixelRect| {
-                    setup[i as usize]
-                        .bbox
+                    let tri = &setup[i as usize];
+                    tri.bbox
                         .and_then(|b| b.intersect(rect))
-                        .is_some_and(|r| counts.any(&r))
+                        .is_some_and(|r| counts.any(&r) && covers_mask(tri, &r))
                 };
                 Some(
                     tiles
