@@ -71,7 +71,8 @@
 //! - **Watertight, no double hits**: triangles sharing an edge (same snapped endpoints) cover every
 //!   sample on it exactly once; a fan tiling a convex region covers each sample in it exactly once.
 //! - **Primitive order** (Vulkan §"Primitive Order"): per pixel, fragments are merged in submission
-//!   order. Parallelism is over screen tiles of [`TILE_SIZE`]² pixels (rayon): every tile processes
+//!   order. Parallelism is over screen tiles of [`TILE_SIZE`]² pixels ([`MASKED_TILE_SIZE`]² when
+//!   every target of a draw is masked) (rayon): every tile processes
 //!   every triangle overlapping it, in submission order, into its own pixels only. Setup is parallel
 //!   over triangles but collected in order. Hence the buffers are **bit-identical for any thread
 //!   count**, and so are the [`DrawStats`].
@@ -1015,7 +1016,10 @@ const SETUP_RUN: usize = 256;
 ///
 /// Order of work: per chunk of [`SETUP_CHUNK`] triangles, setup in parallel (collected in order),
 /// bin by bounding box, then per target render every tile (tiles in parallel, each into a private
-/// copy of its pixels, written back in tile order).
+/// copy of its pixels, written back in tile order). A masked target's tiles list only the
+/// triangles that cover a pixel of its mask there (the quad loop's own coverage test, once per
+/// mask), and a draw whose every target is masked uses tiles of [`MASKED_TILE_SIZE`]: neither
+/// changes a pixel or a counter.
 ///
 /// # Panics
 /// If there are more than `u32::MAX` triangles (primitive ids are `u32`, as in Vulkan), or the
