@@ -373,7 +373,8 @@ fn projection_meets_mask(
     let (half_w, half_h) = (width as f32 * 0.5, height as f32 * 0.5);
     let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
     for clip in corners {
-        if !(clip.w > min_w) || !clip.is_finite() {
+        // `w <= min_w` or NaN: in doubt.
+        if !clip.is_finite() || clip.w <= min_w {
             return mask.any_in(0, 0, width, height);
         }
         // The viewport transform of `raster` (module docs, step 2).
