@@ -2,13 +2,16 @@
 //! quick mode on the reference backend, unsharded and as 3 shards, then merged. The merged CSV
 //! must equal the unsharded one row for row in everything but wall-clock times (frame and truth
 //! times, which differ between any two runs), and the merge must refuse an incomplete set of
-//! shards.
+//! shards. Beside it, the runner's reuse of a timed Vegetation frame as the pose's full-detail
+//! frame must give the same rows and images as rendering that frame on its own.
 
 use std::path::{Path, PathBuf};
 
 use forestlod_experiments::report::read_rows;
 use forestlod_experiments::sweep::shard::Shard;
-use forestlod_experiments::sweep::{BUILTIN_SWEEPS, Manifest, Row, SweepArgs, run};
+use forestlod_experiments::sweep::{
+    BUILTIN_SWEEPS, Manifest, Row, Runner, SweepArgs, SweepSpec, configure, run,
+};
 
 fn args(out: &Path, shard: Option<Shard>) -> SweepArgs {
     SweepArgs {
@@ -113,5 +116,80 @@ fn three_merged_shards_equal_the_unsharded_run_row_for_row() {
         compared += want.len();
     }
     assert!(compared > 50, "only {compared} rows compared");
+    std::fs::remove_dir_all(&root).ok();
+}
+
+/// Every file under `dir` (recursively), as paths relative to it, sorted.
+fn files_under(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push(p.strip_prefix(dir).unwrap().to_path_buf());
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The sweeps that time the Vegetation variant on the reference backend, where the runner takes
+/// the LOD error's full-detail frame from that timed frame instead of rendering it again: the
+/// rows (all but the times) and every saved image must be the same as with a render of its own.
+#[test]
+fn reusing_the_timed_vegetation_frame_changes_no_row_and_no_image() {
+    let root = std::env::temp_dir().join(format!("forestlod-sweep-reuse-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    let a = args(&root, None);
+    let mut compared = 0;
+    for name in ["distance", "camera360"] {
+        let (_, text) = BUILTIN_SWEEPS.iter().find(|(n, _)| *n == name).unwrap();
+        let spec = configure(SweepSpec::parse(text, name).unwrap(), &a)
+            .unwrap()
+            .unwrap();
+        assert!(
+            spec.variants.iter().any(|v| v == "vegetation") && spec.variants.len() > 1,
+            "{name}: the reuse needs Vegetation among other variants"
+        );
+        let (reused, own) = (root.join("reused"), root.join("own"));
+        Runner::default()
+            .run_sweep(&spec, true, None, &reused)
+            .expect("reused");
+        Runner::without_full_frame_reuse()
+            .run_sweep(&spec, true, None, &own)
+            .expect("own renders");
+        let (mr, mo) = (manifest(&reused.join(name)), manifest(&own.join(name)));
+        let got = read_rows(&reused.join(name).join(&mr.csv)).unwrap();
+        let want = read_rows(&own.join(name).join(&mo.csv)).unwrap();
+        assert_eq!(got.len(), want.len(), "{name}: rows");
+        for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+            assert_eq!(deterministic(g), deterministic(w), "{name}: row {i}");
+        }
+        // Some row has an LOD error to compare (ours differs from the full-detail frame).
+        assert!(
+            want.iter().any(|r| r.accuracy.lod_flip_mean > 0.0),
+            "{name}: no LOD error anywhere"
+        );
+        let files = files_under(&own.join(name).join("img"));
+        assert_eq!(files, files_under(&reused.join(name).join("img")), "{name}");
+        assert!(
+            files
+                .iter()
+                .any(|f| f.to_string_lossy().ends_with("_lod_flip.png"))
+        );
+        for f in &files {
+            let (g, w) = (
+                std::fs::read(reused.join(name).join("img").join(f)).unwrap(),
+                std::fs::read(own.join(name).join("img").join(f)).unwrap(),
+            );
+            assert!(g == w, "{name}: {} differs", f.display());
+        }
+        compared += want.len();
+    }
+    assert!(compared > 10, "only {compared} rows compared");
     std::fs::remove_dir_all(&root).ok();
 }

@@ -68,15 +68,19 @@ struct VariantFrame {
 impl VariantFrame {
     /// Keeps the minimum of each time over repeats (the work and images are the same).
     fn keep_fastest(mut self, other: VariantFrame) -> Self {
-        let min_opt = |a: Option<f64>, b: Option<f64>| match (a, b) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        };
         self.select_s = self.select_s.min(other.select_s);
         self.draw_s = self.draw_s.min(other.draw_s);
-        self.gpu_select_s = min_opt(self.gpu_select_s, other.gpu_select_s);
-        self.gpu_draw_s = min_opt(self.gpu_draw_s, other.gpu_draw_s);
+        self.gpu_select_s = min_of(self.gpu_select_s, other.gpu_select_s);
+        self.gpu_draw_s = min_of(self.gpu_draw_s, other.gpu_draw_s);
         self
+    }
+}
+
+/// The smaller of two optional times (either one where the other is missing).
+fn min_of(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
     }
 }
 
@@ -90,9 +94,22 @@ pub struct Runner {
     rays: u64,
     truth_seconds: f64,
     gpu: Option<&'static GpuContext>,
+    /// Render every full-detail frame on its own, even where a timed Vegetation frame is the same
+    /// image ([`full_frame_source`]): the slower path, kept for the test that both give the same
+    /// rows and images.
+    no_full_frame_reuse: bool,
 }
 
 impl Runner {
+    /// A runner that renders every full-detail frame on its own ([`full_frame_source`]'s reuse
+    /// off): for the test that the reuse changes no row and no image.
+    pub fn without_full_frame_reuse() -> Self {
+        Self {
+            no_full_frame_reuse: true,
+            ..Self::default()
+        }
+    }
+
     fn scene(
         &mut self,
         name: &str,
@@ -249,27 +266,53 @@ impl Runner {
                         ..frame
                     };
                     for (backend_i, &backend) in backends.iter().enumerate() {
-                        let mut render = |variant: Variant, frame: &Frame, repeats: u32| {
-                            if backend == Backend::Gpu {
-                                let gs = gpu_scene.as_mut().expect("created when use_gpu");
-                                if !gpu_warm {
-                                    // First frame of a parameter set: pipelines, bind groups and
-                                    // lavapipe's shader JIT warm up outside the timed renders.
-                                    render_gpu_variant(gs, variant, frame, 1)?;
-                                    gpu_warm = true;
+                        // `counters`: whether the row's work counters are wanted (not for the
+                        // warm-up and the untimed full-detail frame, whose images alone are used).
+                        let mut render =
+                            |variant: Variant, frame: &Frame, repeats: u32, counters: bool| {
+                                if backend == Backend::Gpu {
+                                    let gs = gpu_scene.as_mut().expect("created when use_gpu");
+                                    if !gpu_warm {
+                                        // First frame of a parameter set: pipelines, bind groups and
+                                        // lavapipe's shader JIT warm up outside the timed renders.
+                                        render_gpu_variant(gs, variant, frame, 1, false)?;
+                                        gpu_warm = true;
+                                    }
+                                    render_gpu_variant(gs, variant, frame, repeats, counters)
+                                } else {
+                                    render_variant(variant, frame, repeats).map_err(Into::into)
                                 }
-                                render_gpu_variant(gs, variant, frame, repeats)
-                            } else {
-                                render_variant(variant, frame, repeats).map_err(Into::into)
-                            }
-                        };
+                            };
                         // The LOD error's reference: this backend's full-detail frame (every
-                        // visible tree at its full mesh, the Vegetation baseline), untimed.
-                        let full = render(Variant::Vegetation, &frame, 1)?.color;
-                        for (variant_i, &variant) in variants.iter().enumerate() {
+                        // visible tree at its full mesh, the Vegetation baseline), untimed, or
+                        // the timed Vegetation variant's own frame where that is the same image
+                        // ([`full_frame_source`]).
+                        let source = if self.no_full_frame_reuse {
+                            FullFrame::Untimed
+                        } else {
+                            full_frame_source(backend, &variants)
+                        };
+                        let untimed_full = match source {
+                            FullFrame::Untimed => {
+                                Some(render(Variant::Vegetation, &frame, 1, false)?.color)
+                            }
+                            FullFrame::Variant(_) => None,
+                        };
+                        // Every variant's timed frames first, in the sweep's order, then the
+                        // untimed scoring (the same renders and measurements as scoring each
+                        // variant right after its frames; only the order of untimed work moves).
+                        let mut timed = Vec::with_capacity(variants.len());
+                        for &variant in &variants {
+                            timed.push(render(variant, &frame, spec.repeats, true)?);
+                        }
+                        let full = match (source, untimed_full) {
+                            (FullFrame::Variant(i), _) => timed[i].color.clone(),
+                            (FullFrame::Untimed, Some(full)) => full,
+                            (FullFrame::Untimed, None) => unreachable!("rendered above"),
+                        };
+                        for (variant_i, (&variant, vf)) in variants.iter().zip(timed).enumerate() {
                             let frame_index =
                                 (unit * per_unit + backend_i * variants.len() + variant_i) as u64;
-                            let vf = render(variant, &frame, spec.repeats)?;
                             let truth_aux = layout.gather(&vf.aux, width);
                             let (mut acc, map) = accuracy(
                                 gt,
@@ -280,7 +323,7 @@ impl Runner {
                             let lod_map = lod_error(&mut acc, &full, &vf.color);
                             // The total error: this frame at the truth's sampling rate, untimed.
                             let total = if spec.total_error {
-                                let big = render(variant, &frame_ss, 1)?;
+                                let big = render(variant, &frame_ss, 1, false)?;
                                 let (color, aux) = box_filter(&big.color, &big.aux, spec.samples);
                                 let aux = layout.gather(&aux, width);
                                 let color = layout.gather_image(&color);
@@ -401,6 +444,28 @@ struct Frame<'a> {
     params: &'a Params,
 }
 
+/// Where a pose's full-detail frame (the LOD error's reference) comes from, per backend.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum FullFrame {
+    /// An untimed Vegetation render of its own.
+    Untimed,
+    /// The timed frame of the variant at this index, which is Vegetation.
+    Variant(usize),
+}
+
+/// The reference is deterministic (bit-identical output for identical input), so where the sweep
+/// times the Vegetation variant on the reference backend, that frame **is** the full-detail frame
+/// and a second render of it would be the same image: it is reused. On the GPU backend the
+/// untimed Vegetation frame is rendered as before: it is also what warms up the Vegetation
+/// pipelines before the first timed frame of a parameter set, and a timed frame would be a
+/// different measurement without it.
+fn full_frame_source(backend: Backend, variants: &[Variant]) -> FullFrame {
+    match variants.iter().position(|&v| v == Variant::Vegetation) {
+        Some(i) if backend == Backend::Reference => FullFrame::Variant(i),
+        _ => FullFrame::Untimed,
+    }
+}
+
 /// Bytes ours adds to the scene data: E Eq. 4.1's terms as allocated, plus the `refine` stage's
 /// `3n`-entry indirection array when it runs (`reference/src/refine.rs`).
 fn ours_memory(prepared: &Prepared, params: &Params) -> u64 {
@@ -505,19 +570,32 @@ fn render_variant(variant: Variant, f: &Frame, repeats: u32) -> Result<VariantFr
 }
 
 /// Renders one variant on the GPU backend ([`GpuSweepScene`]), `repeats` times, keeping the
-/// minimum times. Work counters the GPU does not report (trees drawn by ours, the batching
-/// counts) come from the reference's selection of the same frame, which the parity tests prove
-/// equal to the GPU's (`tests/tests/parity/select.rs`); triangles and fragments stay empty.
+/// minimum times and the first frame's images. Work counters the GPU does not report (trees
+/// drawn by ours, the batching counts) come from the reference's selection of the same frame,
+/// which the parity tests prove equal to the GPU's (`tests/tests/parity/select.rs`); triangles
+/// and fragments stay empty. That selection depends only on the frame, not on the repeat, so it
+/// runs once, after the timed repeats, and not at all without `counters` (the warm-up and the
+/// untimed full-detail frame, whose counters no row reports: they are left zero).
 fn render_gpu_variant(
     gs: &mut GpuSweepScene,
     variant: Variant,
     f: &Frame,
     repeats: u32,
+    counters: bool,
 ) -> Result<VariantFrame, Box<dyn std::error::Error>> {
     let gpu_variant = variant.gpu_variant();
-    fastest_of(repeats, || {
-        let g = gs.render(gpu_variant, f.camera, f.params)?;
-        let (batches_tested, trees_drawn, batching, memory_bytes) = match gpu_variant {
+    let mut g = gs.render(gpu_variant, f.camera, f.params)?;
+    for _ in 1..repeats.max(1) {
+        let next = gs.render(gpu_variant, f.camera, f.params)?;
+        g.select_s = g.select_s.min(next.select_s);
+        g.draw_s = g.draw_s.min(next.draw_s);
+        g.gpu_select_s = min_of(g.gpu_select_s, next.gpu_select_s);
+        g.gpu_draw_s = min_of(g.gpu_draw_s, next.gpu_draw_s);
+    }
+    let (batches_tested, trees_drawn, batching, memory_bytes) = if !counters {
+        (0, 0, BatchingCounts::default(), 0)
+    } else {
+        match gpu_variant {
             GpuVariant::Ours(_) => {
                 let (selection, refined) = f.prepared.select_refined(f.camera, f.params);
                 let indirection = refined
@@ -556,28 +634,27 @@ fn render_gpu_variant(
                     visible * INSTANCE_INDEX_BYTES + extra,
                 )
             }
-        };
-        let vf = VariantFrame {
-            color: Rgba8Image {
-                width: g.images.width,
-                height: g.images.height,
-                texels: g.images.color,
-            },
-            aux: g.images.lod_id,
-            select_s: g.select_s,
-            draw_s: g.draw_s,
-            gpu_select_s: g.gpu_select_s,
-            gpu_draw_s: g.gpu_draw_s,
-            batches_tested,
-            commands: g.commands,
-            trees_drawn,
-            batching,
-            triangles: None,
-            fragments: None,
-            fragments_written: None,
-            memory_bytes,
-        };
-        Ok(vf)
+        }
+    };
+    Ok(VariantFrame {
+        color: Rgba8Image {
+            width: g.images.width,
+            height: g.images.height,
+            texels: g.images.color,
+        },
+        aux: g.images.lod_id,
+        select_s: g.select_s,
+        draw_s: g.draw_s,
+        gpu_select_s: g.gpu_select_s,
+        gpu_draw_s: g.gpu_draw_s,
+        batches_tested,
+        commands: g.commands,
+        trees_drawn,
+        batching,
+        triangles: None,
+        fragments: None,
+        fragments_written: None,
+        memory_bytes,
     })
 }
 
