@@ -189,6 +189,43 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
                 .entry((r.variant.as_str(), r.backend.as_str()))
                 .or_default() += 1;
         }
+        // Ours on the GPU reports the work counters of the reference's selection of the same
+        // frame (`render_gpu_variant`, computed once per frame): they must equal the reference
+        // row's, where the sweep runs ours on both backends.
+        let mut gpu_checked = 0;
+        for g in rows
+            .iter()
+            .filter(|r| r.backend == "gpu" && r.variant == "ours")
+        {
+            let same = |r: &&forestlod_experiments::sweep::Row| {
+                r.backend == "reference"
+                    && (&r.camera, r.yaw_deg, r.distance_m, &r.variant, &r.setting)
+                        == (&g.camera, g.yaw_deg, g.distance_m, &g.variant, &g.setting)
+            };
+            let Some(r) = rows.iter().find(same) else {
+                continue;
+            };
+            let counters = |r: &forestlod_experiments::sweep::Row| {
+                (
+                    r.batches_tested,
+                    r.trees_drawn,
+                    r.trees_finer,
+                    r.trees_coarser,
+                    r.trees_outside_view,
+                    r.memory_bytes,
+                )
+            };
+            assert_eq!(
+                counters(g),
+                counters(r),
+                "{name}: GPU counters at {}",
+                g.camera
+            );
+            gpu_checked += 1;
+        }
+        if backend.is_none() && spec.backends.len() == 2 && spec.variants.contains(&"ours".into()) {
+            assert!(gpu_checked > 0, "{name}: no GPU row of ours compared");
+        }
         for b in &spec.backends {
             for v in &spec.variants {
                 assert!(
