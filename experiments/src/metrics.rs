@@ -387,6 +387,25 @@ mod tests {
         assert_eq!(percentile(&[], 50.0), 0.0);
     }
 
+    /// The selection finds what sorting finds, on unsorted values with repeats, negatives,
+    /// `-0.0` and NaN (`total_cmp` order), for every rank.
+    #[test]
+    fn percentiles_equal_the_sorted_rank_on_unsorted_values() {
+        let mut v: Vec<f32> = (0..257u32)
+            .map(|i| ((i.wrapping_mul(2_654_435_761) >> 7) % 50) as f32 * 0.25 - 3.0)
+            .collect();
+        v.extend([f32::NAN, -0.0, 0.0, 7.5, 7.5]);
+        let mut sorted = v.clone();
+        sorted.sort_by(f32::total_cmp);
+        for k in 0..=200 {
+            let p = k as f64 / 2.0;
+            let rank = ((p / 100.0) * v.len() as f64).ceil().max(1.0) as usize;
+            let want = sorted[rank.min(v.len()) - 1] as f64;
+            let got = percentile(&v, p);
+            assert!(got.to_bits() == want.to_bits(), "p{p}: {got} != {want}");
+        }
+    }
+
     #[test]
     fn coverage_error_counts_tree_versus_not_tree() {
         let (w, h) = (4, 2);
