@@ -415,6 +415,9 @@ pub fn render_gpu(
 ) -> Result<GpuFrame, GpuError> {
     let data = DrawSceneData::new(prepared);
     let scene = DrawScene::new(ctx, &data.desc(prepared))?;
+    // The CPU copies are uploaded: free them before the frame (the main job's peak memory is
+    // this frame's, issue 14).
+    drop(data);
     let (mesh, billboards) = if from_cpu.textures {
         upload_reference_textures(ctx, prepared)?
     } else {
