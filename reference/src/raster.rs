@@ -103,6 +103,10 @@
 //!   pixel of the mask inside the tile (a summed-area table of the mask answers that in four
 //!   lookups), and targets with equal masks share those lists. Relies on a masked draw's quad loop
 //!   writing and counting nothing outside the mask.
+//! - **Masked quads** (session 8, issue 14): in a masked tile, a triangle whose box holds more
+//!   quads than the tile has quads with a masked pixel visits only those (row-major, the full
+//!   walk's order), its edge functions evaluated at each (exact integers, equal to the stepped
+//!   ones). Relies on the same: a quad with no masked pixel covers, counts and writes nothing.
 //! - **Shared barycentrics; helpers only where read**: a pixel's barycentrics are computed once
 //!   (same expression) for depth and varyings; the bottom-right pixel of a quad is interpolated
 //!   only when it is shaded, since the coarse derivatives read the other three only.
@@ -1259,8 +1263,13 @@ where
     S: FragmentShader<N> + ?Sized,
 {
     let tile = buffers.rect;
-    let tile_w = tile.width();
     let mut counts = FragmentCounts::default();
+    // Speed-up (issue 14, masked draws): the quads of a masked tile with at least one masked
+    // pixel, in row-major order. A quad with none covers nothing (the coverage test below
+    // requires the mask), so a triangle may visit only these quads of its box, in the same
+    // order, with the edge functions evaluated at each (exact integers, equal to the stepped
+    // ones): every value and counter is the full walk's. Used where it is the shorter walk.
+    let masked_quads = buffers.mask.as_ref().map(|mask| masked_quads(tile, mask));
     for tri in bin.iter().map(|&i| &setup[i as usize]) {
         let Some(r) = tri.bbox.and_then(|b| b.intersect(&tile)) else {
             continue;
@@ -1270,6 +1279,26 @@ where
         // the first quad's top-left pixel.
         let (qx0, qy0) = (r.x0 & !1, r.y0 & !1);
         let steps = tri.edge_steps();
+        let box_quads = (r.x1 - qx0).div_ceil(2) as usize * (r.y1 - qy0).div_ceil(2) as usize;
+        if let Some(list) = masked_quads.as_ref().filter(|l| l.len() < box_quads) {
+            for &(qx, qy) in list {
+                if qx < qx0 || qx >= r.x1 || qy < qy0 || qy >= r.y1 {
+                    continue;
+                }
+                let edges = quad_edges(tri.edges(qx, qy), &steps);
+                shade_quad(
+                    buffers,
+                    tri,
+                    &r,
+                    (qx, qy),
+                    &edges,
+                    shader,
+                    state,
+                    &mut counts,
+                );
+            }
+            continue;
+        }
         let [two_sx, two_sy] = steps.map(|s| add3(s, s));
         let mut row_edges = tri.edges(qx0, qy0);
         for qy in (qy0..r.y1).step_by(2) {
@@ -1278,90 +1307,143 @@ where
             for qx in (qx0..r.x1).step_by(2) {
                 let edges = quad_edges(quad_e, &steps);
                 quad_e = add3(quad_e, two_sx);
-                // Covered pixels: inside the triangle, and pixels this tile may write (inside
-                // the triangle's box and the tile, and inside the target's pixel mask if it has
-                // one). `at`: each pixel's index in the tile buffers.
-                let first = ((qy - tile.y0) * tile_w + (qx - tile.x0)) as usize;
-                let at = [
-                    first,
-                    first + 1,
-                    first + tile_w as usize,
-                    first + tile_w as usize + 1,
-                ];
-                let mut covered = [false; 4];
-                for k in 0..4 {
-                    covered[k] = tri.covers(&edges[k])
-                        && r.contains(qx + QUAD[k].0, qy + QUAD[k].1)
-                        && buffers.mask.as_ref().is_none_or(|m| m[at[k]]);
-                }
-                if covered == [false; 4] {
-                    continue;
-                }
-                // The early depth test of the covered pixels (module docs, step 8).
-                // Barycentrics are computed once per pixel and shared by depth and varyings.
-                let mut bary = [[0.0f64; 3]; 4];
-                let mut depth = [0.0f32; 4];
-                let mut passed = [false; 4];
-                for k in (0..4).filter(|&k| covered[k]) {
-                    counts.covered += 1;
-                    bary[k] = tri.barycentrics(&edges[k]);
-                    depth[k] = tri.depth(&bary[k]);
-                    // `at[k]` may lie outside the tile only for uncovered pixels.
-                    passed[k] = !state.depth_test || depth[k] < buffers.depth[at[k]];
-                }
-                if !passed.iter().any(|&p| p) {
-                    continue;
-                }
-                // The derivatives need the top three pixels, covered or not (helpers); the
-                // bottom-right one is interpolated only if it is shaded.
-                for k in (0..3).filter(|&k| !covered[k]) {
-                    bary[k] = tri.barycentrics(&edges[k]);
-                }
-                let mut values = [[0.0f32; N]; 4];
-                for k in (0..4).filter(|&k| k < 3 || passed[k]) {
-                    values[k] = tri.varyings(&bary[k]);
-                }
-                let ddx = std::array::from_fn(|j| values[1][j] - values[0][j]);
-                let ddy = std::array::from_fn(|j| values[2][j] - values[0][j]);
-                for k in (0..4).filter(|&k| passed[k]) {
-                    counts.shaded += 1;
-                    let fragment = Fragment {
-                        x: qx + QUAD[k].0,
-                        y: qy + QUAD[k].1,
-                        depth: depth[k],
-                        varyings: values[k],
-                        ddx,
-                        ddy,
-                        front_facing: tri.front_facing,
-                        primitive_id: tri.primitive_id,
-                    };
-                    let Some(out) = shader.shade(&fragment) else {
-                        continue; // discarded
-                    };
-                    let at = at[k];
-                    // Shader-written depth (module docs, step 8): clamped, then the late test.
-                    let z = match out.depth {
-                        None => depth[k],
-                        Some(d) if d.is_nan() => continue,
-                        Some(d) => {
-                            let d = d.clamp(0.0, 1.0);
-                            if state.depth_test && d >= buffers.depth[at] {
-                                continue;
-                            }
-                            d
-                        }
-                    };
-                    counts.written += 1;
-                    if state.depth_write {
-                        buffers.depth[at] = z;
-                    }
-                    buffers.color[at] = merge(buffers.color[at], out.color, state.blend);
-                    buffers.aux[at] = out.id;
-                }
+                shade_quad(
+                    buffers,
+                    tri,
+                    &r,
+                    (qx, qy),
+                    &edges,
+                    shader,
+                    state,
+                    &mut counts,
+                );
             }
         }
     }
     counts
+}
+
+/// The quads (top-left pixel, even coordinates) of `tile` with at least one pixel set in
+/// `mask` (the tile's row-major pixel mask), in row-major order.
+fn masked_quads(tile: PixelRect, mask: &[bool]) -> Vec<(u32, u32)> {
+    let tile_w = tile.width();
+    let mut quads = Vec::new();
+    for qy in (tile.y0..tile.y1).step_by(2) {
+        for qx in (tile.x0..tile.x1).step_by(2) {
+            let any = QUAD.iter().any(|&(dx, dy)| {
+                let (x, y) = (qx + dx, qy + dy);
+                x < tile.x1
+                    && y < tile.y1
+                    && mask[((y - tile.y0) * tile_w + (x - tile.x0)) as usize]
+            });
+            if any {
+                quads.push((qx, qy));
+            }
+        }
+    }
+    quads
+}
+
+/// One 2x2 quad of one triangle in a tile (module docs, steps 7-9): coverage, the early depth
+/// test, interpolation with the quad's derivatives, shading, the late depth test and the merge.
+/// `r`: the triangle's box within the tile; `edges`: the edge functions at the quad's four
+/// pixels.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn shade_quad<const N: usize, S>(
+    buffers: &mut TileBuffers,
+    tri: &SetupTriangle<N>,
+    r: &PixelRect,
+    (qx, qy): (u32, u32),
+    edges: &[[i64; 3]; 4],
+    shader: &S,
+    state: &DrawState,
+    counts: &mut FragmentCounts,
+) where
+    S: FragmentShader<N> + ?Sized,
+{
+    let tile = buffers.rect;
+    let tile_w = tile.width();
+    // Covered pixels: inside the triangle, and pixels this tile may write (inside the
+    // triangle's box and the tile, and inside the target's pixel mask if it has one). `at`:
+    // each pixel's index in the tile buffers.
+    let first = ((qy - tile.y0) * tile_w + (qx - tile.x0)) as usize;
+    let at = [
+        first,
+        first + 1,
+        first + tile_w as usize,
+        first + tile_w as usize + 1,
+    ];
+    let mut covered = [false; 4];
+    for k in 0..4 {
+        covered[k] = tri.covers(&edges[k])
+            && r.contains(qx + QUAD[k].0, qy + QUAD[k].1)
+            && buffers.mask.as_ref().is_none_or(|m| m[at[k]]);
+    }
+    if covered == [false; 4] {
+        return;
+    }
+    // The early depth test of the covered pixels (module docs, step 8).
+    // Barycentrics are computed once per pixel and shared by depth and varyings.
+    let mut bary = [[0.0f64; 3]; 4];
+    let mut depth = [0.0f32; 4];
+    let mut passed = [false; 4];
+    for k in (0..4).filter(|&k| covered[k]) {
+        counts.covered += 1;
+        bary[k] = tri.barycentrics(&edges[k]);
+        depth[k] = tri.depth(&bary[k]);
+        // `at[k]` may lie outside the tile only for uncovered pixels.
+        passed[k] = !state.depth_test || depth[k] < buffers.depth[at[k]];
+    }
+    if !passed.iter().any(|&p| p) {
+        return;
+    }
+    // The derivatives need the top three pixels, covered or not (helpers); the bottom-right
+    // one is interpolated only if it is shaded.
+    for k in (0..3).filter(|&k| !covered[k]) {
+        bary[k] = tri.barycentrics(&edges[k]);
+    }
+    let mut values = [[0.0f32; N]; 4];
+    for k in (0..4).filter(|&k| k < 3 || passed[k]) {
+        values[k] = tri.varyings(&bary[k]);
+    }
+    let ddx = std::array::from_fn(|j| values[1][j] - values[0][j]);
+    let ddy = std::array::from_fn(|j| values[2][j] - values[0][j]);
+    for k in (0..4).filter(|&k| passed[k]) {
+        counts.shaded += 1;
+        let fragment = Fragment {
+            x: qx + QUAD[k].0,
+            y: qy + QUAD[k].1,
+            depth: depth[k],
+            varyings: values[k],
+            ddx,
+            ddy,
+            front_facing: tri.front_facing,
+            primitive_id: tri.primitive_id,
+        };
+        let Some(out) = shader.shade(&fragment) else {
+            continue; // discarded
+        };
+        let at = at[k];
+        // Shader-written depth (module docs, step 8): clamped, then the late test.
+        let z = match out.depth {
+            None => depth[k],
+            Some(d) if d.is_nan() => continue,
+            Some(d) => {
+                let d = d.clamp(0.0, 1.0);
+                if state.depth_test && d >= buffers.depth[at] {
+                    continue;
+                }
+                d
+            }
+        };
+        counts.written += 1;
+        if state.depth_write {
+            buffers.depth[at] = z;
+        }
+        buffers.color[at] = merge(buffers.color[at], out.color, state.blend);
+        buffers.aux[at] = out.id;
+    }
 }
 
 /// Clamps to `[0, 1]`, NaN to 0 (Vulkan: fixed-point attachments clamp source values before
