@@ -494,3 +494,20 @@ pub fn small_poses(
         })
         .collect()
 }
+
+/// The hierarchy frame tests' parameters on `tiny`: small cells (50 m grid, 8 trees per node,
+/// octree culling depth 3) so that a cut emits many sibling nodes, a 120 m transition with a 40 m
+/// fade so that both LODs and the fade band are on screen at the small poses ([`small_poses`]),
+/// 32-texel billboards to keep the bake cheap; `hierarchy` as given.
+pub fn tiny_hierarchy_params(hierarchy: forestlod_shared::Hierarchy) -> Params {
+    Params {
+        grid_size: 50.0,
+        lod1_transition: 120.0,
+        fade_width: 40.0,
+        texture_size: 32,
+        nodes_per_node: 8,
+        max_cull_depth: 3,
+        hierarchy: hierarchy as u32,
+        ..Params::default()
+    }
+}

@@ -355,15 +355,7 @@ fn gpu_hierarchy_frames_equal_grid_frames() {
     };
     let draw = gpu_draw(ctx);
     let scene = builtin::by_name("tiny").unwrap();
-    let base = Params {
-        grid_size: 50.0,
-        lod1_transition: 120.0,
-        fade_width: 40.0,
-        texture_size: 32,
-        nodes_per_node: 8,
-        max_cull_depth: 3,
-        ..Params::default()
-    };
+    let base = forestlod_tests::tiny_hierarchy_params(Mode::Grid);
     let grid = prepare(scene.clone(), &base).unwrap();
     for mode in [Mode::GridAabb, Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
         let p = Params {
@@ -508,16 +500,7 @@ fn gpu_coalescing_spans_scan_chunks() {
         return;
     };
     let scene = builtin::by_name("tiny").unwrap();
-    let p = Params {
-        grid_size: 50.0,
-        lod1_transition: 120.0,
-        fade_width: 40.0,
-        texture_size: 32,
-        nodes_per_node: 8,
-        max_cull_depth: 3,
-        hierarchy: Mode::Quadtree as u32,
-        ..Params::default()
-    };
+    let p = forestlod_tests::tiny_hierarchy_params(Mode::Quadtree);
     let prepared = prepare(scene, &p).unwrap();
     let h = prepared.hierarchy.as_ref().unwrap();
     let g = &prepared.geometry;
@@ -571,15 +554,8 @@ fn gpu_front_to_back_spans_workgroups() {
     };
     let scene = builtin::by_name("tiny").unwrap();
     let base = Params {
-        grid_size: 50.0,
-        lod1_transition: 120.0,
-        fade_width: 40.0,
-        texture_size: 32,
-        nodes_per_node: 8,
-        max_cull_depth: 3,
-        hierarchy: Mode::Quadtree as u32,
         command_order: CommandOrder::FrontToBack as u32,
-        ..Params::default()
+        ..forestlod_tests::tiny_hierarchy_params(Mode::Quadtree)
     };
     let prepared = prepare(scene, &base).unwrap();
     let h = prepared.hierarchy.as_ref().unwrap();
@@ -658,16 +634,7 @@ fn gpu_front_to_back_frames_differ_only_at_ties_and_blending() {
     let scene = builtin::by_name("tiny").unwrap();
     let mut total = forestlod_tests::OrderDiffs::default();
     for mode in [Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
-        let base = Params {
-            grid_size: 50.0,
-            lod1_transition: 120.0,
-            fade_width: 40.0,
-            texture_size: 32,
-            nodes_per_node: 8,
-            max_cull_depth: 3,
-            hierarchy: mode as u32,
-            ..Params::default()
-        };
+        let base = forestlod_tests::tiny_hierarchy_params(mode);
         let prepared = prepare(scene.clone(), &base).unwrap();
         for (camera_name, yaw, camera) in
             forestlod_tests::small_poses(&prepared.scene, &[("medium", 0.0), ("close", 30.0)])

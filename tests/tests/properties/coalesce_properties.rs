@@ -112,15 +112,8 @@ fn coalescing_merges_commands_on_tiny_and_keeps_the_frame() {
     let scene = forestlod_reference::scene::builtin::by_name("tiny").unwrap();
     for mode in [Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
         let off = Params {
-            grid_size: 50.0,
-            lod1_transition: 120.0,
-            fade_width: 40.0,
-            texture_size: 32,
-            nodes_per_node: 8,
-            max_cull_depth: 3,
-            hierarchy: mode as u32,
             coalesce: Coalesce::Off as u32,
-            ..Params::default()
+            ..forestlod_tests::tiny_hierarchy_params(mode)
         };
         let on = Params {
             coalesce: Coalesce::On as u32,

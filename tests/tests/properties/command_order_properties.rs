@@ -116,16 +116,7 @@ fn front_to_back_frames_differ_only_at_ties_and_blending() {
     let mut reordered = 0;
     let mut total = forestlod_tests::OrderDiffs::default();
     for mode in [Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
-        let base = Params {
-            grid_size: 50.0,
-            lod1_transition: 120.0,
-            fade_width: 40.0,
-            texture_size: 32,
-            nodes_per_node: 8,
-            max_cull_depth: 3,
-            hierarchy: mode as u32,
-            ..Params::default()
-        };
+        let base = forestlod_tests::tiny_hierarchy_params(mode);
         let prepared = prepare(scene.clone(), &base).unwrap();
         for (camera_name, yaw, camera) in forestlod_tests::small_poses(
             &prepared.scene,

@@ -265,15 +265,7 @@ fn euclidean_dist_to_misses_lod0_that_view_depth_keeps() {
 #[test]
 fn hierarchy_frames_equal_grid_frames() {
     let scene = builtin::by_name("tiny").unwrap();
-    let base = Params {
-        grid_size: 50.0,
-        lod1_transition: 120.0,
-        fade_width: 40.0,
-        texture_size: 32,
-        nodes_per_node: 8,
-        max_cull_depth: 3,
-        ..Params::default()
-    };
+    let base = forestlod_tests::tiny_hierarchy_params(Mode::Grid);
     let grid = prepare(scene.clone(), &base).unwrap();
     for mode in CONSERVATIVE {
         let p = Params {
