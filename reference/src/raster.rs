@@ -1534,6 +1534,17 @@ fn source_over(dst: [u8; 4], s: [f32; 4]) -> [u8; 4] {
 mod tests {
     use super::*;
 
+    /// A deterministic stream of `f32` in `[0, 1)` (a 64-bit LCG's top 24 bits) for the random
+    /// triangles of the mask tests.
+    fn unit_random(mut seed: u64) -> impl FnMut() -> f32 {
+        move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
     fn vertex(x: f32, y: f32) -> Vertex<0> {
         Vertex::new([x, y, 0.5, 1.0], [])
     }
@@ -1818,13 +1829,7 @@ mod tests {
             depth: 1.0,
             aux: 0,
         };
-        let mut seed = 12345u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = unit_random(12345u64);
         let tris: Vec<Triangle<1>> = (0..300)
             .map(|i| {
                 [0, 1, 2].map(|_| {
@@ -1914,13 +1919,7 @@ mod tests {
             depth: 1.0,
             aux: 0,
         };
-        let mut seed = 777u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = unit_random(777u64);
         let tris: Vec<Triangle<1>> = (0..3000)
             .map(|i| {
                 let (cx, cy) = (next() * 2.2 - 1.1, next() * 2.2 - 1.1);
