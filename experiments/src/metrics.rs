@@ -31,7 +31,7 @@ use serde::{Deserialize, Serialize};
 /// (a 0.7 m viewing distance from a 0.7 m wide 3840-pixel monitor, FLIP's reference setup). The
 /// experiments' images are smaller than 4K, so this is the stricter choice: errors look as they
 /// would when the frame fills a high-resolution display.
-pub const FLIP_PIXELS_PER_DEGREE: f32 = nv_flip::DEFAULT_PIXELS_PER_DEGREE;
+pub const FLIP_PIXELS_PER_DEGREE: f32 = forestlod_harness::flip::FLIP_PIXELS_PER_DEGREE;
 
 /// The LOD-id classes of the per-LOD maps, with file-name labels, in display order.
 pub const LOD_CLASSES: [(u32, &str); 5] = [
@@ -168,7 +168,9 @@ pub fn flip_map_tiled(reference: &Rgba8Image, test: &Rgba8Image, tile: Option<u3
     out
 }
 
-/// The FLIP error map of `test` against `reference` (equal sizes), row-major.
+/// The FLIP error map of `test` against `reference` (equal sizes), row-major, at
+/// [`FLIP_PIXELS_PER_DEGREE`]: `forestlod_harness::flip::flip_map` (strips in parallel, the
+/// whole-image map bit for bit).
 ///
 /// # Panics
 /// If the sizes differ.
@@ -178,12 +180,7 @@ pub fn flip_map(reference: &Rgba8Image, test: &Rgba8Image) -> Vec<f32> {
         (test.width, test.height),
         "FLIP needs equally sized images"
     );
-    let rgb = |img: &Rgba8Image| -> Vec<u8> {
-        img.texels.iter().flat_map(|t| [t[0], t[1], t[2]]).collect()
-    };
-    let r = nv_flip::FlipImageRgb8::with_data(reference.width, reference.height, &rgb(reference));
-    let t = nv_flip::FlipImageRgb8::with_data(test.width, test.height, &rgb(test));
-    nv_flip::flip(r, t, FLIP_PIXELS_PER_DEGREE).to_vec()
+    forestlod_harness::flip::flip_map(&reference.texels, &test.texels, test.width, test.height)
 }
 
 /// Nearest-rank percentile `p` in `[0, 100]` of unsorted values (0 for none).

@@ -200,8 +200,7 @@ pub const DEPTH_MAX_ULPS: u32 = 64;
 /// the other belongs or a wrong billboard layer on every billboard, raises it past 0.02.
 pub const FLIP_MEAN_MAX: f32 = 0.03;
 
-/// Pixels per degree passed to FLIP: its default (a 0.7 m viewing distance from a 24" 4K screen).
-pub const FLIP_PIXELS_PER_DEGREE: f32 = nv_flip::DEFAULT_PIXELS_PER_DEGREE;
+pub use crate::flip::FLIP_PIXELS_PER_DEGREE;
 
 /// Largest mean signed colour difference (GPU minus reference, per channel R, G, B, A, in sRGB8
 /// units) over the pixels within [`COLOR_TOLERANCE`] at the same position (statistical parity,
@@ -713,14 +712,9 @@ fn neighbourhood(x: u32, y: u32, w: u32, h: u32) -> impl Iterator<Item = usize> 
     })
 }
 
-/// FLIP mean of two sRGB8 colour buffers (alpha ignored).
-pub fn flip_mean(reference: &[[u8; 4]], test: &[[u8; 4]], width: u32, height: u32) -> f32 {
-    let rgb = |c: &[[u8; 4]]| -> Vec<u8> { c.iter().flat_map(|p| [p[0], p[1], p[2]]).collect() };
-    let r = nv_flip::FlipImageRgb8::with_data(width, height, &rgb(reference));
-    let t = nv_flip::FlipImageRgb8::with_data(width, height, &rgb(test));
-    let error = nv_flip::flip(r, t, FLIP_PIXELS_PER_DEGREE);
-    nv_flip::FlipPool::from_image(&error).mean()
-}
+/// FLIP mean of two sRGB8 colour buffers (alpha ignored), computed in strips in parallel
+/// ([`crate::flip`]).
+pub use crate::flip::flip_mean;
 
 /// The pixels at which [`compare_images`] reads its alternative frames for this pair of frames:
 /// a colour pixel whose ±1 px window misses the tolerance reads the alternatives over its 3x3

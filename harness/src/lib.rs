@@ -27,6 +27,7 @@
 
 pub mod backend;
 pub mod diagnose;
+pub mod flip;
 pub mod image_compare;
 pub mod stage;
 pub mod stats;

@@ -1,0 +1,167 @@
+//! FLIP (Andersson et al. 2020, the `nv-flip` crate) in horizontal strips, one per thread: the
+//! same error map, bit for bit, in a fraction of the wall time (issue 14: FLIP was the longest
+//! part of the main job's comparison, single-threaded, about 0.5 s at 1280x720).
+//!
+//! ## Why strips give the same map
+//!
+//! `nv-flip`'s C++ core (`FLIP::image::FLIP`, compiled without OpenMP, so one thread) computes
+//! every output pixel as a pure function of the input pixels within a fixed radius of it:
+//! per-pixel colour transforms, then two separable convolutions with edge clamping, the spatial
+//! filter (radius `calculateSpatialFilterRadius(ppd)`) and the feature filter (radius
+//! `ceil(3 · 0.5 · gw · ppd)`), each summed in a fixed kernel order; there is no image-wide
+//! statistic (the colour normalisation `cmax` is a constant). So a strip of rows `y0..y1`,
+//! computed from rows `y0 - H..y1 + H` (clamped to the image) with `H` at least the larger
+//! radius, gives exactly the whole image's values in `y0..y1`: an interior strip edge lies at
+//! least `H` rows from every row the strip keeps, and a strip edge at the image's edge clamps as
+//! the whole image does. Checked bit for bit by `strips_equal_the_whole_image`, whose halo-1
+//! mutant fails.
+//!
+//! Rejected: pooling FLIP per strip and combining the means (the mean of a mean is not FLIP's
+//! mean bit for bit; the map is stitched and pooled once instead).
+
+use rayon::prelude::*;
+
+/// Pixels per degree passed to FLIP: its default (a 0.7 m viewing distance from a 24" 4K screen).
+pub const FLIP_PIXELS_PER_DEGREE: f32 = nv_flip::DEFAULT_PIXELS_PER_DEGREE;
+
+/// Fewest rows a strip keeps: below this the two halos cost more than the strip saves.
+const MIN_STRIP_ROWS: usize = 64;
+
+/// Rows of context a strip needs on each side at `ppd` pixels per degree: the larger of FLIP's
+/// two filter radii (`sharedflip.h` `calculateSpatialFilterRadius`, the largest Gaussian scale
+/// parameter `b1.z = 0.04`; `image.h` `FLIP`, the feature filter with `gw = 0.082`), computed in
+/// `f64` and plus one row, so that `f32` rounding in the C++ `ceil` can never make it smaller than
+/// FLIP's own (a larger halo changes no value, only the cost). 11 rows at the default 67 ppd.
+pub fn halo_rows(ppd: f32) -> usize {
+    let ppd = f64::from(ppd);
+    let spatial = (3.0 * (0.04 / (2.0 * std::f64::consts::PI.powi(2))).sqrt() * ppd).ceil();
+    let feature = (3.0 * 0.5 * 0.082 * ppd).ceil();
+    spatial.max(feature) as usize + 1
+}
+
+/// The FLIP error map (row-major, `width · height` values in `[0, 1]`) of `test` against
+/// `reference`, two sRGB8 colour buffers (alpha ignored) of `width x height`, at
+/// [`FLIP_PIXELS_PER_DEGREE`]; computed in strips in parallel (module docs), equal bit for bit
+/// to `nv_flip::flip` on the whole images.
+///
+/// # Panics
+/// If a buffer's length is not `width · height`.
+pub fn flip_map(reference: &[[u8; 4]], test: &[[u8; 4]], width: u32, height: u32) -> Vec<f32> {
+    let strips = (height as usize / MIN_STRIP_ROWS).clamp(1, rayon::current_num_threads());
+    flip_map_in_strips(
+        reference,
+        test,
+        width,
+        height,
+        strips,
+        halo_rows(FLIP_PIXELS_PER_DEGREE),
+    )
+}
+
+/// The mean of [`flip_map`] as FLIP pools it (`nv_flip::FlipPool::mean`).
+pub fn flip_mean(reference: &[[u8; 4]], test: &[[u8; 4]], width: u32, height: u32) -> f32 {
+    let map = flip_map(reference, test, width, height);
+    let image = nv_flip::FlipImageFloat::with_data(width, height, &map);
+    nv_flip::FlipPool::from_image(&image).mean()
+}
+
+/// [`flip_map`] in `strips` strips of nearly equal height (at least one), each computed from its
+/// rows plus `halo` rows on each side.
+fn flip_map_in_strips(
+    reference: &[[u8; 4]],
+    test: &[[u8; 4]],
+    width: u32,
+    height: u32,
+    strips: usize,
+    halo: usize,
+) -> Vec<f32> {
+    let (w, h) = (width as usize, height as usize);
+    assert_eq!(reference.len(), w * h, "FLIP: reference buffer length");
+    assert_eq!(test.len(), w * h, "FLIP: test buffer length");
+    let strips = strips.clamp(1, h.max(1));
+    let bounds = |s: usize| (s * h / strips, (s + 1) * h / strips);
+    let rgb = |c: &[[u8; 4]]| -> Vec<u8> { c.iter().flat_map(|p| [p[0], p[1], p[2]]).collect() };
+    let parts: Vec<Vec<f32>> = (0..strips)
+        .into_par_iter()
+        .map(|s| {
+            let (y0, y1) = bounds(s);
+            let (a, b) = (y0.saturating_sub(halo), (y1 + halo).min(h));
+            let rows = (b - a) as u32;
+            let r = nv_flip::FlipImageRgb8::with_data(width, rows, &rgb(&reference[a * w..b * w]));
+            let t = nv_flip::FlipImageRgb8::with_data(width, rows, &rgb(&test[a * w..b * w]));
+            let map = nv_flip::flip(r, t, FLIP_PIXELS_PER_DEGREE).to_vec();
+            map[(y0 - a) * w..(y1 - a) * w].to_vec()
+        })
+        .collect();
+    parts.concat()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Noise with large flat patches and sharp edges, so that both filters see structure at
+    /// every strip boundary.
+    fn image(w: u32, h: u32, seed: u64) -> Vec<[u8; 4]> {
+        let mut s = seed;
+        let mut next = move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 33) as u8
+        };
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                if (x / 7 + y / 5) % 3 == 0 {
+                    [next(), next(), next(), 255]
+                } else {
+                    [(x * 3) as u8, (y * 5) as u8, 90, 255]
+                }
+            })
+            .collect()
+    }
+
+    fn whole(r: &[[u8; 4]], t: &[[u8; 4]], w: u32, h: u32) -> Vec<f32> {
+        let rgb =
+            |c: &[[u8; 4]]| -> Vec<u8> { c.iter().flat_map(|p| [p[0], p[1], p[2]]).collect() };
+        let r = nv_flip::FlipImageRgb8::with_data(w, h, &rgb(r));
+        let t = nv_flip::FlipImageRgb8::with_data(w, h, &rgb(t));
+        nv_flip::flip(r, t, FLIP_PIXELS_PER_DEGREE).to_vec()
+    }
+
+    /// Every strip count, including strips thinner than the halo and one per row, gives the
+    /// whole image's map bit for bit; and a halo one row shorter than FLIP's radius does not (so
+    /// the test can see a wrong halo).
+    #[test]
+    fn strips_equal_the_whole_image() {
+        let (w, h) = (53, 97);
+        let (r, t) = (image(w, h, 1), image(w, h, 2));
+        let want: Vec<u32> = whole(&r, &t, w, h).iter().map(|v| v.to_bits()).collect();
+        let halo = halo_rows(FLIP_PIXELS_PER_DEGREE);
+        assert_eq!(halo, 11, "the default ppd's radii are 10 and 9");
+        for strips in [1, 2, 3, 5, 8, 13, 97, 200] {
+            let got: Vec<u32> = flip_map_in_strips(&r, &t, w, h, strips, halo)
+                .iter()
+                .map(|v| v.to_bits())
+                .collect();
+            assert_eq!(got, want, "{strips} strips");
+        }
+        let short = flip_map_in_strips(&r, &t, w, h, 4, halo - 2);
+        let differ = short
+            .iter()
+            .zip(&want)
+            .filter(|(a, b)| a.to_bits() != **b)
+            .count();
+        assert!(differ > 0, "a halo shorter than FLIP's radius must show");
+        let mean = flip_mean(&r, &t, w, h);
+        let pooled = nv_flip::FlipPool::from_image(&nv_flip::FlipImageFloat::with_data(
+            w,
+            h,
+            &whole(&r, &t, w, h),
+        ))
+        .mean();
+        assert_eq!(mean.to_bits(), pooled.to_bits());
+        assert!(mean > 0.05, "the images differ: mean {mean}");
+    }
+}
