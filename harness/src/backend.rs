@@ -227,8 +227,18 @@ pub fn alpha_test_alternatives_at(
         .render_cutoffs(camera, params, &cutoffs, Some(pixels.to_vec()))
         .expect("reference render")
         .into_iter()
-        // Each target goes as soon as its images are copied: one frame's buffers twice at most.
-        .map(|drawn| images_of(&drawn.target))
+        // Each target's buffers are moved, not copied.
+        .map(|drawn| {
+            let (width, height) = (drawn.target.width(), drawn.target.height());
+            let (color, depth, lod_id) = drawn.target.into_buffers();
+            Images {
+                width,
+                height,
+                color,
+                depth,
+                lod_id,
+            }
+        })
         .collect()
 }
 

@@ -16,6 +16,16 @@
 //! the whole image does. Checked bit for bit by `strips_equal_the_whole_image`, whose halo-1
 //! mutant fails.
 //!
+//! ## Rows where the images agree are not computed
+//!
+//! The same locality gives a second saving: where the two images are equal within `H` rows of
+//! a row, every input FLIP reads for that row is the same in both images, so its filtered colours
+//! and features are equal, the colour difference is `HyAB = +0`, the feature difference `+0`,
+//! and the error `pow(+0, 1 - 0) = +0` exactly. Only the runs of rows within `H` of a row that
+//! differs (in R, G or B) are computed, in strips as above; the rest of the map is `+0.0`. The
+//! main job's sky is such a run (a third of its rows at the default camera). Checked bit for bit
+//! by `rows_far_from_every_difference_are_zero`, whose dilation-short mutant fails.
+//!
 //! Rejected: pooling FLIP per strip and combining the means (the mean of a mean is not FLIP's
 //! mean bit for bit; the map is stitched and pooled once instead).
 
@@ -41,21 +51,24 @@ pub fn halo_rows(ppd: f32) -> usize {
 
 /// The FLIP error map (row-major, `width · height` values in `[0, 1]`) of `test` against
 /// `reference`, two sRGB8 colour buffers (alpha ignored) of `width x height`, at
-/// [`FLIP_PIXELS_PER_DEGREE`]; computed in strips in parallel (module docs), equal bit for bit
-/// to `nv_flip::flip` on the whole images.
+/// [`FLIP_PIXELS_PER_DEGREE`]; computed in strips in parallel, only near rows that differ (module
+/// docs), equal bit for bit to `nv_flip::flip` on the whole images.
 ///
 /// # Panics
 /// If a buffer's length is not `width · height`.
 pub fn flip_map(reference: &[[u8; 4]], test: &[[u8; 4]], width: u32, height: u32) -> Vec<f32> {
-    let strips = (height as usize / MIN_STRIP_ROWS).clamp(1, rayon::current_num_threads());
-    flip_map_in_strips(
-        reference,
-        test,
-        width,
-        height,
-        strips,
-        halo_rows(FLIP_PIXELS_PER_DEGREE),
-    )
+    let (w, h) = (width as usize, height as usize);
+    assert_eq!(reference.len(), w * h, "FLIP: reference buffer length");
+    assert_eq!(test.len(), w * h, "FLIP: test buffer length");
+    let halo = halo_rows(FLIP_PIXELS_PER_DEGREE);
+    let differs: Vec<bool> = reference
+        .chunks(w.max(1))
+        .zip(test.chunks(w.max(1)))
+        .map(|(r, t)| r.iter().zip(t).any(|(a, b)| a[..3] != b[..3]))
+        .collect();
+    let strips = rayon::current_num_threads();
+    let pieces = pieces(&differs, halo, strips, MIN_STRIP_ROWS);
+    flip_map_of_pieces(reference, test, width, height, &pieces, halo)
 }
 
 /// The mean of [`flip_map`] as FLIP pools it (`nv_flip::FlipPool::mean`).
@@ -65,26 +78,53 @@ pub fn flip_mean(reference: &[[u8; 4]], test: &[[u8; 4]], width: u32, height: u3
     nv_flip::FlipPool::from_image(&image).mean()
 }
 
-/// [`flip_map`] in `strips` strips of nearly equal height (at least one), each computed from its
-/// rows plus `halo` rows on each side.
-fn flip_map_in_strips(
+/// The row ranges `[y0, y1)` to compute, in order: the runs of rows within `halo` of a row
+/// where `differs`, cut into about `strips` pieces of nearly equal height overall (none below
+/// `min_rows` unless its run is shorter).
+fn pieces(differs: &[bool], halo: usize, strips: usize, min_rows: usize) -> Vec<(usize, usize)> {
+    let h = differs.len();
+    let mut live = vec![false; h];
+    for (y, _) in differs.iter().enumerate().filter(|(_, d)| **d) {
+        live[y.saturating_sub(halo)..(y + halo + 1).min(h)].fill(true);
+    }
+    let mut runs = Vec::new();
+    let mut y = 0;
+    while y < h {
+        if !live[y] {
+            y += 1;
+            continue;
+        }
+        let start = y;
+        while y < h && live[y] {
+            y += 1;
+        }
+        runs.push((start, y));
+    }
+    let total: usize = runs.iter().map(|(a, b)| b - a).sum();
+    let target = total.div_ceil(strips.max(1)).max(min_rows).max(1);
+    let mut out = Vec::new();
+    for (a, b) in runs {
+        let n = (b - a).div_ceil(target);
+        out.extend((0..n).map(|k| (a + k * (b - a) / n, a + (k + 1) * (b - a) / n)));
+    }
+    out
+}
+
+/// The FLIP map with the rows of `pieces` computed (each in parallel, from its rows plus `halo`
+/// rows on each side) and every other row `+0.0`.
+fn flip_map_of_pieces(
     reference: &[[u8; 4]],
     test: &[[u8; 4]],
     width: u32,
     height: u32,
-    strips: usize,
+    pieces: &[(usize, usize)],
     halo: usize,
 ) -> Vec<f32> {
     let (w, h) = (width as usize, height as usize);
-    assert_eq!(reference.len(), w * h, "FLIP: reference buffer length");
-    assert_eq!(test.len(), w * h, "FLIP: test buffer length");
-    let strips = strips.clamp(1, h.max(1));
-    let bounds = |s: usize| (s * h / strips, (s + 1) * h / strips);
     let rgb = |c: &[[u8; 4]]| -> Vec<u8> { c.iter().flat_map(|p| [p[0], p[1], p[2]]).collect() };
-    let parts: Vec<Vec<f32>> = (0..strips)
-        .into_par_iter()
-        .map(|s| {
-            let (y0, y1) = bounds(s);
+    let parts: Vec<Vec<f32>> = pieces
+        .par_iter()
+        .map(|&(y0, y1)| {
             let (a, b) = (y0.saturating_sub(halo), (y1 + halo).min(h));
             let rows = (b - a) as u32;
             let r = nv_flip::FlipImageRgb8::with_data(width, rows, &rgb(&reference[a * w..b * w]));
@@ -93,7 +133,11 @@ fn flip_map_in_strips(
             map[(y0 - a) * w..(y1 - a) * w].to_vec()
         })
         .collect();
-    parts.concat()
+    let mut out = vec![0.0f32; w * h];
+    for (&(y0, y1), part) in pieces.iter().zip(parts) {
+        out[y0 * w..y1 * w].copy_from_slice(&part);
+    }
+    out
 }
 
 #[cfg(test)]
@@ -130,6 +174,17 @@ mod tests {
         nv_flip::flip(r, t, FLIP_PIXELS_PER_DEGREE).to_vec()
     }
 
+    /// Even strips of the whole image.
+    fn even(h: usize, strips: usize) -> Vec<(usize, usize)> {
+        (0..strips)
+            .map(|s| (s * h / strips, (s + 1) * h / strips))
+            .collect()
+    }
+
+    fn bits(map: &[f32]) -> Vec<u32> {
+        map.iter().map(|v| v.to_bits()).collect()
+    }
+
     /// Every strip count, including strips thinner than the halo and one per row, gives the
     /// whole image's map bit for bit; and a halo one row shorter than FLIP's radius does not (so
     /// the test can see a wrong halo).
@@ -137,23 +192,20 @@ mod tests {
     fn strips_equal_the_whole_image() {
         let (w, h) = (53, 97);
         let (r, t) = (image(w, h, 1), image(w, h, 2));
-        let want: Vec<u32> = whole(&r, &t, w, h).iter().map(|v| v.to_bits()).collect();
+        let want = bits(&whole(&r, &t, w, h));
         let halo = halo_rows(FLIP_PIXELS_PER_DEGREE);
         assert_eq!(halo, 11, "the default ppd's radii are 10 and 9");
-        for strips in [1, 2, 3, 5, 8, 13, 97, 200] {
-            let got: Vec<u32> = flip_map_in_strips(&r, &t, w, h, strips, halo)
-                .iter()
-                .map(|v| v.to_bits())
-                .collect();
-            assert_eq!(got, want, "{strips} strips");
+        for strips in [1, 2, 3, 5, 8, 13, 97] {
+            let got = flip_map_of_pieces(&r, &t, w, h, &even(h as usize, strips), halo);
+            assert_eq!(bits(&got), want, "{strips} strips");
         }
-        let short = flip_map_in_strips(&r, &t, w, h, 4, halo - 2);
-        let differ = short
-            .iter()
-            .zip(&want)
-            .filter(|(a, b)| a.to_bits() != **b)
-            .count();
-        assert!(differ > 0, "a halo shorter than FLIP's radius must show");
+        assert_eq!(bits(&flip_map(&r, &t, w, h)), want);
+        let short = flip_map_of_pieces(&r, &t, w, h, &even(h as usize, 4), halo - 2);
+        assert_ne!(
+            bits(&short),
+            want,
+            "a halo shorter than FLIP's radius must show"
+        );
         let mean = flip_mean(&r, &t, w, h);
         let pooled = nv_flip::FlipPool::from_image(&nv_flip::FlipImageFloat::with_data(
             w,
@@ -163,5 +215,61 @@ mod tests {
         .mean();
         assert_eq!(mean.to_bits(), pooled.to_bits());
         assert!(mean > 0.05, "the images differ: mean {mean}");
+    }
+
+    /// Images equal but in a few scattered rows (one at the top edge, one at the bottom, two
+    /// close together, one alone): the map computed only near those rows is the whole image's
+    /// bit for bit (zeros elsewhere), for several strip counts; dilating by two rows less
+    /// than the halo is not.
+    #[test]
+    fn rows_far_from_every_difference_are_zero() {
+        let (w, h) = (41u32, 160u32);
+        let r = image(w, h, 3);
+        let noise = image(w, h, 4);
+        let rows = [0usize, 37, 40, 95, 159];
+        let t: Vec<[u8; 4]> = r
+            .iter()
+            .zip(&noise)
+            .enumerate()
+            .map(|(i, (a, b))| {
+                if rows.contains(&(i / w as usize)) {
+                    *b
+                } else {
+                    *a
+                }
+            })
+            .collect();
+        let want = bits(&whole(&r, &t, w, h));
+        let zeros = want.iter().filter(|&&v| v == 0).count();
+        assert!(
+            zeros > want.len() / 4,
+            "most of the map is far from a difference: {zeros} zeros"
+        );
+        assert_eq!(bits(&flip_map(&r, &t, w, h)), want);
+        let differs: Vec<bool> = (0..h as usize).map(|y| rows.contains(&y)).collect();
+        let halo = halo_rows(FLIP_PIXELS_PER_DEGREE);
+        for strips in [1, 2, 5] {
+            for min_rows in [1, 16, 64] {
+                let p = pieces(&differs, halo, strips, min_rows);
+                let skipped = h as usize - p.iter().map(|(a, b)| b - a).sum::<usize>();
+                assert!(skipped > 40, "{skipped} rows skipped");
+                let got = flip_map_of_pieces(&r, &t, w, h, &p, halo);
+                assert_eq!(
+                    bits(&got),
+                    want,
+                    "{strips} strips, {min_rows} rows at least"
+                );
+            }
+        }
+        let narrow = pieces(&differs, halo - 2, 2, 1);
+        assert_ne!(
+            bits(&flip_map_of_pieces(&r, &t, w, h, &narrow, halo)),
+            want,
+            "rows within FLIP's radius of a difference must be computed"
+        );
+        assert!(
+            flip_map(&r, &r, w, h).iter().all(|&v| v.to_bits() == 0),
+            "equal images: all +0"
+        );
     }
 }

@@ -41,8 +41,8 @@ use glam::{Mat4, Vec3, Vec4};
 use crate::bake::BakedBillboards;
 use crate::geometry::PackedGeometry;
 use crate::raster::{
-    ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, MaskCounts, RenderTarget,
-    Triangle, Vertex, draw_each,
+    ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, MaskCounts, PassSet, PassShader,
+    RenderTarget, Triangle, Vertex, draw_passes,
 };
 use crate::sampler::{Sampler, Texture};
 use crate::scene::{Instance, Scene, tree_sphere};
@@ -210,19 +210,28 @@ pub fn vertex_stage(
     ))
 }
 
-/// The fragment shader of the tree pipeline (module docs).
+/// The fragment shader of the tree pipeline (module docs), one pass per alpha-test cutoff of
+/// `alpha_cutoffs` ([`PassShader`]): a plain frame is one pass with `params.alpha_cutoff`; the
+/// parity's alternative frames are six, the cutoff moved (issue 14). Everything but the alpha test
+/// (the texel, the fade weight, the LOD id) is the same in every pass, so it is computed once
+/// per fragment; each pass keeps the fragment when its own test does.
 pub struct TreeShader<'a> {
     res: &'a DrawResources<'a>,
     selection: &'a Selection,
     fade: FadeMode,
-    alpha_cutoff: f32,
+    alpha_cutoffs: &'a [f32],
     /// `Camera::pixel_origin`: the frame pixel of the viewport's (0, 0) (a tile camera's is
     /// non-zero); the dither threshold is the frame pixel's.
     pixel_origin: [u32; 2],
 }
 
-impl TreeShader<'_> {
-    fn shade(&self, f: &Fragment<TREE_VARYINGS>) -> Option<FragmentOutput> {
+impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
+    fn shade_passes(
+        &self,
+        f: &Fragment<TREE_VARYINGS>,
+        passes: PassSet,
+        keep: &mut impl FnMut(usize, &FragmentOutput),
+    ) {
         let [u, v, depth, layer, command] = f.varyings;
         let data = &self.selection.data[command.round() as usize];
         let layer = layer.round() as u32;
@@ -236,12 +245,19 @@ impl TreeShader<'_> {
                 .texture
                 .sample(&Sampler::TRILINEAR, layer, uv, ddx, ddy)
         };
-        coverage::hit(
-            coverage::Threshold::DrawAlphaCutoff,
-            texel[3] < self.alpha_cutoff,
-        );
-        if texel[3] < self.alpha_cutoff {
-            return None;
+        // The alpha test, per pass.
+        let mut kept: PassSet = 0;
+        for (p, &cutoff) in self.alpha_cutoffs.iter().enumerate() {
+            if passes & (1 << p) != 0 {
+                let discard = texel[3] < cutoff;
+                coverage::hit(coverage::Threshold::DrawAlphaCutoff, discard);
+                if !discard {
+                    kept |= 1 << p;
+                }
+            }
+        }
+        if kept == 0 {
+            return;
         }
         if coverage::enabled() && data.fading != 0 {
             use coverage::{Threshold::*, hit};
@@ -267,7 +283,7 @@ impl TreeShader<'_> {
             coverage::hit(coverage::Threshold::DrawDither, weight > 0.0);
         }
         if weight <= 0.0 {
-            return None;
+            return;
         }
         let in_band = data.fading != 0 && {
             let t = fade_progress(depth, data.fade_start, data.fade_end);
@@ -283,11 +299,15 @@ impl TreeShader<'_> {
         } else {
             LOD_ID_BILLBOARD
         };
-        Some(FragmentOutput {
+        let out = FragmentOutput {
             color: [texel[0], texel[1], texel[2], weight],
             id,
             depth: None,
-        })
+        };
+        while kept != 0 {
+            keep(kept.trailing_zeros() as usize, &out);
+            kept &= kept - 1;
+        }
     }
 }
 
@@ -556,8 +576,9 @@ pub fn draw_frame(
 
 /// [`draw_frame`] once per alpha-test cutoff of `cutoffs` (every other parameter `params`'),
 /// restricted to the pixels of `mask` when given ([`RenderTarget::with_pixel_mask`]). The vertex
-/// stage, clipping, setup and binning are done once for all ([`draw_each`]: the cutoff enters only
-/// the fragment shader); each frame's buffers are those of its own [`draw_frame`] (at the masked
+/// stage, clipping, setup, binning and the walk over the quads are done once for all
+/// ([`draw_passes`]: the cutoff enters only the fragment shader, whose texture sample, fade
+/// weight and LOD id are shared too, [`TreeShader`]); each frame's buffers are those of its own [`draw_frame`] (at the masked
 /// pixels when masked; the others keep the sky's clear values), and so are its counters when
 /// unmasked. Under a mask, the trees and then the triangles whose screen box misses it are left
 /// out before the vertex stage and before setup ([`assemble_trees`]; they could write no masked
@@ -572,39 +593,28 @@ pub fn draw_frame_cutoffs(
     cutoffs: &[f32],
     mask: Option<Vec<bool>>,
 ) -> Vec<DrawnFrame> {
-    let mut grounds: Vec<(RenderTarget, DrawStats)> = cutoffs
-        .iter()
-        .map(|_| sky_and_ground_masked(res.scene, camera, mask.clone()))
-        .collect();
+    // The sky and ground do not depend on the cutoff: drawn once, copied (issue 14).
+    let mut grounds: Vec<(RenderTarget, DrawStats)> =
+        vec![sky_and_ground_masked(res.scene, camera, mask.clone()); cutoffs.len()];
     let counts = mask
         .as_ref()
         .map(|m| MaskCounts::new(m, camera.width, camera.height));
     let (triangles, trees_discarded) =
         assemble_trees(res, selection, camera, params, counts.as_ref());
-    let shaders: Vec<TreeShader> = cutoffs
-        .iter()
-        .map(|&alpha_cutoff| TreeShader {
-            res,
-            selection,
-            fade: params.fade().unwrap_or(FadeMode::Alpha),
-            alpha_cutoff,
-            pixel_origin: camera.pixel_origin(),
-        })
-        .collect();
-    let closures: Vec<_> = shaders
-        .iter()
-        .map(|shader| move |f: &Fragment<TREE_VARYINGS>| shader.shade(f))
-        .collect();
+    let shader = TreeShader {
+        res,
+        selection,
+        fade: params.fade().unwrap_or(FadeMode::Alpha),
+        alpha_cutoffs: cutoffs,
+        pixel_origin: camera.pixel_origin(),
+    };
     let state = DrawState {
         depth_write: true,
         ..DrawState::TRANSPARENT
     };
-    let mut passes: Vec<_> = grounds
-        .iter_mut()
-        .zip(&closures)
-        .map(|((target, _), closure)| (target, closure))
-        .collect();
-    let stats = draw_each(&mut passes, &triangles, &state);
+    let mut targets: Vec<&mut RenderTarget> =
+        grounds.iter_mut().map(|(target, _)| target).collect();
+    let stats = draw_passes(&mut targets, &shader, &triangles, &state);
     grounds
         .into_iter()
         .zip(stats)

@@ -252,3 +252,82 @@ fn masked_draws_equal_unmasked_draws_at_the_mask() {
         "the cases missed what they must exercise"
     );
 }
+
+/// The alternative frames share one walk and one texture sample per fragment for all their
+/// cutoffs (`draw_frame_cutoffs`: `raster::draw_passes` with the tree shader's one pass per
+/// cutoff, issue 14): each frame must still be its own plain draw's, every buffer bit for bit
+/// and every counter equal, unmasked as well as masked. Cameras close to the trees of `tiny`,
+/// where the alpha test decides many pixels; the cutoffs must give frames that differ, or the
+/// passes could have been mixed up unseen.
+#[test]
+fn shared_cutoff_passes_equal_their_own_draws() {
+    use forestlod_shared::Camera;
+
+    let params = Params::default();
+    let scene = builtin::tiny();
+    let cutoffs = [0.1, params.alpha_cutoff, 0.45, 0.8];
+    let prepared = prepare(scene, &params).expect("prepare");
+    let cameras: Vec<Camera> = ["close", "medium"]
+        .iter()
+        .map(|name| named_camera(name, &prepared.scene, 30.0, 160, 96).expect("camera"))
+        .collect();
+    let mut differing = 0;
+    for camera in &cameras {
+        let n = (camera.width * camera.height) as usize;
+        let mask: Vec<bool> = (0..n).map(|i| (i * 7919) % 11 < 4).collect();
+        let shared = prepared
+            .render_cutoffs(camera, &params, &cutoffs, None)
+            .expect("render");
+        let masked = prepared
+            .render_cutoffs(camera, &params, &cutoffs, Some(mask.clone()))
+            .expect("render");
+        assert_eq!((shared.len(), masked.len()), (cutoffs.len(), cutoffs.len()));
+        let own: Vec<_> = cutoffs
+            .iter()
+            .map(|&alpha_cutoff| {
+                let p = Params {
+                    alpha_cutoff,
+                    ..params
+                };
+                prepared.render(camera, &p).expect("render").drawn
+            })
+            .collect();
+        for (k, ((s, m), o)) in shared.iter().zip(&masked).zip(&own).enumerate() {
+            let what = format!("camera {:?}, cutoff {}", camera.eye, cutoffs[k]);
+            let depth_bits = |d: &[f32]| d.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert!(s.target.color() == o.target.color(), "{what}: colour");
+            assert_eq!(
+                depth_bits(s.target.depth()),
+                depth_bits(o.target.depth()),
+                "{what}"
+            );
+            assert!(s.target.aux() == o.target.aux(), "{what}: LOD id");
+            assert_eq!(
+                (s.terrain_stats, s.tree_stats, s.trees_discarded),
+                (o.terrain_stats, o.tree_stats, o.trees_discarded),
+                "{what}: counters"
+            );
+            for (i, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+                assert!(
+                    m.target.color()[i] == o.target.color()[i]
+                        && m.target.depth()[i].to_bits() == o.target.depth()[i].to_bits()
+                        && m.target.aux()[i] == o.target.aux()[i],
+                    "{what}: masked pixel {i}"
+                );
+            }
+            if k > 0 {
+                differing += own[k - 1]
+                    .target
+                    .color()
+                    .iter()
+                    .zip(o.target.color())
+                    .filter(|(a, b)| a != b)
+                    .count();
+            }
+        }
+    }
+    assert!(
+        differing > 200,
+        "the cutoffs must change the frames: {differing} pixels differ"
+    );
+}
