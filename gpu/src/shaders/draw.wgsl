@@ -64,13 +64,17 @@ struct DrawInstance {
 // Trilinear, clamp-to-edge (reference Sampler::TRILINEAR).
 @group(0) @binding(9) var tree_sampler: sampler;
 
+// Two locations, not four (issue 14): lavapipe keeps every set-up triangle of a frame's scene
+// with three vec4s per location (a0, d/dx, d/dy), so packing the reference's five varyings
+// `u, v, depth | layer, command` into one perspective vec3 and one flat vec2 cuts that memory
+// by about a quarter; each component is interpolated alone, so no value changes.
 struct TreeVaryings {
     @builtin(position) clip: vec4<f32>,
-    @location(0) uv: vec2<f32>,
-    // View depth `(p - eye) · forward`, clamped to the tree's sphere interval for billboards.
-    @location(1) depth: f32,
-    @location(2) @interpolate(flat) layer: u32,
-    @location(3) @interpolate(flat) command: u32,
+    // `uv` and the view depth `(p - eye) · forward`, clamped to the tree's sphere interval for
+    // billboards.
+    @location(0) uv_depth: vec3<f32>,
+    // Texture layer and command index.
+    @location(1) @interpolate(flat) layer_command: vec2<u32>,
 }
 
 struct TargetOutput {
@@ -117,10 +121,8 @@ fn tree_vertex(
 ) -> TreeVaryings {
     var out: TreeVaryings;
     out.clip = DISCARDED_POSITION;
-    out.uv = vec2<f32>(0.0, 0.0);
-    out.depth = 0.0;
-    out.layer = 0u;
-    out.command = 0u;
+    out.uv_depth = vec3<f32>(0.0, 0.0, 0.0);
+    out.layer_command = vec2<u32>(0u, 0u);
     let command = vertex_index >> COMMAND_SHIFT;
     let local = vertex_index & (MAX_MESH_VERTICES - 1u);
     // Without a count buffer the multi-draw runs every slot; slots past the count may hold a
@@ -184,21 +186,22 @@ fn tree_vertex(
         depth = min(max(depth, i.lo), i.hi);
     }
     out.clip = u.view_proj * vec4<f32>(world, 1.0);
-    out.uv = uv;
-    out.depth = depth;
-    out.layer = layer;
-    out.command = command;
+    out.uv_depth = vec3<f32>(uv, depth);
+    out.layer_command = vec2<u32>(layer, command);
     return out;
 }
 
 // reference `TreeShader::shade`.
 @fragment
 fn tree_fragment(in: TreeVaryings) -> TargetOutput {
-    let data = command_data[in.command];
+    let uv = in.uv_depth.xy;
+    let depth = in.uv_depth.z;
+    let layer = in.layer_command.x;
+    let data = command_data[in.layer_command.y];
     // Both textures are sampled before any branch: implicit-LOD sampling needs uniform control
     // flow (the quad's derivatives); the layer index clamps to the array (WGSL and Vulkan).
-    let mesh_texel = textureSample(mesh_textures, tree_sampler, in.uv, in.layer);
-    let billboard_texel = textureSample(billboard_textures, tree_sampler, in.uv, in.layer);
+    let mesh_texel = textureSample(mesh_textures, tree_sampler, uv, layer);
+    let billboard_texel = textureSample(billboard_textures, tree_sampler, uv, layer);
     let texel = select(mesh_texel, billboard_texel, data.billboard != 0u);
     if texel.a < u.alpha_cutoff {
         discard;
@@ -208,7 +211,7 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
         let pixel = vec2<u32>(in.clip.xy);
         let w = lod_weights(
             u.fade_mode,
-            in.depth,
+            depth,
             data.fade_start,
             data.fade_end,
             dither_threshold(pixel.x + u.pixel_origin_x, pixel.y + u.pixel_origin_y),
@@ -220,7 +223,7 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     }
     var in_band = false;
     if data.fading != 0u {
-        let t = fade_progress(in.depth, data.fade_start, data.fade_end);
+        let t = fade_progress(depth, data.fade_start, data.fade_end);
         in_band = t > 0.0 && t < 1.0;
     }
     var out: TargetOutput;
