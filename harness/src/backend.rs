@@ -15,7 +15,7 @@ use forestlod_gpu::{Compaction, GpuContext, GpuSelect, gpu_or_explain};
 use forestlod_reference::select::{Decision, Selection};
 use forestlod_shared::{Camera, LodNeeds, Params};
 
-use crate::stage::{Backend, Draw, FrameInput, Named, Reference, Select, SelectInput};
+use crate::stage::{Backend, Draw, FrameInput, Named, Select, SelectInput};
 
 /// The shared GPU context of this test binary, or `None` when no adapter exists and
 /// `FORESTLOD_ALLOW_NO_GPU=1` (without it, the first call panics with the install hint).
@@ -191,22 +191,20 @@ impl StagesFromCpu {
 
 /// The reference frames with the alpha-test cutoff moved by each of
 /// `±image_compare::ALPHA_TEST_SHIFTS`: the alternatives that classify threshold-ambiguous
-/// pixels (`image_compare` module docs).
+/// pixels (`image_compare` module docs). Drawn together (`Prepared::render_cutoffs`: one
+/// selection, one setup and one walk for all, each frame its own draw's bit for bit).
 pub fn alpha_test_alternatives(
     prepared: &Prepared,
     camera: &Camera,
     params: &Params,
 ) -> Vec<Images> {
-    cutoff_shifted(params, |p| {
-        Backend::<Draw>::run(
-            &Reference,
-            FrameInput {
-                prepared,
-                camera,
-                params: p,
-            },
-        )
-    })
+    let cutoffs: Vec<f32> = cutoff_shifted(params, |p| p.alpha_cutoff);
+    prepared
+        .render_cutoffs(camera, params, &cutoffs, None)
+        .expect("reference render")
+        .into_iter()
+        .map(|drawn| moved_images(drawn.target))
+        .collect()
 }
 
 /// [`alpha_test_alternatives`] drawn only at `pixels` (`image_compare::alternative_pixels` of
@@ -227,19 +225,21 @@ pub fn alpha_test_alternatives_at(
         .render_cutoffs(camera, params, &cutoffs, Some(pixels.to_vec()))
         .expect("reference render")
         .into_iter()
-        // Each target's buffers are moved, not copied.
-        .map(|drawn| {
-            let (width, height) = (drawn.target.width(), drawn.target.height());
-            let (color, depth, lod_id) = drawn.target.into_buffers();
-            Images {
-                width,
-                height,
-                color,
-                depth,
-                lod_id,
-            }
-        })
+        .map(|drawn| moved_images(drawn.target))
         .collect()
+}
+
+/// A target's buffers as [`Images`], moved, not copied.
+fn moved_images(target: RenderTarget) -> Images {
+    let (width, height) = (target.width(), target.height());
+    let (color, depth, lod_id) = target.into_buffers();
+    Images {
+        width,
+        height,
+        color,
+        depth,
+        lod_id,
+    }
 }
 
 /// `render` with the alpha-test cutoff moved by each of `±image_compare::ALPHA_TEST_SHIFTS`
