@@ -34,8 +34,9 @@ use rayon::prelude::*;
 /// Pixels per degree passed to FLIP: its default (a 0.7 m viewing distance from a 24" 4K screen).
 pub const FLIP_PIXELS_PER_DEGREE: f32 = nv_flip::DEFAULT_PIXELS_PER_DEGREE;
 
-/// Fewest rows a strip keeps: below this the two halos cost more than the strip saves.
-const MIN_STRIP_ROWS: usize = 64;
+/// Fewest rows a strip keeps: its two halos (2 x 11 rows) then cost at most a sixth more. A
+/// sweep's 320x180 frames stay whole (the sweeps already run frames in parallel).
+const MIN_STRIP_ROWS: usize = 128;
 
 /// Rows of context a strip needs on each side at `ppd` pixels per degree: the larger of FLIP's
 /// two filter radii (`sharedflip.h` `calculateSpatialFilterRadius`, the largest Gaussian scale

@@ -779,11 +779,39 @@ pub fn compare_images(
         alternatives,
         camera,
         COMPARE_BAND_ROWS,
+        None,
+    )
+}
+
+/// [`compare_images`] with the FLIP mean of the two colour buffers already computed
+/// (`flip_mean(&reference.color, &gpu.color, width, height)`, [`flip_mean`]): the same report, for
+/// a caller that runs FLIP beside other work (the main job runs it beside the alternatives,
+/// issue 14).
+///
+/// # Panics
+/// As [`compare_images`].
+pub fn compare_images_with_flip(
+    name: &str,
+    gpu: &Images,
+    reference: &Images,
+    alternatives: &[Images],
+    camera: &Camera,
+    flip_mean: f32,
+) -> ImageReport {
+    compare_in_bands(
+        name,
+        gpu,
+        reference,
+        alternatives,
+        camera,
+        COMPARE_BAND_ROWS,
+        Some(flip_mean),
     )
 }
 
 /// [`compare_images`], classifying in bands of `band_rows` rows (any positive number gives the
-/// same report; one band of the whole image is the plain pixel loop).
+/// same report; one band of the whole image is the plain pixel loop), with FLIP's mean computed
+/// here unless given.
 fn compare_in_bands(
     name: &str,
     gpu: &Images,
@@ -791,6 +819,7 @@ fn compare_in_bands(
     alternatives: &[Images],
     camera: &Camera,
     band_rows: usize,
+    flip: Option<f32>,
 ) -> ImageReport {
     let (w, h) = (reference.width, reference.height);
     assert_eq!(
@@ -849,7 +878,7 @@ fn compare_in_bands(
     let mut color_classes = vec![0u8; n];
     let band = band_rows.max(1) * w as usize;
     let (flip, parts) = rayon::join(
-        || flip_mean(&reference.color, &gpu.color, w, h),
+        || flip.unwrap_or_else(|| flip_mean(&reference.color, &gpu.color, w, h)),
         || {
             color_classes
                 .par_chunks_mut(band)
@@ -1373,8 +1402,17 @@ mod tests {
         let (w, h) = (48, 40);
         let (gpu, reference, alternatives) = scrambled(w, h);
         let camera = Camera::look_at([0.0; 3], [1.0, 0.0, 0.0], 60.0, w, h);
-        let report =
-            |rows| compare_in_bands("bands", &gpu, &reference, &alternatives, &camera, rows);
+        let report = |rows| {
+            compare_in_bands(
+                "bands",
+                &gpu,
+                &reference,
+                &alternatives,
+                &camera,
+                rows,
+                None,
+            )
+        };
         let plain = report(h as usize);
         // Every class the merge adds is populated, and there are more mismatches than examples.
         for (what, counts) in [("colour", plain.color), ("depth", plain.depth)] {
@@ -1400,5 +1438,11 @@ mod tests {
             let banded = report(rows);
             assert_eq!(format!("{banded:?}"), expected, "{rows} rows per band");
         }
+        // FLIP given by the caller (computed beside other work) changes nothing.
+        let flip = flip_mean(&reference.color, &gpu.color, w, h);
+        let given =
+            compare_images_with_flip("bands", &gpu, &reference, &alternatives, &camera, flip);
+        assert_eq!(format!("{given:?}"), format!("{:?}", report(16)));
+        assert!(plain.flip_mean > 0.0, "{plain}");
     }
 }
