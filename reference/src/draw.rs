@@ -230,8 +230,7 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
         &self,
         f: &Fragment<TREE_VARYINGS>,
         passes: PassSet,
-        keep: &mut impl FnMut(usize, &FragmentOutput),
-    ) {
+    ) -> Option<(FragmentOutput, PassSet)> {
         let [u, v, depth, layer, command] = f.varyings;
         let data = &self.selection.data[command.round() as usize];
         let layer = layer.round() as u32;
@@ -257,7 +256,7 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
             }
         }
         if kept == 0 {
-            return;
+            return None;
         }
         if coverage::enabled() && data.fading != 0 {
             use coverage::{Threshold::*, hit};
@@ -283,7 +282,7 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
             coverage::hit(coverage::Threshold::DrawDither, weight > 0.0);
         }
         if weight <= 0.0 {
-            return;
+            return None;
         }
         let in_band = data.fading != 0 && {
             let t = fade_progress(depth, data.fade_start, data.fade_end);
@@ -304,10 +303,7 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
             id,
             depth: None,
         };
-        while kept != 0 {
-            keep(kept.trailing_zeros() as usize, &out);
-            kept &= kept - 1;
-        }
+        Some((out, kept))
     }
 }
 

@@ -512,8 +512,7 @@ impl RenderTarget {
     where
         S: FragmentShader<N> + ?Sized,
     {
-        let mut pass = [(self, shader)];
-        draw_each(&mut pass, triangles, state)[0]
+        draw_passes(&mut [self], &One(shader), triangles, state)[0]
     }
 
     /// Screen tiles, row by row.
@@ -579,7 +578,7 @@ impl RenderTarget {
 
 /// How many pixels of a pixel mask lie in any rectangle, in four lookups: the mask's summed-area
 /// table, `(width + 1) x (height + 1)` counts, `sums[y][x]` the mask pixels above and left of
-/// `(x, y)`. [`draw_each`] uses it to leave out, per tile, the triangles whose box meets no
+/// `(x, y)`. [`draw_passes`] uses it to leave out, per tile, the triangles whose box meets no
 /// pixel of a masked target (issue 14), and [`crate::draw`] to leave out whole trees.
 pub(crate) struct MaskCounts {
     stride: usize,
@@ -1020,7 +1019,7 @@ impl<const N: usize> SetupTriangle<N> {
     }
 }
 
-/// Triangles set up per chunk of [`draw_each`]: bounds the setup's memory (a setup triangle is
+/// Triangles set up per chunk of [`draw_passes`]: bounds the setup's memory (a setup triangle is
 /// about 250 bytes; a million-triangle frame set up at once held over 500 MB, issue 14) without
 /// changing any pixel: chunks go in submission order and each tile renders a chunk's triangles in
 /// order before the next chunk's, so every pixel still merges its fragments in submission order.
@@ -1037,27 +1036,27 @@ pub type PassSet = u64;
 pub const MAX_PASSES: usize = PassSet::BITS as usize;
 
 /// The fragment stage of a draw into several targets at once ([`draw_passes`]; a target with
-/// its share of the shading is a **pass**). Each pass is shaded as its own draw would shade it;
-/// what the passes share is everything before the shader (coverage, the barycentrics, depth,
-/// varyings and derivatives), and whatever a `PassShader` shares among its passes itself (the
+/// its share of the shading is a **pass**) whose passes differ only in which fragments they keep:
+/// each pass is shaded as its own draw would shade it, and a fragment a pass keeps has the same
+/// output in every pass that keeps it. What the passes share is everything before the shader
+/// (coverage, the barycentrics, depth, varyings and derivatives) and the shader's own work (the
 /// tree shader samples its texture once for the six alpha-test cutoffs of the parity's
 /// alternative frames, issue 14).
 pub trait PassShader<const N: usize>: Sync {
     /// Shades `fragment` for the passes of `passes` (never empty: those whose early depth test
-    /// it passed), calling `keep(p, output)` once for each pass `p` of `passes` that keeps it,
-    /// with the output pass `p`'s own shader would give; nothing for a pass that discards it.
+    /// it passed): its output and the passes of `passes` that keep it (not empty), or `None`
+    /// when every one of them discards it.
     fn shade_passes(
         &self,
         fragment: &Fragment<N>,
         passes: PassSet,
-        keep: &mut impl FnMut(usize, &FragmentOutput),
-    );
+    ) -> Option<(FragmentOutput, PassSet)>;
 }
 
-/// One [`FragmentShader`] per pass: pass `p` is shaded by `self.0[p]`.
-pub struct EachPass<'a, S: ?Sized>(pub &'a [&'a S]);
+/// One [`FragmentShader`] as the only pass of a draw ([`RenderTarget::draw`]).
+struct One<'a, S: ?Sized>(&'a S);
 
-impl<const N: usize, S> PassShader<N> for EachPass<'_, S>
+impl<const N: usize, S> PassShader<N> for One<'_, S>
 where
     S: FragmentShader<N> + ?Sized,
 {
@@ -1066,35 +1065,9 @@ where
         &self,
         fragment: &Fragment<N>,
         passes: PassSet,
-        keep: &mut impl FnMut(usize, &FragmentOutput),
-    ) {
-        for (p, shader) in self.0.iter().enumerate() {
-            if passes & (1 << p) != 0
-                && let Some(out) = shader.shade(fragment)
-            {
-                keep(p, &out);
-            }
-        }
+    ) -> Option<(FragmentOutput, PassSet)> {
+        self.0.shade(fragment).map(|out| (out, passes))
     }
-}
-
-/// Draws one triangle list into several targets of one size, each with its own shader
-/// ([`draw_passes`] with [`EachPass`]): each target's buffers and counters are exactly those of
-/// its own [`RenderTarget::draw`], which is this with one target.
-///
-/// # Panics
-/// As [`draw_passes`].
-pub fn draw_each<const N: usize, S>(
-    passes: &mut [(&mut RenderTarget, &S)],
-    triangles: &[Triangle<N>],
-    state: &DrawState,
-) -> Vec<DrawStats>
-where
-    S: FragmentShader<N> + ?Sized,
-{
-    let shaders: Vec<&S> = passes.iter().map(|(_, s)| *s).collect();
-    let mut targets: Vec<&mut RenderTarget> = passes.iter_mut().map(|(t, _)| &mut **t).collect();
-    draw_passes(&mut targets, &EachPass(&shaders), triangles, state)
 }
 
 /// Draws one triangle list into several targets of one size (the passes of `shader`, pass `p`
@@ -1302,7 +1275,13 @@ where
                     let buffers = buffers.get_or_insert_with(|| {
                         group.iter().map(|&p| reads[p].load_tile(*rect)).collect()
                     });
-                    render_tile(buffers, group, bin, &setup, shader, state)
+                    // A group of one target takes a copy of the walk compiled for one (no
+                    // loop over targets per pixel): measured 6-13 % of a plain frame.
+                    if group.len() == 1 {
+                        render_tile::<N, S, true>(buffers, group, bin, &setup, shader, state)
+                    } else {
+                        render_tile::<N, S, false>(buffers, group, bin, &setup, shader, state)
+                    }
                 })
                 .collect();
             for tile in counts {
@@ -1367,7 +1346,7 @@ fn add3(a: [i64; 3], b: [i64; 3]) -> [i64; 3] {
 /// Rasterizes the triangles of `bin` (indices into `setup`, in submission order) into one tile
 /// of the targets of `group` (pass indices; `buffers[i]` is pass `group[i]`'s copy of the tile,
 /// all with the same mask). Returns each pass's counts, in `group` order.
-fn render_tile<const N: usize, S>(
+fn render_tile<const N: usize, S, const ONE: bool>(
     buffers: &mut [TileBuffers],
     group: &[usize],
     bin: &[u32],
@@ -1379,7 +1358,14 @@ where
     S: PassShader<N> + ?Sized,
 {
     let tile = buffers[0].rect;
-    let mut counts = vec![FragmentCounts::default(); group.len()];
+    // One target's counts live on the stack, where the compiler keeps them in registers.
+    let (mut one, mut many) = ([FragmentCounts::default()], Vec::new());
+    let counts: &mut [FragmentCounts] = if ONE {
+        &mut one
+    } else {
+        many.resize(group.len(), FragmentCounts::default());
+        &mut many
+    };
     // Speed-up (issue 14, masked draws): the quads of a masked tile with at least one masked
     // pixel, in row-major order. A quad with none covers nothing (the coverage test below
     // requires the mask), so a triangle may visit only these quads of its box, in the same
@@ -1405,7 +1391,7 @@ where
                     continue;
                 }
                 let edges = quad_edges(tri.edges(qx, qy), &steps);
-                shade_quad(
+                shade_quad::<N, S, ONE>(
                     buffers,
                     group,
                     tri,
@@ -1414,7 +1400,7 @@ where
                     &edges,
                     shader,
                     state,
-                    &mut counts,
+                    counts,
                 );
             }
             continue;
@@ -1427,7 +1413,7 @@ where
             for qx in (qx0..r.x1).step_by(2) {
                 let edges = quad_edges(quad_e, &steps);
                 quad_e = add3(quad_e, two_sx);
-                shade_quad(
+                shade_quad::<N, S, ONE>(
                     buffers,
                     group,
                     tri,
@@ -1436,12 +1422,12 @@ where
                     &edges,
                     shader,
                     state,
-                    &mut counts,
+                    counts,
                 );
             }
         }
     }
-    counts
+    counts.to_vec()
 }
 
 /// The pixels of `tile` set in `mask` (the whole target's row-major pixel mask, `width` wide),
@@ -1487,7 +1473,7 @@ fn masked_quads(tile: PixelRect, mask: &[bool]) -> Vec<(u32, u32)> {
 /// pixels; `buffers`, `counts`: per target, in `group` order.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn shade_quad<const N: usize, S>(
+fn shade_quad<const N: usize, S, const ONE: bool>(
     buffers: &mut [TileBuffers],
     group: &[usize],
     tri: &SetupTriangle<N>,
@@ -1500,6 +1486,10 @@ fn shade_quad<const N: usize, S>(
 ) where
     S: PassShader<N> + ?Sized,
 {
+    // With `ONE` (a group of one target) the loops over targets below run once, and the
+    // compiler knows it.
+    let n = if ONE { 1 } else { buffers.len() };
+    let (buffers, counts, group) = (&mut buffers[..n], &mut counts[..n], &group[..n]);
     let tile = buffers[0].rect;
     let tile_w = tile.width();
     // Covered pixels: inside the triangle, and pixels this tile may write (inside the
@@ -1569,42 +1559,45 @@ fn shade_quad<const N: usize, S>(
             front_facing: tri.front_facing,
             primitive_id: tri.primitive_id,
         };
+        let Some((out, kept)) = shader.shade_passes(&fragment, passed[k]) else {
+            continue; // discarded by every pass
+        };
         let at = at[k];
-        shader.shade_passes(&fragment, passed[k], &mut |p, out| {
-            let i = group
-                .iter()
-                .position(|&g| g == p)
-                .expect("a pass of the group");
-            let b = &mut buffers[i];
+        for ((b, c), &p) in buffers.iter_mut().zip(counts.iter_mut()).zip(group) {
+            if kept & (1 << p) == 0 {
+                continue;
+            }
             // Shader-written depth (module docs, step 8): clamped, then the late test.
             let z = match out.depth {
                 None => depth[k],
-                Some(d) if d.is_nan() => return,
+                Some(d) if d.is_nan() => continue,
                 Some(d) => {
                     let d = d.clamp(0.0, 1.0);
                     if state.depth_test && d >= b.depth[at] {
-                        return;
+                        continue;
                     }
                     d
                 }
             };
-            counts[i].written += 1;
+            c.written += 1;
             if state.depth_write {
                 b.depth[at] = z;
             }
             b.color[at] = merge(b.color[at], out.color, state.blend);
             b.aux[at] = out.id;
-        });
+        }
     }
 }
 
 /// Clamps to `[0, 1]`, NaN to 0 (Vulkan: fixed-point attachments clamp source values before
 /// blending).
+#[inline]
 fn clamp_color(c: [f32; 4]) -> [f32; 4] {
     c.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) })
 }
 
 /// sRGB8 colour, UNORM8 alpha, rounded to nearest.
+#[inline]
 fn encode(c: [f32; 4]) -> [u8; 4] {
     [srgb8(c[0]), srgb8(c[1]), srgb8(c[2]), unorm8(c[3])]
 }
@@ -1616,6 +1609,7 @@ fn encode(c: [f32; 4]) -> [u8; 4] {
 /// whose first input is at most `l`", found by binary search in [`srgb_thresholds`]. Checked at
 /// every step's edge and on a dense sample by `srgb8_equals_linear_to_srgb`; the exhaustive check
 /// over every `f32` in `[0, 1]` is the ignored `srgb8_equals_linear_to_srgb_everywhere`.
+#[inline]
 fn srgb8(l: f32) -> u8 {
     // NaN, negative values and zero encode to 0, as in `linear_to_srgb`.
     if l.is_nan() || l <= 0.0 {
@@ -1665,6 +1659,7 @@ fn decode(c: [u8; 4]) -> [f32; 4] {
 /// replace, without decoding the destination. Exact: a decoded destination channel `d` is finite
 /// and in `[0, 1]`, so `s·1 + d·0 = s + 0 = s` (`-0 + 0` gives `+0`, and both encode to 0) and
 /// `1 + d·0 = 1`. Checked against [`source_over`] by `opaque_source_over_equals_replace`.
+#[inline]
 fn merge(dst: [u8; 4], src: [f32; 4], blend: Blend) -> [u8; 4] {
     let s = clamp_color(src);
     match blend {
@@ -1971,8 +1966,25 @@ mod tests {
         assert_eq!(bits(&one), bits(&parts));
     }
 
+    /// Passes that keep a fragment when its first varying reaches their cutoff; the output does
+    /// not depend on the cutoff (as the tree shader's alpha test), so it is `shader(cut)`'s.
+    struct Cutoffs<'a, F>(&'a [f32], F);
+
+    impl<F: Fn(&Fragment<1>) -> FragmentOutput + Sync> PassShader<1> for Cutoffs<'_, F> {
+        fn shade_passes(
+            &self,
+            f: &Fragment<1>,
+            passes: PassSet,
+        ) -> Option<(FragmentOutput, PassSet)> {
+            let kept = (0..self.0.len())
+                .filter(|&p| passes & (1 << p) != 0 && f.varyings[0] >= self.0[p])
+                .fold(0, |set, p| set | (1 << p));
+            (kept != 0).then(|| (self.1(f), kept))
+        }
+    }
+
     /// A masked draw writes exactly the unmasked draw's values inside the mask and nothing
-    /// outside it; `draw_each` gives each target what its own `draw` gives.
+    /// outside it; `draw_passes` gives each target what its own `draw` gives.
     #[test]
     fn masked_and_shared_draws_equal_plain_draws() {
         let (w, h) = (96, 80);
@@ -2012,7 +2024,17 @@ mod tests {
         let mut m2 = RenderTarget::new(w, h, clear).with_pixel_mask(mask.clone());
         let mut u1 = RenderTarget::new(w, h, clear);
         let mut u2 = RenderTarget::new(w, h, clear);
-        let shared = draw_each(&mut [(&mut u1, &s1), (&mut u2, &s2)], &tris, &state);
+        let out = |f: &Fragment<1>| FragmentOutput {
+            color: [f.varyings[0], 0.5, 1.0 - f.varyings[0], 0.7],
+            id: f.primitive_id,
+            depth: None,
+        };
+        let shared = draw_passes(
+            &mut [&mut u1, &mut u2],
+            &Cutoffs(&[0.2, 0.6], out),
+            &tris,
+            &state,
+        );
         assert_eq!(shared, vec![st1, st2]);
         assert_eq!(
             (u1.color(), u1.depth(), u1.aux()),
@@ -2022,7 +2044,12 @@ mod tests {
             (u2.color(), u2.depth(), u2.aux()),
             (plain2.color(), plain2.depth(), plain2.aux())
         );
-        draw_each(&mut [(&mut m1, &s1), (&mut m2, &s2)], &tris, &state);
+        draw_passes(
+            &mut [&mut m1, &mut m2],
+            &Cutoffs(&[0.2, 0.6], out),
+            &tris,
+            &state,
+        );
         let blank = RenderTarget::new(w, h, clear);
         for (masked, plain) in [(&m1, &plain1), (&m2, &plain2)] {
             let mut inside_written = 0;
@@ -2106,8 +2133,14 @@ mod tests {
         let mut a1 = RenderTarget::new(w, h, clear).with_pixel_mask(mask.clone());
         let mut a2 = RenderTarget::new(w, h, clear).with_pixel_mask(mask.clone());
         let mut b1 = RenderTarget::new(w, h, clear).with_pixel_mask(outside);
-        let stats = draw_each(
-            &mut [(&mut a1, &s1), (&mut a2, &s2), (&mut b1, &s1)],
+        let out = |f: &Fragment<1>| FragmentOutput {
+            color: [f.varyings[0], 0.5, 1.0 - f.varyings[0], 0.7],
+            id: f.primitive_id + 1,
+            depth: None,
+        };
+        let stats = draw_passes(
+            &mut [&mut a1, &mut a2, &mut b1],
+            &Cutoffs(&[0.2, 0.6, 0.2], out),
             &tris,
             &state,
         );
