@@ -1276,7 +1276,8 @@ where
                         group.iter().map(|&p| reads[p].load_tile(*rect)).collect()
                     });
                     // A group of one target takes a copy of the walk compiled for one (no
-                    // loop over targets per pixel): measured 6-13 % of a plain frame.
+                    // loop over targets per pixel; part of undoing a 9-13 % regression of a
+                    // plain frame in this function's first form, profile README session 9).
                     if group.len() == 1 {
                         render_tile::<N, S, true>(buffers, group, bin, &setup, shader, state)
                     } else {
