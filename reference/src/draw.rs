@@ -42,7 +42,7 @@ use crate::bake::BakedBillboards;
 use crate::geometry::PackedGeometry;
 use crate::raster::{
     ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, MaskCounts, PassSet, PassShader,
-    RenderTarget, Triangle, Vertex, draw_passes,
+    RenderTarget, Triangle, Vertex, draw_passes, round_exact,
 };
 use crate::sampler::{Sampler, Texture};
 use crate::scene::{Instance, Scene, tree_sphere};
@@ -232,8 +232,9 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
         passes: PassSet,
     ) -> Option<(FragmentOutput, PassSet)> {
         let [u, v, depth, layer, command] = f.varyings;
-        let data = &self.selection.data[command.round() as usize];
-        let layer = layer.round() as u32;
+        // `round_exact` is `f32::round` bit for bit, without a libm call (issue 14).
+        let data = &self.selection.data[round_exact(command) as usize];
+        let layer = round_exact(layer) as u32;
         let uv = [u, v];
         let (ddx, ddy) = ([f.ddx[0], f.ddx[1]], [f.ddy[0], f.ddy[1]]);
         let texel = if data.billboard == 0 {

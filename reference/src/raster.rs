@@ -153,6 +153,13 @@
 //!   pass the depth test: the other 20.5 M are mostly trees behind trees, which the bound
 //!   rejects for the price of one comparison. (Hierarchical rejection per tile would save
 //!   little more: every covered sample must still be counted.)
+//! - **sRGB encoder starts from a per-bucket lower bound** (round 3, merged in session 10):
+//!   `srgb8` looks up the code of the first `f32` of `l`'s bucket of `2^15` bit patterns and
+//!   steps up through the thresholds; relies on the same monotonicity as the table (checked at
+//!   both ends of every bucket and every threshold by `srgb8_equals_linear_to_srgb`).
+//! - **No libm rounding calls** (round 3, merged in session 10): `round_ties_even_exact` (the
+//!   snap) and `round_exact` (the tree shader's layer and command) equal the standard library's
+//!   bit for bit (proofs at each; `rounding_helpers_equal_the_standard_library`).
 
 use std::ops::{Add, AddAssign};
 
@@ -767,13 +774,48 @@ struct ScreenVertex<const N: usize> {
     varyings: [f32; N],
 }
 
+/// `c.round_ties_even()` bit for bit (signed zeros, NaN, infinities) without libm's `rintf`,
+/// which is what it compiles to on x86-64's baseline (0.8 % of a `stress` frame, issue 14 round
+/// 3). A value of magnitude at least `2^23`, a NaN or an infinity is already integral and returned
+/// as it is. Otherwise `|c| + 2^23` lies in `[2^23, 2^24)`, where the `f32` spacing is 1, so the
+/// addition rounds `|c|` to an integer with the IEEE default (ties to even; `2^23` is even, so
+/// the sum's parity is the result's) and subtracting `2^23` again is exact; the sign is `c`'s,
+/// as `round_ties_even` keeps it (`-0.3` gives `-0.0`). Checked against the standard library by
+/// `rounding_helpers_equal_the_standard_library`.
+#[inline]
+pub(crate) fn round_ties_even_exact(c: f32) -> f32 {
+    const TWO_23: f32 = 8_388_608.0;
+    let a = c.abs();
+    if a.is_nan() || a >= TWO_23 {
+        return c;
+    }
+    ((a + TWO_23) - TWO_23).copysign(c)
+}
+
+/// `c.round()` (halves away from zero) bit for bit without libm's `roundf` (1.3 % of a
+/// 1280x720 frame, called twice per tree fragment by `draw::TreeShader`). A value of magnitude
+/// at least `2^23`, a NaN or an infinity is integral; otherwise truncation through `i32` is exact,
+/// so is the fraction `|c| - trunc(|c|)` (in `[0, 1)`, with `c`'s exponent or less), and the
+/// result moves up by one exactly when that fraction is at least a half; the sign is `c`'s.
+/// Checked by `rounding_helpers_equal_the_standard_library`.
+#[inline]
+pub(crate) fn round_exact(c: f32) -> f32 {
+    let a = c.abs();
+    if a.is_nan() || a >= 8_388_608.0 {
+        return c;
+    }
+    let t = a as i32 as f32;
+    let r = if a - t >= 0.5 { t + 1.0 } else { t };
+    r.copysign(c)
+}
+
 fn project<const N: usize>(v: &Vertex<N>, viewport: &Viewport) -> Option<ScreenVertex<N>> {
     let [x, y, z, w] = v.clip;
     // Viewport transform in f32 (module docs, step 2), then snapping (step 3).
     let xf = (x / w) * viewport.half_w + viewport.half_w;
     let yf = viewport.half_h - (y / w) * viewport.half_h;
     let snap = |c: f32| {
-        let s = (c * SUBPIXEL_ONE as f32).round_ties_even();
+        let s = round_ties_even_exact(c * SUBPIXEL_ONE as f32);
         (s.is_finite() && s.abs() <= MAX_ABS_FIXED as f32).then_some(s as i64)
     };
     Some(ScreenVertex {
@@ -1727,7 +1769,36 @@ fn srgb8(l: f32) -> u8 {
     if l >= 1.0 {
         return 255;
     }
-    (srgb_thresholds().partition_point(|&t| t <= l) - 1) as u8
+    // The largest `c` with `t[c] <= l` (`t[0] = 0 < l`): start from the code of the first `f32`
+    // of `l`'s bucket, which is at most `l`'s (non-decreasing), and step up while the next
+    // threshold is still at most `l` (round 3, issue 14: was a binary search over all 256).
+    let t = srgb_thresholds();
+    let mut c = srgb_bucket_starts()[(l.to_bits() >> SRGB_BUCKET_SHIFT) as usize];
+    while c < 255 && t[c as usize + 1] <= l {
+        c += 1;
+    }
+    c
+}
+
+/// `f32`s of `[0, 1)` fall into buckets of `2^SRGB_BUCKET_SHIFT` consecutive bit patterns (a
+/// relative width of `2^-8` of the value): few enough that [`srgb8`] steps past at most one or
+/// two thresholds in any bucket, and 32,512 bytes of [`srgb_bucket_starts`].
+const SRGB_BUCKET_SHIFT: u32 = 15;
+
+/// Per bucket (module-level [`SRGB_BUCKET_SHIFT`]): the code of its first `f32`, by binary
+/// search in [`srgb_thresholds`]. Any lower bound of the answer would keep [`srgb8`] exact;
+/// this one is the tightest.
+fn srgb_bucket_starts() -> &'static [u8] {
+    static STARTS: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    STARTS.get_or_init(|| {
+        let t = srgb_thresholds();
+        (0..=(1.0f32.to_bits() >> SRGB_BUCKET_SHIFT))
+            .map(|i| {
+                let first = f32::from_bits(i << SRGB_BUCKET_SHIFT);
+                (t.partition_point(|&x| x <= first).max(1) - 1) as u8
+            })
+            .collect()
+    })
 }
 
 /// `t[c]`: the smallest `f32` in `[0, 1]` that [`linear_to_srgb`] encodes to `c` or more (found by
@@ -1965,6 +2036,11 @@ mod tests {
         ] {
             check(l);
         }
+        // Both ends of every bucket of `srgb_bucket_starts`.
+        for i in 0..=(1.0f32.to_bits() >> SRGB_BUCKET_SHIFT) {
+            check(f32::from_bits(i << SRGB_BUCKET_SHIFT));
+            check(f32::from_bits(((i + 1) << SRGB_BUCKET_SHIFT) - 1));
+        }
         for bits in (0..=1.0f32.to_bits()).step_by(4099) {
             check(f32::from_bits(bits));
         }
@@ -1990,6 +2066,57 @@ mod tests {
 
     /// `quad_edges` (incremental) equals `edges` evaluated at each of the quad's pixels, for
     /// triangles of every size up to the guard band, both windings.
+    /// `round_ties_even_exact` and `round_exact` equal `f32::round_ties_even` and `f32::round`
+    /// bit for bit: at the special values, at every half-integer below `2^23` and its two
+    /// neighbours (the ties and the values either side) for a sample of them, and on a dense
+    /// sample of bit patterns of both signs (every 997th).
+    #[test]
+    fn rounding_helpers_equal_the_standard_library() {
+        let mut checked = 0u64;
+        let mut check = |c: f32| {
+            for c in [c, -c] {
+                assert_eq!(
+                    round_ties_even_exact(c).to_bits(),
+                    c.round_ties_even().to_bits(),
+                    "round_ties_even({c:e})"
+                );
+                assert_eq!(
+                    round_exact(c).to_bits(),
+                    c.round().to_bits(),
+                    "round({c:e})"
+                );
+                checked += 1;
+            }
+        };
+        for c in [
+            0.0,
+            0.5,
+            1.5,
+            2.5,
+            0.49999997,
+            f32::MIN_POSITIVE,
+            1e-45,
+            8_388_607.5,
+            8_388_608.0,
+            16_777_217.0,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NAN,
+        ] {
+            check(c);
+        }
+        for i in (0..(1u32 << 23)).step_by(101) {
+            let half = i as f32 + 0.5;
+            check(half);
+            check(f32::from_bits(half.to_bits() - 1));
+            check(f32::from_bits(half.to_bits() + 1));
+        }
+        for bits in (0..0x7f80_0000u32).step_by(997) {
+            check(f32::from_bits(bits));
+        }
+        assert!(checked > 4_000_000, "{checked}");
+    }
+
     /// Random set-up triangles of several sizes, depths and perspectives, for the walk's exact
     /// shortcuts below.
     fn random_setup_triangles(seed: u64, cases: usize) -> Vec<SetupTriangle<0>> {
