@@ -55,6 +55,9 @@
 //! - A bilinear fetch clamps each of its two columns and two rows once, and takes its texel
 //!   indices from the floors it already computed for the weights.
 //! - `floor_exact` replaces libm's `floorf` (see there).
+//! - The implicit LOD's `λ` is remembered per thread for the last derivatives and size
+//!   (`Texture::lambda_base`): a pure function of its key, so a hit is the call's value; the
+//!   quads' shared derivatives make three of four fragments hits.
 
 use crate::texture::{Rgba8Image, decode_texel};
 
@@ -407,7 +410,40 @@ impl Texture {
         ddx: [f32; 2],
         ddy: [f32; 2],
     ) -> [f32; 4] {
-        self.sample_level(sampler, layer, uv, self.lod(ddx, ddy).lambda_base)
+        self.sample_level(sampler, layer, uv, self.lambda_base(ddx, ddy))
+    }
+
+    /// [`SamplerLod::lambda_base`] of [`Texture::lod`], remembered per thread for the last
+    /// derivatives and level-0 size it was asked for: the four fragments of a 2x2 quad carry
+    /// the same (coarse) derivatives, so three of them find their `λ` here instead of in two
+    /// square roots and a `log2f` (issue 14, session 10). The key is every input of
+    /// [`Texture::lod`] as bits, so a hit returns what the call would, bit for bit.
+    #[inline]
+    fn lambda_base(&self, ddx: [f32; 2], ddy: [f32; 2]) -> f32 {
+        type Key = [u32; 6];
+        thread_local! {
+            static LAST: std::cell::Cell<(Key, f32)> = const {
+                // No texture has size 0, so this key matches no call.
+                std::cell::Cell::new(([0; 6], 0.0))
+            };
+        }
+        let key = [
+            self.width(),
+            self.height(),
+            ddx[0].to_bits(),
+            ddx[1].to_bits(),
+            ddy[0].to_bits(),
+            ddy[1].to_bits(),
+        ];
+        LAST.with(|last| {
+            let (k, lambda) = last.get();
+            if k == key {
+                return lambda;
+            }
+            let lambda = self.lod(ddx, ddy).lambda_base;
+            last.set((key, lambda));
+            lambda
+        })
     }
 
     /// Samples at an explicit `λ` (before clamping to the chain), like WGSL `textureSampleLevel`.
@@ -645,6 +681,51 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The remembered `λ` equals the computed one bit for bit whatever the order of calls:
+    /// textures differing in width only or height only, derivatives repeating, changing in one
+    /// component, of either sign of zero, NaN and infinite.
+    #[test]
+    fn remembered_lambda_equals_the_computed_one() {
+        let textures = [chain(64, 32), chain(64, 64), chain(32, 32), chain(32, 64)]
+            .map(|c| Texture::new(c).unwrap());
+        let values = [
+            0.0,
+            -0.0,
+            1.0 / 64.0,
+            3.0 / 64.0,
+            -0.25,
+            1e-30,
+            f32::NAN,
+            f32::INFINITY,
+        ];
+        let mut next = {
+            let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+            move |n: usize| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                (seed % n as u64) as usize
+            }
+        };
+        let (mut ddx, mut ddy, mut t) = ([0.0f32; 2], [0.0f32; 2], 0);
+        let mut checked = 0;
+        for _ in 0..20_000 {
+            // Mostly repeat (the quad's case), sometimes change one input.
+            match next(8) {
+                0 => ddx[next(2)] = values[next(values.len())],
+                1 => ddy[next(2)] = values[next(values.len())],
+                2 => t = next(textures.len()),
+                _ => {}
+            }
+            let tex = &textures[t];
+            let want = tex.lod(ddx, ddy).lambda_base;
+            let got = tex.lambda_base(ddx, ddy);
+            assert_eq!(got.to_bits(), want.to_bits(), "{ddx:?} {ddy:?}");
+            checked += 1;
+        }
+        assert_eq!(checked, 20_000);
     }
 
     #[test]
