@@ -641,7 +641,7 @@ fn gpu_refined_images_match_the_reference() {
     let draw = gpu_draw(ctx);
     let paths = [
         "sweep ours-stable",
-        "sweep ours-atomic",
+        "sweep ours-atomic (dithered fade)",
         "render_gpu (GPU select + refine)",
         "render_gpu (CPU select + refine)",
     ];
@@ -664,12 +664,13 @@ fn gpu_refined_images_match_the_reference() {
             let alternatives = alpha_test_alternatives(p, &s.camera, &params);
             let commands = frame.selection.commands.len() as u64;
             let sweep = &mut sweeps[s.prepared_key];
-            let mut judge = |k: usize, got: &Images| {
+            let mut judge = |k: usize, got: &Images, against: Option<&(Images, _)>| {
+                let (want, alternatives) = against.map_or((&want, &alternatives), |(w, a)| (w, a));
                 if let Some(f) = judge_image(
                     &format!("{name}/{}", paths[k]),
                     got,
-                    &want,
-                    &alternatives,
+                    want,
+                    alternatives,
                     &s.camera,
                     &mut max[k],
                 ) {
@@ -678,6 +679,28 @@ fn gpu_refined_images_match_the_reference() {
                 frames += 1;
             };
             for (k, compaction) in Compaction::ALL.into_iter().enumerate() {
+                // Atomic compaction draws the commands in whatever order the GPU's threads
+                // reach the counter, and alpha fades blend in draw order: against the
+                // reference's stable order its colour then differs wherever fading trees
+                // overlap, by as much as that run's order makes it (CI, session 10: 800 window
+                // pixels of 25,600 where three local runs gave 400-517, over the class budget
+                // of 772). So this path is judged with a dithered fade, which draws the same
+                // image in any order (a fragment is kept or discarded, never blended), against
+                // the reference at the same parameters; the alpha fade's blending is judged on
+                // the stable paths.
+                let order_free = Params {
+                    fade_mode: FadeMode::DitherSequential as u32,
+                    ..params
+                };
+                let (params, reference) = match compaction {
+                    Compaction::Stable => (params, None),
+                    Compaction::Atomic => {
+                        let frame = p.render(&s.camera, &order_free).expect("reference frame");
+                        let want = images_of(&frame.drawn.target);
+                        let alternatives = alpha_test_alternatives(p, &s.camera, &order_free);
+                        (order_free, Some((want, alternatives)))
+                    }
+                };
                 let got = sweep
                     .render(GpuVariant::Ours(compaction), &s.camera, &params)
                     .expect("sweep frame");
@@ -688,7 +711,7 @@ fn gpu_refined_images_match_the_reference() {
                     "{name}/{}: trees tested",
                     paths[k]
                 );
-                judge(k, &got.images);
+                judge(k, &got.images, reference.as_ref());
             }
             for (k, select_from_cpu) in [(2, false), (3, true)] {
                 let from_cpu = StagesFromCpu {
@@ -697,7 +720,7 @@ fn gpu_refined_images_match_the_reference() {
                 };
                 let got = render_gpu(ctx, draw, p, &s.camera, &params, from_cpu)
                     .expect("render_gpu frame");
-                judge(k, &got.images);
+                judge(k, &got.images, None);
             }
         }
     }
