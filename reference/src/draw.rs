@@ -42,7 +42,7 @@ use crate::bake::BakedBillboards;
 use crate::geometry::PackedGeometry;
 use crate::raster::{
     ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, MaskCounts, PassSet, PassShader,
-    RenderTarget, Triangle, Vertex, draw_passes, round_exact,
+    RenderTarget, SETUP_CHUNK, Triangle, TriangleSource, Vertex, draw_passes_streamed, round_exact,
 };
 use crate::sampler::{Sampler, Texture};
 use crate::scene::{Instance, Scene, tree_sphere};
@@ -125,6 +125,14 @@ pub fn billboard_layer(base: Vec3, eye: Vec3, params: &Params) -> u32 {
 /// The vertex shader: clip position and varyings of vertex `vertex_index` (index value plus
 /// `base_vertex`) of instance `instance_index` (plus `first_instance`). `None` when the tree is
 /// discarded by the draw distance (the GPU twin emits a degenerate position instead).
+///
+/// It is [`tree_stage`] (what depends only on the command and the tree) followed by
+/// [`TreeStage::vertex`] (what depends on the vertex too): the same expressions as one
+/// function, split so that the tree draw evaluates the first once per tree, not once per
+/// vertex (issue 14, session 11: a mesh tree's vertices each computed the yaw's sine and cosine
+/// twice and its bounding sphere; a billboard's four vertices each chose the layer, built the
+/// frame and the view interval). Each value is computed by the same expression from the same
+/// inputs either way, so the vertices are bit-identical.
 pub fn vertex_stage(
     res: &DrawResources,
     selection: &Selection,
@@ -132,14 +140,22 @@ pub fn vertex_stage(
     vertex_index: u32,
     instance_index: u32,
 ) -> Option<Vertex<TREE_VARYINGS>> {
-    let (u, camera, view_proj, params) = (
-        &uniform.select,
-        uniform.camera,
-        &uniform.view_proj,
-        uniform.params,
-    );
     let command = vertex_index >> COMMAND_SHIFT;
     let local = vertex_index & (MAX_MESH_VERTICES - 1);
+    tree_stage(res, selection, uniform, command, instance_index)
+        .map(|tree| tree.vertex(res, uniform, local))
+}
+
+/// The part of [`vertex_stage`] shared by every vertex of one tree in one command: `None` when
+/// the draw distance discards the tree.
+pub fn tree_stage(
+    res: &DrawResources,
+    selection: &Selection,
+    uniform: &DrawUniform,
+    command: u32,
+    instance_index: u32,
+) -> Option<TreeStage> {
+    let (u, camera, params) = (&uniform.select, uniform.camera, uniform.params);
     let data = &selection.data[command as usize];
     let tree_index = res.indirection[instance_index as usize] as usize;
     let t = &res.scene.instances[tree_index];
@@ -160,15 +176,15 @@ pub fn vertex_stage(
     }
     let eye = Vec3::from(camera.eye);
     let forward = Vec3::from(u.forward);
-    let (world, uv, layer) = if data.billboard == 0 {
-        let v = res.geometry.vertices[(mesh_meta.first_vertex + local) as usize];
-        let p = Vec3::from(v.position) * tree.scale;
+    let kind = if data.billboard == 0 {
         let (s, c) = tree.yaw.sin_cos();
-        let rotated = Vec3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
-        (tree.base + rotated, v.uv, tree.mesh as f32)
+        TreeKind::Mesh {
+            first_vertex: mesh_meta.first_vertex,
+            sin: s,
+            cos: c,
+            layer: tree.mesh as f32,
+        }
     } else {
-        let corner =
-            res.geometry.vertices[(res.geometry.billboard.first_vertex + local) as usize].uv;
         let to_eye = eye - tree.base;
         let k_count = params.angle_count;
         let k = billboard_layer(tree.base, eye, params);
@@ -185,29 +201,125 @@ pub fn vertex_stage(
         let (s, c) = elevation.sin_cos();
         let up = Vec3::Z * c - h * s;
         let e = billboard_extent(mesh_meta, elevation);
-        let along_right = (2.0 * corner[0] - 1.0) * e.half_width * tree.scale;
-        let along_up = (e.bottom + (1.0 - corner[1]) * e.height) * tree.scale;
-        (
-            tree.base + right * along_right + up * along_up,
-            corner,
-            (tree.mesh * k_count + k) as f32,
-        )
-    };
-    let mut depth = (world - eye).dot(forward);
-    if data.billboard != 0 {
-        let i = view_interval(
+        let interval = view_interval(
             tree.sphere_center,
             tree.sphere_radius,
             camera.eye,
             u.forward,
         );
-        depth = depth.max(i.lo).min(i.hi);
+        TreeKind::Billboard {
+            right,
+            up,
+            half_width: e.half_width,
+            bottom: e.bottom,
+            height: e.height,
+            layer: (tree.mesh * k_count + k) as f32,
+            depth_lo: interval.lo,
+            depth_hi: interval.hi,
+        }
+    };
+    Some(TreeStage {
+        command,
+        base: tree.base,
+        scale: tree.scale,
+        kind,
+    })
+}
+
+/// What [`tree_stage`] computed for one tree in one command.
+#[derive(Clone, Copy, Debug)]
+pub struct TreeStage {
+    command: u32,
+    base: Vec3,
+    scale: f32,
+    kind: TreeKind,
+}
+
+/// The per-tree values of a mesh (LOD0) or a billboard (LOD1) command.
+#[derive(Clone, Copy, Debug)]
+enum TreeKind {
+    Mesh {
+        first_vertex: u32,
+        /// The yaw's sine and cosine.
+        sin: f32,
+        cos: f32,
+        layer: f32,
+    },
+    Billboard {
+        right: Vec3,
+        up: Vec3,
+        half_width: f32,
+        bottom: f32,
+        height: f32,
+        layer: f32,
+        /// The tree's bounding-sphere view-depth interval (the per-vertex depth's clamp).
+        depth_lo: f32,
+        depth_hi: f32,
+    },
+}
+
+impl TreeStage {
+    /// The command this tree was staged for.
+    pub fn command(&self) -> u32 {
+        self.command
     }
-    let clip = *view_proj * Vec4::new(world.x, world.y, world.z, 1.0);
-    Some(Vertex::new(
-        clip.to_array(),
-        [uv[0], uv[1], depth, layer, command as f32],
-    ))
+
+    /// The rest of [`vertex_stage`]: mesh-local vertex `local` of this tree.
+    pub fn vertex(
+        &self,
+        res: &DrawResources,
+        uniform: &DrawUniform,
+        local: u32,
+    ) -> Vertex<TREE_VARYINGS> {
+        let (camera, view_proj) = (uniform.camera, &uniform.view_proj);
+        let eye = Vec3::from(camera.eye);
+        let forward = Vec3::from(uniform.select.forward);
+        let (world, uv, layer) = match self.kind {
+            TreeKind::Mesh {
+                first_vertex,
+                sin: s,
+                cos: c,
+                layer,
+            } => {
+                let v = res.geometry.vertices[(first_vertex + local) as usize];
+                let p = Vec3::from(v.position) * self.scale;
+                let rotated = Vec3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
+                (self.base + rotated, v.uv, layer)
+            }
+            TreeKind::Billboard {
+                right,
+                up,
+                half_width,
+                bottom,
+                height,
+                layer,
+                ..
+            } => {
+                let corner = res.geometry.vertices
+                    [(res.geometry.billboard.first_vertex + local) as usize]
+                    .uv;
+                let along_right = (2.0 * corner[0] - 1.0) * half_width * self.scale;
+                let along_up = (bottom + (1.0 - corner[1]) * height) * self.scale;
+                (
+                    self.base + right * along_right + up * along_up,
+                    corner,
+                    layer,
+                )
+            }
+        };
+        let mut depth = (world - eye).dot(forward);
+        if let TreeKind::Billboard {
+            depth_lo, depth_hi, ..
+        } = self.kind
+        {
+            depth = depth.max(depth_lo).min(depth_hi);
+        }
+        let clip = *view_proj * Vec4::new(world.x, world.y, world.z, 1.0);
+        Vertex::new(
+            clip.to_array(),
+            [uv[0], uv[1], depth, layer, self.command as f32],
+        )
+    }
 }
 
 /// The fragment shader of the tree pipeline (module docs), one pass per alpha-test cutoff of
@@ -329,7 +441,7 @@ pub struct DrawnFrame {
     /// Ground draw counters.
     pub terrain_stats: DrawStats,
     /// Tree draw counters. In a frame drawn under a pixel mask ([`draw_frame_cutoffs`]) they count
-    /// only the trees and triangles whose screen box meets the mask ([`assemble_trees`]):
+    /// only the trees and triangles whose screen box meets the mask ([`TreeTriangles`]):
     /// `triangles_in`, clipping and setup counts are then lower than an unmasked draw's; the
     /// fragment counters count the masked pixels' fragments, which are an unmasked draw's.
     pub tree_stats: DrawStats,
@@ -345,7 +457,12 @@ pub fn tree_triangles(
     camera: &Camera,
     params: &Params,
 ) -> (Vec<Triangle<TREE_VARYINGS>>, u64) {
-    assemble_trees(res, selection, camera, params, None)
+    let mut source = TreeTriangles::new(res, selection, camera, params, None);
+    let mut triangles = Vec::new();
+    while let Some(piece) = source.next_triangles() {
+        triangles.extend_from_slice(piece);
+    }
+    (triangles, source.discarded)
 }
 
 /// A radius about the tree's base point (`instance.position`) that contains every vertex the
@@ -446,51 +563,91 @@ fn triangle_meets_mask(
     projection_meets_mask(corners, 0.5 * near, mask, width, height)
 }
 
-/// [`tree_triangles`], leaving out, when `mask` is given, what cannot write a pixel of it: the
-/// trees within the draw distance whose footprint misses it ([`tree_footprint_meets_mask`], as
-/// if they had no triangles: before their vertex stage), then the triangles of the trees kept
-/// whose screen box misses it ([`triangle_meets_mask`], before clipping and setup). Trees beyond
-/// the draw distance are still counted as discarded.
-fn assemble_trees(
-    res: &DrawResources,
-    selection: &Selection,
-    camera: &Camera,
-    params: &Params,
-    mask: Option<&MaskCounts>,
-) -> (Vec<Triangle<TREE_VARYINGS>>, u64) {
-    use rayon::prelude::*;
-    let uniform = DrawUniform::new(camera, params);
-    // One work item per (command, instance), flattened in draw order; collected in order.
-    let items: Vec<(u32, u32)> = selection
-        .commands
-        .iter()
-        .enumerate()
-        .flat_map(|(c, cmd)| {
-            (0..cmd.instance_count).map(move |j| (c as u32, cmd.first_instance + j))
-        })
-        .collect();
-    // The index range of each command, for the per-instance vertex cache below.
-    let index_ranges: Vec<(u32, u32)> = selection
-        .commands
-        .iter()
-        .map(|cmd| {
-            let indices = &res.geometry.indices
-                [cmd.first_index as usize..(cmd.first_index + cmd.index_count) as usize];
-            let lo = indices.iter().copied().min().unwrap_or(0);
-            let hi = indices.iter().copied().max().unwrap_or(0);
-            (lo, hi)
-        })
-        .collect();
-    // Speed-up (issue 14): the vertex stage runs once per distinct index of an instance, not once
-    // per index (a mesh vertex is shared by several triangles; a GPU's post-transform cache does
-    // the same). `vertex_stage` is a pure function of its arguments, so the cached vertex is the
-    // one a second call would return, bit for bit. The cache is per rayon worker, reused.
-    let shade_instance = |cache: &mut Vec<Option<Vertex<TREE_VARYINGS>>>,
-                          &(c, instance): &(u32, u32)| {
-        let cmd = &selection.commands[c as usize];
+/// Triangles per parallel work item of [`TreeTriangles`] (an upper bound, from the commands'
+/// index counts; an item holds at least one tree): one output vector per item, not per tree.
+const TREE_RUN_TRIANGLES: usize = 1024;
+
+/// [`tree_triangles`] handed to the rasterizer a piece at a time ([`TriangleSource`]), leaving
+/// out, when `mask` is given, what cannot write a pixel of it: the trees within the draw
+/// distance whose footprint misses it ([`tree_footprint_meets_mask`], as if they had no
+/// triangles: before their vertex stage), then the triangles of the trees kept whose screen box
+/// misses it ([`triangle_meets_mask`], before clipping and setup). Trees beyond the draw
+/// distance are still counted as discarded.
+///
+/// Memory and speed (issue 14, session 11): a piece holds the trees, in draw order, whose
+/// triangles number at most [`SETUP_CHUNK`] (at least one tree), shaded in parallel in items of
+/// [`TREE_RUN_TRIANGLES`], and is drawn before the next is shaded. Before, the whole frame's
+/// triangles were assembled first: `stress`' close camera has 10.7 M (1.15 GB), and allocating,
+/// faulting in and copying them was over a third of its reference frame. The pieces
+/// concatenate to exactly that list (the same trees in the same order), so the draw is the same
+/// ([`draw_passes_streamed`]).
+struct TreeTriangles<'a> {
+    res: &'a DrawResources<'a>,
+    selection: &'a Selection,
+    camera: &'a Camera,
+    uniform: DrawUniform<'a>,
+    mask: Option<&'a MaskCounts>,
+    /// Per command, the smallest and largest index it reads (the vertex cache's range).
+    index_ranges: Vec<(u32, u32)>,
+    /// The next tree: (command, instance within the command).
+    next: (usize, u32),
+    /// The current piece.
+    piece: Vec<Triangle<TREE_VARYINGS>>,
+    /// Trees discarded by the vertex stage so far.
+    discarded: u64,
+}
+
+impl<'a> TreeTriangles<'a> {
+    fn new(
+        res: &'a DrawResources<'a>,
+        selection: &'a Selection,
+        camera: &'a Camera,
+        params: &'a Params,
+        mask: Option<&'a MaskCounts>,
+    ) -> Self {
+        let index_ranges = selection
+            .commands
+            .iter()
+            .map(|cmd| {
+                let indices = &res.geometry.indices
+                    [cmd.first_index as usize..(cmd.first_index + cmd.index_count) as usize];
+                let lo = indices.iter().copied().min().unwrap_or(0);
+                let hi = indices.iter().copied().max().unwrap_or(0);
+                (lo, hi)
+            })
+            .collect();
+        TreeTriangles {
+            res,
+            selection,
+            camera,
+            uniform: DrawUniform::new(camera, params),
+            mask,
+            index_ranges,
+            next: (0, 0),
+            piece: Vec::new(),
+            discarded: 0,
+        }
+    }
+
+    /// Appends the triangles of `instance` of command `c` to `out` (those meeting the mask,
+    /// when there is one); `false`, appending nothing, when the vertex stage discards the tree.
+    ///
+    /// Speed-up (issue 14): the vertex stage runs once per distinct index of an instance, not
+    /// once per index (a mesh vertex is shared by several triangles; a GPU's post-transform
+    /// cache does the same). [`vertex_stage`] is a pure function of its arguments, so the cached
+    /// vertex is the one a second call would return, bit for bit. The cache is per work item.
+    fn shade_instance(
+        &self,
+        cache: &mut Vec<Option<Vertex<TREE_VARYINGS>>>,
+        c: u32,
+        instance: u32,
+        out: &mut Vec<Triangle<TREE_VARYINGS>>,
+    ) -> bool {
+        let (res, camera, uniform) = (self.res, self.camera, &self.uniform);
+        let cmd = &self.selection.commands[c as usize];
         let indices = &res.geometry.indices
             [cmd.first_index as usize..(cmd.first_index + cmd.index_count) as usize];
-        if let Some(mask) = mask {
+        if let Some(mask) = self.mask {
             let t = &res.scene.instances[res.indirection[instance as usize] as usize];
             let meta = &res.geometry.meshes[t.mesh as usize];
             let base = Vec3::from(t.position);
@@ -506,13 +663,17 @@ fn assemble_trees(
                     camera.height,
                 )
             {
-                return Some(Vec::new());
+                return true;
             }
         }
-        let (lo, hi) = index_ranges[c as usize];
+        let (lo, hi) = self.index_ranges[c as usize];
         cache.clear();
         cache.resize((hi - lo) as usize + 1, None);
-        let mut tris = Vec::with_capacity(indices.len() / 3);
+        let start = out.len();
+        // The tree's share of the vertex stage, once per tree ([`vertex_stage`] is
+        // `tree_stage` then `TreeStage::vertex`; every vertex of a command has the command's
+        // bits, checked per vertex all the same).
+        let mut tree: Option<TreeStage> = None;
         for t in indices.chunks_exact(3) {
             let mut tri = [Vertex::new([0.0; 4], [0.0; TREE_VARYINGS]); 3];
             for (k, &index) in t.iter().enumerate() {
@@ -521,42 +682,82 @@ fn assemble_trees(
                     Some(v) => *v,
                     None => {
                         let vertex_index = (index as i32 + cmd.base_vertex) as u32;
-                        let v = vertex_stage(res, selection, &uniform, vertex_index, instance)?;
+                        let command = vertex_index >> COMMAND_SHIFT;
+                        let local = vertex_index & (MAX_MESH_VERTICES - 1);
+                        if tree.is_none_or(|tree| tree.command() != command) {
+                            tree = tree_stage(res, self.selection, uniform, command, instance);
+                        }
+                        let Some(tree) = &tree else {
+                            out.truncate(start);
+                            return false;
+                        };
+                        let v = tree.vertex(res, uniform, local);
                         *slot = Some(v);
                         v
                     }
                 };
             }
-            tris.push(tri);
-        }
-        if let Some(mask) = mask {
-            tris.retain(|t| triangle_meets_mask(t, camera.near, mask, camera.width, camera.height));
-        }
-        Some(tris)
-    };
-    // Memory (issue 14): the instances are shaded in runs of `VERTEX_RUN`, each run's triangles
-    // appended to the output before the next run is shaded, so that the per-instance vectors of
-    // one run, not of the whole frame, live beside the output (the whole frame's doubled a
-    // million-triangle frame's 117 MB). The output reserves the upper bound (no instance
-    // discarded) once; pages past its length are never touched, so never resident.
-    const VERTEX_RUN: usize = 8192;
-    let bound: usize = items
-        .iter()
-        .map(|&(c, _)| selection.commands[c as usize].index_count as usize / 3)
-        .sum();
-    let mut triangles = Vec::with_capacity(bound);
-    let mut discarded = 0u64;
-    for run in items.chunks(VERTEX_RUN) {
-        let per_instance: Vec<Option<Vec<Triangle<TREE_VARYINGS>>>> =
-            run.par_iter().map_init(Vec::new, shade_instance).collect();
-        for tris in per_instance {
-            match tris {
-                Some(tris) => triangles.extend(tris),
-                None => discarded += 1,
+            if self.mask.is_none_or(|mask| {
+                triangle_meets_mask(&tri, camera.near, mask, camera.width, camera.height)
+            }) {
+                out.push(tri);
             }
         }
+        true
     }
-    (triangles, discarded)
+}
+
+impl TriangleSource<TREE_VARYINGS> for TreeTriangles<'_> {
+    fn next_triangles(&mut self) -> Option<&[Triangle<TREE_VARYINGS>]> {
+        use rayon::prelude::*;
+        let commands = &self.selection.commands;
+        // The piece's trees, in draw order, cut into work items.
+        let mut trees: Vec<(u32, u32)> = Vec::new();
+        let mut items: Vec<std::ops::Range<usize>> = Vec::new();
+        let (mut piece_bound, mut item_bound) = (0usize, 0usize);
+        while let Some(cmd) = commands.get(self.next.0) {
+            if self.next.1 >= cmd.instance_count {
+                self.next = (self.next.0 + 1, 0);
+                continue;
+            }
+            let tris = cmd.index_count as usize / 3;
+            if !trees.is_empty() && piece_bound + tris > SETUP_CHUNK {
+                break;
+            }
+            if items.is_empty() || item_bound + tris > TREE_RUN_TRIANGLES {
+                items.push(trees.len()..trees.len());
+                item_bound = 0;
+            }
+            trees.push((self.next.0 as u32, cmd.first_instance + self.next.1));
+            items.last_mut().expect("an item").end = trees.len();
+            piece_bound += tris;
+            item_bound += tris;
+            self.next.1 += 1;
+        }
+        if trees.is_empty() {
+            return None;
+        }
+        let this = &*self;
+        let shaded: Vec<(Vec<Triangle<TREE_VARYINGS>>, u64)> = items
+            .par_iter()
+            .map_init(Vec::new, |cache, item| {
+                let mut out = Vec::new();
+                let mut discarded = 0;
+                for &(c, instance) in &trees[item.clone()] {
+                    if !this.shade_instance(cache, c, instance, &mut out) {
+                        discarded += 1;
+                    }
+                }
+                (out, discarded)
+            })
+            .collect();
+        self.piece.clear();
+        for (tris, discarded) in shaded {
+            self.piece.extend_from_slice(&tris);
+            self.discarded += discarded;
+        }
+        Some(&self.piece)
+    }
 }
 
 /// Draws one frame: sky, ground, then every command of `selection` (module docs).
@@ -578,7 +779,7 @@ pub fn draw_frame(
 /// weight and LOD id are shared too, [`TreeShader`]); each frame's buffers are those of its own [`draw_frame`] (at the masked
 /// pixels when masked; the others keep the sky's clear values), and so are its counters when
 /// unmasked. Under a mask, the trees and then the triangles whose screen box misses it are left
-/// out before the vertex stage and before setup ([`assemble_trees`]; they could write no masked
+/// out before the vertex stage and before setup ([`TreeTriangles`]; they could write no masked
 /// pixel): the tree counters' `triangles_in` and clipping and setup counts cover only what was
 /// kept; `trees_discarded` is a plain draw's. What it is for: the parity's alternative
 /// frames, the cutoff moved within the GPU's precision (issue 14).
@@ -596,8 +797,7 @@ pub fn draw_frame_cutoffs(
     let counts = mask
         .as_ref()
         .map(|m| MaskCounts::new(m, camera.width, camera.height));
-    let (triangles, trees_discarded) =
-        assemble_trees(res, selection, camera, params, counts.as_ref());
+    let mut source = TreeTriangles::new(res, selection, camera, params, counts.as_ref());
     let shader = TreeShader {
         res,
         selection,
@@ -611,7 +811,8 @@ pub fn draw_frame_cutoffs(
     };
     let mut targets: Vec<&mut RenderTarget> =
         grounds.iter_mut().map(|(target, _)| target).collect();
-    let stats = draw_passes(&mut targets, &shader, &triangles, &state);
+    let stats = draw_passes_streamed(&mut targets, &shader, &mut source, &state);
+    let trees_discarded = source.discarded;
     grounds
         .into_iter()
         .zip(stats)

@@ -157,6 +157,15 @@
 //!   `srgb8` looks up the code of the first `f32` of `l`'s bucket of `2^15` bit patterns and
 //!   steps up through the thresholds; relies on the same monotonicity as the table (checked at
 //!   both ends of every bucket and every threshold by `srgb8_equals_linear_to_srgb`).
+//! - **Streamed triangle lists** (session 11, issue 14): [`draw_passes_streamed`] takes the list
+//!   a piece at a time from a [`TriangleSource`], so a caller can produce the next piece after
+//!   the previous one is drawn (the tree draw's vertex stage does: `crate::draw`), instead of
+//!   the whole list existing at once. Relies on what chunking already relies on: pieces are
+//!   drawn in order, each tile renders a piece's triangles in order before the next piece's,
+//!   and a primitive id is the triangle's index in the concatenation
+//!   (`a_streamed_draw_in_uneven_pieces_equals_one_draw`). `stress` close at 320x180 holds 10.7 M
+//!   triangles (1.15 GB as one list); its frame went from 3.5 s to 2.6 s on one thread, with its
+//!   peak memory from 1.3 GB to under 0.2 GB.
 //! - **No libm rounding calls** (round 3, merged in session 10): `round_ties_even_exact` (the
 //!   snap) and `round_exact` (the tree shader's layer and command) equal the standard library's
 //!   bit for bit (proofs at each; `rounding_helpers_equal_the_standard_library`).
@@ -1188,17 +1197,56 @@ where
         u32::try_from(triangles.len()).is_ok(),
         "a draw holds at most u32::MAX triangles"
     );
+    draw_passes_streamed(targets, shader, &mut SliceSource(triangles), state)
+}
+
+/// A triangle list handed to a draw a piece at a time ([`draw_passes_streamed`]), so that the
+/// whole list never has to exist at once: the tree draw's vertex stage fills one piece while the
+/// previous one is already drawn (issue 14, session 11: a `stress` frame's 10.7 M triangles
+/// were 1.15 GB, and allocating, faulting in and copying them was a third of the frame).
+pub trait TriangleSource<const N: usize> {
+    /// The next triangles in submission order (any number, possibly none), or `None` when the
+    /// list has ended. The slice lives until the next call.
+    fn next_triangles(&mut self) -> Option<&[Triangle<N>]>;
+}
+
+/// A slice as a [`TriangleSource`], in pieces of [`SETUP_CHUNK`].
+struct SliceSource<'a, const N: usize>(&'a [Triangle<N>]);
+
+impl<const N: usize> TriangleSource<N> for SliceSource<'_, N> {
+    fn next_triangles(&mut self) -> Option<&[Triangle<N>]> {
+        if self.0.is_empty() {
+            return None;
+        }
+        let (piece, rest) = self.0.split_at(self.0.len().min(SETUP_CHUNK));
+        self.0 = rest;
+        Some(piece)
+    }
+}
+
+/// [`draw_passes`] of the triangles `source` hands out, in its order: the same buffers and
+/// counters as [`draw_passes`] of their concatenation, whatever the pieces' sizes. Why: the
+/// pieces are set up, binned and rendered one after the other, each tile rendering a piece's
+/// triangles in order before the next piece's, so every pixel still merges its fragments in
+/// submission order, and a triangle's primitive id is its index in the concatenation. Pieces
+/// longer than [`SETUP_CHUNK`] are drawn in chunks of that size.
+///
+/// # Panics
+/// As [`draw_passes`]; the `u32::MAX` limit is checked as the pieces arrive.
+pub fn draw_passes_streamed<const N: usize, S>(
+    targets: &mut [&mut RenderTarget],
+    shader: &S,
+    source: &mut dyn TriangleSource<N>,
+    state: &DrawState,
+) -> Vec<DrawStats>
+where
+    S: PassShader<N> + ?Sized,
+{
     assert!(
         targets.len() <= MAX_PASSES,
         "a draw has at most {MAX_PASSES} passes"
     );
-    let mut stats = vec![
-        DrawStats {
-            triangles_in: triangles.len() as u64,
-            ..DrawStats::default()
-        };
-        targets.len()
-    ];
+    let mut stats = vec![DrawStats::default(); targets.len()];
     let Some(first) = targets.first() else {
         return stats;
     };
@@ -1260,122 +1308,135 @@ where
         .map(|_| tiles.iter().map(|_| None).collect())
         .collect();
     let reads: Vec<&RenderTarget> = targets.iter().map(|t| &**t).collect();
-    for (c, chunk) in triangles.chunks(SETUP_CHUNK).enumerate() {
-        let base = c * SETUP_CHUNK;
-        // Clip, project, snap and set up, in parallel over runs of triangles (one output vector
-        // per run, not per triangle), concatenated in submission order.
-        let runs: Vec<(SetupCounts, Vec<SetupTriangle<N>>)> = chunk
-            .par_chunks(SETUP_RUN)
-            .enumerate()
-            .map(|(r, run)| {
-                let mut out = Vec::with_capacity(run.len());
-                let mut counts = SetupCounts::default();
-                for (i, tri) in run.iter().enumerate() {
-                    let id = (base + r * SETUP_RUN + i) as u32;
-                    let c = setup_primitive(id, tri, &viewport, state, &mut out);
-                    counts.clipped += c.clipped;
-                    counts.rasterized += c.rasterized;
-                }
-                (counts, out)
-            })
-            .collect();
-        let mut setup = Vec::with_capacity(runs.iter().map(|(_, t)| t.len()).sum());
-        let (mut clipped, mut rasterized) = (0, 0);
-        for (counts, tris) in runs {
-            clipped += counts.clipped;
-            rasterized += counts.rasterized;
-            setup.extend(tris);
-        }
-        for s in &mut stats {
-            s.triangles_clipped += clipped;
-            s.triangles_rasterized += rasterized;
-        }
-        // Bin by bounding box; each bin lists setup indices in increasing, i.e. submission, order.
-        let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles.len()];
-        for (i, tri) in setup.iter().enumerate() {
-            let Some(b) = tri.bbox else { continue };
-            for ty in (b.y0 / tile_size)..=((b.y1 - 1) / tile_size) {
-                for tx in (b.x0 / tile_size)..=((b.x1 - 1) / tile_size) {
-                    bins[ty as usize * tiles_x + tx as usize].push(i as u32);
-                }
+    // Triangles submitted before the current chunk (the first one's primitive id).
+    let mut submitted = 0usize;
+    while let Some(piece) = source.next_triangles() {
+        for chunk in piece.chunks(SETUP_CHUNK) {
+            let base = submitted;
+            submitted += chunk.len();
+            assert!(
+                u32::try_from(submitted).is_ok(),
+                "a draw holds at most u32::MAX triangles"
+            );
+            for s in &mut stats {
+                s.triangles_in += chunk.len() as u64;
             }
-        }
-        for (((group, counts), live), buffers) in groups
-            .iter()
-            .zip(&mask_counts)
-            .zip(&live)
-            .zip(&mut tile_buffers)
-        {
-            // A masked group's triangles per tile that cover a pixel of the mask there: a box
-            // meeting the mask (four lookups), then the same coverage test as the quad loop's at
-            // each masked pixel of the box (`edges` equals the quad loop's stepped edge
-            // functions bit for bit).
-            // The masked pixels are visited from the tile's list of them where that is shorter
-            // than the box (the same pixels; `any` does not depend on the order).
-            let masked_bins: Option<Vec<Vec<u32>>> = counts.as_ref().map(|counts| {
-                let mask = reads[group[0]].mask.as_deref().expect("a masked group");
-                let covers_mask = |tri: &SetupTriangle<N>, r: &PixelRect, list: &[(u32, u32)]| {
-                    if list.len() < r.width() as usize * r.height() as usize {
-                        return list
-                            .iter()
-                            .any(|&(x, y)| r.contains(x, y) && tri.covers(&tri.edges(x, y)));
+            // Clip, project, snap and set up, in parallel over runs of triangles (one output vector
+            // per run, not per triangle), concatenated in submission order.
+            let runs: Vec<(SetupCounts, Vec<SetupTriangle<N>>)> = chunk
+                .par_chunks(SETUP_RUN)
+                .enumerate()
+                .map(|(r, run)| {
+                    let mut out = Vec::with_capacity(run.len());
+                    let mut counts = SetupCounts::default();
+                    for (i, tri) in run.iter().enumerate() {
+                        let id = (base + r * SETUP_RUN + i) as u32;
+                        let c = setup_primitive(id, tri, &viewport, state, &mut out);
+                        counts.clipped += c.clipped;
+                        counts.rasterized += c.rasterized;
                     }
-                    (r.y0..r.y1).any(|y| {
-                        (r.x0..r.x1).any(|x| {
-                            mask[y as usize * width as usize + x as usize]
-                                && tri.covers(&tri.edges(x, y))
-                        })
-                    })
-                };
-                tiles
-                    .par_iter()
-                    .zip(bins.par_iter())
-                    .map(|(rect, bin)| {
-                        if bin.is_empty() || !counts.any(rect) {
-                            return Vec::new();
-                        }
-                        let list = masked_pixels(*rect, mask, width);
-                        bin.iter()
-                            .copied()
-                            .filter(|&i| {
-                                let tri = &setup[i as usize];
-                                tri.bbox
-                                    .and_then(|b| b.intersect(rect))
-                                    .is_some_and(|r| counts.any(&r) && covers_mask(tri, &r, &list))
-                            })
-                            .collect()
-                    })
-                    .collect()
-            });
-            let bins = masked_bins.as_ref().unwrap_or(&bins);
-            // Render tiles in parallel, each into its targets' private copies of its pixels.
-            let counts: Vec<Vec<FragmentCounts>> = tiles
-                .par_iter()
-                .zip(bins.par_iter())
-                .zip(buffers.par_iter_mut())
-                .zip(live.par_iter())
-                .map(|(((rect, bin), buffers), &live)| {
-                    if bin.is_empty() || !live {
-                        return Vec::new();
-                    }
-                    let buffers = buffers.get_or_insert_with(|| {
-                        group.iter().map(|&p| reads[p].load_tile(*rect)).collect()
-                    });
-                    // A group of one target takes a copy of the walk compiled for one (no
-                    // loop over targets per pixel; part of undoing a 9-13 % regression of a
-                    // plain frame in this function's first form, profile README session 9).
-                    if group.len() == 1 {
-                        render_tile::<N, S, true>(buffers, group, bin, &setup, shader, state)
-                    } else {
-                        render_tile::<N, S, false>(buffers, group, bin, &setup, shader, state)
-                    }
+                    (counts, out)
                 })
                 .collect();
-            for tile in counts {
-                for (c, &p) in tile.iter().zip(group) {
-                    stats[p].fragments_covered += c.covered;
-                    stats[p].fragments_shaded += c.shaded;
-                    stats[p].fragments_written += c.written;
+            let mut setup = Vec::with_capacity(runs.iter().map(|(_, t)| t.len()).sum());
+            let (mut clipped, mut rasterized) = (0, 0);
+            for (counts, tris) in runs {
+                clipped += counts.clipped;
+                rasterized += counts.rasterized;
+                setup.extend(tris);
+            }
+            for s in &mut stats {
+                s.triangles_clipped += clipped;
+                s.triangles_rasterized += rasterized;
+            }
+            // Bin by bounding box; each bin lists setup indices in increasing, i.e. submission, order.
+            let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles.len()];
+            for (i, tri) in setup.iter().enumerate() {
+                let Some(b) = tri.bbox else { continue };
+                for ty in (b.y0 / tile_size)..=((b.y1 - 1) / tile_size) {
+                    for tx in (b.x0 / tile_size)..=((b.x1 - 1) / tile_size) {
+                        bins[ty as usize * tiles_x + tx as usize].push(i as u32);
+                    }
+                }
+            }
+            for (((group, counts), live), buffers) in groups
+                .iter()
+                .zip(&mask_counts)
+                .zip(&live)
+                .zip(&mut tile_buffers)
+            {
+                // A masked group's triangles per tile that cover a pixel of the mask there: a box
+                // meeting the mask (four lookups), then the same coverage test as the quad loop's at
+                // each masked pixel of the box (`edges` equals the quad loop's stepped edge
+                // functions bit for bit).
+                // The masked pixels are visited from the tile's list of them where that is shorter
+                // than the box (the same pixels; `any` does not depend on the order).
+                let masked_bins: Option<Vec<Vec<u32>>> = counts.as_ref().map(|counts| {
+                    let mask = reads[group[0]].mask.as_deref().expect("a masked group");
+                    let covers_mask =
+                        |tri: &SetupTriangle<N>, r: &PixelRect, list: &[(u32, u32)]| {
+                            if list.len() < r.width() as usize * r.height() as usize {
+                                return list.iter().any(|&(x, y)| {
+                                    r.contains(x, y) && tri.covers(&tri.edges(x, y))
+                                });
+                            }
+                            (r.y0..r.y1).any(|y| {
+                                (r.x0..r.x1).any(|x| {
+                                    mask[y as usize * width as usize + x as usize]
+                                        && tri.covers(&tri.edges(x, y))
+                                })
+                            })
+                        };
+                    tiles
+                        .par_iter()
+                        .zip(bins.par_iter())
+                        .map(|(rect, bin)| {
+                            if bin.is_empty() || !counts.any(rect) {
+                                return Vec::new();
+                            }
+                            let list = masked_pixels(*rect, mask, width);
+                            bin.iter()
+                                .copied()
+                                .filter(|&i| {
+                                    let tri = &setup[i as usize];
+                                    tri.bbox.and_then(|b| b.intersect(rect)).is_some_and(|r| {
+                                        counts.any(&r) && covers_mask(tri, &r, &list)
+                                    })
+                                })
+                                .collect()
+                        })
+                        .collect()
+                });
+                let bins = masked_bins.as_ref().unwrap_or(&bins);
+                // Render tiles in parallel, each into its targets' private copies of its pixels.
+                let counts: Vec<Vec<FragmentCounts>> = tiles
+                    .par_iter()
+                    .zip(bins.par_iter())
+                    .zip(buffers.par_iter_mut())
+                    .zip(live.par_iter())
+                    .map(|(((rect, bin), buffers), &live)| {
+                        if bin.is_empty() || !live {
+                            return Vec::new();
+                        }
+                        let buffers = buffers.get_or_insert_with(|| {
+                            group.iter().map(|&p| reads[p].load_tile(*rect)).collect()
+                        });
+                        // A group of one target takes a copy of the walk compiled for one (no
+                        // loop over targets per pixel; part of undoing a 9-13 % regression of a
+                        // plain frame in this function's first form, profile README session 9).
+                        if group.len() == 1 {
+                            render_tile::<N, S, true>(buffers, group, bin, &setup, shader, state)
+                        } else {
+                            render_tile::<N, S, false>(buffers, group, bin, &setup, shader, state)
+                        }
+                    })
+                    .collect();
+                for tile in counts {
+                    for (c, &p) in tile.iter().zip(group) {
+                        stats[p].fragments_covered += c.covered;
+                        stats[p].fragments_shaded += c.shaded;
+                        stats[p].fragments_written += c.written;
+                    }
                 }
             }
         }
@@ -2298,6 +2359,76 @@ mod tests {
         assert_eq!(one.aux(), parts.aux());
         let bits = |t: &RenderTarget| t.depth().iter().map(|d| d.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&one), bits(&parts));
+    }
+
+    /// A list handed out in uneven pieces (empty ones, one triangle, more than a setup chunk)
+    /// draws exactly what one draw of the whole list draws, primitive ids included: a piece's
+    /// first id continues the previous piece's count (issue 14, session 11).
+    #[test]
+    fn a_streamed_draw_in_uneven_pieces_equals_one_draw() {
+        struct Pieces<'a> {
+            rest: &'a [Triangle<1>],
+            sizes: std::vec::IntoIter<usize>,
+        }
+        impl TriangleSource<1> for Pieces<'_> {
+            fn next_triangles(&mut self) -> Option<&[Triangle<1>]> {
+                let n = self.sizes.next().unwrap_or(self.rest.len());
+                if n == 0 && self.rest.is_empty() {
+                    return None;
+                }
+                let (piece, rest) = self.rest.split_at(n.min(self.rest.len()));
+                self.rest = rest;
+                Some(piece)
+            }
+        }
+        let (w, h) = (64, 48);
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let n = SETUP_CHUNK + 3000;
+        let tris: Vec<Triangle<1>> = (0..n)
+            .map(|_| {
+                let (cx, cy) = (next() * 2.2 - 1.1, next() * 2.2 - 1.1);
+                let z = next();
+                [0, 1, 2]
+                    .map(|_| Vertex::new([cx + next() * 0.2, cy + next() * 0.2, z, 1.0], [next()]))
+            })
+            .collect();
+        // The id is the primitive id: a piece restarting the count would show.
+        let shader = |f: &Fragment<1>| {
+            (f.varyings[0] > 0.2).then_some(FragmentOutput {
+                color: [f.varyings[0], 0.3, 0.5, 0.7],
+                id: f.primitive_id,
+                depth: None,
+            })
+        };
+        let state = DrawState {
+            depth_write: true,
+            ..DrawState::TRANSPARENT
+        };
+        let mut one = RenderTarget::new(w, h, ClearValues::default());
+        let s1 = one.draw(&tris, &shader, &state);
+        let mut streamed = RenderTarget::new(w, h, ClearValues::default());
+        let mut source = Pieces {
+            rest: &tris,
+            sizes: vec![0, 1, 0, 7, SETUP_CHUNK + 5, 0, 1000].into_iter(),
+        };
+        let s2 = draw_passes_streamed(&mut [&mut streamed], &One(&shader), &mut source, &state)[0];
+        assert_eq!(s1, s2);
+        assert_eq!(s1.triangles_in, n as u64);
+        assert!(s1.fragments_written > 10_000, "{s1:?}");
+        assert!(
+            one.aux().iter().any(|&id| id as usize > SETUP_CHUNK + 13),
+            "ids from the last pieces are visible"
+        );
+        assert_eq!(one.color(), streamed.color());
+        assert_eq!(one.aux(), streamed.aux());
+        let bits = |t: &RenderTarget| t.depth().iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&one), bits(&streamed));
     }
 
     /// Passes that keep a fragment when its first varying reaches their cutoff; the output does

@@ -9,6 +9,8 @@
 //!   uncoalesced commands;
 //! - [`command_order_properties`]: the front-to-back command order (issue 13, E§7) against the
 //!   node order;
+//! - [`tree_assembly_properties`]: the tree draw's input assembly in pieces (issue 14) against
+//!   the plain multi-draw;
 //! - [`extremes`]: the numerical-extremes catalogue of SPEC §7.
 //!
 //! Run one module with `cargo test -p forestlod-tests --test properties <module>::`. proptest
@@ -21,3 +23,4 @@ mod extremes;
 mod hierarchy_properties;
 mod refine_properties;
 mod select_properties;
+mod tree_assembly_properties;
