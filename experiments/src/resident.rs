@@ -58,6 +58,9 @@ fn cpu_seconds() -> Option<f64> {
 /// resident for reuse; after a frame's vertex stage and setup are freed that is hundreds of MB
 /// that the next phase's own allocations (lavapipe's, say) may not reuse.
 pub fn release_free_heap() {
+    // A dropped render target's buffers, kept for the next target, are not free to the
+    // allocator until released.
+    forestlod_reference::raster::release_spare_buffers();
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: `malloc_trim` only releases memory the allocator holds free; it has no
     // preconditions and no pointer arguments.

@@ -166,6 +166,11 @@
 //!   (`a_streamed_draw_in_uneven_pieces_equals_one_draw`). `stress` close at 320x180 holds 10.7 M
 //!   triangles (1.15 GB as one list); its frame went from 3.5 s to 2.6 s on one thread, with its
 //!   peak memory from 1.3 GB to under 0.2 GB.
+//! - **A dropped target's buffers reused** (session 11, issue 14): [`RenderTarget::new`] takes
+//!   the buffers of the last dropped target (at most 1920x1080) instead of fresh pages, and
+//!   clears them as it clears new ones (`a_new_target_is_cleared_whatever_buffers_it_reuses`).
+//!   A new 1280x720 target is 11 MB of pages to fault in; in a frame without trees that was a
+//!   fifth to a third of the frame.
 //! - **No libm rounding calls** (round 3, merged in session 10): `round_ties_even_exact` (the
 //!   snap) and `round_exact` (the tree shader's layer and command) equal the standard library's
 //!   bit for bit (proofs at each; `rounding_helpers_equal_the_standard_library`).
@@ -420,6 +425,52 @@ impl Default for ClearValues {
     }
 }
 
+/// The buffers of the last dropped [`RenderTarget`] of at most [`Spare::MAX_BYTES`], which the
+/// next [`RenderTarget::new`] takes and clears (issue 14, session 11). What it saves: a new
+/// 1280x720 target is 11 MB of fresh pages, and faulting them in was about a third of a frame
+/// with no trees (the `far` camera: sky and ground, 5-6 ms); a frame loop (a sweep, a benchmark)
+/// drops one target before it makes the next. What it costs: at most one target's buffers stay
+/// allocated after it is dropped ([`release_spare_buffers`] frees them). It cannot change a
+/// pixel: `new` sets every value through `clear`.
+struct Spare;
+
+/// A target's colour, depth and auxiliary buffers.
+type Buffers = (Vec<[u8; 4]>, Vec<f32>, Vec<u32>);
+
+static SPARE: std::sync::Mutex<Option<Buffers>> = std::sync::Mutex::new(None);
+
+impl Spare {
+    /// Largest target kept: 1920x1080 and smaller (a supersampled truth frame is not kept).
+    const MAX_BYTES: usize = 32 << 20;
+
+    fn take() -> Option<Buffers> {
+        SPARE.lock().unwrap_or_else(|e| e.into_inner()).take()
+    }
+
+    fn keep(buffers: Buffers) {
+        let bytes = buffers.0.capacity() * 4 + buffers.1.capacity() * 4 + buffers.2.capacity() * 4;
+        if bytes > 0 && bytes <= Self::MAX_BYTES {
+            *SPARE.lock().unwrap_or_else(|e| e.into_inner()) = Some(buffers);
+        }
+    }
+}
+
+/// Frees the buffers a dropped [`RenderTarget`] left for the next one (see [`RenderTarget::new`]):
+/// for a caller about to measure or hand back its resident memory.
+pub fn release_spare_buffers() {
+    drop(Spare::take());
+}
+
+impl Drop for RenderTarget {
+    fn drop(&mut self) {
+        Spare::keep((
+            std::mem::take(&mut self.color),
+            std::mem::take(&mut self.depth),
+            std::mem::take(&mut self.aux),
+        ));
+    }
+}
+
 /// A colour (RGBA8 sRGB), depth (`f32`) and auxiliary (`u32`) target of one size, drawn into by any
 /// number of [`RenderTarget::draw`] calls. All buffers are row-major from the top-left pixel.
 #[derive(Clone, Debug, PartialEq)]
@@ -445,12 +496,18 @@ impl RenderTarget {
             "render target {width}x{height}: expected 1..={MAX_TARGET_SIZE} pixels per side"
         );
         let n = width as usize * height as usize;
+        // A dropped target's buffers when there are some (`Spare`), else new ones; every value
+        // is then set by `clear`, so which memory it is changes nothing.
+        let (mut color, mut depth, mut aux) = Spare::take().unwrap_or_default();
+        color.resize(n, [0; 4]);
+        depth.resize(n, 0.0);
+        aux.resize(n, 0);
         let mut target = Self {
             width,
             height,
-            color: vec![[0; 4]; n],
-            depth: vec![0.0; n],
-            aux: vec![0; n],
+            color,
+            depth,
+            aux,
             mask: None,
         };
         target.clear(clear);
@@ -498,8 +555,12 @@ impl RenderTarget {
     }
 
     /// The colour, depth and auxiliary buffers, moved out (no copy).
-    pub fn into_buffers(self) -> (Vec<[u8; 4]>, Vec<f32>, Vec<u32>) {
-        (self.color, self.depth, self.aux)
+    pub fn into_buffers(mut self) -> (Vec<[u8; 4]>, Vec<f32>, Vec<u32>) {
+        (
+            std::mem::take(&mut self.color),
+            std::mem::take(&mut self.depth),
+            std::mem::take(&mut self.aux),
+        )
     }
 
     /// The colour buffer: sRGB-encoded RGB, linear alpha.
@@ -2359,6 +2420,45 @@ mod tests {
         assert_eq!(one.aux(), parts.aux());
         let bits = |t: &RenderTarget| t.depth().iter().map(|d| d.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&one), bits(&parts));
+    }
+
+    /// A target made after others were drawn into and dropped (their buffers are kept for the
+    /// next target, `Spare`) holds exactly its clear values, at its own size, whichever
+    /// buffers it got.
+    #[test]
+    fn a_new_target_is_cleared_whatever_buffers_it_reuses() {
+        let tri = [
+            Vertex::new([-1.0, -1.0, 0.25, 1.0], [0.0]),
+            Vertex::new([3.0, -1.0, 0.25, 1.0], [0.0]),
+            Vertex::new([-1.0, 3.0, 0.25, 1.0], [0.0]),
+        ];
+        let shader = |_: &Fragment<1>| {
+            Some(FragmentOutput {
+                color: [0.9, 0.1, 0.4, 1.0],
+                id: 77,
+                depth: None,
+            })
+        };
+        let clear = ClearValues {
+            color: [0.2, 0.3, 0.4, 1.0],
+            depth: 0.75,
+            aux: 5,
+        };
+        for (w, h) in [(40, 30), (40, 30), (64, 48), (16, 8), (40, 30)] {
+            let mut used = RenderTarget::new(w + 3, h, ClearValues::default());
+            used.draw(&[tri], &shader, &DrawState::OPAQUE);
+            assert!(used.aux().iter().all(|&a| a == 77));
+            drop(used);
+            let fresh = RenderTarget::new(w, h, clear);
+            let n = (w * h) as usize;
+            assert_eq!(fresh.color().len(), n);
+            assert_eq!(fresh.depth().len(), n);
+            assert_eq!(fresh.aux().len(), n);
+            let c = encode(clamp_color(clear.color));
+            assert!(fresh.color().iter().all(|&p| p == c), "{w}x{h}");
+            assert!(fresh.depth().iter().all(|&d| d == 0.75), "{w}x{h}");
+            assert!(fresh.aux().iter().all(|&a| a == 5), "{w}x{h}");
+        }
     }
 
     /// A list handed out in uneven pieces (empty ones, one triangle, more than a setup chunk)

@@ -7,13 +7,14 @@
 //! from submit to completion (`device.poll(wait)`), and, where the adapter offers
 //! `TIMESTAMP_QUERY`, GPU time between timestamps written by empty compute passes recorded just
 //! before and just after the stage in the same command encoder. The reference stages are timed in
-//! the same process on the same frames (one repetition: the reference draw of `stress` takes
-//! seconds). Writes `gpu_bench.csv`, one row per (scene, size, camera), and, when the reference
+//! the same process on the same frames: one frame by default (the reference draw of `stress`
+//! takes seconds), or the median of `--ref-reps` frames after one warm-up, as the GPU's. Writes `gpu_bench.csv`, one row per (scene, size, camera), and, when the reference
 //! draws, `draw_ratio.png`: the reference draw time over the GPU's per frame (issue 14: the
 //! reference at least as fast as lavapipe means every bar at or below 1).
 //!
 //! Issue 14's runs (`experiments/results/raster_speed/`):
-//! `gpu_bench --sizes 320x180,1280x720 --reps 1 --out <folder>`.
+//! `gpu_bench --sizes 320x180,1280x720 --reps 1 --out <folder>` (sessions 7-10), and from
+//! session 11 `gpu_bench --sizes 320x180,1280x720 --reps 3 --ref-reps 3 --out <folder>`.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -55,6 +56,11 @@ struct Args {
     /// Output folder.
     #[arg(long, default_value = "out/gpu_bench")]
     out: PathBuf,
+    /// Reference frames timed per (scene, size, camera), median reported. With more than one,
+    /// the timed frames follow one untimed warm-up frame, as the GPU's do; with one (the
+    /// default), the first frame is the timed one (runs before session 11, issue 14).
+    #[arg(long, default_value_t = 1)]
+    ref_reps: usize,
     /// Skip the reference's draw (its selection is still timed): for large frames on a real GPU,
     /// where the reference would take minutes per frame (`scripts/gpu-check`). Its columns are
     /// then empty.
@@ -176,13 +182,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let seconds = start.elapsed().as_secs_f64();
                     (selection.counters.commands, seconds, None)
                 } else {
-                    let frame = prepared.render(&camera, &params)?;
-                    let counters = frame.selection.counters;
-                    (
-                        counters.commands,
-                        frame.timings.select,
-                        Some(frame.timings.draw),
-                    )
+                    // Untimed warm-up frame first when several are timed (`--ref-reps`).
+                    let warm_up = usize::from(args.ref_reps > 1);
+                    let (mut selects, mut draws, mut commands) = (Vec::new(), Vec::new(), 0);
+                    for rep in 0..warm_up + args.ref_reps.max(1) {
+                        let frame = prepared.render(&camera, &params)?;
+                        commands = frame.selection.counters.commands;
+                        if rep >= warm_up {
+                            selects.push(frame.timings.select);
+                            draws.push(frame.timings.draw);
+                        }
+                    }
+                    (commands, median(selects), Some(median(draws)))
                 };
                 println!(
                     "{name} {width}x{height} {camera_name}: {commands} commands | select ref {:.3} ms, gpu stable {:.3} ms (timestamps {:?} ms), atomic {:.3} ms | draw ref {:?} ms, gpu {:.1} ms (timestamps {:?} ms)",
