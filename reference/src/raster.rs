@@ -2370,32 +2370,52 @@ mod tests {
         assert!(checked > 10_000, "only {checked} pixels checked");
     }
 
-    /// One draw of more than two setup chunks equals the same triangles drawn as consecutive
-    /// draws of one chunk each (the shader ignores the primitive id, which restarts per draw):
-    /// the per-draw tile buffers carry every chunk's writes to the next, in submission order.
-    #[test]
-    fn a_draw_across_setup_chunks_equals_consecutive_draws() {
-        let (w, h) = (72, 40);
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+    /// `n` small triangles scattered over the viewport and a little beyond it, each at one
+    /// depth, of side up to `size` in NDC, varying `varying(i)` for triangle `i` (xorshift from
+    /// `seed`).
+    fn scattered_triangles(
+        n: usize,
+        size: f32,
+        seed: u64,
+        varying: impl Fn(usize, f32) -> f32,
+    ) -> Vec<Triangle<1>> {
+        let mut seed = seed;
         let mut next = || {
             seed ^= seed << 13;
             seed ^= seed >> 7;
             seed ^= seed << 17;
             (seed >> 40) as f32 / (1u64 << 24) as f32
         };
-        let n = 2 * SETUP_CHUNK + 1000;
-        let tris: Vec<Triangle<1>> = (0..n)
+        (0..n)
             .map(|i| {
                 let (cx, cy) = (next() * 2.2 - 1.1, next() * 2.2 - 1.1);
                 let z = next();
                 [0, 1, 2].map(|_| {
-                    Vertex::new(
-                        [cx + next() * 0.15, cy + next() * 0.15, z, 1.0],
-                        [(i % 251) as f32 / 251.0],
-                    )
+                    let p = [cx + next() * size, cy + next() * size, z, 1.0];
+                    Vertex::new(p, [varying(i, next())])
                 })
             })
-            .collect();
+            .collect()
+    }
+
+    /// Asserts that two targets hold the same colour, id and depth bits.
+    fn assert_same_buffers(a: &RenderTarget, b: &RenderTarget) {
+        assert_eq!(a.color(), b.color());
+        assert_eq!(a.aux(), b.aux());
+        let bits = |t: &RenderTarget| t.depth().iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(a), bits(b));
+    }
+
+    /// One draw of more than two setup chunks equals the same triangles drawn as consecutive
+    /// draws of one chunk each (the shader ignores the primitive id, which restarts per draw):
+    /// the per-draw tile buffers carry every chunk's writes to the next, in submission order.
+    #[test]
+    fn a_draw_across_setup_chunks_equals_consecutive_draws() {
+        let (w, h) = (72, 40);
+        let n = 2 * SETUP_CHUNK + 1000;
+        let tris = scattered_triangles(n, 0.15, 0x2545_f491_4f6c_dd1d, |i, _| {
+            (i % 251) as f32 / 251.0
+        });
         let shader = |f: &Fragment<1>| {
             (f.varyings[0] > 0.1).then_some(FragmentOutput {
                 color: [f.varyings[0], 1.0 - f.varyings[0], 0.5, 0.6],
@@ -2416,10 +2436,7 @@ mod tests {
         }
         assert_eq!(s1, s2);
         assert!(s1.fragments_written > 10_000, "{s1:?}");
-        assert_eq!(one.color(), parts.color());
-        assert_eq!(one.aux(), parts.aux());
-        let bits = |t: &RenderTarget| t.depth().iter().map(|d| d.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(&one), bits(&parts));
+        assert_same_buffers(&one, &parts);
     }
 
     /// A target made after others were drawn into and dropped (their buffers are kept for the
@@ -2482,22 +2499,8 @@ mod tests {
             }
         }
         let (w, h) = (64, 48);
-        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
         let n = SETUP_CHUNK + 3000;
-        let tris: Vec<Triangle<1>> = (0..n)
-            .map(|_| {
-                let (cx, cy) = (next() * 2.2 - 1.1, next() * 2.2 - 1.1);
-                let z = next();
-                [0, 1, 2]
-                    .map(|_| Vertex::new([cx + next() * 0.2, cy + next() * 0.2, z, 1.0], [next()]))
-            })
-            .collect();
+        let tris = scattered_triangles(n, 0.2, 0x9e37_79b9_7f4a_7c15, |_, r| r);
         // The id is the primitive id: a piece restarting the count would show.
         let shader = |f: &Fragment<1>| {
             (f.varyings[0] > 0.2).then_some(FragmentOutput {
@@ -2525,10 +2528,7 @@ mod tests {
             one.aux().iter().any(|&id| id as usize > SETUP_CHUNK + 13),
             "ids from the last pieces are visible"
         );
-        assert_eq!(one.color(), streamed.color());
-        assert_eq!(one.aux(), streamed.aux());
-        let bits = |t: &RenderTarget| t.depth().iter().map(|d| d.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(&one), bits(&streamed));
+        assert_same_buffers(&one, &streamed);
     }
 
     /// Passes that keep a fragment when its first varying reaches their cutoff; the output does
