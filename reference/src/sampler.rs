@@ -418,23 +418,26 @@ impl Texture {
     /// the same (coarse) derivatives, so three of them find their `λ` here instead of in two
     /// square roots and a `log2f` (issue 14, session 10). The key is every input of
     /// [`Texture::lod`] as bits, so a hit returns what the call would, bit for bit.
+    ///
+    /// The key is three `u64`s built in registers (session 11): built as a `[u32; 6]` on the
+    /// stack and compared as two vectors, the compare's 16-byte load could not be forwarded from
+    /// the key's narrower stores and stalled; that one instruction held a fifth of the tree
+    /// shader's samples (`perf annotate`).
     #[inline]
     fn lambda_base(&self, ddx: [f32; 2], ddy: [f32; 2]) -> f32 {
-        type Key = [u32; 6];
+        type Key = (u64, u64, u64);
         thread_local! {
             static LAST: std::cell::Cell<(Key, f32)> = const {
                 // No texture has size 0, so this key matches no call.
-                std::cell::Cell::new(([0; 6], 0.0))
+                std::cell::Cell::new(((0, 0, 0), 0.0))
             };
         }
-        let key = [
-            self.width(),
-            self.height(),
-            ddx[0].to_bits(),
-            ddx[1].to_bits(),
-            ddy[0].to_bits(),
-            ddy[1].to_bits(),
-        ];
+        let pair = |a: u32, b: u32| (u64::from(a) << 32) | u64::from(b);
+        let key = (
+            pair(self.width(), self.height()),
+            pair(ddx[0].to_bits(), ddx[1].to_bits()),
+            pair(ddy[0].to_bits(), ddy[1].to_bits()),
+        );
         LAST.with(|last| {
             let (k, lambda) = last.get();
             if k == key {
