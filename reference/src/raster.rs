@@ -414,6 +414,13 @@ pub struct ClearValues {
     pub aux: u32,
 }
 
+impl ClearValues {
+    /// The colour as the target stores it (sRGB8, clamped).
+    fn color_code(&self) -> [u8; 4] {
+        encode(clamp_color(self.color))
+    }
+}
+
 impl Default for ClearValues {
     /// Transparent black, depth 1.0, id 0.
     fn default() -> Self {
@@ -497,21 +504,21 @@ impl RenderTarget {
         );
         let n = width as usize * height as usize;
         // A dropped target's buffers when there are some (`Spare`), else new ones; every value
-        // is then set by `clear`, so which memory it is changes nothing.
-        let (mut color, mut depth, mut aux) = Spare::take().unwrap_or_default();
-        color.resize(n, [0; 4]);
-        depth.resize(n, 0.0);
-        aux.resize(n, 0);
-        let mut target = Self {
+        // is written once, the clear value, so which memory it is changes nothing.
+        let (color, depth, aux) = Spare::take().unwrap_or_default();
+        fn filled<T: Copy>(mut v: Vec<T>, n: usize, value: T) -> Vec<T> {
+            v.clear();
+            v.resize(n, value);
+            v
+        }
+        Self {
             width,
             height,
-            color,
-            depth,
-            aux,
+            color: filled(color, n, clear.color_code()),
+            depth: filled(depth, n, clear.depth),
+            aux: filled(aux, n, clear.aux),
             mask: None,
-        };
-        target.clear(clear);
-        target
+        }
     }
 
     /// Restricts every later draw to the pixels where `mask` (row-major, one entry per pixel) is
@@ -538,8 +545,7 @@ impl RenderTarget {
 
     /// Resets every pixel of every buffer.
     pub fn clear(&mut self, clear: ClearValues) {
-        let c = encode(clamp_color(clear.color));
-        self.color.fill(c);
+        self.color.fill(clear.color_code());
         self.depth.fill(clear.depth);
         self.aux.fill(clear.aux);
     }
