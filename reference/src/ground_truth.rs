@@ -562,6 +562,7 @@ impl GroundTruthScene {
         let sky = SKY_SRGB.map(srgb_to_linear);
         let rows: Vec<Vec<([f32; 3], PixelClass, f32)>> = (y0..y0 + h)
             .into_par_iter()
+            .with_max_len(1)
             .map(|y| {
                 (x0..x0 + w)
                     .map(|x| {

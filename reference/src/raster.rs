@@ -1457,6 +1457,7 @@ where
                     tiles
                         .par_iter()
                         .zip(bins.par_iter())
+                        .with_max_len(1)
                         .map(|(rect, bin)| {
                             if bin.is_empty() || !counts.any(rect) {
                                 return Vec::new();
@@ -1481,6 +1482,7 @@ where
                     .zip(bins.par_iter())
                     .zip(buffers.par_iter_mut())
                     .zip(live.par_iter())
+                    .with_max_len(1)
                     .map(|(((rect, bin), buffers), &live)| {
                         if bin.is_empty() || !live {
                             return Vec::new();
