@@ -423,15 +423,55 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
 /// The ground ([`forestlod_shared::terrain_grid`]: a `TERRAIN_CELLS`² grid over the footprint
 /// plus [`TERRAIN_MARGIN`], following the terrain height, sunk 0.05 m so tree bases are not
 /// z-fighting it), projected by `view_proj`. Varyings: linear RGB.
+///
+/// Speed-ups (issue 14, session 12), equalities both: the world-space grid depends only on the
+/// scene's footprint and terrain, so it is remembered for the last ones asked for
+/// ([`ground_grid`]) instead of evaluated per frame (the terrain's `sin`/`cos` and the ground
+/// colour's `powf` per vertex were a fifth of a 320x180 frame without trees); and each shared
+/// grid vertex is projected once ([`forestlod_shared::terrain_grid_vertices`]), not once per
+/// triangle corner (the projection is a pure function of the vertex, so every corner gets the
+/// same bits).
 pub fn terrain_triangles(scene: &Scene, view_proj: &Mat4) -> Vec<Triangle<3>> {
-    let project = |(p, color): ([f32; 3], [f32; 3])| {
+    let project = |&(p, color): &([f32; 3], [f32; 3])| {
         let clip = *view_proj * Vec4::new(p[0], p[1], p[2], 1.0);
         Vertex::new(clip.to_array(), color)
     };
-    forestlod_shared::terrain_grid(scene.bounds, |x, y| scene.terrain.height(x, y))
-        .into_iter()
-        .map(|t| t.map(project))
+    let projected: Vec<Vertex<3>> = ground_grid(scene).iter().map(project).collect();
+    forestlod_shared::terrain_grid_triangles()
+        .map(|t| t.map(|k| projected[k as usize]))
         .collect()
+}
+
+/// [`forestlod_shared::terrain_grid_vertices`] of the scene's footprint and terrain, remembered
+/// for the last footprint and terrain asked for (a frame loop draws one scene many times). The
+/// key is every input as bits, so a hit returns what the call would, bit for bit
+/// (`the_remembered_ground_grid_is_the_computed_one`).
+fn ground_grid(scene: &Scene) -> std::sync::Arc<Vec<([f32; 3], [f32; 3])>> {
+    use crate::scene::Terrain;
+    use std::sync::{Arc, Mutex};
+    type Key = ([u32; 4], u32, [u32; 2]);
+    type Grid = Arc<Vec<([f32; 3], [f32; 3])>>;
+    static LAST: Mutex<Option<(Key, Grid)>> = Mutex::new(None);
+    let terrain = match scene.terrain {
+        Terrain::Flat { z } => (0, [z.to_bits(), 0]),
+        Terrain::Hills {
+            amplitude,
+            wavelength,
+        } => (1, [amplitude.to_bits(), wavelength.to_bits()]),
+    };
+    let key = (scene.bounds.map(f32::to_bits), terrain.0, terrain.1);
+    let mut last = LAST.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((k, grid)) = last.as_ref()
+        && *k == key
+    {
+        return grid.clone();
+    }
+    let grid = Arc::new(forestlod_shared::terrain_grid_vertices(
+        scene.bounds,
+        |x, y| scene.terrain.height(x, y),
+    ));
+    *last = Some((key, grid.clone()));
+    grid
 }
 
 /// The result of drawing one frame.
@@ -871,5 +911,71 @@ pub fn lod_id_color(id: u32) -> [u8; 4] {
         LOD_ID_TRANSITION => [230, 40, 40, 255],
         LOD_ID_TERRAIN => [90, 90, 90, 255],
         _ => [20, 20, 20, 255],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Terrain;
+
+    /// The ground drawn the plain way: [`forestlod_shared::terrain_grid`] evaluated now, each
+    /// triangle corner projected on its own.
+    fn plain_terrain_triangles(scene: &Scene, view_proj: &Mat4) -> Vec<Triangle<3>> {
+        forestlod_shared::terrain_grid(scene.bounds, |x, y| scene.terrain.height(x, y))
+            .into_iter()
+            .map(|t| {
+                t.map(|(p, color)| {
+                    let clip = *view_proj * Vec4::new(p[0], p[1], p[2], 1.0);
+                    Vertex::new(clip.to_array(), color)
+                })
+            })
+            .collect()
+    }
+
+    /// `terrain_triangles` (remembered grid, shared vertices projected once) equals the plain
+    /// evaluation bit for bit, for scenes that differ only in their footprint or only in their
+    /// terrain, asked for in an order that hits and misses the memo.
+    #[test]
+    fn the_remembered_ground_grid_is_the_computed_one() {
+        let a = crate::scene::builtin::tiny();
+        let mut b = a.clone();
+        b.terrain = match a.terrain {
+            Terrain::Flat { z } => Terrain::Flat { z: z + 3.0 },
+            Terrain::Hills {
+                amplitude,
+                wavelength,
+            } => Terrain::Hills {
+                amplitude: amplitude * 1.5,
+                wavelength,
+            },
+        };
+        let mut c = a.clone();
+        c.bounds[2] += 250.0;
+        let mut d = a.clone();
+        d.terrain = Terrain::Hills {
+            amplitude: 7.0,
+            wavelength: 310.0,
+        };
+        let camera = Camera::look_at([-80.0, -120.0, 60.0], [40.0, 40.0, 0.0], 60.0, 320, 180);
+        let vp = camera.view_projection();
+        let bits = |t: &[Triangle<3>]| -> Vec<u32> {
+            t.iter()
+                .flatten()
+                .flat_map(|v| v.clip.into_iter().chain(v.varyings))
+                .map(f32::to_bits)
+                .collect()
+        };
+        for scene in [&a, &a, &b, &a, &c, &d, &d, &b] {
+            let got = terrain_triangles(scene, &vp);
+            let want = plain_terrain_triangles(scene, &vp);
+            assert_eq!(got.len(), want.len());
+            assert!(
+                bits(&got) == bits(&want),
+                "terrain triangles differ from the plain evaluation (terrain {:?}, bounds {:?})",
+                scene.terrain,
+                scene.bounds
+            );
+        }
     }
 }

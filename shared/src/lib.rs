@@ -66,7 +66,8 @@ pub use params::{
 };
 pub use registry::{PARAMS, ParamKind, ParamSpec, param};
 pub use terrain::{
-    TERRAIN_CELLS, TERRAIN_MARGIN, TERRAIN_SINK, ground_color, terrain_grid, terrain_vertex,
+    TERRAIN_CELLS, TERRAIN_MARGIN, TERRAIN_SINK, ground_color, terrain_grid,
+    terrain_grid_triangles, terrain_grid_vertices, terrain_vertex,
 };
 pub use types::{
     BatchMeta, CommandData, DrawCommand, MeshMeta, NO_PARENT, NodeMeta, ProxyRecord, SelectCounters,

@@ -7,8 +7,10 @@
 //! [`terrain_vertex`] is grid vertex `(i, j)`, `0 <= i, j <= TERRAIN_CELLS`; [`terrain_grid`] the
 //! triangle list every side draws, cell by cell (row `j` outer, column `i` inner), each cell
 //! `(a, b, c), (a, c, d)` with `a = (i, j)`, `b = (i + 1, j)`, `c = (i + 1, j + 1)`,
-//! `d = (i, j + 1)`. The reference projects it on the CPU (`reference::draw::terrain_triangles`),
-//! the GPU uploads it in world space (`gpu::draw::terrain_vertices`).
+//! `d = (i, j + 1)`. [`terrain_grid_vertices`] and [`terrain_grid_triangles`] are the same grid as
+//! shared vertices and the triangles' indices into them. The reference projects it on the CPU
+//! (`reference::draw::terrain_triangles`, each shared vertex once), the GPU uploads it in world
+//! space (`gpu::draw::terrain_vertices`).
 
 use crate::color::srgb_to_linear;
 
@@ -50,36 +52,43 @@ pub fn terrain_vertex(
     ([x, y, z], ground_color(z))
 }
 
-/// The ground's triangles in draw order (module docs), each vertex `(position, linear colour)`.
+/// Every grid vertex once ([`terrain_vertex`]), row by row: vertex `(i, j)` at index
+/// `j · (TERRAIN_CELLS + 1) + i`. A vertex is shared by up to six triangles; `terrain_vertex` is
+/// a pure function, so computing it once gives each of them the same values (issue 14, session
+/// 11: evaluating each vertex per cell corner was a tenth of a frame without trees).
+pub fn terrain_grid_vertices(
+    bounds: [f32; 4],
+    height: impl Fn(f32, f32) -> f32,
+) -> Vec<([f32; 3], [f32; 3])> {
+    let n = TERRAIN_CELLS;
+    (0..=n)
+        .flat_map(|j| (0..=n).map(move |i| (i, j)))
+        .map(|(i, j)| terrain_vertex(bounds, &height, i, j))
+        .collect()
+}
+
+/// The grid's triangles in draw order (module docs) as indices into [`terrain_grid_vertices`].
+pub fn terrain_grid_triangles() -> impl Iterator<Item = [u32; 3]> {
+    let n = TERRAIN_CELLS;
+    let at = move |i: u32, j: u32| j * (n + 1) + i;
+    (0..n).flat_map(move |j| {
+        (0..n).flat_map(move |i| {
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            [[a, b, c], [a, c, d]]
+        })
+    })
+}
+
+/// The ground's triangles in draw order (module docs), each vertex `(position, linear colour)`:
+/// [`terrain_grid_triangles`] over [`terrain_grid_vertices`].
 pub fn terrain_grid(
     bounds: [f32; 4],
     height: impl Fn(f32, f32) -> f32,
 ) -> Vec<[([f32; 3], [f32; 3]); 3]> {
-    let n = TERRAIN_CELLS;
-    // Each grid vertex once (it is shared by up to four cells; `terrain_vertex` is a pure
-    // function, so the same values), row by row: the reference builds the grid every frame
-    // (issue 14, session 11: evaluating each vertex per cell corner was a tenth of a frame
-    // without trees).
-    let row = (n + 1) as usize;
-    let grid: Vec<([f32; 3], [f32; 3])> = (0..=n)
-        .flat_map(|j| (0..=n).map(move |i| (i, j)))
-        .map(|(i, j)| terrain_vertex(bounds, &height, i, j))
-        .collect();
-    let vertex = |i: u32, j: u32| grid[j as usize * row + i as usize];
-    let mut out = Vec::with_capacity((n * n * 2) as usize);
-    for j in 0..n {
-        for i in 0..n {
-            let (a, b, c, d) = (
-                vertex(i, j),
-                vertex(i + 1, j),
-                vertex(i + 1, j + 1),
-                vertex(i, j + 1),
-            );
-            out.push([a, b, c]);
-            out.push([a, c, d]);
-        }
-    }
-    out
+    let grid = terrain_grid_vertices(bounds, height);
+    terrain_grid_triangles()
+        .map(|t| t.map(|k| grid[k as usize]))
+        .collect()
 }
 
 #[cfg(test)]
