@@ -145,6 +145,9 @@ impl Eq for Texture {}
 struct LinearLevel {
     width: u32,
     height: u32,
+    /// `(width as f32, height as f32)`: the same conversions, done once instead of at every
+    /// sample (session 12, issue 14).
+    size: (f32, f32),
     texels: Vec<[f32; 4]>,
 }
 
@@ -153,6 +156,7 @@ impl LinearLevel {
         Self {
             width: img.width,
             height: img.height,
+            size: (img.width as f32, img.height as f32),
             texels: img.texels.iter().map(|&t| decode_texel(t)).collect(),
         }
     }
@@ -343,8 +347,8 @@ impl Texture {
     /// Nearest-texel sample of one level: texel `floor(uv · size)`, clamped.
     pub fn nearest(&self, layer: u32, level: usize, uv: [f32; 2]) -> [f32; 4] {
         let img = self.linear_level(layer, level);
-        let u = uv[0] * img.width as f32;
-        let v = uv[1] * img.height as f32;
+        let u = uv[0] * img.size.0;
+        let v = uv[1] * img.size.1;
         img.at(floor_index(u), floor_index(v))
     }
 
@@ -352,8 +356,8 @@ impl Texture {
     #[inline]
     pub fn bilinear(&self, layer: u32, level: usize, uv: [f32; 2]) -> [f32; 4] {
         let img = self.linear_level(layer, level);
-        let u = uv[0] * img.width as f32 - 0.5;
-        let v = uv[1] * img.height as f32 - 0.5;
+        let u = uv[0] * img.size.0 - 0.5;
+        let v = uv[1] * img.size.1 - 0.5;
         let (fu, fv) = (floor_exact(u), floor_exact(v));
         let (alpha, beta) = (u - fu, v - fv);
         // `floor_index(u)` is `floor_exact(u) as i64`: the floors above, not computed again.
