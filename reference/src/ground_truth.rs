@@ -324,23 +324,18 @@ impl GroundTruthScene {
                     };
                 }
             });
-        // The ground grid, in terrain_triangles' order: (a, b, c) and (a, c, d) per cell.
+        // The ground grid, in terrain_triangles' order (`forestlod_shared::terrain_grid`, the
+        // grid every renderer draws).
         let mut ground_colors = Vec::new();
-        for j in 0..TERRAIN_CELLS {
-            for i in 0..TERRAIN_CELLS {
-                let a = terrain_vertex(scene, i, j);
-                let b = terrain_vertex(scene, i + 1, j);
-                let c = terrain_vertex(scene, i + 1, j + 1);
-                let d = terrain_vertex(scene, i, j + 1);
-                for (p, q, r) in [(a, b, c), (a, c, d)] {
-                    triangles.push(BvhTriangle {
-                        v0: Vec3A::from(p.0),
-                        v1: Vec3A::from(q.0),
-                        v2: Vec3A::from(r.0),
-                    });
-                    ground_colors.push([p.1, q.1, r.1]);
-                }
-            }
+        for [p, q, r] in
+            forestlod_shared::terrain_grid(scene.bounds, |x, y| scene.terrain.height(x, y))
+        {
+            triangles.push(BvhTriangle {
+                v0: Vec3A::from(p.0),
+                v1: Vec3A::from(q.0),
+                v2: Vec3A::from(r.0),
+            });
+            ground_colors.push([p.1, q.1, r.1]);
         }
         // Clusters of at most `max_triangles` consecutive triangles of one tree.
         let max = layout.max_triangles.max(1);
