@@ -41,6 +41,7 @@ pub mod params;
 pub mod registry;
 pub mod terrain;
 pub mod types;
+mod validate;
 pub mod view;
 
 pub use angle::{

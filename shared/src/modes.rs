@@ -1,10 +1,11 @@
-//! The named modes stored in [`crate::Params`] as `u32` ids (fade, mip, angle index, tree cull):
+//! The named modes stored in `Params` as `u32` ids (fade, mip, angle index, tree cull, ...):
 //! one declaration gives the enum, `ALL` in id order, `from_id`, `name`, `from_name` and the
-//! `(name, id)` list the parameter table's choices come from ([`crate::registry`]). The id is
+//! `(name, id)` list the parameter table's choices come from (`registry.rs`). The id is
 //! what the uniform carries to WGSL; the name is what users write (CLI, sweep files, CSVs).
 
 /// Declares a mode enum (module docs). Ids must run `0, 1, 2, ...` in declaration order
-/// (`from_id` indexes `ALL`); `tests::ids_index_all` holds every mode to it.
+/// (`from_id` indexes `ALL`); a compile-time assertion in each declaration holds it to that.
+/// (This file imports no mode, so that the files declaring them may import it.)
 macro_rules! modes {
     (
         $(#[$meta:meta])*
@@ -18,6 +19,15 @@ macro_rules! modes {
         pub enum $ty {
             $( $(#[$vmeta])* $variant = $id, )+
         }
+
+        const _: () = {
+            let ids = [$($id),+];
+            let mut i = 0;
+            while i < ids.len() {
+                assert!(ids[i] == i as u32, "mode ids must run 0, 1, 2, ... in declaration order");
+                i += 1;
+            }
+        };
 
         impl $ty {
             /// Every mode, in id order.
@@ -44,29 +54,3 @@ macro_rules! modes {
     };
 }
 pub(crate) use modes;
-
-#[cfg(test)]
-mod tests {
-    use crate::{AngleIndexMode, FadeMode, Hierarchy, MipMode, TreeCull};
-
-    fn check(choices: Vec<(&'static str, u32)>) {
-        for (i, (name, id)) in choices.iter().enumerate() {
-            assert_eq!(*id as usize, i, "{name}: ids must run 0, 1, 2, ...");
-        }
-    }
-
-    #[test]
-    fn ids_index_all() {
-        check(FadeMode::choices());
-        check(MipMode::choices());
-        check(AngleIndexMode::choices());
-        check(TreeCull::choices());
-        check(Hierarchy::choices());
-        assert_eq!(
-            MipMode::from_name("coverage"),
-            Some(MipMode::CoveragePreserving)
-        );
-        assert_eq!(TreeCull::from_id(2), Some(TreeCull::All));
-        assert_eq!(AngleIndexMode::from_id(2), None);
-    }
-}

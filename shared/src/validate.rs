@@ -1,0 +1,189 @@
+//! The validated accessors of [`Params`] and [`Params::validate`]: every check is the parameter
+//! table's ([`crate::registry`]), so the words of a refusal are the table's. Kept apart from
+//! `params.rs` so that the table may import the parameters and their limits without the
+//! parameters importing the table back.
+
+use crate::params::{
+    AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,
+};
+use crate::registry::{PARAMS, param};
+
+/// The error the parameter table gives for field `name` of `p` (its reason, the stored value).
+fn rejected(name: &str, p: &Params) -> ParamError {
+    let spec = param(name).expect("every Params field is in the table");
+    spec.check(p)
+        .expect_err("only called for a value the typed accessor refused")
+}
+
+impl Params {
+    /// Fade mode, validated.
+    pub fn fade(&self) -> Result<crate::FadeMode, ParamError> {
+        crate::FadeMode::from_id(self.fade_mode).ok_or_else(|| rejected("fade_mode", self))
+    }
+    /// Mip mode, validated.
+    pub fn mips(&self) -> Result<MipMode, ParamError> {
+        MipMode::from_id(self.mip_mode).ok_or_else(|| rejected("mip_mode", self))
+    }
+    /// Angle index mode, validated.
+    pub fn angle_mode(&self) -> Result<AngleIndexMode, ParamError> {
+        AngleIndexMode::from_id(self.angle_index_mode)
+            .ok_or_else(|| rejected("angle_index_mode", self))
+    }
+
+    /// Per-tree culling mode, validated.
+    pub fn tree_culling(&self) -> Result<TreeCull, ParamError> {
+        TreeCull::from_id(self.tree_cull).ok_or_else(|| rejected("tree_cull", self))
+    }
+
+    /// Tree grouping, validated.
+    pub fn hierarchy_mode(&self) -> Result<Hierarchy, ParamError> {
+        Hierarchy::from_id(self.hierarchy).ok_or_else(|| rejected("hierarchy", self))
+    }
+
+    /// Command coalescing of the hierarchical cut, validated.
+    pub fn coalescing(&self) -> Result<Coalesce, ParamError> {
+        Coalesce::from_id(self.coalesce).ok_or_else(|| rejected("coalesce", self))
+    }
+
+    /// Command order of the hierarchical cut, validated.
+    pub fn command_ordering(&self) -> Result<CommandOrder, ParamError> {
+        CommandOrder::from_id(self.command_order).ok_or_else(|| rejected("command_order", self))
+    }
+
+    /// Checks every field against the parameter table ([`crate::registry::PARAMS`], in its
+    /// order), returning the first impossible one. Nothing downstream runs on invalid parameters,
+    /// so no stage needs to guard against NaN or zero divisors (SPEC §7).
+    pub fn validate(&self) -> Result<(), ParamError> {
+        PARAMS.iter().try_for_each(|spec| spec.check(self))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::registry::{ParamKind, ParamSpec};
+
+    #[test]
+    fn defaults_are_the_thesis_values_and_valid() {
+        let p = Params::default();
+        assert_eq!(
+            (p.grid_size, p.angle_count, p.texture_size, p.lod_levels),
+            (500.0, 10, 128, 2)
+        );
+        assert_eq!((p.lod1_transition, p.fade_width), (1000.0, 250.0));
+        assert_eq!(p.mip_level_count(), 8);
+        p.validate().unwrap();
+    }
+
+    /// Values each table entry must refuse: non-finite and out-of-range floats, integers just
+    /// outside their range and non-powers of two, unknown choice codes.
+    fn impossible(spec: &ParamSpec) -> Vec<f64> {
+        match spec.kind {
+            ParamKind::Float { min, max } => vec![
+                f64::NAN,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::from(min) - 1.0,
+                f64::from(max) * 2.0,
+            ],
+            ParamKind::Uint {
+                min,
+                max,
+                power_of_two,
+            } => {
+                let mut v = vec![f64::from(max) + 1.0, f64::from(max) * 2.0];
+                if min > 0 {
+                    v.push(f64::from(min - 1));
+                }
+                if power_of_two {
+                    v.extend([3.0, 100.0, f64::from(max - 1)]);
+                }
+                v
+            }
+            ParamKind::Choice(choices) => vec![choices().len() as f64, 9.0],
+        }
+    }
+
+    /// The extremes each entry must accept (SPEC §7 asks the pipeline to run at them).
+    fn extremes(spec: &ParamSpec) -> Vec<f64> {
+        match spec.kind {
+            ParamKind::Float { min, max } => vec![f64::from(min), f64::from(max)],
+            ParamKind::Uint { min, max, .. } => vec![f64::from(min), f64::from(max)],
+            ParamKind::Choice(choices) => choices().iter().map(|(_, c)| f64::from(*c)).collect(),
+        }
+    }
+
+    #[test]
+    fn each_impossible_value_is_named() {
+        let mut checked = 0;
+        for spec in &PARAMS {
+            for v in impossible(spec) {
+                let mut p = Params::default();
+                (spec.set)(&mut p, v);
+                let e = p.validate().expect_err(spec.name);
+                assert_eq!(e.field, spec.name, "{e}");
+                assert!(e.to_string().contains(spec.name), "{e}");
+                assert_eq!(e.reason, spec.reason, "{e}");
+                checked += 1;
+            }
+        }
+        // The typed accessors refuse with the table's words, and the choice reasons name every
+        // code the enum has (they are written by hand in the table).
+        let p = Params {
+            fade_mode: 9,
+            mip_mode: 3,
+            angle_index_mode: 2,
+            tree_cull: 3,
+            ..Default::default()
+        };
+        for (field, e) in [
+            ("fade_mode", p.fade().unwrap_err()),
+            ("mip_mode", p.mips().unwrap_err()),
+            ("angle_index_mode", p.angle_mode().unwrap_err()),
+            ("tree_cull", p.tree_culling().unwrap_err()),
+        ] {
+            assert_eq!(e.field, field);
+            assert!(e.value.parse::<u32>().is_ok(), "{e}: the stored code");
+            let spec = param(field).unwrap();
+            assert_eq!(e.reason, spec.reason);
+            if let ParamKind::Choice(choices) = spec.kind {
+                for (name, code) in choices() {
+                    assert!(
+                        spec.reason.contains(&format!("{code} ({name})")),
+                        "{field}: {name}"
+                    );
+                }
+            }
+        }
+        assert!(checked >= 40, "only {checked} impossible values tried");
+    }
+
+    #[test]
+    fn extremes_that_are_allowed() {
+        for spec in &PARAMS {
+            for v in extremes(spec) {
+                let mut p = Params::default();
+                (spec.set)(&mut p, v);
+                p.validate()
+                    .unwrap_or_else(|e| panic!("{} = {v} refused: {e}", spec.name));
+            }
+        }
+        // Degenerate but meaningful: a zero-width fade band, billboards from the eye on, nothing
+        // drawn; a single angle and a one-texel billboard.
+        for p in [
+            Params {
+                fade_width: 0.0,
+                lod1_transition: 0.0,
+                draw_distance: 0.0,
+                ..Default::default()
+            },
+            Params {
+                angle_count: 1,
+                texture_size: 1,
+                ..Default::default()
+            },
+        ] {
+            p.validate().unwrap();
+        }
+    }
+}
