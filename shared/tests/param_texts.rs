@@ -1,0 +1,109 @@
+//! Pins the refusal reason and the `--help` line of every parameter of the table, byte for byte,
+//! as they were written by hand before the choice parameters' texts were generated from their
+//! enums' choice lists (`registry.rs`). A hand list of choice names here is the point: this file
+//! is the one place allowed to spell them out (`tests/tests/no_hand_lists.rs` exempts it).
+
+use forestlod_shared::PARAMS;
+
+/// `(name, reason, help)` of every parameter, in table order.
+const PINNED: [(&str, &str, &str); 17] = [
+    (
+        "grid_size",
+        "expected a finite size in 0.01..=1e7 m",
+        "Batch grid cell size, metres (E§4.2)",
+    ),
+    (
+        "angle_count",
+        "expected 1..=91 elevation angles",
+        "Number of billboard elevation angles K (E§3.3)",
+    ),
+    (
+        "texture_size",
+        "expected a power of two in 1..=4096",
+        "Billboard texture side r, a power of two (E§3.3)",
+    ),
+    (
+        "lod_levels",
+        "expected 1 (meshes only) or 2 (meshes then billboards): a scene has only these two representations",
+        "LOD levels: 1 (meshes only) or 2",
+    ),
+    (
+        "lod1_transition",
+        "expected a finite distance in 0..=1e7 m",
+        "View depth where billboards have fully replaced meshes, metres (E§3.5)",
+    ),
+    (
+        "fade_width",
+        "expected a finite width in 0..=1e7 m",
+        "Width of the fade band ending at the transition, metres (E§3.5)",
+    ),
+    (
+        "draw_distance",
+        "expected a finite distance in 0..=1e7 m",
+        "Draw distance, metres (E§4.4)",
+    ),
+    (
+        "alpha_cutoff",
+        "expected a finite alpha in 0..=1",
+        "Alpha-test cutoff of foliage, in 0..=1",
+    ),
+    (
+        "fade_mode",
+        "expected 0 (none), 1 (alpha), 2 (dither) or 3 (dither-sequential)",
+        "Fade mode: none, alpha (E§4.4), dither, dither-sequential (G§4)",
+    ),
+    (
+        "mip_mode",
+        "expected 0 (alpha-aware), 1 (box) or 2 (coverage)",
+        "Billboard mip mode: alpha-aware, box, coverage (E§3.3.2)",
+    ),
+    (
+        "angle_index_mode",
+        "expected 0 (nearest) or 1 (eq31-clamped)",
+        "Billboard layer index: nearest, eq31-clamped (E Eq. 3.1)",
+    ),
+    (
+        "tree_cull",
+        "expected 0 (none), 1 (lod0) or 2 (all)",
+        "Per-tree culling after selection (refine, beyond the thesis): none, lod0, all",
+    ),
+    (
+        "hierarchy",
+        "expected 0 (grid), 1 (grid-aabb), 2 (quadtree), 3 (octree), 4 (octree-euclidean) or 5 (kmeans)",
+        "Tree grouping: grid (E§4.2), grid-aabb (E§7 bounds), quadtree (C§4.5), octree (G§3), octree-euclidean (G§3 as written, not conservative), kmeans (E§7 density-aware batches)",
+    ),
+    (
+        "nodes_per_node",
+        "expected 2..=1048576 children or trees per node",
+        "Most children of a quadtree node and most trees of a hierarchy leaf (C§4.5 NodesPerNode)",
+    ),
+    (
+        "max_cull_depth",
+        "expected a depth in 0..=64",
+        "Octree depth below which partially visible nodes recurse (G§3 max_cull_depth)",
+    ),
+    (
+        "coalesce",
+        "expected 0 (off) or 1 (on)",
+        "Merge adjacent draw commands of the hierarchical cut (issue 13): off, on",
+    ),
+    (
+        "command_order",
+        "expected 0 (node) or 1 (front-to-back)",
+        "Order of the hierarchical cut's commands after coalescing: node, front-to-back (E§7 distance-sorted)",
+    ),
+];
+
+#[test]
+fn every_reason_and_help_is_as_pinned() {
+    assert_eq!(
+        PARAMS.len(),
+        PINNED.len(),
+        "a parameter was added: pin its texts"
+    );
+    for (spec, (name, reason, help)) in PARAMS.iter().zip(PINNED) {
+        assert_eq!(spec.name, name);
+        assert_eq!(spec.reason, reason, "{name}: reason");
+        assert_eq!(spec.help, help, "{name}: help");
+    }
+}
