@@ -106,7 +106,7 @@ impl clap::Args for ParamArgs {
             cmd.arg(
                 clap::Arg::new(spec.name)
                     .long(spec.flag)
-                    .help(spec.help)
+                    .help(spec.help().into_owned())
                     .default_value(default)
                     .allow_negative_numbers(true),
             )

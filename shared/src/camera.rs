@@ -118,11 +118,11 @@ impl Camera {
 
     /// Rejects cameras no stage can use, naming the field and value (SPEC §7).
     pub fn validate(&self) -> Result<(), ParamError> {
-        let bad = |field, value: String, reason| {
+        let bad = |field, value: String, reason: &'static str| {
             Err(ParamError {
                 field,
                 value,
-                reason,
+                reason: reason.into(),
             })
         };
         let finite3 = |v: [f32; 3]| v.iter().all(|x| x.is_finite());

@@ -21,11 +21,11 @@ crate::modes::modes! {
         /// Hard switch at the transition distance.
         None = 0 => "none",
         /// Alpha cross-fade, E§4.4.
-        Alpha = 1 => "alpha",
+        Alpha = 1 => "alpha" ("E§4.4"),
         /// Noise-dithered complementary pixel sets.
         Dither = 2 => "dither",
         /// Noise-dithered sequential blend, G§4: first the incoming LOD in, then the outgoing out.
-        DitherSequential = 3 => "dither-sequential",
+        DitherSequential = 3 => "dither-sequential" ("G§4"),
     }
 }
 

@@ -1,16 +1,18 @@
 //! The named modes stored in `Params` as `u32` ids (fade, mip, angle index, tree cull, ...):
-//! one declaration gives the enum, `ALL` in id order, `from_id`, `name`, `from_name` and the
-//! `(name, id)` list the parameter table's choices come from (`registry.rs`). The id is
+//! one declaration gives the enum, `ALL` in id order, `from_id`, `name`, `cite`, `from_name` and
+//! the `(name, id)` list the parameter table's choices come from (`registry.rs`). The id is
 //! what the uniform carries to WGSL; the name is what users write (CLI, sweep files, CSVs).
 
 /// Declares a mode enum (module docs). Ids must run `0, 1, 2, ...` in declaration order
 /// (`from_id` indexes `ALL`); a compile-time assertion in each declaration holds it to that.
 /// (This file imports no mode, so that the files declaring them may import it.)
 macro_rules! modes {
+    (@cite) => { None };
+    (@cite $cite:literal) => { Some($cite) };
     (
         $(#[$meta:meta])*
         pub enum $ty:ident {
-            $( $(#[$vmeta:meta])* $variant:ident = $id:literal => $name:literal, )+
+            $( $(#[$vmeta:meta])* $variant:ident = $id:literal => $name:literal $(($cite:literal))?, )+
         }
     ) => {
         $(#[$meta])*
@@ -40,6 +42,13 @@ macro_rules! modes {
             pub fn name(self) -> &'static str {
                 match self {
                     $( $ty::$variant => $name, )+
+                }
+            }
+            /// The source the parameter's `--help` cites beside the name, if any (written
+            /// `Variant = id => "name" ("cite"),` in the declaration).
+            pub fn cite(self) -> Option<&'static str> {
+                match self {
+                    $( $ty::$variant => $crate::modes::modes!(@cite $($cite)?), )+
                 }
             }
             /// Parses the name ([`Self::name`]).

@@ -7,6 +7,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use core::fmt;
+use std::borrow::Cow;
 
 use crate::modes::modes;
 
@@ -28,7 +29,7 @@ modes! {
         /// Nearest baked elevation, clamped, NaN-free: [`crate::angle_index`].
         Nearest = 0 => "nearest",
         /// E Eq. 3.1 as written, then clamped to `0..K-1` (its bins do not centre on the bake angles).
-        Eq31Clamped = 1 => "eq31-clamped",
+        Eq31Clamped = 1 => "eq31-clamped" ("E Eq. 3.1"),
     }
 }
 
@@ -57,29 +58,29 @@ modes! {
     /// the grid for the same fade mode (the fade is per fragment); only the work changes.
     pub enum Hierarchy {
         /// The thesis (E§3.4, §4.2): grid batches, one sphere each, decided flat.
-        Grid = 0 => "grid",
+        Grid = 0 => "grid" ("E§4.2"),
         /// The grid's batches as a depth-1 hierarchy decided on the intersection of the sphere's
         /// and the bounding box's view-depth intervals, culled by either (E§7 "tighter bounding
         /// volumes").
-        GridAabb = 1 => "grid-aabb",
+        GridAabb = 1 => "grid-aabb" ("E§7 bounds"),
         /// Celba 2007 §4.5: bottom-up quadtree of at most `nodes_per_node` children per node, AABB
         /// frustum culling; interior nodes never draw as a unit.
-        Quadtree = 2 => "quadtree",
+        Quadtree = 2 => "quadtree" ("C§4.5"),
         /// Guerrero 2006 §3 (Fig. 4): octree with leaves of at most `nodes_per_node` trees; a node
         /// wholly past the fade band's end (view-depth interval) draws as one LOD1 command unless
         /// partially visible above `max_cull_depth`.
-        Octree = 3 => "octree",
+        Octree = 3 => "octree" ("G§3"),
         /// [`Hierarchy::Octree`] with the seed's Euclidean `dist_to(octant.bound) < LOD_dist`
         /// deciding whether to recurse, and units drawn as billboards only: **not conservative**
         /// (view depth <= Euclidean distance, so a unit can hold fragments that need LOD0). Kept to
         /// reproduce the seed; never the default.
-        OctreeEuclidean = 4 => "octree-euclidean",
+        OctreeEuclidean = 4 => "octree-euclidean" ("G§3 as written, not conservative"),
         /// E§7 "density-aware batches": the trees of each mesh clustered by size-constrained
         /// k-means (deterministic seeds from balanced bisection, a bounded number of Lloyd
         /// iterations, clusters above `nodes_per_node` trees split at the median) into batches
         /// of about `nodes_per_node` trees whatever the local density; a depth-1 hierarchy
         /// decided as `grid-aabb`.
-        Kmeans = 5 => "kmeans",
+        Kmeans = 5 => "kmeans" ("E§7 density-aware batches"),
     }
 }
 
@@ -112,7 +113,7 @@ modes! {
         /// The cut's order: depth-first node order, LOD0 before LOD1 (the default).
         Node = 0 => "node",
         /// Sorted by nearest view depth, ascending (E§7).
-        FrontToBack = 1 => "front-to-back",
+        FrontToBack = 1 => "front-to-back" ("E§7 distance-sorted"),
     }
 }
 
@@ -225,7 +226,7 @@ pub struct ParamError {
     /// The offending value, formatted.
     pub value: String,
     /// What a valid value looks like.
-    pub reason: &'static str,
+    pub reason: Cow<'static, str>,
 }
 
 impl fmt::Display for ParamError {

@@ -8,10 +8,13 @@
 //! it with (`--{flag}`; its underscore form is also a TOML key and the metrics key), aliases, a
 //! kind (a float, an unsigned integer or a named choice) and a getter and setter through `f64`
 //! (exact for every `f32` and `u32`). Choices are stored in `Params` as their `u32` codes; their
-//! names come from the enums' own `name()` (one spelling per mode, in one place).
+//! names come from the enums' own `name()` (one spelling per mode, in one place), and so do the
+//! names in a choice's refusal reason and `--help` line (generated: adding a mode is no edit here).
 //!
 //! Rejected design: a `match name` per consumer (CLI struct fields, a TOML `set_param`, metrics
 //! keys), as before issue 11: a parameter added to one was silently missing from the others.
+
+use std::borrow::Cow;
 
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{
@@ -41,6 +44,23 @@ pub enum ParamKind {
     Choice(fn() -> Vec<(&'static str, u32)>),
 }
 
+/// The `--help` line of a parameter ([`ParamSpec::help`] renders it).
+#[derive(Clone, Copy, Debug)]
+pub enum Help {
+    /// The whole line, written out (numbers).
+    Text(&'static str),
+    /// `before`, then the choice names in code order joined by `, ` (each followed by
+    /// ` (cite)` where `cite` of its code gives one: the enum's `cite()`), then `after`.
+    Choices {
+        /// Text before the names.
+        before: &'static str,
+        /// The source cited beside a choice, by code.
+        cite: fn(u32) -> Option<&'static str>,
+        /// Text after the names.
+        after: &'static str,
+    },
+}
+
 /// One user-settable parameter (module docs).
 #[derive(Clone, Copy, Debug)]
 pub struct ParamSpec {
@@ -51,12 +71,13 @@ pub struct ParamSpec {
     pub flag: &'static str,
     /// Further keys accepted for it (TOML, and CSV columns written before a rename).
     pub aliases: &'static [&'static str],
-    /// One-line help (the CLI's `--help`).
-    pub help: &'static str,
+    /// One-line help (the CLI's `--help`): [`ParamSpec::help`].
+    pub help: Help,
     /// Values it takes.
     pub kind: ParamKind,
-    /// Why a value outside `kind` is refused: the `reason` of [`ParamError`].
-    pub reason: &'static str,
+    /// Why a number outside `kind` is refused; `None` for a choice, whose reason is generated
+    /// from its codes and names. The `reason` of [`ParamError`] is [`ParamSpec::reason`].
+    pub reason: Option<&'static str>,
     /// Reads it from `Params` (choices: their code).
     pub get: fn(&Params) -> f64,
     /// Writes it into `Params` (exact for the kind's values).
@@ -81,11 +102,60 @@ impl ParamSpec {
         key == self.name || key == self.flag || key == self.key() || self.aliases.contains(&key)
     }
 
+    /// The choices' `(name, code)`, in code order (empty for numbers).
+    fn choices(&self) -> Vec<(&'static str, u32)> {
+        match self.kind {
+            ParamKind::Choice(choices) => choices(),
+            _ => Vec::new(),
+        }
+    }
+
     /// The choice names, in order (empty for numbers).
     pub fn choice_names(&self) -> Vec<&'static str> {
-        match self.kind {
-            ParamKind::Choice(choices) => choices().into_iter().map(|(n, _)| n).collect(),
-            _ => Vec::new(),
+        self.choices().into_iter().map(|(n, _)| n).collect()
+    }
+
+    /// Why a value outside `kind` is refused. For a choice: `expected 0 (a), 1 (b) or 2 (c)`,
+    /// every code with its name, from the choice list.
+    pub fn reason(&self) -> Cow<'static, str> {
+        match self.reason {
+            Some(reason) => Cow::Borrowed(reason),
+            None => {
+                let mut codes: Vec<String> = self
+                    .choices()
+                    .into_iter()
+                    .map(|(name, code)| format!("{code} ({name})"))
+                    .collect();
+                let last = codes.pop().unwrap_or_default();
+                if codes.is_empty() {
+                    Cow::Owned(format!("expected {last}"))
+                } else {
+                    Cow::Owned(format!("expected {} or {last}", codes.join(", ")))
+                }
+            }
+        }
+    }
+
+    /// The one-line help ([`Help`]): for a choice, its names (and their citations) come from the
+    /// choice list.
+    pub fn help(&self) -> Cow<'static, str> {
+        match self.help {
+            Help::Text(text) => Cow::Borrowed(text),
+            Help::Choices {
+                before,
+                cite,
+                after,
+            } => {
+                let names: Vec<String> = self
+                    .choices()
+                    .into_iter()
+                    .map(|(name, code)| match cite(code) {
+                        Some(cite) => format!("{name} ({cite})"),
+                        None => name.to_string(),
+                    })
+                    .collect();
+                Cow::Owned(format!("{before}{}{after}", names.join(", ")))
+            }
         }
     }
 
@@ -179,23 +249,45 @@ impl ParamSpec {
             Err(ParamError {
                 field: self.name,
                 value: self.format_raw(v),
-                reason: self.reason,
+                reason: self.reason(),
             })
         }
     }
 }
 
-/// One table entry: the `Params` field, its flag, kind, refusal reason and help; the getter and
-/// setter are the field's, through `f64`.
+/// One numeric table entry: the `Params` field, its flag, kind, refusal reason and help; the
+/// getter and setter are the field's, through `f64`.
 macro_rules! param {
     ($field:ident, $flag:literal, $kind:expr, $reason:literal, $help:literal) => {
         ParamSpec {
             name: stringify!($field),
             flag: $flag,
             aliases: &[],
-            help: $help,
+            help: Help::Text($help),
             kind: $kind,
-            reason: $reason,
+            reason: Some($reason),
+            get: |p| f64::from(p.$field),
+            set: |p, v| p.$field = v as _,
+        }
+    };
+}
+
+/// One choice entry: the `Params` field, its flag, its mode enum and the help's text before and
+/// after the choice names; the choices, the reason and the names and citations of the help come
+/// from the enum.
+macro_rules! choice {
+    ($field:ident, $flag:literal, $mode:ident, $before:literal, $after:literal) => {
+        ParamSpec {
+            name: stringify!($field),
+            flag: $flag,
+            aliases: &[],
+            help: Help::Choices {
+                before: $before,
+                cite: |code| $mode::from_id(code).and_then($mode::cite),
+                after: $after,
+            },
+            kind: ParamKind::Choice($mode::choices),
+            reason: None,
             get: |p| f64::from(p.$field),
             set: |p, v| p.$field = v as _,
         }
@@ -251,29 +343,17 @@ pub const PARAMS: [ParamSpec; 17] = [
         "Draw distance, metres (E§4.4)"),
     param!(alpha_cutoff, "alpha-cutoff", float(0.0, 1.0), "expected a finite alpha in 0..=1",
         "Alpha-test cutoff of foliage, in 0..=1"),
-    param!(fade_mode, "fade-mode", ParamKind::Choice(FadeMode::choices),
-        "expected 0 (none), 1 (alpha), 2 (dither) or 3 (dither-sequential)",
-        "Fade mode: none, alpha (E§4.4), dither, dither-sequential (G§4)"),
-    param!(mip_mode, "mip-mode", ParamKind::Choice(MipMode::choices),
-        "expected 0 (alpha-aware), 1 (box) or 2 (coverage)",
-        "Billboard mip mode: alpha-aware, box, coverage (E§3.3.2)"),
-    param!(angle_index_mode, "angle-index", ParamKind::Choice(AngleIndexMode::choices),
-        "expected 0 (nearest) or 1 (eq31-clamped)",
-        "Billboard layer index: nearest, eq31-clamped (E Eq. 3.1)"),
-    param!(tree_cull, "tree-cull", ParamKind::Choice(TreeCull::choices), "expected 0 (none), 1 (lod0) or 2 (all)",
-        "Per-tree culling after selection (refine, beyond the thesis): none, lod0, all"),
-    param!(hierarchy, "hierarchy", ParamKind::Choice(Hierarchy::choices),
-        "expected 0 (grid), 1 (grid-aabb), 2 (quadtree), 3 (octree), 4 (octree-euclidean) or 5 (kmeans)",
-        "Tree grouping: grid (E§4.2), grid-aabb (E§7 bounds), quadtree (C§4.5), octree (G§3), octree-euclidean (G§3 as written, not conservative), kmeans (E§7 density-aware batches)"),
+    choice!(fade_mode, "fade-mode", FadeMode, "Fade mode: ", ""),
+    choice!(mip_mode, "mip-mode", MipMode, "Billboard mip mode: ", " (E§3.3.2)"),
+    choice!(angle_index_mode, "angle-index", AngleIndexMode, "Billboard layer index: ", ""),
+    choice!(tree_cull, "tree-cull", TreeCull, "Per-tree culling after selection (refine, beyond the thesis): ", ""),
+    choice!(hierarchy, "hierarchy", Hierarchy, "Tree grouping: ", ""),
     param!(nodes_per_node, "nodes-per-node", uint(2, 1 << 20), "expected 2..=1048576 children or trees per node",
         "Most children of a quadtree node and most trees of a hierarchy leaf (C§4.5 NodesPerNode)"),
     param!(max_cull_depth, "max-cull-depth", uint(0, 64), "expected a depth in 0..=64",
         "Octree depth below which partially visible nodes recurse (G§3 max_cull_depth)"),
-    param!(coalesce, "coalesce", ParamKind::Choice(Coalesce::choices), "expected 0 (off) or 1 (on)",
-        "Merge adjacent draw commands of the hierarchical cut (issue 13): off, on"),
-    param!(command_order, "command-order", ParamKind::Choice(CommandOrder::choices),
-        "expected 0 (node) or 1 (front-to-back)",
-        "Order of the hierarchical cut's commands after coalescing: node, front-to-back (E§7 distance-sorted)"),
+    choice!(coalesce, "coalesce", Coalesce, "Merge adjacent draw commands of the hierarchical cut (issue 13): ", ""),
+    choice!(command_order, "command-order", CommandOrder, "Order of the hierarchical cut's commands after coalescing: ", ""),
 ];
 
 /// The parameter `key` names (canonical name, flag in either form, or alias).
@@ -312,6 +392,29 @@ mod tests {
             (spec.set)(&mut p, 0.0); // scribble, then restore from the text
             (spec.set)(&mut p, spec.parse(&text).expect("default parses"));
             assert_eq!(p, defaults, "{} does not round-trip {text:?}", spec.name);
+        }
+    }
+
+    #[test]
+    fn choice_texts_come_from_the_choice_list() {
+        for spec in &PARAMS {
+            let choice = matches!(spec.kind, ParamKind::Choice(_));
+            assert_eq!(spec.reason.is_none(), choice, "{}", spec.name);
+            assert_eq!(
+                matches!(spec.help, Help::Choices { .. }),
+                choice,
+                "{}",
+                spec.name
+            );
+            let (reason, help) = (spec.reason(), spec.help());
+            for name in spec.choice_names() {
+                assert!(
+                    reason.contains(&format!(" ({name})")),
+                    "{}: {name}",
+                    spec.name
+                );
+                assert!(help.contains(name), "{}: {name}", spec.name);
+            }
         }
     }
 
