@@ -946,6 +946,12 @@ pub fn stress() -> Scene {
     generate(&stress_config())
 }
 
+/// `patchy`: patches and clearings over the [`stress`] trees (issue 13), thinned by
+/// [`super::patchy::patchy_from`].
+pub fn patchy() -> Scene {
+    super::patchy::patchy_from(stress(), STRESS_DENSITY_FACTOR)
+}
+
 /// The built-in scene called `name` (one of [`BUILTIN_NAMES`]); an unknown name is an error that
 /// lists the valid ones.
 pub fn by_name(name: &str) -> Result<Scene, InputError> {
@@ -955,8 +961,7 @@ pub fn by_name(name: &str) -> Result<Scene, InputError> {
         "tiny" => Ok(tiny()),
         "synthetic" => Ok(synthetic()),
         "stress" => Ok(stress()),
-        // Patches and clearings over the stress candidates (issue 13): `super::patchy`.
-        "patchy" => Ok(super::patchy::patchy()),
+        "patchy" => Ok(patchy()),
         _ => Err(InputError::new(
             "<built-in scenes>",
             "scene name",
@@ -1200,5 +1205,30 @@ mod tests {
         c.density_per_km2 = 1.0;
         let s = forest(&c).unwrap();
         assert_eq!(s.instances.len(), 1);
+    }
+
+    /// Patches and clearings: some 100 m cells are empty, the densest hold about 10x the normal
+    /// density, and the scene is reproducible.
+    #[test]
+    fn patchy_has_clearings_and_dense_patches() {
+        let s = patchy();
+        let n = s.instances.len();
+        let mut cells = vec![0u32; 400];
+        for t in &s.instances {
+            let i = (((t.position[0] + 1000.0) / 100.0) as usize).min(19);
+            let j = (((t.position[1] + 1000.0) / 100.0) as usize).min(19);
+            cells[j * 20 + i] += 1;
+        }
+        // 100 m x 100 m = 0.01 km²: normal density is 367 trees per cell.
+        let empty = cells.iter().filter(|&&c| c == 0).count();
+        let max = *cells.iter().max().unwrap();
+        let per_km2 = n as f64 / 4.0;
+        println!(
+            "patchy: {n} trees ({per_km2:.0}/km²), {empty} empty cells of 400, densest cell {max} (normal 367)"
+        );
+        assert!(empty >= 20, "{empty} clearings");
+        assert!(max >= 5 * 367, "densest cell {max}");
+        assert!((36_700.0..367_000.0).contains(&per_km2));
+        assert_eq!(patchy().instances, s.instances);
     }
 }

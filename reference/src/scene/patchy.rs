@@ -2,14 +2,17 @@
 //! normal 36,700 trees/km² (E§4.5.1), where density-aware grouping can matter (E§7) and a fixed
 //! grid puts very different tree counts into its cells.
 //!
-//! Deterministic: the [`super::builtin::stress`] candidates (the same 2 km x 2 km area, terrain,
+//! Deterministic: the `stress` scene's trees as candidates (the same 2 km x 2 km area, terrain,
 //! species stands and 10x density jittered grid), each kept with probability `factor(x, y) / 10`
 //! by a hash of its index, where `factor` is 0 in clearings and rises from 1 to 10 inside patches
 //! following a two-octave value noise (cells of 320 m and 110 m). No RNG state, no thread-count
 //! dependence.
+//!
+//! This file takes the candidates and their density factor as arguments
+//! (`builtin.rs`'s `patchy()` passes `stress()` and `STRESS_DENSITY_FACTOR`), so it imports
+//! nothing of `builtin.rs`, which calls it.
 
 use super::Scene;
-use super::builtin::{STRESS_DENSITY_FACTOR, stress};
 
 /// Seed of the patch map.
 pub const PATCHY_SEED: u64 = 0x9a7c_4e11;
@@ -52,12 +55,13 @@ pub fn density_factor(x: f64, y: f64) -> f64 {
     1.0 + 9.0 * u.sqrt()
 }
 
-/// `patchy` (module docs).
-pub fn patchy() -> Scene {
-    let mut scene = stress();
+/// `patchy` (module docs) from its candidates, the `stress` scene, whose density is
+/// `candidate_density_factor` (10) times the normal density.
+pub fn patchy_from(candidates: Scene, candidate_density_factor: f64) -> Scene {
+    let mut scene = candidates;
     scene.name = "patchy".into();
     let keep = |i: usize, x: f32, y: f32| {
-        let p = density_factor(x as f64, y as f64) / STRESS_DENSITY_FACTOR;
+        let p = density_factor(x as f64, y as f64) / candidate_density_factor;
         let h = mix64(PATCHY_SEED ^ mix64(i as u64));
         ((h >> 11) as f64 / (1u64 << 53) as f64) < p
     };
@@ -69,34 +73,4 @@ pub fn patchy() -> Scene {
         .map(|(_, t)| *t)
         .collect();
     scene
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Patches and clearings: some 100 m cells are empty, the densest hold about 10x the normal
-    /// density, and the scene is reproducible.
-    #[test]
-    fn patchy_has_clearings_and_dense_patches() {
-        let s = patchy();
-        let n = s.instances.len();
-        let mut cells = vec![0u32; 400];
-        for t in &s.instances {
-            let i = (((t.position[0] + 1000.0) / 100.0) as usize).min(19);
-            let j = (((t.position[1] + 1000.0) / 100.0) as usize).min(19);
-            cells[j * 20 + i] += 1;
-        }
-        // 100 m x 100 m = 0.01 km²: normal density is 367 trees per cell.
-        let empty = cells.iter().filter(|&&c| c == 0).count();
-        let max = *cells.iter().max().unwrap();
-        let per_km2 = n as f64 / 4.0;
-        println!(
-            "patchy: {n} trees ({per_km2:.0}/km²), {empty} empty cells of 400, densest cell {max} (normal 367)"
-        );
-        assert!(empty >= 20, "{empty} clearings");
-        assert!(max >= 5 * 367, "densest cell {max}");
-        assert!((36_700.0..367_000.0).contains(&per_km2));
-        assert_eq!(patchy().instances, s.instances);
-    }
 }
