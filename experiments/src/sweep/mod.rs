@@ -27,6 +27,7 @@
 //! [`runner`] (renders every frame of a sweep), [`plots`] (the PNG plots); this file is the CLI
 //! glue (`forestlod sweep`: [`SweepArgs`], [`resolve`], [`configure`], [`run`]).
 
+mod io;
 pub mod paths;
 mod plots;
 mod rows;
@@ -41,10 +42,10 @@ use std::time::Instant;
 use clap::Args;
 use forestlod_reference::InputError;
 
+use io::io_err;
 pub use plots::write_plots;
 pub use rows::{FrameImages, Manifest, Row, read_csv, write_csv};
 pub use runner::Runner;
-use runner::io_err;
 pub use spec::{
     AxisSpec, CameraSpec, DISTANCE_PATH_BASE_HEIGHT_M, DISTANCE_PATH_CLIMB,
     DISTANCE_PATH_LOOK_AHEAD_M, ParamSet, Pose, QuickSpec, SettingSpec, SweepSpec, distance_camera,

@@ -10,8 +10,8 @@ use forestlod_reference::InputError;
 
 use crate::plot::{Axes, Series, Style, bar_plot, xy_plot};
 
+use super::io::io_err;
 use super::rows::Row;
-use super::runner::io_err;
 use super::spec::SweepSpec;
 use super::variant::{Backend, Named};
 

@@ -27,6 +27,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::fair::{TruthLayout, box_filter, supersampled};
 use crate::metrics::{Accuracy, accuracy, error_image, lod_error, per_lod_error_maps, total_error};
 
+use super::io::io_err;
 use super::paths::path_camera;
 use super::plots::write_plots;
 use super::rows::{FrameImages, Manifest, Row, write_csv};
@@ -41,10 +42,6 @@ fn load_scene(name: &str) -> Result<Scene, InputError> {
     } else {
         builtin::by_name(name)
     }
-}
-
-pub(super) fn io_err(path: &Path, e: impl std::fmt::Display) -> InputError {
-    InputError::new(path.display().to_string(), "write", "", e.to_string())
 }
 
 /// What one variant produced for one frame.
