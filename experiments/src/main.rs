@@ -154,7 +154,10 @@ fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
         match &hierarchy {
             Some(h) => format!(
                 "; hierarchy {}: {} leaves, {} nodes",
-                params.hierarchy_mode().map_or("?", |m| m.name()),
+                params
+                    .hierarchy_mode()
+                    .expect("parameters are validated before the scene facts")
+                    .name(),
                 memory.t,
                 h.nodes.len()
             ),

@@ -112,13 +112,14 @@ impl<'a> DrawUniform<'a> {
 /// The baked elevation layer `k` (in `0..K`) a billboard standing at `base` shows to an eye at
 /// `eye`: the angle index ([`forestlod_shared::angle_index_for`], `params`' mode) of `V · U` with
 /// `V` from the tree base to the eye (E Eq. 3.1). The vertex stage's choice, exposed so that
-/// experiments can say which trees change layer between two poses.
+/// experiments can say which trees change layer between two poses. `params` must be valid
+/// ([`Params::validate`]).
 pub fn billboard_layer(base: Vec3, eye: Vec3, params: &Params) -> u32 {
     let to_eye = eye - base;
     let v_dot_u = to_eye.z / to_eye.length();
     let mode = params
         .angle_mode()
-        .unwrap_or(forestlod_shared::AngleIndexMode::Nearest);
+        .expect("parameters are validated before drawing");
     angle_index_for(mode, v_dot_u, params.angle_count)
 }
 
@@ -800,7 +801,8 @@ impl TriangleSource<TREE_VARYINGS> for TreeTriangles<'_> {
     }
 }
 
-/// Draws one frame: sky, ground, then every command of `selection` (module docs).
+/// Draws one frame: sky, ground, then every command of `selection` (module docs). `params`
+/// must be valid ([`Params::validate`]).
 pub fn draw_frame(
     res: &DrawResources,
     selection: &Selection,
@@ -822,7 +824,8 @@ pub fn draw_frame(
 /// out before the vertex stage and before setup ([`TreeTriangles`]; they could write no masked
 /// pixel): the tree counters' `triangles_in` and clipping and setup counts cover only what was
 /// kept; `trees_discarded` is a plain draw's. What it is for: the parity's alternative
-/// frames, the cutoff moved within the GPU's precision (issue 14).
+/// frames, the cutoff moved within the GPU's precision (issue 14). `params` must be valid
+/// ([`Params::validate`]).
 pub fn draw_frame_cutoffs(
     res: &DrawResources,
     selection: &Selection,
@@ -841,7 +844,9 @@ pub fn draw_frame_cutoffs(
     let shader = TreeShader {
         res,
         selection,
-        fade: params.fade().unwrap_or(FadeMode::Alpha),
+        fade: params
+            .fade()
+            .expect("parameters are validated before drawing"),
         alpha_cutoffs: cutoffs,
         pixel_origin: camera.pixel_origin(),
     };

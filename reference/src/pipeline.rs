@@ -194,14 +194,18 @@ impl Prepared {
         (selection, refined)
     }
 
-    /// The `refine` stage on `selection` when `params.tree_cull` is not `none`.
+    /// The `refine` stage on `selection` when `params.tree_cull` is not `none`. `params` must be
+    /// valid (every caller validates them or requires them valid).
     fn refine(
         &self,
         selection: &mut Selection,
         camera: &Camera,
         params: &Params,
     ) -> Option<Refined> {
-        (params.tree_culling().ok()? != forestlod_shared::TreeCull::None).then(|| {
+        let mode = params
+            .tree_culling()
+            .expect("parameters are validated before refine");
+        (mode != forestlod_shared::TreeCull::None).then(|| {
             refine(
                 selection,
                 &self.batches.indirection,

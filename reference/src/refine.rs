@@ -115,7 +115,9 @@ pub fn refine(
     camera: &Camera,
     params: &Params,
 ) -> Refined {
-    let mode = params.tree_culling().unwrap_or(TreeCull::None);
+    let mode = params
+        .tree_culling()
+        .expect("parameters are validated before refine");
     if mode == TreeCull::None {
         return Refined {
             indirection: batch_indirection.to_vec(),
