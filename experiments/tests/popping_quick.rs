@@ -27,7 +27,8 @@ fn a_short_dolly_scores_every_fade_mode() {
             assert!(v.is_finite() && v >= 0.0, "{row}");
         }
     }
-    for mode in ["none", "dither-sequential", "alpha"] {
+    use forestlod_shared::FadeMode;
+    for mode in [FadeMode::None, FadeMode::DitherSequential, FadeMode::Alpha].map(FadeMode::name) {
         assert!(out.join(format!("worst_{mode}.png")).is_file(), "{mode}");
     }
     assert!(out.join("popping.png").is_file());

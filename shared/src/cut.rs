@@ -11,7 +11,7 @@
 //!   tree's sphere, so the intersection is still conservative.
 //! - [`node_code`]: the decision's `DECISION_*` code, plus [`NODE_RECURSE`] when a drawn interior
 //!   node hands the frame to its children instead of drawing as one unit:
-//!   - `grid`, `grid-aabb`, `kmeans`: never (depth-1: every node is a leaf);
+//!   - `grid`: never, and likewise `grid-aabb` and `kmeans` (depth-1: every node is a leaf);
 //!   - `quadtree` (C§4.5): always ("forest node → children"; interior nodes only cull);
 //!   - `octree` (G§3 Fig. 4, conservative reading): when the node needs LOD0 (its interval starts
 //!     before the fade band's end, the seed's `dist_to(bound) < LOD_dist` on view depth) or when

@@ -8,7 +8,7 @@
 //! cargo run --release -p forestlod-experiments --bin hierarchy_ties -- --scene stress --camera medium --command-order front-to-back
 //! ```
 //!
-//! The conservative hierarchies (grid-aabb, quadtree, octree, kmeans) draw the same (tree, LOD)
+//! The conservative hierarchies (every one but `octree-euclidean`) draw the same (tree, LOD)
 //! fragments as the grid (the fade is per fragment; `tests/tests/properties/hierarchy_properties.rs`),
 //! but in another order: node by node, depth-first, where the grid goes batch by batch. With the
 //! depth test `LESS`, the first of two fragments at *equal* depth wins, so exactly there the order
@@ -35,6 +35,32 @@ use forestlod_reference::scene::builtin;
 use forestlod_shared::Params;
 use forestlod_shared::params::{CommandOrder, Hierarchy};
 
+/// `--command-order`'s help, the orders' names from [`CommandOrder`].
+fn command_order_help() -> String {
+    let names: Vec<String> = CommandOrder::ALL
+        .iter()
+        .map(|o| format!("`{}`", o.name()))
+        .collect();
+    format!(
+        "The hierarchies' command order ({}: E§7 distance-sorted commands); the grid's flat \
+         selection does not read it",
+        names.join(", or ")
+    )
+}
+
+/// `--hierarchies`' default: every hierarchical [`Hierarchy`], comma-separated, in id order.
+fn hierarchical_names() -> &'static str {
+    static NAMES: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    NAMES.get_or_init(|| {
+        let names: Vec<&str> = Hierarchy::ALL
+            .iter()
+            .filter(|h| h.is_hierarchical())
+            .map(|h| h.name())
+            .collect();
+        names.join(",")
+    })
+}
+
 /// Differing pixels listed one per line, per hierarchy (the rest are counted).
 const MAX_LISTED: u32 = 12;
 
@@ -52,16 +78,11 @@ struct Args {
     /// A named camera instead (`far`, `medium`, `close`, E§5.0.1), at yaw 0.
     #[arg(long, conflicts_with = "distance")]
     camera: Option<String>,
-    /// The hierarchies' command order (`node`, or `front-to-back`: E§7 distance-sorted
-    /// commands); the grid's flat selection does not read it.
-    #[arg(long, default_value = "node")]
+    // The hierarchies' command order: its help names the orders (`command_order_help`).
+    #[arg(long, default_value = "node", help = command_order_help())]
     command_order: String,
     /// Hierarchies compared with the grid, comma-separated.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "grid-aabb,quadtree,octree,octree-euclidean,kmeans"
-    )]
+    #[arg(long, value_delimiter = ',', default_value = hierarchical_names())]
     hierarchies: Vec<String>,
     /// `reference` or `gpu` (every stage on the adapter).
     #[arg(long, default_value = "reference", value_parser = ["reference", "gpu"])]

@@ -50,17 +50,38 @@ use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::{Camera, FadeMode, Params, view_interval};
 use glam::{Vec3, Vec4};
 
+/// The fade modes compared by default: none, the default mode, the thesis's cross-fade.
+const DEFAULT_MODES: [FadeMode; 3] = [FadeMode::None, FadeMode::DitherSequential, FadeMode::Alpha];
+
+/// `--modes`' default: [`DEFAULT_MODES`]' names, comma-separated.
+fn default_modes() -> &'static str {
+    static NAMES: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    NAMES.get_or_init(|| DEFAULT_MODES.map(FadeMode::name).join(","))
+}
+
+/// `--modes`' help, naming every [`FadeMode`].
+fn modes_help() -> String {
+    let names: Vec<&str> = FadeMode::ALL.iter().map(|m| m.name()).collect();
+    format!(
+        "Fade modes to compare, comma-separated ({})",
+        names.join(", ")
+    )
+}
+
+/// The reason an unknown `--modes` name is refused: `expected a, b or c`, every [`FadeMode`].
+fn expected_mode() -> String {
+    let mut names: Vec<&str> = FadeMode::ALL.iter().map(|m| m.name()).collect();
+    let last = names.pop().unwrap_or_default();
+    format!("expected {} or {last}", names.join(", "))
+}
+
 #[derive(Parser, Debug)]
 struct Args {
     /// Built-in scene.
     #[arg(long, default_value = "tiny")]
     scene: String,
-    /// Fade modes to compare, comma-separated (none, alpha, dither, dither-sequential).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "none,dither-sequential,alpha"
-    )]
+    // Fade modes to compare: the help names every mode (`modes_help`).
+    #[arg(long, value_delimiter = ',', default_value = default_modes(), help = modes_help())]
     modes: Vec<String>,
     /// LOD1 transition distance, metres (the end of the fade band).
     #[arg(long, default_value_t = 80.0)]
@@ -145,14 +166,8 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         .modes
         .iter()
         .map(|m| {
-            FadeMode::from_name(m).ok_or_else(|| {
-                InputError::new(
-                    COMMAND_LINE,
-                    "--modes",
-                    m,
-                    "expected none, alpha, dither or dither-sequential",
-                )
-            })
+            FadeMode::from_name(m)
+                .ok_or_else(|| InputError::new(COMMAND_LINE, "--modes", m, expected_mode()))
         })
         .collect::<Result<_, _>>()?;
     let scene = builtin::by_name(&args.scene)?;

@@ -619,7 +619,7 @@ fn gpu_front_to_back_spans_workgroups() {
     assert!(moved > 0, "the sort moved nothing");
 }
 
-/// GPU frames on `tiny` (quadtree, octree, kmeans; medium and close; dither-sequential and
+/// GPU frames on `tiny` (the quadtree, the octree and k-means; medium and close; dither-sequential and
 /// alpha): `front-to-back` against `node` differs only at depth ties and, in `alpha`, where
 /// blending meets the fade band; every differing pixel is classified
 /// ([`forestlod_tests::classify_order_diffs`]), the test fails on an unclassified one and reports

@@ -103,7 +103,7 @@ proptest! {
 }
 
 /// Reference frames on `tiny` (small cells: many commands; medium and close, both yaws),
-/// quadtree, octree and kmeans, coalescing on, in dither-sequential and alpha: `front-to-back`
+/// the quadtree, the octree and k-means, coalescing on, in dither-sequential and alpha: `front-to-back`
 /// draws the same pixels as `node` except at depth ties and, in `alpha`, where blending meets the
 /// fade band; every differing pixel is classified ([`forestlod_tests::classify_order_diffs`]) and
 /// the test fails on any unclassified one. It also checks that the sort changed the order.

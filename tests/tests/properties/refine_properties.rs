@@ -80,7 +80,7 @@ proptest! {
 /// Refinement changes the work, not the pixels: the fade is per fragment and a tree's fragments
 /// lie in its bounding sphere's view interval, so a tree dropped for not needing a LOD would have
 /// had every fragment of that LOD discarded anyway, and one outside the view has none. Colour,
-/// depth and LOD ids are bit-identical with `none`, `lod0` and `all`, on the golden cameras of
+/// depth and LOD ids are bit-identical with every `tree_cull` mode, on the golden cameras of
 /// `tiny` at two grid sizes; the work (triangles submitted) drops.
 #[test]
 fn refined_frames_equal_unrefined_frames_and_cost_less() {
