@@ -30,7 +30,7 @@
 
 use std::path::{Path, PathBuf};
 
-use forestlod_harness::backend::{StagesFromCpu, alpha_test_alternatives, render_gpu};
+use forestlod_harness::backend::{OursSelect, StagesFromCpu, alpha_test_alternatives, render_gpu};
 use forestlod_harness::image_compare::{ALPHA_TEST_SHIFTS, Images, compare_images};
 use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_reference::error::InputError;
@@ -276,16 +276,13 @@ pub fn export(args: &ExportArgs) -> Result<u8> {
         )
         .map_err(|e| format!("GPU: {e}"))?;
         write_frame(&out.join("gpu"), &gpu.images)?;
-        // The GPU's own selection (`select.wgsl`, atomic compaction: another order).
-        let mut select = forestlod_gpu::GpuSelect::new(
-            &ctx,
-            &prepared.batches.metas,
-            &prepared.geometry.meshes,
-            &prepared.geometry.billboard,
-        )
-        .map_err(|e| format!("GPU: {e}"))?;
+        // The GPU's own selection stages, as the frame's plan says (`select.wgsl` with the
+        // atomic compaction, another order; or the cut, `hier_select.wgsl` then `coalesce.wgsl`
+        // and `command_order.wgsl`, which has one order).
+        let mut select = OursSelect::new(&ctx, &prepared).map_err(|e| format!("GPU: {e}"))?;
         let s = select
-            .run(&camera, &params, forestlod_gpu::Compaction::Atomic)
+            .dispatch(&camera, &params, forestlod_gpu::Compaction::Atomic)
+            .and_then(|b| b.read(&ctx))
             .map_err(|e| format!("GPU: {e}"))?;
         let path = out.join("gpu/commands.csv");
         std::fs::write(&path, commands_csv(&s.commands, &s.data)).map_err(|e| io(&path, e))?;

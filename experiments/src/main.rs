@@ -20,10 +20,11 @@ use clap::{Parser, Subcommand};
 use forestlod_experiments::camera::{CameraArgs, no_tree_warning};
 use forestlod_experiments::options::{ParamArgs, SceneArgs};
 use forestlod_experiments::render::{EXIT_CODES_HELP, exit_code};
-use forestlod_reference::batches::{build_batches, memory_report};
+use forestlod_reference::frame::{SelectScene, select_stages};
 use forestlod_reference::geometry::pack_geometry;
+use forestlod_reference::pipeline::{group_trees, scene_memory};
 use forestlod_reference::scene::tree_sphere;
-use forestlod_reference::select::{count_per_tree, select, select_per_tree};
+use forestlod_reference::select::{count_per_tree, select_per_tree};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -100,25 +101,10 @@ fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
     let scene = scene.load()?;
     let geometry = pack_geometry(&scene);
     let start = Instant::now();
-    // `--hierarchy` other than `grid`: the hierarchy's leaves are the batches and its interior
-    // nodes add to the memory (as `prepare` counts them).
-    let hierarchy =
-        forestlod_reference::hierarchy::Hierarchy::build(&scene, &geometry.meshes, &params)?;
-    let batches = match &hierarchy {
-        Some(h) => h.leaf_batches(params.grid_size),
-        None => build_batches(&scene, &geometry.meshes, params.grid_size)?,
-    };
+    // Grouped as the frame's plan says (`prepare`'s own grouping and memory count).
+    let (hierarchy, batches) = group_trees(&scene, &geometry.meshes, &params)?;
     let batch_seconds = start.elapsed().as_secs_f64();
-    let mut memory = memory_report(
-        scene.instances.len(),
-        batches.metas.len(),
-        scene.meshes.len(),
-        &params,
-    );
-    if let Some(h) = &hierarchy {
-        memory.hierarchy_nodes = h.node_bytes() - memory.batch_meta;
-        memory.total += memory.hierarchy_nodes;
-    }
+    let memory = scene_memory(&scene, &batches, hierarchy.as_ref(), &params);
     let stats = batches.stats();
     if json {
         let value = serde_json::json!({
@@ -212,34 +198,22 @@ fn select_frame(
     let scene = scene.load()?;
     let camera = camera.camera(&scene, 1280, 720)?;
     let geometry = pack_geometry(&scene);
-    // `--hierarchy` other than `grid`: the hierarchy's leaves are the batches, its cut the
-    // selection (as `Prepared::select`).
-    let hierarchy =
-        forestlod_reference::hierarchy::Hierarchy::build(&scene, &geometry.meshes, &params)?;
-    let batches = match &hierarchy {
-        Some(h) => h.leaf_batches(params.grid_size),
-        None => build_batches(&scene, &geometry.meshes, params.grid_size)?,
+    // Grouped as the frame's plan says, and selected by the frame's selection stages (`refine`
+    // included when `--tree-cull` asks for it), as `render` does.
+    let (hierarchy, batches) = group_trees(&scene, &geometry.meshes, &params)?;
+    let spheres: Vec<_> = scene
+        .instances
+        .iter()
+        .map(|t| tree_sphere(t, &geometry.meshes[t.mesh as usize]))
+        .collect();
+    let frame_scene = SelectScene {
+        geometry: &geometry,
+        batches: &batches,
+        hierarchy: hierarchy.as_ref(),
+        tree_spheres: &spheres,
     };
-    let start = Instant::now();
-    let selection = match &hierarchy {
-        Some(h) => {
-            forestlod_reference::hier_select::hier_select(
-                h,
-                &geometry.meshes,
-                &geometry.billboard,
-                &camera,
-                &params,
-            )
-            .selection
-        }
-        None => select(
-            &batches.metas,
-            &geometry.meshes,
-            &geometry.billboard,
-            &camera,
-            &params,
-        ),
-    };
+    let trace = select_stages(&frame_scene, &camera, &params, false);
+    let selection = &trace.selection;
     if let Some(h) = &hierarchy {
         println!(
             "hierarchy {}: {} nodes, {} leaves, {} levels (batches below are its leaves; \"batches tested\" counts the nodes the cut visits)",
@@ -249,12 +223,7 @@ fn select_frame(
             h.levels()
         );
     }
-    let grouped_seconds = start.elapsed().as_secs_f64();
-    let spheres: Vec<_> = scene
-        .instances
-        .iter()
-        .map(|t| tree_sphere(t, &geometry.meshes[t.mesh as usize]))
-        .collect();
+    let grouped_seconds = trace.seconds.0.iter().map(|(_, t)| t).sum::<f64>();
     let start = Instant::now();
     let per_tree = select_per_tree(&spheres, &camera, &params);
     let per_tree_seconds = start.elapsed().as_secs_f64();

@@ -204,3 +204,91 @@ fn own_gpu_output_passes_and_broken_outputs_fail_naming_the_class() {
     assert_eq!(o.status.code(), Some(1), "{}", text(&o.stdout));
     assert!(text(&o.stderr).contains("depth.exr"), "{}", text(&o.stderr));
 }
+
+/// No tool ignores the frame's pipeline parameters (issue 27): with a hierarchy's cut, its command
+/// order and a non-default fade, `export-case`'s reference commands, its GPU commands (the GPU's
+/// own selection stages: the cut, coalesce and front-to-back order) and `select`'s commands are
+/// one list, the GPU frame passes `verify`, and the cut differs from the grid's (so the flags
+/// reached every path).
+#[test]
+fn every_tool_path_sees_the_frames_pipeline_parameters() {
+    let flags = [
+        "--scene",
+        "tiny",
+        "--camera",
+        "medium",
+        "--hierarchy",
+        "octree",
+        "--command-order",
+        "front-to-back",
+        "--fade-mode",
+        "dither",
+        "--angles",
+        "8",
+        "--texture-size",
+        "32",
+        "--transition",
+        "400",
+        "--fade-width",
+        "80",
+    ];
+    let dir = common::fresh_dir("cli-verify", "octree-front-to-back");
+    let mut args = vec!["export-case"];
+    args.extend(flags);
+    args.extend(["--width", "96", "--height", "96", "--with-gpu", "--out"]);
+    args.push(dir.to_str().unwrap());
+    let o = forestlod(&args);
+    assert!(
+        o.status.success(),
+        "export-case: {}{}",
+        text(&o.stdout),
+        text(&o.stderr)
+    );
+    let reference = std::fs::read_to_string(dir.join("reference/commands.csv")).unwrap();
+    let gpu = std::fs::read_to_string(dir.join("gpu/commands.csv")).unwrap();
+    assert_eq!(
+        gpu, reference,
+        "the GPU's selection stages are not the reference's"
+    );
+    let o = verify(&dir, &dir.join("gpu"));
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}{}",
+        text(&o.stdout),
+        text(&o.stderr)
+    );
+    // `select` runs the same stages: the same number of commands.
+    let commands = reference.lines().skip(1).filter(|l| !l.is_empty()).count();
+    let mut args = vec!["select"];
+    args.extend(flags);
+    args.extend(["--list", "0"]);
+    let o = forestlod(&args);
+    assert!(o.status.success(), "select: {}", text(&o.stderr));
+    let out = text(&o.stdout);
+    assert!(
+        out.contains(&format!("  commands {commands} (")),
+        "select: {out}\nreference {commands} commands"
+    );
+    // The grid's list differs: the flags changed what every path saw.
+    let grid = common::fresh_dir("cli-verify", "grid-same-flags");
+    let mut args = vec!["export-case"];
+    let flat: Vec<&str> = flags
+        .iter()
+        .map(|&f| if f == "octree" { "grid" } else { f })
+        .collect();
+    args.extend(flat);
+    args.extend(["--width", "96", "--height", "96", "--out"]);
+    args.push(grid.to_str().unwrap());
+    let o = forestlod(&args);
+    assert!(
+        o.status.success(),
+        "export-case (grid): {}",
+        text(&o.stderr)
+    );
+    let flat_commands = std::fs::read_to_string(grid.join("reference/commands.csv")).unwrap();
+    assert_ne!(
+        flat_commands, reference,
+        "the hierarchy flag changed nothing"
+    );
+}

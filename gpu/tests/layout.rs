@@ -2,7 +2,7 @@
 //! `ProxyRecord`) have the layout of their Rust twins: every
 //! member at the same byte offset, every struct the same size. Checked with naga's reflection (the
 //! offsets naga computes are the ones wgpu's backends use), so a drifting field fails here rather
-//! than as garbage in a parity test. Also validates the modules, including that `Params`, `Camera`
+//! than as garbage in a parity test. Also validates the modules, including that `Camera`
 //! and `SelectUniform` (with the `ViewUniform` every selection-like stage embeds) are legal in the
 //! uniform address space.
 
@@ -11,8 +11,8 @@ use forestlod_gpu::shaders::{
 };
 use forestlod_gpu::{CoalesceUniform, CullTree, HierUniform, SelectUniform};
 use forestlod_shared::{
-    BatchMeta, Camera, CommandData, DrawCommand, FrustumPlanes, MeshMeta, NodeMeta, Params,
-    ProxyRecord, SelectCounters,
+    BatchMeta, Camera, CommandData, DrawCommand, FrustumPlanes, MeshMeta, NodeMeta, ProxyRecord,
+    SelectCounters,
 };
 
 /// The crate's own layout-test support (`gpu/src/wgsl_layout.rs`), shared with its unit tests.
@@ -24,28 +24,6 @@ use wgsl_layout::{
 
 fn rust_layouts() -> Vec<RustLayout> {
     vec![
-        rust_layout!(Params {
-            grid_size,
-            angle_count,
-            texture_size,
-            lod_levels,
-            lod1_transition,
-            fade_width,
-            draw_distance,
-            fade_mode,
-            mip_mode,
-            angle_index_mode,
-            alpha_cutoff,
-            tree_cull,
-            hierarchy,
-            nodes_per_node,
-            max_cull_depth,
-            coalesce,
-            command_order,
-            _pad0,
-            _pad1,
-            _pad2
-        }),
         rust_layout!(Camera {
             eye,
             fov_y,
@@ -126,8 +104,7 @@ fn rust_layouts() -> Vec<RustLayout> {
 fn wgsl_structs_match_their_rust_twins() {
     // Bind the uniform-side structs as uniforms so validation checks their uniform layout rules.
     let source = format!(
-        "{}\n@group(9) @binding(0) var<uniform> layout_params: Params;\n\
-         @group(9) @binding(1) var<uniform> layout_camera: Camera;\n",
+        "{}\n@group(9) @binding(1) var<uniform> layout_camera: Camera;\n",
         select_source()
     );
     let module = validate(&source);
@@ -155,7 +132,7 @@ fn wgsl_structs_match_their_rust_twins() {
             rust.size
         );
     }
-    assert_eq!(checked, 12);
+    assert_eq!(checked, 11);
 }
 
 /// `common.wgsl` with its generated constants and no stage validates.

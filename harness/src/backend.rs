@@ -11,34 +11,13 @@ use forestlod_gpu::select::{
     DECISION_CULLED_DISTANCE, DECISION_CULLED_FRUSTUM, DECISION_DRAW, DECISION_KIND_MASK,
     DECISION_LOD0, DECISION_LOD1,
 };
-use forestlod_gpu::{Compaction, GpuContext, GpuSelect, gpu_or_explain};
+use forestlod_gpu::{Compaction, GpuContext, GpuSelect};
 use forestlod_reference::select::{Decision, Selection};
 use forestlod_shared::{Camera, LodNeeds, Params};
 
+pub use crate::context::gpu_context;
 use crate::stage::{Backend, Draw, FrameInput, Named, Select, SelectInput};
-
-/// The shared GPU context of this test binary, or `None` when no adapter exists and
-/// `FORESTLOD_ALLOW_NO_GPU=1` (without it, the first call panics with the install hint).
-pub fn gpu_context() -> Option<&'static GpuContext> {
-    static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-    CTX.get_or_init(|| {
-        let ctx = gpu_or_explain();
-        if let Some(ctx) = &ctx {
-            eprintln!("GPU adapter: {}", ctx.describe());
-        }
-        ctx
-    })
-    .as_ref()
-}
-
-/// What a backend's selection produced: the output buffers and the per-batch decisions.
-#[derive(Clone, Debug, PartialEq)]
-pub struct BackendSelection {
-    /// Commands, data and counters, as the reference's [`Selection`].
-    pub selection: Selection,
-    /// The decision of each batch, in batch order.
-    pub decisions: Vec<Decision>,
-}
+pub use crate::stage::{BackendSelection, images_of};
 
 /// A GPU twin as a [`Backend`] of one stage, with the stage's option `O`: the compaction of
 /// `select.wgsl` ([`GpuSelectBackend`]), or the stages the draw takes from the reference
@@ -615,17 +594,6 @@ use forestlod_reference::baselines::{
 use forestlod_reference::raster::RenderTarget;
 use forestlod_reference::scene::Scene;
 use forestlod_shared::{ProxyRecord, SelectCounters};
-
-/// The buffers of a reference [`RenderTarget`] as [`Images`].
-pub fn images_of(target: &RenderTarget) -> Images {
-    Images {
-        width: target.width(),
-        height: target.height(),
-        color: target.color().to_vec(),
-        depth: target.depth().to_vec(),
-        lod_id: target.aux().to_vec(),
-    }
-}
 
 /// The reference Vegetation frames with the alpha-test cutoff moved by each of
 /// `±image_compare::ALPHA_TEST_SHIFTS` ([`alpha_test_alternatives`] for Vegetation).

@@ -17,8 +17,7 @@ use forestlod_gpu::{Compaction, GpuContext, MipArray};
 use forestlod_reference::pipeline::Prepared;
 use forestlod_shared::{Camera, Params};
 
-use crate::backend::{GpuSelectBackend, gpu_textures};
-use crate::stage::{Backend, Reference, Select, SelectInput};
+use crate::backend::{OursSelect, gpu_textures};
 use crate::texel_compare::TexelTally;
 
 /// Fraction of a texture stage's texels that may differ by more than ±1 per channel before the
@@ -114,27 +113,21 @@ pub fn check_textures(ctx: &GpuContext, prepared: &Prepared, params: &Params) ->
     out
 }
 
-/// Compares `select.wgsl` (stable compaction) with the reference's selection, exactly.
+/// Compares the GPU's selection stages before `refine` (`select.wgsl` with the stable
+/// compaction, or the cut: `hier_select.wgsl`, `coalesce.wgsl`, `command_order.wgsl`, as the
+/// frame's plan says) with the reference's ([`Prepared::select`]), exactly.
 pub fn check_select(
     ctx: &'static GpuContext,
     prepared: &Prepared,
     camera: &Camera,
     params: &Params,
 ) -> StageCheck {
-    let input = SelectInput {
-        batches: &prepared.batches.metas,
-        meshes: &prepared.geometry.meshes,
-        billboard: &prepared.geometry.billboard,
-        camera,
-        params,
-    };
-    let want = Backend::<Select>::run(&Reference, input).selection;
-    let got = GpuSelectBackend {
-        ctx,
-        option: Compaction::Stable,
-    }
-    .run(input)
-    .selection;
+    let want = prepared.select(camera, params);
+    let mut gpu = OursSelect::new(ctx, prepared).expect("GPU selection");
+    let got = gpu
+        .dispatch(camera, params, Compaction::Stable)
+        .and_then(|b| b.read(ctx))
+        .expect("GPU selection readback");
     let n = want.commands.len().max(got.commands.len());
     let differing = (0..n)
         .filter(|&i| {
@@ -142,7 +135,11 @@ pub fn check_select(
         })
         .count();
     StageCheck {
-        stage: "select",
+        stage: if prepared.hierarchy.is_some() {
+            "hier_select + coalesce + command_order"
+        } else {
+            "select"
+        },
         summary: format!(
             "{} reference commands, {} GPU commands, {differing} differing",
             want.commands.len(),

@@ -26,9 +26,11 @@
 //! (the state before issue 11) made the shipped binary link proptest and the test scaffolding.
 
 pub mod backend;
+pub mod context;
 pub mod diagnose;
 pub mod flip;
 pub mod image_compare;
 pub mod stage;
+pub mod stages;
 pub mod stats;
 pub mod texel_compare;

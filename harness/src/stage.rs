@@ -20,9 +20,11 @@ use forestlod_reference::select::{batch_decisions, select};
 use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::{BatchMeta, Camera, MeshMeta, MipMode, Params};
 
-use crate::backend::{BackendSelection, images_of};
+use forestlod_reference::mips::AlphaAdjust;
+use forestlod_reference::raster::RenderTarget;
+use forestlod_reference::select::{Decision, Selection};
+
 use crate::image_compare::Images;
-use crate::texel_compare::{LevelOut, reference_bake_level0, reference_mip_chains};
 
 /// A stage as the harness runs it: its input and its output in the reference's terms.
 pub trait Stage {
@@ -142,12 +144,6 @@ impl Stage for Mips {
     type Output = Vec<Vec<LevelOut>>;
 }
 
-impl Backend<Mips> for Reference {
-    fn run(&self, i: MipsInput<'_>) -> Vec<Vec<LevelOut>> {
-        reference_mip_chains(i.layers, i.mode, i.alpha_ref)
-    }
-}
-
 /// `bake` (E Alg. 3.1, SPEC §5.1): level 0 of every billboard layer `mesh * K + k`.
 pub struct Bake;
 
@@ -167,8 +163,35 @@ impl Stage for Bake {
     type Output = Vec<Rgba8Image>;
 }
 
-impl Backend<Bake> for Reference {
-    fn run(&self, i: BakeInput<'_>) -> Vec<Rgba8Image> {
-        reference_bake_level0(i.meshes, i.angle_count, i.side)
+/// What a backend's selection produced: the output buffers and the per-batch decisions.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BackendSelection {
+    /// Commands, data and counters, as the reference's [`Selection`].
+    pub selection: Selection,
+    /// The decision of each batch, in batch order.
+    pub decisions: Vec<Decision>,
+}
+
+/// The buffers of a reference [`RenderTarget`] as [`Images`].
+pub fn images_of(target: &RenderTarget) -> Images {
+    Images {
+        width: target.width(),
+        height: target.height(),
+        color: target.color().to_vec(),
+        depth: target.depth().to_vec(),
+        lod_id: target.aux().to_vec(),
     }
+}
+
+/// One level of one layer as a mips backend reports it, in the reference's terms.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelOut {
+    /// The final texels.
+    pub image: Rgba8Image,
+    /// `[MinAlpha_k, MaxAlpha_k]` of the raw level.
+    pub raw_alpha_range: [f32; 2],
+    /// How raw alpha became final alpha.
+    pub adjust: AlphaAdjust,
+    /// Texels passing the alpha test.
+    pub pass_count: u64,
 }

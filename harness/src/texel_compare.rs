@@ -29,10 +29,10 @@ use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::MipMode;
 use rayon::prelude::*;
 
-use crate::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Named};
+use crate::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Named, Reference};
 use crate::stats::SignedHistogram;
 
-use crate::backend::gpu_context;
+use crate::context::gpu_context;
 
 /// Largest per-channel difference of two texels.
 pub fn channel_diff(a: [u8; 4], b: [u8; 4]) -> u8 {
@@ -156,64 +156,7 @@ impl TexelTally {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn every_texel_one_step_up_is_within_tolerance_but_biased() {
-        let want: Vec<[u8; 4]> = (0..4096u32)
-            .map(|i| {
-                [
-                    (i % 250) as u8,
-                    (i / 17) as u8,
-                    (i * 3 % 250) as u8,
-                    (i % 240) as u8,
-                ]
-            })
-            .collect();
-        let got: Vec<[u8; 4]> = want.iter().map(|t| t.map(|c| c + 1)).collect();
-        let mut tally = TexelTally::default();
-        tally.compare("shifted", &got, &want, 1);
-        assert_eq!(tally.over_tolerance, 0);
-        let failures = tally.bias_failures("shifted", TEXEL_BIAS_MAX);
-        assert_eq!(failures.len(), 4, "{failures:?}");
-        // Symmetric ±1 noise is not.
-        let noisy: Vec<[u8; 4]> = want
-            .iter()
-            .enumerate()
-            .map(|(i, t)| {
-                t.map(|c| {
-                    if i % 2 == 0 {
-                        c + 1
-                    } else {
-                        c.saturating_sub(1)
-                    }
-                })
-            })
-            .collect();
-        let mut tally = TexelTally::default();
-        tally.compare("noise", &noisy, &want, 1);
-        assert!(
-            tally.bias_failures("noise", TEXEL_BIAS_MAX).is_empty(),
-            "{}",
-            tally.summary()
-        );
-    }
-}
-
-/// One level of one layer as a mips backend reports it, in the reference's terms.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LevelOut {
-    /// The final texels.
-    pub image: Rgba8Image,
-    /// `[MinAlpha_k, MaxAlpha_k]` of the raw level.
-    pub raw_alpha_range: [f32; 2],
-    /// How raw alpha became final alpha.
-    pub adjust: AlphaAdjust,
-    /// Texels passing the alpha test.
-    pub pass_count: u64,
-}
+pub use crate::stage::LevelOut;
 
 /// The CPU oracle's chains, `forestlod_reference::mips::build_mip_array`, as [`LevelOut`]s (the
 /// [`Reference`](crate::stage::Reference) backend of [`Mips`]).
@@ -385,4 +328,62 @@ pub fn gpu_bake() -> Option<&'static GpuBake<'static>> {
     static BAKE: OnceLock<Option<GpuBake<'static>>> = OnceLock::new();
     BAKE.get_or_init(|| gpu_context().map(|ctx| GpuBake::new(ctx).expect("compile bake and mips")))
         .as_ref()
+}
+
+impl Backend<Mips> for Reference {
+    fn run(&self, i: MipsInput<'_>) -> Vec<Vec<LevelOut>> {
+        reference_mip_chains(i.layers, i.mode, i.alpha_ref)
+    }
+}
+
+impl Backend<Bake> for Reference {
+    fn run(&self, i: BakeInput<'_>) -> Vec<Rgba8Image> {
+        reference_bake_level0(i.meshes, i.angle_count, i.side)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_texel_one_step_up_is_within_tolerance_but_biased() {
+        let want: Vec<[u8; 4]> = (0..4096u32)
+            .map(|i| {
+                [
+                    (i % 250) as u8,
+                    (i / 17) as u8,
+                    (i * 3 % 250) as u8,
+                    (i % 240) as u8,
+                ]
+            })
+            .collect();
+        let got: Vec<[u8; 4]> = want.iter().map(|t| t.map(|c| c + 1)).collect();
+        let mut tally = TexelTally::default();
+        tally.compare("shifted", &got, &want, 1);
+        assert_eq!(tally.over_tolerance, 0);
+        let failures = tally.bias_failures("shifted", TEXEL_BIAS_MAX);
+        assert_eq!(failures.len(), 4, "{failures:?}");
+        // Symmetric ±1 noise is not.
+        let noisy: Vec<[u8; 4]> = want
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                t.map(|c| {
+                    if i % 2 == 0 {
+                        c + 1
+                    } else {
+                        c.saturating_sub(1)
+                    }
+                })
+            })
+            .collect();
+        let mut tally = TexelTally::default();
+        tally.compare("noise", &noisy, &want, 1);
+        assert!(
+            tally.bias_failures("noise", TEXEL_BIAS_MAX).is_empty(),
+            "{}",
+            tally.summary()
+        );
+    }
 }

@@ -11,10 +11,11 @@
 //!    LOD0 before LOD1, command `i` with `base_vertex = i << COMMAND_SHIFT`, `first_instance` the
 //!    node's range in the hierarchy's indirection, `CommandData::batch` the node index.
 //!
-//! 4. [`crate::coalesce`] when `params.coalesce` is `on` (the default): runs of commands with
-//!    adjacent ranges and the same mesh, LOD and fading flag merged into one.
-//! 5. [`crate::command_order`] when `params.command_order` is `front-to-back` (E§7): the
-//!    commands sorted by their nearest view depth, ties in list order (default `node`: as is).
+//!
+//! The cut's list is then the input of two stages of their own, run after this one by the frame
+//! (`crate::frame`, `forestlod_shared::FramePlan`): [`crate::coalesce`] (runs of commands with
+//! adjacent ranges and the same mesh, LOD and fading flag merged into one) and
+//! [`crate::command_order`] (the commands sorted by their nearest view depth, E§7).
 //!
 //! This equals the seeds' recursion: the recursion reaches exactly the visited nodes and draws
 //! exactly the emitted ones, in depth-first order.
@@ -31,9 +32,9 @@
 //! `transition_batches` the emitted nodes with both LODs.
 
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, Coalesce, CommandData, CommandOrder, DECISION_DRAW, DECISION_KIND_MASK,
-    Decision, DrawCommand, LOD_BILLBOARD, LOD_MESH, MeshMeta, NO_PARENT, NODE_RECURSE, Params,
-    ViewUniform, code_recurses, emitted_needs, node_code,
+    Camera, DECISION_DRAW, DECISION_KIND_MASK, Decision, EmitGroup, LOD_BILLBOARD, LOD_MESH,
+    MeshMeta, NO_PARENT, NODE_RECURSE, Params, ViewUniform, code_recurses, count_command,
+    emit_command, emitted_needs, node_code,
 };
 use rayon::prelude::*;
 
@@ -52,9 +53,6 @@ pub struct HierSelection {
     pub codes: Vec<u32>,
     /// Per node: [`NODE_VISITED`] | [`NODE_EMITTED`] bits.
     pub states: Vec<u32>,
-    /// Per output command: its front-to-back key ([`crate::command_order::run_keys`]), in the
-    /// output order (computed whatever `command_order` is).
-    pub keys: Vec<u32>,
 }
 
 impl HierSelection {
@@ -99,16 +97,10 @@ pub fn hier_select(
         .par_iter()
         .map(|n| node_code(&u, n, h.mode, params.max_cull_depth))
         .collect();
-    let coalesce = params
-        .coalescing()
-        .expect("parameters are validated before selection");
-    let order = params
-        .command_ordering()
-        .expect("parameters are validated before selection");
-    resolve_and_compact(h, codes, meshes, billboard, &u, coalesce, order)
+    resolve_and_compact(h, codes, meshes, billboard, &u)
 }
 
-/// Passes 2 to 5 on given per-node codes (the reference's, or a GPU's read back, to check the
+/// Passes 2 and 3 on given per-node codes (the reference's, or a GPU's read back, to check the
 /// GPU's resolution and compaction on its own decisions).
 pub fn resolve_and_compact(
     h: &Hierarchy,
@@ -116,8 +108,6 @@ pub fn resolve_and_compact(
     meshes: &[MeshMeta],
     billboard: &MeshMeta,
     u: &ViewUniform,
-    coalesce: Coalesce,
-    order: CommandOrder,
 ) -> HierSelection {
     let states: Vec<u32> = (0..h.nodes.len())
         .into_par_iter()
@@ -149,48 +139,31 @@ pub fn resolve_and_compact(
         }
         let needs = emitted_needs(code, n, h.mode, u.lod_levels);
         out.counters.transition_batches += needs.both() as u32;
+        let group = EmitGroup {
+            index: i as u32,
+            mesh: n.mesh,
+            len: n.len,
+            offset: n.offset,
+            fading: needs.both(),
+            fade_start: u.fade_start,
+            fade_end: u.fade_end,
+        };
         for (lod, wanted) in [(LOD_MESH, needs.lod0), (LOD_BILLBOARD, needs.lod1)] {
             if !wanted {
                 continue;
             }
-            let range = if lod == LOD_MESH {
-                &meshes[n.mesh as usize]
-            } else {
-                billboard
-            };
-            out.commands.push(DrawCommand {
-                index_count: range.index_count,
-                instance_count: n.len,
-                first_index: range.first_index,
-                base_vertex: (out.commands.len() as i32) << COMMAND_SHIFT,
-                first_instance: n.offset,
-            });
-            out.data.push(CommandData {
-                fade_start: u.fade_start,
-                fade_end: u.fade_end,
-                batch: i as u32,
-                mesh: n.mesh,
-                lod,
-                billboard: (lod == LOD_BILLBOARD) as u32,
-                fading: needs.both() as u32,
-                _pad0: 0,
-            });
-            out.counters.instances += n.len;
-            if lod == LOD_MESH {
-                out.counters.lod0_commands += 1;
-            } else {
-                out.counters.lod1_commands += 1;
-            }
+            let slot = out.commands.len() as u32;
+            let (command, data) =
+                emit_command(slot, &group, lod, &meshes[n.mesh as usize], billboard);
+            count_command(&mut out.counters, &command, lod);
+            out.commands.push(command);
+            out.data.push(data);
         }
     }
     out.counters.commands = out.commands.len() as u32;
-    let merged = crate::coalesce::coalesce(&out, coalesce);
-    let keys = crate::command_order::run_keys(&h.nodes, &out, &merged, u, coalesce);
-    let (selection, keys) = crate::command_order::order(merged, keys, order);
     HierSelection {
-        selection,
+        selection: out,
         codes,
         states,
-        keys,
     }
 }

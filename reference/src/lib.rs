@@ -31,6 +31,7 @@ pub mod coalesce;
 pub mod command_order;
 pub mod draw;
 pub mod error;
+pub mod frame;
 pub mod geometry;
 pub mod ground_truth;
 pub mod hier_select;

@@ -7,20 +7,21 @@
 
 use std::time::Instant;
 
-use forestlod_shared::{Camera, Params};
+use forestlod_shared::{Camera, Params, StageId};
 use serde::Serialize;
 
 use crate::InputError;
 use crate::bake::{BakedBillboards, bake, mesh_textures};
 use crate::batches::{Batches, MemoryReport, build_batches, memory_report};
 use crate::draw::{DrawResources, DrawnFrame, draw_frame, draw_frame_cutoffs};
+use crate::frame::{SelectScene, SelectionTrace, select_stages};
 use crate::geometry::{PackedGeometry, pack_geometry};
 use crate::hier_select::{HierSelection, hier_select};
 use crate::hierarchy::Hierarchy;
-use crate::refine::{Refined, refine};
+use crate::refine::Refined;
 use crate::sampler::Texture;
 use crate::scene::{Scene, tree_sphere};
-use crate::select::{Selection, select};
+use crate::select::Selection;
 
 /// Seconds spent in each slow-path stage.
 #[derive(Clone, Debug, Default, Serialize)]
@@ -59,6 +60,44 @@ pub struct Prepared {
     pub timings: PrepareTimings,
 }
 
+/// The trees grouped as `params` says (the frame's plan, [`forestlod_shared::FramePlan`]): the
+/// grid's batches for a flat selection, else the hierarchy ([`Hierarchy::build`]) with its leaves
+/// as the batches over its indirection ([`Hierarchy::leaf_batches`]). `params` must be valid.
+pub fn group_trees(
+    scene: &Scene,
+    meshes: &[forestlod_shared::MeshMeta],
+    params: &Params,
+) -> Result<(Option<Hierarchy>, Batches), InputError> {
+    let hierarchy = Hierarchy::build(scene, meshes, params)?;
+    let batches = match &hierarchy {
+        Some(h) => h.leaf_batches(params.grid_size),
+        None => build_batches(scene, meshes, params.grid_size)?,
+    };
+    Ok((hierarchy, batches))
+}
+
+/// Memory beside E Eq. 4.1 of a grouped scene: the hierarchy's interior nodes, when there is one,
+/// beside the leaves (which `batch_meta` already counts, 64 bytes each).
+pub fn scene_memory(
+    scene: &Scene,
+    batches: &Batches,
+    hierarchy: Option<&Hierarchy>,
+    params: &Params,
+) -> MemoryReport {
+    let mut memory = memory_report(
+        scene.instances.len(),
+        batches.metas.len(),
+        scene.meshes.len(),
+        params,
+    );
+    if let Some(h) = hierarchy {
+        let interior = h.node_bytes() - memory.batch_meta;
+        memory.hierarchy_nodes = interior;
+        memory.total += interior;
+    }
+    memory
+}
+
 /// Runs the slow path. `params` must be valid (it is validated again here).
 pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
     params.validate()?;
@@ -67,11 +106,7 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
     let geometry = pack_geometry(&scene);
     timings.pack = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let hierarchy = Hierarchy::build(&scene, &geometry.meshes, params)?;
-    let batches = match &hierarchy {
-        Some(h) => h.leaf_batches(params.grid_size),
-        None => build_batches(&scene, &geometry.meshes, params.grid_size)?,
-    };
+    let (hierarchy, batches) = group_trees(&scene, &geometry.meshes, params)?;
     timings.batches = t.elapsed().as_secs_f64();
     let mode = params.mips()?;
     let t = Instant::now();
@@ -80,18 +115,7 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
     let t = Instant::now();
     let billboards = bake(&scene, &geometry.meshes, &textures, params)?;
     timings.bake = t.elapsed().as_secs_f64();
-    let mut memory = memory_report(
-        scene.instances.len(),
-        batches.metas.len(),
-        scene.meshes.len(),
-        params,
-    );
-    if let Some(h) = &hierarchy {
-        // Interior nodes beside the leaves (which `batch_meta` already counts, 64 bytes each).
-        let interior = h.node_bytes() - memory.batch_meta;
-        memory.hierarchy_nodes = interior;
-        memory.total += interior;
-    }
+    let memory = scene_memory(&scene, &batches, hierarchy.as_ref(), params);
     let tree_spheres = {
         use rayon::prelude::*;
         scene
@@ -160,21 +184,33 @@ impl Prepared {
         }
     }
 
-    /// Selection for one frame: the hierarchy's cut when there is one, else the grid's batches.
-    pub fn select(&self, camera: &Camera, params: &Params) -> Selection {
-        if let Some(h) = self.hier_select(camera, params) {
-            return h.selection;
+    /// What the selection stages read ([`crate::frame`]).
+    pub fn select_scene(&self) -> SelectScene<'_> {
+        SelectScene {
+            geometry: &self.geometry,
+            batches: &self.batches,
+            hierarchy: self.hierarchy.as_ref(),
+            tree_spheres: &self.tree_spheres,
         }
-        select(
-            &self.batches.metas,
-            &self.geometry.meshes,
-            &self.geometry.billboard,
-            camera,
-            params,
-        )
     }
 
-    /// The hierarchy's cut with its per-node codes and states (`None` without a hierarchy).
+    /// Every selection stage of the frame's plan, in order ([`crate::frame::select_stages`]);
+    /// `keep` keeps each stage's output. `params` must be valid.
+    pub fn select_stages(&self, camera: &Camera, params: &Params, keep: bool) -> SelectionTrace {
+        select_stages(&self.select_scene(), camera, params, keep)
+    }
+
+    /// Selection for one frame: the selection stages of the frame's plan
+    /// ([`crate::frame::select_stages`]), `refine` excluded.
+    pub fn select(&self, camera: &Camera, params: &Params) -> Selection {
+        let before_refine = Params {
+            tree_cull: forestlod_shared::TreeCull::None as u32,
+            ..*params
+        };
+        self.select_stages(camera, &before_refine, false).selection
+    }
+
+    /// The hierarchy's raw cut with its per-node codes and states (`None` without a hierarchy).
     pub fn hier_select(&self, camera: &Camera, params: &Params) -> Option<HierSelection> {
         let h = self.hierarchy.as_ref()?;
         Some(hier_select(
@@ -186,46 +222,20 @@ impl Prepared {
         ))
     }
 
-    /// Selection, then `refine` when `params.tree_cull` asks for it (untimed; for experiments and
-    /// tests that need the commands without drawing). `params` must be valid.
+    /// Every selection stage of the frame, `refine` included when `params.tree_cull` asks for it
+    /// (untimed; for experiments and tests that need the commands without drawing). `params`
+    /// must be valid.
     pub fn select_refined(&self, camera: &Camera, params: &Params) -> (Selection, Option<Refined>) {
-        let mut selection = self.select(camera, params);
-        let refined = self.refine(&mut selection, camera, params);
-        (selection, refined)
-    }
-
-    /// The `refine` stage on `selection` when `params.tree_cull` is not `none`. `params` must be
-    /// valid (every caller validates them or requires them valid).
-    fn refine(
-        &self,
-        selection: &mut Selection,
-        camera: &Camera,
-        params: &Params,
-    ) -> Option<Refined> {
-        let mode = params
-            .tree_culling()
-            .expect("parameters are validated before refine");
-        (mode != forestlod_shared::TreeCull::None).then(|| {
-            refine(
-                selection,
-                &self.batches.indirection,
-                &self.tree_spheres,
-                camera,
-                params,
-            )
-        })
+        let trace = self.select_stages(camera, params, false);
+        (trace.selection, trace.refined)
     }
 
     /// The per-frame path: selection, then draw. The camera is validated first.
     pub fn render(&self, camera: &Camera, params: &Params) -> Result<Frame, InputError> {
         camera.validate()?;
         params.validate()?;
-        let t = Instant::now();
-        let mut selection = self.select(camera, params);
-        let select_seconds = t.elapsed().as_secs_f64();
-        let t = Instant::now();
-        let refined = self.refine(&mut selection, camera, params);
-        let refine_seconds = t.elapsed().as_secs_f64();
+        let trace = self.select_stages(camera, params, false);
+        let (selection, refined) = (trace.selection, trace.refined);
         let t = Instant::now();
         let drawn = match &refined {
             None => draw_frame(&self.resources(), &selection, camera, params),
@@ -243,8 +253,8 @@ impl Prepared {
             refined,
             drawn,
             timings: FrameTimings {
-                select: select_seconds,
-                refine: refine_seconds,
+                select: trace.seconds.selection(),
+                refine: trace.seconds.get(StageId::Refine),
                 draw: draw_seconds,
             },
         })
@@ -263,8 +273,7 @@ impl Prepared {
     ) -> Result<Vec<DrawnFrame>, InputError> {
         camera.validate()?;
         params.validate()?;
-        let mut selection = self.select(camera, params);
-        let refined = self.refine(&mut selection, camera, params);
+        let (selection, refined) = self.select_refined(camera, params);
         let indirection = refined.as_ref().map(|r| r.indirection.as_slice());
         let res = DrawResources {
             indirection: indirection.unwrap_or(&self.batches.indirection),

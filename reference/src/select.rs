@@ -27,8 +27,8 @@
 
 use forestlod_shared::coverage;
 use forestlod_shared::{
-    BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, LOD_BILLBOARD, LOD_MESH, MeshMeta,
-    Params, SelectCounters, ViewUniform, view_interval,
+    BatchMeta, COMMAND_SHIFT, Camera, CommandData, DrawCommand, EmitGroup, LOD_BILLBOARD, LOD_MESH,
+    MeshMeta, Params, SelectCounters, ViewUniform, count_command, emit_command, view_interval,
 };
 use rayon::prelude::*;
 
@@ -73,31 +73,17 @@ pub fn select_batch(
         cover_select(u, batch, decision);
     }
     let needs = decision.needs();
-    let emit = |lod: u32| {
-        let range = if lod == LOD_MESH {
-            &meshes[batch.mesh as usize]
-        } else {
-            billboard
-        };
-        let command = DrawCommand {
-            index_count: range.index_count,
-            instance_count: batch.len,
-            first_index: range.first_index,
-            base_vertex: 0,
-            first_instance: batch.offset,
-        };
-        let data = CommandData {
-            fade_start: u.fade_start,
-            fade_end: u.fade_end,
-            batch: index,
-            mesh: batch.mesh,
-            lod,
-            billboard: (lod == LOD_BILLBOARD) as u32,
-            fading: needs.both() as u32,
-            _pad0: 0,
-        };
-        (command, data)
+    let group = EmitGroup {
+        index,
+        mesh: batch.mesh,
+        len: batch.len,
+        offset: batch.offset,
+        fading: needs.both(),
+        fade_start: u.fade_start,
+        fade_end: u.fade_end,
     };
+    // The slot (and so `base_vertex`) is assigned by the compaction.
+    let emit = |lod| emit_command(0, &group, lod, &meshes[batch.mesh as usize], billboard);
     (
         decision,
         [
@@ -161,12 +147,7 @@ pub fn select(
         }
         for (mut command, data) in commands.into_iter().flatten() {
             command.base_vertex = (out.commands.len() as i32) << COMMAND_SHIFT;
-            out.counters.instances += command.instance_count;
-            if data.lod == LOD_MESH {
-                out.counters.lod0_commands += 1;
-            } else {
-                out.counters.lod1_commands += 1;
-            }
+            count_command(&mut out.counters, &command, data.lod);
             out.commands.push(command);
             out.data.push(data);
         }

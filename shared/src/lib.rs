@@ -34,7 +34,9 @@ pub mod camera;
 pub mod color;
 pub mod coverage;
 pub mod cut;
+pub mod emit;
 pub mod fade;
+pub mod frame;
 pub mod interval;
 pub mod modes;
 pub mod params;
@@ -57,7 +59,9 @@ pub use cut::{
     MAX_HIERARCHY_DEPTH, NODE_EMITTED, NODE_RECURSE, NODE_VISITED, aabb_distance, code_recurses,
     command_depth_key, continues_run, decide_node, emitted_needs, node_code, node_near_depth,
 };
+pub use emit::{EmitGroup, count_command, emit_command};
 pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
+pub use frame::{FramePlan, SelectionPlan, StageId};
 pub use interval::{
     LodNeeds, ViewInterval, aabb_margin, aabb_view_interval, lod_needs, selection_margin,
     view_interval,

@@ -511,3 +511,71 @@ pub fn tiny_hierarchy_params(hierarchy: forestlod_shared::Hierarchy) -> Params {
         ..Params::default()
     }
 }
+
+/// The whole cut of one frame (`hier_select`, then `coalesce` and `command_order` with the modes
+/// of `params`, as the frame runs them: `forestlod_reference::frame::cut`), in the shape the
+/// cut's tests read: the ordered commands, the raw cut's per-node codes and states, and the
+/// ordered commands' keys.
+pub fn full_cut(
+    h: &forestlod_reference::hierarchy::Hierarchy,
+    meshes: &[forestlod_shared::MeshMeta],
+    billboard: &forestlod_shared::MeshMeta,
+    camera: &Camera,
+    params: &Params,
+) -> FullCut {
+    let (selection, trace) = forestlod_reference::frame::cut(h, meshes, billboard, camera, params);
+    FullCut {
+        selection,
+        codes: trace.cut.codes,
+        states: trace.cut.states,
+        keys: trace.keys,
+    }
+}
+
+/// [`full_cut`] on given per-node codes (a GPU's, read back) with the given modes.
+pub fn full_resolve(
+    h: &forestlod_reference::hierarchy::Hierarchy,
+    codes: Vec<u32>,
+    meshes: &[forestlod_shared::MeshMeta],
+    billboard: &forestlod_shared::MeshMeta,
+    u: &forestlod_shared::ViewUniform,
+    coalesce: forestlod_shared::Coalesce,
+    order: forestlod_shared::CommandOrder,
+) -> FullCut {
+    let raw = forestlod_reference::hier_select::resolve_and_compact(h, codes, meshes, billboard, u);
+    let merged = forestlod_reference::coalesce::coalesce(&raw.selection, coalesce);
+    let keys = forestlod_reference::command_order::run_keys(
+        &h.nodes,
+        &raw.selection,
+        &merged,
+        u,
+        coalesce,
+    );
+    let (selection, keys) = forestlod_reference::command_order::order(merged, keys, order);
+    FullCut {
+        selection,
+        codes: raw.codes,
+        states: raw.states,
+        keys,
+    }
+}
+
+/// What [`full_cut`] returns.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FullCut {
+    /// The ordered commands.
+    pub selection: Selection,
+    /// Per node: `forestlod_shared::node_code`.
+    pub codes: Vec<u32>,
+    /// Per node: visited / emitted bits.
+    pub states: Vec<u32>,
+    /// Per output command: its front-to-back key.
+    pub keys: Vec<u32>,
+}
+
+impl FullCut {
+    /// Nodes the recursion would visit (C§5 "nodes walked").
+    pub fn nodes_visited(&self) -> u32 {
+        self.selection.counters.batches_tested
+    }
+}

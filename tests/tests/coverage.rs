@@ -187,7 +187,7 @@ fn hier_property_cases() {
         let h = Tree::build(&packed.scene, &g.meshes, &p)
             .expect("a hierarchy")
             .expect("a hierarchical mode");
-        forestlod_reference::hier_select::hier_select(&h, &g.meshes, &g.billboard, &camera, &p);
+        forestlod_tests::full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
     }
 }
 

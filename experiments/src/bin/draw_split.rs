@@ -4,9 +4,9 @@
 //!
 //! `cargo run --release -p forestlod-experiments --bin draw_split -- --out out/draw_split`
 //!
-//! `--orders node,front-to-back` measures each hierarchy in both command orders (issue 13, E§7
-//! distance-sorted commands; `experiments/results/hierarchy/command_order.md`): the select time
-//! then includes the sort.
+//! `--orders` with every `command_order` value measures each hierarchy in every command order
+//! (issue 13, E§7 distance-sorted commands; `experiments/results/hierarchy/command_order.md`): the
+//! select time then includes the sort.
 //!
 //! Every stage is timed three ways, each the minimum of `--reps` repetitions after `--warmups`
 //! (1) untimed ones: timestamp queries (`gpu_time::timestamped`), wall time from submit to
@@ -60,12 +60,8 @@ struct Args {
     /// Named cameras (yaw 0).
     #[arg(long, value_delimiter = ',', default_value = "close,medium")]
     cameras: Vec<String>,
-    /// Hierarchies of ours (`hierarchy` parameter values).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "grid,grid-aabb,quadtree,octree"
-    )]
+    /// Hierarchies of ours (`hierarchy` parameter values; default: every conservative one).
+    #[arg(long, value_delimiter = ',', default_values_t = conservative_hierarchies())]
     hierarchies: Vec<String>,
     /// Command orders of ours (`command_order` values, issue 13 E§7): each hierarchy is measured
     /// once per order, back to back in the same run (rows `ours <h>` and `ours <h> <order>`).
@@ -306,6 +302,15 @@ struct Row {
     split: Split,
 }
 
+/// Every hierarchy but the seed-faithful, non-conservative `octree-euclidean`.
+fn conservative_hierarchies() -> Vec<String> {
+    Hierarchy::ALL
+        .into_iter()
+        .filter(|&h| h != Hierarchy::OctreeEuclidean)
+        .map(|h| h.name().to_string())
+        .collect()
+}
+
 fn main() -> Res<()> {
     let args = Args::parse();
     if args.replot {
@@ -325,7 +330,10 @@ fn main() -> Res<()> {
         let scene = builtin::by_name(scene_name)?;
         for (hi, h_name) in args.hierarchies.iter().enumerate() {
             let h = Hierarchy::from_name(h_name).ok_or_else(|| {
-                format!("--hierarchies: unknown hierarchy {h_name:?} (expected one of grid, grid-aabb, quadtree, octree, octree-euclidean)")
+                format!(
+                    "--hierarchies: unknown hierarchy {h_name:?} (expected one of {})",
+                    Hierarchy::ALL.map(Hierarchy::name).join(", ")
+                )
             })?;
             let params = Params {
                 hierarchy: h as u32,

@@ -24,8 +24,8 @@ use forestlod_experiments::gpu_time::timestamped;
 use forestlod_experiments::metrics::median;
 use forestlod_experiments::options::ParamArgs;
 use forestlod_gpu::draw::{DrawInputs, DrawScene, DrawTarget, DrawTextures};
-use forestlod_gpu::{Compaction, GpuContext, GpuDraw, GpuSelect};
-use forestlod_harness::backend::{DrawSceneData, gpu_textures};
+use forestlod_gpu::{Compaction, GpuContext, GpuDraw};
+use forestlod_harness::backend::{DrawSceneData, OursSelect, gpu_textures};
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
@@ -111,12 +111,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let gpu_scene = DrawScene::new(&ctx, &data.desc(&prepared))?;
         let (mesh, billboards) = gpu_textures(&ctx, &prepared, &params)?;
         let textures = DrawTextures::new(&mesh, &billboards)?;
-        let mut select = GpuSelect::new(
-            &ctx,
-            &prepared.batches.metas,
-            &prepared.geometry.meshes,
-            &prepared.geometry.billboard,
-        )?;
+        // The frame's selection stages, as its plan says (flat, or the cut with its coalesce and
+        // order; the cut has the stable order only, so its "atomic" column times it again).
+        let mut select = OursSelect::new(&ctx, &prepared)?;
         for &(width, height) in &sizes {
             let target = DrawTarget::new(&ctx, width, height)?;
             for camera_name in &args.cameras {

@@ -20,29 +20,9 @@
 // f32::EPSILON, 2^-23.
 const F32_EPSILON: f32 = 1.1920929e-7;
 
-// Keep in sync with forestlod_shared::Params (shared/src/params.rs).
-struct Params {
-    grid_size: f32,
-    angle_count: u32,
-    texture_size: u32,
-    lod_levels: u32,
-    lod1_transition: f32,
-    fade_width: f32,
-    draw_distance: f32,
-    fade_mode: u32,
-    mip_mode: u32,
-    angle_index_mode: u32,
-    alpha_cutoff: f32,
-    tree_cull: u32,
-    hierarchy: u32,
-    nodes_per_node: u32,
-    max_cull_depth: u32,
-    coalesce: u32,
-    command_order: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
-}
+// No WGSL mirror of forestlod_shared::Params: no shader binds it. Each stage's uniform carries
+// the fields it reads (ViewUniform for the selection rule, the stage's own modes), so a new
+// parameter costs no WGSL field, layout entry or padding here (issue 27).
 
 // Keep in sync with forestlod_shared::Camera (shared/src/camera.rs).
 struct Camera {

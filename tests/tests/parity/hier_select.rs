@@ -27,7 +27,6 @@ use std::time::Instant;
 use forestlod_gpu::{GpuHierSelect, GpuSelection};
 use forestlod_harness::backend::{StagesFromCpu, gpu_context, gpu_draw, render_gpu};
 use forestlod_reference::command_order::order;
-use forestlod_reference::hier_select::{hier_select, resolve_and_compact};
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
@@ -37,6 +36,7 @@ use forestlod_shared::{
     ViewUniform, aabb_distance, aabb_margin, aabb_view_interval,
 };
 use forestlod_tests::{Packed, Thresholds, cameras, instances, params, threshold_ambiguity};
+use forestlod_tests::{full_cut, full_resolve};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
 
@@ -221,7 +221,7 @@ fn gpu_cut_matches_reference() {
             let h = Hierarchy::build(&packed.scene, &g.meshes, &p)
                 .unwrap()
                 .unwrap();
-            let want = hier_select(&h, &g.meshes, &g.billboard, &camera, &p);
+            let want = full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
             let mut gpu = GpuHierSelect::new(ctx, &h.nodes, mode as u32, &g.meshes, &g.billboard)
                 .map_err(|e| TestCaseError::fail(e.to_string()))?;
             let sel = gpu
@@ -251,13 +251,13 @@ fn gpu_cut_matches_reference() {
             }
             tally.ambiguous_nodes += ambiguous;
             // 2. The GPU's resolution and compaction of its own codes: exact.
-            let own = resolve_and_compact(&h, codes.clone(), &g.meshes, &g.billboard, &u, coalesce, CommandOrder::Node);
+            let own = full_resolve(&h, codes.clone(), &g.meshes, &g.billboard, &u, coalesce, CommandOrder::Node);
             // The cut's list before coalescing, and the coalescing of it, each exact.
             let raw = gpu
                 .read_uncoalesced()
                 .map_err(|e| TestCaseError::fail(e.to_string()))?;
             let own_raw =
-                resolve_and_compact(&h, codes.clone(), &g.meshes, &g.billboard, &u, Coalesce::Off, CommandOrder::Node);
+                full_resolve(&h, codes.clone(), &g.meshes, &g.billboard, &u, Coalesce::Off, CommandOrder::Node);
             prop_assert_eq!(&raw.commands, &own_raw.selection.commands, "{:?}: uncoalesced commands", mode);
             prop_assert_eq!(&raw.data, &own_raw.selection.data, "{:?}: uncoalesced data", mode);
             prop_assert_eq!(raw.counters, own_raw.selection.counters, "{:?}: uncoalesced counters", mode);
@@ -465,7 +465,7 @@ fn gpu_cut_walks_every_ancestor() {
             nodes: nodes.clone(),
             indirection: vec![0],
         };
-        let want = hier_select(&h, &g.meshes, &g.billboard, &camera, &p);
+        let want = full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
         let mut gpu =
             GpuHierSelect::new(ctx, &nodes, Mode::Quadtree as u32, &g.meshes, &g.billboard)
                 .unwrap();
@@ -512,12 +512,12 @@ fn gpu_coalescing_spans_scan_chunks() {
             forestlod_reference::cameras::named_camera("medium", &prepared.scene, yaw, 96, 72)
                 .unwrap();
         let u = ViewUniform::new(&camera, &p);
-        let want = hier_select(h, &g.meshes, &g.billboard, &camera, &p);
+        let want = full_cut(h, &g.meshes, &g.billboard, &camera, &p);
         let sel = gpu.run(&camera, &p).unwrap();
         let raw = gpu.read_uncoalesced().unwrap();
         let (codes, _) = gpu.read_codes_and_states().unwrap();
         assert_eq!(codes, want.codes, "yaw {yaw}: codes");
-        let want_raw = resolve_and_compact(
+        let want_raw = full_resolve(
             h,
             codes,
             &g.meshes,
@@ -573,11 +573,11 @@ fn gpu_front_to_back_spans_workgroups() {
                 forestlod_reference::cameras::named_camera("medium", &prepared.scene, yaw, 96, 72)
                     .unwrap();
             let u = ViewUniform::new(&camera, &p);
-            let want = hier_select(h, &g.meshes, &g.billboard, &camera, &p);
+            let want = full_cut(h, &g.meshes, &g.billboard, &camera, &p);
             let sel = gpu.run(&camera, &p).unwrap();
             let (codes, _) = gpu.read_codes_and_states().unwrap();
             assert_eq!(codes, want.codes, "{coalesce:?} yaw {yaw}: codes");
-            let unsorted = resolve_and_compact(
+            let unsorted = full_resolve(
                 h,
                 codes,
                 &g.meshes,

@@ -23,4 +23,5 @@ mod mips;
 mod refine;
 mod sampler_lod;
 mod select;
+mod stage_table;
 mod threads;

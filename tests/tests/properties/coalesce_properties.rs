@@ -5,12 +5,12 @@
 //! (`hierarchy_frames_equal_grid_frames`) and on the GPU in `parity::hier_select`.
 
 use forestlod_reference::coalesce::coalesce;
-use forestlod_reference::hier_select::hier_select;
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::select::Selection;
 use forestlod_shared::{
     COMMAND_SHIFT, Coalesce, Hierarchy as Mode, LOD_MESH, Params, continues_run,
 };
+use forestlod_tests::full_cut;
 use forestlod_tests::{Packed, cameras, instances, params, property_config};
 use proptest::prelude::*;
 
@@ -62,9 +62,9 @@ proptest! {
             let p = Params { hierarchy: mode as u32, ..p };
             let h = Hierarchy::build(&packed.scene, &g.meshes, &p).unwrap().unwrap();
             let off = Params { coalesce: Coalesce::Off as u32, ..p };
-            let raw = hier_select(&h, &g.meshes, &g.billboard, &camera, &off).selection;
+            let raw = full_cut(&h, &g.meshes, &g.billboard, &camera, &off).selection;
             let on = Params { coalesce: Coalesce::On as u32, ..p };
-            let merged = hier_select(&h, &g.meshes, &g.billboard, &camera, &on).selection;
+            let merged = full_cut(&h, &g.meshes, &g.billboard, &camera, &on).selection;
             prop_assert_eq!(&coalesce(&raw, Coalesce::Off), &raw, "{:?}: off is not the identity", mode);
             prop_assert_eq!(&merged, &coalesce(&raw, Coalesce::On));
             prop_assert_eq!(draws(&merged), draws(&raw), "{:?}: the draws differ", mode);

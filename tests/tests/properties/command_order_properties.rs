@@ -5,11 +5,11 @@
 //! `hierarchy_properties` (reference) and `parity::hier_select` (GPU); the GPU's order against
 //! this one in `parity::hier_select`.
 
-use forestlod_reference::hier_select::hier_select;
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_shared::{
     COMMAND_SHIFT, Coalesce, CommandOrder, Hierarchy as Mode, Params, ViewUniform, view_interval,
 };
+use forestlod_tests::full_cut;
 use forestlod_tests::{Packed, cameras, instances, params, property_config};
 use proptest::prelude::*;
 
@@ -52,15 +52,15 @@ proptest! {
             let p = Params { hierarchy: mode as u32, ..p };
             let h = Hierarchy::build(&packed.scene, &g.meshes, &p).unwrap().unwrap();
             let node = Params { command_order: CommandOrder::Node as u32, ..p };
-            let unsorted = hier_select(&h, &g.meshes, &g.billboard, &camera, &node);
+            let unsorted = full_cut(&h, &g.meshes, &g.billboard, &camera, &node);
             let merged = {
                 let raw = Params { coalesce: Coalesce::Off as u32, ..node };
-                let raw = hier_select(&h, &g.meshes, &g.billboard, &camera, &raw).selection;
+                let raw = full_cut(&h, &g.meshes, &g.billboard, &camera, &raw).selection;
                 forestlod_reference::coalesce::coalesce(&raw, p.coalescing().unwrap())
             };
             prop_assert_eq!(&unsorted.selection, &merged, "{:?}: node is not the coalesced list", mode);
             let ftb = Params { command_order: CommandOrder::FrontToBack as u32, ..p };
-            let sorted = hier_select(&h, &g.meshes, &g.billboard, &camera, &ftb);
+            let sorted = full_cut(&h, &g.meshes, &g.billboard, &camera, &ftb);
             let (u_sel, s_sel) = (&unsorted.selection, &sorted.selection);
             prop_assert_eq!(s_sel.commands.len(), u_sel.commands.len());
             prop_assert_eq!(s_sel.counters, u_sel.counters);

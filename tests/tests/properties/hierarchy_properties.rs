@@ -3,7 +3,7 @@
 //! trees of three meshes), cameras and parameters (`nodes_per_node` 2..24 so trees get deep,
 //! `max_cull_depth` 0..9). The image tests render `tiny` with every hierarchy against the grid.
 
-use forestlod_reference::hier_select::{NODE_EMITTED, NODE_VISITED, hier_select};
+use forestlod_reference::hier_select::{NODE_EMITTED, NODE_VISITED};
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
@@ -11,6 +11,7 @@ use forestlod_reference::select::{select, select_per_tree};
 use forestlod_shared::{
     Camera, Coalesce, Hierarchy as Mode, LOD_MESH, MAX_HIERARCHY_DEPTH, NO_PARENT, NodeMeta, Params,
 };
+use forestlod_tests::full_cut;
 use forestlod_tests::{Packed, cameras, instances, params, property_config, with_threads};
 use proptest::prelude::*;
 
@@ -125,7 +126,7 @@ proptest! {
         let g = &packed.geometry;
         for mode in CONSERVATIVE {
             let h = build(&packed, &p, mode);
-            let out = hier_select(&h, &g.meshes, &g.billboard, &camera, &p);
+            let out = full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
             let mut covered = vec![[0u32; 2]; packed.spheres.len()];
             for (c, d) in out.selection.commands.iter().zip(&out.selection.data) {
                 // A command starts at its (first) node's range and covers at least it (more when
@@ -172,11 +173,11 @@ proptest! {
         let g = &packed.geometry;
         let want = select(&packed.batches.metas, &g.meshes, &g.billboard, &camera, &p);
         let h = Hierarchy::from_batches(&packed.batches, &packed.spheres, Mode::Grid);
-        let got = hier_select(&h, &g.meshes, &g.billboard, &camera, &p);
+        let got = full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
         prop_assert_eq!(&got.selection, &want);
         prop_assert_eq!(got.nodes_visited() as usize, packed.batches.metas.len());
         let tight = Hierarchy::from_batches(&packed.batches, &packed.spheres, Mode::GridAabb);
-        let tight = hier_select(&tight, &g.meshes, &g.billboard, &camera, &p);
+        let tight = full_cut(&tight, &g.meshes, &g.billboard, &camera, &p);
         prop_assert!(tight.selection.commands.len() <= want.commands.len());
         for (i, (&a, &b)) in tight.codes.iter().zip(&got.codes).enumerate() {
             let (a, b) = (forestlod_shared::Decision::from_code(a).needs(), forestlod_shared::Decision::from_code(b).needs());
@@ -192,7 +193,7 @@ proptest! {
         for mode in [Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
             let run = || {
                 let h = build(&packed, &p, mode);
-                let s = hier_select(&h, &g.meshes, &g.billboard, &camera, &p);
+                let s = full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
                 (h, s)
             };
             prop_assert_eq!(with_threads(1, run), with_threads(2, run));
@@ -231,7 +232,7 @@ fn euclidean_dist_to_misses_lod0_that_view_depth_keeps() {
     let g = &packed.geometry;
     let missing = |mode: Mode| {
         let h = build(&packed, &p, mode);
-        let out = hier_select(&h, &g.meshes, &g.billboard, &camera, &p);
+        let out = full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
         let mut lod0 = vec![false; packed.spheres.len()];
         for (c, d) in out.selection.commands.iter().zip(&out.selection.data) {
             if d.lod == LOD_MESH {

@@ -1,0 +1,133 @@
+//! The stage table (issue 27): every stage of [`StageId`] as data, with where its reference twin,
+//! its GPU driver and WGSL twin, its harness backend and its parity case live. vello registers
+//! every stage in one list and states a missing CPU twin as data (`CpuShaderType`); this is the
+//! same idea for our two twins. `tests/tests/stage_table.rs` walks it: every [`StageId`] has an
+//! entry, every file named exists, and every stage has a parity case that names it.
+//!
+//! A stage without a generic harness backend says so here (`backend: None`): its parity is its own
+//! test file today. The table's test holds the number of such stages from growing; moving a stage
+//! onto the generic [`crate::stage::Backend`] family is setting its `backend`.
+
+use forestlod_shared::StageId;
+
+/// One stage's row (module docs). Paths are relative to the workspace root.
+#[derive(Clone, Copy, Debug)]
+pub struct StageEntry {
+    /// The stage.
+    pub id: StageId,
+    /// Seed sections it implements.
+    pub seed: &'static str,
+    /// The CPU twin's module file.
+    pub reference: &'static str,
+    /// The GPU driver's file.
+    pub driver: &'static str,
+    /// The WGSL twin's file.
+    pub wgsl: &'static str,
+    /// The harness backend family member that runs it on any backend (`Backend<S>` for
+    /// the type named), when it has one.
+    pub backend: Option<&'static str>,
+    /// The test file that judges the GPU twin against the reference.
+    pub parity: &'static str,
+}
+
+/// Every stage, in [`StageId::ALL`] order.
+pub const STAGES: &[StageEntry] = &[
+    StageEntry {
+        id: StageId::Bake,
+        seed: "E Alg. 3.1, §4.1",
+        reference: "reference/src/bake.rs",
+        driver: "gpu/src/bake.rs",
+        wgsl: "gpu/src/shaders/bake.wgsl",
+        backend: Some("stage::Bake"),
+        parity: "tests/tests/parity/bake.rs",
+    },
+    StageEntry {
+        id: StageId::Mips,
+        seed: "E Alg. 3.2, §3.3.2, §4.1",
+        reference: "reference/src/mips.rs",
+        driver: "gpu/src/mips.rs",
+        wgsl: "gpu/src/shaders/mips.wgsl",
+        backend: Some("stage::Mips"),
+        parity: "tests/tests/parity/mips.rs",
+    },
+    StageEntry {
+        id: StageId::Select,
+        seed: "E§3.5, §4.3",
+        reference: "reference/src/select.rs",
+        driver: "gpu/src/select.rs",
+        wgsl: "gpu/src/shaders/select.wgsl",
+        backend: Some("stage::Select"),
+        parity: "tests/tests/parity/select.rs",
+    },
+    StageEntry {
+        id: StageId::HierSelect,
+        seed: "G§3 Fig. 4, C§4.5",
+        reference: "reference/src/hier_select.rs",
+        driver: "gpu/src/hier_select.rs",
+        wgsl: "gpu/src/shaders/hier_select.wgsl",
+        backend: None,
+        parity: "tests/tests/parity/hier_select.rs",
+    },
+    StageEntry {
+        id: StageId::Coalesce,
+        seed: "G§3 (contiguous octant ranges)",
+        reference: "reference/src/coalesce.rs",
+        driver: "gpu/src/coalesce.rs",
+        wgsl: "gpu/src/shaders/coalesce.wgsl",
+        backend: None,
+        parity: "tests/tests/parity/hier_select.rs",
+    },
+    StageEntry {
+        id: StageId::CommandOrder,
+        seed: "E§7 (distance-sorted commands)",
+        reference: "reference/src/command_order.rs",
+        driver: "gpu/src/command_order.rs",
+        wgsl: "gpu/src/shaders/command_order.wgsl",
+        backend: None,
+        parity: "tests/tests/parity/hier_select.rs",
+    },
+    StageEntry {
+        id: StageId::Refine,
+        seed: "E§3.5, §7 (beyond the thesis)",
+        reference: "reference/src/refine.rs",
+        driver: "gpu/src/refine.rs",
+        wgsl: "gpu/src/shaders/refine.wgsl",
+        backend: None,
+        parity: "tests/tests/parity/refine.rs",
+    },
+    StageEntry {
+        id: StageId::Draw,
+        seed: "E§3.3.1, §4.4",
+        reference: "reference/src/draw.rs",
+        driver: "gpu/src/draw.rs",
+        wgsl: "gpu/src/shaders/draw.wgsl",
+        backend: Some("stage::Draw"),
+        parity: "tests/tests/parity/draw.rs",
+    },
+    StageEntry {
+        id: StageId::Cull,
+        seed: "E§5 (Vegetation, Primitive)",
+        reference: "reference/src/baselines.rs",
+        driver: "gpu/src/cull.rs",
+        wgsl: "gpu/src/shaders/cull.wgsl",
+        backend: None,
+        parity: "tests/tests/parity/baselines.rs",
+    },
+    StageEntry {
+        id: StageId::Primitive,
+        seed: "E§5 (Primitive)",
+        reference: "reference/src/baselines.rs",
+        driver: "gpu/src/primitive.rs",
+        wgsl: "gpu/src/shaders/primitive.wgsl",
+        backend: None,
+        parity: "tests/tests/parity/baselines.rs",
+    },
+];
+
+/// The row of `id`.
+pub fn entry(id: StageId) -> &'static StageEntry {
+    STAGES
+        .iter()
+        .find(|e| e.id == id)
+        .expect("every stage has a row (tests/tests/stage_table.rs)")
+}

@@ -1,0 +1,76 @@
+//! Command emission, one rule for both selections (issue 27): the flat `select` emits a batch's
+//! commands and the cut (`hier_select`) an emitted node's with [`emit_command`], and both count
+//! what they emit with [`count_command`]. The WGSL twin is `emit_command` in
+//! `gpu/src/shaders/common.wgsl`, called by `select.wgsl` and `hier_select.wgsl`.
+//!
+//! A group (a batch, or a node) of `len` trees at `offset` in the indirection needs LOD0, LOD1 or
+//! both (E§3.1: "the batch needs to be drawn twice" when it overlaps the fade band); each LOD is
+//! one indexed indirect command over the group's instance range: LOD0 the group's mesh, LOD1 the
+//! billboard quad (E§3.3). Command `slot` of the output list carries
+//! `base_vertex = slot << COMMAND_SHIFT`, how the draw stage finds its [`CommandData`]
+//! ([`DrawCommand`]).
+
+use crate::{
+    COMMAND_SHIFT, CommandData, DrawCommand, LOD_BILLBOARD, LOD_MESH, MeshMeta, SelectCounters,
+};
+
+/// What a group contributes to one command: its index (`CommandData::batch`), mesh, instance
+/// range and fade band.
+#[derive(Clone, Copy, Debug)]
+pub struct EmitGroup {
+    /// Batch or node index.
+    pub index: u32,
+    /// Its species mesh.
+    pub mesh: u32,
+    /// Trees in it.
+    pub len: u32,
+    /// First of its trees in the indirection.
+    pub offset: u32,
+    /// Whether it needs both LODs (then both commands fade, E§4.4).
+    pub fading: bool,
+    /// The frame's fade band start ([`crate::ViewUniform::fade_start`]).
+    pub fade_start: f32,
+    /// The frame's fade band end.
+    pub fade_end: f32,
+}
+
+/// The command of `group` at `lod` in output slot `slot`: over the index range of `mesh` (the
+/// group's species mesh) for [`LOD_MESH`], of the `billboard` quad for [`LOD_BILLBOARD`].
+pub fn emit_command(
+    slot: u32,
+    group: &EmitGroup,
+    lod: u32,
+    mesh: &MeshMeta,
+    billboard: &MeshMeta,
+) -> (DrawCommand, CommandData) {
+    let range = if lod == LOD_MESH { mesh } else { billboard };
+    let command = DrawCommand {
+        index_count: range.index_count,
+        instance_count: group.len,
+        first_index: range.first_index,
+        base_vertex: (slot << COMMAND_SHIFT) as i32,
+        first_instance: group.offset,
+    };
+    let data = CommandData {
+        fade_start: group.fade_start,
+        fade_end: group.fade_end,
+        batch: group.index,
+        mesh: group.mesh,
+        lod,
+        billboard: (lod == LOD_BILLBOARD) as u32,
+        fading: group.fading as u32,
+        _pad0: 0,
+    };
+    (command, data)
+}
+
+/// Counts one emitted command in `counters` (its instances and its LOD's command count; the
+/// caller sets `commands` to the list's length).
+pub fn count_command(counters: &mut SelectCounters, command: &DrawCommand, lod: u32) {
+    counters.instances += command.instance_count;
+    if lod == LOD_MESH {
+        counters.lod0_commands += 1;
+    } else {
+        counters.lod1_commands += 1;
+    }
+}
