@@ -6,6 +6,9 @@
 //!   the GPU's types), frame orchestration on the GPU (`render_gpu`, the sweep runner's
 //!   `GpuSweepScene`), `StagesFromCpu` (which GPU stages take the reference's output, the CLI's
 //!   `--stage-from-cpu`), and the GPU backends of select and draw;
+//! - [`context`]: the process's one GPU context;
+//! - [`stages`]: the stage table, every `forestlod_shared::StageId` with its twins, backend and
+//!   parity case (walked by `tests/tests/parity/stage_table.rs`);
 //! - [`stage`]: the one family of backend traits, `Backend<S: Stage>` for every stage, and the
 //!   reference backend of every stage ("one test body, several backends", SPEC §8);
 //! - [`texel_compare`]: the GPU mips and bake backends and the RGBA8 texel tally (SPEC §5.1, §5.2);

@@ -508,3 +508,23 @@ fn node_code(n: NodeMeta, mode: u32, max_cull_depth: u32, v: ViewUniform) -> u32
     }
     return code | select(0u, NODE_RECURSE, recurse);
 }
+
+// One emitted command and its data (EmittedCommand): twin of forestlod_shared::emit_command
+// (shared/src/emit.rs), the one command emission of the flat selection (select.wgsl) and the cut
+// (hier_select.wgsl). A group (batch or node) of `len` trees at `offset` in the indirection, at
+// `lod`, over the index range (`first_index`, `index_count`) of its mesh (LOD_MESH) or of the
+// billboard quad (LOD_BILLBOARD), in output slot `slot` (base_vertex = slot << COMMAND_SHIFT).
+struct EmittedCommand {
+    command: DrawCommand,
+    data: CommandData,
+}
+
+fn emit_command(
+    slot: u32, index: u32, mesh: u32, len: u32, offset: u32, fading: bool, lod: u32,
+    first_index: u32, index_count: u32, view: ViewUniform,
+) -> EmittedCommand {
+    return EmittedCommand(
+        DrawCommand(index_count, len, first_index, i32(slot << COMMAND_SHIFT), offset),
+        CommandData(view.fade_start, view.fade_end, index, mesh, lod, u32(lod == LOD_BILLBOARD), u32(fading), 0u),
+    );
+}

@@ -135,10 +135,9 @@ fn emit(slot: u32, i: u32, n: NodeMeta, lod: u32, fading: bool) {
         first_index = m.first_index;
         index_count = m.index_count;
     }
-    commands[slot] = DrawCommand(index_count, n.len, first_index, i32(slot << COMMAND_SHIFT), n.offset);
-    command_data[slot] = CommandData(
-        u.view.fade_start, u.view.fade_end, i, n.mesh, lod, u32(lod == LOD_BILLBOARD), u32(fading), 0u
-    );
+    let e = emit_command(slot, i, n.mesh, n.len, n.offset, fading, lod, first_index, index_count, u.view);
+    commands[slot] = e.command;
+    command_data[slot] = e.data;
 }
 
 @compute @workgroup_size(HIER_WORKGROUP_SIZE)

@@ -89,7 +89,8 @@ fn command_count(decision: u32) -> u32 {
     return u32((decision & DECISION_LOD0) != 0u) + u32((decision & DECISION_LOD1) != 0u);
 }
 
-// Twin of the reference's `emit` closure in select_batch, plus the compaction's base_vertex.
+// The batch's command at `lod` in `slot` (common.wgsl `emit_command`, the twin of
+// forestlod_shared::emit_command, which the reference's select_batch calls).
 fn emit(slot: u32, index: u32, b: BatchMeta, lod: u32, fading: bool) {
     var first_index = u.billboard_first_index;
     var index_count = u.billboard_index_count;
@@ -98,10 +99,9 @@ fn emit(slot: u32, index: u32, b: BatchMeta, lod: u32, fading: bool) {
         first_index = m.first_index;
         index_count = m.index_count;
     }
-    commands[slot] = DrawCommand(index_count, b.len, first_index, i32(slot << COMMAND_SHIFT), b.offset);
-    command_data[slot] = CommandData(
-        u.view.fade_start, u.view.fade_end, index, b.mesh, lod, u32(lod == LOD_BILLBOARD), u32(fading), 0u
-    );
+    let e = emit_command(slot, index, b.mesh, b.len, b.offset, fading, lod, first_index, index_count, u.view);
+    commands[slot] = e.command;
+    command_data[slot] = e.data;
 }
 
 // Writes the batch's commands from `slot` on: LOD0 first, then LOD1.
