@@ -14,7 +14,14 @@
 //! | draw execution | [`draw`] | `shaders/draw.wgsl` | E§3.3.1, §4.4; SPEC §5.5 |
 //! | baselines' per-tree culling | [`cull`] | `shaders/cull.wgsl` | E§5; SPEC §9 |
 //! | Primitive baseline's ray-cast quads | [`primitive`] | `shaders/primitive.wgsl` | E§5; SPEC §9 |
+//! | the hierarchy's cut | [`hier_select`] | `shaders/hier_select.wgsl` | G§3 Fig. 4, C§4.5 |
+//! | the cut's runs merged | [`coalesce`] | `shaders/coalesce.wgsl` | G§3 |
+//! | the cut's commands front to back | [`command_order`] | `shaders/command_order.wgsl` | E§7 |
 //! | per-tree refinement of the selected commands (beyond the thesis) | [`refine`] | `shaders/refine.wgsl` | E§3.5, §7 |
+//!
+//! Every stage is a `forestlod_shared::StageId`; the frame's order of them is
+//! `forestlod_shared::FramePlan`, and the harness's stage table (`harness/src/stages.rs`) names
+//! each stage's twins, backend and parity case.
 //!
 //! What this crate owns:
 //! - [`GpuContext`]: adapter and device selection (any Vulkan adapter, lavapipe included), the

@@ -11,7 +11,15 @@
 //! | alpha-aware mipmaps | [`mips`] | E Alg. 3.2, §4.1 |
 //! | grid batches | [`batches`] | E§3.4, §4.2, Eq. 4.1 |
 //! | per-batch selection | [`select`] | E§3.5, §4.3 |
+//! | the hierarchy's cut (trees grouped by [`hierarchy`]) | [`hier_select`] | G§3 Fig. 4, C§4.5 |
+//! | the cut's runs merged | [`coalesce`] | G§3 |
+//! | the cut's commands front to back | [`command_order`] | E§7 |
+//! | per-tree refinement of the commands | [`refine`] | E§3.5, §7 (beyond the thesis) |
 //! | draw execution | `draw` | E§4.4 |
+//! | the baselines' per-tree culling and Primitive quads | [`baselines`] | E§5 |
+//!
+//! The frame runs them in the order of `forestlod_shared::FramePlan` ([`frame`]: the selection
+//! stages; [`pipeline`]: the slow path and the draw).
 //!
 //! Beside the pipeline, for the experiments (SPEC §9, §10): [`ground_truth`] (full meshes for every
 //! tree, ray-traced with obvhs, alpha-tested, supersampled: the accuracy yardstick) and

@@ -51,7 +51,7 @@ pub use spec::{
     DISTANCE_PATH_LOOK_AHEAD_M, ParamSet, Pose, QuickSpec, SettingSpec, SweepSpec, distance_camera,
     set_param,
 };
-pub use variant::{Backend, Named, ReferenceRenderer, Variant};
+pub use variant::{Engine, Pipeline, ReferenceRenderer, Registered};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
 pub const BUILTIN_SWEEPS: [(&str, &str); 15] = [
@@ -206,13 +206,13 @@ pub fn configure(spec: SweepSpec, args: &SweepArgs) -> Result<Option<SweepSpec>,
         if !spec
             .backends
             .iter()
-            .any(|b| Backend::parse(b) == Ok(Backend::Gpu))
+            .any(|b| Engine::parse(b) == Ok(Engine::Gpu))
         {
             let (gpu_only, keep): (Vec<String>, Vec<String>) = spec
                 .variants
                 .iter()
                 .cloned()
-                .partition(|v| Variant::parse(v).is_ok_and(Variant::gpu_only));
+                .partition(|v| Pipeline::parse(v).is_ok_and(Pipeline::gpu_only));
             if !gpu_only.is_empty() {
                 eprintln!(
                     "sweep {}: variant(s) {} need the gpu backend; not run with --backend {b}",

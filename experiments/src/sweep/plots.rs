@@ -13,7 +13,7 @@ use crate::plot::{Axes, Series, Style, bar_plot, xy_plot};
 use super::io::io_err;
 use super::rows::Row;
 use super::spec::SweepSpec;
-use super::variant::{Backend, Named};
+use super::variant::{Engine, Registered};
 
 fn mean(v: impl Iterator<Item = f64>) -> f64 {
     let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
@@ -70,7 +70,7 @@ pub fn write_plots(
     let (rows, variants): (Vec<Row>, Vec<String>) = if spec.backends.len() > 1 {
         // Short backend names keep legends readable: `ours ref`, `vegetation gpu`.
         let label = |v: &str, b: &str| {
-            let b = Backend::parse(b).map_or(b, |b| b.short_name());
+            let b = Engine::parse(b).map_or(b, |b| b.short_name());
             format!("{v} {b}")
         };
         (
@@ -92,7 +92,7 @@ pub fn write_plots(
     let nv = variants.len();
     let backend_label = if spec.backends.len() > 1 {
         "reference CPU and GPU backends".to_string()
-    } else if spec.backend_list(&file)?.contains(&Backend::Gpu) {
+    } else if spec.backend_list(&file)?.contains(&Engine::Gpu) {
         "GPU backend".to_string()
     } else {
         "reference CPU backend".to_string()

@@ -234,9 +234,9 @@ pub struct FrameImages {
     pub yaw_deg: f32,
     /// Distance, metres.
     pub distance_m: f32,
-    /// Variant.
+    /// Pipeline.
     pub variant: String,
-    /// Backend.
+    /// Engine.
     #[serde(default)]
     pub backend: String,
     /// Parameter-set label.

@@ -33,7 +33,7 @@ use super::plots::write_plots;
 use super::rows::{FrameImages, Manifest, Row, write_csv};
 use super::shard::Shard;
 use super::spec::{ParamSet, Pose, SweepSpec, distance_camera};
-use super::variant::{Backend, Named, ReferenceRenderer, Variant};
+use super::variant::{Engine, Pipeline, ReferenceRenderer, Registered};
 
 fn load_scene(name: &str) -> Result<Scene, InputError> {
     let path = Path::new(name);
@@ -151,7 +151,7 @@ impl Runner {
         std::fs::create_dir_all(&img_dir).map_err(|e| io_err(&img_dir, e))?;
         let variants = spec.variant_list(&file)?;
         let backends = spec.backend_list(&file)?;
-        let use_gpu = backends.contains(&Backend::Gpu);
+        let use_gpu = backends.contains(&Engine::Gpu);
         let gpu_ctx = if use_gpu { Some(self.gpu()?) } else { None };
         let per_unit = spec.variants.len() * spec.backends.len();
         let units = spec.scenes.len() * sets.len() * poses.len();
@@ -266,8 +266,8 @@ impl Runner {
                         // `counters`: whether the row's work counters are wanted (not for the
                         // warm-up and the untimed full-detail frame, whose images alone are used).
                         let mut render =
-                            |variant: Variant, frame: &Frame, repeats: u32, counters: bool| {
-                                if backend == Backend::Gpu {
+                            |variant: Pipeline, frame: &Frame, repeats: u32, counters: bool| {
+                                if backend == Engine::Gpu {
                                     let gs = gpu_scene.as_mut().expect("created when use_gpu");
                                     if !gpu_warm {
                                         // First frame of a parameter set: pipelines, bind groups and
@@ -291,9 +291,9 @@ impl Runner {
                         };
                         let untimed_full = match source {
                             FullFrame::Untimed => {
-                                Some(render(Variant::Vegetation, &frame, 1, false)?.color)
+                                Some(render(Pipeline::Vegetation, &frame, 1, false)?.color)
                             }
-                            FullFrame::Variant(_) => None,
+                            FullFrame::Pipeline(_) => None,
                         };
                         // Every variant's timed frames first, in the sweep's order, then the
                         // untimed scoring (the same renders and measurements as scoring each
@@ -303,7 +303,7 @@ impl Runner {
                             timed.push(render(variant, &frame, spec.repeats, true)?);
                         }
                         let full = match (source, untimed_full) {
-                            (FullFrame::Variant(i), _) => timed[i].color.clone(),
+                            (FullFrame::Pipeline(i), _) => timed[i].color.clone(),
                             (FullFrame::Untimed, Some(full)) => full,
                             (FullFrame::Untimed, None) => unreachable!("rendered above"),
                         };
@@ -447,7 +447,7 @@ enum FullFrame {
     /// An untimed Vegetation render of its own.
     Untimed,
     /// The timed frame of the variant at this index, which is Vegetation.
-    Variant(usize),
+    Pipeline(usize),
 }
 
 /// The reference is deterministic (bit-identical output for identical input), so where the sweep
@@ -456,9 +456,9 @@ enum FullFrame {
 /// untimed Vegetation frame is rendered as before: it is also what warms up the Vegetation
 /// pipelines before the first timed frame of a parameter set, and a timed frame would be a
 /// different measurement without it.
-fn full_frame_source(backend: Backend, variants: &[Variant]) -> FullFrame {
-    match variants.iter().position(|&v| v == Variant::Vegetation) {
-        Some(i) if backend == Backend::Reference => FullFrame::Variant(i),
+fn full_frame_source(backend: Engine, variants: &[Pipeline]) -> FullFrame {
+    match variants.iter().position(|&v| v == Pipeline::Vegetation) {
+        Some(i) if backend == Engine::Reference => FullFrame::Pipeline(i),
         _ => FullFrame::Untimed,
     }
 }
@@ -475,8 +475,8 @@ fn ours_memory(prepared: &Prepared, params: &Params) -> u64 {
 }
 
 /// A variant the reference cannot render (validation rejects it before anything runs).
-fn unknown_variant(variant: Variant) -> InputError {
-    InputError::new("<sweep>", "variant", variant.name(), Variant::expected())
+fn unknown_variant(variant: Pipeline) -> InputError {
+    InputError::new("<sweep>", "variant", variant.name(), Pipeline::expected())
 }
 
 /// Runs `frame` `repeats` times (at least once), keeping the fastest
@@ -494,7 +494,7 @@ fn fastest_of<E>(
 
 /// Renders one variant on the reference backend, `repeats` times, keeping the minimum select
 /// and draw times.
-fn render_variant(variant: Variant, f: &Frame, repeats: u32) -> Result<VariantFrame, InputError> {
+fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantFrame, InputError> {
     let Frame {
         prepared,
         spheres,
@@ -575,7 +575,7 @@ fn render_variant(variant: Variant, f: &Frame, repeats: u32) -> Result<VariantFr
 /// untimed full-detail frame, whose counters no row reports: they are left zero).
 fn render_gpu_variant(
     gs: &mut GpuSweepScene,
-    variant: Variant,
+    variant: Pipeline,
     f: &Frame,
     repeats: u32,
     counters: bool,
@@ -678,7 +678,7 @@ fn save_frame_images(
     dir: &Path,
     scene: &Scene,
     pose: &Pose,
-    (variant, backend): (Variant, Backend),
+    (variant, backend): (Pipeline, Engine),
     set: &ParamSet,
     gt: &GroundTruthImage,
     (color, aux, truth_aux): (&Rgba8Image, &[u32], &[u32]),

@@ -1,8 +1,8 @@
 //! The sweep file (`experiments/sweeps/README.md`): its TOML form ([`SweepSpec`]), validation
 //! (one-line [`InputError`]s naming file, field and value), `--quick`, the parameter sets (settings
-//! times the axes' product, each through [`set_param`]) and the camera poses. Variant and backend
+//! times the axes' product, each through [`set_param`]) and the camera poses. Pipeline and backend
 //! names stay strings in the file form (and in `sweep.json`); [`SweepSpec::variant_list`] and
-//! [`SweepSpec::backend_list`] turn them into [`Variant`]s and [`Backend`]s.
+//! [`SweepSpec::backend_list`] turn them into [`Pipeline`]s and [`Engine`]s.
 
 use std::collections::BTreeMap;
 
@@ -11,7 +11,7 @@ use forestlod_reference::scene::Scene;
 use forestlod_shared::{Camera, Params};
 use serde::{Deserialize, Serialize};
 
-use super::variant::{Backend, Named, Variant};
+use super::variant::{Engine, Pipeline, Registered};
 use crate::fair::TileSpec;
 
 /// One camera entry of a sweep file.
@@ -135,7 +135,7 @@ pub struct SweepSpec {
     /// Parameter axes (their Cartesian product).
     #[serde(default)]
     pub axes: Vec<AxisSpec>,
-    /// Named settings (each combined with every axis point).
+    /// Registered settings (each combined with every axis point).
     #[serde(default)]
     pub settings: Vec<SettingSpec>,
     /// Quick-mode overrides.
@@ -145,7 +145,7 @@ pub struct SweepSpec {
 
 /// A non-empty list of registry names as entries, or an error naming `file`, `field` and the bad
 /// name (or `[]`).
-fn typed<T: Named>(names: &[String], file: &str, field: &str) -> Result<Vec<T>, InputError> {
+fn typed<T: Registered>(names: &[String], file: &str, field: &str) -> Result<Vec<T>, InputError> {
     if names.is_empty() {
         return Err(InputError::new(file, field, "[]", T::expected()));
     }
@@ -286,7 +286,7 @@ impl SweepSpec {
         let variants = self.variant_list(file)?;
         let backends = self.backend_list(file)?;
         let gpu_only = variants.iter().find(|v| v.gpu_only());
-        if let (Some(v), true) = (gpu_only, backends.contains(&Backend::Reference)) {
+        if let (Some(v), true) = (gpu_only, backends.contains(&Engine::Reference)) {
             return Err(InputError::new(
                 file,
                 "variants",
@@ -375,12 +375,12 @@ impl SweepSpec {
     }
 
     /// The variants, typed: an error naming `variants` and the bad name (or `[]`) otherwise.
-    pub fn variant_list(&self, file: &str) -> Result<Vec<Variant>, InputError> {
+    pub fn variant_list(&self, file: &str) -> Result<Vec<Pipeline>, InputError> {
         typed(&self.variants, file, "variants")
     }
 
     /// The backends, typed: an error naming `backends` and the bad name (or `[]`) otherwise.
-    pub fn backend_list(&self, file: &str) -> Result<Vec<Backend>, InputError> {
+    pub fn backend_list(&self, file: &str) -> Result<Vec<Engine>, InputError> {
         typed(&self.backends, file, "backends")
     }
 

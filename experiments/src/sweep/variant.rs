@@ -1,14 +1,14 @@
-//! The variant registry: every [`Variant`] a sweep can run and every [`Backend`] it runs on, with
+//! The variant registry: every [`Pipeline`] a sweep can run and every [`Engine`] it runs on, with
 //! what differs between them as methods (GPU-only, the GPU twin's [`GpuVariant`], which reference
-//! renderer draws it). The file form, the CSV and `sweep.json` use [`Variant::name`] and
-//! [`Backend::name`]; [`Variant::parse`] and [`Backend::parse`] are the only string compares.
+//! renderer draws it). The file form, the CSV and `sweep.json` use [`Pipeline::name`] and
+//! [`Engine::name`]; [`Pipeline::parse`] and [`Engine::parse`] are the only string compares.
 //! Adding a variant: one arm here plus its reference and GPU renderers (`runner.rs`).
 
 use forestlod_gpu::Compaction;
 use forestlod_harness::backend::GpuVariant;
 
 /// A registry entry with a name users write (sweep files, `--backend`, CSVs, `sweep.json`).
-pub trait Named: Copy + PartialEq + Sized + 'static {
+pub trait Registered: Copy + PartialEq + Sized + 'static {
     /// Every entry, in the order of the error messages.
     const ALL: &'static [Self];
 
@@ -21,7 +21,7 @@ pub trait Named: Copy + PartialEq + Sized + 'static {
         format!("expected one of {}", names.join(", "))
     }
 
-    /// The entry of a name; the error lists the valid names ([`Named::expected`]).
+    /// The entry of a name; the error lists the valid names ([`Registered::expected`]).
     fn parse(name: &str) -> Result<Self, String> {
         Self::ALL
             .iter()
@@ -35,7 +35,7 @@ pub trait Named: Copy + PartialEq + Sized + 'static {
 /// atomic-counter compaction (E§4.3; GPU backend only: the reference has one, stable, compaction,
 /// equal to the atomic one as a multiset), and the two baselines of E§5.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Variant {
+pub enum Pipeline {
     /// Ours, stable compaction.
     Ours,
     /// Ours, atomic-counter compaction (GPU only).
@@ -57,25 +57,25 @@ pub enum ReferenceRenderer {
     Primitive,
 }
 
-impl Named for Variant {
+impl Registered for Pipeline {
     const ALL: &'static [Self] = &[
-        Variant::Ours,
-        Variant::OursAtomic,
-        Variant::Vegetation,
-        Variant::Primitive,
+        Pipeline::Ours,
+        Pipeline::OursAtomic,
+        Pipeline::Vegetation,
+        Pipeline::Primitive,
     ];
 
     fn name(self) -> &'static str {
         match self {
-            Variant::Ours => "ours",
-            Variant::OursAtomic => "ours-atomic",
-            Variant::Vegetation => "vegetation",
-            Variant::Primitive => "primitive",
+            Pipeline::Ours => "ours",
+            Pipeline::OursAtomic => "ours-atomic",
+            Pipeline::Vegetation => "vegetation",
+            Pipeline::Primitive => "primitive",
         }
     }
 }
 
-impl Variant {
+impl Pipeline {
     /// Whether it runs on the GPU backend only.
     pub fn gpu_only(self) -> bool {
         self.reference_renderer().is_none()
@@ -83,61 +83,61 @@ impl Variant {
 
     /// Whether it is one of ours (LOD-id images with per-LOD error maps, selection counters).
     pub fn is_ours(self) -> bool {
-        matches!(self, Variant::Ours | Variant::OursAtomic)
+        matches!(self, Pipeline::Ours | Pipeline::OursAtomic)
     }
 
     /// Whether it is a baseline of E§5 (needs the per-tree proxies of the parameter set).
     pub fn is_baseline(self) -> bool {
-        matches!(self, Variant::Vegetation | Variant::Primitive)
+        matches!(self, Pipeline::Vegetation | Pipeline::Primitive)
     }
 
     /// The reference renderer that draws it; `None` for GPU-only variants.
     pub fn reference_renderer(self) -> Option<ReferenceRenderer> {
         match self {
-            Variant::Ours => Some(ReferenceRenderer::Ours),
-            Variant::OursAtomic => None,
-            Variant::Vegetation => Some(ReferenceRenderer::Vegetation),
-            Variant::Primitive => Some(ReferenceRenderer::Primitive),
+            Pipeline::Ours => Some(ReferenceRenderer::Ours),
+            Pipeline::OursAtomic => None,
+            Pipeline::Vegetation => Some(ReferenceRenderer::Vegetation),
+            Pipeline::Primitive => Some(ReferenceRenderer::Primitive),
         }
     }
 
     /// What the GPU twin renders for it.
     pub fn gpu_variant(self) -> GpuVariant {
         match self {
-            Variant::Ours => GpuVariant::Ours(Compaction::Stable),
-            Variant::OursAtomic => GpuVariant::Ours(Compaction::Atomic),
-            Variant::Vegetation => GpuVariant::Vegetation,
-            Variant::Primitive => GpuVariant::Primitive,
+            Pipeline::Ours => GpuVariant::Ours(Compaction::Stable),
+            Pipeline::OursAtomic => GpuVariant::Ours(Compaction::Atomic),
+            Pipeline::Vegetation => GpuVariant::Vegetation,
+            Pipeline::Primitive => GpuVariant::Primitive,
         }
     }
 }
 
 /// Where a variant runs: the CPU reference rasterizer or the wgpu twin (`gpu/`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Backend {
+pub enum Engine {
     /// The CPU reference.
     Reference,
     /// The wgpu twin.
     Gpu,
 }
 
-impl Named for Backend {
-    const ALL: &'static [Self] = &[Backend::Reference, Backend::Gpu];
+impl Registered for Engine {
+    const ALL: &'static [Self] = &[Engine::Reference, Engine::Gpu];
 
     fn name(self) -> &'static str {
         match self {
-            Backend::Reference => "reference",
-            Backend::Gpu => "gpu",
+            Engine::Reference => "reference",
+            Engine::Gpu => "gpu",
         }
     }
 }
 
-impl Backend {
+impl Engine {
     /// The short name in plot legends (`ours ref`, `vegetation gpu`).
     pub fn short_name(self) -> &'static str {
         match self {
-            Backend::Reference => "ref",
-            Backend::Gpu => "gpu",
+            Engine::Reference => "ref",
+            Engine::Gpu => "gpu",
         }
     }
 }
@@ -148,21 +148,21 @@ mod tests {
 
     #[test]
     fn names_round_trip_and_errors_list_them() {
-        for &v in Variant::ALL {
-            assert_eq!(Variant::parse(v.name()), Ok(v));
+        for &v in Pipeline::ALL {
+            assert_eq!(Pipeline::parse(v.name()), Ok(v));
         }
-        for &b in Backend::ALL {
-            assert_eq!(Backend::parse(b.name()), Ok(b));
+        for &b in Engine::ALL {
+            assert_eq!(Engine::parse(b.name()), Ok(b));
         }
         assert_eq!(
-            Variant::parse("fast").unwrap_err(),
+            Pipeline::parse("fast").unwrap_err(),
             "expected one of ours, ours-atomic, vegetation, primitive"
         );
         assert_eq!(
-            Backend::parse("cuda").unwrap_err(),
+            Engine::parse("cuda").unwrap_err(),
             "expected one of reference, gpu"
         );
-        let gpu_only: Vec<_> = Variant::ALL.iter().filter(|v| v.gpu_only()).collect();
-        assert_eq!(gpu_only, [&Variant::OursAtomic]);
+        let gpu_only: Vec<_> = Pipeline::ALL.iter().filter(|v| v.gpu_only()).collect();
+        assert_eq!(gpu_only, [&Pipeline::OursAtomic]);
     }
 }
