@@ -264,3 +264,55 @@ pub fn cut(
         &mut StageSeconds::default(),
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use forestlod_shared::{Coalesce, CommandOrder, Hierarchy, Params, StageId, TreeCull};
+
+    use crate::cameras::named_camera;
+    use crate::coalesce::coalesce;
+    use crate::hier_select::hier_select;
+    use crate::pipeline::prepare;
+    use crate::scene::builtin;
+
+    /// Each stage's output is the stage applied to the one before it, the plan's stages run in
+    /// the plan's order, and a trace that keeps nothing ends with the same commands.
+    #[test]
+    fn each_stage_reads_the_one_before_it() {
+        let params = Params {
+            hierarchy: Hierarchy::Octree as u32,
+            command_order: CommandOrder::FrontToBack as u32,
+            tree_cull: TreeCull::Lod0 as u32,
+            coalesce: Coalesce::On as u32,
+            ..Params::default()
+        };
+        let prepared = prepare(builtin::by_name("tiny").unwrap(), &params).unwrap();
+        let camera = named_camera("close", &prepared.scene, 0.0, 160, 90).unwrap();
+        let trace = prepared.select_stages(&camera, &params, true);
+        let ran: Vec<StageId> = trace.seconds.0.iter().map(|(s, _)| *s).collect();
+        assert_eq!(ran, trace.plan.selection_stages());
+        let g = &prepared.geometry;
+        let h = prepared.hierarchy.as_ref().unwrap();
+        let raw = hier_select(h, &g.meshes, &g.billboard, &camera, &params).selection;
+        assert!(!raw.commands.is_empty(), "the case draws something");
+        assert_eq!(trace.output(StageId::HierSelect), Some(&raw));
+        let merged = coalesce(&raw, Coalesce::On);
+        assert_eq!(trace.output(StageId::Coalesce), Some(&merged));
+        let ordered = trace.output(StageId::CommandOrder).unwrap();
+        assert_eq!(ordered.commands.len(), merged.commands.len());
+        assert_eq!(trace.output(StageId::Refine), Some(&trace.selection));
+        assert!(trace.refined.is_some());
+        assert_eq!(
+            trace.output(StageId::Select),
+            None,
+            "a cut has no flat select"
+        );
+        let plain = prepared.select_stages(&camera, &params, false);
+        assert_eq!(plain.selection, trace.selection);
+        assert_eq!(plain.output(StageId::HierSelect), None, "nothing kept");
+        let (selection, _) = prepared.select_refined(&camera, &params);
+        assert_eq!(selection, trace.selection);
+        let unrefined = prepared.select(&camera, &params);
+        assert_eq!(Some(&unrefined), trace.output(StageId::CommandOrder));
+    }
+}
