@@ -30,7 +30,8 @@
 
 use std::path::{Path, PathBuf};
 
-use forestlod_harness::backend::{OursSelect, StagesFromCpu, alpha_test_alternatives, render_gpu};
+use forestlod_harness::alternatives::alpha_test_alternatives;
+use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, StagesFromCpu};
 use forestlod_harness::image_compare::{ALPHA_TEST_SHIFTS, Images, compare_images};
 use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_reference::error::InputError;
@@ -266,24 +267,28 @@ pub fn export(args: &ExportArgs) -> Result<u8> {
     if args.with_gpu {
         let ctx = forestlod_gpu::GpuContext::new().map_err(|e| format!("GPU: {e}"))?;
         let draw = forestlod_gpu::GpuDraw::new(&ctx).map_err(|e| format!("GPU: {e}"))?;
-        let gpu = render_gpu(
-            &ctx,
-            &draw,
-            &prepared,
-            &camera,
-            &params,
-            StagesFromCpu::NONE,
-        )
-        .map_err(|e| format!("GPU: {e}"))?;
+        let gpu_err = |e: forestlod_gpu::GpuError| format!("GPU: {e}");
+        let mut scene =
+            GpuScene::with_pipelines(&ctx, &draw, &prepared, &params, StagesFromCpu::NONE)
+                .map_err(gpu_err)?;
+        let stable = GpuPipeline::Ours(forestlod_gpu::Compaction::Stable);
+        let gpu = scene
+            .render(&prepared, stable, &camera, &params)
+            .map_err(gpu_err)?;
         write_frame(&out.join("gpu"), &gpu.images)?;
-        // The GPU's own selection stages, as the frame's plan says (`select.wgsl` with the
-        // atomic compaction, another order; or the cut, `hier_select.wgsl` then `coalesce.wgsl`
-        // and `command_order.wgsl`, which has one order).
-        let mut select = OursSelect::new(&ctx, &prepared).map_err(|e| format!("GPU: {e}"))?;
-        let s = select
-            .dispatch(&camera, &params, forestlod_gpu::Compaction::Atomic)
-            .and_then(|b| b.read(&ctx))
-            .map_err(|e| format!("GPU: {e}"))?;
+        // The GPU frame's commands as its draw reads them (the plan's selection stages and
+        // `refine` when planned), with the flat selection's atomic compaction: another order
+        // than the reference's (a cut has one order).
+        let atomic = GpuPipeline::Ours(forestlod_gpu::Compaction::Atomic);
+        scene
+            .render(&prepared, atomic, &camera, &params)
+            .map_err(gpu_err)?;
+        let s = scene
+            .chain()
+            .expect("a frame of ours ran the GPU selection chain")
+            .buffers()
+            .read(&ctx)
+            .map_err(gpu_err)?;
         let path = out.join("gpu/commands.csv");
         std::fs::write(&path, commands_csv(&s.commands, &s.data)).map_err(|e| io(&path, e))?;
         println!(

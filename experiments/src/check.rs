@@ -452,7 +452,7 @@ pub fn run(args: &CheckArgs) -> Result<u8> {
     if args.cases == Some(0) {
         return Err("--cases 0: expected at least one case".into());
     }
-    let Some(ctx) = forestlod_harness::backend::gpu_context() else {
+    let Some(ctx) = forestlod_harness::context::gpu_context() else {
         eprintln!(
             "check skipped: no suitable GPU adapter; install Mesa's lavapipe with scripts/install-deps"
         );

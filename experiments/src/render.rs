@@ -36,7 +36,8 @@ use rayon::prelude::*;
 use serde_json::json;
 
 use forestlod_gpu::{GpuContext, GpuDraw};
-use forestlod_harness::backend::{StagesFromCpu, alpha_test_alternatives_at, render_gpu};
+use forestlod_harness::alternatives::alpha_test_alternatives_at;
+use forestlod_harness::gpu_frame::{StagesFromCpu, render_gpu};
 use forestlod_harness::image_compare::{
     ClassCounts, ImageReport, Images, alternative_pixels, class_image, compare_images_with_flip,
     flip_mean,
@@ -109,9 +110,11 @@ pub struct RenderArgs {
     /// this run's outputs: stale outputs of an earlier run are removed, other files kept.
     #[arg(long, default_value = "out")]
     pub out: PathBuf,
-    /// GPU stages that take their input from the reference twin instead of the GPU stage before
-    /// them: a comma-separated list of `select` (draw the reference's selection) and `textures`
-    /// (sample the reference's mesh mips and billboard bake), or `none` (all on the GPU).
+    /// Stages the reference computes instead of the GPU, by stage name, comma-separated: a named
+    /// stage and every stage of the frame's plan before it come from the reference, the GPU runs
+    /// the rest (`bake`, `mips`; `select`, `hier_select`, `coalesce`, `command_order`, `refine`).
+    /// `textures` is `mips`; `select` is the whole selection, `refine` included; `none`: all on
+    /// the GPU (`forestlod_harness::gpu_frame::StagesFromCpu`).
     #[arg(long, default_value = "none")]
     pub stage_from_cpu: String,
     /// Skip the GPU twin even when an adapter exists (exit code 0 without a parity verdict).

@@ -7,21 +7,18 @@
 //! node order, LOD0 before LOD1, `base_vertex = slot << COMMAND_SHIFT`. Four dispatches per frame
 //! (decide, resolve, scan, write) whatever the hierarchy's size or depth, no CPU recursion; the
 //! ancestor walk is bounded by `MAX_HIERARCHY_DEPTH` (llvmpipe stops loops after 65,535
-//! iterations). The output is a [`SelectBuffers`], so the draw stage and `refine` take it as they
-//! take `select`'s. The commands are then coalesced (`crate::coalesce`, four more dispatches) as
-//! `params.coalesce` says; [`GpuHierSelect::read_uncoalesced`] reads the list before. With
-//! `params.command_order = front-to-back` they are then sorted by nearest view depth in place
-//! (`crate::command_order`, E§7). Equal to the
-//! reference bit for bit up to decisions within ε of a threshold
-//! (fused multiply-add on the GPU), which the parity tests classify and count.
+//! iterations). The output is the raw cut, a [`SelectBuffers`] of one command per emitted node
+//! and LOD: the frame's next stages read it (`crate::coalesce` binds it as its input, and
+//! `crate::command_order` reads its data and [`GpuHierSelect::nodes`]); this driver runs no
+//! other stage (the frame records them, `harness/src/gpu_frame/selection.rs`, in the order
+//! `forestlod_shared::FramePlan` gives). Equal to the reference's raw cut
+//! (`reference/src/hier_select.rs`) bit for bit up to decisions within ε of a threshold (fused
+//! multiply-add on the GPU), which the parity tests classify and count.
 
 use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MeshMeta, NodeMeta, Params, SelectCounters, ViewUniform};
-
-use crate::coalesce::GpuCoalesce;
-use crate::command_order::{GpuCommandOrder, OrderInputs};
 
 use crate::context::{
     Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
@@ -81,14 +78,10 @@ pub struct GpuHierSelect<'a> {
     codes: wgpu::Buffer,
     states: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
-    /// The cut's commands, one per emitted node and LOD.
+    /// The hierarchy's nodes (read again by `crate::command_order`).
+    nodes: wgpu::Buffer,
+    /// The cut's commands, one per emitted node and LOD: the stage's output.
     raw: SelectBuffers,
-    /// Their coalescing, the stage's output (boxed, as `order`).
-    coalesce: Box<GpuCoalesce<'a>>,
-    /// Their front-to-back order (E§7), in place, when `params.command_order` asks (boxed: its
-    /// buffers and bind groups would double the size of this driver, which `OursSelect` holds
-    /// by value).
-    order: Box<GpuCommandOrder<'a>>,
     node_count: u32,
     mode: u32,
     billboard: MeshMeta,
@@ -126,16 +119,6 @@ impl<'a> GpuHierSelect<'a> {
         let states = zeroed_buffer(ctx, "hier states", n * 4, U::STORAGE | U::COPY_SRC);
         let offsets = zeroed_buffer(ctx, "hier offsets", n * 4, U::STORAGE | U::COPY_SRC);
         let raw = SelectBuffers::with_capacity(ctx, capacity as u32);
-        let coalesce = Box::new(GpuCoalesce::new(ctx, &raw)?);
-        let order = Box::new(GpuCommandOrder::new(
-            ctx,
-            OrderInputs {
-                nodes: &node_buffer,
-                raw: &raw,
-                run_offsets: coalesce.run_offsets(),
-                out: coalesce.buffers(),
-            },
-        )?);
         let bind_group = ctx.checked("hier bind group", || {
             buffer_bind_group(
                 &ctx.device,
@@ -161,29 +144,31 @@ impl<'a> GpuHierSelect<'a> {
             codes,
             states,
             bind_group,
+            nodes: node_buffer,
             raw,
-            coalesce,
-            order,
             node_count: nodes.len() as u32,
             mode,
             billboard: *billboard,
         })
     }
 
-    /// The output buffers (valid after a dispatch).
+    /// The raw cut's buffers, the stage's output (valid after a dispatch).
     pub fn buffers(&self) -> &SelectBuffers {
-        self.coalesce.buffers()
+        &self.raw
     }
 
-    /// The output buffers, for a later stage of the same frame that rewrites them in place
-    /// (`GpuRefine::encode`).
+    /// The raw cut's buffers, for a later stage of the same frame that rewrites them in place.
     pub fn buffers_mut(&mut self) -> &mut SelectBuffers {
-        self.coalesce.buffers_mut()
+        &mut self.raw
     }
 
-    /// Records one frame's cut into `encoder` (uniform through the queue, counters cleared, four
-    /// dispatches), then its coalescing (four more), then its front-to-back order when asked
-    /// (`crate::command_order`: four kinds of dispatch, one per bitonic step). `params` must be valid.
+    /// The hierarchy's nodes as uploaded (`crate::command_order` reads their bounds).
+    pub fn nodes(&self) -> &wgpu::Buffer {
+        &self.nodes
+    }
+
+    /// Records one frame's cut into `encoder`: uniform through the queue, counters cleared, four
+    /// dispatches. `params` must be valid.
     pub fn encode(&mut self, encoder: &mut wgpu::CommandEncoder, camera: &Camera, params: &Params) {
         let uniform = HierUniform {
             view: ViewUniform::new(camera, params),
@@ -215,23 +200,9 @@ impl<'a> GpuHierSelect<'a> {
                 (&p.write, Dispatch::Groups(x, y)),
             ],
         );
-        let mode = params
-            .coalescing()
-            .expect("parameters are validated before selection");
-        self.coalesce.encode(encoder, mode);
-        let order = params
-            .command_ordering()
-            .expect("parameters are validated before selection");
-        self.order.encode(encoder, &uniform.view, order);
     }
 
-    /// The last run's front-to-back `(key, run)` pairs of the first `n` output slots, in output
-    /// order (valid after a run with `command_order = front-to-back`). Blocks.
-    pub fn read_order_pairs(&self, n: usize) -> Result<Vec<(u32, u32)>, GpuError> {
-        self.order.read_pairs(n)
-    }
-
-    /// Runs one frame's cut, leaving the commands on the GPU. Does not wait.
+    /// Runs one frame's cut, leaving the raw commands on the GPU. Does not wait.
     pub fn dispatch(
         &mut self,
         camera: &Camera,
@@ -241,16 +212,16 @@ impl<'a> GpuHierSelect<'a> {
         ctx.submit("hier_select dispatch", "hier_select", |encoder| {
             self.encode(encoder, camera, params)
         })?;
-        Ok(self.coalesce.buffers())
+        Ok(&self.raw)
     }
 
-    /// Runs one frame's cut and reads the commands back. Blocks.
+    /// Runs one frame's cut and reads the raw commands back. Blocks.
     pub fn run(&mut self, camera: &Camera, params: &Params) -> Result<GpuSelection, GpuError> {
         self.dispatch(camera, params)?;
-        self.coalesce.buffers().read(self.ctx)
+        self.raw.read(self.ctx)
     }
 
-    /// The last run's commands before coalescing (one per emitted node and LOD). Blocks.
+    /// The last run's raw commands (one per emitted node and LOD, before coalescing). Blocks.
     pub fn read_uncoalesced(&self) -> Result<GpuSelection, GpuError> {
         self.raw.read(self.ctx)
     }

@@ -17,7 +17,8 @@ use forestlod_gpu::{Compaction, GpuContext, MipArray};
 use forestlod_reference::pipeline::Prepared;
 use forestlod_shared::{Camera, Params};
 
-use crate::backend::{OursSelect, gpu_textures};
+use crate::bridge::gpu_textures;
+use crate::gpu_frame::SelectionChain;
 use crate::texel_compare::TexelTally;
 
 /// Fraction of a texture stage's texels that may differ by more than ±1 per channel before the
@@ -123,7 +124,7 @@ pub fn check_select(
     params: &Params,
 ) -> StageCheck {
     let want = prepared.select(camera, params);
-    let mut gpu = OursSelect::new(ctx, prepared).expect("GPU selection");
+    let mut gpu = SelectionChain::gpu(ctx, prepared).expect("GPU selection");
     let got = gpu
         .dispatch(camera, params, Compaction::Stable)
         .and_then(|b| b.read(ctx))

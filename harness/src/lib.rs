@@ -2,10 +2,14 @@
 //!
 //! The crate between the two twins (`forestlod-reference`, `forestlod-gpu`) and the programs that
 //! compare them (the `forestlod` CLI in `experiments/`, the test suites in `tests/`). It owns:
-//! - [`backend`]: the reference-to-GPU bridge (a prepared scene's buffers and textures converted to
-//!   the GPU's types), frame orchestration on the GPU (`render_gpu`, the sweep runner's
-//!   `GpuSweepScene`), `StagesFromCpu` (which GPU stages take the reference's output, the CLI's
-//!   `--stage-from-cpu`), and the GPU backends of select and draw;
+//! - [`gpu_frame`]: the GPU frame, run in one place: `GpuScene` (one prepared scene on the GPU,
+//!   any frame of ours or of a baseline, the stages of its `FramePlan` in order), `render_gpu` (one
+//!   frame of ours), the selection chain and `StagesFromCpu` (which stages the reference computes
+//!   instead, the CLI's `--stage-from-cpu`, by stage name);
+//! - [`bridge`]: the reference-to-GPU bridge (a prepared scene's buffers, textures and trees
+//!   converted to the GPU drivers' types and uploaded);
+//! - [`backend`]: the GPU backends of select and draw;
+//! - [`alternatives`]: the reference frames that classify threshold-ambiguous pixels;
 //! - [`context`]: the process's one GPU context;
 //! - [`stages`]: the stage table, every `forestlod_shared::StageId` with its twins, backend and
 //!   parity case (walked by `tests/tests/parity/stage_table.rs`);
@@ -23,15 +27,18 @@
 //!   nothing shipped links `forestlod-tests`;
 //! - the reference and the GPU twin meet here and in the tests only, never in each other;
 //! - a GPU object shared between threads holds no per-frame state behind `&self` (the rule of
-//!   `forestlod-gpu`); objects that own per-frame state here (`GpuSweepScene`) take `&mut self`.
+//!   `forestlod-gpu`); objects that own per-frame state here (`GpuScene`) take `&mut self`.
 //!
 //! Rejected design: keeping these modules in `forestlod-tests` and letting the CLI depend on it
 //! (the state before issue 11) made the shipped binary link proptest and the test scaffolding.
 
+pub mod alternatives;
 pub mod backend;
+pub mod bridge;
 pub mod context;
 pub mod diagnose;
 pub mod flip;
+pub mod gpu_frame;
 pub mod image_compare;
 pub mod stage;
 pub mod stages;

@@ -5,7 +5,7 @@
 pub mod scenarios;
 
 use forestlod_gpu::CullTree;
-use forestlod_harness::backend::cull_trees_of;
+use forestlod_harness::bridge::cull_trees_of;
 use forestlod_reference::baselines::tree_spheres;
 use forestlod_reference::batches::{Batches, build_batches};
 use forestlod_reference::geometry::{PackedGeometry, pack_geometry};

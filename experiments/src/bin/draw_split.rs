@@ -41,7 +41,8 @@ use forestlod_gpu::draw::{DrawInputs, DrawProbe, DrawScene, DrawTarget, DrawText
 use forestlod_gpu::{
     Compaction, GpuContext, GpuCull, GpuDraw, GpuError, GpuRefine, GpuSelection, SelectBuffers,
 };
-use forestlod_harness::backend::{DrawSceneData, OursSelect, cull_trees, gpu_textures};
+use forestlod_harness::bridge::{DrawSceneData, cull_trees, gpu_textures};
+use forestlod_harness::gpu_frame::SelectionChain;
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
@@ -345,7 +346,7 @@ fn main() -> Res<()> {
             let gpu_scene = DrawScene::new(&ctx, &data.desc(&prepared))?;
             let (mesh, billboards) = gpu_textures(&ctx, &prepared, &params)?;
             let textures = DrawTextures::new(&mesh, &billboards)?;
-            let mut select = OursSelect::new(&ctx, &prepared)?;
+            let mut select = SelectionChain::gpu(&ctx, &prepared)?;
             let first = hi == 0;
             let trees = cull_trees(&prepared);
             // Vegetation and refine run on the first hierarchy's prepared scene (the grid by

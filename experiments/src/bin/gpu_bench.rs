@@ -3,6 +3,11 @@
 //!
 //! `cargo run --release -p forestlod-experiments --bin gpu_bench -- --out out/gpu_bench`
 //!
+//! The GPU side is the one GPU frame (`forestlod_harness::gpu_frame::GpuScene`), so every
+//! pipeline parameter counts as it does in `render`: the selection stages of the frame's plan
+//! (`--hierarchy`, `--coalesce`, `--command-order`) and `refine` (`--tree-cull`), whose time is
+//! part of the selection's, as in the sweeps.
+//!
 //! Each GPU stage is timed two ways, median of `--reps` repetitions after one warm-up: wall time
 //! from submit to completion (`device.poll(wait)`), and, where the adapter offers
 //! `TIMESTAMP_QUERY`, GPU time between timestamps written by empty compute passes recorded just
@@ -20,12 +25,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Parser;
-use forestlod_experiments::gpu_time::timestamped;
 use forestlod_experiments::metrics::median;
 use forestlod_experiments::options::ParamArgs;
-use forestlod_gpu::draw::{DrawInputs, DrawScene, DrawTarget, DrawTextures};
 use forestlod_gpu::{Compaction, GpuContext, GpuDraw};
-use forestlod_harness::backend::{DrawSceneData, OursSelect, gpu_textures};
+use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, GpuTimedFrame, StagesFromCpu};
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
@@ -107,75 +110,43 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for name in &args.scenes {
         let scene = builtin::by_name(name)?;
         let prepared = prepare(scene, &params)?;
-        let data = DrawSceneData::new(&prepared);
-        let gpu_scene = DrawScene::new(&ctx, &data.desc(&prepared))?;
-        let (mesh, billboards) = gpu_textures(&ctx, &prepared, &params)?;
-        let textures = DrawTextures::new(&mesh, &billboards)?;
-        // The frame's selection stages, as its plan says (flat, or the cut with its coalesce and
-        // order; the cut has the stable order only, so its "atomic" column times it again).
-        let mut select = OursSelect::new(&ctx, &prepared)?;
+        // The GPU frame (`forestlod_harness::gpu_frame`): the plan's selection stages (flat, or
+        // the cut with its coalesce and order; the cut has the stable order only, so its
+        // "atomic" column times it again), `refine` when `--tree-cull` asks, then the draw.
+        let mut frame =
+            GpuScene::with_pipelines(&ctx, &draw, &prepared, &params, StagesFromCpu::NONE)?;
         for &(width, height) in &sizes {
-            let target = DrawTarget::new(&ctx, width, height)?;
             for camera_name in &args.cameras {
                 let camera_name = camera_name.as_str();
                 let camera = named_camera(camera_name, &prepared.scene, 0.0, width, height)?;
-                let time_gpu = |f: &mut dyn FnMut() -> Result<(), forestlod_gpu::GpuError>| -> Result<f64, Box<dyn std::error::Error>> {
-                let mut times = Vec::new();
-                for rep in 0..=args.reps {
-                    let t = Instant::now();
-                    f()?;
-                    ctx.wait()?;
-                    if rep > 0 {
-                        times.push(t.elapsed().as_secs_f64());
-                    }
-                }
-                Ok(median(times))
-            };
-                let select_atomic = time_gpu(&mut || {
-                    select
-                        .dispatch(&camera, &params, Compaction::Atomic)
-                        .map(|_| ())
-                })?;
-                let select_stable = time_gpu(&mut || {
-                    select
-                        .dispatch(&camera, &params, Compaction::Stable)
-                        .map(|_| ())
-                })?;
-                let mut ts_select = Vec::new();
-                for _ in 0..=args.reps {
-                    ts_select.push(timestamped(&ctx, &mut |e| {
-                        select.encode(e, &camera, &params, Compaction::Stable);
-                        Ok(())
-                    })?);
-                }
-                // The draw pass of the last (stable) selection: `select` is borrowed for reading
-                // from here on (a frame in flight can't be selected into: `encode` takes `&mut`).
-                let buffers = select.dispatch(&camera, &params, Compaction::Stable)?;
-                ctx.wait()?;
-                let inputs = DrawInputs {
-                    scene: &gpu_scene,
-                    textures: &textures,
-                    selection: buffers,
-                    indirection: None,
-                };
-                let gpu_draw = time_gpu(&mut || {
-                    draw.render(&ctx, &inputs, &camera, &params, &target)
-                        .map(|_| ())
-                })?;
-                let mut ts_draw = Vec::new();
-                for _ in 0..=args.reps {
-                    ts_draw.push(timestamped(&ctx, &mut |e| {
-                        draw.encode(&ctx, e, &inputs, &camera, &params, &target)
-                            .map(|_| ())
-                    })?);
-                }
-                let (ts_select, ts_draw) = (
-                    median_opt(ts_select.split_off(1)),
-                    median_opt(ts_draw.split_off(1)),
-                );
+                // `reps` frames after one warm-up, each stage timed from submit to completion
+                // and, where offered, between timestamps.
+                let mut timed =
+                    |compaction| -> Result<Vec<GpuTimedFrame>, Box<dyn std::error::Error>> {
+                        let mut frames = Vec::new();
+                        for rep in 0..=args.reps {
+                            let f = frame.render(
+                                &prepared,
+                                GpuPipeline::Ours(compaction),
+                                &camera,
+                                &params,
+                            )?;
+                            if rep > 0 {
+                                frames.push(f);
+                            }
+                        }
+                        Ok(frames)
+                    };
+                let atomic = timed(Compaction::Atomic)?;
+                let stable = timed(Compaction::Stable)?;
+                let select_atomic = median(atomic.iter().map(|f| f.select_s).collect());
+                let select_stable = median(stable.iter().map(|f| f.select_s).collect());
+                let gpu_draw = median(stable.iter().map(|f| f.draw_s).collect());
+                let ts_select = median_opt(stable.iter().map(|f| f.gpu_select_s).collect());
+                let ts_draw = median_opt(stable.iter().map(|f| f.gpu_draw_s).collect());
                 let (commands, ref_select, ref_draw) = if args.no_reference {
                     let start = Instant::now();
-                    let selection = prepared.select(&camera, &params);
+                    let (selection, _) = prepared.select_refined(&camera, &params);
                     let seconds = start.elapsed().as_secs_f64();
                     (selection.counters.commands, seconds, None)
                 } else {

@@ -28,7 +28,7 @@ use forestlod_experiments::sweep::distance_camera;
 use forestlod_experiments::sweep::paths::path_camera;
 use forestlod_gpu::GpuContext;
 use forestlod_gpu::draw::GpuDraw;
-use forestlod_harness::backend::{StagesFromCpu, render_gpu};
+use forestlod_harness::gpu_frame::{StagesFromCpu, render_gpu};
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;

@@ -15,7 +15,7 @@
 //!
 //! Every variant runs on the backends the file names (`backends = ["reference", "gpu"]`, or
 //! `--backend`): the reference (CPU) rasterizer, or the wgpu twin through
-//! [`forestlod_harness::backend::GpuSweepScene`] (GPU selection or per-tree culling, the GPU-baked
+//! [`forestlod_harness::backend::GpuScene`] (GPU selection or per-tree culling, the GPU-baked
 //! textures, `draw.wgsl` / `primitive.wgsl`). Timings are wall-clock seconds, the minimum over
 //! `repeats` renders of a frame: CPU time on the reference, submit-to-completion on the GPU (plus
 //! timestamp-query times where the adapter has them). Ratios are only meaningful between rows of

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use forestlod_gpu::{GpuContext, GpuError};
-use forestlod_harness::backend::{GpuSweepScene, GpuVariant};
+use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, StagesFromCpu};
 use forestlod_reference::InputError;
 use forestlod_reference::baselines::{
     INSTANCE_INDEX_BYTES, PROXY_BYTES, Proxy, proxies, render_primitive, render_vegetation,
@@ -200,7 +200,12 @@ impl Runner {
                 };
                 // The GPU side of this parameter set: buffers uploaded and textures baked once.
                 let mut gpu_scene = match gpu_ctx {
-                    Some(ctx) => Some(GpuSweepScene::new(ctx, &prepared, &set.params)?),
+                    Some(ctx) => Some(GpuScene::new(
+                        ctx,
+                        &prepared,
+                        &set.params,
+                        StagesFromCpu::NONE,
+                    )?),
                     None => None,
                 };
                 let mut gpu_warm = false;
@@ -566,7 +571,7 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
     })
 }
 
-/// Renders one variant on the GPU backend ([`GpuSweepScene`]), `repeats` times, keeping the
+/// Renders one variant on the GPU backend ([`GpuScene`]), `repeats` times, keeping the
 /// minimum times and the first frame's images. Work counters the GPU does not report (trees
 /// drawn by ours, the batching counts) come from the reference's selection of the same frame,
 /// which the parity tests prove equal to the GPU's (`tests/tests/parity/select.rs`); triangles
@@ -574,16 +579,16 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
 /// runs once, after the timed repeats, and not at all without `counters` (the warm-up and the
 /// untimed full-detail frame, whose counters no row reports: they are left zero).
 fn render_gpu_variant(
-    gs: &mut GpuSweepScene,
+    gs: &mut GpuScene,
     variant: Pipeline,
     f: &Frame,
     repeats: u32,
     counters: bool,
 ) -> Result<VariantFrame, Box<dyn std::error::Error>> {
     let gpu_variant = variant.gpu_variant();
-    let mut g = gs.render(gpu_variant, f.camera, f.params)?;
+    let mut g = gs.render(f.prepared, gpu_variant, f.camera, f.params)?;
     for _ in 1..repeats.max(1) {
-        let next = gs.render(gpu_variant, f.camera, f.params)?;
+        let next = gs.render(f.prepared, gpu_variant, f.camera, f.params)?;
         g.select_s = g.select_s.min(next.select_s);
         g.draw_s = g.draw_s.min(next.draw_s);
         g.gpu_select_s = min_of(g.gpu_select_s, next.gpu_select_s);
@@ -593,7 +598,7 @@ fn render_gpu_variant(
         (0, 0, BatchingCounts::default(), 0)
     } else {
         match gpu_variant {
-            GpuVariant::Ours(_) => {
+            GpuPipeline::Ours(_) => {
                 let (selection, refined) = f.prepared.select_refined(f.camera, f.params);
                 let indirection = refined
                     .as_ref()
@@ -616,10 +621,10 @@ fn render_gpu_variant(
                     ours_memory(f.prepared, f.params),
                 )
             }
-            GpuVariant::Vegetation | GpuVariant::Primitive => {
+            GpuPipeline::Vegetation | GpuPipeline::Primitive => {
                 let visible = g.trees_drawn.unwrap_or(0);
                 // The reference baselines' accounting (reference/src/baselines.rs).
-                let extra = if gpu_variant == GpuVariant::Vegetation {
+                let extra = if gpu_variant == GpuPipeline::Vegetation {
                     g.commands * (size_of::<DrawCommand>() + size_of::<CommandData>()) as u64
                 } else {
                     f.proxies.len() as u64 * PROXY_BYTES

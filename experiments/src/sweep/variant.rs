@@ -1,11 +1,11 @@
 //! The variant registry: every [`Pipeline`] a sweep can run and every [`Engine`] it runs on, with
-//! what differs between them as methods (GPU-only, the GPU twin's [`GpuVariant`], which reference
+//! what differs between them as methods (GPU-only, the GPU twin's [`GpuPipeline`], which reference
 //! renderer draws it). The file form, the CSV and `sweep.json` use [`Pipeline::name`] and
 //! [`Engine::name`]; [`Pipeline::parse`] and [`Engine::parse`] are the only string compares.
 //! Adding a variant: one arm here plus its reference and GPU renderers (`runner.rs`).
 
 use forestlod_gpu::Compaction;
-use forestlod_harness::backend::GpuVariant;
+use forestlod_harness::gpu_frame::GpuPipeline;
 
 /// A registry entry with a name users write (sweep files, `--backend`, CSVs, `sweep.json`).
 pub trait Registered: Copy + PartialEq + Sized + 'static {
@@ -102,12 +102,12 @@ impl Pipeline {
     }
 
     /// What the GPU twin renders for it.
-    pub fn gpu_variant(self) -> GpuVariant {
+    pub fn gpu_variant(self) -> GpuPipeline {
         match self {
-            Pipeline::Ours => GpuVariant::Ours(Compaction::Stable),
-            Pipeline::OursAtomic => GpuVariant::Ours(Compaction::Atomic),
-            Pipeline::Vegetation => GpuVariant::Vegetation,
-            Pipeline::Primitive => GpuVariant::Primitive,
+            Pipeline::Ours => GpuPipeline::Ours(Compaction::Stable),
+            Pipeline::OursAtomic => GpuPipeline::Ours(Compaction::Atomic),
+            Pipeline::Vegetation => GpuPipeline::Vegetation,
+            Pipeline::Primitive => GpuPipeline::Primitive,
         }
     }
 }

@@ -10,12 +10,12 @@
 //!   yawed), the cropped `synthetic` of `parity::draw`, 64 random cameras and parameters around each
 //!   of them, and 64 random scenes of card trees with random cameras.
 //! - **images** (Vegetation through `draw.wgsl`, Primitive through `primitive.wgsl`, both rendered
-//!   by `GpuSweepScene`, the sweeps' runner): judged by `forestlod_harness::image_compare` against
+//!   by `GpuScene`, the sweeps' runner): judged by `forestlod_harness::image_compare` against
 //!   `render_vegetation` / `render_primitive`, with its named tolerances and alternative frames
 //!   (Vegetation: the alpha-test cutoff moved, `ALPHA_TEST_SHIFTS`; Primitive: the ray cast's
 //!   root tests moved by a few roundings, `PRIMITIVE_DISC_SHIFTS`); scenarios from far to close,
 //!   two of them close enough for Primitive's full-screen near fallback.
-//! - the runner's own path for our pipeline (`GpuVariant::Ours`) against the reference frame.
+//! - the runner's own path for our pipeline (`GpuPipeline::Ours`) against the reference frame.
 //!
 //! Without an adapter the tests fail with an install hint unless `FORESTLOD_ALLOW_NO_GPU=1`.
 
@@ -23,11 +23,14 @@ use std::collections::BTreeSet;
 use std::time::Instant;
 
 use forestlod_gpu::{Compaction, DrawIndirectArgs, GpuContext, GpuCull};
-use forestlod_harness::backend::{
-    GpuSweepScene, GpuTimedFrame, GpuVariant, alpha_test_alternatives, cull_trees, gpu_context,
-    images_of, primitive_alternatives, vegetation_alternatives,
+use forestlod_harness::alternatives::{
+    alpha_test_alternatives, primitive_alternatives, vegetation_alternatives,
 };
+use forestlod_harness::bridge::cull_trees;
+use forestlod_harness::context::gpu_context;
+use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, GpuTimedFrame, StagesFromCpu};
 use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
+use forestlod_harness::stage::images_of;
 use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_harness::stats::decision_budget_failure;
 use forestlod_reference::baselines::{
@@ -411,8 +414,9 @@ fn image_scenarios() -> (Vec<Prepared>, Vec<ImageScenario>) {
 /// `failures`). Returns the GPU frame.
 #[allow(clippy::too_many_arguments)]
 fn judge_baseline(
-    sweep: &mut GpuSweepScene,
-    variant: GpuVariant,
+    sweep: &mut GpuScene,
+    prepared: &Prepared,
+    variant: GpuPipeline,
     s: &ImageScenario,
     want: &BaselineFrame,
     name: &str,
@@ -422,7 +426,7 @@ fn judge_baseline(
 ) -> GpuTimedFrame {
     let label = format!("{variant:?}");
     let got = sweep
-        .render(variant, &s.camera, &s.params)
+        .render(prepared, variant, &s.camera, &s.params)
         .unwrap_or_else(|e| panic!("{label} frame: {e:?}"));
     assert_eq!(
         got.trees_drawn,
@@ -449,7 +453,7 @@ fn gpu_baseline_images_match_the_reference() {
     let Some(ctx) = gpu_context() else { return };
     let started = Instant::now();
     let (prepared, scenarios) = image_scenarios();
-    let mut sweeps: Vec<GpuSweepScene> = prepared
+    let mut sweeps: Vec<GpuScene> = prepared
         .iter()
         .zip([
             tiny_params(FadeMode::Alpha),
@@ -459,7 +463,9 @@ fn gpu_baseline_images_match_the_reference() {
                 ..Params::default()
             },
         ])
-        .map(|(p, params)| GpuSweepScene::new(ctx, p, &params).expect("GpuSweepScene::new"))
+        .map(|(p, params)| {
+            GpuScene::new(ctx, p, &params, StagesFromCpu::NONE).expect("GpuScene::new")
+        })
         .collect();
     let mut failures = Vec::new();
     let (mut max_vegetation, mut max_primitive): (MaxDiffs, MaxDiffs) = Default::default();
@@ -474,7 +480,8 @@ fn gpu_baseline_images_match_the_reference() {
         let want = render_vegetation(p, &spheres, &s.camera, &s.params);
         judge_baseline(
             sweep,
-            GpuVariant::Vegetation,
+            p,
+            GpuPipeline::Vegetation,
             s,
             &want,
             &format!("{}/vegetation", s.name),
@@ -501,7 +508,8 @@ fn gpu_baseline_images_match_the_reference() {
         }
         let got = judge_baseline(
             sweep,
-            GpuVariant::Primitive,
+            p,
+            GpuPipeline::Primitive,
             s,
             &want,
             &format!("{}/primitive ({fallbacks} near-fallback quads)", s.name),
@@ -547,12 +555,14 @@ fn sweep_runner_renders_ours_like_the_reference() {
     );
     let alternatives = alpha_test_alternatives(&prepared, &camera, &p);
     let commands = prepared.select(&camera, &p).commands.len() as u64;
-    let mut sweep = GpuSweepScene::new(ctx, &prepared, &p).expect("GpuSweepScene::new");
+    let mut sweep = GpuScene::new(ctx, &prepared, &p, StagesFromCpu::NONE).expect("GpuScene::new");
     let timestamps = ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY);
     let mut failures = Vec::new();
     for compaction in Compaction::ALL {
-        let variant = GpuVariant::Ours(compaction);
-        let frame = sweep.render(variant, &camera, &p).expect("frame");
+        let variant = GpuPipeline::Ours(compaction);
+        let frame = sweep
+            .render(&prepared, variant, &camera, &p)
+            .expect("frame");
         assert_eq!(frame.commands, commands, "{}", variant.name());
         assert_eq!(frame.trees_drawn, None);
         assert!(frame.select_s > 0.0 && frame.draw_s > 0.0);
@@ -579,9 +589,13 @@ fn sweep_runner_renders_ours_like_the_reference() {
     }
     // The cull buffers the baselines leave behind agree with the runner's own tree list.
     let frame = sweep
-        .render(GpuVariant::Vegetation, &camera, &p)
+        .render(&prepared, GpuPipeline::Vegetation, &camera, &p)
         .expect("frame");
-    let visible = sweep.cull().read_visible().expect("read_visible");
+    let visible = sweep
+        .cull()
+        .expect("a baseline frame culled")
+        .read_visible()
+        .expect("read_visible");
     assert_eq!(frame.trees_drawn, Some(visible.len() as u64));
     assert_eq!(cull_trees(&prepared).len(), prepared.scene.instances.len());
     assert!(failures.is_empty(), "{}", failures.join("\n"));

@@ -27,11 +27,12 @@ use std::time::Instant;
 
 use forestlod_gpu::draw::{DrawTarget, GpuDraw, IndirectMode};
 use forestlod_gpu::{Compaction, DrawInputs, DrawScene, DrawTextures, GpuSelect};
-use forestlod_harness::backend::{
-    DrawSceneData, GpuRenderer, StagesFromCpu, alpha_test_alternatives, gpu_context, gpu_draw,
-    render_gpu, upload_reference_textures,
-};
+use forestlod_harness::alternatives::alpha_test_alternatives;
+use forestlod_harness::backend::GpuRenderer;
+use forestlod_harness::bridge::{DrawSceneData, upload_reference_textures};
+use forestlod_harness::context::gpu_context;
 use forestlod_harness::diagnose::{check_stages, first_differing};
+use forestlod_harness::gpu_frame::{StagesFromCpu, gpu_draw, render_gpu};
 use forestlod_harness::image_compare::{Images, compare_images, write_failure_images};
 use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_reference::pipeline::{Prepared, prepare};
@@ -129,10 +130,7 @@ fn gpu_draw_matches_the_reference() {
     );
     let options = [
         StagesFromCpu::ALL,
-        StagesFromCpu {
-            select: false,
-            textures: true,
-        },
+        StagesFromCpu::TEXTURES,
         StagesFromCpu::NONE,
     ];
     let backends: Vec<Box<dyn Backend<Draw>>> = options
@@ -153,7 +151,14 @@ fn gpu_draw_matches_the_reference() {
         let alternatives = alpha_test_alternatives(p, &s.camera, &s.params);
         for (backend, option) in backends.iter().zip(&options) {
             // Stage outputs before images: the first GPU stage that differs is named.
-            let checks = check_stages(ctx, p, &s.camera, &s.params, option.textures, option.select);
+            let checks = check_stages(
+                ctx,
+                p,
+                &s.camera,
+                &s.params,
+                option.textures.is_some(),
+                option.selection.is_some(),
+            );
             for c in &checks {
                 eprintln!(
                     "{}/{}: stage {}: {}",

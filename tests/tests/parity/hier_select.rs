@@ -24,8 +24,9 @@
 
 use std::time::Instant;
 
-use forestlod_gpu::{GpuHierSelect, GpuSelection};
-use forestlod_harness::backend::{StagesFromCpu, gpu_context, gpu_draw, render_gpu};
+use forestlod_gpu::{Compaction, GpuSelection};
+use forestlod_harness::context::gpu_context;
+use forestlod_harness::gpu_frame::{SelectionChain, StagesFromCpu, gpu_draw, render_gpu};
 use forestlod_reference::command_order::order;
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::pipeline::prepare;
@@ -222,10 +223,10 @@ fn gpu_cut_matches_reference() {
                 .unwrap()
                 .unwrap();
             let want = full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
-            let mut gpu = GpuHierSelect::new(ctx, &h.nodes, mode as u32, &g.meshes, &g.billboard)
+            let mut gpu = SelectionChain::cut(ctx, &h.nodes, mode as u32, &g.meshes, &g.billboard)
                 .map_err(|e| TestCaseError::fail(e.to_string()))?;
             let sel = gpu
-                .run(&camera, &p)
+                .run(&camera, &p, Compaction::Stable)
                 .map_err(|e| TestCaseError::fail(e.to_string()))?;
             let (codes, states) = gpu
                 .read_codes_and_states()
@@ -467,9 +468,9 @@ fn gpu_cut_walks_every_ancestor() {
         };
         let want = full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
         let mut gpu =
-            GpuHierSelect::new(ctx, &nodes, Mode::Quadtree as u32, &g.meshes, &g.billboard)
+            SelectionChain::cut(ctx, &nodes, Mode::Quadtree as u32, &g.meshes, &g.billboard)
                 .unwrap();
-        let sel = gpu.run(&camera, &p).unwrap();
+        let sel = gpu.run(&camera, &p, Compaction::Stable).unwrap();
         let (codes, states) = gpu.read_codes_and_states().unwrap();
         assert_eq!(codes, want.codes, "culled node {culled}");
         assert_eq!(states, want.states, "culled node {culled}: states");
@@ -505,7 +506,7 @@ fn gpu_coalescing_spans_scan_chunks() {
     let h = prepared.hierarchy.as_ref().unwrap();
     let g = &prepared.geometry;
     let mut gpu =
-        GpuHierSelect::new(ctx, &h.nodes, h.mode as u32, &g.meshes, &g.billboard).unwrap();
+        SelectionChain::cut(ctx, &h.nodes, h.mode as u32, &g.meshes, &g.billboard).unwrap();
     let mut most = 0;
     for yaw in [0.0, 330.0] {
         let camera =
@@ -513,7 +514,7 @@ fn gpu_coalescing_spans_scan_chunks() {
                 .unwrap();
         let u = ViewUniform::new(&camera, &p);
         let want = full_cut(h, &g.meshes, &g.billboard, &camera, &p);
-        let sel = gpu.run(&camera, &p).unwrap();
+        let sel = gpu.run(&camera, &p, Compaction::Stable).unwrap();
         let raw = gpu.read_uncoalesced().unwrap();
         let (codes, _) = gpu.read_codes_and_states().unwrap();
         assert_eq!(codes, want.codes, "yaw {yaw}: codes");
@@ -561,7 +562,7 @@ fn gpu_front_to_back_spans_workgroups() {
     let h = prepared.hierarchy.as_ref().unwrap();
     let g = &prepared.geometry;
     let mut gpu =
-        GpuHierSelect::new(ctx, &h.nodes, h.mode as u32, &g.meshes, &g.billboard).unwrap();
+        SelectionChain::cut(ctx, &h.nodes, h.mode as u32, &g.meshes, &g.billboard).unwrap();
     let (mut ambiguous, mut moved, mut most) = (0, 0, 0);
     for coalesce in [Coalesce::Off, Coalesce::On] {
         let p = Params {
@@ -574,7 +575,7 @@ fn gpu_front_to_back_spans_workgroups() {
                     .unwrap();
             let u = ViewUniform::new(&camera, &p);
             let want = full_cut(h, &g.meshes, &g.billboard, &camera, &p);
-            let sel = gpu.run(&camera, &p).unwrap();
+            let sel = gpu.run(&camera, &p, Compaction::Stable).unwrap();
             let (codes, _) = gpu.read_codes_and_states().unwrap();
             assert_eq!(codes, want.codes, "{coalesce:?} yaw {yaw}: codes");
             let unsorted = full_resolve(

@@ -17,6 +17,7 @@
 mod bake;
 mod baselines;
 mod draw;
+mod from_cpu;
 mod hier_select;
 mod metamorphic;
 mod mips;

@@ -26,11 +26,12 @@
 //!   tile's projection is the frame's times a scale and offset, so vertex positions may round
 //!   differently by an ulp).
 
-use forestlod_harness::backend::{
-    GpuRenderer, GpuSweepScene, GpuVariant, StagesFromCpu, alpha_test_alternatives, gpu_backends,
-    gpu_context, images_of,
-};
+use forestlod_harness::alternatives::alpha_test_alternatives;
+use forestlod_harness::backend::{GpuRenderer, gpu_backends};
+use forestlod_harness::context::gpu_context;
+use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, StagesFromCpu};
 use forestlod_harness::image_compare::{Images, compare_images, write_failure_images};
+use forestlod_harness::stage::images_of;
 use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference, Select, SelectInput};
 use forestlod_reference::baselines::render_vegetation;
 use forestlod_reference::pipeline::{Prepared, prepare};
@@ -275,17 +276,18 @@ fn lod0_everywhere_equals_the_vegetation_baseline() {
     ));
     // GPU: ours and Vegetation through the sweeps' runner (GPU textures, select, cull, draw).
     let ctx = gpu_context().expect("a GPU adapter (FORESTLOD_ALLOW_NO_GPU=1 skips)");
-    let mut sweep = GpuSweepScene::new(ctx, &p, &params).expect("GpuSweepScene");
+    let mut sweep = GpuScene::new(ctx, &p, &params, StagesFromCpu::NONE).expect("GpuScene");
     let ours = sweep
         .render(
-            GpuVariant::Ours(forestlod_gpu::Compaction::Stable),
+            &p,
+            GpuPipeline::Ours(forestlod_gpu::Compaction::Stable),
             &camera,
             &params,
         )
         .expect("ours")
         .images;
     let vegetation = sweep
-        .render(GpuVariant::Vegetation, &camera, &params)
+        .render(&p, GpuPipeline::Vegetation, &camera, &params)
         .expect("vegetation")
         .images;
     failures.extend(judge(

@@ -16,7 +16,7 @@
 //!   selection) are the per-tree oracle's (`select::select_per_tree`), up to ambiguous trees; the
 //!   exact property on the reference side lives in `properties/refine_properties.rs`.
 //! - **images**: frames with `tree_cull` `lod0` and `all` rendered by the sweeps' runner
-//!   (`GpuSweepScene`, `GpuVariant::Ours` with both compactions, GPU textures) and by the main
+//!   (`GpuScene`, `GpuPipeline::Ours` with both compactions, GPU textures) and by the main
 //!   job's `render_gpu` (selection from the GPU, refined by `refine.wgsl`, and from the CPU,
 //!   refined by the reference, with its `3n` indirection uploaded) against the reference frame
 //!   (`Prepared::render`, which honours `tree_cull`), judged by `forestlod_harness::image_compare`
@@ -31,11 +31,11 @@ use forestlod_gpu::{
     Compaction, CullTree, GpuContext, GpuRefine, GpuRefined, GpuSelect, RefineCounters,
     SelectBuffers,
 };
-use forestlod_harness::backend::{
-    GpuSweepScene, GpuVariant, StagesFromCpu, alpha_test_alternatives, gpu_context, gpu_draw,
-    images_of, render_gpu,
-};
+use forestlod_harness::alternatives::alpha_test_alternatives;
+use forestlod_harness::context::gpu_context;
+use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, StagesFromCpu, gpu_draw, render_gpu};
 use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
+use forestlod_harness::stage::images_of;
 use forestlod_harness::stats::decision_budget_failure;
 use forestlod_reference::batches::{Batches, build_batches};
 use forestlod_reference::cameras::named_camera;
@@ -633,10 +633,12 @@ fn gpu_refined_images_match_the_reference() {
     let Some(ctx) = gpu_context() else { return };
     let started = Instant::now();
     let (prepared, scenarios) = image_scenarios();
-    let mut sweeps: Vec<GpuSweepScene> = prepared
+    let mut sweeps: Vec<GpuScene> = prepared
         .iter()
         .zip([tiny_params(FadeMode::Alpha), crop_params(FadeMode::Alpha)])
-        .map(|(p, params)| GpuSweepScene::new(ctx, p, &params).expect("GpuSweepScene::new"))
+        .map(|(p, params)| {
+            GpuScene::new(ctx, p, &params, StagesFromCpu::NONE).expect("GpuScene::new")
+        })
         .collect();
     let draw = gpu_draw(ctx);
     let paths = [
@@ -702,10 +704,15 @@ fn gpu_refined_images_match_the_reference() {
                     }
                 };
                 let got = sweep
-                    .render(GpuVariant::Ours(compaction), &s.camera, &params)
+                    .render(p, GpuPipeline::Ours(compaction), &s.camera, &params)
                     .expect("sweep frame");
                 assert_eq!(got.commands, commands, "{name}: commands");
-                let refined = sweep.refine().read(sweep.selection()).expect("read refine");
+                let chain = sweep.chain().expect("a frame of ours ran the GPU chain");
+                let refined = sweep
+                    .refine()
+                    .expect("the plan refines on the GPU")
+                    .read(chain.buffers())
+                    .expect("read refine");
                 assert_eq!(
                     refined.counters.trees_tested as u64, r.trees_tested,
                     "{name}/{}: trees tested",
@@ -714,9 +721,10 @@ fn gpu_refined_images_match_the_reference() {
                 judge(k, &got.images, reference.as_ref());
             }
             for (k, select_from_cpu) in [(2, false), (3, true)] {
-                let from_cpu = StagesFromCpu {
-                    select: select_from_cpu,
-                    textures: true,
+                let from_cpu = if select_from_cpu {
+                    StagesFromCpu::ALL
+                } else {
+                    StagesFromCpu::TEXTURES
                 };
                 let got = render_gpu(ctx, draw, p, &s.camera, &params, from_cpu)
                     .expect("render_gpu frame");

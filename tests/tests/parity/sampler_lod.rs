@@ -11,7 +11,7 @@
 use std::f32::consts::FRAC_1_SQRT_2;
 
 use forestlod_gpu::context::bind_group;
-use forestlod_harness::backend::gpu_context;
+use forestlod_harness::context::gpu_context;
 
 /// Largest |λ_GPU − λ_exact| accepted: 1/16. Measured on lavapipe (Mesa 22.3.6, LLVM 15): max
 /// 0.047, mean 0.031 over 195 derivative matrices (as if λ kept 4 fractional bits). The image

@@ -21,7 +21,9 @@ use std::time::Instant;
 use forestlod_harness::stats::decision_budget_failure;
 
 use forestlod_gpu::{Compaction, GpuSelect, SelectBuffers};
-use forestlod_harness::backend::{BackendSelection, GpuSelectBackend, gpu_backends, gpu_context};
+use forestlod_harness::backend::{GpuSelectBackend, gpu_backends};
+use forestlod_harness::context::gpu_context;
+use forestlod_harness::stage::BackendSelection;
 use forestlod_harness::stage::{Backend, Named, Reference, Select, SelectInput};
 use forestlod_reference::batches::build_batches;
 use forestlod_reference::geometry::pack_geometry;

@@ -15,9 +15,8 @@
 
 use std::sync::Barrier;
 
-use forestlod_harness::backend::{
-    GpuSweepScene, GpuVariant, StagesFromCpu, gpu_context, gpu_draw, render_gpu,
-};
+use forestlod_harness::context::gpu_context;
+use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, StagesFromCpu, gpu_draw, render_gpu};
 use forestlod_harness::image_compare::Images;
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::{Prepared, prepare};
@@ -38,8 +37,8 @@ struct Case {
     camera: Camera,
     params: Params,
     /// `None`: `render_gpu` (fresh buffers per frame, shared `GpuDraw`); `Some`: a
-    /// `GpuSweepScene` owned by the thread (shared `GpuDraw` and `GpuPrimitive`).
-    variant: Option<GpuVariant>,
+    /// `GpuScene` owned by the thread (shared `GpuDraw` and `GpuPrimitive`).
+    variant: Option<GpuPipeline>,
 }
 
 fn scenes() -> Vec<(Prepared, Params)> {
@@ -81,14 +80,14 @@ fn cases(scenes: &[(Prepared, Params)]) -> Vec<Case> {
             scene: 1,
             camera: camera(1, "medium", 0.0),
             params: with_fade(1, FadeMode::Alpha),
-            variant: Some(GpuVariant::Vegetation),
+            variant: Some(GpuPipeline::Vegetation),
         },
         Case {
             name: "crop-close-yaw200-primitive".into(),
             scene: 1,
             camera: camera(1, "close", 200.0),
             params: with_fade(1, FadeMode::None),
-            variant: Some(GpuVariant::Primitive),
+            variant: Some(GpuPipeline::Primitive),
         },
     ]
 }
@@ -112,12 +111,12 @@ fn render(case: &Case, prepared: &Prepared, prepared_with: &Params, rounds: usiz
             })
             .collect(),
         Some(variant) => {
-            let mut sweep = GpuSweepScene::new(ctx, prepared, prepared_with)
+            let mut sweep = GpuScene::new(ctx, prepared, prepared_with, StagesFromCpu::NONE)
                 .unwrap_or_else(|e| panic!("{}: {e}", case.name));
             (0..rounds)
                 .map(|_| {
                     sweep
-                        .render(variant, &case.camera, &case.params)
+                        .render(prepared, variant, &case.camera, &case.params)
                         .unwrap_or_else(|e| panic!("{}: {e}", case.name))
                         .images
                 })

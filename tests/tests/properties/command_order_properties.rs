@@ -109,7 +109,7 @@ proptest! {
 /// the test fails on any unclassified one. It also checks that the sort changed the order.
 #[test]
 fn front_to_back_frames_differ_only_at_ties_and_blending() {
-    use forestlod_harness::backend::images_of;
+    use forestlod_harness::stage::images_of;
     use forestlod_reference::pipeline::prepare;
     use forestlod_shared::FadeMode;
     let scene = forestlod_reference::scene::builtin::by_name("tiny").unwrap();

@@ -3,8 +3,9 @@
 //! same classified report as whole alternative frames: the main job and the parity tests may use
 //! the cheap ones without changing a verdict, a count or a class image.
 
-use forestlod_harness::backend::{alpha_test_alternatives, alpha_test_alternatives_at, images_of};
+use forestlod_harness::alternatives::{alpha_test_alternatives, alpha_test_alternatives_at};
 use forestlod_harness::image_compare::{alternative_pixels, compare_images};
+use forestlod_harness::stage::images_of;
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;

@@ -1,0 +1,229 @@
+//! The reference-to-GPU bridge: a prepared scene's buffers, textures and trees converted to the
+//! GPU drivers' types and uploaded. The GPU frame (`crate::gpu_frame`) and the stage backends use
+//! it; nothing here runs a stage except [`gpu_textures`], which runs the GPU's bake and mips on
+//! the scene's own meshes, as the reference's `prepare` runs its own.
+
+use forestlod_gpu::draw::MipLevel;
+use forestlod_gpu::{
+    BakeMesh, CullTree, DrawInstance, DrawSceneDesc, DrawVertex, GpuBake, GpuBaked, GpuContext,
+    GpuError, terrain_vertices, upload_texture_array,
+};
+use forestlod_reference::baselines::{proxies, tree_spheres};
+use forestlod_reference::pipeline::Prepared;
+use forestlod_reference::sampler::Texture;
+use forestlod_reference::scene::Scene;
+use forestlod_shared::{MeshMeta, Params, ProxyRecord};
+
+/// The draw stage's static inputs of a prepared scene, converted from the reference's types.
+pub struct DrawSceneData {
+    /// Packed vertices.
+    pub vertices: Vec<DrawVertex>,
+    /// Trees.
+    pub instances: Vec<DrawInstance>,
+    /// The ground, from the reference scene's terrain.
+    pub terrain: Vec<forestlod_gpu::TerrainVertex>,
+}
+
+impl DrawSceneData {
+    /// Converts the prepared scene's geometry, instances and terrain.
+    pub fn new(prepared: &Prepared) -> Self {
+        let scene = &prepared.scene;
+        Self {
+            vertices: prepared
+                .geometry
+                .vertices
+                .iter()
+                .map(|v| DrawVertex {
+                    position: v.position,
+                    uv: v.uv,
+                })
+                .collect(),
+            instances: scene
+                .instances
+                .iter()
+                .map(|t| DrawInstance {
+                    position: t.position,
+                    yaw: t.yaw,
+                    scale: t.scale,
+                    mesh: t.mesh,
+                })
+                .collect(),
+            terrain: terrain_vertices(scene.bounds, |x, y| scene.terrain.height(x, y)),
+        }
+    }
+
+    /// The descriptor [`DrawScene::new`] uploads.
+    pub fn desc<'a>(&'a self, prepared: &'a Prepared) -> DrawSceneDesc<'a> {
+        DrawSceneDesc {
+            vertices: &self.vertices,
+            indices: &prepared.geometry.indices,
+            meshes: &prepared.geometry.meshes,
+            billboard: prepared.geometry.billboard,
+            instances: &self.instances,
+            indirection: &prepared.batches.indirection,
+            terrain: &self.terrain,
+        }
+    }
+}
+
+/// The layers of reference textures as [`MipLevel`]s: every layer of every texture, in order.
+pub fn mip_levels<'a>(textures: &[&'a Texture]) -> Vec<Vec<MipLevel<'a>>> {
+    textures
+        .iter()
+        .flat_map(|t| {
+            (0..t.layer_count() as u32).map(move |layer| {
+                (0..t.level_count())
+                    .map(|level| {
+                        let img = t.level(layer, level);
+                        MipLevel {
+                            width: img.width,
+                            height: img.height,
+                            texels: &img.texels,
+                        }
+                    })
+                    .collect()
+            })
+        })
+        .collect()
+}
+
+/// Uploads the reference's mesh textures (one layer per mesh) and billboard array.
+pub fn upload_reference_textures(
+    ctx: &GpuContext,
+    prepared: &Prepared,
+) -> Result<(wgpu::Texture, wgpu::Texture), GpuError> {
+    let meshes: Vec<&Texture> = prepared.mesh_textures.iter().collect();
+    let mesh = upload_texture_array(ctx, "mesh textures (cpu)", &mip_levels(&meshes))?;
+    let billboards = upload_texture_array(
+        ctx,
+        "billboards (cpu)",
+        &mip_levels(&[&prepared.billboards.texture]),
+    )?;
+    Ok((mesh, billboards))
+}
+
+/// The GPU's own textures for a prepared scene: the mesh textures' chains built by the GPU mips
+/// stage (one layer per mesh; they must be square, of one power-of-two size) and the billboard
+/// array baked and mipmapped by the GPU bake stage, both with `params`' mip mode and alpha
+/// cutoff, as the reference's `prepare` builds its own.
+pub fn gpu_textures(
+    ctx: &GpuContext,
+    prepared: &Prepared,
+    params: &Params,
+) -> Result<(wgpu::Texture, wgpu::Texture), GpuError> {
+    gpu_textures_with(ctx, prepared, params, BillboardLevel0::Gpu)
+}
+
+/// Where the billboards' level 0 comes from in [`gpu_textures_with`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BillboardLevel0 {
+    /// The GPU's bake (`bake.wgsl`).
+    Gpu,
+    /// The reference's bake as prepared (its billboard texture's level 0, which its mips never
+    /// modify: `reference/src/mips.rs`), uploaded (`--stage-from-cpu bake`).
+    Reference,
+}
+
+/// [`gpu_textures`] with the billboards' level 0 from `level0`; the mips of both arrays are
+/// the GPU's.
+pub fn gpu_textures_with(
+    ctx: &GpuContext,
+    prepared: &Prepared,
+    params: &Params,
+    level0: BillboardLevel0,
+) -> Result<(wgpu::Texture, wgpu::Texture), GpuError> {
+    let scene = &prepared.scene;
+    let mode = params.mips().map_err(|e| GpuError::Input {
+        field: "params.mip_mode",
+        value: e.to_string(),
+        reason: "expected a MipMode id",
+    })?;
+    let side = scene.meshes.first().map_or(0, |m| m.texture.width);
+    if let Some(m) = scene
+        .meshes
+        .iter()
+        .find(|m| m.texture.width != side || m.texture.height != side)
+    {
+        return Err(GpuError::Input {
+            field: "mesh texture size",
+            value: format!(
+                "mesh {:?} is {}x{}, mesh 0 is {side}x{side}",
+                m.name, m.texture.width, m.texture.height
+            ),
+            reason: "the GPU mips stage builds one square array: every mesh texture must have mesh 0's square size",
+        });
+    }
+    let bake = GpuBake::new(ctx)?;
+    let mesh_texels: Vec<&[[u8; 4]]> = scene.meshes.iter().map(|m| &m.texture.texels[..]).collect();
+    let mesh_level0 = forestlod_gpu::mips::upload_level0(ctx, side, &mesh_texels)?;
+    let mesh = bake
+        .mips()
+        .run(mesh_level0, mode, params.alpha_cutoff)?
+        .texture;
+    let billboards = match level0 {
+        BillboardLevel0::Gpu => {
+            let meshes: Vec<BakeMesh> = scene
+                .meshes
+                .iter()
+                .map(|m| BakeMesh {
+                    positions: &m.positions,
+                    uvs: &m.uvs,
+                    indices: &m.indices,
+                    texture_width: m.texture.width,
+                    texture_height: m.texture.height,
+                    texture: &m.texture.texels,
+                    meta: m.meta(),
+                })
+                .collect();
+            bake.bake(&meshes, params)?.mips.texture
+        }
+        BillboardLevel0::Reference => {
+            let t = &prepared.billboards.texture;
+            let layers: Vec<&[[u8; 4]]> = (0..t.layer_count() as u32)
+                .map(|layer| &t.level(layer, 0).texels[..])
+                .collect();
+            let metas: Vec<MeshMeta> = scene.meshes.iter().map(|m| m.meta()).collect();
+            GpuBaked::from_cpu_level0(
+                bake.mips(),
+                &metas,
+                params.angle_count,
+                params.texture_size,
+                &layers,
+                mode,
+                params.alpha_cutoff,
+            )?
+            .mips
+            .texture
+        }
+    };
+    Ok((mesh, billboards))
+}
+
+/// Every tree's bounding sphere (`baselines::tree_spheres`, computed on the CPU) and mesh: the
+/// input of [`GpuCull`].
+pub fn cull_trees(prepared: &Prepared) -> Vec<CullTree> {
+    let spheres = tree_spheres(&prepared.scene, &prepared.geometry.meshes);
+    cull_trees_of(&prepared.scene, &spheres)
+}
+
+/// The [`GpuCull`] / `GpuRefine` input of `scene`'s trees from their bounding spheres (as
+/// `baselines::tree_spheres` computes them, one per instance).
+pub fn cull_trees_of(scene: &Scene, spheres: &[([f32; 3], f32)]) -> Vec<CullTree> {
+    spheres
+        .iter()
+        .zip(&scene.instances)
+        .map(|(&(center, radius), t)| CullTree {
+            center,
+            radius,
+            mesh: t.mesh,
+        })
+        .collect()
+}
+
+/// The reference's Primitive proxies of a prepared scene as GPU records (one per mesh).
+pub fn proxy_records(prepared: &Prepared, params: &Params) -> Vec<ProxyRecord> {
+    proxies(prepared, params.alpha_cutoff)
+        .iter()
+        .map(ProxyRecord::from)
+        .collect()
+}
