@@ -54,7 +54,18 @@ use crate::context::{
     group_layout, sampler_entry, shader_module, texture_entry,
 };
 use crate::mips::{BILLBOARD_FORMAT, GpuMips, MipArray, create_billboard_texture};
+use crate::shaders::{StageSource, WgslFile};
 use crate::{GpuContext, GpuError};
+
+/// The `bake` stage's module: `bake.wgsl` (it reads only shared constants).
+pub const SOURCE: StageSource = StageSource {
+    own: WgslFile {
+        name: "bake.wgsl",
+        wgsl: include_str!("shaders/bake.wgsl"),
+        constants: &[],
+    },
+    parts: &[],
+};
 
 /// Format of the bake's depth attachment.
 pub const BAKE_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -271,7 +282,7 @@ impl StagePipelines for BakePipelines {
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("bake.wgsl pipeline", || {
             let device = &ctx.device;
-            let module = shader_module(device, "bake.wgsl", &crate::shaders::bake_source());
+            let module = shader_module(device, "bake.wgsl", &SOURCE.module());
             let layer_size = size_of::<BakeLayer>() as u64;
             let fragment = wgpu::ShaderStages::FRAGMENT;
             let (layout, pipeline_layout) = group_layout(
@@ -567,7 +578,7 @@ mod tests {
 
     #[test]
     fn wgsl_bake_layer_matches_its_rust_twin() {
-        let module = validate(&crate::shaders::bake_source());
+        let module = validate(&SOURCE.module());
         assert_layout(
             &module,
             &rust_layout!(BakeLayer {

@@ -15,14 +15,24 @@ use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Coalesce, SelectCounters};
 
 use crate::context::{
-    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines,
 };
-use crate::readback::zeroed_buffer;
+use crate::readback::{stage_uniform, zeroed_buffer};
 use crate::select::SelectBuffers;
 use crate::{GpuContext, GpuError};
 
-/// Invocations per workgroup of the per-slot passes (generated into `coalesce.wgsl`).
+/// Invocations per workgroup of the per-slot passes (generated into `coalesce.wgsl`'s module).
 pub const COALESCE_WORKGROUP_SIZE: u32 = 64;
+
+/// The `coalesce` stage's module: `coalesce.wgsl`, then [`crate::select::SCAN`].
+pub const SOURCE: crate::shaders::StageSource = crate::shaders::StageSource {
+    own: crate::shaders::WgslFile {
+        name: "coalesce.wgsl",
+        wgsl: include_str!("shaders/coalesce.wgsl"),
+        constants: crate::shaders::wgsl_constants![COALESCE_WORKGROUP_SIZE],
+    },
+    parts: &[crate::select::SCAN],
+};
 
 /// The uniform of `coalesce.wgsl`. Keep in sync with `struct CoalesceUniform` there.
 #[repr(C)]
@@ -41,7 +51,7 @@ const _: () = assert!(size_of::<CoalesceUniform>() == 16);
 
 compute_pipelines! {
     /// The compiled pipelines of `coalesce.wgsl`, one set per [`GpuContext`] (cached there).
-    pub struct CoalescePipelines = "coalesce", crate::shaders::coalesce_source(), [
+    pub struct CoalescePipelines = "coalesce", SOURCE.module(), [
         Slot::Uniform(size_of::<CoalesceUniform>() as u64),
         READ, READ,
         Slot::Read(size_of::<SelectCounters>() as u64),

@@ -27,8 +27,18 @@ use crate::readback::{read_buffer, zeroed_buffer};
 use crate::select::SelectBuffers;
 use crate::{GpuContext, GpuError};
 
-/// Invocations per workgroup (generated into `command_order.wgsl`).
+/// Invocations per workgroup (generated into `command_order.wgsl`'s module).
 pub const COMMAND_ORDER_WORKGROUP_SIZE: u32 = 64;
+
+/// The `command_order` stage's module: `command_order.wgsl`.
+pub const SOURCE: crate::shaders::StageSource = crate::shaders::StageSource {
+    own: crate::shaders::WgslFile {
+        name: "command_order.wgsl",
+        wgsl: include_str!("shaders/command_order.wgsl"),
+        constants: crate::shaders::wgsl_constants![COMMAND_ORDER_WORKGROUP_SIZE],
+    },
+    parts: &[],
+};
 
 /// The per-frame uniform of `command_order.wgsl`. Keep in sync with `struct OrderUniform` there.
 #[repr(C)]
@@ -120,7 +130,7 @@ impl StagePipelines for CommandOrderPipelines {
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("command_order.wgsl pipelines", || {
             let device = &ctx.device;
-            let source = crate::shaders::command_order_source();
+            let source = SOURCE.module();
             let module = crate::context::shader_module(device, "command_order.wgsl", &source);
             let layout = |label: &str, slots: &[(u32, Slot)]| {
                 let entries: Vec<_> = slots.iter().map(|&(b, s)| s.entry(b)).collect();
@@ -210,7 +220,7 @@ impl<'a> GpuCommandOrder<'a> {
                 },
             )
         })?;
-        let uniform = crate::context::stage_uniform::<OrderUniform>(ctx, "command_order uniform");
+        let uniform = crate::readback::stage_uniform::<OrderUniform>(ctx, "command_order uniform");
         let pairs = zeroed_buffer(
             ctx,
             "command_order pairs",

@@ -598,29 +598,6 @@ pub(crate) fn compute_pass(
     }
 }
 
-/// A fresh `UNIFORM` buffer holding `value`, for one recorded frame.
-///
-/// Stage drivers never keep a uniform buffer of their own behind `&self` and rewrite it through
-/// the queue: `queue.write_buffer` lands at the next submit *of any thread*, so two threads that
-/// record frames with one driver would each draw with whichever camera was written last (the race
-/// behind a flaky parity test, issue 10). A per-call buffer, bound into the per-call bind group,
-/// makes that impossible by construction; it costs one small allocation per frame (wgpu keeps it
-/// alive until the command buffer that uses it has run).
-pub(crate) fn frame_uniform<T: bytemuck::Pod>(
-    ctx: &GpuContext,
-    label: &str,
-    value: &T,
-) -> wgpu::Buffer {
-    wgpu::util::DeviceExt::create_buffer_init(
-        &ctx.device,
-        &wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytemuck::bytes_of(value),
-            usage: wgpu::BufferUsages::UNIFORM,
-        },
-    )
-}
-
 /// Begins a render pass labelled `label` that clears each colour attachment of `colors` (a view
 /// and its clear colour) and stores it, and clears the depth attachment `depth` to 1 and ends it
 /// with `depth_store`.
@@ -702,17 +679,6 @@ pub(crate) fn buffer_bind_group(
         label,
         layout,
         buffers.iter().map(|b| b.as_entire_binding()),
-    )
-}
-
-/// A zeroed `UNIFORM | COPY_DST` buffer the size of `T`, labelled `label`: the uniform a driver
-/// owning per-scene outputs rewrites each frame from a `&mut self` method (crate docs).
-pub(crate) fn stage_uniform<T>(ctx: &GpuContext, label: &str) -> wgpu::Buffer {
-    crate::readback::zeroed_buffer(
-        ctx,
-        label,
-        size_of::<T>() as u64,
-        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
     )
 }
 

@@ -41,14 +41,25 @@ use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MeshMeta, Params, SelectCounters, ViewUniform};
 
 use crate::context::{
-    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines,
 };
-use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
+use crate::readback::{read_buffer, stage_uniform, upload_storage, zeroed_buffer};
 use crate::select::check_mesh_indices;
+use crate::shaders::{StageSource, WgslFile, wgsl_constants};
 use crate::{GpuContext, GpuError, SelectBuffers};
 
-/// Invocations per workgroup of the per-tree passes. Keep in sync with `cull.wgsl`.
+/// Invocations per workgroup of the per-tree passes (generated into `cull.wgsl`'s module).
 pub const CULL_WORKGROUP_SIZE: u32 = 64;
+
+/// The `cull` stage's module: `cull.wgsl`.
+pub const SOURCE: StageSource = StageSource {
+    own: WgslFile {
+        name: "cull.wgsl",
+        wgsl: include_str!("shaders/cull.wgsl"),
+        constants: wgsl_constants![CULL_WORKGROUP_SIZE],
+    },
+    parts: &[],
+};
 
 /// The most meshes [`GpuCull`] accepts: its command pass is one invocation looping over the meshes
 /// (llvmpipe stops any shader loop after 65,535 iterations, and a loop must not grow with the
@@ -136,7 +147,7 @@ pub struct GpuCulled {
 compute_pipelines! {
     /// The compiled pipelines of `cull.wgsl` (its three passes), one set per [`GpuContext`]
     /// (cached there).
-    pub struct CullPipelines = "cull", crate::shaders::cull_source(), [
+    pub struct CullPipelines = "cull", SOURCE.module(), [
         Slot::Uniform(size_of::<CullUniform>() as u64),
         READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE,
         Slot::Write(size_of::<SelectCounters>() as u64),
@@ -354,7 +365,7 @@ mod tests {
     /// by `gpu/tests/layout.rs`).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let module = validate(&crate::shaders::cull_source());
+        let module = validate(&SOURCE.module());
         assert_layout(
             &module,
             &rust_layout!(CullUniform {

@@ -44,10 +44,25 @@ use wgpu::util::DeviceExt;
 
 use crate::context::{
     Dispatch, Slot, StagePipelines, bind_group, buffer_entry, cleared_render_pass, compute_pass,
-    compute_stage, frame_uniform, group_layout, sampler_entry, shader_module, texture_entry,
+    compute_stage, group_layout, sampler_entry, shader_module, texture_entry,
 };
-use crate::readback::{read_texture, upload_storage};
+use crate::readback::{frame_uniform, read_texture, upload_storage};
+use crate::shaders::{StageSource, WgslFile};
 use crate::{GpuContext, GpuError, SelectBuffers};
+
+/// The `draw` stage's module: `draw.wgsl` (it reads only shared constants).
+pub const SOURCE: StageSource = StageSource {
+    own: WgslFile {
+        name: "draw.wgsl",
+        wgsl: include_str!("shaders/draw.wgsl"),
+        constants: &[],
+    },
+    parts: &[],
+};
+
+/// The depth read-back by compute ([`DrawTarget::read`]), standalone: neither `common.wgsl` nor a
+/// generated constant is prepended.
+pub const DEPTH_COPY_WGSL: &str = include_str!("shaders/depth_copy.wgsl");
 
 /// Format of the colour target (the reference's sRGB8 `RenderTarget` colour).
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -659,7 +674,7 @@ impl StagePipelines for DepthCopyPipelines {
         let (layout, [pipeline]) = compute_stage(
             ctx,
             "depth_copy",
-            crate::shaders::DEPTH_COPY_WGSL,
+            DEPTH_COPY_WGSL,
             &[
                 Slot::Texture(wgpu::TextureViewDimension::D2),
                 Slot::Write(0),
@@ -942,7 +957,7 @@ impl StagePipelines for DrawPipelines {
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("draw.wgsl pipelines", || {
             let device = &ctx.device;
-            let module = shader_module(device, "draw.wgsl", &crate::shaders::draw_source());
+            let module = shader_module(device, "draw.wgsl", &SOURCE.module());
             use wgpu::ShaderStages as S;
             let storage = wgpu::BufferBindingType::Storage { read_only: true };
             let texture = |binding| {
@@ -1180,7 +1195,7 @@ pub(crate) mod tests {
     /// `depth_copy.wgsl` parses and validates (naga), standalone as the driver compiles it.
     #[test]
     fn depth_copy_wgsl_validates() {
-        validate(crate::shaders::DEPTH_COPY_WGSL);
+        validate(DEPTH_COPY_WGSL);
     }
 
     /// `DrawInstance`'s layout, which its twins in `draw.wgsl` and `primitive.wgsl` must both
@@ -1199,10 +1214,7 @@ pub(crate) mod tests {
     /// agrees on the sizes).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let module = validate_with(
-            &crate::shaders::draw_source(),
-            naga::valid::Capabilities::all(),
-        );
+        let module = validate_with(&SOURCE.module(), naga::valid::Capabilities::all());
         let mut layouter = naga::proc::Layouter::default();
         layouter.update(module.to_ctx()).expect("layout");
         let layouts = [

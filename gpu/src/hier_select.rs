@@ -21,14 +21,24 @@ use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, MeshMeta, NodeMeta, Params, SelectCounters, ViewUniform};
 
 use crate::context::{
-    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines,
 };
-use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
+use crate::readback::{read_buffer, stage_uniform, upload_storage, zeroed_buffer};
 use crate::select::{GpuSelection, SelectBuffers, check_command_capacity, check_mesh_indices};
 use crate::{GpuContext, GpuError};
 
-/// Invocations per workgroup of the per-node passes (generated into `hier_select.wgsl`).
+/// Invocations per workgroup of the per-node passes (generated into `hier_select.wgsl`'s module).
 pub const HIER_WORKGROUP_SIZE: u32 = 64;
+
+/// The `hier_select` stage's module: `hier_select.wgsl`, then [`crate::select::SCAN`].
+pub const SOURCE: crate::shaders::StageSource = crate::shaders::StageSource {
+    own: crate::shaders::WgslFile {
+        name: "hier_select.wgsl",
+        wgsl: include_str!("shaders/hier_select.wgsl"),
+        constants: crate::shaders::wgsl_constants![HIER_WORKGROUP_SIZE],
+    },
+    parts: &[crate::select::SCAN],
+};
 
 /// The per-frame uniform of `hier_select.wgsl`. Keep in sync with `struct HierUniform` there.
 #[repr(C)]
@@ -57,7 +67,7 @@ const _: () = assert!(size_of::<HierUniform>() == 176);
 
 compute_pipelines! {
     /// The compiled pipelines of `hier_select.wgsl`, one set per [`GpuContext`] (cached there).
-    pub struct HierSelectPipelines = "hier_select", crate::shaders::hier_select_source(), [
+    pub struct HierSelectPipelines = "hier_select", SOURCE.module(), [
         Slot::Uniform(size_of::<HierUniform>() as u64),
         READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE,
         Slot::Write(size_of::<SelectCounters>() as u64),

@@ -31,11 +31,15 @@
 //!   `SelectPipelines`, `CullPipelines`, `RefinePipelines`, `DrawPipelines`,
 //!   `PrimitivePipelines`, `MipsPipelines`, `BakePipelines`, `DepthCopyPipelines`) are compiled
 //!   once per context on first use and shared by every driver ([`GpuContext::pipelines`]);
-//! - [`readback`]: uploading `Pod` slices and reading buffers and texture levels back;
-//! - [`shaders`]: the WGSL sources, with `common.wgsl` mirroring `forestlod-shared`'s `Pod` structs
-//!   field for field (a naga reflection test checks every offset);
+//! - [`readback`]: creating and uploading buffers (`Pod` slices, the stages' uniforms) and reading
+//!   buffers and texture levels back;
+//! - [`shaders`]: the composition of the WGSL modules (the constants of `forestlod-shared`, then
+//!   `common.wgsl`, which mirrors `forestlod-shared`'s `Pod` structs field for field, checked by a
+//!   naga reflection test, then the stage's own files);
 //! - the stage drivers ([`select`], [`bake`], [`mips`], [`draw`], [`cull`], [`primitive`],
-//!   [`refine`]).
+//!   [`hier_select`], [`coalesce`], [`command_order`], [`refine`]), each declaring its WGSL
+//!   module, its `.wgsl` file and the constants it owns, as its `SOURCE` ([`StageSource`]);
+//!   [`STAGE_SOURCES`] lists them.
 //!
 //! **Rule: no per-frame state behind `&self`.** `queue.write_buffer` lands at the next submit of
 //! *any* thread, so a driver that rewrites a buffer it owns from a `&self` method lets two threads
@@ -44,7 +48,7 @@
 //! - drivers that hold only compiled pipelines (shared `Arc`s from the context's cache, which
 //!   holds nothing per frame: [`GpuDraw`], [`GpuPrimitive`], [`GpuBake`], [`GpuMips`]) are `Sync`
 //!   and take `&self`; every per-frame buffer (uniforms, outputs) is
-//!   created by the call itself (`context::frame_uniform`) or lives in a per-call or per-target
+//!   created by the call itself (`readback::frame_uniform`) or lives in a per-call or per-target
 //!   object the caller owns ([`DrawTarget`]);
 //! - drivers that own per-scene outputs the frame writes ([`GpuSelect`], [`GpuCull`],
 //!   [`GpuRefine`]) take `&mut self` to record a frame, and a stage that rewrites another stage's
@@ -97,3 +101,168 @@ pub use mips::{GpuMips, MipArray, MipLevelStats, MipTexels};
 pub use primitive::{GpuPrimitive, GpuProxies, PrimitiveInputs};
 pub use refine::{GpuRefine, GpuRefined, RefineCounters, RefineDispatch};
 pub use select::{Compaction, GpuSelect, GpuSelection, SelectBuffers, SelectUniform};
+pub use shaders::{StageSource, WgslFile};
+
+/// Every stage's WGSL module as its driver declares it, in the order of the table above. The
+/// crate's tests compile each and check their constants against each other.
+pub const STAGE_SOURCES: [&StageSource; 10] = [
+    &select::SOURCE,
+    &bake::SOURCE,
+    &mips::SOURCE,
+    &draw::SOURCE,
+    &cull::SOURCE,
+    &primitive::SOURCE,
+    &hier_select::SOURCE,
+    &coalesce::SOURCE,
+    &command_order::SOURCE,
+    &refine::SOURCE,
+];
+
+#[cfg(test)]
+mod tests {
+    use std::collections::{BTreeMap, BTreeSet};
+
+    use crate::STAGE_SOURCES;
+    use crate::shaders::{COMMON_WGSL, shared_constants};
+    use crate::wgsl_layout::validate;
+
+    /// `(name, text)` of every compiled-in `.wgsl` file: `common.wgsl`, every file of every
+    /// stage's module (a part shared by several once), and the standalone `depth_copy.wgsl`.
+    fn compiled_in_files() -> BTreeMap<&'static str, &'static str> {
+        let mut files = BTreeMap::from([
+            ("common.wgsl", COMMON_WGSL),
+            ("depth_copy.wgsl", crate::draw::DEPTH_COPY_WGSL),
+        ]);
+        for file in STAGE_SOURCES.iter().flat_map(|s| s.files()) {
+            files.insert(file.name, file.wgsl);
+        }
+        files
+    }
+
+    /// Every generated constant `(name, value, declared by)`: the shared ones, then each stage
+    /// file's own (a part shared by several stages once per stage).
+    fn every_generated_constant() -> Vec<(String, u32, &'static str)> {
+        let shared = shared_constants()
+            .into_iter()
+            .map(|(n, v)| (n, v, "shared"));
+        let own = STAGE_SOURCES
+            .iter()
+            .flat_map(|s| s.files())
+            .flat_map(|f| f.constants.iter().map(|&(n, v)| (n.to_string(), v, f.name)));
+        shared.chain(own).collect()
+    }
+
+    /// Every `.wgsl` file of `gpu/src/shaders/` is compiled in: a stage's file or part, the
+    /// common file, or the standalone depth copy (so a new stage's file without a
+    /// [`STAGE_SOURCES`] entry fails here), and no two stages share an own file.
+    #[test]
+    fn every_wgsl_file_is_in_a_module() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/src/shaders");
+        let on_disk: BTreeSet<String> = std::fs::read_dir(dir)
+            .expect("gpu/src/shaders")
+            .map(|e| {
+                e.expect("dir entry")
+                    .file_name()
+                    .to_string_lossy()
+                    .into_owned()
+            })
+            .filter(|n| n.ends_with(".wgsl"))
+            .collect();
+        let compiled: BTreeSet<String> =
+            compiled_in_files().keys().map(|n| n.to_string()).collect();
+        assert_eq!(
+            on_disk, compiled,
+            "gpu/src/shaders (left) vs compiled in (right)"
+        );
+        let own: BTreeSet<&str> = STAGE_SOURCES.iter().map(|s| s.own.name).collect();
+        assert_eq!(
+            own.len(),
+            STAGE_SOURCES.len(),
+            "two stages share an own file"
+        );
+        eprintln!("{} .wgsl files, {} stage modules", on_disk.len(), own.len());
+    }
+
+    /// No `.wgsl` file declares a constant that is generated (else the module would not compile,
+    /// or, for a standalone source, a hand-kept copy could drift).
+    #[test]
+    fn stage_sources_declare_no_generated_constant() {
+        let names: BTreeSet<String> = every_generated_constant()
+            .into_iter()
+            .map(|(n, _, _)| n)
+            .collect();
+        for (file, src) in compiled_in_files() {
+            for name in &names {
+                let decl = format!("const {name}:");
+                assert!(!src.contains(&decl), "{file} declares generated `{name}`");
+            }
+        }
+        eprintln!("{} generated names, none declared by hand", names.len());
+    }
+
+    /// No constant name is generated with two values (across the shared list and every stage's
+    /// list), and no module declares a name twice.
+    #[test]
+    fn no_constant_is_generated_twice_with_different_values() {
+        let mut seen: BTreeMap<String, (u32, &str)> = BTreeMap::new();
+        for (name, value, by) in every_generated_constant() {
+            let (first, first_by) = *seen.entry(name.clone()).or_insert((value, by));
+            assert_eq!(
+                first, value,
+                "`{name}` is {first} in {first_by}'s constants but {value} in {by}'s"
+            );
+        }
+        for stage in STAGE_SOURCES {
+            let constants = stage.constants();
+            let names: BTreeSet<&str> = constants.iter().map(|(n, _)| n.as_str()).collect();
+            assert_eq!(
+                names.len(),
+                constants.len(),
+                "{}'s module declares a constant twice",
+                stage.own.name
+            );
+        }
+        eprintln!("{} distinct generated constants", seen.len());
+    }
+
+    /// Every stage's module, as the driver compiles it, parses and validates (naga): it declares
+    /// every constant its files read, and nothing twice.
+    #[test]
+    fn every_stage_module_validates() {
+        for stage in STAGE_SOURCES {
+            validate(&stage.module());
+            eprintln!("{}: valid", stage.own.name);
+        }
+    }
+
+    /// A stage's own constants reach its module with their Rust values (a spot check: a workgroup
+    /// size, the scan part's, a table offset).
+    #[test]
+    fn stage_constants_are_the_rust_items() {
+        for (stage, line) in [
+            (
+                &crate::select::SOURCE,
+                "const SELECT_WORKGROUP_SIZE: u32 = 64u;",
+            ),
+            (
+                &crate::select::SOURCE,
+                "const SCAN_WORKGROUP_SIZE: u32 = 256u;",
+            ),
+            (
+                &crate::hier_select::SOURCE,
+                "const SCAN_WORKGROUP_SIZE: u32 = 256u;",
+            ),
+            (
+                &crate::coalesce::SOURCE,
+                "const SCAN_WORKGROUP_SIZE: u32 = 256u;",
+            ),
+            (
+                &crate::mips::SOURCE,
+                "const TABLE_UNORM_ENCODE: u32 = 768u;",
+            ),
+        ] {
+            let module = stage.module();
+            assert!(module.contains(line), "{} lacks `{line}`", stage.own.name);
+        }
+    }
+}

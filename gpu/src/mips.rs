@@ -71,6 +71,7 @@ use forestlod_shared::MipMode;
 
 use crate::context::{Slot, bind_group, compute_pipelines, dynamic_uniform_slot};
 use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
+use crate::shaders::{StageSource, WgslFile, wgsl_constants};
 use crate::{GpuContext, GpuError};
 
 /// Largest layer side accepted (as `reference::mips::MAX_MIP_SIDE`).
@@ -83,19 +84,19 @@ pub const BILLBOARD_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unor
 /// billboard texture lists it in its `view_formats`.
 pub const BILLBOARD_BYTES_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 
-/// Bisection steps of the coverage search; keep in sync with `mips.wgsl` and
+/// Bisection steps of the coverage search (generated into [`SOURCE`]); keep in sync with
 /// `reference::mips::COVERAGE_BISECTION_STEPS` (31 halvings of the bit-pattern gap
 /// `0x7F7F_FFFF < 2^31` end on adjacent floats).
 pub const COVERAGE_BISECTION_STEPS: u32 = 31;
 
 /// Counting rounds of a CoveragePreserving level: scale 1, `f32::MAX`, then
-/// [`COVERAGE_BISECTION_STEPS`] bisection steps. Keep in sync with `mips.wgsl`.
+/// [`COVERAGE_BISECTION_STEPS`] bisection steps (generated into [`SOURCE`]).
 pub const COVERAGE_ROUNDS: u32 = COVERAGE_BISECTION_STEPS + 2;
 
-/// Side of the square workgroups of the per-texel passes. Keep in sync with `mips.wgsl`.
+/// Side of the square workgroups of the per-texel passes (generated into [`SOURCE`]).
 pub const MIPS_TILE: u32 = 8;
-/// Invocations per workgroup of the per-layer passes (`mips_adjust`, `mips_coverage_step`). Keep
-/// in sync with `mips.wgsl`.
+/// Invocations per workgroup of the per-layer passes (`mips_adjust`, `mips_coverage_step`;
+/// generated into [`SOURCE`]).
 pub const MIPS_LAYER_WORKGROUP_SIZE: u32 = 64;
 
 /// [`MipLevelStats::adjust_kind`]: alpha unchanged (level 0, Box).
@@ -107,8 +108,8 @@ pub const ADJUST_CONSTANT: u32 = 2;
 /// [`MipLevelStats::adjust_kind`]: coverage scale `α' = clamp(α · adjust[0], 0, 1)`.
 pub const ADJUST_SCALE: u32 = 3;
 
-/// Offset of the sRGB decode table in [`mip_tables`] (byte to linear). Keep in sync with
-/// `mips.wgsl`.
+/// Offset of the sRGB decode table in [`mip_tables`] (byte to linear). This and the
+/// other offsets are generated into [`SOURCE`].
 pub const TABLE_SRGB_DECODE: usize = 0;
 /// Offset of the UNORM decode table (byte to `byte / 255`).
 pub const TABLE_UNORM_DECODE: usize = 256;
@@ -119,6 +120,29 @@ pub const TABLE_SRGB_ENCODE: usize = 512;
 pub const TABLE_UNORM_ENCODE: usize = 768;
 /// Length of [`mip_tables`].
 pub const TABLE_LEN: usize = 1024;
+
+/// The `mips` stage's module: `mips.wgsl`, with the constants above that it reads.
+pub const SOURCE: StageSource = StageSource {
+    own: WgslFile {
+        name: "mips.wgsl",
+        wgsl: include_str!("shaders/mips.wgsl"),
+        constants: wgsl_constants![
+            MIPS_TILE,
+            MIPS_LAYER_WORKGROUP_SIZE,
+            COVERAGE_BISECTION_STEPS,
+            COVERAGE_ROUNDS,
+            ADJUST_KEEP,
+            ADJUST_REMAP,
+            ADJUST_CONSTANT,
+            ADJUST_SCALE,
+            TABLE_SRGB_DECODE as u32,
+            TABLE_UNORM_DECODE as u32,
+            TABLE_SRGB_ENCODE as u32,
+            TABLE_UNORM_ENCODE as u32,
+        ],
+    },
+    parts: &[],
+};
 
 /// Output rows are padded to this many texels (256 bytes, `COPY_BYTES_PER_ROW_ALIGNMENT`).
 const OUT_ROW_ALIGN_TEXELS: u32 = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT / 4;
@@ -471,7 +495,7 @@ fn check_billboard_texture(
 
 compute_pipelines! {
     /// The compiled pipelines of `mips.wgsl`.
-    struct MipsPipelines = "mips", crate::shaders::mips_source(), [
+    struct MipsPipelines = "mips", SOURCE.module(), [
         // One uniform slot per level, picked by dynamic offset.
         Slot::DynamicUniform(size_of::<MipsUniform>() as u64),
         Slot::Read((TABLE_LEN * 4) as u64),
@@ -955,7 +979,7 @@ mod tests {
     #[test]
     fn wgsl_structs_match_their_rust_twins() {
         use crate::wgsl_layout::{assert_offsets, rust_layout, validate, wgsl_layout};
-        let module = validate(&crate::shaders::mips_source());
+        let module = validate(&SOURCE.module());
         let uniform = rust_layout!(MipsUniform {
             level,
             side,

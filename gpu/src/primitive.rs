@@ -41,13 +41,24 @@ use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, ProxyRecord};
 
 use crate::context::{
-    StagePipelines, buffer_bind_group, buffer_entry, frame_uniform, group_layout, shader_module,
+    StagePipelines, buffer_bind_group, buffer_entry, group_layout, shader_module,
 };
 use crate::draw::{
     DrawScene, DrawTarget, DrawUniform, begin_target_pass, target_pipeline, terrain_pipeline,
 };
-use crate::readback::upload_storage;
+use crate::readback::{frame_uniform, upload_storage};
+use crate::shaders::{StageSource, WgslFile};
 use crate::{GpuContext, GpuError};
+
+/// The `primitive` stage's module: `primitive.wgsl` (it reads only shared constants; its ground is `draw.wgsl`, [`crate::draw::SOURCE`]).
+pub const SOURCE: StageSource = StageSource {
+    own: WgslFile {
+        name: "primitive.wgsl",
+        wgsl: include_str!("shaders/primitive.wgsl"),
+        constants: &[],
+    },
+    parts: &[],
+};
 
 /// A proxy whose bounding sphere comes nearer the eye than this many near-plane distances gets a
 /// full-screen quad. Keep in sync with `reference::baselines::NEAR_FALLBACK_FACTOR`.
@@ -198,16 +209,9 @@ impl StagePipelines for PrimitivePipelines {
     fn create(ctx: &GpuContext) -> Result<Self, GpuError> {
         ctx.checked("primitive.wgsl pipelines", || {
             let device = &ctx.device;
-            let module = shader_module(
-                device,
-                "primitive.wgsl",
-                &crate::shaders::primitive_source(),
-            );
-            let draw_module = shader_module(
-                device,
-                "draw.wgsl (terrain)",
-                &crate::shaders::draw_source(),
-            );
+            let module = shader_module(device, "primitive.wgsl", &SOURCE.module());
+            let draw_module =
+                shader_module(device, "draw.wgsl (terrain)", &crate::draw::SOURCE.module());
             use wgpu::ShaderStages as S;
             let storage = wgpu::BufferBindingType::Storage { read_only: true };
             let uniform = |size| {
@@ -344,7 +348,7 @@ mod tests {
     /// shared records in `gpu/tests/layout.rs`).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let module = validate(&crate::shaders::primitive_source());
+        let module = validate(&SOURCE.module());
         assert_layout(
             &module,
             &rust_layout!(PrimitiveUniform {

@@ -1,5 +1,6 @@
-//! Uploading `Pod` data and reading buffers and textures back, for parity tests (SPEC §8) and for
-//! the experiments' reports.
+//! Creating and uploading buffers (`Pod` data, the stages' uniforms) and reading buffers and
+//! textures back, for the stage drivers, for parity tests (SPEC §8) and for the experiments'
+//! reports.
 //!
 //! Readback copies into a `MAP_READ` staging buffer, submits, maps it and blocks on
 //! [`wgpu::Device::poll`] until the map completes. Texture rows are copied with
@@ -60,6 +61,34 @@ pub fn zeroed_buffer(
         usage,
         mapped_at_creation: false,
     })
+}
+
+/// A zeroed `UNIFORM | COPY_DST` buffer the size of `T`, labelled `label`: the uniform a driver
+/// owning per-scene outputs rewrites each frame from a `&mut self` method (crate docs).
+pub(crate) fn stage_uniform<T>(ctx: &GpuContext, label: &str) -> wgpu::Buffer {
+    zeroed_buffer(
+        ctx,
+        label,
+        size_of::<T>() as u64,
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+    )
+}
+
+/// A fresh `UNIFORM` buffer holding `value`, for one recorded frame.
+///
+/// Stage drivers never keep a uniform buffer of their own behind `&self` and rewrite it through
+/// the queue: `queue.write_buffer` lands at the next submit *of any thread*, so two threads that
+/// record frames with one driver would each draw with whichever camera was written last (the race
+/// behind a flaky parity test, issue 10). A per-call buffer, bound into the per-call bind group,
+/// makes that impossible by construction; it costs one small allocation per frame (wgpu keeps it
+/// alive until the command buffer that uses it has run).
+pub(crate) fn frame_uniform<T: Pod>(ctx: &GpuContext, label: &str, value: &T) -> wgpu::Buffer {
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::bytes_of(value),
+            usage: wgpu::BufferUsages::UNIFORM,
+        })
 }
 
 /// Reads `count` elements of `T` starting at byte `offset` of `buffer` (which needs `COPY_SRC`;

@@ -66,13 +66,24 @@ use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{Camera, Params, SelectCounters, ViewUniform};
 
 use crate::context::{
-    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines,
 };
-use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
+use crate::readback::{read_buffer, stage_uniform, upload_storage, zeroed_buffer};
+use crate::shaders::{StageSource, WgslFile, wgsl_constants};
 use crate::{CullTree, GpuContext, GpuError, GpuSelection, SelectBuffers};
 
-/// Invocations per workgroup, and trees per chunk. Keep in sync with `refine.wgsl`.
+/// Invocations per workgroup, and trees per chunk (generated into `refine.wgsl`'s module).
 pub const REFINE_WORKGROUP_SIZE: u32 = 64;
+
+/// The `refine` stage's module: `refine.wgsl`.
+pub const SOURCE: StageSource = StageSource {
+    own: WgslFile {
+        name: "refine.wgsl",
+        wgsl: include_str!("shaders/refine.wgsl"),
+        constants: wgsl_constants![REFINE_WORKGROUP_SIZE],
+    },
+    parts: &[],
+};
 
 /// The most trees [`GpuRefine`] accepts: `65535 * 64`, so that no batch makes the chunk-prefix
 /// loop run past llvmpipe's 65,535 iterations (module docs); 4n indices then fit a `u32` as well.
@@ -157,7 +168,7 @@ pub struct GpuRefined {
 compute_pipelines! {
     /// The compiled pipelines of `refine.wgsl` (one per pass), one set per [`GpuContext`] (cached
     /// there).
-    pub struct RefinePipelines = "refine", crate::shaders::refine_source(), [
+    pub struct RefinePipelines = "refine", SOURCE.module(), [
         Slot::Uniform(size_of::<RefineUniform>() as u64),
         READ, WRITE, WRITE, READ,
         Slot::Read(size_of::<SelectCounters>() as u64),
@@ -398,7 +409,7 @@ mod tests {
     /// checked by `gpu/tests/layout.rs`).
     #[test]
     fn wgsl_layouts_match_rust() {
-        let module = validate(&crate::shaders::refine_source());
+        let module = validate(&SOURCE.module());
         assert_layout(
             &module,
             &rust_layout!(RefineUniform {

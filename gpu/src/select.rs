@@ -34,15 +34,34 @@ use forestlod_shared::{
 };
 
 use crate::context::{
-    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines, stage_uniform,
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines,
 };
-use crate::readback::{read_buffer, upload_storage, zeroed_buffer};
+use crate::readback::{read_buffer, stage_uniform, upload_storage, zeroed_buffer};
+use crate::shaders::{StageSource, WgslFile, wgsl_constants};
 use crate::{GpuContext, GpuError};
 
-/// Invocations per workgroup of the per-batch passes. Keep in sync with `select.wgsl`.
+/// Invocations per workgroup of the per-batch passes (generated into `select.wgsl`'s module).
 pub const SELECT_WORKGROUP_SIZE: u32 = 64;
-/// Invocations of the single scan workgroup. Keep in sync with `select.wgsl`.
+/// Invocations of the single scan workgroup (generated with [`SCAN`]).
 pub const SCAN_WORKGROUP_SIZE: u32 = 256;
+
+/// The stable compaction's exclusive prefix sum (`scan.wgsl`: `scan_offsets`), appended to the
+/// modules that scan an `offsets` array: this stage's, `hier_select`'s and `coalesce`'s.
+pub const SCAN: WgslFile = WgslFile {
+    name: "scan.wgsl",
+    wgsl: include_str!("shaders/scan.wgsl"),
+    constants: wgsl_constants![SCAN_WORKGROUP_SIZE],
+};
+
+/// The `select` stage's module: `select.wgsl`, then [`SCAN`].
+pub const SOURCE: StageSource = StageSource {
+    own: WgslFile {
+        name: "select.wgsl",
+        wgsl: include_str!("shaders/select.wgsl"),
+        constants: wgsl_constants![SELECT_WORKGROUP_SIZE],
+    },
+    parts: &[SCAN],
+};
 
 /// Per-batch (and, in `cull`, per-tree) decision codes: defined with
 /// [`forestlod_shared::Decision`] (`Decision::code` / `Decision::from_code`), mirrored in
@@ -267,7 +286,7 @@ pub(crate) fn check_mesh_indices(
 compute_pipelines! {
     /// The compiled pipelines of `select.wgsl` (its four passes), one set per [`GpuContext`]
     /// (cached there).
-    pub struct SelectPipelines = "select", crate::shaders::select_source(), [
+    pub struct SelectPipelines = "select", SOURCE.module(), [
         Slot::Uniform(size_of::<SelectUniform>() as u64),
         READ, READ, WRITE, WRITE, WRITE, WRITE,
         Slot::Write(size_of::<SelectCounters>() as u64),

@@ -1,19 +1,88 @@
-//! The WGSL sources. WGSL has no include, so every stage's module is the generated constants
-//! ([`constants_wgsl`]), then `common.wgsl`, then the stage's own file; naga reports line numbers
-//! of that concatenation.
+//! The composition of the WGSL modules. WGSL has no include, so every stage's module is its
+//! generated constants, then `common.wgsl`, then the stage's own file, then the parts it appends
+//! (`scan.wgsl`); naga reports line numbers of that concatenation ([`StageSource::module`]).
+//!
+//! Each driver declares its own module (issue 27: "each GPU driver declares its own source and
+//! constants; `shaders.rs` only composes them"): a [`StageSource`] (`gpu/src/<stage>.rs`,
+//! `SOURCE`) naming its `.wgsl` file and the constants its driver owns (workgroup sizes, table
+//! offsets). This module owns only what every module shares: the constants of `forestlod-shared`
+//! ([`shared_constants`]), [`COMMON_WGSL`], and the composition; it names no stage.
+//! `crate::STAGE_SOURCES` lists every stage's declaration.
 //!
 //! Every WGSL `const` whose value a Rust item owns (mode ids, decision codes, LOD ids, workgroup
-//! sizes, table offsets) is generated from that item here, never written in a `.wgsl` file: a
-//! constant kept by hand on both sides is a place for the twins to drift apart silently (issue 11).
-//! The `.wgsl` files keep only constants private to a shader (its state-machine states, bit
-//! patterns). `stage_sources_declare_no_generated_constant` checks that no file redeclares one.
+//! sizes, table offsets) is generated from that item, never written in a `.wgsl` file: a constant
+//! kept by hand on both sides is a place for the twins to drift apart silently (issue 11). The
+//! `.wgsl` files keep only constants private to a shader (its state-machine states, bit
+//! patterns). The crate's tests (`gpu/src/lib.rs`) check that no file redeclares a generated
+//! constant, that no name is generated with two values, and that every stage's module validates.
 
 /// Structs mirroring `forestlod-shared` and the shared scalar formulas.
 pub const COMMON_WGSL: &str = include_str!("shaders/common.wgsl");
 
-/// The `(name, value)` of every generated `u32` constant ([`constants_wgsl`]).
-pub fn generated_constants() -> Vec<(String, u32)> {
-    use crate::{coalesce, command_order, cull, hier_select, mips, refine, select};
+/// One generated WGSL `u32` constant: the name of the Rust item that owns it, and its value.
+pub type WgslConstant = (&'static str, u32);
+
+/// The [`WgslConstant`]s of the listed `u32` items (a `usize` one as `NAME as u32`), each named
+/// after its item, so a constant's WGSL name cannot drift from the Rust one.
+macro_rules! wgsl_constants {
+    ($($name:ident $(as $ty:ty)?),* $(,)?) => {
+        &[$((stringify!($name), $name $(as $ty)?)),*]
+    };
+}
+pub(crate) use wgsl_constants;
+
+/// A file of `gpu/src/shaders/` and the generated constants that its driver owns and it reads.
+#[derive(Clone, Copy, Debug)]
+pub struct WgslFile {
+    /// The file's name in `gpu/src/shaders/` (`select.wgsl`), the key of [`mutant_or`].
+    pub name: &'static str,
+    /// Its compiled-in text (`include_str!`).
+    pub wgsl: &'static str,
+    /// The constants it reads beyond [`shared_constants`] ([`wgsl_constants!`]).
+    pub constants: &'static [WgslConstant],
+}
+
+/// A stage's WGSL module, declared by its driver: its own file, then the parts appended to it
+/// (a file shared by several stages, declared by the driver that owns its constants).
+#[derive(Clone, Copy, Debug)]
+pub struct StageSource {
+    /// The stage's own file, `gpu/src/shaders/<stage>.wgsl`.
+    pub own: WgslFile,
+    /// Appended after `own`, in order.
+    pub parts: &'static [WgslFile],
+}
+
+impl StageSource {
+    /// The module's files in order: [`Self::own`], then [`Self::parts`].
+    pub fn files(&self) -> impl Iterator<Item = &WgslFile> {
+        std::iter::once(&self.own).chain(self.parts)
+    }
+
+    /// Every constant the module declares: [`shared_constants`], then each file's own, in order.
+    pub fn constants(&self) -> Vec<(String, u32)> {
+        let own = self
+            .files()
+            .flat_map(|f| f.constants)
+            .map(|&(n, v)| (n.to_string(), v));
+        shared_constants().into_iter().chain(own).collect()
+    }
+
+    /// The full module source: [`constants_wgsl`] of [`Self::constants`], [`COMMON_WGSL`], then
+    /// the files, each on a new line (each file's text through [`mutant_or`]).
+    pub fn module(&self) -> String {
+        let parts: Vec<String> = std::iter::once(compose(
+            &self.constants(),
+            &mutant_or(self.own.name, self.own.wgsl),
+        ))
+        .chain(self.parts.iter().map(|p| mutant_or(p.name, p.wgsl)))
+        .collect();
+        parts.join("\n")
+    }
+}
+
+/// The `(name, value)` of every constant that every module declares: the ones `forestlod-shared`
+/// owns (the stages' own come with their [`StageSource`]).
+pub fn shared_constants() -> Vec<(String, u32)> {
     use forestlod_shared as s;
     let mut out: Vec<(String, u32)> = [
         ("COMMAND_SHIFT", s::COMMAND_SHIFT),
@@ -29,33 +98,11 @@ pub fn generated_constants() -> Vec<(String, u32)> {
         ("LOD_ID_BILLBOARD", s::LOD_ID_BILLBOARD),
         ("LOD_ID_TRANSITION", s::LOD_ID_TRANSITION),
         ("LOD_ID_TERRAIN", s::LOD_ID_TERRAIN),
-        ("SELECT_WORKGROUP_SIZE", select::SELECT_WORKGROUP_SIZE),
-        ("SCAN_WORKGROUP_SIZE", select::SCAN_WORKGROUP_SIZE),
-        ("CULL_WORKGROUP_SIZE", cull::CULL_WORKGROUP_SIZE),
-        ("REFINE_WORKGROUP_SIZE", refine::REFINE_WORKGROUP_SIZE),
-        ("HIER_WORKGROUP_SIZE", hier_select::HIER_WORKGROUP_SIZE),
-        ("COALESCE_WORKGROUP_SIZE", coalesce::COALESCE_WORKGROUP_SIZE),
-        (
-            "COMMAND_ORDER_WORKGROUP_SIZE",
-            command_order::COMMAND_ORDER_WORKGROUP_SIZE,
-        ),
         ("NO_PARENT", s::NO_PARENT),
         ("NODE_RECURSE", s::NODE_RECURSE),
         ("NODE_VISITED", s::NODE_VISITED),
         ("NODE_EMITTED", s::NODE_EMITTED),
         ("MAX_HIERARCHY_DEPTH", s::MAX_HIERARCHY_DEPTH),
-        ("MIPS_TILE", mips::MIPS_TILE),
-        ("MIPS_LAYER_WORKGROUP_SIZE", mips::MIPS_LAYER_WORKGROUP_SIZE),
-        ("COVERAGE_BISECTION_STEPS", mips::COVERAGE_BISECTION_STEPS),
-        ("COVERAGE_ROUNDS", mips::COVERAGE_ROUNDS),
-        ("ADJUST_KEEP", mips::ADJUST_KEEP),
-        ("ADJUST_REMAP", mips::ADJUST_REMAP),
-        ("ADJUST_CONSTANT", mips::ADJUST_CONSTANT),
-        ("ADJUST_SCALE", mips::ADJUST_SCALE),
-        ("TABLE_SRGB_DECODE", mips::TABLE_SRGB_DECODE as u32),
-        ("TABLE_UNORM_DECODE", mips::TABLE_UNORM_DECODE as u32),
-        ("TABLE_SRGB_ENCODE", mips::TABLE_SRGB_ENCODE as u32),
-        ("TABLE_UNORM_ENCODE", mips::TABLE_UNORM_ENCODE as u32),
     ]
     .into_iter()
     .map(|(n, v)| (n.to_string(), v))
@@ -80,21 +127,27 @@ pub fn generated_constants() -> Vec<(String, u32)> {
     out
 }
 
-/// The generated constants as WGSL, one `const NAME: u32 = Vu;` line each.
-pub fn constants_wgsl() -> String {
+/// `constants` as WGSL, one `const NAME: u32 = Vu;` line each.
+pub fn constants_wgsl(constants: &[(String, u32)]) -> String {
     let mut out = String::from(
         "// Generated by gpu/src/shaders.rs from the Rust items that own these values.\n",
     );
-    for (name, value) in generated_constants() {
+    for (name, value) in constants {
         out.push_str(&format!("const {name}: u32 = {value}u;\n"));
     }
     out
 }
 
-/// The full source of a stage: [`constants_wgsl`], [`COMMON_WGSL`], then `stage`.
-pub fn with_common(stage: &str) -> String {
+/// [`constants_wgsl`] of `constants`, [`COMMON_WGSL`], then `stage`.
+fn compose(constants: &[(String, u32)], stage: &str) -> String {
     let common = mutant_or("common.wgsl", COMMON_WGSL);
-    format!("{}{common}\n{stage}", constants_wgsl())
+    format!("{}{common}\n{stage}", constants_wgsl(constants))
+}
+
+/// `stage` after [`shared_constants`] and [`COMMON_WGSL`]: a module of `common.wgsl` alone (with
+/// `""`), or with a test's own declarations.
+pub fn with_common(stage: &str) -> String {
+    compose(&shared_constants(), stage)
 }
 
 /// The mutation-testing hook (`forestlod-experiments`' `mutate`, issue 15): when the environment
@@ -112,119 +165,14 @@ pub fn mutant_or(file: &str, own: &str) -> String {
     own.to_string()
 }
 
-/// The stable compaction's exclusive prefix sum (`scan_offsets`), appended to the modules that
-/// scan an `offsets` array: `select.wgsl`, `hier_select.wgsl` and `coalesce.wgsl`.
-pub const SCAN_WGSL: &str = include_str!("shaders/scan.wgsl");
-
-/// A stage's own source `shaders/<file>` (const `$own`, documented by the given doc) and its full
-/// module source (fn `$full`: [`with_common`] of it, then any shared parts named after it).
-macro_rules! stage_source {
-    ($(#[$doc:meta])* $own:ident, $full:ident, $file:literal $(, $part:ident = $pfile:literal)*) => {
-        $(#[$doc])*
-        pub const $own: &str = include_str!(concat!("shaders/", $file));
-
-        #[doc = concat!("The full `", $file, "` module source: [`COMMON_WGSL`], [`", stringify!($own), "`]", $(", [`", stringify!($part), "`]",)* ".")]
-        pub fn $full() -> String {
-            let parts: Vec<String> =
-                vec![with_common(&mutant_or($file, $own)) $(, mutant_or($pfile, $part))*];
-            parts.join("\n")
-        }
-    };
-}
-
-stage_source!(
-    /// The `select` stage's own source (without [`COMMON_WGSL`]).
-    SELECT_WGSL, select_source, "select.wgsl", SCAN_WGSL = "scan.wgsl"
-);
-stage_source!(
-    /// The `draw` stage's own source (without [`COMMON_WGSL`]).
-    DRAW_WGSL, draw_source, "draw.wgsl"
-);
-stage_source!(
-    /// The `mips` stage's own source (without [`COMMON_WGSL`]).
-    MIPS_WGSL, mips_source, "mips.wgsl"
-);
-stage_source!(
-    /// The `bake` stage's own source (without [`COMMON_WGSL`]).
-    BAKE_WGSL, bake_source, "bake.wgsl"
-);
-stage_source!(
-    /// The `cull` stage's own source (without [`COMMON_WGSL`]): the baselines' per-tree culling.
-    CULL_WGSL, cull_source, "cull.wgsl"
-);
-stage_source!(
-    /// The `primitive` stage's own source (without [`COMMON_WGSL`]): the Primitive baseline's quads.
-    PRIMITIVE_WGSL, primitive_source, "primitive.wgsl"
-);
-stage_source!(
-    /// The `refine` stage's own source (without [`COMMON_WGSL`]): per-tree refinement of the
-    /// selected commands (beyond the thesis).
-    REFINE_WGSL, refine_source, "refine.wgsl"
-);
-
-stage_source!(
-    /// The `hier_select` stage's own source (without [`COMMON_WGSL`]): the hierarchical cut
-    /// (issue 13).
-    HIER_SELECT_WGSL, hier_select_source, "hier_select.wgsl", SCAN_WGSL = "scan.wgsl"
-);
-
-stage_source!(
-    /// The `coalesce` stage's own source (without [`COMMON_WGSL`]): command coalescing of the
-    /// hierarchical cut (issue 13).
-    COALESCE_WGSL, coalesce_source, "coalesce.wgsl", SCAN_WGSL = "scan.wgsl"
-);
-
-stage_source!(
-    /// The `command_order` stage's own source (without [`COMMON_WGSL`]): distance-sorted
-    /// commands of the hierarchical cut (issue 13, E§7).
-    COMMAND_ORDER_WGSL, command_order_source, "command_order.wgsl"
-);
-
-/// The depth read-back by compute (`DrawTarget::read`), standalone: [`COMMON_WGSL`] is not
-/// prepended.
-pub const DEPTH_COPY_WGSL: &str = include_str!("shaders/depth_copy.wgsl");
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// No `.wgsl` file declares a constant that is generated (else the module would not compile,
-    /// or, for a standalone source, a hand-kept copy could drift), and every generated name is
-    /// unique.
+    /// The shared values are the Rust ones (a spot check of each source of values).
     #[test]
-    fn stage_sources_declare_no_generated_constant() {
-        let generated = generated_constants();
-        let mut names: Vec<&str> = generated.iter().map(|(n, _)| n.as_str()).collect();
-        names.sort_unstable();
-        let before = names.len();
-        names.dedup();
-        assert_eq!(names.len(), before, "a generated constant is named twice");
-        for (file, src) in [
-            ("common.wgsl", COMMON_WGSL),
-            ("select.wgsl", SELECT_WGSL),
-            ("draw.wgsl", DRAW_WGSL),
-            ("mips.wgsl", MIPS_WGSL),
-            ("bake.wgsl", BAKE_WGSL),
-            ("cull.wgsl", CULL_WGSL),
-            ("primitive.wgsl", PRIMITIVE_WGSL),
-            ("refine.wgsl", REFINE_WGSL),
-            ("hier_select.wgsl", HIER_SELECT_WGSL),
-            ("coalesce.wgsl", COALESCE_WGSL),
-            ("command_order.wgsl", COMMAND_ORDER_WGSL),
-            ("depth_copy.wgsl", DEPTH_COPY_WGSL),
-            ("scan.wgsl", SCAN_WGSL),
-        ] {
-            for name in &names {
-                let decl = format!("const {name}:");
-                assert!(!src.contains(&decl), "{file} declares generated `{name}`");
-            }
-        }
-    }
-
-    /// The generated values are the Rust ones (a spot check of each source of values).
-    #[test]
-    fn generated_values_are_the_rust_items() {
-        let src = constants_wgsl();
+    fn shared_values_are_the_rust_items() {
+        let src = constants_wgsl(&shared_constants());
         for line in [
             "const DECISION_LOD1: u32 = 8u;",
             "const FADE_DITHER_SEQUENTIAL: u32 = 3u;",
@@ -234,12 +182,41 @@ mod tests {
             "const HIERARCHY_OCTREE_EUCLIDEAN: u32 = 4u;",
             "const NO_PARENT: u32 = 4294967295u;",
             "const LOD_ID_TERRAIN: u32 = 4u;",
-            "const TABLE_UNORM_ENCODE: u32 = 768u;",
         ] {
-            assert!(
-                src.contains(line),
-                "generated constants lack `{line}`:\n{src}"
-            );
+            assert!(src.contains(line), "shared constants lack `{line}`:\n{src}");
         }
+    }
+
+    /// A stage's constants are named after their items and follow the shared ones; its module is
+    /// the constants, `common.wgsl`, its own file and its parts, in that order.
+    #[test]
+    fn a_stage_module_is_its_constants_common_and_files_in_order() {
+        const ONE: u32 = 7;
+        const PART: WgslFile = WgslFile {
+            name: "part.wgsl",
+            wgsl: "// the part",
+            constants: &[("PART_CONST", 9)],
+        };
+        const STAGE: StageSource = StageSource {
+            own: WgslFile {
+                name: "stage.wgsl",
+                wgsl: "// the stage",
+                constants: wgsl_constants![ONE],
+            },
+            parts: &[PART],
+        };
+        let constants = STAGE.constants();
+        let shared = shared_constants();
+        assert_eq!(constants[..shared.len()], shared[..]);
+        assert_eq!(
+            constants[shared.len()..],
+            [("ONE".to_string(), 7), ("PART_CONST".to_string(), 9)]
+        );
+        let module = STAGE.module();
+        let at = |s: &str| module.find(s).unwrap_or_else(|| panic!("{s} missing"));
+        assert!(at("const ONE: u32 = 7u;") < at("struct Camera"));
+        assert!(at("struct Camera") < at("// the stage"));
+        assert!(at("// the stage") < at("// the part"));
+        assert!(module.starts_with(&constants_wgsl(&constants)));
     }
 }

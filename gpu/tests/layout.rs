@@ -6,10 +6,9 @@
 //! and `SelectUniform` (with the `ViewUniform` every selection-like stage embeds) are legal in the
 //! uniform address space.
 
-use forestlod_gpu::shaders::{
-    coalesce_source, cull_source, hier_select_source, primitive_source, select_source, with_common,
-};
+use forestlod_gpu::shaders::with_common;
 use forestlod_gpu::{CoalesceUniform, CullTree, HierUniform, SelectUniform};
+use forestlod_gpu::{coalesce, cull, hier_select, primitive, select};
 use forestlod_shared::{
     BatchMeta, Camera, CommandData, DrawCommand, FrustumPlanes, MeshMeta, NodeMeta, ProxyRecord,
     SelectCounters,
@@ -105,10 +104,10 @@ fn wgsl_structs_match_their_rust_twins() {
     // Bind the uniform-side structs as uniforms so validation checks their uniform layout rules.
     let source = format!(
         "{}\n@group(9) @binding(1) var<uniform> layout_camera: Camera;\n",
-        select_source()
+        select::SOURCE.module()
     );
     let module = validate(&source);
-    let primitive = validate(&primitive_source());
+    let primitive = validate(&primitive::SOURCE.module());
     let mut checked = 0;
     let primitive_layouts = vec![rust_layout!(ProxyRecord {
         crown_radius,
@@ -146,7 +145,7 @@ fn common_wgsl_is_valid_alone() {
 /// layout there too.
 #[test]
 fn cull_and_primitive_modules_validate() {
-    for source in [cull_source(), primitive_source()] {
+    for source in [cull::SOURCE.module(), primitive::SOURCE.module()] {
         let module = validate(&source);
         for name in ["SelectCounters", "DrawCommand", "CommandData", "MeshMeta"] {
             assert_eq!(
@@ -165,7 +164,7 @@ fn cull_and_primitive_modules_validate() {
 fn hier_select_structs_match_their_rust_twins() {
     let module = validate(&format!(
         "{}\n@group(9) @binding(0) var<uniform> layout_hier: HierUniform;\n",
-        hier_select_source()
+        hier_select::SOURCE.module()
     ));
     assert_layout(
         &module,
@@ -204,7 +203,7 @@ fn hier_select_structs_match_their_rust_twins() {
 fn coalesce_structs_match_their_rust_twins() {
     let module = validate(&format!(
         "{}\n@group(9) @binding(0) var<uniform> layout_coalesce: CoalesceUniform;\n",
-        coalesce_source()
+        coalesce::SOURCE.module()
     ));
     assert_layout(
         &module,
@@ -222,7 +221,7 @@ fn coalesce_structs_match_their_rust_twins() {
 /// stage's count buffer.
 #[test]
 fn atomic_counters_have_the_counters_layout() {
-    let module = validate(&select_source());
+    let module = validate(&select::SOURCE.module());
     let (plain, plain_span) = wgsl_layout(&module, "SelectCounters").unwrap();
     let (atomic, atomic_span) = wgsl_layout(&module, "SelectCountersAtomic").unwrap();
     assert_eq!(plain, atomic);

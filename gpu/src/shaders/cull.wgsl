@@ -33,7 +33,7 @@ struct DrawIndirectArgs {
     first_instance: u32,
 }
 
-// CULL_WORKGROUP_SIZE: generated from Rust (gpu/src/shaders.rs).
+// CULL_WORKGROUP_SIZE: generated from Rust (gpu/src/cull.rs, SOURCE).
 // A tree that is not drawn.
 const NO_SLOT: u32 = 0xffffffffu;
 // Vertices of one Primitive quad (two triangles).

@@ -29,8 +29,8 @@ struct HierUniform {
 
 // The atomic view of the counters buffer, SelectCountersAtomic, is in common.wgsl.
 
-// NODE_VISITED, NODE_EMITTED (forestlod_shared::cut), HIER_WORKGROUP_SIZE (gpu/src/hier_select.rs)
-// and SCAN_WORKGROUP_SIZE (gpu/src/select.rs) are generated (gpu/src/shaders.rs).
+// NODE_VISITED, NODE_EMITTED (forestlod_shared::cut, gpu/src/shaders.rs), HIER_WORKGROUP_SIZE
+// (gpu/src/hier_select.rs, SOURCE) and SCAN_WORKGROUP_SIZE (gpu/src/select.rs, SCAN): generated.
 
 @group(0) @binding(0) var<uniform> u: HierUniform;
 @group(0) @binding(1) var<storage, read> nodes: array<NodeMeta>;

@@ -50,7 +50,7 @@
 // MIP_* mode ids, ADJUST_* (AlphaAdjust kinds), COVERAGE_BISECTION_STEPS, COVERAGE_ROUNDS
 // (counting rounds of a CoveragePreserving level: scale 1, f32::MAX, then the bisection steps),
 // MIPS_TILE, MIPS_LAYER_WORKGROUP_SIZE and TABLE_* (offsets of the four tables in `tables`):
-// generated from Rust (gpu/src/shaders.rs).
+// generated from Rust (the mode ids: gpu/src/shaders.rs; the rest: gpu/src/mips.rs, SOURCE).
 
 // CoverageState::phase: which count the state waits for.
 const COVERAGE_AT_ONE: u32 = 0u;

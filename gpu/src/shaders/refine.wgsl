@@ -62,7 +62,8 @@ struct RefineDispatch {
     max_chunks: atomic<u32>,
 }
 
-// REFINE_WORKGROUP_SIZE (also the trees per chunk) and the TREE_CULL_* ids: generated from Rust (gpu/src/shaders.rs).
+// REFINE_WORKGROUP_SIZE (also the trees per chunk; gpu/src/refine.rs, SOURCE) and the TREE_CULL_*
+// ids (gpu/src/shaders.rs): generated from Rust.
 
 @group(0) @binding(0) var<uniform> u: RefineUniform;
 @group(0) @binding(1) var<storage, read> trees: array<CullTree>;

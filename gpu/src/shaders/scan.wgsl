@@ -1,6 +1,6 @@
-// scan.wgsl: the stable compaction's exclusive prefix sum, shared by select.wgsl (over batches)
-// and hier_select.wgsl (over nodes). gpu/src/shaders.rs appends it to those two modules (WGSL has
-// no include); each declares the storage array `offsets: array<u32>` that it scans.
+// scan.wgsl: the stable compaction's exclusive prefix sum, shared by select.wgsl (over batches),
+// hier_select.wgsl (over nodes) and coalesce.wgsl (gpu/src/select.rs SCAN, appended to their
+// modules: WGSL has no include); each declares the storage array `offsets: array<u32>` it scans.
 
 var<workgroup> scan_tmp: array<u32, SCAN_WORKGROUP_SIZE>;
 var<workgroup> scan_carry: u32;

@@ -31,7 +31,7 @@ struct SelectUniform {
 
 // Decision codes (DECISION_*) and `decide_sphere` live in common.wgsl (shared with cull.wgsl).
 
-// SELECT_WORKGROUP_SIZE, SCAN_WORKGROUP_SIZE: generated from Rust (gpu/src/shaders.rs).
+// SELECT_WORKGROUP_SIZE, SCAN_WORKGROUP_SIZE: generated from Rust (gpu/src/select.rs).
 
 @group(0) @binding(0) var<uniform> u: SelectUniform;
 @group(0) @binding(1) var<storage, read> batches: array<BatchMeta>;
