@@ -11,14 +11,17 @@
 //! | `reference/color.png` | the oracle's colour, 8-bit RGBA, sRGB-encoded RGB, linear alpha, top row first |
 //! | `reference/depth.exr` | its depth buffer, one `f32` channel `Z` in `[0, 1]` (wgpu clip depth, 1 = far/background) |
 //! | `reference/lod_id.png` | its LOD id per pixel as 8-bit grey (0 background, 1 mesh, 2 billboard, 3 transition band, 4 terrain) |
-//! | `reference/commands.csv` | the selection's draw commands, one a line: `index_count,instance_count,first_index,base_vertex,first_instance,mesh,lod,billboard,fading` |
+//! | `reference/commands.csv` | the draw commands the oracle's frame draws (`Prepared::render`'s: the output of the last selection stage of the frame's plan, [`FramePlan`], so `refine`'s when `tree_cull` is not `none`, whose `first_instance` then indexes refine's `3n` indirection), one a line: `index_count,instance_count,first_index,base_vertex,first_instance,mesh,lod,billboard,fading` |
 //! | `alternatives/<k>/{color.png,depth.exr,lod_id.png}` | the oracle's frames with the alpha-test cutoff moved by each shift (they classify threshold-ambiguous pixels) |
 //!
 //! ## What `verify --case CASE --outputs DIR` reads
 //! `DIR/color.png`, `DIR/depth.exr`, `DIR/lod_id.png` in the formats above and, when present,
-//! `DIR/commands.csv` (compared as a multiset: an implementation may order atomically, so
-//! `base_vertex` is compared without its command index, `base_vertex & (MAX_MESH_VERTICES - 1)`:
-//! the index is the command's position, which an atomic order changes). It prints
+//! `DIR/commands.csv`: the commands the implementation draws, after every selection stage of the
+//! case's plan (`FramePlan::new` of the case's `params`: `refine` included when `tree_cull` is not
+//! `none`), compared with `reference/commands.csv` as a multiset (an implementation may order
+//! atomically, so `base_vertex` is compared without its command index,
+//! `base_vertex & (MAX_MESH_VERTICES - 1)`: the index is the command's position, which an atomic
+//! order changes); a difference names the plan's last selection stage. It prints
 //! the report of `image_compare` (every class with its budget, the signed-difference statistics,
 //! FLIP) and the verdict as the last line; exit 0 when parity holds, 2 when it fails (the main
 //! job's code for "GPU parity failed"), 1 for bad input (a missing or malformed file, a size that
@@ -33,12 +36,12 @@ use std::path::{Path, PathBuf};
 use forestlod_harness::alternatives::alpha_test_alternatives;
 use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, StagesFromCpu};
 use forestlod_harness::image_compare::{ALPHA_TEST_SHIFTS, Images, compare_images};
-use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
+use forestlod_harness::stage::images_of;
 use forestlod_reference::error::InputError;
 use forestlod_reference::output::{read_depth_exr, read_png, write_depth_exr, write_png};
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::texture::Rgba8Image;
-use forestlod_shared::{Camera, CommandData, DrawCommand};
+use forestlod_shared::{Camera, CommandData, DrawCommand, FramePlan, ParamKind, Params};
 use serde_json::json;
 
 use crate::camera::CameraArgs;
@@ -153,7 +156,7 @@ const COMMANDS_HEADER: &str =
     "index_count,instance_count,first_index,base_vertex,first_instance,mesh,lod,billboard,fading";
 
 /// Commands in the `commands.csv` format.
-fn commands_csv(commands: &[DrawCommand], data: &[CommandData]) -> String {
+pub fn commands_csv(commands: &[DrawCommand], data: &[CommandData]) -> String {
     let mut csv = String::from(COMMANDS_HEADER);
     csv.push('\n');
     for (c, d) in commands.iter().zip(data) {
@@ -214,15 +217,12 @@ pub fn export(args: &ExportArgs) -> Result<u8> {
     let camera = args.camera.camera(&scene, args.width, args.height)?;
     std::fs::create_dir_all(&args.out).map_err(|e| io(&args.out, e))?;
     let prepared = prepare(scene, &params)?;
-    let input = FrameInput {
-        prepared: &prepared,
-        camera: &camera,
-        params: &params,
-    };
-    let frame = Backend::<Draw>::run(&Reference, input);
+    // The oracle's frame, and the commands it draws: every selection stage of the frame's plan,
+    // `refine` included when `tree_cull` runs it (module docs).
+    let frame = prepared.render(&camera, &params)?;
     let out = &args.out;
-    write_frame(&out.join("reference"), &frame)?;
-    let selection = prepared.select(&camera, &params);
+    write_frame(&out.join("reference"), &images_of(&frame.drawn.target))?;
+    let selection = &frame.selection;
     let path = out.join("reference/commands.csv");
     std::fs::write(&path, commands_csv(&selection.commands, &selection.data))
         .map_err(|e| io(&path, e))?;
@@ -323,6 +323,36 @@ fn number(case: &serde_json::Value, path: &Path, key: &str) -> Result<f64> {
         .ok_or_else(|| io(path, format!("field {key} = {v}: expected a number")).into())
 }
 
+/// The case's pipeline parameters (`params`, every parameter under its flag's underscore name as
+/// `export-case` writes them, [`params_json`]; one missing takes its default), validated.
+fn case_params(case: &serde_json::Value, path: &Path) -> Result<Params> {
+    let table = field(case, path, "/params")?
+        .as_object()
+        .ok_or_else(|| io(path, "field /params: expected an object"))?;
+    let mut params = Params::default();
+    for spec in forestlod_shared::PARAMS {
+        let Some(v) = table.get(&spec.key()) else {
+            continue;
+        };
+        let parsed = match (spec.kind, v) {
+            (ParamKind::Choice(_), serde_json::Value::String(name)) => spec.parse(name).ok(),
+            (ParamKind::Choice(_), _) => None,
+            (_, v) => v.as_f64().and_then(|x| spec.from_number(x).ok()),
+        };
+        let value = parsed.ok_or_else(|| {
+            io(
+                path,
+                format!("field /params/{} = {v}: {}", spec.key(), spec.expected()),
+            )
+        })?;
+        (spec.set)(&mut params, value);
+    }
+    params
+        .validate()
+        .map_err(|e| io(path, format!("params: {e}")))?;
+    Ok(params)
+}
+
 /// `forestlod verify`.
 pub fn verify(args: &VerifyArgs) -> Result<u8> {
     let path = args.case.join("case.json");
@@ -350,6 +380,13 @@ pub fn verify(args: &VerifyArgs) -> Result<u8> {
     camera
         .validate()
         .map_err(|e| io(&path, format!("camera: {e}")))?;
+    // The stage whose output the commands are: the last selection stage of the case's plan.
+    let plan = FramePlan::new(&case_params(&case, &path)?)
+        .map_err(|e| io(&path, format!("params: {e}")))?;
+    let last_stage = plan
+        .selection_stages()
+        .last()
+        .map_or("select", |s| s.name());
     let want = read_frame(&args.case.join("reference"), width, height)?;
     let shifts = field(&case, &path, "/alpha_cutoff_shifts")?
         .as_array()
@@ -372,7 +409,7 @@ pub fn verify(args: &VerifyArgs) -> Result<u8> {
         );
         if a != b {
             failures.push(format!(
-                "stage select: the command multisets differ ({missing} missing, {extra} extra)"
+                "stage {last_stage}: the command multisets differ ({missing} missing, {extra} extra)"
             ));
         }
     }

@@ -9,15 +9,34 @@
 //! high, pitch -89°..30°, fov 20°..100°, 64..256 px a side), half the time aimed at a random tree
 //! from 5..2500 m, one case in eight with the far plane 50..3000 m past the near plane and a
 //! 100 km draw distance (the far plane then culls); parameters as `parity::select`'s (grid
-//! 1 m..5 km, transition 0..2 km, fade 0..500 m, draw distance 0..6 km, one or two LODs). The
-//! trees go through the same CSV loader as a replay (`load_instances_with_builtin_species`), so a
-//! written case is the case that failed, bit for bit.
+//! 1 m..5 km, transition 0..2 km, fade 0..500 m, draw distance 0..6 km, one or two LODs), and the
+//! frame's plan (issue 27, [`FramePlan`]): half the cases cut a hierarchy (any mode but the grid,
+//! 2..64 children or trees per node, max cull depth 0..8) with a random coalesce mode and command
+//! order; the other half select flat over the grid. These draws come last in a case's stream, so
+//! the flat part of case `i` is the case `i` of before. `tree_cull` stays `none`: `refine` is
+//! judged by `parity::refine`, and a replayed case asking for it is refused. The trees go through
+//! the same CSV loader as a replay (`load_instances_with_builtin_species`), so a written case is
+//! the case that failed, bit for bit.
 //!
-//! **The comparison**: the reference's `select` (commands, per-command data, per-batch decisions)
-//! against `select.wgsl` with the stable compaction, **exactly** (the same rule as
+//! **The comparison**: the reference frame's selection (`Prepared::select`: every selection stage
+//! of the plan before `refine`) against the GPU's (`harness::backend::OursSelect`, which runs
+//! `select.wgsl` with the stable compaction, or the cut `hier_select.wgsl` then `coalesce.wgsl`
+//! and `command_order.wgsl`, as the prepared scene was grouped), commands and per-command data
+//! **exactly**, and the per-batch decisions (flat) or the per-node codes and states of the cut
+//! (the raw cut's, `Prepared::hier_select`) exactly too (the rule of
 //! `harness::diagnose::check_select`). `parity::select` forgives batches within 1e-5 (relative)
 //! of a threshold; random cases land there about never (0 of 256 in that test), so an exact
-//! comparison here reports such a case as a failure to triage rather than hiding it.
+//! comparison here reports such a case as a failure to triage rather than hiding it. The scene is
+//! prepared for selection only ([`selection_scene`]: no textures, which no selection stage reads).
+//!
+//! **Output**: the cases run and their rate, then how many cases each hierarchy mode had
+//! (`plans: grid N, ...`, named from what was prepared); a replay names the plan's selection
+//! stages beside its verdict.
+//!
+//! **`case.toml`**: `[camera]` (`eye` in the coordinates of `trees.csv`, the rest as the
+//! [`Camera`] fields) and `[params]`, every pipeline parameter under its [`Params`] field name
+//! (choices by name). A parameter a case does not give takes its default, so the folders written
+//! before the plan was drawn (five numeric parameters) replay as the flat cases they were.
 //!
 //! Test hook: `FORESTLOD_CHECK_BREAK=drop-last-command` drops the GPU's last command before
 //! comparing (a deliberately broken comparison: every case that draws something fails), so the
@@ -29,15 +48,17 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use forestlod_gpu::{Compaction, GpuContext, GpuSelect};
-use forestlod_harness::backend::decode_decision;
-use forestlod_harness::stage::{Backend, Reference, Select, SelectInput};
-use forestlod_reference::batches::build_batches;
+use forestlod_gpu::{Compaction, GpuContext};
+use forestlod_harness::backend::{OursSelect, decode_decision};
 use forestlod_reference::error::InputError;
-use forestlod_reference::geometry::pack_geometry;
+use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::scene::Scene;
 use forestlod_reference::scene::load::load_instances_with_builtin_species;
-use forestlod_shared::{Camera, Params};
+use forestlod_reference::select::{Decision, batch_decisions};
+use forestlod_shared::{
+    Camera, Coalesce, CommandOrder, FramePlan, Hierarchy, PARAMS, ParamKind, Params, StageId,
+    TreeCull,
+};
 
 use crate::render::exit_code;
 
@@ -178,6 +199,18 @@ pub fn random_case(seed: u64, index: u64) -> Case {
         camera.far = camera.near + r.f(50.0, 3000.0);
         params.draw_distance = 100_000.0;
     }
+    // The frame's plan, drawn last (module docs).
+    if r.u(0, 2) == 1 {
+        let cuts: Vec<Hierarchy> = Hierarchy::ALL
+            .into_iter()
+            .filter(|h| h.is_hierarchical())
+            .collect();
+        params.hierarchy = cuts[r.u(0, cuts.len() as u32) as usize] as u32;
+        params.nodes_per_node = r.u(2, 65);
+        params.max_cull_depth = r.u(0, 9);
+        params.coalesce = r.u(0, Coalesce::ALL.len() as u32);
+        params.command_order = r.u(0, CommandOrder::ALL.len() as u32);
+    }
     Case {
         rows,
         eye: eye.map(f64::from),
@@ -205,12 +238,11 @@ impl Case {
         let csv = dir.join("trees.csv");
         std::fs::write(&csv, self.csv()).map_err(|e| io(&csv, e))?;
         let c = &self.camera;
-        let toml = format!(
+        let mut toml = format!(
             "# forestlod check case: replay with `forestlod check --replay {dir}`\n\
              # The eye is in the coordinates of trees.csv; the rest as the Camera and Params fields.\n\
              [camera]\neye = [{}, {}, {}]\nforward = [{}, {}, {}]\nup = [{}, {}, {}]\n\
-             fov_y = {}\nnear = {}\nfar = {}\nwidth = {}\nheight = {}\n\n[params]\n\
-             grid_size = {}\nlod1_transition = {}\nfade_width = {}\ndraw_distance = {}\nlod_levels = {}\n",
+             fov_y = {}\nnear = {}\nfar = {}\nwidth = {}\nheight = {}\n\n[params]\n",
             self.eye[0],
             self.eye[1],
             self.eye[2],
@@ -225,13 +257,16 @@ impl Case {
             c.far,
             c.width,
             c.height,
-            self.params.grid_size,
-            self.params.lod1_transition,
-            self.params.fade_width,
-            self.params.draw_distance,
-            self.params.lod_levels,
             dir = dir.display(),
         );
+        // Every parameter (shortest round-trip decimals; choices by name).
+        for spec in PARAMS {
+            let v = spec.format(&self.params);
+            toml += &match spec.kind {
+                ParamKind::Choice(_) => format!("{} = \"{v}\"\n", spec.name),
+                _ => format!("{} = {v}\n", spec.name),
+            };
+        }
         let path = dir.join("case.toml");
         std::fs::write(&path, toml).map_err(|e| io(&path, e))?;
         Ok(())
@@ -304,14 +339,43 @@ impl Case {
             height: num("camera", "height")? as u32,
             tile: [0; 2],
         };
-        let params = Params {
-            grid_size: num("params", "grid_size")? as f32,
-            lod1_transition: num("params", "lod1_transition")? as f32,
-            fade_width: num("params", "fade_width")? as f32,
-            draw_distance: num("params", "draw_distance")? as f32,
-            lod_levels: num("params", "lod_levels")? as u32,
-            ..Params::default()
-        };
+        // Every parameter the case gives, by the parameter table; the others their defaults.
+        let table = v
+            .get("params")
+            .and_then(|t| t.as_table())
+            .ok_or_else(|| io(&path, "table [params] missing"))?;
+        let mut params = Params::default();
+        for (key, value) in table {
+            let spec = PARAMS
+                .iter()
+                .find(|s| s.answers_to(key))
+                .ok_or_else(|| io(&path, format!("field params.{key}: not a parameter")))?;
+            let parsed = match value {
+                toml::Value::String(text) => spec.parse(text).ok(),
+                toml::Value::Integer(i) => spec.from_number(*i as f64).ok(),
+                toml::Value::Float(x) => spec.from_number(*x).ok(),
+                _ => None,
+            };
+            let parsed = parsed.ok_or_else(|| {
+                io(
+                    &path,
+                    format!("field params.{key} = {value}: {}", spec.expected()),
+                )
+            })?;
+            (spec.set)(&mut params, parsed);
+        }
+        if let Some(mode) = FramePlan::new(&params).ok().and_then(|p| p.refine) {
+            return Err(io(
+                &path,
+                format!(
+                    "field params.tree_cull = {:?}: check compares the selection stages before \
+                     refine (parity::refine judges refine); expected {:?}",
+                    mode.name(),
+                    TreeCull::None.name()
+                ),
+            )
+            .into());
+        }
         Ok(Case {
             rows,
             eye: vec3("eye")?,
@@ -342,63 +406,175 @@ fn materialize(case: &Case, scratch: &Path) -> Result<(Scene, Camera)> {
     Ok((scene, camera))
 }
 
-/// What one case found: `None` when the GPU's selection equals the reference's, else why not.
-/// `Err` for a case no stage can run (an invalid camera or parameters).
-fn run_case(ctx: &'static GpuContext, case: &Case, scratch: &Path) -> Result<Option<String>> {
+/// The case's scene prepared for selection only (module docs): grouped as the frame's plan says
+/// (`group_trees`, the grid's batches or the hierarchy with its leaves) with its memory and tree
+/// spheres, as `prepare` builds them; no mesh textures and a 1x1 placeholder billboard texture,
+/// which no selection stage reads (the bake is most of `prepare`'s time, and a case is run
+/// hundreds of times while it shrinks).
+pub fn selection_scene(scene: Scene, params: &Params) -> Result<Prepared> {
+    use forestlod_reference::bake::BakedBillboards;
+    use forestlod_reference::pipeline::{group_trees, scene_memory};
+    use forestlod_reference::sampler::Texture;
+    use forestlod_reference::texture::Rgba8Image;
+    let geometry = forestlod_reference::geometry::pack_geometry(&scene);
+    let (hierarchy, batches) = group_trees(&scene, &geometry.meshes, params)?;
+    let memory = scene_memory(&scene, &batches, hierarchy.as_ref(), params);
+    let tree_spheres = scene
+        .instances
+        .iter()
+        .map(|t| forestlod_reference::scene::tree_sphere(t, &geometry.meshes[t.mesh as usize]))
+        .collect();
+    let placeholder = Rgba8Image {
+        width: 1,
+        height: 1,
+        texels: vec![[0; 4]],
+    };
+    let billboards = BakedBillboards {
+        angle_count: params.angle_count,
+        texture_size: 1,
+        layers: Vec::new(),
+        chains: Vec::new(),
+        texture: Texture::new(vec![placeholder]).map_err(|e| e.to_string())?,
+        extents: Vec::new(),
+    };
+    Ok(Prepared {
+        scene,
+        geometry,
+        batches,
+        hierarchy,
+        mesh_textures: Vec::new(),
+        billboards,
+        memory,
+        tree_spheres,
+        timings: Default::default(),
+    })
+}
+
+/// What one case ran and found.
+struct Outcome {
+    /// The hierarchy the scene was prepared with (the grid for a flat selection).
+    hierarchy: Hierarchy,
+    /// The selection stages of the case's plan.
+    stages: Vec<StageId>,
+    /// `None` when the GPU's selection equals the reference's, else why not.
+    failure: Option<String>,
+}
+
+/// Runs one case (module docs). `Err` for a case no stage can run (an invalid camera or
+/// parameters).
+fn run_case(ctx: &'static GpuContext, case: &Case, scratch: &Path) -> Result<Outcome> {
     let (scene, camera) = materialize(case, scratch)?;
     camera.validate().map_err(|e| io(scratch, e))?;
     case.params.validate().map_err(|e| io(scratch, e))?;
-    let geometry = pack_geometry(&scene);
-    let batches = build_batches(&scene, &geometry.meshes, case.params.grid_size)?;
-    let input = SelectInput {
-        batches: &batches.metas,
-        meshes: &geometry.meshes,
-        billboard: &geometry.billboard,
-        camera: &camera,
-        params: &case.params,
+    let params = &case.params;
+    let plan = FramePlan::new(params).map_err(|e| io(scratch, e))?;
+    let prepared = selection_scene(scene, params)?;
+    let hierarchy = prepared
+        .hierarchy
+        .as_ref()
+        .map_or(Hierarchy::Grid, |h| h.mode);
+    let outcome = |failure| Outcome {
+        hierarchy,
+        stages: plan.selection_stages(),
+        failure,
     };
-    let want = Backend::<Select>::run(&Reference, input);
-    // `GpuSelect` itself (not the harness backend, which panics on a GPU error): an error is a
+    // The reference frame's selection, and the per-item decisions of its first stage.
+    let want = prepared.select(&camera, params);
+    let (items, want_decisions) = match prepared.hier_select(&camera, params) {
+        Some(cut) => {
+            let n = cut.codes.len();
+            (
+                format!("{n} nodes of the {} hierarchy", hierarchy.name()),
+                DecisionList::Nodes(cut.codes, cut.states),
+            )
+        }
+        None => (
+            format!("{} batches", prepared.batches.metas.len()),
+            DecisionList::Batches(batch_decisions(&prepared.batches.metas, &camera, params)),
+        ),
+    };
+    // `OursSelect` itself (not the harness backend, which panics on a GPU error): an error is a
     // failing case with its message.
     let gpu = (|| {
-        let mut gpu = GpuSelect::new(ctx, &batches.metas, &geometry.meshes, &geometry.billboard)?;
-        let out = gpu.run(&camera, &case.params, Compaction::Stable)?;
-        let decisions: Vec<_> = gpu
-            .read_decisions()?
-            .into_iter()
-            .map(decode_decision)
-            .collect();
+        let mut gpu = OursSelect::new(ctx, &prepared)?;
+        let out = gpu
+            .dispatch(&camera, params, Compaction::Stable)?
+            .read(ctx)?;
+        let decisions = match &gpu {
+            OursSelect::Flat(s) => DecisionList::Batches(
+                s.read_decisions()?
+                    .into_iter()
+                    .map(decode_decision)
+                    .collect(),
+            ),
+            OursSelect::Hier(s) => {
+                let (codes, states) = s.read_codes_and_states()?;
+                DecisionList::Nodes(codes, states)
+            }
+        };
         Ok::<_, Box<dyn std::error::Error>>((out, decisions))
     })();
     let (mut got, got_decisions) = match gpu {
         Ok(g) => g,
-        Err(e) => return Ok(Some(format!("GPU error: {e}"))),
+        Err(e) => return Ok(outcome(Some(format!("GPU error: {e}")))),
     };
     if std::env::var("FORESTLOD_CHECK_BREAK").as_deref() == Ok("drop-last-command") {
         got.commands.pop();
         got.data.pop();
     }
-    let decisions = want.decisions.len().abs_diff(got_decisions.len())
-        + want
-            .decisions
-            .iter()
-            .zip(&got_decisions)
-            .filter(|(a, b)| a != b)
-            .count();
-    let (w, g) = (&want.selection, &got);
+    let decisions = want_decisions.differing(&got_decisions);
+    let (w, g) = (&want, &got);
     let n = w.commands.len().max(g.commands.len());
     let commands = (0..n)
         .filter(|&i| w.commands.get(i) != g.commands.get(i) || w.data.get(i) != g.data.get(i))
         .count();
-    Ok((decisions > 0 || commands > 0).then(|| {
+    Ok(outcome((decisions > 0 || commands > 0).then(|| {
         format!(
-            "{} batches: {decisions} decisions differ; {} reference commands, {} GPU commands, \
+            "{items}: {decisions} {} differ; {} reference commands, {} GPU commands, \
              {commands} differing",
-            batches.metas.len(),
+            want_decisions.what(),
             w.commands.len(),
             g.commands.len()
         )
-    }))
+    })))
+}
+
+/// The per-item decisions of a selection's first stage.
+#[derive(PartialEq)]
+enum DecisionList {
+    /// `select`'s per-batch decisions.
+    Batches(Vec<Decision>),
+    /// The cut's per-node codes and states.
+    Nodes(Vec<u32>, Vec<u32>),
+}
+
+impl DecisionList {
+    /// What the items' decisions are called in a failure.
+    fn what(&self) -> &'static str {
+        match self {
+            DecisionList::Batches(_) => "decisions",
+            DecisionList::Nodes(..) => "node codes or states",
+        }
+    }
+
+    /// How many items differ (a length difference counting each missing item; lists of
+    /// different kinds differ everywhere).
+    fn differing(&self, other: &DecisionList) -> usize {
+        fn count<T: PartialEq>(a: &[T], b: &[T]) -> usize {
+            a.len().abs_diff(b.len()) + a.iter().zip(b).filter(|(x, y)| x != y).count()
+        }
+        match (self, other) {
+            (DecisionList::Batches(a), DecisionList::Batches(b)) => count(a, b),
+            (DecisionList::Nodes(ca, sa), DecisionList::Nodes(cb, sb)) => {
+                let pairs = |c: &[u32], s: &[u32]| -> Vec<(u32, u32)> {
+                    c.iter().copied().zip(s.iter().copied()).collect()
+                };
+                count(&pairs(ca, sa), &pairs(cb, sb))
+            }
+            (DecisionList::Batches(a), DecisionList::Nodes(b, _))
+            | (DecisionList::Nodes(b, _), DecisionList::Batches(a)) => a.len().max(b.len()).max(1),
+        }
+    }
 }
 
 /// Fewer trees while the case still fails: drops chunks of half, a quarter, ... one tree
@@ -424,7 +600,7 @@ fn shrink(
                 start = end;
                 continue;
             }
-            match run_case(ctx, &candidate, scratch) {
+            match run_case(ctx, &candidate, scratch).map(|o| o.failure) {
                 Ok(Some(w)) => {
                     case = candidate;
                     why = w;
@@ -462,15 +638,18 @@ pub fn run(args: &CheckArgs) -> Result<u8> {
     let scratch = std::env::temp_dir().join(format!("forestlod-check-{}.csv", std::process::id()));
     if let Some(dir) = &args.replay {
         let case = Case::read(dir)?;
-        let result = run_case(ctx, &case, &scratch)?;
+        let result = run_case(ctx, &case, &scratch);
         let _ = std::fs::remove_file(&scratch);
-        return Ok(match result {
+        let outcome = result?;
+        let stages = outcome.stages.iter().map(|s| s.name()).collect::<Vec<_>>();
+        let ran = format!("{} over {}", stages.join(", "), outcome.hierarchy.name());
+        return Ok(match outcome.failure {
             None => {
-                println!("case {}: passed", dir.display());
+                println!("case {} ({ran}): passed", dir.display());
                 exit_code::SUCCESS
             }
             Some(why) => {
-                println!("case {}: FAILED: {why}", dir.display());
+                println!("case {} ({ran}): FAILED: {why}", dir.display());
                 exit_code::PARITY_FAILED
             }
         });
@@ -487,6 +666,8 @@ pub fn run(args: &CheckArgs) -> Result<u8> {
     let mut index = 0u64;
     let mut last_progress = Instant::now();
     let mut failure = None;
+    // Cases run per hierarchy mode (what was prepared), in id order.
+    let mut plans = [0u64; Hierarchy::ALL.len()];
     while done < limit
         && args
             .seconds
@@ -497,11 +678,13 @@ pub fn run(args: &CheckArgs) -> Result<u8> {
         match run_case(ctx, &case, &scratch) {
             // A random case the loader or validation refuses (none expected): counted apart.
             Err(_) => skipped += 1,
-            Ok(None) => done += 1,
-            Ok(Some(why)) => {
+            Ok(outcome) => {
                 done += 1;
-                failure = Some((index - 1, case, why));
-                break;
+                plans[outcome.hierarchy as usize] += 1;
+                if let Some(why) = outcome.failure {
+                    failure = Some((index - 1, case, why));
+                    break;
+                }
             }
         }
         if last_progress.elapsed().as_secs_f64() >= 2.0 {
@@ -526,6 +709,13 @@ pub fn run(args: &CheckArgs) -> Result<u8> {
             String::new()
         }
     );
+    let plans: Vec<String> = Hierarchy::ALL
+        .into_iter()
+        .zip(plans)
+        .filter(|&(_, n)| n > 0)
+        .map(|(h, n)| format!("{} {n}", h.name()))
+        .collect();
+    println!("plans: {}", plans.join(", "));
     let code = match failure {
         None => {
             println!("every case passed");

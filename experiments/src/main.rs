@@ -140,10 +140,7 @@ fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
         match &hierarchy {
             Some(h) => format!(
                 "; hierarchy {}: {} leaves, {} nodes",
-                params
-                    .hierarchy_mode()
-                    .expect("parameters are validated before the scene facts")
-                    .name(),
+                h.mode.name(),
                 memory.t,
                 h.nodes.len()
             ),

@@ -1,9 +1,10 @@
 //! `forestlod check` through the binary (issue 15, part 7): a handful of random selection parity
 //! cases pass on this adapter (exit 0, cases per minute printed); with the test hook
 //! `FORESTLOD_CHECK_BREAK=drop-last-command` (the GPU's last command dropped before the
-//! comparison: a deliberately broken comparison) the first case that draws fails, is shrunk to a
-//! single tree and written as `trees.csv` + `case.toml`, and the printed command replays it:
-//! failing with the hook, passing without it.
+//! comparison: a deliberately broken comparison) the first case that draws fails, is shrunk
+//! until no tree can go (every case with one tree fewer draws nothing) and written as
+//! `trees.csv` + `case.toml`, and the printed command replays it: failing with the hook, passing
+//! without it.
 //!
 //! Needs a GPU adapter (lavapipe in CI), like the parity tests.
 
@@ -61,9 +62,41 @@ fn a_broken_comparison_writes_a_shrunk_case_that_replays() {
     let case = std::path::Path::new(args[2]);
     assert!(case.starts_with(&dir), "{t}");
     let trees = std::fs::read_to_string(case.join("trees.csv")).expect("trees.csv");
-    // A dropped command fails any case with a command: shrunk to a single tree.
-    assert_eq!(trees.lines().count(), 2, "header and one tree: {trees}");
+    // A dropped command fails any case with a command: shrunk until every case with one tree
+    // fewer draws nothing (one tree; or more where a hierarchy's node over them is visible
+    // though no tree alone is), so each of those passes even with the hook.
+    let rows: Vec<&str> = trees.lines().skip(1).collect();
+    let failed: usize = t
+        .lines()
+        .find_map(|l| l.split_once(" FAILED (")?.1.split_once(" trees)"))
+        .and_then(|(n, _)| n.parse().ok())
+        .unwrap_or_else(|| panic!("no failing case line: {t}"));
+    assert!(
+        !rows.is_empty() && (rows.len() < failed || failed == 1),
+        "shrunk from {failed} trees: {trees}"
+    );
     assert!(case.join("case.toml").is_file());
+    for skip in (0..rows.len()).filter(|_| rows.len() > 1) {
+        let fewer = dir.join(format!("without-{skip}"));
+        std::fs::create_dir_all(&fewer).unwrap();
+        std::fs::copy(case.join("case.toml"), fewer.join("case.toml")).unwrap();
+        let kept: Vec<&str> = std::iter::once(trees.lines().next().unwrap())
+            .chain(
+                rows.iter()
+                    .enumerate()
+                    .filter(|&(i, _)| i != skip)
+                    .map(|(_, r)| *r),
+            )
+            .collect();
+        std::fs::write(fewer.join("trees.csv"), kept.join("\n") + "\n").unwrap();
+        let o = forestlod(&["check", "--replay", fewer.to_str().unwrap()], true);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "not shrunk to the end: {}",
+            text(&o)
+        );
+    }
     let again = forestlod(&args, true);
     assert_eq!(again.status.code(), Some(2), "{}", text(&again));
     assert!(text(&again).contains("FAILED"), "{}", text(&again));

@@ -9,7 +9,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use forestlod_experiments::case::commands_csv;
 use forestlod_reference::output::{read_png, write_png};
+use forestlod_shared::{Camera, FramePlan, Hierarchy, Params, TreeCull};
 
 #[path = "../../reference/tests/common/mod.rs"]
 mod common;
@@ -209,7 +211,10 @@ fn own_gpu_output_passes_and_broken_outputs_fail_naming_the_class() {
 /// order and a non-default fade, `export-case`'s reference commands, its GPU commands (the GPU's
 /// own selection stages: the cut, coalesce and front-to-back order) and `select`'s commands are
 /// one list, the GPU frame passes `verify`, and the cut differs from the grid's (so the flags
-/// reached every path).
+/// reached every path). With `--tree-cull` too, the reference commands are the ones `render`
+/// draws (refined: not the selection before `refine`), `verify` names `refine` when they differ,
+/// and `check` replays the cut of these flags, naming its stages; `check`'s random cases include
+/// hierarchies.
 #[test]
 fn every_tool_path_sees_the_frames_pipeline_parameters() {
     let flags = [
@@ -291,4 +296,179 @@ fn every_tool_path_sees_the_frames_pipeline_parameters() {
         flat_commands, reference,
         "the hierarchy flag changed nothing"
     );
+
+    let mut refined_flags = flags.to_vec();
+    refined_flags.extend(["--tree-cull", "lod0"]);
+    tree_cull_reaches_export_case_and_verify(&refined_flags);
+    check_covers_the_plan(&flags, &dir);
+}
+
+/// The scene, parameters and 96² camera `export-case` builds from `flags`, parsed by the same
+/// argument structs.
+fn frame_of(flags: &[&str]) -> (forestlod_reference::pipeline::Prepared, Camera, Params) {
+    #[derive(clap::Parser)]
+    struct Args {
+        #[command(flatten)]
+        scene: forestlod_experiments::options::SceneArgs,
+        #[command(flatten)]
+        params: forestlod_experiments::options::ParamArgs,
+        #[command(flatten)]
+        camera: forestlod_experiments::camera::CameraArgs,
+    }
+    let args = <Args as clap::Parser>::try_parse_from(std::iter::once("x").chain(flags.to_vec()))
+        .expect("the test's flags parse");
+    let params = args.params.params().unwrap();
+    let scene = args.scene.load().unwrap();
+    let camera = args.camera.camera(&scene, 96, 96).unwrap();
+    let prepared = forestlod_reference::pipeline::prepare(scene, &params).unwrap();
+    (prepared, camera, params)
+}
+
+/// `export-case` with `--tree-cull` (not `none`): `reference/commands.csv` is what `render` draws
+/// (the frame's commands after `refine`), which differ from the selection before `refine` (so the
+/// flag changed the commands); `verify` passes the reference's own outputs and names `refine` for
+/// the unrefined commands.
+fn tree_cull_reaches_export_case_and_verify(flags: &[&str]) {
+    let dir = common::fresh_dir("cli-verify", "octree-tree-cull");
+    let mut args = vec!["export-case"];
+    args.extend(flags);
+    args.extend(["--width", "96", "--height", "96", "--out"]);
+    args.push(dir.to_str().unwrap());
+    let o = forestlod(&args);
+    assert!(
+        o.status.success(),
+        "export-case --tree-cull: {}{}",
+        text(&o.stdout),
+        text(&o.stderr)
+    );
+    let reference = std::fs::read_to_string(dir.join("reference/commands.csv")).unwrap();
+    let (prepared, camera, params) = frame_of(flags);
+    assert_ne!(params.tree_cull, TreeCull::None as u32, "{flags:?}");
+    let frame = prepared.render(&camera, &params).unwrap();
+    assert!(frame.refined.is_some(), "render ran refine");
+    let drawn = commands_csv(&frame.selection.commands, &frame.selection.data);
+    let first_difference = reference
+        .lines()
+        .zip(drawn.lines())
+        .position(|(a, b)| a != b);
+    assert!(
+        reference == drawn,
+        "export-case's reference commands are not the ones render draws: {} lines against {}, \
+         first difference at line {first_difference:?}",
+        reference.lines().count(),
+        drawn.lines().count()
+    );
+    let unrefined = prepared.select(&camera, &params);
+    let unrefined = commands_csv(&unrefined.commands, &unrefined.data);
+    assert_ne!(
+        unrefined, drawn,
+        "refine changed no command: the case cannot tell the refined commands from the selection's"
+    );
+    // The reference's own outputs pass; with the unrefined commands, `refine` is named.
+    let o = verify(&dir, &dir.join("reference"));
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}{}",
+        text(&o.stdout),
+        text(&o.stderr)
+    );
+    let before = dir.join("unrefined");
+    copy_outputs(&dir.join("reference"), &before);
+    std::fs::write(before.join("commands.csv"), unrefined).unwrap();
+    let o = verify(&dir, &before);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stdout));
+    assert!(
+        last_line(&o).contains("stage refine: the command multisets differ"),
+        "{}",
+        last_line(&o)
+    );
+}
+
+/// `forestlod check` sees the plan: a case of `flags`' trees, camera and hierarchy replays through
+/// the cut's stages (named in its verdict), passing, and failing with the broken-comparison hook
+/// (so the cut's commands are compared); its random cases include hierarchies.
+fn check_covers_the_plan(flags: &[&str], case: &Path) {
+    let (_, camera, params) = frame_of(flags);
+    let hierarchy = params.hierarchy_mode().unwrap();
+    assert!(hierarchy.is_hierarchical(), "{flags:?}");
+    let dir = common::fresh_dir("cli-verify", "check-replay");
+    std::fs::copy(case.join("instances.csv"), dir.join("trees.csv")).unwrap();
+    let v3 = |v: [f32; 3]| format!("[{}, {}, {}]", v[0], v[1], v[2]);
+    let mut toml = format!(
+        "[camera]\neye = {}\nforward = {}\nup = {}\nfov_y = {}\nnear = {}\nfar = {}\n\
+         width = {}\nheight = {}\n\n[params]\n",
+        v3(camera.eye),
+        v3(camera.forward),
+        v3(camera.up),
+        camera.fov_y,
+        camera.near,
+        camera.far,
+        camera.width,
+        camera.height
+    );
+    for spec in forestlod_shared::PARAMS {
+        let v = spec.format(&params);
+        toml += &match spec.kind {
+            forestlod_shared::ParamKind::Choice(_) => format!("{} = \"{v}\"\n", spec.name),
+            _ => format!("{} = {v}\n", spec.name),
+        };
+    }
+    std::fs::write(dir.join("case.toml"), toml).unwrap();
+    let replay = |broken: bool| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_forestlod"));
+        c.args(["check", "--replay", dir.to_str().unwrap()])
+            .env("RUST_BACKTRACE", "0");
+        if broken {
+            c.env("FORESTLOD_CHECK_BREAK", "drop-last-command");
+        } else {
+            c.env_remove("FORESTLOD_CHECK_BREAK");
+        }
+        c.output().expect("run forestlod")
+    };
+    let plan = FramePlan::new(&params).unwrap();
+    let stages: Vec<&str> = plan.selection_stages().iter().map(|s| s.name()).collect();
+    let ran = format!("({} over {})", stages.join(", "), hierarchy.name());
+    let o = replay(false);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}{}",
+        text(&o.stdout),
+        text(&o.stderr)
+    );
+    assert!(
+        text(&o.stdout).contains(&format!("{ran}: passed")),
+        "check --replay did not run the cut {ran}: {}",
+        text(&o.stdout)
+    );
+    let o = replay(true);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stdout));
+    assert!(
+        text(&o.stdout).contains(&format!("{ran}: FAILED")),
+        "{}",
+        text(&o.stdout)
+    );
+    // Random cases: some cut a hierarchy.
+    let out = common::fresh_dir("cli-verify", "check-cases");
+    let o = forestlod(&["check", "--cases", "8", "--out", out.to_str().unwrap()]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}{}",
+        text(&o.stdout),
+        text(&o.stderr)
+    );
+    let stdout = text(&o.stdout);
+    let plans = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("plans: "))
+        .unwrap_or_else(|| panic!("no plans line: {stdout}"));
+    let cuts: u64 = plans
+        .split(", ")
+        .filter_map(|p| p.split_once(' '))
+        .filter(|(name, _)| Hierarchy::from_name(name).is_some_and(|h| h.is_hierarchical()))
+        .map(|(_, n)| n.parse::<u64>().unwrap())
+        .sum();
+    assert!(cuts > 0, "no random case cut a hierarchy: plans {plans}");
 }

@@ -21,7 +21,7 @@ use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::{Scene, builtin, load};
 use forestlod_reference::select::{BatchingCounts, batching_counts};
 use forestlod_reference::texture::Rgba8Image;
-use forestlod_shared::{Camera, CommandData, DrawCommand, Params, TreeCull};
+use forestlod_shared::{Camera, CommandData, DrawCommand, FramePlan, Params};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::fair::{TruthLayout, box_filter, supersampled};
@@ -471,7 +471,8 @@ fn full_frame_source(backend: Engine, variants: &[Pipeline]) -> FullFrame {
 /// Bytes ours adds to the scene data: E Eq. 4.1's terms as allocated, plus the `refine` stage's
 /// `3n`-entry indirection array when it runs (`reference/src/refine.rs`).
 fn ours_memory(prepared: &Prepared, params: &Params) -> u64 {
-    let refine = if params.tree_culling().is_ok_and(|m| m != TreeCull::None) {
+    // Whether `refine` runs is the frame's plan's to say (`FramePlan::new`), not this count's.
+    let refine = if FramePlan::new(params).is_ok_and(|plan| plan.refine.is_some()) {
         3 * prepared.batches.indirection.len() as u64 * 4
     } else {
         0
