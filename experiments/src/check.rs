@@ -19,7 +19,7 @@
 //! the case that failed, bit for bit.
 //!
 //! **The comparison**: the reference frame's selection (`Prepared::select`: every selection stage
-//! of the plan before `refine`) against the GPU's (`harness::backend::OursSelect`, which runs
+//! of the plan before `refine`) against the GPU's (`harness::gpu_frame::SelectionChain`, which runs
 //! `select.wgsl` with the stable compaction, or the cut `hier_select.wgsl` then `coalesce.wgsl`
 //! and `command_order.wgsl`, as the prepared scene was grouped), commands and per-command data
 //! **exactly**, and the per-batch decisions (flat) or the per-node codes and states of the cut
@@ -49,7 +49,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use forestlod_gpu::{Compaction, GpuContext};
-use forestlod_harness::backend::{OursSelect, decode_decision};
+use forestlod_harness::backend::decode_decision;
+use forestlod_harness::gpu_frame::SelectionChain;
 use forestlod_reference::error::InputError;
 use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::scene::Scene;
@@ -493,22 +494,22 @@ fn run_case(ctx: &'static GpuContext, case: &Case, scratch: &Path) -> Result<Out
             DecisionList::Batches(batch_decisions(&prepared.batches.metas, &camera, params)),
         ),
     };
-    // `OursSelect` itself (not the harness backend, which panics on a GPU error): an error is a
+    // The GPU selection chain itself (not the harness backend, which panics on a GPU error): an error is a
     // failing case with its message.
     let gpu = (|| {
-        let mut gpu = OursSelect::new(ctx, &prepared)?;
+        let mut gpu = SelectionChain::gpu(ctx, &prepared)?;
         let out = gpu
             .dispatch(&camera, params, Compaction::Stable)?
             .read(ctx)?;
-        let decisions = match &gpu {
-            OursSelect::Flat(s) => DecisionList::Batches(
+        let decisions = match gpu.flat() {
+            Some(s) => DecisionList::Batches(
                 s.read_decisions()?
                     .into_iter()
                     .map(decode_decision)
                     .collect(),
             ),
-            OursSelect::Hier(s) => {
-                let (codes, states) = s.read_codes_and_states()?;
+            None => {
+                let (codes, states) = gpu.read_codes_and_states()?;
                 DecisionList::Nodes(codes, states)
             }
         };

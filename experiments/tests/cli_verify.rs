@@ -326,13 +326,13 @@ fn frame_of(flags: &[&str]) -> (forestlod_reference::pipeline::Prepared, Camera,
 
 /// `export-case` with `--tree-cull` (not `none`): `reference/commands.csv` is what `render` draws
 /// (the frame's commands after `refine`), which differ from the selection before `refine` (so the
-/// flag changed the commands); `verify` passes the reference's own outputs and names `refine` for
-/// the unrefined commands.
+/// flag changed the commands); `verify` passes the reference's own outputs and the GPU frame's
+/// (`--with-gpu`: refined by `refine.wgsl`), and names `refine` for the unrefined commands.
 fn tree_cull_reaches_export_case_and_verify(flags: &[&str]) {
     let dir = common::fresh_dir("cli-verify", "octree-tree-cull");
     let mut args = vec!["export-case"];
     args.extend(flags);
-    args.extend(["--width", "96", "--height", "96", "--out"]);
+    args.extend(["--width", "96", "--height", "96", "--with-gpu", "--out"]);
     args.push(dir.to_str().unwrap());
     let o = forestlod(&args);
     assert!(
@@ -364,15 +364,18 @@ fn tree_cull_reaches_export_case_and_verify(flags: &[&str]) {
         unrefined, drawn,
         "refine changed no command: the case cannot tell the refined commands from the selection's"
     );
-    // The reference's own outputs pass; with the unrefined commands, `refine` is named.
-    let o = verify(&dir, &dir.join("reference"));
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}{}",
-        text(&o.stdout),
-        text(&o.stderr)
-    );
+    // The reference's own outputs pass, and so does this project's GPU frame (its commands the
+    // frame's after `refine.wgsl`); with the unrefined commands, `refine` is named.
+    for outputs in ["reference", "gpu"] {
+        let o = verify(&dir, &dir.join(outputs));
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{outputs}: {}{}",
+            text(&o.stdout),
+            text(&o.stderr)
+        );
+    }
     let before = dir.join("unrefined");
     copy_outputs(&dir.join("reference"), &before);
     std::fs::write(before.join("commands.csv"), unrefined).unwrap();
