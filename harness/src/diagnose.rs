@@ -1,24 +1,31 @@
-//! Which stage differs first (issue 15, "a failure names the first stage whose output differs"):
-//! a frame drawn by the GPU from its own textures and selection passes through four stages
-//! before the image (mesh mips, billboard bake + mips, select, then draw). When the image
-//! comparison is the only check, a wrong bake shows up as an image failure blamed on "colour";
-//! this module compares each stage's output with the reference's, in pipeline order, **before**
-//! the images, so a test can name the stage.
+//! Which stage differs first (issue 15, "a failure names the first stage whose output differs";
+//! issue 27, every stage): a frame drawn by the GPU from its own textures and selection passes
+//! through the stages of its plan ([`FramePlan::stages`]: bake, mips, the selection stages, then
+//! draw). When the image comparison is the only check, a wrong bake shows up as an image failure
+//! blamed on "colour"; this module compares each stage's output with the reference's, in the
+//! plan's order, **before** the images, so a test can name the stage.
 //!
 //! Per stage:
 //! - **textures** (mesh mips; billboard bake + mips): every level of every layer read back and
 //!   compared texel by texel; the stage differs when more than [`STAGE_TEXEL_MAX_FRACTION`] of
 //!   its texels are beyond ±1 per channel, or when its texels are biased
 //!   ([`crate::texel_compare::TexelTally::bias_failures`] at [`BAKE_BIAS_MAX`]);
-//! - **select**: `select.wgsl` (stable compaction) against the reference's commands and
-//!   per-command data, exactly.
+//! - **each selection stage** (`select`, or `hier_select`, `coalesce`, `command_order`; then
+//!   `refine`): run alone on the GPU on the reference's input of it
+//!   ([`crate::gpu_stages::FrameStages::check`]) and judged by the stage's judge
+//!   ([`crate::stage::Judged`], tolerances in [`crate::judge`]), so the first wrong stage is
+//!   named even when later ones are right;
+//! - **the chained selection**: the GPU's own selection stages one after the other (stable
+//!   compaction) against the reference's commands and per-command data, exactly.
 
 use forestlod_gpu::{Compaction, GpuContext, MipArray};
 use forestlod_reference::pipeline::Prepared;
-use forestlod_shared::{Camera, Params};
+use forestlod_shared::{Camera, FramePlan, Params, StageId};
 
 use crate::bridge::gpu_textures;
 use crate::gpu_frame::SelectionChain;
+use crate::gpu_stages::FrameStages;
+pub use crate::stage::StageCheck;
 use crate::texel_compare::TexelTally;
 
 /// Fraction of a texture stage's texels that may differ by more than ±1 per channel before the
@@ -42,18 +49,10 @@ pub const STAGE_TEXEL_MAX_FRACTION: f64 = 6e-3;
 /// the same way (bias 1) still exceeds it.
 pub const BAKE_BIAS_MAX: f64 = 0.5;
 
-/// One stage's comparison.
-#[derive(Clone, Debug)]
-pub struct StageCheck {
-    /// The stage, e.g. `billboards (bake + mips)`.
-    pub stage: &'static str,
-    /// What was compared and found.
-    pub summary: String,
-    /// Whether the stage's output differs beyond what a correct build shows.
-    pub differs: bool,
-}
-
-fn texel_check(stage: &'static str, tally: &TexelTally) -> StageCheck {
+/// A texture stage's check from its texel tally: differs when more than
+/// [`STAGE_TEXEL_MAX_FRACTION`] of its texels are beyond ±1 or when they are biased
+/// ([`BAKE_BIAS_MAX`]); the maximum difference is the largest channel difference.
+pub fn texel_check(stage: &'static str, tally: &TexelTally) -> StageCheck {
     let fraction = tally.over_tolerance as f64 / tally.texels.max(1) as f64;
     let bias = tally.bias_failures(stage, BAKE_BIAS_MAX);
     StageCheck {
@@ -70,6 +69,7 @@ fn texel_check(stage: &'static str, tally: &TexelTally) -> StageCheck {
                 format!("; {}", bias.join("; "))
             }
         ),
+        max_difference: f64::from(tally.max_diff),
         differs: fraction > STAGE_TEXEL_MAX_FRACTION || !bias.is_empty(),
     }
 }
@@ -146,12 +146,33 @@ pub fn check_select(
             want.commands.len(),
             got.commands.len()
         ),
+        max_difference: differing as f64,
         differs: differing > 0,
     }
 }
 
-/// The stages the GPU ran before its draw (textures unless `textures_from_cpu`, select unless
-/// `select_from_cpu`), compared in pipeline order.
+/// The selection stages of the frame's plan ([`FramePlan::selection_stages`]), each run alone on
+/// the GPU on the reference's input of it ([`FrameStages::check`]) and judged, in plan order.
+pub fn check_selection_stages(
+    ctx: &'static GpuContext,
+    prepared: &Prepared,
+    camera: &Camera,
+    params: &Params,
+) -> Vec<StageCheck> {
+    let plan = FramePlan::new(params).expect("valid parameters");
+    let frame = FrameStages::new(prepared, camera, params);
+    plan.selection_stages()
+        .into_iter()
+        .filter_map(|s| frame.check(ctx, s))
+        .collect()
+}
+
+/// The stages the GPU ran before its draw, compared in the plan's order
+/// ([`FramePlan::stages`]): the textures (bake, then mips) unless `textures_from_cpu`; unless
+/// `select_from_cpu`, each selection stage alone on the reference's input
+/// ([`check_selection_stages`]), then the GPU's chained selection ([`check_select`]: a stage
+/// that is right alone but wired to the wrong buffer shows there). The draw is judged by the
+/// image comparison that follows.
 pub fn check_stages(
     ctx: &'static GpuContext,
     prepared: &Prepared,
@@ -160,12 +181,21 @@ pub fn check_stages(
     textures_from_cpu: bool,
     select_from_cpu: bool,
 ) -> Vec<StageCheck> {
+    let plan = FramePlan::new(params).expect("valid parameters");
     let mut out = Vec::new();
-    if !textures_from_cpu {
-        out.extend(check_textures(ctx, prepared, params));
-    }
-    if !select_from_cpu {
-        out.push(check_select(ctx, prepared, camera, params));
+    let mut selection_done = false;
+    for stage in plan.stages() {
+        match stage {
+            StageId::Bake if !textures_from_cpu => {
+                out.extend(check_textures(ctx, prepared, params))
+            }
+            s if plan.selection_stages().contains(&s) && !select_from_cpu && !selection_done => {
+                selection_done = true;
+                out.extend(check_selection_stages(ctx, prepared, camera, params));
+                out.push(check_select(ctx, prepared, camera, params));
+            }
+            _ => {}
+        }
     }
     out
 }

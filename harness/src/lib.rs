@@ -17,8 +17,15 @@
 //!   reference backend of every stage ("one test body, several backends", SPEC §8);
 //! - [`texel_compare`]: the GPU mips and bake backends and the RGBA8 texel tally (SPEC §5.1, §5.2);
 //! - [`image_compare`]: the image parity classes, every tolerance a named constant (SPEC §8);
-//! - [`diagnose`]: each GPU stage before the draw compared with the reference's in pipeline
-//!   order, so a failing frame names the first stage that differs (issue 15);
+//! - [`stage_defs`]: the stages beyond select, draw, mips and bake (`hier_select`, `coalesce`,
+//!   `command_order`, `refine`, `cull`, `primitive`) and the judge of every stage
+//!   ([`stage::Judged`]);
+//! - [`judge`]: how the list stages' outputs are compared, the near-threshold (fused
+//!   multiply-add) classification and its tolerances, shared by the parity tests and [`diagnose`];
+//! - [`gpu_stages`]: the GPU twin of each stage run alone on the reference's input of it, and
+//!   `FrameStages`, every stage of one frame judged (issue 27);
+//! - [`diagnose`]: each GPU stage before the draw compared with the reference's in the frame
+//!   plan's order, so a failing frame names the first stage that differs (issues 15, 27);
 //! - [`stats`]: statistical parity, the signed-difference histogram and bias gate of every
 //!   compared buffer (issue 15).
 //!
@@ -39,8 +46,11 @@ pub mod context;
 pub mod diagnose;
 pub mod flip;
 pub mod gpu_frame;
+pub mod gpu_stages;
 pub mod image_compare;
+pub mod judge;
 pub mod stage;
+pub mod stage_defs;
 pub mod stages;
 pub mod stats;
 pub mod texel_compare;

@@ -2,10 +2,17 @@
 //! backends", SPEC §8): a [`Stage`] names what goes in and what comes out, a [`Backend<S>`] runs
 //! stage `S`. [`Reference`] (the CPU oracle) is one backend of every stage; each GPU twin is one
 //! type per stage, beside the code that drives it (`GpuSelectBackend`, `GpuRenderer` in
-//! [`crate::backend`], `GpuMipsBackend`, `GpuBakeBackend` in [`crate::texel_compare`]). A test
+//! [`crate::backend`], the six stages run alone in [`crate::gpu_stages`], `GpuMipsBackend`, `GpuBakeBackend` in [`crate::texel_compare`]). A test
 //! written against `&dyn Backend<S>` runs on any backend of `S`; a new backend (a variant's GPU
 //! twin) is one `impl Backend<S>`, a new stage one `impl Stage` (a test binary may declare its
 //! own, as `tests/tests/properties/extremes.rs` does for whole frames from a scene).
+//!
+//! Every stage of the stage table (`crate::stages`) is a [`Stage`] here or in
+//! [`crate::stage_defs`] (re-exported), with its [`Reference`] backend and its judge
+//! ([`Judged`]: how another backend's output is compared with the reference's, reported as a
+//! [`StageCheck`] with the largest difference seen); [`compare`] runs any two backends of a stage
+//! through `&dyn Backend<S>` and judges. The GPU twins of the stages run alone are
+//! [`crate::gpu_stages`].
 //!
 //! vello keeps one stage signature for every CPU twin (`vello_shaders/src/cpu/*.rs`); the same
 //! idea here takes typed inputs and outputs because our stages' buffers differ in kind.
@@ -18,13 +25,15 @@ use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::scene::TreeMesh;
 use forestlod_reference::select::{batch_decisions, select};
 use forestlod_reference::texture::Rgba8Image;
-use forestlod_shared::{BatchMeta, Camera, MeshMeta, MipMode, Params};
+use forestlod_shared::{BatchMeta, Camera, MeshMeta, MipMode, Params, StageId};
 
 use forestlod_reference::mips::AlphaAdjust;
 use forestlod_reference::raster::RenderTarget;
 use forestlod_reference::select::{Decision, Selection};
 
 use crate::image_compare::Images;
+
+pub use crate::stage_defs::*;
 
 /// A stage as the harness runs it: its input and its output in the reference's terms.
 pub trait Stage {
@@ -51,6 +60,64 @@ pub trait Backend<S: Stage>: Named {
     /// that fails anyway panics naming itself: the harness serves tests and the CLI's parity run,
     /// which report the panic as the failure.
     fn run(&self, input: S::Input<'_>) -> S::Output;
+}
+
+/// One stage's comparison: a backend's output against the reference's, as a [`Judged`] stage's
+/// judge or the diagnosis reports it.
+#[derive(Clone, Debug)]
+pub struct StageCheck {
+    /// The stage, e.g. `coalesce` or `billboards (bake + mips)`.
+    pub stage: &'static str,
+    /// What was compared and found, the largest difference included.
+    pub summary: String,
+    /// The largest difference seen, in the stage's own unit (named in `summary`).
+    pub max_difference: f64,
+    /// Whether the stage's output differs beyond what a correct build shows.
+    pub differs: bool,
+}
+
+impl StageCheck {
+    /// The check of `stage` from a judge's result: `Ok((summary, max difference))` passes,
+    /// `Err(why)` differs.
+    pub fn of(stage: StageId, result: Result<(String, f64), String>) -> Self {
+        match result {
+            Ok((summary, max_difference)) => Self {
+                stage: stage.name(),
+                summary,
+                max_difference,
+                differs: false,
+            },
+            Err(why) => Self {
+                stage: stage.name(),
+                summary: why,
+                max_difference: f64::INFINITY,
+                differs: true,
+            },
+        }
+    }
+}
+
+/// A stage with a judge (issue 27): how another backend's output is compared with the
+/// reference's, with the tolerances the stage allows (named constants, [`crate::judge`]). The
+/// parity tests and the diagnosis share it.
+pub trait Judged: Stage {
+    /// Judges `other`'s output against `reference`'s for the same `input`.
+    fn judge(input: Self::Input<'_>, reference: &Self::Output, other: &Self::Output) -> StageCheck;
+}
+
+/// Runs `input` through `reference` and `other` (any two backends of `S`) and judges `other`'s
+/// output: "one test body, several backends".
+pub fn compare<'a, S: Judged>(
+    reference: &dyn Backend<S>,
+    other: &dyn Backend<S>,
+    input: S::Input<'a>,
+) -> StageCheck
+where
+    S::Input<'a>: Copy,
+{
+    let want = reference.run(input);
+    let got = other.run(input);
+    S::judge(input, &want, &got)
 }
 
 /// The CPU oracle: a backend of every stage.

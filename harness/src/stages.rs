@@ -4,9 +4,11 @@
 //! same idea for our two twins. `tests/tests/stage_table.rs` walks it: every [`StageId`] has an
 //! entry, every file named exists, and every stage has a parity case that names it.
 //!
-//! A stage without a generic harness backend says so here (`backend: None`): its parity is its own
-//! test file today. The table's test holds the number of such stages from growing; moving a stage
-//! onto the generic [`crate::stage::Backend`] family is setting its `backend`.
+//! Every stage has a generic harness backend (`backend`: the [`crate::stage::Stage`] type whose
+//! `Backend<S>` the reference and the GPU implement); the table's test fails on a row without
+//! one. `tests/tests/parity/every_stage.rs` runs every row through
+//! [`crate::gpu_stages::FrameStages::check`] (one arm per [`StageId`]), and its parity file still
+//! judges it in depth.
 
 use forestlod_shared::StageId;
 
@@ -65,7 +67,7 @@ pub const STAGES: &[StageEntry] = &[
         reference: "reference/src/hier_select.rs",
         driver: "gpu/src/hier_select.rs",
         wgsl: "gpu/src/shaders/hier_select.wgsl",
-        backend: None,
+        backend: Some("stage::HierSelect"),
         parity: "tests/tests/parity/hier_select.rs",
     },
     StageEntry {
@@ -74,7 +76,7 @@ pub const STAGES: &[StageEntry] = &[
         reference: "reference/src/coalesce.rs",
         driver: "gpu/src/coalesce.rs",
         wgsl: "gpu/src/shaders/coalesce.wgsl",
-        backend: None,
+        backend: Some("stage::Coalesce"),
         parity: "tests/tests/parity/hier_select.rs",
     },
     StageEntry {
@@ -83,7 +85,7 @@ pub const STAGES: &[StageEntry] = &[
         reference: "reference/src/command_order.rs",
         driver: "gpu/src/command_order.rs",
         wgsl: "gpu/src/shaders/command_order.wgsl",
-        backend: None,
+        backend: Some("stage::CommandOrder"),
         parity: "tests/tests/parity/hier_select.rs",
     },
     StageEntry {
@@ -92,7 +94,7 @@ pub const STAGES: &[StageEntry] = &[
         reference: "reference/src/refine.rs",
         driver: "gpu/src/refine.rs",
         wgsl: "gpu/src/shaders/refine.wgsl",
-        backend: None,
+        backend: Some("stage::Refine"),
         parity: "tests/tests/parity/refine.rs",
     },
     StageEntry {
@@ -110,7 +112,7 @@ pub const STAGES: &[StageEntry] = &[
         reference: "reference/src/baselines.rs",
         driver: "gpu/src/cull.rs",
         wgsl: "gpu/src/shaders/cull.wgsl",
-        backend: None,
+        backend: Some("stage::Cull"),
         parity: "tests/tests/parity/baselines.rs",
     },
     StageEntry {
@@ -119,7 +121,7 @@ pub const STAGES: &[StageEntry] = &[
         reference: "reference/src/baselines.rs",
         driver: "gpu/src/primitive.rs",
         wgsl: "gpu/src/shaders/primitive.wgsl",
-        backend: None,
+        backend: Some("stage::Primitive"),
         parity: "tests/tests/parity/baselines.rs",
     },
 ];

@@ -14,7 +14,7 @@
 //!   or [`GpuBakeBackend`] (`bake.wgsl`).
 //!
 //! The GPU pipelines are compiled once per test binary ([`gpu_bake`]) on the shared context of
-//! [`crate::backend::gpu_context`].
+//! [`crate::context::gpu_context`].
 
 use std::sync::OnceLock;
 

@@ -40,6 +40,22 @@ pub fn is_head(s: &Selection, j: usize, mode: Coalesce) -> bool {
         )
 }
 
+/// Pass 2 alone: the exclusive prefix sum of the head flags, one entry per raw command (entry `j`
+/// is the number of runs that start before `j`, so raw command `j` is in run
+/// `run_offsets[j] + is_head(j) - 1`). The GPU keeps it as `GpuCoalesce::run_offsets`, which
+/// `command_order.wgsl` reads to find each raw command's run; the harness feeds this one to the
+/// GPU's command order when it judges that stage alone.
+pub fn run_offsets(s: &Selection, mode: Coalesce) -> Vec<u32> {
+    let mut runs = 0u32;
+    (0..s.commands.len())
+        .map(|j| {
+            let before = runs;
+            runs += u32::from(is_head(s, j, mode));
+            before
+        })
+        .collect()
+}
+
 /// The coalesced selection (module docs).
 pub fn coalesce(s: &Selection, mode: Coalesce) -> Selection {
     let mut out = Selection {
@@ -124,5 +140,8 @@ mod tests {
             (3, 1, 2)
         );
         assert_eq!(coalesce(&s, Coalesce::Off).commands.len(), 5);
+        // Heads at 0, 2 and 4: the runs started before each command.
+        assert_eq!(run_offsets(&s, Coalesce::On), [0, 1, 1, 2, 2]);
+        assert_eq!(run_offsets(&s, Coalesce::Off), [0, 1, 2, 3, 4]);
     }
 }

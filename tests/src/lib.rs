@@ -10,9 +10,9 @@ use forestlod_reference::baselines::tree_spheres;
 use forestlod_reference::batches::{Batches, build_batches};
 use forestlod_reference::geometry::{PackedGeometry, pack_geometry};
 use forestlod_reference::scene::{Instance, Scene, Terrain, TreeMesh};
-use forestlod_reference::select::{SelectUniform, Selection, select};
+use forestlod_reference::select::{Selection, select};
 use forestlod_reference::texture::Rgba8Image;
-use forestlod_shared::{Camera, Params, selection_margin, view_interval};
+use forestlod_shared::{Camera, Params};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
 
@@ -225,79 +225,8 @@ pub fn run_cases<S: Strategy>(
     }
 }
 
-/// Which thresholds [`threshold_ambiguity`] checks besides the interval's near end against the
-/// draw distance and the six plane distances.
-#[derive(Clone, Copy, Debug)]
-pub struct Thresholds {
-    /// The centre's depth against the draw distance (the per-tree discard).
-    pub centre_depth: bool,
-    /// The interval's ends against the fade band (which LODs it needs), with two LOD levels.
-    pub fade_band: bool,
-}
-
-impl Thresholds {
-    /// A batch's decision (`parity::select`): the fade band, no per-tree discard.
-    pub const BATCH: Self = Self {
-        centre_depth: false,
-        fade_band: true,
-    };
-    /// A tree's visibility (`parity::baselines`): the per-tree discard, no fade band.
-    pub const TREE_VISIBILITY: Self = Self {
-        centre_depth: true,
-        fade_band: false,
-    };
-    /// A tree's refinement (`parity::refine`): the per-tree discard and the fade band.
-    pub const TREE_REFINEMENT: Self = Self {
-        centre_depth: true,
-        fade_band: true,
-    };
-}
-
-/// Why the selection decision for the sphere (`center`, `radius`) is ambiguous under `u`, or
-/// `None` when it is not near any threshold: a distance is near a threshold when it lies within
-/// `rel` of `|c - e|₁ + r + |threshold|` of it (the rounding a fused multiply-add may move it
-/// by). Checked in order: the interval's near end against the draw distance, the centre's depth
-/// against it (with `checks.centre_depth`), the interval's ends against the fade band (with
-/// `checks.fade_band` and two LOD levels) and the six plane distances against `-r - m`.
-pub fn threshold_ambiguity(
-    center: [f32; 3],
-    radius: f32,
-    u: &SelectUniform,
-    rel: f32,
-    checks: Thresholds,
-) -> Option<String> {
-    let i = view_interval(center, radius, u.eye, u.forward);
-    let d = [
-        center[0] - u.eye[0],
-        center[1] - u.eye[1],
-        center[2] - u.eye[2],
-    ];
-    let m = selection_margin(d, radius);
-    let magnitude = d[0].abs() + d[1].abs() + d[2].abs() + radius;
-    let near = |x: f32, t: f32| (x - t).abs() <= rel * (magnitude + t.abs());
-    if near(i.lo, u.draw_distance) {
-        return Some(format!("lo {} ≈ draw distance {}", i.lo, u.draw_distance));
-    }
-    if checks.centre_depth && near(i.d, u.draw_distance) {
-        return Some(format!(
-            "centre depth {} ≈ draw distance {} (per-tree discard)",
-            i.d, u.draw_distance
-        ));
-    }
-    if checks.fade_band && u.lod_levels >= 2 && near(i.lo, u.fade_end) {
-        return Some(format!("lo {} ≈ fade end {}", i.lo, u.fade_end));
-    }
-    if checks.fade_band && u.lod_levels >= 2 && near(i.hi, u.fade_start) {
-        return Some(format!("hi {} ≈ fade start {}", i.hi, u.fade_start));
-    }
-    for (k, p) in u.frustum.planes.iter().enumerate() {
-        let distance = p[0] * d[0] + p[1] * d[1] + p[2] * d[2] + p[3];
-        if near(distance, -radius - m) {
-            return Some(format!("plane {k} distance {distance} ≈ {}", -radius - m));
-        }
-    }
-    None
-}
+/// The near-threshold classification, shared with the harness's judges (`forestlod_harness::judge`).
+pub use forestlod_harness::judge::{Thresholds, threshold_ambiguity};
 
 /// Random valid parameters: grid 1 m..5 km, transition 0..2 km, fade 0..500 m, draw distance
 /// 0..6 km, one or two LOD levels.

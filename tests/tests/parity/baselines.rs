@@ -1,7 +1,7 @@
 //! Parity of the GPU baselines of E§5 (SPEC §9) with the reference's `baselines.rs`:
 //! - **cull** (`gpu/src/shaders/cull.wgsl`): the visible set equals `baselines::visible_trees`
 //!   (the per-tree oracle `select_per_tree`) exactly, tree for tree, except for trees whose
-//!   decision sits within [`AMBIGUITY_REL`] of a threshold (classified *ambiguous*, counted and
+//!   decision sits within `forestlod_harness::judge::AMBIGUITY_REL` of a threshold (classified *ambiguous*, counted and
 //!   reported); the commands equal the reference Vegetation's (`vegetation_commands`) for the GPU's
 //!   own visible set bit for bit, in order, with the counters, and, when nothing is ambiguous, the
 //!   reference's commands as a multiset of `(mesh, instance_count, index_count, first_index)`; each
@@ -19,10 +19,9 @@
 //!
 //! Without an adapter the tests fail with an install hint unless `FORESTLOD_ALLOW_NO_GPU=1`.
 
-use std::collections::BTreeSet;
 use std::time::Instant;
 
-use forestlod_gpu::{Compaction, DrawIndirectArgs, GpuContext, GpuCull};
+use forestlod_gpu::{Compaction, GpuContext, GpuCull};
 use forestlod_harness::alternatives::{
     alpha_test_alternatives, primitive_alternatives, vegetation_alternatives,
 };
@@ -30,57 +29,32 @@ use forestlod_harness::bridge::cull_trees;
 use forestlod_harness::context::gpu_context;
 use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, GpuTimedFrame, StagesFromCpu};
 use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
+use forestlod_harness::judge::{CullCase, Culled, judge_cull as harness_judge_cull};
 use forestlod_harness::stage::images_of;
-use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
+use forestlod_harness::stage::{Backend, Cull, Draw, FrameInput, Reference};
 use forestlod_harness::stats::decision_budget_failure;
 use forestlod_reference::baselines::{
     self, BaselineFrame, Proxy, primitive_quad, proxies, render_primitive, render_vegetation,
-    tree_spheres, vegetation_commands, visible_trees,
+    tree_spheres,
 };
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::draw::LOD_ID_MESH;
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::{Scene, builtin};
-use forestlod_reference::select::SelectUniform;
-use forestlod_shared::{
-    Camera, CommandData, DrawCommand, FadeMode, MeshMeta, Params, ProxyRecord, view_interval,
-};
+use forestlod_reference::select::Selection;
+use forestlod_shared::{Camera, FadeMode, Params, ProxyRecord};
 use forestlod_tests::scenarios::{
     crop_params, cropped_synthetic, named_views, tiny_and_crop_frames, tiny_params,
 };
 use forestlod_tests::{
-    CullInput, Thresholds, assert_no_failures, cameras, cameras_around, instances, params,
-    params_around, run_cases, scene_of, threshold_ambiguity,
+    CullInput, assert_no_failures, cameras, cameras_around, instances, params, params_around,
+    run_cases, scene_of,
 };
 use glam::Vec3;
 use proptest::prelude::*;
 
-/// Relative distance to a threshold within which the GPU and the reference may cull a tree
-/// differently.
-///
-/// Why: the same as `parity::select`'s `AMBIGUITY_REL` (the same interval and plane arithmetic,
-/// `common.wgsl` `decide_sphere`, on the same `f32` spheres): the GPU compiler may contract
-/// `a * b + c` into a fused multiply-add, which moves a plane distance or an interval end by a
-/// few ulp of `|c - e|₁ + r`; 1e-5 of that is some 80 ulp, ample for any such rounding and far
-/// below what a wrong rule (a missing `+ r`, the per-tree discard on `lo` instead of the centre)
-/// moves it by.
-const AMBIGUITY_REL: f32 = 1e-5;
-
 /// Random cases per random property.
 const CASES: u32 = 64;
-
-/// Why a tree's visibility is ambiguous, or `None` when it is not near any threshold: the
-/// interval's near end against the draw distance, the centre's depth against it (the per-tree
-/// discard), and the six plane distances against `-r - m`.
-fn ambiguity(center: [f32; 3], radius: f32, u: &SelectUniform) -> Option<String> {
-    threshold_ambiguity(
-        center,
-        radius,
-        u,
-        AMBIGUITY_REL,
-        Thresholds::TREE_VISIBILITY,
-    )
-}
 
 /// Tallies of the cull comparisons, printed at the end.
 #[derive(Clone, Debug, Default)]
@@ -111,18 +85,6 @@ impl std::fmt::Display for CullTally {
     }
 }
 
-/// `(mesh, instance_count, index_count, first_index)` of each command, sorted: the reference
-/// Vegetation's commands as a multiset.
-fn command_multiset(commands: &[DrawCommand], data: &[CommandData]) -> Vec<[u32; 4]> {
-    let mut v: Vec<[u32; 4]> = commands
-        .iter()
-        .zip(data)
-        .map(|(c, d)| [d.mesh, c.instance_count, c.index_count, c.first_index])
-        .collect();
-    v.sort_unstable();
-    v
-}
-
 /// A scene's trees ready to cull: their [`CullInput`] and the [`GpuCull`] over it.
 struct SceneCull<'a> {
     scene: &'a Scene,
@@ -139,8 +101,8 @@ impl<'a> SceneCull<'a> {
     }
 }
 
-/// Culls one frame of `cull`'s scene on the GPU and judges it against the reference (module
-/// docs).
+/// Culls one frame of `cull`'s scene on the GPU and judges it against the reference with the
+/// harness's judge (`forestlod_harness::judge::judge_cull`, module docs).
 fn judge_cull(
     name: &str,
     cull: &mut SceneCull,
@@ -148,121 +110,36 @@ fn judge_cull(
     params: &Params,
     tally: &mut CullTally,
 ) -> Result<(), String> {
-    let scene = cull.scene;
-    let meshes: &[MeshMeta] = &cull.input.geometry.meshes;
-    let spheres: &[([f32; 3], f32)] = &cull.input.spheres;
+    let case = CullCase {
+        scene: cull.scene,
+        meshes: &cull.input.geometry.meshes,
+        spheres: &cull.input.spheres,
+        camera,
+        params,
+    };
     let gpu = &mut cull.gpu;
     gpu.dispatch(camera, params).map_err(|e| e.to_string())?;
     let got = gpu.read().map_err(|e| e.to_string())?;
-    let want = visible_trees(spheres, camera, params);
-    tally.cases += 1;
-    tally.trees += spheres.len() as u64;
-    tally.visible += want.len() as u64;
-
-    let mut got_visible = got.indirection.clone();
-    got_visible.sort_unstable();
-    let unique: BTreeSet<u32> = got_visible.iter().copied().collect();
-    if unique.len() != got_visible.len() || got_visible.iter().any(|&t| t as usize >= spheres.len())
-    {
-        return Err(format!(
-            "{name}: the compacted indirection repeats a tree or names one past {}",
-            spheres.len()
-        ));
-    }
-    let want_set: BTreeSet<u32> = want.iter().copied().collect();
-    let u = SelectUniform::new(camera, params);
-    let mut ambiguous = 0;
-    for &t in unique.symmetric_difference(&want_set) {
-        let (c, r) = spheres[t as usize];
-        match ambiguity(c, r, &u) {
-            Some(why) => {
-                eprintln!(
-                    "{name}: tree {t} ambiguous ({why}): reference {}, GPU {}",
-                    want_set.contains(&t),
-                    unique.contains(&t)
-                );
-                ambiguous += 1;
-            }
-            None => {
-                return Err(format!(
-                    "{name}: tree {t} (sphere {c:?} r {r}) is {} on the GPU but {} in the \
-                     reference, and is not within {AMBIGUITY_REL} of any threshold (interval {:?})",
-                    if unique.contains(&t) {
-                        "visible"
-                    } else {
-                        "culled"
-                    },
-                    if want_set.contains(&t) {
-                        "visible"
-                    } else {
-                        "culled"
-                    },
-                    view_interval(c, r, u.eye, u.forward)
-                ));
-            }
-        }
-    }
-
-    // The commands, data and counters Vegetation builds from the GPU's own visible set: exact.
-    let (expect, _) = vegetation_commands(scene, meshes, &got_visible, camera, params);
-    if got.selection.commands != expect.commands
-        || got.selection.data != expect.data
-        || got.selection.counters != expect.counters
-    {
-        return Err(format!(
-            "{name}: commands differ from vegetation_commands of the GPU's visible set\n  GPU \
-             {:?}\n    {:?}\n    {:?}\n  ref {:?}\n    {:?}\n    {:?}",
-            got.selection.commands,
-            got.selection.data,
-            got.selection.counters,
-            expect.commands,
-            expect.data,
-            expect.counters
-        ));
-    }
-    // Each command's range holds its mesh's visible trees (a set: its order is atomic).
-    for (c, d) in got.selection.commands.iter().zip(&got.selection.data) {
-        let range = c.first_instance as usize..(c.first_instance + c.instance_count) as usize;
-        if let Some(&t) = got.indirection[range]
-            .iter()
-            .find(|&&t| scene.instances[t as usize].mesh != d.mesh)
-        {
-            return Err(format!(
-                "{name}: tree {t} of mesh {} in the range of mesh {}'s command",
-                scene.instances[t as usize].mesh, d.mesh
-            ));
-        }
-    }
-    let args = DrawIndirectArgs {
-        vertex_count: 6,
-        instance_count: got_visible.len() as u32,
-        first_vertex: 0,
-        first_instance: 0,
+    let got = Culled {
+        selection: Selection {
+            commands: got.selection.commands,
+            data: got.selection.data,
+            counters: got.selection.counters,
+        },
+        indirection: got.indirection,
+        draw_args: got.draw_args,
     };
-    if got.draw_args != args {
-        return Err(format!(
-            "{name}: Primitive indirect arguments {:?}, expected {args:?}",
-            got.draw_args
-        ));
-    }
+    let want = Backend::<Cull>::run(&Reference, case);
+    let j = harness_judge_cull(case, &want, &got).map_err(|e| format!("{name}: {e}"))?;
+    tally.cases += 1;
+    tally.trees += case.spheres.len() as u64;
+    tally.visible += j.visible;
     tally.commands += got.selection.commands.len() as u64;
-
-    if ambiguous == 0 {
-        if got_visible != want {
-            return Err(format!("{name}: visible sets differ"));
-        }
-        let (reference, _) = vegetation_commands(scene, meshes, &want, camera, params);
-        if command_multiset(&got.selection.commands, &got.selection.data)
-            != command_multiset(&reference.commands, &reference.data)
-        {
-            return Err(format!(
-                "{name}: commands as a multiset differ from the reference Vegetation's"
-            ));
-        }
+    if j.ambiguous == 0 {
         tally.exact_cases += 1;
     } else {
         tally.ambiguous_cases += 1;
-        tally.ambiguous_trees += ambiguous;
+        tally.ambiguous_trees += j.ambiguous;
     }
     Ok(())
 }

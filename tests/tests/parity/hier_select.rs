@@ -2,7 +2,8 @@
 //! (`reference/src/hier_select.rs`), issue 13, on random scenes, cameras and parameters, for every
 //! hierarchical mode (`octree-euclidean` included: the GPU must reproduce it, conservative or not):
 //! - per-node codes (decision + recurse bit) equal the reference's, except nodes whose sphere or box
-//!   lies within [`AMBIGUITY_REL`] of a threshold (interval ends against the draw distance and the
+//!   lies within `forestlod_harness::judge::AMBIGUITY_REL` of a threshold (the shared judge's
+//!   classification, `judge::node_ambiguity`) (interval ends against the draw distance and the
 //!   fade band, plane distances against the cull and "wholly inside" limits, the Euclidean box
 //!   distance against the transition): those are classified *ambiguous*, counted and reported;
 //! - whatever the codes, the GPU's states, commands, data and counters equal the reference's
@@ -27,25 +28,19 @@ use std::time::Instant;
 use forestlod_gpu::{Compaction, GpuSelection};
 use forestlod_harness::context::gpu_context;
 use forestlod_harness::gpu_frame::{SelectionChain, StagesFromCpu, gpu_draw, render_gpu};
-use forestlod_reference::command_order::order;
+use forestlod_harness::judge::{KEY_ULPS, check_order, node_ambiguity};
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
 use forestlod_reference::select::Selection;
 use forestlod_shared::{
     Coalesce, CommandOrder, FadeMode, Hierarchy as Mode, LOD_ID_TRANSITION, NodeMeta, Params,
-    ViewUniform, aabb_distance, aabb_margin, aabb_view_interval,
+    ViewUniform,
 };
-use forestlod_tests::{Packed, Thresholds, cameras, instances, params, threshold_ambiguity};
+use forestlod_tests::{Packed, cameras, instances, params};
 use forestlod_tests::{full_cut, full_resolve};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
-
-/// Relative distance to a threshold within which GPU and reference may decide differently: the
-/// same bound as `parity::select` (a fused multiply-add moves a result by a few ulp of
-/// `|c - e|₁ + r`, 1e-5 of it is some 80 ulp, 100x below what a real bug moves it by), applied
-/// to the sphere's and the box's thresholds.
-const AMBIGUITY_REL: f32 = 1e-5;
 
 /// Proptest cases (each one random hierarchical mode).
 const CASES: u32 = 256;
@@ -58,45 +53,6 @@ const MODES: [Mode; 5] = [
     Mode::OctreeEuclidean,
     Mode::Kmeans,
 ];
-
-/// Why node `n`'s code is ambiguous under `u`, or `None`.
-fn node_ambiguity(n: &NodeMeta, u: &ViewUniform) -> Option<String> {
-    if let Some(why) = threshold_ambiguity(n.center, n.radius, u, AMBIGUITY_REL, Thresholds::BATCH)
-    {
-        return Some(format!("sphere: {why}"));
-    }
-    let rel = [
-        n.box_center[0] - u.eye[0],
-        n.box_center[1] - u.eye[1],
-        n.box_center[2] - u.eye[2],
-    ];
-    let magnitude = rel.iter().map(|x| x.abs()).sum::<f32>() + n.extent.iter().sum::<f32>();
-    let near = |x: f32, t: f32| (x - t).abs() <= AMBIGUITY_REL * (magnitude + t.abs());
-    let i = aabb_view_interval(n.box_center, n.extent, u.eye, u.forward);
-    for (what, x, t) in [
-        ("box lo ≈ draw distance", i.lo, u.draw_distance),
-        ("box lo ≈ fade end", i.lo, u.fade_end),
-        ("box hi ≈ fade start", i.hi, u.fade_start),
-        (
-            "box distance ≈ fade end",
-            aabb_distance(n.box_center, n.extent, u.eye),
-            u.fade_end,
-        ),
-    ] {
-        if near(x, t) {
-            return Some(format!("{what}: {x} vs {t}"));
-        }
-    }
-    let m = aabb_margin(rel, n.extent);
-    for (k, p) in u.frustum.planes.iter().enumerate() {
-        let r = p[0].abs() * n.extent[0] + p[1].abs() * n.extent[1] + p[2].abs() * n.extent[2];
-        let s = p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3];
-        if near(s, -r - m) || near(s, r + m) {
-            return Some(format!("box plane {k}: {s} vs ±{}", r + m));
-        }
-    }
-    None
-}
 
 #[derive(Debug, Default)]
 struct Tally {
@@ -115,63 +71,13 @@ struct Tally {
     moved_commands: u64,
 }
 
-/// Largest difference, in `u32` steps of the `f32` bits, between a GPU run key and the
-/// reference's for the same run that is classified ambiguous rather than a bug: one ulp of the
-/// near view depth, what a fused multiply-add in its dot product can move it by (the key is
-/// the depth's bits, so one ulp is one step). A wrong key (another node, the maximum instead of
-/// the minimum, a sphere-only interval) moves it by far more.
-const KEY_ULPS: u32 = 1;
-
-/// Checks the GPU's front-to-back order `sel` (with the sort's pairs `pairs`) against the
-/// reference's order of `merged` (the coalesced list, unsorted) with keys `ref_keys` (per run):
-/// every GPU key within [`KEY_ULPS`] of the reference's (those not equal counted ambiguous), and
-/// `sel` exactly the reference's sort under the GPU's keys. Returns the ambiguous keys.
-fn check_order(
-    sel: &GpuSelection,
-    pairs: &[(u32, u32)],
-    merged: &Selection,
-    ref_keys: &[u32],
-) -> Result<u64, String> {
-    if pairs.len() != merged.commands.len() {
-        return Err(format!(
-            "{} pairs for {} runs",
-            pairs.len(),
-            merged.commands.len()
-        ));
+/// The GPU's selection as the reference's (the shared judges read [`Selection`]s).
+fn selection_of(s: &GpuSelection) -> Selection {
+    Selection {
+        commands: s.commands.clone(),
+        data: s.data.clone(),
+        counters: s.counters,
     }
-    let mut gpu_keys = vec![u32::MAX; ref_keys.len()];
-    for &(k, r) in pairs {
-        let slot = gpu_keys
-            .get_mut(r as usize)
-            .ok_or(format!("pair index {r} past {} runs", ref_keys.len()))?;
-        *slot = k;
-    }
-    let mut ambiguous = 0;
-    for (r, (&g, &w)) in gpu_keys.iter().zip(ref_keys).enumerate() {
-        if g != w {
-            if g.abs_diff(w) > KEY_ULPS {
-                return Err(format!(
-                    "run {r}: GPU key {g:#x} ({}) vs reference {w:#x} ({})",
-                    f32::from_bits(g),
-                    f32::from_bits(w)
-                ));
-            }
-            ambiguous += 1;
-        }
-    }
-    let (want, _) = order(merged.clone(), gpu_keys, CommandOrder::FrontToBack);
-    if sel.commands != want.commands || sel.data != want.data || sel.counters != want.counters {
-        let first = sel
-            .commands
-            .iter()
-            .zip(&want.commands)
-            .position(|(a, b)| a != b);
-        return Err(format!(
-            "sorted commands differ from the reference's sort (first at {first:?} of {})",
-            want.commands.len()
-        ));
-    }
-    Ok(ambiguous)
 }
 
 #[test]
@@ -275,7 +181,8 @@ fn gpu_cut_matches_reference() {
                 let pairs = gpu
                     .read_order_pairs(sel.commands.len())
                     .map_err(|e| TestCaseError::fail(e.to_string()))?;
-                ambiguous_keys = check_order(&sel, &pairs, &own.selection, &own.keys)
+                ambiguous_keys = check_order(&selection_of(&sel), &pairs, &own.selection, &own.keys)
+                    .map(|(ambiguous, _)| ambiguous)
                     .map_err(|e| TestCaseError::fail(format!("{mode:?}: {e}")))?;
                 tally.ordered_cases += 1;
                 tally.keys_compared += pairs.len() as u64;
@@ -588,8 +495,14 @@ fn gpu_front_to_back_spans_workgroups() {
                 CommandOrder::Node,
             );
             let pairs = gpu.read_order_pairs(sel.commands.len()).unwrap();
-            let a = check_order(&sel, &pairs, &unsorted.selection, &unsorted.keys)
-                .unwrap_or_else(|e| panic!("{coalesce:?} yaw {yaw}: {e}"));
+            let a = check_order(
+                &selection_of(&sel),
+                &pairs,
+                &unsorted.selection,
+                &unsorted.keys,
+            )
+            .map(|(ambiguous, _)| ambiguous)
+            .unwrap_or_else(|e| panic!("{coalesce:?} yaw {yaw}: {e}"));
             if a == 0 {
                 assert_eq!(
                     sel.commands, want.selection.commands,

@@ -3,6 +3,8 @@
 //! against the reference pipeline:
 //! - [`hier_select`]: the hierarchical cut (issue 13) against the reference, frames against the grid's;
 //! - [`select`], [`refine`], [`draw`], [`mips`], [`bake`]: the GPU twin of each reference stage;
+//! - [`every_stage`]: every stage of the stage table run alone on the GPU and judged by its
+//!   harness judge, on a few small frames (issue 27);
 //! - [`baselines`]: the GPU Vegetation and Primitive baselines against the reference's;
 //! - [`metamorphic`]: relations between two runs of one backend (translation, permutation,
 //!   LOD0 everywhere = Vegetation, LOD monotone in distance), on the reference and the GPU;
@@ -17,6 +19,7 @@
 mod bake;
 mod baselines;
 mod draw;
+mod every_stage;
 mod from_cpu;
 mod hier_select;
 mod metamorphic;

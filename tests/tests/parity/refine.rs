@@ -5,8 +5,9 @@
 //!   and the counters (trees tested, kept). Each frame is refined three ways: the reference's
 //!   selection uploaded (`SelectBuffers::from_cpu`, so `refine.wgsl` alone is judged), and
 //!   `select.wgsl`'s own output (stable and atomic compaction, refined in the select buffers with
-//!   their spare capacity) judged against the reference's `refine` of that same selection. Trees
-//!   whose decision sits within [`AMBIGUITY_REL`] of a threshold are classified *ambiguous*
+//!   their spare capacity) judged against the reference's `refine` of that same selection by the
+//!   harness's judge (`forestlod_harness::judge::judge_refine`). Trees whose decision sits
+//!   within `forestlod_harness::judge::AMBIGUITY_REL` of a threshold are classified *ambiguous*
 //!   (counted, reported) instead of failing. Scenes: `tiny` and the cropped `synthetic` of
 //!   `parity::draw`, each at three grid sizes (down to one batch of every tree: hundreds of scan
 //!   chunks), from the named cameras at three yaws, `tree_cull` `lod0` and `all`, the draw
@@ -24,7 +25,6 @@
 //!
 //! Without an adapter the tests fail with an install hint unless `FORESTLOD_ALLOW_NO_GPU=1`.
 
-use std::collections::BTreeSet;
 use std::time::Instant;
 
 use forestlod_gpu::{
@@ -35,55 +35,31 @@ use forestlod_harness::alternatives::alpha_test_alternatives;
 use forestlod_harness::context::gpu_context;
 use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, StagesFromCpu, gpu_draw, render_gpu};
 use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
+use forestlod_harness::judge::{RefineCase, Refinement, judge_refine};
 use forestlod_harness::stage::images_of;
 use forestlod_harness::stats::decision_budget_failure;
 use forestlod_reference::batches::{Batches, build_batches};
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::geometry::PackedGeometry;
 use forestlod_reference::pipeline::Prepared;
-use forestlod_reference::refine::refine;
+use forestlod_reference::refine::{Refined, refine};
 use forestlod_reference::scene::{Scene, builtin};
-use forestlod_reference::select::{SelectUniform, Selection, select, select_per_tree};
-use forestlod_shared::{Camera, FadeMode, LOD_MESH, Params, TreeCull, view_interval};
+use forestlod_reference::select::{Selection, select};
+use forestlod_shared::{Camera, FadeMode, Params, TreeCull};
 use forestlod_tests::scenarios::{
     FrameScenario, crop_params, cropped_synthetic, named_views, tiny_and_crop_frames, tiny_params,
 };
 use forestlod_tests::{
-    CullInput, Thresholds, assert_no_failures, cameras, cameras_around, half_side, instances,
-    params, params_around, run_cases, scene_of, threshold_ambiguity,
+    CullInput, assert_no_failures, cameras, cameras_around, half_side, instances, params,
+    params_around, run_cases, scene_of,
 };
 use proptest::prelude::*;
-
-/// Relative distance to a threshold within which the GPU and the reference may keep a tree
-/// differently.
-///
-/// Why: the same as `parity::select`'s and `parity::baselines`' `AMBIGUITY_REL` (the same interval
-/// and plane arithmetic, `common.wgsl` `decide_sphere` and `within_draw_distance`, on the same
-/// `f32` spheres): the GPU compiler may contract `a * b + c` into a fused multiply-add, which
-/// moves an interval end, the centre's depth or a plane distance by a few ulp of `|c - e|₁ + r`;
-/// 1e-5 of that is some 80 ulp, ample for any such rounding and far below what a wrong rule
-/// moves it by.
-const AMBIGUITY_REL: f32 = 1e-5;
 
 /// Random cases per random property.
 const CASES: u32 = 64;
 
 /// The refinement modes under test (`none` does not run the stage).
 const MODES: [TreeCull; 2] = [TreeCull::Lod0, TreeCull::All];
-
-/// Why a tree's refinement is ambiguous, or `None` when it is not near any threshold: the
-/// interval's near end against the draw distance, the centre's depth against it (the per-tree
-/// discard), the interval's ends against the fade band (which LODs it needs) and the six plane
-/// distances against `-r - m`.
-fn ambiguity(center: [f32; 3], radius: f32, u: &SelectUniform) -> Option<String> {
-    threshold_ambiguity(
-        center,
-        radius,
-        u,
-        AMBIGUITY_REL,
-        Thresholds::TREE_REFINEMENT,
-    )
-}
 
 /// Tallies of the buffer comparisons, printed at the end.
 #[derive(Clone, Debug, Default)]
@@ -158,8 +134,9 @@ impl<'a> Batched<'a> {
 }
 
 /// Judges the GPU's refinement `got` of the selection `input` against the reference's `refine`
-/// of the same selection (module docs). With `oracle`, `input` is the reference's selection and
-/// under `all` the GPU's (tree, LOD) pairs are also checked against the per-tree oracle.
+/// of the same selection with the harness's judge (`forestlod_harness::judge::judge_refine`,
+/// module docs). With `oracle`, `input` is the reference's selection and under `all` the GPU's
+/// (tree, LOD) pairs are also checked against the per-tree oracle.
 #[allow(clippy::too_many_arguments)]
 fn judge(
     name: &str,
@@ -171,211 +148,46 @@ fn judge(
     oracle: bool,
     tally: &mut Tally,
 ) -> Result<(), String> {
-    let ind = &b.batches.indirection;
-    let n = ind.len() as u32;
-    let mode = params.tree_culling().map_err(|e| e.to_string())?;
-    let mut want = input.clone();
-    let r = refine(&mut want, ind, b.spheres, camera, params);
-    let g = &got.selection;
+    let case = RefineCase {
+        selection: input,
+        batch_indirection: &b.batches.indirection,
+        spheres: b.spheres,
+        camera,
+        params,
+    };
+    let mut selection = input.clone();
+    let refined = refine(
+        &mut selection,
+        case.batch_indirection,
+        b.spheres,
+        camera,
+        params,
+    );
     tally.cases += 1;
     tally.commands += input.commands.len() as u64;
-    tally.trees_tested += r.trees_tested;
-    tally.trees_kept += r.trees_kept;
-
-    // Untouched: counters, data, command count, the copy of the batch indirection.
-    if g.counters != input.counters
-        || g.data != input.data
-        || g.commands.len() != want.commands.len()
-    {
-        return Err(format!(
-            "{name}: refine changed the counters, data or command count ({:?} vs {:?}, {} vs {} \
-             commands)",
-            g.counters,
-            input.counters,
-            g.commands.len(),
-            want.commands.len()
-        ));
-    }
-    if got.indirection.len() != 3 * n as usize {
-        return Err(format!(
-            "{name}: indirection of {} entries, expected 3n = {}",
-            got.indirection.len(),
-            3 * n
-        ));
-    }
-    if &got.indirection[2 * n as usize..] != ind.as_slice() {
-        return Err(format!("{name}: [2n, 3n) is not the batch indirection"));
-    }
-
-    let u = SelectUniform::new(camera, params);
-    let mut ambiguous: BTreeSet<u32> = BTreeSet::new();
-    let mut gpu_kept = 0u64;
-    let mut pairs: BTreeSet<(u32, u32)> = BTreeSet::new();
-    for (i, ((o, w), (c, d))) in input
-        .commands
-        .iter()
-        .zip(&want.commands)
-        .zip(g.commands.iter().zip(&g.data))
-        .enumerate()
-    {
-        if (c.index_count, c.first_index, c.base_vertex)
-            != (o.index_count, o.first_index, o.base_vertex)
-        {
-            return Err(format!(
-                "{name}: command {i}: index range or base_vertex changed: {c:?} from {o:?}"
-            ));
-        }
-        if c.first_instance != w.first_instance {
-            return Err(format!(
-                "{name}: command {i} (LOD {}): first_instance {} but the reference's {} (input \
-                 {o:?}, n = {n})",
-                d.lod, c.first_instance, w.first_instance
-            ));
-        }
-        let range = |fi: u32, len: u32, what: &str| -> Result<std::ops::Range<usize>, String> {
-            let r = fi as usize..fi as usize + len as usize;
-            if r.end > 3 * n as usize {
-                Err(format!(
-                    "{name}: command {i}: {what} range {r:?} past 3n = {}",
-                    3 * n
-                ))
-            } else {
-                Ok(r)
-            }
-        };
-        let batch = &ind[range(o.first_instance, o.instance_count, "batch")?];
-        let wl = &r.indirection[range(w.first_instance, w.instance_count, "reference")?];
-        let gl = &got.indirection[range(c.first_instance, c.instance_count, "GPU")?];
-        if !mode.refines(d.lod) {
-            if c.instance_count != o.instance_count {
-                return Err(format!(
-                    "{name}: unrefined command {i} (LOD {}): instance_count {} changed from {}",
-                    d.lod, c.instance_count, o.instance_count
-                ));
-            }
-            pairs.extend(gl.iter().map(|&t| (t, d.lod)));
-            continue;
-        }
-        tally.refined_commands += 1;
-        gpu_kept += gl.len() as u64;
-        // The GPU's list is a subsequence of its batch, in batch order.
-        let mut it = batch.iter();
-        if let Some(t) = gl.iter().find(|&&t| !it.any(|&x| x == t)) {
-            return Err(format!(
-                "{name}: command {i} (LOD {}): tree {t} is not in batch order (or not in the \
-                 batch): GPU {gl:?}, batch {batch:?}",
-                d.lod
-            ));
-        }
-        pairs.extend(gl.iter().map(|&t| (t, d.lod)));
-        if gl == wl {
-            continue;
-        }
-        let (ws, gs): (BTreeSet<u32>, BTreeSet<u32>) =
-            (wl.iter().copied().collect(), gl.iter().copied().collect());
-        for &t in ws.symmetric_difference(&gs) {
-            let (center, radius) = b.spheres[t as usize];
-            match ambiguity(center, radius, &u) {
-                Some(why) => {
-                    eprintln!(
-                        "{name}: tree {t} ambiguous in command {i} LOD {} ({why}): reference {}, \
-                         GPU {}",
-                        d.lod,
-                        ws.contains(&t),
-                        gs.contains(&t)
-                    );
-                    ambiguous.insert(t);
-                }
-                None => {
-                    return Err(format!(
-                        "{name}: command {i} (LOD {}): tree {t} (sphere {center:?} r {radius}) is \
-                         {} by the GPU but {} by the reference, and is not within \
-                         {AMBIGUITY_REL} of any threshold (interval {:?})\n  GPU {gl:?}\n  ref \
-                         {wl:?}",
-                        d.lod,
-                        if gs.contains(&t) { "kept" } else { "dropped" },
-                        if ws.contains(&t) { "kept" } else { "dropped" },
-                        view_interval(center, radius, u.eye, u.forward)
-                    ));
-                }
-            }
-        }
-        let strip = |l: &[u32]| -> Vec<u32> {
-            l.iter()
-                .copied()
-                .filter(|t| !ambiguous.contains(t))
-                .collect()
-        };
-        if strip(gl) != strip(wl) {
-            return Err(format!(
-                "{name}: command {i} (LOD {}): the unambiguous trees differ in order\n  GPU \
-                 {gl:?}\n  ref {wl:?}",
-                d.lod
-            ));
-        }
-    }
-
-    // Counters: tested never depends on a decision; kept is the GPU's own sum, and the
-    // reference's when nothing is ambiguous.
-    let expect = RefineCounters {
-        trees_tested: r.trees_tested as u32,
-        trees_kept: gpu_kept as u32,
+    tally.trees_tested += refined.trees_tested;
+    tally.trees_kept += refined.trees_kept;
+    let want = Refinement { selection, refined };
+    let got = Refinement {
+        selection: Selection {
+            commands: got.selection.commands.clone(),
+            data: got.selection.data.clone(),
+            counters: got.selection.counters,
+        },
+        refined: Refined {
+            indirection: got.indirection.clone(),
+            trees_tested: u64::from(got.counters.trees_tested),
+            trees_kept: u64::from(got.counters.trees_kept),
+        },
     };
-    if got.counters != expect {
-        return Err(format!(
-            "{name}: counters {:?}, expected {expect:?} (reference kept {})",
-            got.counters, r.trees_kept
-        ));
-    }
-
-    // The per-tree oracle under `all`: the GPU's (tree, LOD) pairs are the oracle's.
-    if oracle && mode == TreeCull::All {
-        tally.oracle_cases += 1;
-        let want_pairs: BTreeSet<(u32, u32)> = select_per_tree(b.spheres, camera, params)
-            .iter()
-            .enumerate()
-            .flat_map(|(t, decision)| {
-                let need = decision.needs();
-                [
-                    need.lod0.then_some((t as u32, LOD_MESH)),
-                    need.lod1.then_some((t as u32, 1)),
-                ]
-            })
-            .flatten()
-            .collect();
-        if let Some(&(t, lod)) = pairs.symmetric_difference(&want_pairs).find(|(t, _)| {
-            !ambiguous.contains(t) && {
-                let (c, r) = b.spheres[*t as usize];
-                ambiguity(c, r, &u).is_none()
-            }
-        }) {
-            return Err(format!(
-                "{name}: under `all` the GPU {} (tree {t}, LOD {lod}) but the per-tree oracle {}",
-                if pairs.contains(&(t, lod)) {
-                    "draws"
-                } else {
-                    "does not draw"
-                },
-                if want_pairs.contains(&(t, lod)) {
-                    "does"
-                } else {
-                    "does not"
-                }
-            ));
-        }
-    }
-
-    if ambiguous.is_empty() {
-        if gpu_kept != r.trees_kept {
-            return Err(format!(
-                "{name}: {gpu_kept} trees kept, the reference {}",
-                r.trees_kept
-            ));
-        }
+    let j = judge_refine(case, &want, &got, oracle).map_err(|e| format!("{name}: {e}"))?;
+    tally.refined_commands += j.refined_commands;
+    tally.oracle_cases += u32::from(j.oracle);
+    if j.ambiguous.is_empty() {
         tally.exact_cases += 1;
     } else {
         tally.ambiguous_cases += 1;
-        tally.ambiguous_trees += ambiguous.len() as u64;
+        tally.ambiguous_trees += j.ambiguous.len() as u64;
     }
     Ok(())
 }

@@ -1,0 +1,699 @@
+//! The judges of the list stages (issue 27): how a backend's output of `hier_select`, `coalesce`,
+//! `command_order`, `refine` and `cull` is compared with the reference's, shared by the parity
+//! tests (`tests/tests/parity/{hier_select,refine,baselines,every_stage}.rs`) and the
+//! first-differing-stage diagnosis ([`crate::diagnose`]), so both classify a difference the same
+//! way. The [`crate::stage::Judged`] impls wrap these into a [`crate::stage::StageCheck`].
+//!
+//! The integer stages (`coalesce`, the cut's resolution and compaction, the sort's gather) are
+//! judged exactly. The stages that decide with floats (`hier_select`'s per-node codes, `refine`'s
+//! and `cull`'s per-tree decisions, `command_order`'s keys) may differ from the reference where a
+//! value lies within [`AMBIGUITY_REL`] (or [`KEY_ULPS`]) of a threshold: the GPU compiler may
+//! contract `a * b + c` into a fused multiply-add. Such a decision is classified *ambiguous*,
+//! counted and reported; the rest of the output must then equal the reference's treatment of the
+//! GPU's own decisions exactly, and equal the reference's output where nothing is ambiguous.
+
+use std::collections::BTreeSet;
+
+use forestlod_gpu::DrawIndirectArgs;
+use forestlod_reference::baselines::vegetation_commands;
+use forestlod_reference::command_order::order;
+use forestlod_reference::hier_select::{HierSelection, resolve_and_compact};
+use forestlod_reference::hierarchy::Hierarchy;
+use forestlod_reference::refine::Refined;
+use forestlod_reference::scene::Scene;
+use forestlod_reference::select::{SelectUniform, Selection, select_per_tree};
+use forestlod_shared::{
+    Camera, CommandData, CommandOrder, DrawCommand, LOD_MESH, MeshMeta, NodeMeta, Params, TreeCull,
+    ViewUniform, aabb_distance, aabb_margin, aabb_view_interval, selection_margin, view_interval,
+};
+
+/// Relative distance to a threshold within which the GPU and the reference may decide
+/// differently (a batch or node of the cut, a tree of `refine` or `cull`).
+///
+/// Why 1e-5: the GPU compiler may contract `a * b + c` into a fused multiply-add, which moves an
+/// interval end, the centre's depth or a plane distance by a few ulp of `|c - e|₁ + r`; 1e-5 of
+/// that is some 80 ulp, ample for any such rounding and 100x below what a wrong rule (a missing
+/// `+ r`, the per-tree discard on `lo` instead of the centre) moves it by. The same bound as
+/// `parity::select`'s.
+pub const AMBIGUITY_REL: f32 = 1e-5;
+
+/// Largest difference, in `u32` steps of the `f32` bits, between a GPU run key and the
+/// reference's for the same run that is classified ambiguous rather than a bug.
+///
+/// Why 1: one ulp of the near view depth is what a fused multiply-add in its dot product can move
+/// it by (the key is the depth's bits, so one ulp is one step). A wrong key (another node, the
+/// maximum instead of the minimum, a sphere-only interval) moves it by far more.
+pub const KEY_ULPS: u32 = 1;
+
+/// Which thresholds [`threshold_ambiguity`] checks besides the interval's near end against the
+/// draw distance and the six plane distances.
+#[derive(Clone, Copy, Debug)]
+pub struct Thresholds {
+    /// The centre's depth against the draw distance (the per-tree discard).
+    pub centre_depth: bool,
+    /// The interval's ends against the fade band (which LODs it needs), with two LOD levels.
+    pub fade_band: bool,
+}
+
+impl Thresholds {
+    /// A batch's decision (`parity::select`): the fade band, no per-tree discard.
+    pub const BATCH: Self = Self {
+        centre_depth: false,
+        fade_band: true,
+    };
+    /// A tree's visibility (`parity::baselines`): the per-tree discard, no fade band.
+    pub const TREE_VISIBILITY: Self = Self {
+        centre_depth: true,
+        fade_band: false,
+    };
+    /// A tree's refinement (`parity::refine`): the per-tree discard and the fade band.
+    pub const TREE_REFINEMENT: Self = Self {
+        centre_depth: true,
+        fade_band: true,
+    };
+}
+
+/// Why the selection decision for the sphere (`center`, `radius`) is ambiguous under `u`, or
+/// `None` when it is not near any threshold: a distance is near a threshold when it lies within
+/// `rel` of `|c - e|₁ + r + |threshold|` of it (the rounding a fused multiply-add may move it
+/// by). Checked in order: the interval's near end against the draw distance, the centre's depth
+/// against it (with `checks.centre_depth`), the interval's ends against the fade band (with
+/// `checks.fade_band` and two LOD levels) and the six plane distances against `-r - m`.
+pub fn threshold_ambiguity(
+    center: [f32; 3],
+    radius: f32,
+    u: &SelectUniform,
+    rel: f32,
+    checks: Thresholds,
+) -> Option<String> {
+    let i = view_interval(center, radius, u.eye, u.forward);
+    let d = [
+        center[0] - u.eye[0],
+        center[1] - u.eye[1],
+        center[2] - u.eye[2],
+    ];
+    let m = selection_margin(d, radius);
+    let magnitude = d[0].abs() + d[1].abs() + d[2].abs() + radius;
+    let near = |x: f32, t: f32| (x - t).abs() <= rel * (magnitude + t.abs());
+    if near(i.lo, u.draw_distance) {
+        return Some(format!("lo {} ≈ draw distance {}", i.lo, u.draw_distance));
+    }
+    if checks.centre_depth && near(i.d, u.draw_distance) {
+        return Some(format!(
+            "centre depth {} ≈ draw distance {} (per-tree discard)",
+            i.d, u.draw_distance
+        ));
+    }
+    if checks.fade_band && u.lod_levels >= 2 && near(i.lo, u.fade_end) {
+        return Some(format!("lo {} ≈ fade end {}", i.lo, u.fade_end));
+    }
+    if checks.fade_band && u.lod_levels >= 2 && near(i.hi, u.fade_start) {
+        return Some(format!("hi {} ≈ fade start {}", i.hi, u.fade_start));
+    }
+    for (k, p) in u.frustum.planes.iter().enumerate() {
+        let distance = p[0] * d[0] + p[1] * d[1] + p[2] * d[2] + p[3];
+        if near(distance, -radius - m) {
+            return Some(format!("plane {k} distance {distance} ≈ {}", -radius - m));
+        }
+    }
+    None
+}
+
+/// Why node `n`'s code is ambiguous under `u` (within [`AMBIGUITY_REL`]), or `None`: its sphere's
+/// thresholds ([`Thresholds::BATCH`]), then its box's (interval ends against the draw distance and
+/// the fade band, the Euclidean box distance against the fade end, plane distances against the
+/// cull and "wholly inside" limits).
+pub fn node_ambiguity(n: &NodeMeta, u: &ViewUniform) -> Option<String> {
+    if let Some(why) = threshold_ambiguity(n.center, n.radius, u, AMBIGUITY_REL, Thresholds::BATCH)
+    {
+        return Some(format!("sphere: {why}"));
+    }
+    let rel = [
+        n.box_center[0] - u.eye[0],
+        n.box_center[1] - u.eye[1],
+        n.box_center[2] - u.eye[2],
+    ];
+    let magnitude = rel.iter().map(|x| x.abs()).sum::<f32>() + n.extent.iter().sum::<f32>();
+    let near = |x: f32, t: f32| (x - t).abs() <= AMBIGUITY_REL * (magnitude + t.abs());
+    let i = aabb_view_interval(n.box_center, n.extent, u.eye, u.forward);
+    for (what, x, t) in [
+        ("box lo ≈ draw distance", i.lo, u.draw_distance),
+        ("box lo ≈ fade end", i.lo, u.fade_end),
+        ("box hi ≈ fade start", i.hi, u.fade_start),
+        (
+            "box distance ≈ fade end",
+            aabb_distance(n.box_center, n.extent, u.eye),
+            u.fade_end,
+        ),
+    ] {
+        if near(x, t) {
+            return Some(format!("{what}: {x} vs {t}"));
+        }
+    }
+    let m = aabb_margin(rel, n.extent);
+    for (k, p) in u.frustum.planes.iter().enumerate() {
+        let r = p[0].abs() * n.extent[0] + p[1].abs() * n.extent[1] + p[2].abs() * n.extent[2];
+        let s = p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3];
+        if near(s, -r - m) || near(s, r + m) {
+            return Some(format!("box plane {k}: {s} vs ±{}", r + m));
+        }
+    }
+    None
+}
+
+/// What [`judge_cut`] found.
+#[derive(Clone, Debug, Default)]
+pub struct CutJudgement {
+    /// Nodes whose code differs, each near a threshold.
+    pub ambiguous_nodes: u64,
+    /// Largest difference of a command's fade floats from the uniform's (they are copied: 0).
+    pub max_fade_diff: f32,
+}
+
+/// Judges a backend's raw cut `got` of `h` (per-node codes, states, commands, data, counters)
+/// against the reference's `want` (module docs): codes equal up to ambiguous nodes
+/// ([`node_ambiguity`]); states and the commands equal to the reference's resolution and
+/// compaction of `got`'s own codes exactly; everything equal to `want` when no code differs.
+pub fn judge_cut(
+    h: &Hierarchy,
+    (meshes, billboard): (&[MeshMeta], &MeshMeta),
+    u: &ViewUniform,
+    want: &HierSelection,
+    got: &HierSelection,
+) -> Result<CutJudgement, String> {
+    if got.codes.len() != h.nodes.len() || got.states.len() != h.nodes.len() {
+        return Err(format!(
+            "{} codes and {} states for {} nodes",
+            got.codes.len(),
+            got.states.len(),
+            h.nodes.len()
+        ));
+    }
+    let mut out = CutJudgement::default();
+    for (i, (w, g)) in want.codes.iter().zip(&got.codes).enumerate() {
+        if w != g {
+            match node_ambiguity(&h.nodes[i], u) {
+                Some(why) => {
+                    eprintln!("node {i} ambiguous ({why}): reference {w:#x}, GPU {g:#x}");
+                    out.ambiguous_nodes += 1;
+                }
+                None => {
+                    return Err(format!(
+                        "node {i} {:?}: code {g:#x}, the reference's {w:#x}, not near a threshold",
+                        h.nodes[i]
+                    ));
+                }
+            }
+        }
+    }
+    let own = resolve_and_compact(h, got.codes.clone(), meshes, billboard, u);
+    if got.states != own.states {
+        return Err("states differ from the resolution of the backend's own codes".into());
+    }
+    compare_selections("raw cut (of its own codes)", &own.selection, &got.selection)?;
+    for d in &got.selection.data {
+        let diff = (d.fade_start - u.fade_start)
+            .abs()
+            .max((d.fade_end - u.fade_end).abs());
+        out.max_fade_diff = out.max_fade_diff.max(diff);
+    }
+    if out.ambiguous_nodes == 0 && got != want {
+        return Err("no code differs, yet the cut differs from the reference's".into());
+    }
+    Ok(out)
+}
+
+/// `Ok` when `got` equals `want` (commands, data, counters) exactly, else where they first differ.
+pub fn compare_selections(what: &str, want: &Selection, got: &Selection) -> Result<(), String> {
+    if got.counters != want.counters {
+        return Err(format!(
+            "{what}: counters {:?}, the reference's {:?}",
+            got.counters, want.counters
+        ));
+    }
+    let n = want.commands.len().max(got.commands.len());
+    let differing = (0..n)
+        .filter(|&i| {
+            want.commands.get(i) != got.commands.get(i) || want.data.get(i) != got.data.get(i)
+        })
+        .count();
+    if differing > 0 || got.data.len() != got.commands.len() {
+        let first = (0..n).find(|&i| {
+            want.commands.get(i) != got.commands.get(i) || want.data.get(i) != got.data.get(i)
+        });
+        return Err(format!(
+            "{what}: {differing} of {n} commands differ (first at {first:?}: {:?} {:?}, the \
+             reference's {:?} {:?})",
+            first.and_then(|i| got.commands.get(i)),
+            first.and_then(|i| got.data.get(i)),
+            first.and_then(|i| want.commands.get(i)),
+            first.and_then(|i| want.data.get(i)),
+        ));
+    }
+    Ok(())
+}
+
+/// The keys per run of `(key, run)` pairs in output order (`u32::MAX` for a run no pair names),
+/// or why not.
+pub fn keys_per_run(pairs: &[(u32, u32)], runs: usize) -> Result<Vec<u32>, String> {
+    let mut keys = vec![u32::MAX; runs];
+    for &(k, r) in pairs {
+        let slot = keys
+            .get_mut(r as usize)
+            .ok_or(format!("pair index {r} past {runs} runs"))?;
+        *slot = k;
+    }
+    Ok(keys)
+}
+
+/// Checks a front-to-back order `got` (with the sort's `(key, run)` pairs `pairs`, output order)
+/// against the reference's order of `merged` (the coalesced list, unsorted) with keys `ref_keys`
+/// (per run): every key within [`KEY_ULPS`] of the reference's (those not equal counted
+/// ambiguous), and `got` exactly the reference's sort under the backend's keys. Returns the
+/// ambiguous keys and the largest key difference.
+pub fn check_order(
+    got: &Selection,
+    pairs: &[(u32, u32)],
+    merged: &Selection,
+    ref_keys: &[u32],
+) -> Result<(u64, u32), String> {
+    if pairs.len() != merged.commands.len() {
+        return Err(format!(
+            "{} pairs for {} runs",
+            pairs.len(),
+            merged.commands.len()
+        ));
+    }
+    let gpu_keys = keys_per_run(pairs, ref_keys.len())?;
+    let (mut ambiguous, mut max) = (0, 0);
+    for (r, (&g, &w)) in gpu_keys.iter().zip(ref_keys).enumerate() {
+        max = max.max(g.abs_diff(w));
+        if g != w {
+            if g.abs_diff(w) > KEY_ULPS {
+                return Err(format!(
+                    "run {r}: key {g:#x} ({}) vs the reference's {w:#x} ({})",
+                    f32::from_bits(g),
+                    f32::from_bits(w)
+                ));
+            }
+            ambiguous += 1;
+        }
+    }
+    let (want, _) = order(merged.clone(), gpu_keys, CommandOrder::FrontToBack);
+    compare_selections("sorted commands (the reference's sort)", &want, got)?;
+    Ok((ambiguous, max))
+}
+
+/// A refinement as both backends report it: the rewritten commands and `refine`'s output.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Refinement {
+    /// The refined commands, their (unchanged) data and counters.
+    pub selection: Selection,
+    /// The `3n` indirection and the trees tested and kept.
+    pub refined: Refined,
+}
+
+/// What [`judge_refine`] found.
+#[derive(Clone, Debug, Default)]
+pub struct RefineJudgement {
+    /// Commands refined (their LOD is refined by the mode).
+    pub refined_commands: u64,
+    /// Trees the backend's refined commands kept.
+    pub kept: u64,
+    /// Trees kept differently from the reference, each near a threshold.
+    pub ambiguous: BTreeSet<u32>,
+    /// Whether the per-tree oracle comparison ran.
+    pub oracle: bool,
+}
+
+/// What [`judge_refine`] reads besides the two outputs: `refine`'s input.
+#[derive(Clone, Copy)]
+pub struct RefineCase<'a> {
+    /// The selection refined.
+    pub selection: &'a Selection,
+    /// The batch indirection (`n` trees).
+    pub batch_indirection: &'a [u32],
+    /// Every tree's bounding sphere.
+    pub spheres: &'a [([f32; 3], f32)],
+    /// The camera.
+    pub camera: &'a Camera,
+    /// Parameters (valid, `tree_cull` not `none`).
+    pub params: &'a Params,
+}
+
+/// Judges a backend's refinement `got` of `c.selection` against the reference's `want` of the same
+/// selection: counters, data, command count, index ranges and the copy `[2n, 3n)` untouched;
+/// `first_instance` equal; each refined command's trees a subsequence of its batch, equal to the
+/// reference's up to ambiguous trees ([`Thresholds::TREE_REFINEMENT`]); the counters (trees tested,
+/// the backend's own kept). With `oracle` (`c.selection` is the reference's) and `tree_cull = all`,
+/// the (tree, LOD) pairs drawn are the per-tree oracle's up to ambiguous trees.
+pub fn judge_refine(
+    c: RefineCase<'_>,
+    want: &Refinement,
+    got: &Refinement,
+    oracle: bool,
+) -> Result<RefineJudgement, String> {
+    let (input, ind) = (c.selection, c.batch_indirection);
+    let n = ind.len() as u32;
+    let mode = c.params.tree_culling().map_err(|e| e.to_string())?;
+    let r = &want.refined;
+    let g = &got.selection;
+    let mut out = RefineJudgement::default();
+    if g.counters != input.counters
+        || g.data != input.data
+        || g.commands.len() != want.selection.commands.len()
+    {
+        return Err(format!(
+            "refine changed the counters, data or command count ({:?} vs {:?}, {} vs {} \
+             commands)",
+            g.counters,
+            input.counters,
+            g.commands.len(),
+            want.selection.commands.len()
+        ));
+    }
+    if got.refined.indirection.len() != 3 * n as usize {
+        return Err(format!(
+            "indirection of {} entries, expected 3n = {}",
+            got.refined.indirection.len(),
+            3 * n
+        ));
+    }
+    if &got.refined.indirection[2 * n as usize..] != ind {
+        return Err("[2n, 3n) is not the batch indirection".into());
+    }
+    let u = SelectUniform::new(c.camera, c.params);
+    let ambiguity = |t: u32| {
+        let (center, radius) = c.spheres[t as usize];
+        threshold_ambiguity(
+            center,
+            radius,
+            &u,
+            AMBIGUITY_REL,
+            Thresholds::TREE_REFINEMENT,
+        )
+    };
+    let mut pairs: BTreeSet<(u32, u32)> = BTreeSet::new();
+    for (i, ((o, w), (cmd, d))) in input
+        .commands
+        .iter()
+        .zip(&want.selection.commands)
+        .zip(g.commands.iter().zip(&g.data))
+        .enumerate()
+    {
+        if (cmd.index_count, cmd.first_index, cmd.base_vertex)
+            != (o.index_count, o.first_index, o.base_vertex)
+        {
+            return Err(format!(
+                "command {i}: index range or base_vertex changed: {cmd:?} from {o:?}"
+            ));
+        }
+        if cmd.first_instance != w.first_instance {
+            return Err(format!(
+                "command {i} (LOD {}): first_instance {} but the reference's {} (input {o:?}, \
+                 n = {n})",
+                d.lod, cmd.first_instance, w.first_instance
+            ));
+        }
+        let range = |fi: u32, len: u32, what: &str| -> Result<std::ops::Range<usize>, String> {
+            let r = fi as usize..fi as usize + len as usize;
+            if r.end > 3 * n as usize {
+                Err(format!(
+                    "command {i}: {what} range {r:?} past 3n = {}",
+                    3 * n
+                ))
+            } else {
+                Ok(r)
+            }
+        };
+        let batch = &ind[range(o.first_instance, o.instance_count, "batch")?];
+        let wl = &r.indirection[range(w.first_instance, w.instance_count, "reference")?];
+        let gl = &got.refined.indirection[range(cmd.first_instance, cmd.instance_count, "GPU")?];
+        if !mode.refines(d.lod) {
+            if cmd.instance_count != o.instance_count {
+                return Err(format!(
+                    "unrefined command {i} (LOD {}): instance_count {} changed from {}",
+                    d.lod, cmd.instance_count, o.instance_count
+                ));
+            }
+            pairs.extend(gl.iter().map(|&t| (t, d.lod)));
+            continue;
+        }
+        out.refined_commands += 1;
+        out.kept += gl.len() as u64;
+        // The backend's list is a subsequence of its batch, in batch order.
+        let mut it = batch.iter();
+        if let Some(t) = gl.iter().find(|&&t| !it.any(|&x| x == t)) {
+            return Err(format!(
+                "command {i} (LOD {}): tree {t} is not in batch order (or not in the batch): \
+                 GPU {gl:?}, batch {batch:?}",
+                d.lod
+            ));
+        }
+        pairs.extend(gl.iter().map(|&t| (t, d.lod)));
+        if gl == wl {
+            continue;
+        }
+        let (ws, gs): (BTreeSet<u32>, BTreeSet<u32>) =
+            (wl.iter().copied().collect(), gl.iter().copied().collect());
+        for &t in ws.symmetric_difference(&gs) {
+            match ambiguity(t) {
+                Some(why) => {
+                    eprintln!(
+                        "tree {t} ambiguous in command {i} LOD {} ({why}): reference {}, GPU {}",
+                        d.lod,
+                        ws.contains(&t),
+                        gs.contains(&t)
+                    );
+                    out.ambiguous.insert(t);
+                }
+                None => {
+                    let (center, radius) = c.spheres[t as usize];
+                    return Err(format!(
+                        "command {i} (LOD {}): tree {t} (sphere {center:?} r {radius}) is {} by \
+                         the GPU but {} by the reference, and is not within {AMBIGUITY_REL} of \
+                         any threshold (interval {:?})\n  GPU {gl:?}\n  ref {wl:?}",
+                        d.lod,
+                        if gs.contains(&t) { "kept" } else { "dropped" },
+                        if ws.contains(&t) { "kept" } else { "dropped" },
+                        view_interval(center, radius, u.eye, u.forward)
+                    ));
+                }
+            }
+        }
+        let strip = |l: &[u32]| -> Vec<u32> {
+            l.iter()
+                .copied()
+                .filter(|t| !out.ambiguous.contains(t))
+                .collect()
+        };
+        if strip(gl) != strip(wl) {
+            return Err(format!(
+                "command {i} (LOD {}): the unambiguous trees differ in order\n  GPU {gl:?}\n  \
+                 ref {wl:?}",
+                d.lod
+            ));
+        }
+    }
+    // Counters: tested never depends on a decision; kept is the backend's own sum.
+    if got.refined.trees_tested != r.trees_tested || got.refined.trees_kept != out.kept {
+        return Err(format!(
+            "counters tested {} kept {}, expected {} and {} (reference kept {})",
+            got.refined.trees_tested,
+            got.refined.trees_kept,
+            r.trees_tested,
+            out.kept,
+            r.trees_kept
+        ));
+    }
+    // The per-tree oracle under `all`: the (tree, LOD) pairs drawn are the oracle's.
+    if oracle && mode == TreeCull::All {
+        out.oracle = true;
+        let want_pairs: BTreeSet<(u32, u32)> = select_per_tree(c.spheres, c.camera, c.params)
+            .iter()
+            .enumerate()
+            .flat_map(|(t, decision)| {
+                let need = decision.needs();
+                [
+                    need.lod0.then_some((t as u32, LOD_MESH)),
+                    need.lod1.then_some((t as u32, 1)),
+                ]
+            })
+            .flatten()
+            .collect();
+        if let Some(&(t, lod)) = pairs
+            .symmetric_difference(&want_pairs)
+            .find(|(t, _)| !out.ambiguous.contains(t) && ambiguity(*t).is_none())
+        {
+            return Err(format!(
+                "under `all` the GPU {} (tree {t}, LOD {lod}) but the per-tree oracle {}",
+                if pairs.contains(&(t, lod)) {
+                    "draws"
+                } else {
+                    "does not draw"
+                },
+                if want_pairs.contains(&(t, lod)) {
+                    "does"
+                } else {
+                    "does not"
+                }
+            ));
+        }
+    }
+    if out.ambiguous.is_empty() && out.kept != r.trees_kept {
+        return Err(format!(
+            "{} trees kept, the reference {}",
+            out.kept, r.trees_kept
+        ));
+    }
+    Ok(out)
+}
+
+/// The baselines' culling as both backends report it (the reference's from
+/// `baselines::visible_trees` and `vegetation_commands`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Culled {
+    /// Vegetation's commands (one per mesh with visible trees), data and counters.
+    pub selection: Selection,
+    /// The compacted indirection, mesh by mesh (any order within a mesh).
+    pub indirection: Vec<u32>,
+    /// The Primitive's indirect arguments, `{6, visible, 0, 0}`.
+    pub draw_args: DrawIndirectArgs,
+}
+
+/// What [`judge_cull`] found.
+#[derive(Clone, Debug, Default)]
+pub struct CullJudgement {
+    /// Trees visible in the reference.
+    pub visible: u64,
+    /// Trees culled differently, each near a threshold.
+    pub ambiguous: u64,
+}
+
+/// What [`judge_cull`] reads besides the two outputs: `cull`'s input.
+#[derive(Clone, Copy)]
+pub struct CullCase<'a> {
+    /// The scene (instances' meshes).
+    pub scene: &'a Scene,
+    /// Mesh records with their packed index ranges.
+    pub meshes: &'a [MeshMeta],
+    /// Every tree's bounding sphere.
+    pub spheres: &'a [([f32; 3], f32)],
+    /// The camera.
+    pub camera: &'a Camera,
+    /// Parameters (valid).
+    pub params: &'a Params,
+}
+
+/// `(mesh, instance_count, index_count, first_index)` of each command, sorted: commands as a
+/// multiset.
+fn command_multiset(commands: &[DrawCommand], data: &[CommandData]) -> Vec<[u32; 4]> {
+    let mut v: Vec<[u32; 4]> = commands
+        .iter()
+        .zip(data)
+        .map(|(c, d)| [d.mesh, c.instance_count, c.index_count, c.first_index])
+        .collect();
+    v.sort_unstable();
+    v
+}
+
+/// Judges a backend's culling `got` against the reference's `want`: the visible set equal up to
+/// ambiguous trees ([`Thresholds::TREE_VISIBILITY`]); the commands, data and counters those of
+/// `vegetation_commands` for the backend's own visible set, exactly; each command's range holding
+/// its mesh's trees; the Primitive's arguments `{6, visible, 0, 0}`; and, when nothing is
+/// ambiguous, the same visible set and the reference's commands as a multiset.
+pub fn judge_cull(c: CullCase<'_>, want: &Culled, got: &Culled) -> Result<CullJudgement, String> {
+    let (scene, spheres) = (c.scene, c.spheres);
+    let mut got_visible = got.indirection.clone();
+    got_visible.sort_unstable();
+    let mut want_visible = want.indirection.clone();
+    want_visible.sort_unstable();
+    let mut out = CullJudgement {
+        visible: want_visible.len() as u64,
+        ..CullJudgement::default()
+    };
+    let unique: BTreeSet<u32> = got_visible.iter().copied().collect();
+    if unique.len() != got_visible.len() || got_visible.iter().any(|&t| t as usize >= spheres.len())
+    {
+        return Err(format!(
+            "the compacted indirection repeats a tree or names one past {}",
+            spheres.len()
+        ));
+    }
+    let want_set: BTreeSet<u32> = want_visible.iter().copied().collect();
+    let u = SelectUniform::new(c.camera, c.params);
+    for &t in unique.symmetric_difference(&want_set) {
+        let (center, r) = spheres[t as usize];
+        let state = |visible: bool| if visible { "visible" } else { "culled" };
+        match threshold_ambiguity(center, r, &u, AMBIGUITY_REL, Thresholds::TREE_VISIBILITY) {
+            Some(why) => {
+                eprintln!(
+                    "tree {t} ambiguous ({why}): reference {}, GPU {}",
+                    want_set.contains(&t),
+                    unique.contains(&t)
+                );
+                out.ambiguous += 1;
+            }
+            None => {
+                return Err(format!(
+                    "tree {t} (sphere {center:?} r {r}) is {} on the GPU but {} in the reference, \
+                     and is not within {AMBIGUITY_REL} of any threshold (interval {:?})",
+                    state(unique.contains(&t)),
+                    state(want_set.contains(&t)),
+                    view_interval(center, r, u.eye, u.forward)
+                ));
+            }
+        }
+    }
+    // The commands, data and counters Vegetation builds from the backend's own visible set: exact.
+    let (expect, _) = vegetation_commands(scene, c.meshes, &got_visible, c.camera, c.params);
+    compare_selections(
+        "commands (vegetation_commands of its own visible set)",
+        &expect,
+        &got.selection,
+    )?;
+    // Each command's range holds its mesh's visible trees (a set: its order is atomic).
+    for (cmd, d) in got.selection.commands.iter().zip(&got.selection.data) {
+        let range = cmd.first_instance as usize..(cmd.first_instance + cmd.instance_count) as usize;
+        let Some(trees) = got.indirection.get(range.clone()) else {
+            return Err(format!("command range {range:?} past the indirection"));
+        };
+        if let Some(&t) = trees
+            .iter()
+            .find(|&&t| scene.instances[t as usize].mesh != d.mesh)
+        {
+            return Err(format!(
+                "tree {t} of mesh {} in the range of mesh {}'s command",
+                scene.instances[t as usize].mesh, d.mesh
+            ));
+        }
+    }
+    let args = primitive_args(got_visible.len());
+    if got.draw_args != args {
+        return Err(format!(
+            "Primitive indirect arguments {:?}, expected {args:?}",
+            got.draw_args
+        ));
+    }
+    if out.ambiguous == 0 {
+        if got_visible != want_visible {
+            return Err("visible sets differ".into());
+        }
+        if command_multiset(&got.selection.commands, &got.selection.data)
+            != command_multiset(&want.selection.commands, &want.selection.data)
+        {
+            return Err("commands as a multiset differ from the reference Vegetation's".into());
+        }
+    }
+    Ok(out)
+}
+
+/// The Primitive's indirect arguments for `visible` trees: one quad (6 vertices) per tree.
+pub fn primitive_args(visible: usize) -> DrawIndirectArgs {
+    DrawIndirectArgs {
+        vertex_count: 6,
+        instance_count: visible as u32,
+        first_vertex: 0,
+        first_instance: 0,
+    }
+}

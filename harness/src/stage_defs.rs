@@ -1,0 +1,501 @@
+//! The stages of issue 27 beyond the first four ([`crate::stage`] re-exports them): `hier_select`,
+//! `coalesce`, `command_order`, `refine` and the baselines' `cull` and `primitive`, each with its
+//! input and output in the reference's terms and the reference backend; and the judge
+//! ([`Judged`]) of every stage of the table, so `tests/tests/parity/every_stage.rs` and
+//! [`crate::diagnose`] compare any backend of any stage the same way. The GPU backends, which run
+//! one stage alone on the reference's input of it, are [`crate::gpu_stages`].
+//!
+//! Every input is the reference's input of the stage (the previous stage's reference output,
+//! `forestlod_reference::frame::SelectionTrace`), so a difference is the stage's own.
+
+use forestlod_reference::baselines::{
+    proxies, render_primitive, tree_spheres, vegetation_commands, visible_trees,
+};
+use forestlod_reference::coalesce::{coalesce, run_offsets};
+use forestlod_reference::command_order::{order, run_keys};
+use forestlod_reference::hier_select::{HierSelection, hier_select};
+use forestlod_reference::hierarchy::Hierarchy;
+use forestlod_reference::refine::refine;
+use forestlod_reference::select::{SelectUniform, Selection};
+use forestlod_reference::texture::Rgba8Image;
+use forestlod_shared::{
+    Camera, Coalesce as CoalesceMode, CommandOrder as OrderMode, MeshMeta, NodeMeta, Params,
+    StageId, ViewUniform,
+};
+
+use crate::alternatives::{alpha_test_alternatives, primitive_alternatives};
+use crate::diagnose::texel_check;
+use crate::image_compare::{Images, MaxDiffs, judge_image};
+use crate::judge::{
+    AMBIGUITY_REL, CullCase, Culled, RefineCase, Refinement, Thresholds, check_order,
+    compare_selections, judge_cull, judge_cut, judge_refine, keys_per_run, primitive_args,
+    threshold_ambiguity,
+};
+use crate::stage::{
+    Backend, BackendSelection, Bake, BakeInput, Draw, FrameInput, Judged, LevelOut, Mips,
+    MipsInput, Reference, Select, SelectInput, Stage, StageCheck, images_of,
+};
+use crate::texel_compare::TexelTally;
+
+/// `hier_select` (G§3 Fig. 4, C§4.5): the raw cut of a hierarchy, before coalescing, with its
+/// per-node codes and states.
+pub struct HierSelect;
+
+/// The input of [`HierSelect`].
+#[derive(Clone, Copy)]
+pub struct HierSelectInput<'a> {
+    /// The hierarchy (its mode and nodes).
+    pub hierarchy: &'a Hierarchy,
+    /// Mesh records with their packed index ranges.
+    pub meshes: &'a [MeshMeta],
+    /// The billboard quad's record.
+    pub billboard: &'a MeshMeta,
+    /// The camera (valid).
+    pub camera: &'a Camera,
+    /// Parameters (valid).
+    pub params: &'a Params,
+}
+
+impl Stage for HierSelect {
+    type Input<'a> = HierSelectInput<'a>;
+    type Output = HierSelection;
+}
+
+impl Backend<HierSelect> for Reference {
+    fn run(&self, i: HierSelectInput<'_>) -> HierSelection {
+        hier_select(i.hierarchy, i.meshes, i.billboard, i.camera, i.params)
+    }
+}
+
+impl Judged for HierSelect {
+    fn judge(i: HierSelectInput<'_>, want: &HierSelection, got: &HierSelection) -> StageCheck {
+        let u = ViewUniform::new(i.camera, i.params);
+        let r = judge_cut(i.hierarchy, (i.meshes, i.billboard), &u, want, got);
+        StageCheck::of(
+            StageId::HierSelect,
+            r.map(|j| {
+                (
+                    format!(
+                        "{} nodes, {} commands, {} ambiguous codes (within {AMBIGUITY_REL}), max \
+                         fade float difference {}",
+                        want.codes.len(),
+                        got.selection.commands.len(),
+                        j.ambiguous_nodes,
+                        j.max_fade_diff
+                    ),
+                    f64::from(j.max_fade_diff),
+                )
+            }),
+        )
+    }
+}
+
+/// `coalesce` (issue 13, G§3's contiguous ranges): the raw cut with its runs merged.
+pub struct Coalesce;
+
+/// The input of [`Coalesce`].
+#[derive(Clone, Copy)]
+pub struct CoalesceInput<'a> {
+    /// The raw cut.
+    pub raw: &'a Selection,
+    /// The mode.
+    pub mode: CoalesceMode,
+}
+
+/// What [`Coalesce`] gives: the merged runs, and the exclusive scan of the head flags (one entry
+/// per raw command) that `command_order` reads.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Coalesced {
+    /// The merged runs.
+    pub selection: Selection,
+    /// `run_offsets[j]`: the runs that start before raw command `j`.
+    pub run_offsets: Vec<u32>,
+}
+
+impl Stage for Coalesce {
+    type Input<'a> = CoalesceInput<'a>;
+    type Output = Coalesced;
+}
+
+impl Backend<Coalesce> for Reference {
+    fn run(&self, i: CoalesceInput<'_>) -> Coalesced {
+        Coalesced {
+            selection: coalesce(i.raw, i.mode),
+            run_offsets: run_offsets(i.raw, i.mode),
+        }
+    }
+}
+
+impl Judged for Coalesce {
+    /// Exact: coalescing is integer work (head flags, a scan, copies).
+    fn judge(i: CoalesceInput<'_>, want: &Coalesced, got: &Coalesced) -> StageCheck {
+        let r = compare_selections("runs", &want.selection, &got.selection).and_then(|()| {
+            let differing = want
+                .run_offsets
+                .iter()
+                .zip(&got.run_offsets)
+                .filter(|(a, b)| a != b)
+                .count();
+            if differing > 0 || want.run_offsets.len() != got.run_offsets.len() {
+                return Err(format!(
+                    "run offsets: {differing} of {} differ ({} read)",
+                    want.run_offsets.len(),
+                    got.run_offsets.len()
+                ));
+            }
+            Ok((
+                format!(
+                    "{} raw commands -> {} runs ({}), run offsets equal, max difference 0",
+                    i.raw.commands.len(),
+                    got.selection.commands.len(),
+                    i.mode.name()
+                ),
+                0.0,
+            ))
+        });
+        StageCheck::of(StageId::Coalesce, r)
+    }
+}
+
+/// `command_order` (E§7): the coalesced runs reordered by their nearest view depth.
+pub struct CommandOrder;
+
+/// The input of [`CommandOrder`].
+#[derive(Clone, Copy)]
+pub struct CommandOrderInput<'a> {
+    /// The hierarchy's nodes (the keys' depths).
+    pub nodes: &'a [NodeMeta],
+    /// The raw cut.
+    pub raw: &'a Selection,
+    /// Its coalescing under `coalesce`.
+    pub coalesced: &'a Selection,
+    /// The coalescing's mode (which raw commands belong to which run).
+    pub coalesce: CoalesceMode,
+    /// The camera (valid).
+    pub camera: &'a Camera,
+    /// Parameters (valid; `command_order` is the stage's mode).
+    pub params: &'a Params,
+}
+
+/// What [`CommandOrder`] gives: the ordered commands and, for `front-to-back`, the sort's
+/// `(key, run)` pairs in output order (empty for `node`, which computes nothing).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Ordered {
+    /// The ordered commands.
+    pub selection: Selection,
+    /// `(key, run)` in output order.
+    pub pairs: Vec<(u32, u32)>,
+}
+
+impl Stage for CommandOrder {
+    type Input<'a> = CommandOrderInput<'a>;
+    type Output = Ordered;
+}
+
+impl Backend<CommandOrder> for Reference {
+    fn run(&self, i: CommandOrderInput<'_>) -> Ordered {
+        let mode = i.params.command_ordering().expect("valid parameters");
+        if mode == OrderMode::Node {
+            return Ordered {
+                selection: i.coalesced.clone(),
+                pairs: Vec::new(),
+            };
+        }
+        let u = ViewUniform::new(i.camera, i.params);
+        let keys = run_keys(i.nodes, i.raw, i.coalesced, &u, i.coalesce);
+        let mut pairs: Vec<(u32, u32)> = keys.iter().zip(0u32..).map(|(&k, r)| (k, r)).collect();
+        pairs.sort_unstable();
+        let (selection, _) = order(i.coalesced.clone(), keys, mode);
+        Ordered { selection, pairs }
+    }
+}
+
+impl Judged for CommandOrder {
+    /// `node`: exact. `front-to-back`: every key within [`crate::judge::KEY_ULPS`] of the
+    /// reference's, and the order the reference's sort under the backend's keys.
+    fn judge(i: CommandOrderInput<'_>, want: &Ordered, got: &Ordered) -> StageCheck {
+        let mode = i.params.command_ordering().expect("valid parameters");
+        let n = i.coalesced.commands.len();
+        let r = if mode == OrderMode::Node {
+            compare_selections("commands (node order)", &want.selection, &got.selection)
+                .map(|()| (format!("{n} commands in node order, exact"), 0.0))
+        } else {
+            keys_per_run(&want.pairs, n)
+                .and_then(|ref_keys| {
+                    check_order(&got.selection, &got.pairs, i.coalesced, &ref_keys)
+                })
+                .map(|(ambiguous, max)| {
+                    (
+                        format!(
+                            "{n} runs sorted front to back, {ambiguous} keys within one ulp, max \
+                             key difference {max} ulp"
+                        ),
+                        f64::from(max),
+                    )
+                })
+        };
+        StageCheck::of(StageId::CommandOrder, r)
+    }
+}
+
+/// `refine` (beyond the thesis): per-tree culling of the selected commands.
+pub struct Refine;
+
+/// The input of [`Refine`].
+#[derive(Clone, Copy)]
+pub struct RefineInput<'a> {
+    /// The selection, indirection, spheres, camera and parameters (what the judge reads too).
+    pub case: RefineCase<'a>,
+    /// The trees as the GPU takes them (`crate::bridge::cull_trees`).
+    pub trees: &'a [forestlod_gpu::CullTree],
+}
+
+impl Stage for Refine {
+    type Input<'a> = RefineInput<'a>;
+    type Output = Refinement;
+}
+
+impl Backend<Refine> for Reference {
+    fn run(&self, i: RefineInput<'_>) -> Refinement {
+        let c = i.case;
+        let mut selection = c.selection.clone();
+        let refined = refine(
+            &mut selection,
+            c.batch_indirection,
+            c.spheres,
+            c.camera,
+            c.params,
+        );
+        Refinement { selection, refined }
+    }
+}
+
+impl Judged for Refine {
+    /// [`judge_refine`] without the per-tree oracle (the input may be a cut's commands).
+    fn judge(i: RefineInput<'_>, want: &Refinement, got: &Refinement) -> StageCheck {
+        let r = judge_refine(i.case, want, got, false).map(|j| {
+            (
+                format!(
+                    "{} commands ({} refined), {} trees tested, {} kept, {} ambiguous trees \
+                     (within {AMBIGUITY_REL}), max difference {} trees",
+                    got.selection.commands.len(),
+                    j.refined_commands,
+                    want.refined.trees_tested,
+                    j.kept,
+                    j.ambiguous.len(),
+                    j.ambiguous.len()
+                ),
+                j.ambiguous.len() as f64,
+            )
+        });
+        StageCheck::of(StageId::Refine, r)
+    }
+}
+
+/// `cull` (E§5, the baselines): per-tree visibility, compacted mesh by mesh into Vegetation's
+/// commands and the Primitive's indirect arguments.
+pub struct Cull;
+
+impl Stage for Cull {
+    type Input<'a> = CullCase<'a>;
+    type Output = Culled;
+}
+
+impl Backend<Cull> for Reference {
+    fn run(&self, i: CullCase<'_>) -> Culled {
+        let visible = visible_trees(i.spheres, i.camera, i.params);
+        let (selection, indirection) =
+            vegetation_commands(i.scene, i.meshes, &visible, i.camera, i.params);
+        Culled {
+            selection,
+            draw_args: primitive_args(indirection.len()),
+            indirection,
+        }
+    }
+}
+
+impl Judged for Cull {
+    fn judge(i: CullCase<'_>, want: &Culled, got: &Culled) -> StageCheck {
+        let r = judge_cull(i, want, got).map(|j| {
+            (
+                format!(
+                    "{} trees, {} visible, {} commands, {} ambiguous trees (within \
+                     {AMBIGUITY_REL}), max difference {} trees",
+                    i.spheres.len(),
+                    j.visible,
+                    got.selection.commands.len(),
+                    j.ambiguous,
+                    j.ambiguous
+                ),
+                j.ambiguous as f64,
+            )
+        });
+        StageCheck::of(StageId::Cull, r)
+    }
+}
+
+/// `primitive` (E§5): the Primitive baseline's frame, one ray-cast proxy quad per visible tree
+/// (the reference's visible set: `cull`'s output).
+pub struct Primitive;
+
+impl Stage for Primitive {
+    type Input<'a> = FrameInput<'a>;
+    type Output = Images;
+}
+
+impl Backend<Primitive> for Reference {
+    fn run(&self, i: FrameInput<'_>) -> Images {
+        let p = i.prepared;
+        let spheres = tree_spheres(&p.scene, &p.geometry.meshes);
+        let proxy_list = proxies(p, i.params.alpha_cutoff);
+        images_of(&render_primitive(p, &spheres, &proxy_list, i.camera, i.params).target)
+    }
+}
+
+/// An image judged by [`judge_image`] against `want` and `alternatives`: the check of `stage`,
+/// the largest interior colour difference its maximum.
+fn image_check(
+    stage: StageId,
+    got: &Images,
+    want: &Images,
+    alternatives: &[Images],
+    camera: &Camera,
+) -> StageCheck {
+    let mut max: MaxDiffs = (0, 0, 0.0);
+    let failure = judge_image(stage.name(), got, want, alternatives, camera, &mut max);
+    let summary = format!(
+        "image parity classes of image_compare: max interior colour difference {}, depth {} ulp \
+         ({} absolute)",
+        max.0, max.1, max.2
+    );
+    StageCheck::of(
+        stage,
+        match failure {
+            None => Ok((summary, f64::from(max.0))),
+            Some(f) => Err(format!("{f}; {summary}")),
+        },
+    )
+}
+
+impl Judged for Primitive {
+    /// The image classes of [`crate::image_compare`], with the ray cast's root tests moved
+    /// (`PRIMITIVE_DISC_SHIFTS`) as alternatives.
+    fn judge(i: FrameInput<'_>, want: &Images, got: &Images) -> StageCheck {
+        let p = i.prepared;
+        let spheres = tree_spheres(&p.scene, &p.geometry.meshes);
+        let proxy_list = proxies(p, i.params.alpha_cutoff);
+        let alternatives = primitive_alternatives(p, &spheres, &proxy_list, i.camera, i.params);
+        image_check(StageId::Primitive, got, want, &alternatives, i.camera)
+    }
+}
+
+impl Judged for Draw {
+    /// The image classes of [`crate::image_compare`], with the alpha-test cutoff moved
+    /// (`ALPHA_TEST_SHIFTS`) as alternatives.
+    fn judge(i: FrameInput<'_>, want: &Images, got: &Images) -> StageCheck {
+        let alternatives = alpha_test_alternatives(i.prepared, i.camera, i.params);
+        image_check(StageId::Draw, got, want, &alternatives, i.camera)
+    }
+}
+
+impl Judged for Select {
+    /// Per-batch decisions equal up to batches within [`AMBIGUITY_REL`] of a threshold
+    /// ([`Thresholds::BATCH`]); the commands exactly the reference's when none is ambiguous
+    /// (stable order; `parity::select` judges the rest).
+    fn judge(i: SelectInput<'_>, want: &BackendSelection, got: &BackendSelection) -> StageCheck {
+        let u = SelectUniform::new(i.camera, i.params);
+        let r = (|| {
+            if want.decisions.len() != got.decisions.len() {
+                return Err(format!(
+                    "{} decisions for {} batches",
+                    got.decisions.len(),
+                    want.decisions.len()
+                ));
+            }
+            let mut ambiguous = 0u64;
+            for (b, (w, g)) in want.decisions.iter().zip(&got.decisions).enumerate() {
+                if w == g {
+                    continue;
+                }
+                let m = &i.batches[b];
+                match threshold_ambiguity(m.center, m.radius, &u, AMBIGUITY_REL, Thresholds::BATCH)
+                {
+                    Some(why) => {
+                        eprintln!("batch {b} ambiguous ({why}): reference {w:?}, GPU {g:?}");
+                        ambiguous += 1;
+                    }
+                    None => {
+                        return Err(format!(
+                            "batch {b}: {g:?}, the reference's {w:?}, not near a threshold"
+                        ));
+                    }
+                }
+            }
+            if ambiguous == 0 {
+                compare_selections("commands", &want.selection, &got.selection)?;
+            }
+            Ok((
+                format!(
+                    "{} batches, {} commands, {ambiguous} ambiguous decisions (within \
+                     {AMBIGUITY_REL}), max difference {ambiguous} batches",
+                    want.decisions.len(),
+                    got.selection.commands.len()
+                ),
+                ambiguous as f64,
+            ))
+        })();
+        StageCheck::of(StageId::Select, r)
+    }
+}
+
+/// The texel tally of `got` against `want`, image by image (±1 per channel).
+fn tally_images<'a>(
+    pairs: impl Iterator<Item = (String, &'a Rgba8Image, &'a Rgba8Image)>,
+) -> TexelTally {
+    let mut tally = TexelTally::default();
+    for (what, g, w) in pairs {
+        tally.compare(&what, &g.texels, &w.texels, 1);
+    }
+    tally
+}
+
+/// A texture stage's check: [`texel_check`]'s thresholds, the stage named by its id.
+fn texture_stage_check(stage: StageId, shapes_agree: bool, tally: &TexelTally) -> StageCheck {
+    if !shapes_agree {
+        return StageCheck::of(stage, Err("layer or level counts differ".into()));
+    }
+    let c = texel_check(stage.name(), tally);
+    StageCheck {
+        max_difference: f64::from(tally.max_diff),
+        ..c
+    }
+}
+
+impl Judged for Mips {
+    /// [`crate::diagnose::STAGE_TEXEL_MAX_FRACTION`] of the texels beyond ±1 and the bias limit
+    /// of the diagnosis, over every level of every layer.
+    fn judge(_: MipsInput<'_>, want: &Vec<Vec<LevelOut>>, got: &Vec<Vec<LevelOut>>) -> StageCheck {
+        let shapes =
+            want.len() == got.len() && want.iter().zip(got).all(|(a, b)| a.len() == b.len());
+        let tally = tally_images(want.iter().zip(got).enumerate().flat_map(|(l, (w, g))| {
+            w.iter()
+                .zip(g)
+                .enumerate()
+                .map(move |(k, (w, g))| (format!("layer {l} level {k}"), &g.image, &w.image))
+        }));
+        texture_stage_check(StageId::Mips, shapes, &tally)
+    }
+}
+
+impl Judged for Bake {
+    /// As [`Mips`], on level 0 of every layer.
+    fn judge(_: BakeInput<'_>, want: &Vec<Rgba8Image>, got: &Vec<Rgba8Image>) -> StageCheck {
+        let tally = tally_images(
+            want.iter()
+                .zip(got)
+                .enumerate()
+                .map(|(l, (w, g))| (format!("layer {l}"), g, w)),
+        );
+        texture_stage_check(StageId::Bake, want.len() == got.len(), &tally)
+    }
+}

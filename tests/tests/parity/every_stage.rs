@@ -1,0 +1,173 @@
+//! Every stage of the stage table (`forestlod_harness::stages::STAGES`, issue 27) run alone on the
+//! GPU on the reference's input of it (`forestlod_harness::gpu_stages::FrameStages::check`: the
+//! reference backend and the GPU backend through `&dyn Backend<S>`) and judged by the stage's
+//! harness judge (`forestlod_harness::stage::Judged`, tolerances in `forestlod_harness::judge`),
+//! on a few small frames of `tiny`: the grid with `tree_cull = lod0`, the octree with coalescing
+//! on, `front-to-back` and `tree_cull = all`, the quadtree with coalescing off and `node` order;
+//! two cameras each. Every row must run at least once and pass; the largest difference per stage
+//! is printed. The stage-specific parity files judge each stage in depth on random cases.
+//!
+//! And the diagnosis (`forestlod_harness::diagnose::check_stages`) walks the frame's plan: on a
+//! cut with `refine`, its checks are the textures, then `hier_select`, `coalesce`,
+//! `command_order`, `refine` in that order, then the chained selection, and none differs.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use forestlod_harness::context::gpu_context;
+use forestlod_harness::diagnose::{check_stages, first_differing};
+use forestlod_harness::gpu_stages::FrameStages;
+use forestlod_harness::stages::STAGES;
+use forestlod_reference::pipeline::prepare;
+use forestlod_reference::scene::builtin;
+use forestlod_shared::{Coalesce, CommandOrder, Hierarchy, Params, StageId, TreeCull};
+use forestlod_tests::{small_poses, tiny_hierarchy_params};
+
+/// The frames' parameters (module docs): one flat selection and two cuts covering both coalesce
+/// modes, both command orders and both refining tree-cull modes.
+fn frame_params() -> Vec<(&'static str, Params)> {
+    let cut = |mode, coalesce: Coalesce, order: CommandOrder, cull: TreeCull| Params {
+        coalesce: coalesce as u32,
+        command_order: order as u32,
+        tree_cull: cull as u32,
+        ..tiny_hierarchy_params(mode)
+    };
+    vec![
+        (
+            "grid-lod0",
+            cut(
+                Hierarchy::Grid,
+                Coalesce::Off,
+                CommandOrder::Node,
+                TreeCull::Lod0,
+            ),
+        ),
+        (
+            "octree-coalesce-on-front-to-back-all",
+            cut(
+                Hierarchy::Octree,
+                Coalesce::On,
+                CommandOrder::FrontToBack,
+                TreeCull::All,
+            ),
+        ),
+        (
+            "quadtree-coalesce-off-node",
+            cut(
+                Hierarchy::Quadtree,
+                Coalesce::Off,
+                CommandOrder::Node,
+                TreeCull::None,
+            ),
+        ),
+    ]
+}
+
+#[test]
+fn every_stage_alone_on_the_gpu_matches_the_reference() {
+    let Some(ctx) = gpu_context() else {
+        eprintln!("every_stage: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
+        return;
+    };
+    let started = Instant::now();
+    let scene = builtin::by_name("tiny").unwrap();
+    // Per stage: checks run, the largest difference seen.
+    let mut seen: BTreeMap<StageId, (u32, f64)> = BTreeMap::new();
+    let mut failures = Vec::new();
+    for (k, (name, params)) in frame_params().into_iter().enumerate() {
+        let prepared = prepare(scene.clone(), &params).unwrap();
+        for (j, (camera_name, yaw, camera)) in
+            small_poses(&prepared.scene, &[("medium", 0.0), ("close", 30.0)])
+                .into_iter()
+                .enumerate()
+        {
+            let frame = FrameStages::new(&prepared, &camera, &params);
+            for e in STAGES {
+                // The texture stages read no camera: once. The frames' stages: one camera each.
+                let once = matches!(e.id, StageId::Bake | StageId::Mips);
+                let per_scene = matches!(e.id, StageId::Draw | StageId::Primitive);
+                if (once && (k, j) != (0, 0)) || (per_scene && j != 0) {
+                    continue;
+                }
+                let Some(check) = frame.check(ctx, e.id) else {
+                    continue;
+                };
+                eprintln!(
+                    "{name} {camera_name} yaw {yaw}: {}: {} ({})",
+                    check.stage,
+                    if check.differs { "DIFFERS" } else { "ok" },
+                    check.summary
+                );
+                if check.differs {
+                    failures.push(format!(
+                        "{name} {camera_name} yaw {yaw}: {}: {}",
+                        check.stage, check.summary
+                    ));
+                }
+                let s = seen.entry(e.id).or_default();
+                s.0 += 1;
+                s.1 = s.1.max(check.max_difference);
+            }
+        }
+    }
+    for (id, (n, max)) in &seen {
+        eprintln!(
+            "every_stage: {}: {n} checks, max difference {max}",
+            id.name()
+        );
+    }
+    eprintln!(
+        "every_stage: {} stages in {:.1} s",
+        seen.len(),
+        started.elapsed().as_secs_f64()
+    );
+    let missing: Vec<&str> = STAGES
+        .iter()
+        .filter(|e| !seen.contains_key(&e.id))
+        .map(|e| e.id.name())
+        .collect();
+    assert!(missing.is_empty(), "stages never checked: {missing:?}");
+    assert!(
+        failures.is_empty(),
+        "stages differ:\n{}",
+        failures.join("\n")
+    );
+}
+
+#[test]
+fn the_diagnosis_walks_the_plan() {
+    let Some(ctx) = gpu_context() else {
+        eprintln!("every_stage diagnosis: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
+        return;
+    };
+    let (_, params) = frame_params().remove(1);
+    let scene = builtin::by_name("tiny").unwrap();
+    let prepared = prepare(scene, &params).unwrap();
+    let (_, _, camera) = small_poses(&prepared.scene, &[("medium", 0.0)]).remove(0);
+    let checks = check_stages(ctx, &prepared, &camera, &params, false, false);
+    let names: Vec<&str> = checks.iter().map(|c| c.stage).collect();
+    eprintln!("diagnosis checks: {names:?}");
+    for c in &checks {
+        eprintln!(
+            "  {}: {} (max difference {})",
+            c.stage, c.summary, c.max_difference
+        );
+    }
+    let selection: Vec<&str> = [
+        StageId::HierSelect,
+        StageId::Coalesce,
+        StageId::CommandOrder,
+        StageId::Refine,
+    ]
+    .map(StageId::name)
+    .to_vec();
+    assert_eq!(
+        names[2..6],
+        selection[..],
+        "the plan's selection stages, in order"
+    );
+    assert_eq!(names.len(), 7, "textures (2), four stages, the chain");
+    if let Some(f) = first_differing(&checks) {
+        panic!("{f}");
+    }
+}
