@@ -6,12 +6,13 @@
 use forestlod_gpu::draw::MipLevel;
 use forestlod_gpu::{
     BakeMesh, CullTree, DrawInstance, DrawSceneDesc, DrawVertex, GpuBake, GpuBaked, GpuContext,
-    GpuError, terrain_vertices, upload_texture_array,
+    GpuError, SelectBuffers, terrain_vertices, upload_texture_array,
 };
 use forestlod_reference::baselines::{proxies, tree_spheres};
 use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::sampler::Texture;
 use forestlod_reference::scene::Scene;
+use forestlod_reference::select::Selection;
 use forestlod_shared::{MeshMeta, Params, ProxyRecord};
 
 /// The draw stage's static inputs of a prepared scene, converted from the reference's types.
@@ -226,4 +227,21 @@ pub fn proxy_records(prepared: &Prepared, params: &Params) -> Vec<ProxyRecord> {
         .iter()
         .map(ProxyRecord::from)
         .collect()
+}
+
+/// The coalesced runs `runs` uploaded into buffers of `capacity` slots (at least theirs), as the
+/// GPU's coalescing writes them into buffers of the raw cut's capacity: the command order's keys
+/// pass visits every raw slot below the output's capacity, so its output buffers must be that
+/// large (`gpu/src/command_order.rs`).
+pub fn runs_in_capacity(ctx: &GpuContext, runs: &Selection, capacity: u32) -> SelectBuffers {
+    let out = SelectBuffers::with_capacity(ctx, capacity.max(runs.commands.len() as u32));
+    if !runs.commands.is_empty() {
+        ctx.queue
+            .write_buffer(&out.commands, 0, bytemuck::cast_slice(&runs.commands));
+        ctx.queue
+            .write_buffer(&out.data, 0, bytemuck::cast_slice(&runs.data));
+    }
+    ctx.queue
+        .write_buffer(&out.counters, 0, bytemuck::bytes_of(&runs.counters));
+    out
 }

@@ -35,7 +35,7 @@ use forestlod_shared::{
 };
 
 use crate::backend::{GpuRenderer, GpuSelectBackend};
-use crate::bridge::{DrawSceneData, cull_trees, cull_trees_of, proxy_records};
+use crate::bridge::{DrawSceneData, cull_trees, cull_trees_of, proxy_records, runs_in_capacity};
 use crate::gpu_frame::{StagesFromCpu, gpu_primitive};
 use crate::image_compare::Images;
 use crate::judge::{CullCase, Culled, RefineCase, Refinement, primitive_args};
@@ -152,16 +152,7 @@ impl Backend<CommandOrder> for GpuStage {
         );
         // The runs in buffers of the raw cut's capacity, as the frame's coalescing writes them
         // (the keys pass visits every raw slot below the output's capacity).
-        let out = SelectBuffers::with_capacity(ctx, raw.capacity);
-        let c = i.coalesced;
-        if !c.commands.is_empty() {
-            ctx.queue
-                .write_buffer(&out.commands, 0, bytemuck::cast_slice(&c.commands));
-            ctx.queue
-                .write_buffer(&out.data, 0, bytemuck::cast_slice(&c.data));
-        }
-        ctx.queue
-            .write_buffer(&out.counters, 0, bytemuck::bytes_of(&c.counters));
+        let out = runs_in_capacity(ctx, i.coalesced, raw.capacity);
         let mut gpu = ok(
             "GpuCommandOrder::new",
             GpuCommandOrder::new(

@@ -25,9 +25,23 @@
 
 use crate::{Coalesce, CommandOrder, Hierarchy, ParamError, Params, TreeCull};
 
-/// Declares [`StageId`] with its names and [`StageId::ALL`].
+/// The parts of a frame a stage belongs to (module docs): two chains that meet at the draw, and
+/// the baselines' own stages.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum FramePart {
+    /// The slow path: the textures the draw samples (`bake`, `mips`).
+    Textures,
+    /// The per-frame selection: the stages of [`FramePlan::selection_stages`].
+    Selection,
+    /// The draw, which reads both chains.
+    Draw,
+    /// The E§5 baselines' stages, in no frame of ours.
+    Baseline,
+}
+
+/// Declares [`StageId`] with its names, parts and [`StageId::ALL`].
 macro_rules! stages {
-    ($( $(#[$doc:meta])* $variant:ident => $name:literal, )+) => {
+    ($( $(#[$doc:meta])* $variant:ident => $name:literal, $part:ident, )+) => {
         /// Every stage that has a CPU twin and a GPU twin (module docs), in pipeline order: slow
         /// path, selection, draw, then the baselines' stages.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -46,31 +60,37 @@ macro_rules! stages {
                     $( StageId::$variant => $name, )+
                 }
             }
+            /// Which part of a frame the stage belongs to.
+            pub fn part(self) -> FramePart {
+                match self {
+                    $( StageId::$variant => FramePart::$part, )+
+                }
+            }
         }
     };
 }
 
 stages! {
     /// Billboard bake (E Alg. 3.1, §4.1): level 0 of every layer.
-    Bake => "bake",
+    Bake => "bake", Textures,
     /// Alpha-aware mip chains (E Alg. 3.2, §4.1) of the mesh textures and the billboards.
-    Mips => "mips",
+    Mips => "mips", Textures,
     /// Flat per-batch selection (E§3.5, §4.3).
-    Select => "select",
+    Select => "select", Selection,
     /// The hierarchy's cut (G§3 Fig. 4, C§4.5): one command per emitted node and LOD.
-    HierSelect => "hier_select",
+    HierSelect => "hier_select", Selection,
     /// Runs of the cut's commands merged (G§3's contiguous octant ranges).
-    Coalesce => "coalesce",
+    Coalesce => "coalesce", Selection,
     /// The cut's commands sorted front to back (E§7).
-    CommandOrder => "command_order",
+    CommandOrder => "command_order", Selection,
     /// Per-tree culling of the selected commands (beyond the thesis).
-    Refine => "refine",
+    Refine => "refine", Selection,
     /// Draw execution (E§4.4).
-    Draw => "draw",
+    Draw => "draw", Draw,
     /// The baselines' per-tree culling (E§5).
-    Cull => "cull",
+    Cull => "cull", Baseline,
     /// The Primitive baseline's ray-cast quads (E§5).
-    Primitive => "primitive",
+    Primitive => "primitive", Baseline,
 }
 
 impl StageId {

@@ -61,7 +61,7 @@ pub use cut::{
 };
 pub use emit::{EmitGroup, count_command, emit_command};
 pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
-pub use frame::{FramePlan, SelectionPlan, StageId};
+pub use frame::{FramePart, FramePlan, SelectionPlan, StageId};
 pub use interval::{
     LodNeeds, ViewInterval, aabb_margin, aabb_view_interval, lod_needs, selection_margin,
     view_interval,

@@ -15,7 +15,7 @@
 //! and `select` is the whole selection, `refine` included (the reference's commands and
 //! indirection uploaded as they are drawn).
 
-use forestlod_shared::{FramePlan, StageId};
+use forestlod_shared::{FramePart, FramePlan, StageId};
 
 /// The stages a GPU frame takes from the reference (module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -73,7 +73,7 @@ impl StagesFromCpu {
                 "textures" => out.textures = later(out.textures, StageId::Mips),
                 "select" => out.selection = later(out.selection, StageId::Refine),
                 other => match StageId::from_name(other) {
-                    Some(s @ (StageId::Bake | StageId::Mips)) => {
+                    Some(s) if s.part() == FramePart::Textures => {
                         out.textures = later(out.textures, s)
                     }
                     Some(s) if is_selection_stage(s) => out.selection = later(out.selection, s),
@@ -105,7 +105,7 @@ impl StagesFromCpu {
     pub fn expected() -> String {
         let stages = StageId::ALL
             .iter()
-            .filter(|&&s| matches!(s, StageId::Bake | StageId::Mips) || is_selection_stage(s))
+            .filter(|s| matches!(s.part(), FramePart::Textures | FramePart::Selection))
             .map(|s| s.name().to_string());
         let aliases = ALIASES.iter().map(|(n, m)| format!("{n} ({m})"));
         stages.chain(aliases).collect::<Vec<_>>().join(", ")
@@ -128,7 +128,7 @@ impl StagesFromCpu {
     /// Whether the reference computes stage `stage` of a frame planned as `plan` (module docs):
     /// `stage` is at or before the named stage of its chain.
     pub fn computes(self, plan: &FramePlan, stage: StageId) -> bool {
-        let upto = if matches!(stage, StageId::Bake | StageId::Mips) {
+        let upto = if stage.part() == FramePart::Textures {
             self.textures
         } else {
             self.selection.map(|s| resolve(plan, s))
@@ -144,14 +144,7 @@ impl StagesFromCpu {
 
 /// Whether `s` is one of the selection chain's stages (module docs).
 fn is_selection_stage(s: StageId) -> bool {
-    matches!(
-        s,
-        StageId::Select
-            | StageId::HierSelect
-            | StageId::Coalesce
-            | StageId::CommandOrder
-            | StageId::Refine
-    )
+    s.part() == FramePart::Selection
 }
 
 /// `s`'s place in [`StageId::ALL`].
@@ -169,8 +162,7 @@ fn resolve(plan: &FramePlan, s: StageId) -> StageId {
     stages
         .iter()
         .copied()
-        .filter(|&t| index(t) <= index(s))
-        .last()
+        .rfind(|&t| index(t) <= index(s))
         .unwrap_or(stages[0])
 }
 

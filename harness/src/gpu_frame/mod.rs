@@ -4,8 +4,9 @@
 //! stages of its `forestlod_shared::FramePlan` in the plan's order (textures, the selection chain
 //! [`selection::SelectionChain`], `refine` when the plan has it, the draw), or a baseline (E§5:
 //! `cull.wgsl`, then the draw or `primitive.wgsl`). Every tool that draws a GPU frame goes
-//! through it: `render` and `export-case` ([`render_gpu`]), the sweeps, `gpu_bench`, `draw_split`,
-//! the parity tests.
+//! through it: `render` ([`render_gpu`]), `export-case`, the sweeps, `gpu_bench`, the parity
+//! tests; `check`, `diagnose` and `draw_split` (which times `select`, `refine` and the draw's
+//! parts apart) run its selection chain ([`SelectionChain`]).
 //!
 //! Which stages the reference computes instead is one [`StagesFromCpu`] (`--stage-from-cpu`, by
 //! stage name: the reference computes that stage and every one before it, the GPU the rest). A
@@ -134,6 +135,9 @@ pub struct GpuScene<'a> {
     textures: DrawTextures,
     /// The selection chain on the GPU (built by the first frame of ours that runs one).
     chain: Option<SelectionChain<'a>>,
+    /// The chain of the last frame of ours fed by the reference's selection, if the last frame
+    /// of ours was one.
+    fed: Option<SelectionChain<'a>>,
     refine: Option<GpuRefine<'a>>,
     cull: Option<GpuCull<'a>>,
     proxies: Option<GpuProxies>,
@@ -200,6 +204,7 @@ impl<'a> GpuScene<'a> {
             scene,
             textures,
             chain: None,
+            fed: None,
             refine: None,
             cull: None,
             proxies: None,
@@ -216,10 +221,11 @@ impl<'a> GpuScene<'a> {
         self.from_cpu
     }
 
-    /// The GPU selection chain of the last frame of ours that ran one (for tests: its buffers,
-    /// decisions, codes and order pairs; refined in place when the plan had `refine`).
+    /// The selection chain of the last frame of ours (for tests: its buffers, decisions, codes
+    /// and order pairs; refined in place when the plan had `refine`): the one fed by the
+    /// reference when that frame took its selection from the reference, else the GPU's.
     pub fn chain(&self) -> Option<&SelectionChain<'a>> {
-        self.chain.as_ref()
+        self.fed.as_ref().or(self.chain.as_ref())
     }
 
     /// The GPU selection chain, built now if no frame has built it yet.
@@ -320,14 +326,13 @@ impl<'a> GpuScene<'a> {
         }
         let ctx = self.ctx;
         let key = (camera.width, camera.height);
-        if !self.targets.contains_key(&key) {
-            let target = DrawTarget::new(ctx, camera.width, camera.height)?;
-            self.targets.insert(key, target);
+        if let std::collections::hash_map::Entry::Vacant(slot) = self.targets.entry(key) {
+            slot.insert(DrawTarget::new(ctx, camera.width, camera.height)?);
         }
 
         // What stage 1 records, and where each stage runs.
         let mut stages = Vec::new();
-        let mut cpu_chain = None;
+        let mut cpu_chain: Option<SelectionChain<'a>> = None;
         let mut cpu_indirection = None;
         let mut gpu_refine = false;
         match pipeline {
@@ -393,7 +398,10 @@ impl<'a> GpuScene<'a> {
             }
         }
 
-        let chain = match &mut cpu_chain {
+        if matches!(pipeline, GpuPipeline::Ours(_)) {
+            self.fed = cpu_chain;
+        }
+        let chain = match &mut self.fed {
             Some(c) => Some(c),
             None => self.chain.as_mut(),
         };

@@ -13,11 +13,13 @@
 
 use forestlod_gpu::command_order::OrderInputs;
 use forestlod_gpu::readback::upload_storage;
+
+use crate::bridge::runs_in_capacity;
 use forestlod_gpu::{
     Compaction, GpuCoalesce, GpuCommandOrder, GpuContext, GpuError, GpuHierSelect, GpuSelect,
     GpuSelection, SelectBuffers,
 };
-use forestlod_reference::coalesce::is_head;
+use forestlod_reference::coalesce::run_offsets;
 use forestlod_reference::frame::SelectionTrace;
 use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::select::Selection;
@@ -180,7 +182,8 @@ impl<'a> SelectionChain<'a> {
             StageId::Coalesce => {
                 let raw_selection = output(StageId::HierSelect)?;
                 let raw = upload(raw_selection)?;
-                let out = upload(output(StageId::Coalesce)?)?;
+                // In buffers of the raw cut's capacity, as the GPU's coalescing writes them.
+                let out = runs_in_capacity(ctx, output(StageId::Coalesce)?, raw.capacity);
                 let offsets = upload_storage(
                     ctx,
                     "coalesce offsets (cpu)",
@@ -353,18 +356,4 @@ fn not_a_cut() -> GpuError {
         value: "no such GPU stage".into(),
         reason: "this reader needs the cut's stage on the GPU (a chain of SelectionChain::cut)",
     }
-}
-
-/// The coalescing's run offsets of `raw` under `mode`, as `coalesce.wgsl` writes them
-/// (`forestlod_gpu::GpuCoalesce::run_offsets`): the exclusive scan of the head flags
-/// ([`is_head`]), one `u32` per raw command.
-fn run_offsets(raw: &Selection, mode: forestlod_shared::Coalesce) -> Vec<u32> {
-    let mut runs = 0;
-    (0..raw.commands.len())
-        .map(|j| {
-            let before = runs;
-            runs += u32::from(is_head(raw, j, mode));
-            before
-        })
-        .collect()
 }

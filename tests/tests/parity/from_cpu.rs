@@ -1,13 +1,15 @@
 //! `--stage-from-cpu` by stage name (`forestlod_harness::gpu_frame::StagesFromCpu`): a frame whose
 //! first stages the reference computed, the GPU the rest, is judged against the reference frame
 //! for every cut point of a cut plan with every stage in it (octree, coalescing on, front to back,
-//! `refine`) and of a flat plan with `refine`; the frame reports which stage ran where, in the
-//! plan's order. A cut point whose upload or binding is wrong (the coalesced list standing in for
+//! `refine`) and of a flat plan with `refine`: its commands must be the reference's exactly and
+//! its image within the draw's tolerance; the frame reports which stage ran where, in the plan's
+//! order. A cut point whose upload or binding is wrong (the coalesced list standing in for
 //! the raw cut, run offsets off by one, the refined indirection missing) draws another image.
 
+use forestlod_gpu::Compaction;
 use forestlod_harness::alternatives::alpha_test_alternatives;
 use forestlod_harness::context::gpu_context;
-use forestlod_harness::gpu_frame::{RanOn, StagesFromCpu, gpu_draw, render_gpu};
+use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, RanOn, StagesFromCpu, gpu_draw};
 use forestlod_harness::image_compare::{MaxDiffs, judge_image, print_max_diffs};
 use forestlod_harness::stage::images_of;
 use forestlod_reference::cameras::named_camera;
@@ -58,10 +60,30 @@ fn every_cut_point_draws_the_reference_frame() {
                 .target,
         );
         let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
+        let want_commands = prepared.select_stages(&camera, &params, false).selection;
         for list in LISTS {
             let from_cpu = StagesFromCpu::parse(list).expect("a stage list");
-            let frame = render_gpu(ctx, draw, &prepared, &camera, &params, from_cpu)
+            let mut scene = GpuScene::with_pipelines(ctx, draw, &prepared, &params, from_cpu)
                 .unwrap_or_else(|e| panic!("{list}: {e}"));
+            let frame = scene
+                .render(
+                    &prepared,
+                    GpuPipeline::Ours(Compaction::Stable),
+                    &camera,
+                    &params,
+                )
+                .unwrap_or_else(|e| panic!("{list}: {e}"));
+            // The commands the draw read are the reference's (this small frame has no decision
+            // within ε of a threshold), whichever stages ran where.
+            let got = scene
+                .chain()
+                .expect("a frame of ours has a chain")
+                .buffers()
+                .read(ctx)
+                .expect("read the frame's commands");
+            assert_eq!(got.commands, want_commands.commands, "{list}: commands");
+            assert_eq!(got.data, want_commands.data, "{list}: command data");
+            assert_eq!(got.counters, want_commands.counters, "{list}: counters");
             // The frame ran the plan's stages in order, each where the list says.
             let ran: Vec<StageId> = frame.stages.iter().map(|&(s, _)| s).collect();
             assert_eq!(ran, plan.stages(), "{list}: the plan's stages in order");
