@@ -3,11 +3,116 @@
 //! shows it full size over the page (a second click closes it), and tables scroll sideways.
 //!
 //! It converts exactly the Markdown `report.rs` writes: `#` headings, pipe tables, `- ` lists,
-//! paragraphs, and inline `![alt](path)`, `[text](#anchor)`, `**bold**`, `*italic*` and
-//! `` `code` ``. Everything else passes through escaped. A general Markdown engine is not needed
-//! for one generator's output (and none is in the dependency set).
+//! paragraphs, and inline `![alt](path)`, `[text](#anchor)`, `**bold**`, `*italic*`,
+//! `` `code` `` and backslash escapes of ASCII punctuation (`\[` is a literal `[`, as CommonMark).
+//! Everything else passes through escaped. A general Markdown engine is not needed for one
+//! generator's output (and none is in the dependency set).
+//!
+//! **A report reads only what its generator listed** (issue 28): the page embeds an image only
+//! when its path, as the Markdown writes it, is a key of the [`Embeds`] the caller checked (a
+//! plot or frame its run's manifest names, resolved to a regular file under the run folder); any
+//! other image path is shown as not embedded and never opened. Text the generator takes from a
+//! manifest goes through [`escape_markdown`] (or [`code_span`]), so it cannot become an image or
+//! a link, and paths through [`escape_destination`].
 
-use std::path::Path;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+/// The images a page may embed: each path as the Markdown writes it (unescaped), with the file
+/// it was checked to be (`None`: named but absent, shown as a missing image).
+pub type Embeds = BTreeMap<String, Option<PathBuf>>;
+
+/// Characters [`escape_markdown`] escapes: those this converter (or CommonMark) would read as
+/// the start or end of an image, link, emphasis, code span, escape or HTML tag.
+const MARKDOWN_SPECIAL: &[char] = &['\\', '`', '*', '[', ']', '<'];
+
+fn escape_chars(text: &str, special: &[char]) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '\n' | '\r' => out.push(' '),
+            c if special.contains(&c) => {
+                out.push('\\');
+                out.push(c);
+            }
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// `text` (from a manifest or a CSV) as Markdown that shows it literally: every character that
+/// could open an image, a link, emphasis or a tag is backslash-escaped, line breaks become
+/// spaces. A code span (`` `name` ``) whose content holds none of those characters is kept, as
+/// it is literal in every renderer (the built-in sweeps' captions use them).
+pub fn escape_markdown(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(i) = rest.find('`') {
+        out.push_str(&escape_chars(&rest[..i], MARKDOWN_SPECIAL));
+        let after = &rest[i + 1..];
+        match after.find('`') {
+            Some(j)
+                if j > 0
+                    && !after[..j]
+                        .contains(|c| MARKDOWN_SPECIAL.contains(&c) || c == '\n' || c == '\r') =>
+            {
+                out.push_str(&rest[i..i + j + 2]);
+                rest = &after[j + 1..];
+            }
+            _ => {
+                out.push_str("\\`");
+                rest = after;
+            }
+        }
+    }
+    out.push_str(&escape_chars(rest, MARKDOWN_SPECIAL));
+    out
+}
+
+/// `text` as a code span when that shows it literally, else [`escape_markdown`]'s plain text.
+pub fn code_span(text: &str) -> String {
+    if text.contains(|c| MARKDOWN_SPECIAL.contains(&c) || c == '\n' || c == '\r') {
+        escape_markdown(text)
+    } else {
+        format!("`{text}`")
+    }
+}
+
+/// A path as a link or image destination: `\`, `(` and `)` escaped (the converter unescapes
+/// it before looking it up in [`Embeds`]).
+pub fn escape_destination(path: &str) -> String {
+    escape_chars(path, &['\\', '(', ')'])
+}
+
+/// `text` with its backslash escapes resolved.
+fn unescape(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut chars = text.chars().peekable();
+    while let Some(c) = chars.next() {
+        match chars.peek() {
+            Some(&n) if c == '\\' && n.is_ascii_punctuation() => {
+                out.push(n);
+                chars.next();
+            }
+            _ => out.push(c),
+        }
+    }
+    out
+}
+
+/// The byte index of the first `pat` in `text` that no backslash escapes.
+fn find_unescaped(text: &str, pat: &str) -> Option<usize> {
+    let mut chars = text.char_indices();
+    while let Some((i, c)) = chars.next() {
+        if c == '\\' {
+            chars.next();
+        } else if text[i..].starts_with(pat) {
+            return Some(i);
+        }
+    }
+    None
+}
 
 /// Standard base64 (RFC 4648, with padding).
 pub fn base64(bytes: &[u8]) -> String {
@@ -49,45 +154,63 @@ fn escape(text: &str) -> String {
         .replace('"', "&quot;")
 }
 
-/// Inline Markdown of one line (see module docs); image paths are read relative to `base`
-/// (a missing image becomes its path, marked).
-fn inline(text: &str, base: &Path) -> String {
+/// Inline Markdown of one line (see module docs); images are embedded from `embeds` only.
+fn inline(text: &str, embeds: &Embeds) -> String {
     let mut out = String::new();
     let mut rest = text;
     'outer: while let Some(c) = rest.chars().next() {
+        // `\X`: X literally.
+        if let Some(n) = rest.strip_prefix('\\').and_then(|r| r.chars().next())
+            && n.is_ascii_punctuation()
+        {
+            out.push_str(&escape(&n.to_string()));
+            rest = &rest[1 + n.len_utf8()..];
+            continue;
+        }
         // `![alt](path)` and `[text](href)`.
         let link = rest
             .strip_prefix("![")
             .map(|r| (true, r))
             .or_else(|| rest.strip_prefix('[').map(|r| (false, r)));
         if let Some((is_image, after)) = link
-            && let Some((label, tail)) = after.split_once("](")
-            && let Some((target, tail)) = tail.split_once(')')
+            && let Some(end) = find_unescaped(after, "](")
+            && let Some(close) = find_unescaped(&after[end + 2..], ")")
         {
+            let label = &after[..end];
+            let target = unescape(&after[end + 2..end + 2 + close]);
             if is_image {
-                out.push_str(&image(label, target, base));
+                out.push_str(&image(&unescape(label), &target, embeds));
             } else {
                 out.push_str(&format!(
                     "<a href=\"{}\">{}</a>",
-                    escape(target),
-                    inline(label, base)
+                    escape(&target),
+                    inline(label, embeds)
                 ));
             }
-            rest = tail;
+            rest = &after[end + 2 + close + 1..];
             continue;
         }
         for (mark, tag) in [("**", "strong"), ("`", "code"), ("*", "em")] {
-            if let Some((inner, tail)) = rest.strip_prefix(mark).and_then(|r| r.split_once(mark))
-                && !inner.is_empty()
-            {
-                let inner = if tag == "code" {
-                    escape(inner)
+            if let Some(r) = rest.strip_prefix(mark) {
+                // A code span is literal (CommonMark): it ends at the next backtick.
+                let close = if tag == "code" {
+                    r.find(mark)
                 } else {
-                    inline(inner, base)
+                    find_unescaped(r, mark)
                 };
-                out.push_str(&format!("<{tag}>{inner}</{tag}>"));
-                rest = tail;
-                continue 'outer;
+                if let Some(i) = close
+                    && i > 0
+                {
+                    let inner = &r[..i];
+                    let inner = if tag == "code" {
+                        escape(inner)
+                    } else {
+                        inline(inner, embeds)
+                    };
+                    out.push_str(&format!("<{tag}>{inner}</{tag}>"));
+                    rest = &r[i + mark.len()..];
+                    continue 'outer;
+                }
             }
         }
         out.push_str(&escape(&c.to_string()));
@@ -96,23 +219,34 @@ fn inline(text: &str, base: &Path) -> String {
     out
 }
 
-fn image(alt: &str, path: &str, base: &Path) -> String {
-    match std::fs::read(base.join(path)) {
-        Ok(bytes) => format!(
-            "<img alt=\"{}\" title=\"{}\" loading=\"lazy\" src=\"data:image/png;base64,{}\">",
-            escape(alt),
-            escape(path),
-            base64(&bytes)
-        ),
-        Err(_) => format!(
+/// An image: embedded when `path` is one of `embeds` and its file reads, else marked.
+fn image(alt: &str, path: &str, embeds: &Embeds) -> String {
+    let missing = || {
+        format!(
             "<span class=\"missing\">[missing image {}]</span>",
+            escape(path)
+        )
+    };
+    match embeds.get(path) {
+        Some(Some(file)) => match std::fs::read(file) {
+            Ok(bytes) => format!(
+                "<img alt=\"{}\" title=\"{}\" loading=\"lazy\" src=\"data:image/png;base64,{}\">",
+                escape(alt),
+                escape(path),
+                base64(&bytes)
+            ),
+            Err(_) => missing(),
+        },
+        Some(None) => missing(),
+        None => format!(
+            "<span class=\"missing\">[image not embedded: {} is not a file of this run's manifests]</span>",
             escape(path)
         ),
     }
 }
 
-/// The page for the Markdown report `md`, whose image paths are relative to `base`.
-pub fn report_page(md: &str, base: &Path, title: &str) -> String {
+/// The page for the Markdown report `md`, embedding the images of `embeds` it names.
+pub fn report_page(md: &str, embeds: &Embeds, title: &str) -> String {
     let mut body = String::new();
     let mut lines = md.lines().peekable();
     while let Some(line) = lines.next() {
@@ -127,7 +261,7 @@ pub fn report_page(md: &str, base: &Path, title: &str) -> String {
             let id = anchor(text);
             body.push_str(&format!(
                 "<h{level} id=\"{id}\">{}</h{level}>\n",
-                inline(text, base)
+                inline(text, embeds)
             ));
         } else if t.starts_with('|') {
             let mut rows = vec![t.to_string()];
@@ -150,21 +284,21 @@ pub fn report_page(md: &str, base: &Path, title: &str) -> String {
                 let tag = if i == 0 { "th" } else { "td" };
                 body.push_str("<tr>");
                 for c in cells(row) {
-                    body.push_str(&format!("<{tag}>{}</{tag}>", inline(&c, base)));
+                    body.push_str(&format!("<{tag}>{}</{tag}>", inline(&c, embeds)));
                 }
                 body.push_str("</tr>\n");
             }
             body.push_str("</table></div>\n");
         } else if let Some(item) = t.strip_prefix("- ") {
             body.push_str("<ul>\n");
-            body.push_str(&format!("<li>{}</li>\n", inline(item, base)));
+            body.push_str(&format!("<li>{}</li>\n", inline(item, embeds)));
             while let Some(next) = lines.peek().and_then(|l| l.strip_prefix("- ")) {
-                body.push_str(&format!("<li>{}</li>\n", inline(next, base)));
+                body.push_str(&format!("<li>{}</li>\n", inline(next, embeds)));
                 lines.next();
             }
             body.push_str("</ul>\n");
         } else {
-            body.push_str(&format!("<p>{}</p>\n", inline(t, base)));
+            body.push_str(&format!("<p>{}</p>\n", inline(t, embeds)));
         }
     }
     format!(
@@ -215,7 +349,8 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join("a.png"), [1u8, 2, 3]).unwrap();
         let md = "# Title\n\nSome **bold** and `a<b` and *it*.\n\n| x | y |\n|---|--:|\n| ![](a.png) | [l](#t) |\n\n- one\n- two\n";
-        let page = report_page(md, &dir, "t");
+        let embeds = Embeds::from([("a.png".to_string(), Some(dir.join("a.png")))]);
+        let page = report_page(md, &embeds, "t");
         std::fs::remove_dir_all(&dir).ok();
         assert!(page.contains("<h1 id=\"title\">Title</h1>"), "{page}");
         assert!(page.contains("<strong>bold</strong>") && page.contains("<code>a&lt;b</code>"));
@@ -231,5 +366,56 @@ mod tests {
             !page.contains("src=\"a.png\""),
             "no image left outside the page"
         );
+    }
+
+    #[test]
+    fn only_listed_images_are_embedded_and_escaped_text_stays_text() {
+        let dir =
+            std::env::temp_dir().join(format!("forestlod-html-hostile-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("listed.png"), [1u8, 2, 3]).unwrap();
+        std::fs::write(dir.join("secret"), [4u8, 5, 6]).unwrap();
+        let secret = dir.join("secret").display().to_string();
+        let embeds = Embeds::from([("listed.png".to_string(), Some(dir.join("listed.png")))]);
+        // An image the generator did not list is never opened, whatever its path.
+        let page = report_page(&format!("![x]({secret}) ![y](listed.png)"), &embeds, "t");
+        assert!(
+            !page.contains("BAUG"),
+            "the unlisted file was embedded: {page}"
+        );
+        assert!(page.contains("base64,AQID"), "{page}");
+        assert!(page.contains("[image not embedded: "), "{page}");
+        // Manifest text, escaped, is shown literally: no image, no link, no emphasis.
+        for hostile in [
+            format!("![x]({secret})"),
+            format!("[x]({secret})"),
+            format!("a\\](x) ![x]({secret})"),
+            format!("`a` ![`x`]({secret}) *b* <img src=\"{secret}\">"),
+            format!("x`y![x]({secret})"),
+        ] {
+            let md = escape_markdown(&hostile);
+            let page = report_page(&format!("# {md}\n\n{md}\n\n| {md} |\n"), &embeds, "t");
+            assert!(
+                !page.contains("<img") && !page.contains("<a ") && !page.contains("not embedded"),
+                "{hostile:?} became markup: {page}"
+            );
+            assert!(!page.contains("<em>") && !page.contains("<img"), "{page}");
+            let code = code_span(&hostile);
+            let page = report_page(&format!("- ({code})\n"), &embeds, "t");
+            assert!(
+                !page.contains("<img") && !page.contains("not embedded"),
+                "{page}"
+            );
+        }
+        // Destinations round-trip through their escapes.
+        std::fs::write(dir.join("a (1).png"), [1u8, 2, 3]).unwrap();
+        let embeds = Embeds::from([("a (1).png".to_string(), Some(dir.join("a (1).png")))]);
+        let page = report_page(
+            &format!("![]({})", escape_destination("a (1).png")),
+            &embeds,
+            "t",
+        );
+        std::fs::remove_dir_all(&dir).ok();
+        assert!(page.contains("base64,AQID"), "{page}");
     }
 }

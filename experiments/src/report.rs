@@ -7,6 +7,15 @@
 //! E§5's "70 % up to 500 %"), the Pareto front of cost against FLIP (the settings no other setting
 //! beats on both), the plots, and the saved frames side by side: ground truth, frame, FLIP error,
 //! LOD ids, then ours' per-LOD error maps.
+//!
+//! **A report reads only its run** (issue 28; a report is a file people mail around). Every path
+//! a `sweep.json` names (`csv`, `plots`, every frame image) must be relative to its sweep folder,
+//! without `..`, and resolve (links followed) to a regular file under the run folder; the
+//! manifest itself too. Anything else is an error naming the run folder, the manifest, the key
+//! and the value, and no report is written. A named image that is absent is shown as missing,
+//! as before. `report.html` embeds only the images so checked ([`crate::html::Embeds`]), and all
+//! text taken from a manifest or a CSV (titles, descriptions, captions, names, settings, labels)
+//! is escaped ([`crate::html::escape_markdown`]), so it cannot become an image or a link.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -15,7 +24,153 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use forestlod_reference::InputError;
 
+use crate::html::{Embeds, code_span, escape_destination as dest, escape_markdown as md};
 use crate::sweep::{Manifest, Row};
+
+/// The run folder resolved, and how its errors name it.
+struct Run {
+    /// The folder as given.
+    given: PathBuf,
+    /// Its canonical path: every file a report reads lies under it.
+    root: PathBuf,
+}
+
+impl Run {
+    fn new(given: &Path) -> Result<Self, InputError> {
+        let root = std::fs::canonicalize(given).map_err(|e| {
+            InputError::new(given.display().to_string(), "run folder", "", e.to_string())
+        })?;
+        Ok(Self {
+            given: given.to_path_buf(),
+            root,
+        })
+    }
+
+    /// An error about `key = value` of the manifest `mpath`, chained through the run folder.
+    fn error(&self, mpath: &Path, key: &str, value: &str, reason: String) -> InputError {
+        InputError::new(
+            mpath.display().to_string(),
+            format!("key {key}"),
+            value,
+            reason,
+        )
+        .within(format!("run folder {}", self.given.display()))
+    }
+
+    /// `file` resolved (links followed), when that is a regular file under the run folder.
+    fn resolve(&self, file: &Path) -> Result<PathBuf, String> {
+        let canon = std::fs::canonicalize(file)
+            .map_err(|e| format!("cannot be resolved ({e}); reports read only their run"))?;
+        if !canon.starts_with(&self.root) {
+            return Err(format!(
+                "resolves to {}, outside the run folder {}: reports read only their run",
+                canon.display(),
+                self.root.display()
+            ));
+        }
+        if !std::fs::metadata(&canon).is_ok_and(|m| m.is_file()) {
+            return Err(format!(
+                "resolves to {}, not a regular file",
+                canon.display()
+            ));
+        }
+        Ok(canon)
+    }
+
+    /// The manifest `mpath`, checked to be a regular file under the run folder.
+    fn manifest(&self, mpath: &Path) -> Result<PathBuf, InputError> {
+        self.resolve(mpath).map_err(|reason| {
+            InputError::new(mpath.display().to_string(), "manifest", "", reason)
+                .within(format!("run folder {}", self.given.display()))
+        })
+    }
+
+    /// The path `value` that key `key` of the manifest `mpath` (in the sweep folder `dir`)
+    /// names: its file, or `None` when nothing is there.
+    fn named(
+        &self,
+        mpath: &Path,
+        dir: &Path,
+        key: &str,
+        value: &str,
+    ) -> Result<Option<PathBuf>, InputError> {
+        use std::path::Component;
+        if !Path::new(value)
+            .components()
+            .all(|c| matches!(c, Component::Normal(_) | Component::CurDir))
+        {
+            return Err(self.error(
+                mpath,
+                key,
+                value,
+                "expected a path relative to the sweep folder, without `..`: reports read only their run"
+                    .into(),
+            ));
+        }
+        let file = dir.join(value);
+        if std::fs::symlink_metadata(&file).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound)
+        {
+            return Ok(None);
+        }
+        self.resolve(&file)
+            .map(Some)
+            .map_err(|reason| self.error(mpath, key, value, reason))
+    }
+
+    /// Every image the manifest `m` (file `mpath`, sweep folder `dir`) names, checked, keyed as
+    /// the report's Markdown writes it ([`rel`]).
+    fn images(&self, mpath: &Path, dir: &Path, m: &Manifest) -> Result<Embeds, InputError> {
+        let mut named: Vec<(String, &str)> = Vec::new();
+        for (i, (p, _)) in m.plots.iter().enumerate() {
+            named.push((format!("plots[{i}][0]"), p));
+        }
+        for (i, im) in m.images.iter().enumerate() {
+            for (field, p) in [
+                ("color", &im.color),
+                ("lod", &im.lod),
+                ("flip", &im.flip),
+                ("lod_flip", &im.lod_flip),
+                ("total_flip", &im.total_flip),
+                ("ground_truth", &im.ground_truth),
+                ("ground_truth_class", &im.ground_truth_class),
+            ] {
+                named.push((format!("images[{i}].{field}"), p));
+            }
+            for (field, maps) in [
+                ("per_lod", &im.per_lod),
+                ("per_lod_lod_error", &im.per_lod_lod_error),
+                ("per_lod_total", &im.per_lod_total),
+            ] {
+                for (j, (_, p, _, _)) in maps.iter().enumerate() {
+                    named.push((format!("images[{i}].{field}[{j}][1]"), p));
+                }
+            }
+        }
+        let mut embeds = Embeds::new();
+        for (key, p) in named {
+            // An empty path names nothing (an error map that was not measured).
+            let file = if p.is_empty() {
+                None
+            } else {
+                self.named(mpath, dir, &key, p)?
+            };
+            embeds.insert(rel(dir, m, p), file);
+        }
+        Ok(embeds)
+    }
+}
+
+/// The sweep folder's name, as the report's paths start (relative to the run folder).
+fn folder(dir: &Path, m: &Manifest) -> String {
+    dir.file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_else(|| m.name.clone())
+}
+
+/// `p` (relative to the sweep folder `dir`) relative to the run folder, as the report links it.
+fn rel(dir: &Path, m: &Manifest, p: &str) -> String {
+    format!("{}/{p}", folder(dir, m))
+}
 
 /// Options of `forestlod report`.
 #[derive(Args, Clone, Debug)]
@@ -351,7 +506,9 @@ pub fn noise_section(out: &mut String, groups: &[(String, Vec<&Row>)]) {
         let flip = paired_difference(rows, base, |r| r.accuracy.flip_mean);
         let _ = writeln!(
             out,
-            "| {k} | {fk} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} |",
+            md(k),
+            md(fk),
             lod.2.max(flip.2),
             cell(lod),
             cell(total),
@@ -362,15 +519,15 @@ pub fn noise_section(out: &mut String, groups: &[(String, Vec<&Row>)]) {
 }
 
 fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), InputError> {
-    let folder = dir
-        .file_name()
-        .map(|f| f.to_string_lossy().into_owned())
-        .unwrap_or_else(|| m.name.clone());
-    let rel = |p: &str| format!("{folder}/{p}");
+    let rel = |p: &str| dest(&rel(dir, m, p));
     let rows = read_rows(&dir.join(&m.csv))?;
-    let _ = writeln!(out, "## {} ({})\n", m.title, m.scenes.join(", "));
+    let _ = writeln!(
+        out,
+        "## {}\n",
+        md(&format!("{} ({})", m.title, m.scenes.join(", ")))
+    );
     if !m.description.is_empty() {
-        let _ = writeln!(out, "{}\n", m.description.trim());
+        let _ = writeln!(out, "{}\n", md(m.description.trim()));
     }
     let bvh: Vec<String> = m
         .ground_truth_bvh
@@ -382,7 +539,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         if m.ground_truth_layout.is_empty() {
             "the full frame".to_string()
         } else {
-            m.ground_truth_layout.join(", ")
+            md(&m.ground_truth_layout.join(", "))
         },
         m.ground_truth_seconds.unwrap_or(f64::NAN),
         m.ground_truth_memory_bytes
@@ -400,23 +557,23 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
     let _ = writeln!(
         out,
         "Setup: scenes {}; variants {}; backends {}{}; {}x{} pixels; ground truth {} rays/pixel ({} rays, BVH {}; {truth_cost}); \
-         {} frames in {:.1} s{}. Data: [`{}`]({}).\n",
-        m.scenes.join(", "),
-        m.variants.join(", "),
+         {} frames in {:.1} s{}. Data: [{}]({}).\n",
+        md(&m.scenes.join(", ")),
+        md(&m.variants.join(", ")),
         if m.backends.is_empty() {
             "reference".to_string()
         } else {
-            m.backends.join(", ")
+            md(&m.backends.join(", "))
         },
         m.gpu_adapter
             .as_ref()
-            .map(|a| format!(" (GPU: {a})"))
+            .map(|a| format!(" (GPU: {})", md(a)))
             .unwrap_or_default(),
         m.width,
         m.height,
         m.ground_truth_spp,
         m.ground_truth_rays,
-        bvh.join("; "),
+        md(&bvh.join("; ")),
         m.frames,
         m.wall_seconds,
         if m.quick {
@@ -424,7 +581,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         } else {
             ""
         },
-        m.csv,
+        code_span(&m.csv),
         rel(&m.csv)
     );
 
@@ -456,7 +613,8 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
     for (k, s) in &summaries {
         let _ = writeln!(
             out,
-            "| {k} | {} ({}) | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} ({}) | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} | {} |",
+            md(k),
             s.frames,
             s.empty,
             pm(s.frame_s * 1e3, s.frame_ci * 1e3, 2),
@@ -546,7 +704,9 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             };
             let _ = writeln!(
                 out,
-                "| {backend} | {cam} | {} | {} | {} | {} | {} | {} / {} / {} | {} / {} / {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} / {} / {} | {} / {} / {} |",
+                md(&backend),
+                md(&cam),
                 ms(o.frame_s),
                 if veg.frames > 0 {
                     ms(veg.frame_s)
@@ -601,12 +761,13 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             let front = pareto(&in_section);
             let _ = writeln!(
                 out,
-                "- {section}: {}",
+                "- {}: {}",
+                md(section),
                 front
                     .iter()
                     .map(|(k, s)| format!(
                         "**{}** ({} ms, FLIP {:.4})",
-                        k.trim(),
+                        md(k.trim()),
                         ms(s.frame_s),
                         s.flip_mean
                     ))
@@ -619,6 +780,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
 
     // Plots.
     for (p, caption) in &m.plots {
+        let caption = md(caption);
         let _ = writeln!(out, "![{caption}]({})\n\n*{caption}*\n", rel(p));
     }
 
@@ -637,18 +799,18 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             let pose = if im.camera == "distance" {
                 format!("distance {} m", im.distance_m)
             } else {
-                format!("{} yaw {}°", im.camera, im.yaw_deg)
+                format!("{} yaw {}°", md(&im.camera), im.yaw_deg)
             };
             let _ = writeln!(
                 out,
                 "| {pose} | {} ({}) / {} (FLIP {:.4}, cov {:.4}, LOD error {}, total error {}) | ![]({}) | ![]({}) | ![]({}) | {} | {} | ![]({}) |",
-                im.variant,
+                md(&im.variant),
                 if im.backend.is_empty() {
-                    "reference"
+                    "reference".to_string()
                 } else {
-                    &im.backend
+                    md(&im.backend)
                 },
-                im.setting,
+                md(&im.setting),
                 im.accuracy.flip_mean,
                 im.accuracy.coverage_error,
                 opt(im.accuracy.lod_flip_mean, 4),
@@ -684,6 +846,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                     .chain(im.per_lod_lod_error.iter().map(|m| (m, "LOD")))
                     .chain(im.per_lod_total.iter().map(|m| (m, "total")))
                     .map(|((label, p, mean, px), against)| {
+                        let label = md(label);
                         format!(
                             "![{label}]({})<br>{label} ({against}): {mean:.4} ({px} px)",
                             rel(p)
@@ -693,8 +856,8 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
                 let _ = writeln!(
                     out,
                     "{} {} yaw {}° d {} m: \n\n| {} |\n|{}\n",
-                    im.setting,
-                    im.camera,
+                    md(&im.setting),
+                    md(&im.camera),
                     im.yaw_deg,
                     im.distance_m,
                     cells.join(" | "),
@@ -711,14 +874,19 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
     let err = |p: &Path, e: &dyn std::fmt::Display| {
         InputError::new(p.display().to_string(), "read", "", e.to_string())
     };
+    let checked = Run::new(run)?;
     let mut manifests = Vec::new();
+    let mut embeds = Embeds::new();
     let entries = std::fs::read_dir(run).map_err(|e| err(run, &e))?;
     for entry in entries {
         let entry = entry.map_err(|e| err(run, &e))?;
         let mpath = entry.path().join("sweep.json");
         if mpath.is_file() {
-            let text = std::fs::read_to_string(&mpath).map_err(|e| err(&mpath, &e))?;
+            let file = checked.manifest(&mpath)?;
+            let text = std::fs::read_to_string(file).map_err(|e| err(&mpath, &e))?;
             let m: Manifest = serde_json::from_str(&text).map_err(|e| err(&mpath, &e))?;
+            checked.named(&mpath, &entry.path(), "csv", &m.csv)?;
+            embeds.append(&mut checked.images(&mpath, &entry.path(), &m)?);
             manifests.push((entry.path(), m));
         }
     }
@@ -742,7 +910,7 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
     let _ = writeln!(out, "# forestlod: the speed–accuracy trade, measured\n");
     let _ = writeln!(
         out,
-        "Generated by `forestlod report --run {}` from the sweeps `forestlod sweep` wrote there. \
+        "Generated by {} from the sweeps `forestlod sweep` wrote there. \
          Cost is measured on the backend each sweep names (its Setup line): the **reference (CPU)** \
          backend's wall-clock select and draw time of the software rasterizer, or the **GPU** \
          backend's submit-to-completion times of the wgpu twin (timestamp queries beside them in \
@@ -751,13 +919,18 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
          ground truth of full meshes for every tree, alpha-tested and supersampled (SPEC §10): FLIP \
          mean and 95th/99th percentiles, and the fraction of pixels whose tree / not-tree class \
          differs. Thesis references: E§5 (Eichner 2024).\n",
-        run.display()
+        code_span(&format!("forestlod report --run {}", run.display()))
     );
     let _ = writeln!(out, "Contents:\n");
     for (_, m) in &manifests {
         let heading = format!("{} ({})", m.title, m.scenes.join(", "));
         let anchor = crate::html::anchor(&heading);
-        let _ = writeln!(out, "- [{heading}](#{anchor}) (`{}`)", m.name);
+        let _ = writeln!(
+            out,
+            "- [{}](#{anchor}) ({})",
+            md(&heading),
+            code_span(&m.name)
+        );
     }
     let _ = writeln!(out);
     for (dir, m) in &manifests {
@@ -767,7 +940,7 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
     std::fs::write(&path, &out)
         .map_err(|e| InputError::new(path.display().to_string(), "write", "", e.to_string()))?;
     let html = run.join("report.html");
-    let page = crate::html::report_page(&out, run, "forestlod sweep report");
+    let page = crate::html::report_page(&out, &embeds, "forestlod sweep report");
     std::fs::write(&html, page)
         .map_err(|e| InputError::new(html.display().to_string(), "write", "", e.to_string()))?;
     Ok(path)
@@ -779,6 +952,7 @@ pub fn replot(run: &Path) -> Result<usize, InputError> {
     let err = |p: &Path, e: &dyn std::fmt::Display| {
         InputError::new(p.display().to_string(), "replot", "", e.to_string())
     };
+    let checked = Run::new(run)?;
     let mut n = 0;
     for entry in std::fs::read_dir(run).map_err(|e| err(run, &e))? {
         let dir = entry.map_err(|e| err(run, &e))?.path();
@@ -786,8 +960,10 @@ pub fn replot(run: &Path) -> Result<usize, InputError> {
         if !mpath.is_file() {
             continue;
         }
-        let text = std::fs::read_to_string(&mpath).map_err(|e| err(&mpath, &e))?;
+        let file = checked.manifest(&mpath)?;
+        let text = std::fs::read_to_string(file).map_err(|e| err(&mpath, &e))?;
         let mut m: Manifest = serde_json::from_str(&text).map_err(|e| err(&mpath, &e))?;
+        checked.named(&mpath, &dir, "csv", &m.csv)?;
         let spec = match &m.spec {
             Some(spec) => spec.clone(),
             None => {
