@@ -1154,3 +1154,70 @@ fn errors_echo_at_most_a_short_marked_excerpt_of_file_content() {
     .to_string();
     assert!(!e.contains(&"z".repeat(41)), "{e}");
 }
+
+/// Special files are refused before they are opened, at every file the loaders read (issue 28):
+/// a FIFO (opening it would block until a writer came), a link to `/dev/zero` (a read that never
+/// ends) and a folder, as a scene file, an instance table, an OBJ mesh and a PNG texture, each
+/// with one error naming the file. Each case runs on a thread with a deadline, so a loader that
+/// blocks fails the test instead of hanging it.
+#[cfg(unix)]
+#[test]
+fn special_files_are_refused_naming_the_file() {
+    use std::sync::mpsc;
+    use std::time::Duration;
+    let dir = temp_dir("special-files");
+    let fifo = dir.join("pipe");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("mkfifo (coreutils) runs");
+    assert!(made.success(), "mkfifo {}", fifo.display());
+    let zero = dir.join("zero");
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+    let folder = dir.join("folder");
+    std::fs::create_dir_all(&folder).unwrap();
+    type Loader = fn(&Path) -> Result<(), String>;
+    let loaders: [(&str, Loader); 4] = [
+        ("scene", |p| {
+            load_scene_file(p).map(|_| ()).map_err(|e| e.to_string())
+        }),
+        ("instances", |p| {
+            load_instances_csv(p, &["oak".to_string()])
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        }),
+        ("obj", |p| {
+            load_obj_mesh("oak", p, p, UpAxis::Z)
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        }),
+        ("png", |p| {
+            forestlod_reference::scene::load::load_png_texture(p)
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        }),
+    ];
+    for (kind, load) in loaders {
+        for (path, what) in [
+            (&fifo, "special file"),
+            (&zero, "special file"),
+            (&folder, "folder"),
+        ] {
+            let (tx, rx) = mpsc::channel();
+            let p = path.clone();
+            std::thread::spawn(move || {
+                let _ = tx.send(load(&p));
+            });
+            let got = rx
+                .recv_timeout(Duration::from_secs(10))
+                .unwrap_or_else(|_| {
+                    panic!("{kind} loader on {}: no answer in 10 s", path.display())
+                });
+            let e = got.expect_err(&format!("{kind} loader accepted {}", path.display()));
+            assert_mentions(
+                &e,
+                &[&path.display().to_string(), what, "not a regular file"],
+            );
+        }
+    }
+}

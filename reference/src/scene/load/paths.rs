@@ -8,6 +8,8 @@
 //! - whole files are read with `read_limited`, which refuses a file of more than its limit
 //!   ([`MAX_SCENE_FILE_BYTES`], [`MAX_MESH_FILE_BYTES`], [`MAX_TEXTURE_FILE_BYTES`]); the
 //!   instance table is streamed (`open_file`), bounded by its row and record limits instead;
+//! - only regular files are read (after resolving links): a FIFO, a socket, a device or a link
+//!   to one is refused before it is opened, naming the file (issue 28);
 //! - a file that cannot be opened or read is an [`InputError`] at position `file`, value the
 //!   file's name, reason `cannot be read: ...`; `label` is how every error names a file.
 //!
@@ -39,8 +41,32 @@ pub(super) fn label(path: &Path) -> String {
     path.display().to_string()
 }
 
-/// Reads a whole file of at most `limit` bytes.
+/// Refuses anything but a regular file, after resolving links (issue 28): opening a FIFO blocks
+/// until a writer comes, and a device (`/dev/zero`, or a link to it) never ends. Checked before
+/// the file is opened.
+fn regular_file(path: &Path) -> Result<(), InputError> {
+    let file = label(path);
+    let meta = std::fs::metadata(path)
+        .map_err(|e| InputError::new(&file, "file", &file, format!("cannot be read: {e}")))?;
+    if meta.is_file() {
+        return Ok(());
+    }
+    let kind = if meta.is_dir() {
+        "a folder"
+    } else {
+        "a special file (a FIFO, socket or device)"
+    };
+    Err(InputError::new(
+        &file,
+        "file",
+        &file,
+        format!("is {kind}, not a regular file (after resolving links)"),
+    ))
+}
+
+/// Reads a whole file of at most `limit` bytes (a regular file: [`regular_file`]).
 pub(super) fn read_limited(path: &Path, limit: u64) -> Result<Vec<u8>, InputError> {
+    regular_file(path)?;
     let file = label(path);
     let cannot =
         |e: std::io::Error| InputError::new(&file, "file", &file, format!("cannot be read: {e}"));
@@ -61,6 +87,7 @@ pub(super) fn read_limited(path: &Path, limit: u64) -> Result<Vec<u8>, InputErro
 /// Opens a file to be streamed (the instance table, read record by record and bounded by its
 /// row and record limits, not by a size), with `read_limited`'s error when it cannot be opened.
 pub(super) fn open_file(path: &Path) -> Result<std::fs::File, InputError> {
+    regular_file(path)?;
     let file = label(path);
     std::fs::File::open(path)
         .map_err(|e| InputError::new(&file, "file", &file, format!("cannot be read: {e}")))
