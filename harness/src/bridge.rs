@@ -3,17 +3,20 @@
 //! it; nothing here runs a stage except [`gpu_textures`], which runs the GPU's bake and mips on
 //! the scene's own meshes, as the reference's `prepare` runs its own.
 
+use forestlod_gpu::command_order::OrderInputs;
 use forestlod_gpu::draw::MipLevel;
+use forestlod_gpu::readback::upload_storage;
 use forestlod_gpu::{
-    BakeMesh, CullTree, DrawInstance, DrawSceneDesc, DrawVertex, GpuBake, GpuBaked, GpuContext,
-    GpuError, SelectBuffers, terrain_vertices, upload_texture_array,
+    BakeMesh, CullTree, DrawInstance, DrawSceneDesc, DrawVertex, GpuBake, GpuBaked,
+    GpuCommandOrder, GpuContext, GpuError, SelectBuffers, terrain_vertices, upload_texture_array,
 };
 use forestlod_reference::baselines::{proxies, tree_spheres};
+use forestlod_reference::coalesce::run_offsets;
 use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::sampler::Texture;
 use forestlod_reference::scene::Scene;
 use forestlod_reference::select::Selection;
-use forestlod_shared::{MeshMeta, Params, ProxyRecord};
+use forestlod_shared::{Coalesce, MeshMeta, NodeMeta, Params, ProxyRecord};
 
 /// The draw stage's static inputs of a prepared scene, converted from the reference's types.
 pub struct DrawSceneData {
@@ -244,4 +247,56 @@ pub fn runs_in_capacity(ctx: &GpuContext, runs: &Selection, capacity: u32) -> Se
     ctx.queue
         .write_buffer(&out.counters, 0, bytemuck::bytes_of(&runs.counters));
     out
+}
+
+/// `command_order.wgsl` fed from the reference: the hierarchy's nodes, the raw cut, its
+/// coalescing's run offsets ([`run_offsets`] under the coalesce mode) and the coalesced runs
+/// ([`runs_in_capacity`], in buffers of the raw cut's capacity) uploaded, and the order bound to
+/// them. It reorders `out` in place.
+pub struct OrderFromCpu<'a> {
+    /// The raw cut.
+    pub raw: SelectBuffers,
+    /// The coalesced runs, reordered in place by `order`.
+    pub out: SelectBuffers,
+    /// The coalescing's run offsets (kept alive with the order that reads them).
+    pub offsets: wgpu::Buffer,
+    /// The command order's driver.
+    pub order: GpuCommandOrder<'a>,
+}
+
+impl<'a> OrderFromCpu<'a> {
+    /// Uploads the reference's cut of `nodes` (`raw`) and its coalescing under `mode`
+    /// (`coalesced`), and binds the order to them.
+    pub fn new(
+        ctx: &'a GpuContext,
+        nodes: &[NodeMeta],
+        raw: &Selection,
+        coalesced: &Selection,
+        mode: Coalesce,
+    ) -> Result<Self, GpuError> {
+        let nodes = upload_storage(ctx, "order nodes (cpu)", nodes, wgpu::BufferUsages::empty());
+        let raw_buffers = SelectBuffers::from_cpu(ctx, &raw.commands, &raw.data, &raw.counters)?;
+        let offsets = upload_storage(
+            ctx,
+            "order run offsets (cpu)",
+            &run_offsets(raw, mode),
+            wgpu::BufferUsages::empty(),
+        );
+        let out = runs_in_capacity(ctx, coalesced, raw_buffers.capacity);
+        let order = GpuCommandOrder::new(
+            ctx,
+            OrderInputs {
+                nodes: &nodes,
+                raw: &raw_buffers,
+                run_offsets: &offsets,
+                out: &out,
+            },
+        )?;
+        Ok(Self {
+            raw: raw_buffers,
+            out,
+            offsets,
+            order,
+        })
+    }
 }

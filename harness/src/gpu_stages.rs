@@ -18,12 +18,10 @@
 use forestlod_gpu::draw::DrawTarget;
 use forestlod_gpu::readback::{read_buffer, upload_storage};
 use forestlod_gpu::{
-    Compaction, DrawScene, GpuCoalesce, GpuCommandOrder, GpuContext, GpuCull, GpuError,
-    GpuHierSelect, GpuProxies, GpuRefine, GpuSelection, PrimitiveInputs, SelectBuffers,
-    command_order::OrderInputs,
+    Compaction, DrawScene, GpuCoalesce, GpuContext, GpuCull, GpuError, GpuHierSelect, GpuProxies,
+    GpuRefine, GpuSelection, PrimitiveInputs, SelectBuffers,
 };
 use forestlod_reference::baselines::{tree_spheres, visible_trees};
-use forestlod_reference::coalesce::run_offsets;
 use forestlod_reference::frame::SelectionTrace;
 use forestlod_reference::hier_select::HierSelection;
 use forestlod_reference::pipeline::Prepared;
@@ -35,7 +33,7 @@ use forestlod_shared::{
 };
 
 use crate::backend::{GpuRenderer, GpuSelectBackend};
-use crate::bridge::{DrawSceneData, cull_trees, cull_trees_of, proxy_records, runs_in_capacity};
+use crate::bridge::{DrawSceneData, OrderFromCpu, cull_trees, cull_trees_of, proxy_records};
 use crate::gpu_frame::{StagesFromCpu, gpu_primitive};
 use crate::image_compare::Images;
 use crate::judge::{CullCase, Culled, RefineCase, Refinement, primitive_args};
@@ -137,33 +135,13 @@ impl Backend<CommandOrder> for GpuStage {
     fn run(&self, i: CommandOrderInput<'_>) -> Ordered {
         let ctx = self.ctx;
         let mode = i.params.command_ordering().expect("valid parameters");
-        let nodes = upload_storage(
-            ctx,
-            "order nodes (cpu)",
-            i.nodes,
-            wgpu::BufferUsages::empty(),
-        );
-        let raw = upload(ctx, i.raw);
-        let offsets = upload_storage(
-            ctx,
-            "order run offsets (cpu)",
-            &run_offsets(i.raw, i.coalesce),
-            wgpu::BufferUsages::empty(),
-        );
-        // The runs in buffers of the raw cut's capacity, as the frame's coalescing writes them
-        // (the keys pass visits every raw slot below the output's capacity).
-        let out = runs_in_capacity(ctx, i.coalesced, raw.capacity);
-        let mut gpu = ok(
-            "GpuCommandOrder::new",
-            GpuCommandOrder::new(
-                ctx,
-                OrderInputs {
-                    nodes: &nodes,
-                    raw: &raw,
-                    run_offsets: &offsets,
-                    out: &out,
-                },
-            ),
+        let OrderFromCpu {
+            out,
+            order: mut gpu,
+            ..
+        } = ok(
+            "upload the cut and bind the order",
+            OrderFromCpu::new(ctx, i.nodes, i.raw, i.coalesced, i.coalesce),
         );
         let view = ViewUniform::new(i.camera, i.params);
         submit(ctx, "command_order", |e| gpu.encode(e, &view, mode));

@@ -14,12 +14,11 @@
 use forestlod_gpu::command_order::OrderInputs;
 use forestlod_gpu::readback::upload_storage;
 
-use crate::bridge::runs_in_capacity;
+use crate::bridge::OrderFromCpu;
 use forestlod_gpu::{
     Compaction, GpuCoalesce, GpuCommandOrder, GpuContext, GpuError, GpuHierSelect, GpuSelect,
     GpuSelection, SelectBuffers,
 };
-use forestlod_reference::coalesce::run_offsets;
 use forestlod_reference::frame::SelectionTrace;
 use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::select::Selection;
@@ -180,26 +179,17 @@ impl<'a> SelectionChain<'a> {
                 })
             }
             StageId::Coalesce => {
-                let raw_selection = output(StageId::HierSelect)?;
-                let raw = upload(raw_selection)?;
-                // In buffers of the raw cut's capacity, as the GPU's coalescing writes them.
-                let out = runs_in_capacity(ctx, output(StageId::Coalesce)?, raw.capacity);
-                let offsets = upload_storage(
+                let OrderFromCpu {
+                    raw,
+                    out,
+                    offsets,
+                    order,
+                } = OrderFromCpu::new(
                     ctx,
-                    "coalesce offsets (cpu)",
-                    &run_offsets(raw_selection, mode),
-                    wgpu::BufferUsages::empty(),
-                );
-                let nodes =
-                    upload_storage(ctx, "hier nodes (cpu)", nodes, wgpu::BufferUsages::empty());
-                let order = GpuCommandOrder::new(
-                    ctx,
-                    OrderInputs {
-                        nodes: &nodes,
-                        raw: &raw,
-                        run_offsets: &offsets,
-                        out: &out,
-                    },
+                    nodes,
+                    output(StageId::HierSelect)?,
+                    output(StageId::Coalesce)?,
+                    mode,
                 )?;
                 Ok(Self {
                     ctx,
