@@ -39,6 +39,7 @@ pub mod coalesce;
 pub mod command_order;
 pub mod draw;
 pub mod error;
+pub mod files;
 pub mod frame;
 pub mod geometry;
 pub mod ground_truth;

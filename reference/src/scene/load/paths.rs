@@ -15,7 +15,6 @@
 //!
 //! The lowest file of the loaders: it imports none of the others.
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use crate::InputError;
@@ -41,56 +40,16 @@ pub(super) fn label(path: &Path) -> String {
     path.display().to_string()
 }
 
-/// Refuses anything but a regular file, after resolving links (issue 28): opening a FIFO blocks
-/// until a writer comes, and a device (`/dev/zero`, or a link to it) never ends. Checked before
-/// the file is opened.
-fn regular_file(path: &Path) -> Result<(), InputError> {
-    let file = label(path);
-    let meta = std::fs::metadata(path)
-        .map_err(|e| InputError::new(&file, "file", &file, format!("cannot be read: {e}")))?;
-    if meta.is_file() {
-        return Ok(());
-    }
-    let kind = if meta.is_dir() {
-        "a folder"
-    } else {
-        "a special file (a FIFO, socket or device)"
-    };
-    Err(InputError::new(
-        &file,
-        "file",
-        &file,
-        format!("is {kind}, not a regular file (after resolving links)"),
-    ))
-}
-
-/// Reads a whole file of at most `limit` bytes (a regular file: [`regular_file`]).
+/// Reads a whole file of at most `limit` bytes: [`crate::files::read_limited`] (regular files
+/// only, the size checked before reading).
 pub(super) fn read_limited(path: &Path, limit: u64) -> Result<Vec<u8>, InputError> {
-    regular_file(path)?;
-    let file = label(path);
-    let cannot =
-        |e: std::io::Error| InputError::new(&file, "file", &file, format!("cannot be read: {e}"));
-    let f = std::fs::File::open(path).map_err(cannot)?;
-    let mut bytes = Vec::new();
-    f.take(limit + 1).read_to_end(&mut bytes).map_err(cannot)?;
-    if bytes.len() as u64 > limit {
-        return Err(InputError::new(
-            &file,
-            "file size",
-            format!("more than {limit} bytes"),
-            format!("expected at most {limit} bytes"),
-        ));
-    }
-    Ok(bytes)
+    crate::files::read_limited(path, limit)
 }
 
 /// Opens a file to be streamed (the instance table, read record by record and bounded by its
-/// row and record limits, not by a size), with `read_limited`'s error when it cannot be opened.
+/// row and record limits, not by a size): a regular file only ([`crate::files::regular_file`]).
 pub(super) fn open_file(path: &Path) -> Result<std::fs::File, InputError> {
-    regular_file(path)?;
-    let file = label(path);
-    std::fs::File::open(path)
-        .map_err(|e| InputError::new(&file, "file", &file, format!("cannot be read: {e}")))
+    crate::files::open_limited(path, u64::MAX).map(|(f, _)| f)
 }
 
 /// The scene file's folder as relative paths start from it (empty for a bare file name, so that
