@@ -535,6 +535,20 @@ pub fn check_out(out: &Path) -> Result<(), InputError> {
                 });
                 return Err(fail(dir, e));
             }
+            // A dangling link (the folder or one above it): `metadata` says "not found", yet
+            // creating the folder would fail after the work (issue 28).
+            Err(e) if std::fs::symlink_metadata(dir).is_ok_and(|m| m.file_type().is_symlink()) => {
+                let target = std::fs::read_link(dir)
+                    .map(|t| t.display().to_string())
+                    .unwrap_or_default();
+                return Err(fail(
+                    dir,
+                    std::io::Error::new(
+                        e.kind(),
+                        format!("a link to {target} that does not resolve ({e})"),
+                    ),
+                ));
+            }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                 dir = match dir.parent() {
                     Some(p) if !p.as_os_str().is_empty() => p,

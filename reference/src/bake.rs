@@ -137,6 +137,57 @@ pub fn mesh_textures(
         .collect()
 }
 
+/// Most memory the bake may hold at once, bytes (issue 28, "work and memory refused up front").
+/// The project's machines have 24 GiB; the default bake (10 angles, 128², synthetic's meshes)
+/// needs about 30 MB, and the largest built-in sweep's a few hundred MB. A request past this is a
+/// typo or an experiment no machine we run on could finish (`--texture-size 4096 --angles 91`
+/// asked for over 100 GB and was killed after 48 s): refused before anything is built.
+pub const MAX_BAKE_BYTES: u64 = 16 << 30;
+
+/// The memory [`bake`] holds for `meshes` meshes with `params`, bytes, counted from the structures
+/// it keeps per layer (`meshes × K` layers of side `r`): level 0 as RGBA8 (`layers`), every mip
+/// level in linear `f32` RGBA and RGBA8 (`chains`), and the sampled array texture's levels, again
+/// RGBA8 and linear `f32` RGBA (`texture`, [`Texture::heap_bytes`]); plus one `r × r` render target (colour, depth, id: 12 bytes a texel) per layer in
+/// flight, counted once. Saturating, so absurd inputs cannot wrap. Exact to within the vectors'
+/// headers; it does not count the GPU twin's copy, which wgpu's limits bound.
+pub fn bake_memory_bytes(meshes: usize, params: &Params) -> u64 {
+    let r = u64::from(params.texture_size.max(1));
+    let mut per_layer: u64 = 4 * r * r; // level 0 kept as `layers`
+    let mut side = r;
+    loop {
+        // chains and texture: each linear f32 RGBA (16 B) + RGBA8 (4 B)
+        per_layer = per_layer.saturating_add(40 * side * side);
+        if side == 1 {
+            break;
+        }
+        side /= 2;
+    }
+    let layers = (meshes as u64).saturating_mul(u64::from(params.angle_count));
+    layers.saturating_mul(per_layer).saturating_add(12 * r * r)
+}
+
+/// Refuses parameters whose bake would hold more than [`MAX_BAKE_BYTES`] for `meshes` meshes,
+/// naming the flags that set it and printing the estimate ([`bake_memory_bytes`]).
+pub fn check_bake_memory(meshes: usize, params: &Params) -> Result<(), InputError> {
+    let need = bake_memory_bytes(meshes, params);
+    if need <= MAX_BAKE_BYTES {
+        return Ok(());
+    }
+    Err(InputError::new(
+        "<params>",
+        "--texture-size x --angles",
+        format!(
+            "{} x {} angles x {meshes} meshes",
+            params.texture_size, params.angle_count
+        ),
+        format!(
+            "the billboard bake would need about {}, over the limit of {} (MAX_BAKE_BYTES): lower --texture-size or --angles",
+            crate::files::size_text(need),
+            crate::files::size_text(MAX_BAKE_BYTES)
+        ),
+    ))
+}
+
 /// E Alg. 3.1 for every mesh and angle, then the mips stage on every layer.
 pub fn bake(
     scene: &Scene,
@@ -227,4 +278,50 @@ pub fn contact_sheet(baked: &BakedBillboards, meshes: usize) -> Rgba8Image {
         }
     }
     sheet
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The estimate that refuses a bake up front is what a real bake holds: exact for the
+    /// structures it keeps (a mutant dropping the `texture`'s linear copy, or counting one level,
+    /// fails here), plus the one render target.
+    #[test]
+    fn bake_memory_estimate_is_what_the_bake_holds() {
+        let scene = crate::scene::builtin::tiny();
+        let params = Params {
+            texture_size: 16,
+            angle_count: 3,
+            ..Default::default()
+        };
+        let prepared = crate::pipeline::prepare(scene, &params).unwrap();
+        let b = &prepared.billboards;
+        let texels = |n: usize| n as u64;
+        let layers: u64 = b.layers.iter().map(|l| 4 * texels(l.texels.len())).sum();
+        let chains: u64 = b
+            .chains
+            .iter()
+            .flat_map(|c| &c.levels)
+            .map(|l| 16 * texels(l.linear.texels.len()) + 4 * texels(l.rgba8.texels.len()))
+            .sum();
+        let held = layers + chains + b.texture.heap_bytes();
+        let meshes = prepared.scene.meshes.len();
+        let estimate = bake_memory_bytes(meshes, &params);
+        assert_eq!(
+            estimate,
+            held + 12 * 16 * 16,
+            "estimate {estimate}, held {held}"
+        );
+        // Saturates rather than wraps, and the refusal states the estimate and the limit.
+        let huge = Params {
+            texture_size: 4096,
+            angle_count: 91,
+            ..Default::default()
+        };
+        assert!(bake_memory_bytes(usize::MAX, &huge) == u64::MAX);
+        let e = check_bake_memory(meshes, &huge).unwrap_err().to_string();
+        assert!(e.contains("4096 x 91 angles") && e.contains("GiB"), "{e}");
+        check_bake_memory(meshes, &Params::default()).unwrap();
+    }
 }

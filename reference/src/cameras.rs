@@ -30,6 +30,16 @@ pub fn named_camera(
     width: u32,
     height: u32,
 ) -> Result<Camera, InputError> {
+    // Issue 28, "errors name the flag": a non-finite yaw made a NaN forward vector, reported as
+    // `camera.forward: [NaN, ...]` instead of naming the flag the user typed.
+    if !yaw_degrees.is_finite() {
+        return Err(InputError::new(
+            crate::error::COMMAND_LINE,
+            "--yaw",
+            yaw_degrees,
+            "expected a finite angle in degrees",
+        ));
+    }
     let [x0, y0, x1, y1] = scene.bounds;
     let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
     let ground = |x: f32, y: f32| scene.terrain.height(x, y);

@@ -101,6 +101,8 @@ pub fn scene_memory(
 /// Runs the slow path. `params` must be valid (it is validated again here).
 pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
     params.validate()?;
+    // Refused before anything is built (issue 28): a bake no machine of ours could hold.
+    crate::bake::check_bake_memory(scene.meshes.len(), params)?;
     let mut timings = PrepareTimings::default();
     let t = Instant::now();
     let geometry = pack_geometry(&scene);

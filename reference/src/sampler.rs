@@ -140,6 +140,26 @@ impl PartialEq for Texture {
 
 impl Eq for Texture {}
 
+impl Texture {
+    /// Bytes of texel data held: every level as RGBA8 and decoded to linear `f32` RGBA (the
+    /// bake's memory estimate, `bake::bake_memory_bytes`, counts the same).
+    pub fn heap_bytes(&self) -> u64 {
+        let rgba8: usize = self
+            .layers
+            .iter()
+            .flatten()
+            .map(|l| 4 * l.texels.len())
+            .sum();
+        let linear: usize = self
+            .linear
+            .iter()
+            .flatten()
+            .map(|l| 16 * l.texels.len())
+            .sum();
+        (rgba8 + linear) as u64
+    }
+}
+
 /// One mip level decoded to linear light, row-major from the top-left texel.
 #[derive(Clone, Debug)]
 struct LinearLevel {

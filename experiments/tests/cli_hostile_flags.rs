@@ -1,0 +1,204 @@
+//! Hostile command-line flags (issue 28, "errors name the flag" and "work and memory refused up
+//! front"), one table: each case runs the real `forestlod` binary under a deadline with a fresh
+//! `TMPDIR`, and must
+//! - exit with the expected code (1: bad input) within [`DEADLINE`] (no hang, no abort);
+//! - print exactly one line to stderr, `error: ...`, containing every expected fragment (the flag
+//!   and the value; for memory, the estimate and the limit);
+//! - leave `--out` as it was (absent stays absent, a file or link stays what it was) and `TMPDIR`
+//!   empty.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+#[path = "../../reference/tests/common/mod.rs"]
+mod common;
+
+/// Longest a refusal may take: every case here is refused before a scene is prepared, so a
+/// case that runs this long is doing the work it should have refused (or hangs).
+const DEADLINE: Duration = Duration::from_secs(60);
+
+/// What `--out` is before the run.
+#[derive(Clone, Copy, Debug)]
+enum Out {
+    /// Absent (must stay absent).
+    Absent,
+    /// A regular file (must keep its bytes).
+    File,
+    /// A link to a path that does not exist (must stay a dangling link).
+    DanglingLink,
+    /// A folder under a dangling link (`link/sub`).
+    UnderDanglingLink,
+}
+
+struct Case {
+    name: &'static str,
+    args: &'static [&'static str],
+    out: Out,
+    /// Fragments the one error line must contain.
+    expect: &'static [&'static str],
+}
+
+const CASES: &[Case] = &[
+    Case {
+        name: "yaw inf",
+        args: &["--yaw", "inf"],
+        out: Out::Absent,
+        expect: &["--yaw", "inf", "finite"],
+    },
+    Case {
+        name: "yaw nan",
+        args: &["--yaw", "NaN"],
+        out: Out::Absent,
+        expect: &["--yaw", "NaN", "finite"],
+    },
+    Case {
+        name: "yaw -inf",
+        args: &["--yaw=-inf"],
+        out: Out::Absent,
+        expect: &["--yaw", "-inf"],
+    },
+    Case {
+        name: "out is a file",
+        args: &[],
+        out: Out::File,
+        expect: &["--out", "cannot be used as the output folder"],
+    },
+    Case {
+        name: "out is a dangling link",
+        args: &[],
+        out: Out::DanglingLink,
+        expect: &["--out", "does not resolve", "nowhere"],
+    },
+    Case {
+        name: "out is under a dangling link",
+        args: &[],
+        out: Out::UnderDanglingLink,
+        expect: &["--out", "does not resolve", "nowhere"],
+    },
+    Case {
+        name: "bake memory: 4096 x 91 angles",
+        args: &["--texture-size", "4096", "--angles", "91"],
+        out: Out::Absent,
+        expect: &[
+            "--texture-size x --angles",
+            "4096 x 91 angles",
+            "GiB",
+            "MAX_BAKE_BYTES",
+        ],
+    },
+    Case {
+        name: "bake memory: 4096 x 10 angles",
+        args: &["--texture-size", "4096", "--angles", "10"],
+        out: Out::Absent,
+        expect: &["4096 x 10 angles", "over the limit of"],
+    },
+];
+
+fn prepare_out(dir: &Path, out: Out) -> PathBuf {
+    match out {
+        Out::Absent => dir.join("out"),
+        Out::File => {
+            let p = dir.join("out-file");
+            std::fs::write(&p, b"not a folder").unwrap();
+            p
+        }
+        Out::DanglingLink | Out::UnderDanglingLink => {
+            let link = dir.join("out-link");
+            std::os::unix::fs::symlink(dir.join("nowhere"), &link).unwrap();
+            if matches!(out, Out::UnderDanglingLink) {
+                link.join("sub")
+            } else {
+                link
+            }
+        }
+    }
+}
+
+fn out_unchanged(dir: &Path, out: Out, path: &Path) -> bool {
+    match out {
+        Out::Absent => !path.exists() && std::fs::symlink_metadata(path).is_err(),
+        Out::File => std::fs::read(path).is_ok_and(|b| b == b"not a folder"),
+        Out::DanglingLink | Out::UnderDanglingLink => {
+            let link = dir.join("out-link");
+            std::fs::symlink_metadata(&link).is_ok_and(|m| m.file_type().is_symlink())
+                && !dir.join("nowhere").exists()
+        }
+    }
+}
+
+/// Runs `forestlod render ARGS --out OUT` (tiny scene, small viewport, no GPU) under
+/// [`DEADLINE`]; returns (exit code, stderr). A run past the deadline is killed and fails.
+fn run(dir: &Path, args: &[&str], out: &Path, tmp: &Path, what: &str) -> (Option<i32>, String) {
+    let mut all = vec!["render", "--scene", "tiny", "--no-gpu", "--width", "32"];
+    all.extend(["--height", "32"]);
+    all.extend(args);
+    let out_s = out.to_str().unwrap().to_string();
+    all.extend(["--out", &out_s]);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_forestlod"))
+        .args(&all)
+        .current_dir(dir)
+        .env("TMPDIR", tmp)
+        .env("RUST_BACKTRACE", "0")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run forestlod");
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            let mut stderr = String::new();
+            std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut stderr).unwrap();
+            return (status.code(), stderr);
+        }
+        if start.elapsed() > DEADLINE {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!(
+                "{what}: still running after {DEADLINE:?} (a hang, or work not refused up front)"
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn hostile_flags_are_refused_naming_the_flag() {
+    let mut failures = Vec::new();
+    for case in CASES {
+        let dir = common::fresh_dir("cli-hostile-flags", &case.name.replace([' ', ':'], "-"));
+        let tmp = dir.join("tmp");
+        std::fs::create_dir_all(&tmp).unwrap();
+        let out = prepare_out(&dir, case.out);
+        let what = format!("{}: forestlod render {}", case.name, case.args.join(" "));
+        let (code, stderr) = run(&dir, case.args, &out, &tmp, &what);
+        let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+        let mut problems = Vec::new();
+        if code != Some(1) {
+            problems.push(format!("exit {code:?}, expected 1"));
+        }
+        if stderr.contains("panicked") {
+            problems.push("panicked".into());
+        }
+        if lines.len() != 1 || !lines[0].starts_with("error:") {
+            problems.push(format!("stderr is not one `error:` line: {stderr:?}"));
+        }
+        for e in case.expect {
+            if !stderr.contains(e) {
+                problems.push(format!("error lacks {e:?}: {stderr:?}"));
+            }
+        }
+        if !out_unchanged(&dir, case.out, &out) {
+            problems.push(format!("--out {} was changed", out.display()));
+        }
+        let left: Vec<_> = std::fs::read_dir(&tmp).unwrap().collect();
+        if !left.is_empty() {
+            problems.push(format!("{} entries left in TMPDIR", left.len()));
+        }
+        if !problems.is_empty() {
+            failures.push(format!("{what}: {}", problems.join("; ")));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
