@@ -124,7 +124,7 @@ impl ParamArgs {
     }
 
     /// The validated parameters. A value that does not parse names its flag (`--fade-mode`); one
-    /// that parses but is out of range names the field (`Params::validate`).
+    /// that parses but is out of range names its flag and the field (`Params::validate`).
     pub fn params(&self) -> Result<Params, InputError> {
         let mut p = Params::default();
         for spec in &PARAMS {
@@ -135,7 +135,18 @@ impl ParamArgs {
                 (spec.set)(&mut p, value);
             }
         }
-        p.validate()?;
+        // Out of range: named by the flag the user typed, with the table's field and reason
+        // (issue 28, "errors name the flag").
+        p.validate()
+            .map_err(|e| match PARAMS.iter().find(|s| s.name == e.field) {
+                Some(spec) => InputError::new(
+                    COMMAND_LINE,
+                    format!("--{} (field {})", spec.flag, spec.name),
+                    e.value,
+                    e.reason,
+                ),
+                None => InputError::from(e),
+            })?;
         Ok(p)
     }
 }

@@ -572,6 +572,23 @@ pub fn check_out(out: &Path) -> Result<(), InputError> {
     }
 }
 
+/// Checks `--width` and `--height` before any work, naming the flag (issue 28; the camera's own
+/// check names `camera.viewport`, which the user did not type).
+pub fn check_viewport(width: u32, height: u32) -> Result<(), InputError> {
+    use forestlod_reference::raster::MAX_TARGET_SIZE;
+    for (flag, v) in [("--width", width), ("--height", height)] {
+        if !(1..=MAX_TARGET_SIZE).contains(&v) {
+            return Err(InputError::new(
+                "<command line>",
+                flag,
+                v,
+                format!("expected 1..={MAX_TARGET_SIZE} pixels"),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The main job: returns its exit code ([`exit_code`]); `Err` is bad input or an I/O error.
 pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
     check_out(&args.out)?;
@@ -585,6 +602,7 @@ pub fn run(args: &RenderArgs) -> Result<u8, Box<dyn std::error::Error>> {
         )
     })?;
     args.camera.free()?;
+    check_viewport(args.width, args.height)?;
     let wall = Instant::now();
     let (scene, scene_seconds) = stage("loading scene", || args.scene.load());
     let scene = scene?;

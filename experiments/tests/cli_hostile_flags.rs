@@ -59,6 +59,24 @@ const CASES: &[Case] = &[
         expect: &["--yaw", "-inf"],
     },
     Case {
+        name: "width 0",
+        args: &["--width", "0"],
+        out: Out::Absent,
+        expect: &["--width", "\"0\"", "pixels"],
+    },
+    Case {
+        name: "height too large",
+        args: &["--height", "16385"],
+        out: Out::Absent,
+        expect: &["--height", "16385", "1..=16384"],
+    },
+    Case {
+        name: "lod levels out of range",
+        args: &["--lod-levels", "9"],
+        out: Out::Absent,
+        expect: &["<command line>", "--lod-levels (field lod_levels)", "\"9\""],
+    },
+    Case {
         name: "out is a file",
         args: &[],
         out: Out::File,
@@ -130,8 +148,12 @@ fn out_unchanged(dir: &Path, out: Out, path: &Path) -> bool {
 /// Runs `forestlod render ARGS --out OUT` (tiny scene, small viewport, no GPU) under
 /// [`DEADLINE`]; returns (exit code, stderr). A run past the deadline is killed and fails.
 fn run(dir: &Path, args: &[&str], out: &Path, tmp: &Path, what: &str) -> (Option<i32>, String) {
-    let mut all = vec!["render", "--scene", "tiny", "--no-gpu", "--width", "32"];
-    all.extend(["--height", "32"]);
+    let mut all = vec!["render", "--scene", "tiny", "--no-gpu"];
+    for flag in ["--width", "--height"] {
+        if !args.contains(&flag) {
+            all.extend([flag, "32"]);
+        }
+    }
     all.extend(args);
     let out_s = out.to_str().unwrap().to_string();
     all.extend(["--out", &out_s]);
