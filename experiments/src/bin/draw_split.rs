@@ -609,8 +609,9 @@ fn main() -> Res<()> {
 /// `draw_split.csv` in `out`.
 fn plot_parts(out: &std::path::Path) -> Res<()> {
     let path = out.join("draw_split.csv");
-    let mut reader =
-        csv::Reader::from_path(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    // A CSV this program wrote (`--replot`): regular file, 64 MiB at most (issue 28).
+    let bytes = forestlod_reference::files::read_limited(&path, 64 << 20)?;
+    let mut reader = csv::Reader::from_reader(&bytes[..]);
     let headers = reader.headers()?.clone();
     let records: Vec<csv::StringRecord> = reader.records().collect::<Result<_, _>>()?;
     let col = |r: &csv::StringRecord, name: &str| -> Res<String> {
