@@ -623,7 +623,7 @@ fn cases() -> Vec<Case> {
                     shard(d, &manifest(|m| m["shard"] = "0/1000000000000".into())),
                 ]
             },
-            pattern: &["sweep.json: shard", "0/1000000000000", "a shard is missing"],
+            pattern: &["sweep merge", "hostile 1/1000000000000", "a shard is missing"],
         },
         Case {
             name: "merge: a bad sweep definition",

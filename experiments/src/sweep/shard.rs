@@ -195,20 +195,9 @@ pub fn merge(
     for (name, parts) in &sweeps {
         let first = &parts[0].1;
         let count = shard_of(&parts[0].0, first)?.count;
-        // More shards than folders given: one is missing (and `seen` stays small).
-        if count > shard_dirs.len() {
-            return Err(InputError::new(
-                parts[0].0.join("sweep.json").display().to_string(),
-                "shard",
-                first.shard.clone().unwrap_or_default(),
-                format!(
-                    "sweep {name}: shards of {count}, but {} folder(s) given: a shard is missing",
-                    shard_dirs.len()
-                ),
-            )
-            .into());
-        }
-        let mut seen = vec![None::<&PathBuf>; count];
+        // Shard index -> folder: a map, not a list of `count` (a manifest's count is its own
+        // word: `0/1000000000000` must not allocate).
+        let mut seen: BTreeMap<usize, &PathBuf> = BTreeMap::new();
         for (dir, m) in parts.iter() {
             let shard = shard_of(dir, m)?;
             let field = |what: &str, why: String| {
@@ -241,7 +230,7 @@ pub fn merge(
                 )
                 .into());
             }
-            if let Some(other) = seen[shard.index].replace(dir) {
+            if let Some(other) = seen.insert(shard.index, dir) {
                 return Err(field(
                     "shard",
                     format!("sweep {name}: shard given twice (also {})", other.display()),
@@ -249,7 +238,7 @@ pub fn merge(
                 .into());
             }
         }
-        if let Some(missing) = seen.iter().position(Option::is_none) {
+        if let Some(missing) = (0..count).find(|i| !seen.contains_key(i)) {
             return Err(InputError::new(
                 "<command line>",
                 "sweep merge",
