@@ -602,7 +602,7 @@ fn cases() -> Vec<Case> {
                 let json = manifest(|m| {
                     m["images"] = serde_json::json!([{
                         "camera": "far", "yaw_deg": 0.0, "distance_m": 0.0, "variant": "ours",
-                        "setting": "default", "color": "img/../../../../../../etc/passwd", "lod": "",
+                        "setting": "default", "color": format!("img/{}etc/passwd", "../".repeat(40)), "lod": "",
                         "flip": "", "per_lod": [], "ground_truth": "", "ground_truth_class": "",
                         "accuracy": forestlod_experiments::metrics::Accuracy::default(),
                     }])
@@ -623,7 +623,11 @@ fn cases() -> Vec<Case> {
                     shard(d, &manifest(|m| m["shard"] = "0/1000000000000".into())),
                 ]
             },
-            pattern: &["sweep merge", "hostile 1/1000000000000", "a shard is missing"],
+            pattern: &[
+                "sweep merge",
+                "hostile 1/1000000000000",
+                "a shard is missing",
+            ],
         },
         Case {
             name: "merge: a bad sweep definition",
