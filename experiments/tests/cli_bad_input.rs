@@ -709,7 +709,7 @@ fn sweep_zero_flags_are_rejected_not_clamped() {
     assert_rejected(
         &dir,
         &["sweep", "zero.toml", "--out", sweep_out],
-        &["zero.toml", "cameras.yaw_steps", "\"0\""],
+        &["zero.toml", "cameras[0].yaw_steps", "\"0\""],
     );
 }
 

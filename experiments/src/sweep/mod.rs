@@ -28,6 +28,7 @@
 //! glue (`forestlod sweep`: [`SweepArgs`], [`resolve`], [`configure`], [`run`]).
 
 mod io;
+mod load;
 pub mod paths;
 mod plots;
 mod rows;
@@ -43,8 +44,13 @@ use clap::Args;
 use forestlod_reference::InputError;
 
 use io::io_err;
+pub use load::{
+    Estimate, MAX_BILLBOARD_BYTES, MAX_FRAME_BYTES, MAX_FRAME_SIDE, MAX_SWEEP_FILE_BYTES,
+    MAX_SWEEP_FRAMES, MAX_SWEEP_PIXEL_WORK, MAX_TRUTH_BYTES, check_folder_name, load_sweep_file,
+    parse_sweep_toml,
+};
 pub use plots::write_plots;
-pub use rows::{FrameImages, Manifest, Row, read_csv, write_csv};
+pub use rows::{FrameImages, MAX_SWEEP_CSV_BYTES, Manifest, Row, read_csv, write_csv};
 pub use runner::Runner;
 pub use spec::{
     AxisSpec, CameraSpec, DISTANCE_PATH_BASE_HEIGHT_M, DISTANCE_PATH_CLIMB,
@@ -150,21 +156,23 @@ pub fn resolve(file: Option<&str>) -> Result<Vec<SweepSpec>, InputError> {
                     &format!("<built-in sweep {name}>"),
                 )?]);
             }
-            let text = std::fs::read_to_string(f).map_err(|e| {
-                InputError::new(
+            let path = std::path::Path::new(f);
+            if std::fs::symlink_metadata(path).is_err() {
+                return Err(InputError::new(
                     f,
-                    "read",
-                    "",
+                    "file",
+                    f,
                     format!(
-                        "{e}; expected a sweep TOML file or a built-in sweep name ({})",
+                        "does not exist; expected a sweep TOML file or a built-in sweep name ({})",
                         BUILTIN_SWEEPS.map(|(n, _)| n).join(", ")
                     ),
-                )
-            })?;
-            Ok(vec![SweepSpec::parse(&text, f)?])
+                ));
+            }
+            Ok(vec![load_sweep_file(path)?])
         }
     }
 }
+
 /// A sweep as `forestlod sweep` runs it: `--quick` and the command-line overrides applied, then
 /// validated. `None` when nothing is left to run: `--backend reference` on a sweep of GPU-only
 /// variants (the dropped variants are named on stderr).
@@ -240,8 +248,165 @@ pub fn configure(spec: SweepSpec, args: &SweepArgs) -> Result<Option<SweepSpec>,
             }
         }
     }
-    spec.validate(&format!("<sweep {}>", spec.name))?;
+    spec.check().map_err(|b| flag_error(b, &spec.name, args))?;
     Ok(Some(spec))
+}
+
+/// A refusal of a sweep as configured: named by the flag that set the value when one did
+/// (`--width 9000`: `<command line>: --width`), else by the sweep and key.
+fn flag_error(b: load::Bad, name: &str, args: &SweepArgs) -> InputError {
+    let root = match b.path.0.first() {
+        Some(load::Seg::Key(k)) => k.as_str(),
+        _ => "",
+    };
+    let leaf = match b.path.0.last() {
+        Some(load::Seg::Key(k)) => k.as_str(),
+        _ => "",
+    };
+    let given = [
+        ("--width", args.width.is_some()),
+        ("--height", args.height.is_some()),
+        ("--samples", args.samples.is_some()),
+        ("--repeats", args.repeats.is_some()),
+        ("--yaw-steps", args.yaw_steps.is_some()),
+        ("--path-steps", args.path_steps.is_some()),
+        ("--truth-tiles", args.truth_tiles.is_some()),
+        ("--scene", args.scene.is_some()),
+        ("--backend", args.backend.is_some()),
+    ];
+    let named: Vec<&str> = given
+        .iter()
+        .filter(|(flag, on)| {
+            *on && match root {
+                "" => !matches!(*flag, "--scene" | "--truth-tiles"),
+                "width" | "height" | "resolutions" => {
+                    matches!(*flag, "--width" | "--height" | "--samples")
+                }
+                "samples" => *flag == "--samples",
+                "repeats" => *flag == "--repeats",
+                "cameras" => {
+                    (leaf == "yaw_steps" && *flag == "--yaw-steps")
+                        || (leaf == "steps" && *flag == "--path-steps")
+                }
+                "truth_tiles" => *flag == "--truth-tiles",
+                "scenes" => *flag == "--scene",
+                "variants" | "backends" => *flag == "--backend",
+                _ => false,
+            }
+        })
+        .map(|(flag, _)| *flag)
+        .collect();
+    let file = format!("<sweep {name}>");
+    if named.is_empty() {
+        let quick = if args.quick { " (with --quick)" } else { "" };
+        let mut e = b.without_text(&file);
+        e.reason.push_str(quick);
+        return e;
+    }
+    let what = if b.path.0.is_empty() {
+        "the sweep's size".to_string()
+    } else {
+        format!("key {}", b.path)
+    };
+    InputError::new(
+        forestlod_reference::error::COMMAND_LINE,
+        named.join(" "),
+        b.value,
+        format!("{} ({file}, {what})", b.reason),
+    )
+}
+
+/// Checks `--out` before anything is read or written: absent (it is created), or a folder (or a
+/// link to one). A file or a dangling link is refused, naming `--out`. Returns whether it exists.
+pub fn check_out(out: &std::path::Path) -> Result<bool, InputError> {
+    let bad = |reason: &str| {
+        InputError::new(
+            forestlod_reference::error::COMMAND_LINE,
+            "--out",
+            out.display(),
+            reason,
+        )
+    };
+    match std::fs::symlink_metadata(out) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
+        Err(e) => Err(bad(&format!("cannot be read: {e}"))),
+        Ok(link) => match std::fs::metadata(out) {
+            Ok(m) if m.is_dir() => Ok(true),
+            Ok(_) => Err(bad(
+                "is not a folder: expected a folder or a path to create",
+            )),
+            Err(_) if link.file_type().is_symlink() => Err(bad(
+                "is a dangling link: expected a folder or a path to create",
+            )),
+            Err(e) => Err(bad(&format!("cannot be read: {e}"))),
+        },
+    }
+}
+
+/// What a run created in `--out`, removed again when it fails (issue 28: a refused or failed run
+/// leaves nothing behind): `--out` itself when it did not exist, else each sweep folder that did
+/// not exist before. Folders of earlier runs are left as they were.
+pub(crate) struct OutGuard {
+    created: Vec<std::path::PathBuf>,
+    pub(crate) done: bool,
+}
+
+impl OutGuard {
+    pub(crate) fn new(out: &std::path::Path, existed: bool, names: &[String]) -> Self {
+        let created = if existed {
+            names
+                .iter()
+                .map(|n| out.join(n))
+                .filter(|p| std::fs::symlink_metadata(p).is_err())
+                .collect()
+        } else {
+            vec![out.to_path_buf()]
+        };
+        Self {
+            created,
+            done: false,
+        }
+    }
+}
+
+impl Drop for OutGuard {
+    fn drop(&mut self) {
+        if !self.done {
+            for p in &self.created {
+                let _ = std::fs::remove_dir_all(p);
+            }
+        }
+    }
+}
+
+/// Checks that every scene a sweep names can be loaded, before anything is written: a built-in
+/// name, or a scene file (loaded here and dropped: its loader's checks and limits, issue 28).
+fn check_scenes(specs: &[SweepSpec]) -> Result<(), InputError> {
+    let mut done: Vec<&str> = Vec::new();
+    for spec in specs {
+        for (i, scene) in spec.scenes.iter().enumerate() {
+            if done.contains(&scene.as_str())
+                || forestlod_reference::scene::builtin::BUILTIN_NAMES.contains(&scene.as_str())
+            {
+                continue;
+            }
+            let path = std::path::Path::new(scene);
+            if !scene.ends_with(".toml") && std::fs::symlink_metadata(path).is_err() {
+                return Err(InputError::new(
+                    format!("<sweep {}>", spec.name),
+                    format!("key scenes[{i}]"),
+                    scene,
+                    format!(
+                        "expected a built-in scene ({}) or a scene file",
+                        forestlod_reference::scene::builtin::BUILTIN_NAMES.join(", ")
+                    ),
+                ));
+            }
+            forestlod_reference::scene::load::load_scene_file(path)?;
+            done.push(scene);
+        }
+    }
+    Ok(())
 }
 
 /// `--truth-tiles SIZE/FRACTION` or `full`.
@@ -269,8 +434,9 @@ fn parse_truth_tiles(text: &str) -> Result<Option<crate::fair::TileSpec>, InputE
 
 /// `forestlod sweep`.
 pub fn run(args: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
+    let out_existed = check_out(&args.out)?;
     if args.file.as_deref() == Some("merge") {
-        for m in shard::merge(&args.shards, &args.out)? {
+        for m in shard::merge(&args.shards, &args.out, out_existed)? {
             println!(
                 "sweep {}: {} frames merged -> {}",
                 m.name,
@@ -298,6 +464,9 @@ pub fn run(args: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
             None => eprintln!("sweep {name}: nothing to run on the chosen backends"),
         }
     }
+    check_scenes(&specs)?;
+    let names: Vec<String> = specs.iter().map(|s| s.name.clone()).collect();
+    let mut guard = OutGuard::new(&args.out, out_existed, &names);
     std::fs::create_dir_all(&args.out).map_err(|e| io_err(&args.out, e))?;
     let mut runner = Runner::default();
     let start = Instant::now();
@@ -316,6 +485,7 @@ pub fn run(args: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
         start.elapsed().as_secs_f64(),
         args.out.display()
     );
+    guard.done = true;
     Ok(())
 }
 
@@ -358,7 +528,7 @@ mod tests {
             ),
             (
                 "[[cameras]]\nname = 'far'\nyaw_steps = 0\n".to_string(),
-                "cameras.yaw_steps",
+                "cameras[0].yaw_steps",
             ),
         ] {
             let e = SweepSpec::parse(&format!("{head}{body}"), "f.toml").unwrap_err();

@@ -149,6 +149,11 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), InputError> {
     w.flush().map_err(|e| fail(&e))
 }
 
+/// Largest sweep CSV read back (`sweep merge`, `report`): a row is about 1 KiB, so the
+/// [`super::MAX_SWEEP_FRAMES`] rows a sweep may have fit in about 100 MiB; twice that is room
+/// for long labels.
+pub const MAX_SWEEP_CSV_BYTES: u64 = 256 << 20;
+
 /// What a CSV column holds.
 enum Column {
     /// A parameter of the table.
@@ -161,10 +166,12 @@ enum Column {
 
 /// Reads a sweep CSV written by [`write_csv`] (or before a parameter column was added or
 /// renamed: module docs). A cell that does not parse is an error naming the row and column.
+/// Read through [`forestlod_reference::files::read_limited`]: a regular file of at most
+/// [`MAX_SWEEP_CSV_BYTES`] (issue 28).
 pub fn read_csv(path: &Path) -> Result<Vec<Row>, InputError> {
     let file = path.display().to_string();
-    let mut reader = csv::Reader::from_path(path)
-        .map_err(|e| InputError::new(file.clone(), "read", "", e.to_string()))?;
+    let bytes = forestlod_reference::files::read_limited(path, MAX_SWEEP_CSV_BYTES)?;
+    let mut reader = csv::Reader::from_reader(&bytes[..]);
     let headers = reader
         .headers()
         .map_err(|e| InputError::new(file.clone(), "header", "", e.to_string()))?

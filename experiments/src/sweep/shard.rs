@@ -57,20 +57,96 @@ impl FromStr for Shard {
     }
 }
 
+/// Largest shard manifest (`sweep.json`) `sweep merge` reads: a manifest lists the sweep's
+/// definition and the images of the first pose of each camera, tens of KiB for the built-in
+/// sweeps; 16 MiB is room for the largest sweep [`super::MAX_SWEEP_FRAMES`] allows.
+pub const MAX_SHARD_MANIFEST_BYTES: u64 = 16 << 20;
+
+/// Largest image `sweep merge` copies from a shard: a PNG of a frame of at most
+/// [`super::MAX_FRAME_SIDE`] pixels a side, uncompressed (256 MiB) plus headers.
+pub const MAX_SHARD_IMAGE_BYTES: u64 = (256 << 20) + (1 << 20);
+
+/// Reads a shard's manifest (issue 28): a regular file of at most [`MAX_SHARD_MANIFEST_BYTES`],
+/// whose names that become paths are plain (`name`: a folder name, `csv`: a file name in it) and
+/// whose sweep definition passes [`SweepSpec::validate`] (`merge` draws plots from it).
 fn read_manifest(path: &Path) -> Result<Manifest, InputError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| InputError::new(file.clone(), "read", "", e.to_string()))?;
-    serde_json::from_str(&text).map_err(|e| InputError::new(file, "parse", "", e.to_string()))
+    let text = forestlod_reference::files::read_text_limited(path, MAX_SHARD_MANIFEST_BYTES)?;
+    let m: Manifest = serde_json::from_str(&text).map_err(|e| {
+        InputError::new(
+            file.clone(),
+            format!("line {}, column {}", e.line(), e.column()),
+            "",
+            format!("invalid sweep.json: {e}"),
+        )
+    })?;
+    let bad = |k: &str, v: &str, r: String| InputError::new(file.clone(), format!("key {k}"), v, r);
+    super::check_folder_name(&m.name).map_err(|r| bad("name", &m.name, r))?;
+    let csv_ok = m
+        .csv
+        .strip_suffix(".csv")
+        .is_some_and(|stem| super::check_folder_name(stem).is_ok());
+    if !csv_ok {
+        return Err(bad(
+            "csv",
+            &m.csv,
+            "expected a file name NAME.csv in the sweep folder (no folders, no `..`)".into(),
+        ));
+    }
+    if let Some(spec) = &m.spec {
+        spec.validate(&format!("{file}: key spec"))?;
+        if spec.name != m.name {
+            return Err(bad(
+                "spec.name",
+                &spec.name,
+                format!("expected the manifest's name {:?}", m.name),
+            ));
+        }
+    }
+    Ok(m)
+}
+
+/// The image `p` that key `key` of the manifest of shard folder `dir` names, when it is a regular
+/// file of at most [`MAX_SHARD_IMAGE_BYTES`] under `dir` named `img/...` without `..`;
+/// otherwise an error naming the manifest, the key and the path (a merge reads only its shards).
+/// Returns the file to copy.
+fn check_image(dir: &Path, key: &str, p: &str) -> Result<PathBuf, InputError> {
+    use std::path::Component;
+    let manifest = dir.join("sweep.json").display().to_string();
+    let bad = |r: String| InputError::new(manifest.clone(), format!("key {key}"), p, r);
+    let rel = Path::new(p);
+    if !rel.starts_with("img") || !rel.components().all(|c| matches!(c, Component::Normal(_))) {
+        return Err(bad(
+            "expected a path img/NAME in the shard's sweep folder, without `..`: a merge reads only its shards".into(),
+        ));
+    }
+    let root = std::fs::canonicalize(dir).map_err(|e| bad(format!("{}: {e}", dir.display())))?;
+    let file = dir.join(rel);
+    let canon =
+        std::fs::canonicalize(&file).map_err(|e| bad(format!("cannot be resolved ({e})")))?;
+    if !canon.starts_with(&root) {
+        return Err(bad(format!(
+            "resolves to {}, outside the shard folder {}: a merge reads only its shards",
+            canon.display(),
+            root.display()
+        )));
+    }
+    forestlod_reference::files::open_limited(&file, MAX_SHARD_IMAGE_BYTES)
+        .map_err(|e| e.within(format!("{manifest}: key {key}")))?;
+    Ok(file)
 }
 
 /// Joins shard runs (each a `--out` folder of `forestlod sweep --shard I/N`) into `out`: for every
 /// sweep they hold, the rows of all N shards in canonical order, the saved images, the plots and
 /// one manifest. Errors name the folder when a shard is missing, repeated, of another sweep
 /// definition, or when two shards claim one frame.
+///
+/// Everything is read and checked before anything is written; `out_existed` says whether `out`
+/// existed before (what a failed merge created there is removed again).
 pub fn merge(
     shard_dirs: &[PathBuf],
     out: &Path,
+    out_existed: bool,
 ) -> Result<Vec<Manifest>, Box<dyn std::error::Error>> {
     if shard_dirs.is_empty() {
         return Err(InputError::new(
@@ -96,7 +172,9 @@ pub fn merge(
         for entry in entries {
             let sub = entry?.path();
             let mpath = sub.join("sweep.json");
-            if mpath.is_file() {
+            // A `sweep.json` that is not a regular file is refused by `read_manifest`, not
+            // skipped.
+            if sub.is_dir() && std::fs::symlink_metadata(&mpath).is_ok() {
                 let m = read_manifest(&mpath)?;
                 found = true;
                 sweeps.entry(m.name.clone()).or_default().push((sub, m));
@@ -112,12 +190,15 @@ pub fn merge(
             .into());
         }
     }
-    let mut merged = Vec::new();
-    for (name, parts) in sweeps {
+    // Everything checked and read first; then written.
+    let mut plan = Vec::new();
+    for (name, parts) in &sweeps {
         let first = &parts[0].1;
         let count = shard_of(&parts[0].0, first)?.count;
-        let mut seen = vec![None::<&PathBuf>; count];
-        for (dir, m) in &parts {
+        // Shard index -> folder: a map, not a list of `count` (a manifest's count is its own
+        // word: `0/1000000000000` must not allocate).
+        let mut seen: BTreeMap<usize, &PathBuf> = BTreeMap::new();
+        for (dir, m) in parts.iter() {
             let shard = shard_of(dir, m)?;
             let field = |what: &str, why: String| {
                 InputError::new(
@@ -149,7 +230,7 @@ pub fn merge(
                 )
                 .into());
             }
-            if let Some(other) = seen[shard.index].replace(dir) {
+            if let Some(other) = seen.insert(shard.index, dir) {
                 return Err(field(
                     "shard",
                     format!("sweep {name}: shard given twice (also {})", other.display()),
@@ -157,7 +238,7 @@ pub fn merge(
                 .into());
             }
         }
-        if let Some(missing) = seen.iter().position(Option::is_none) {
+        if let Some(missing) = (0..count).find(|i| !seen.contains_key(i)) {
             return Err(InputError::new(
                 "<command line>",
                 "sweep merge",
@@ -166,8 +247,6 @@ pub fn merge(
             )
             .into());
         }
-        let dir = out.join(&name);
-        std::fs::create_dir_all(dir.join("img"))?;
         let mut rows: Vec<Row> = Vec::new();
         let mut manifest = Manifest {
             shard: None,
@@ -178,25 +257,37 @@ pub fn merge(
             ground_truth_seconds: first.ground_truth_seconds.map(|_| 0.0),
             ..first.clone()
         };
-        for (shard_dir, m) in &parts {
+        // (path in the sweep folder, the shard's file)
+        let mut images: Vec<(String, PathBuf)> = Vec::new();
+        for (shard_dir, m) in parts {
             rows.extend(read_csv(&shard_dir.join(&m.csv))?);
-            for im in &m.images {
-                for p in [
-                    &im.color,
-                    &im.lod,
-                    &im.flip,
-                    &im.lod_flip,
-                    &im.total_flip,
-                    &im.ground_truth,
-                    &im.ground_truth_class,
+            for (i, im) in m.images.iter().enumerate() {
+                let fixed = [
+                    ("color", &im.color),
+                    ("lod", &im.lod),
+                    ("flip", &im.flip),
+                    ("lod_flip", &im.lod_flip),
+                    ("total_flip", &im.total_flip),
+                    ("ground_truth", &im.ground_truth),
+                    ("ground_truth_class", &im.ground_truth_class),
                 ]
                 .into_iter()
-                .chain(im.per_lod.iter().map(|(_, p, _, _)| p))
-                .chain(im.per_lod_lod_error.iter().map(|(_, p, _, _)| p))
-                .chain(im.per_lod_total.iter().map(|(_, p, _, _)| p))
-                .filter(|p| !p.is_empty())
-                {
-                    std::fs::copy(shard_dir.join(p), dir.join(p))?;
+                .map(|(k, p)| (format!("images[{i}].{k}"), p));
+                let maps = [
+                    ("per_lod", &im.per_lod),
+                    ("per_lod_lod_error", &im.per_lod_lod_error),
+                    ("per_lod_total", &im.per_lod_total),
+                ]
+                .into_iter()
+                .flat_map(|(k, list)| {
+                    list.iter()
+                        .enumerate()
+                        .map(move |(j, (_, p, _, _))| (format!("images[{i}].{k}[{j}][1]"), p))
+                });
+                for (key, p) in fixed.chain(maps).filter(|(_, p)| !p.is_empty()) {
+                    if !images.iter().any(|(q, _)| q == p) {
+                        images.push((p.clone(), check_image(shard_dir, &key, p)?));
+                    }
                 }
             }
             manifest.images.extend(m.images.iter().cloned());
@@ -219,6 +310,18 @@ pub fn merge(
         }
         manifest.images.sort_by_key(|im| im.frame);
         manifest.frames = rows.len();
+        plan.push((name.clone(), manifest, rows, images));
+    }
+    let names: Vec<String> = plan.iter().map(|(n, ..)| n.clone()).collect();
+    let mut guard = super::OutGuard::new(out, out_existed, &names);
+    let mut merged = Vec::new();
+    for (name, mut manifest, rows, images) in plan {
+        let dir = out.join(&name);
+        std::fs::create_dir_all(dir.join("img"))?;
+        for (p, from) in images {
+            let bytes = forestlod_reference::files::read_limited(&from, MAX_SHARD_IMAGE_BYTES)?;
+            std::fs::write(dir.join(p), bytes)?;
+        }
         write_csv(&dir.join(&manifest.csv), &rows)?;
         if let Some(spec) = &manifest.spec {
             manifest.plots = write_plots(spec, &rows, &dir)?;
@@ -229,6 +332,7 @@ pub fn merge(
         )?;
         merged.push(manifest);
     }
+    guard.done = true;
     Ok(merged)
 }
 

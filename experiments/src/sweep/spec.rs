@@ -11,6 +11,7 @@ use forestlod_reference::scene::Scene;
 use forestlod_shared::{Camera, Params};
 use serde::{Deserialize, Serialize};
 
+use super::load::same_param;
 use super::variant::{Engine, Pipeline, Registered};
 use crate::fair::TileSpec;
 
@@ -263,115 +264,17 @@ pub struct Pose {
 }
 
 impl SweepSpec {
-    /// Parses and validates a sweep file's text.
+    /// Parses and validates a sweep file's text ([`super::load::parse_sweep_toml`]: errors name
+    /// the file, line, column, key and value).
     pub fn parse(text: &str, file: &str) -> Result<Self, InputError> {
-        let spec: SweepSpec =
-            toml::from_str(text).map_err(|e| InputError::new(file, "TOML", "", e.to_string()))?;
-        spec.validate(file)?;
-        Ok(spec)
+        super::load::parse_sweep_toml(text, file)
     }
 
-    pub(crate) fn validate(&self, file: &str) -> Result<(), InputError> {
-        for (field, empty) in [
-            ("scenes", self.scenes.is_empty()),
-            ("cameras", self.cameras.is_empty()),
-        ] {
-            if empty {
-                let what = field.trim_end_matches('s');
-                let reason = format!("expected at least one {what}");
-                return Err(InputError::new(file, field, "[]", reason));
-            }
-        }
-        // Non-empty lists of known names.
-        let variants = self.variant_list(file)?;
-        let backends = self.backend_list(file)?;
-        let gpu_only = variants.iter().find(|v| v.gpu_only());
-        if let (Some(v), true) = (gpu_only, backends.contains(&Engine::Reference)) {
-            return Err(InputError::new(
-                file,
-                "variants",
-                v.name(),
-                "the atomic-counter compaction exists on the gpu backend only (the reference's stable compaction equals it as a multiset); use backends = [\"gpu\"]",
-            ));
-        }
-        for c in &self.cameras {
-            if c.yaw_steps == Some(0) {
-                return Err(InputError::new(
-                    file,
-                    "cameras.yaw_steps",
-                    0,
-                    "expected at least 1 yaw step",
-                ));
-            }
-            if c.steps == Some(0) {
-                return Err(InputError::new(
-                    file,
-                    "cameras.steps",
-                    0,
-                    "expected at least 1 frame along the path",
-                ));
-            }
-            if c.steps.is_some() && !super::paths::is_path(&c.name) {
-                return Err(InputError::new(
-                    file,
-                    "cameras.steps",
-                    &c.name,
-                    "`steps` is for the paths orbit, dolly, flyover and pan (use yaw_steps or distances)",
-                ));
-            }
-            if c.name == "distance" {
-                if c.distances.as_ref().is_none_or(|d| d.is_empty()) {
-                    return Err(InputError::new(
-                        file,
-                        "cameras.distances",
-                        "",
-                        "a distance camera needs a non-empty `distances` list",
-                    ));
-                }
-            } else if !forestlod_reference::cameras::CAMERA_NAMES.contains(&c.name.as_str())
-                && !super::paths::is_path(&c.name)
-            {
-                return Err(InputError::new(
-                    file,
-                    "cameras.name",
-                    &c.name,
-                    "expected far, medium, close, distance, orbit, dolly, flyover or pan",
-                ));
-            }
-        }
-        for [w, h] in self.sizes() {
-            // The supersampled frame must stay within wgpu's 8192-texel limit (and the
-            // reference's memory): s·w x s·h.
-            let big = w.max(h) as u64 * self.samples as u64;
-            if w == 0 || h == 0 || (self.total_error && big > 8192) {
-                return Err(InputError::new(
-                    file,
-                    "width/height/resolutions",
-                    format!("{w}x{h}"),
-                    format!(
-                        "expected positive sizes whose supersampled frame (x{} per side, total_error) is at most 8192 pixels wide and high",
-                        self.samples
-                    ),
-                ));
-            }
-        }
-        if let Some(t) = &self.truth_tiles {
-            t.check()
-                .map_err(|e| InputError::new(file, "truth_tiles", format!("{t:?}"), e))?;
-        }
-        if self.width == 0 || self.height == 0 || self.samples == 0 || self.repeats == 0 {
-            return Err(InputError::new(
-                file,
-                "width/height/samples/repeats",
-                format!(
-                    "{} {} {} {}",
-                    self.width, self.height, self.samples, self.repeats
-                ),
-                "expected positive values",
-            ));
-        }
-        self.param_sets(file)?;
-        Ok(())
+    /// Checks every setting, the sweep's size against the work and memory limits and every
+    /// parameter set ([`super::load`]'s checks), naming `file` and the key (no line: for a sweep
+    /// changed by `--quick` or the command line, or read back from a manifest).
+    pub fn validate(&self, file: &str) -> Result<(), InputError> {
+        self.check().map_err(|b| b.without_text(file))
     }
 
     /// The variants, typed: an error naming `variants` and the bad name (or `[]`) otherwise.
@@ -417,15 +320,19 @@ impl SweepSpec {
                 c.yaw_steps = q.yaw_steps;
             }
         }
+        // A `[quick]` axis or parameter replaces the file's by any spelling of its name.
         if let Some(axes) = q.axes {
             for a in &mut self.axes {
-                if let Some(v) = axes.get(&a.param) {
+                if let Some((_, v)) = axes.iter().find(|(k, _)| same_param(k, &a.param)) {
                     a.values = v.clone();
                 }
             }
         }
         if let Some(p) = q.params {
-            self.params.extend(p);
+            for (k, v) in p {
+                self.params.retain(|old, _| !same_param(old, &k));
+                self.params.insert(k, v);
+            }
         }
         if let Some(b) = q.backends {
             self.backends = b;
@@ -518,7 +425,7 @@ impl SweepSpec {
                 for (k, v) in point {
                     set_param(&mut params, k, v, file)?;
                     label.push(format!("{k}={}", value_label(v)));
-                    if *k == self.x_axis {
+                    if same_param(k, &self.x_axis) {
                         x = value_number(v);
                     } else {
                         series.push(format!("{k}={}", value_label(v)));
