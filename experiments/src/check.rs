@@ -386,7 +386,11 @@ pub fn parse_replay_toml(text: &str, file: &str) -> std::result::Result<ReplayTo
         InputError::new(file, at(span.clone(), field), snippet(text, span), reason)
     };
     let world = forestlod_reference::scene::load::MAX_WORLD_COORDINATE;
-    if c.eye.get_ref().iter().any(|x| !(x.abs() <= world)) {
+    if c.eye
+        .get_ref()
+        .iter()
+        .any(|x| !x.is_finite() || x.abs() > world)
+    {
         return Err(bad(
             c.eye.span(),
             "camera.eye",
@@ -1105,7 +1109,7 @@ mod tests {
         ) {
             let good = random_case(3, i).toml(Path::new("d"));
             let lines: Vec<String> = good.lines().map(|l| match l.split_once(" = ") {
-                Some((k, _)) if l.len() > 0 => k.to_string() + " = " + value,
+                Some((k, _)) if !l.is_empty() => k.to_string() + " = " + value,
                 _ => l.to_string(),
             }).collect();
             let mut edited: Vec<&str> = good.lines().collect();

@@ -192,7 +192,10 @@ fn export_case(work: &Path) -> PathBuf {
 
 /// One hostile row: its name, how it breaks a fresh copy of the case (`CASE`) and outputs
 /// (`OUT`, a copy of the reference frame with its commands), the exit code, the pattern.
-type Row = (&'static str, Box<dyn Fn(&Path, &Path)>, i32, &'static str);
+type Row = (&'static str, Breaks, i32, &'static str);
+
+/// How a row breaks its copies of the case (or replay) and outputs folders.
+type Breaks = Box<dyn Fn(&Path, &Path)>;
 
 fn regex(pattern: &str) -> regex::Regex {
     regex::Regex::new(pattern).unwrap()
@@ -202,10 +205,10 @@ fn regex(pattern: &str) -> regex::Regex {
 fn verify_refuses_hostile_cases_and_outputs_naming_the_file() {
     let work = common::fresh_dir("cli-hostile-case", "verify");
     let case = export_case(&work);
-    let json = |f: &'static str, to: &'static str| -> Box<dyn Fn(&Path, &Path)> {
+    let json = |f: &'static str, to: &'static str| -> Breaks {
         Box::new(move |c: &Path, _: &Path| edit(&c.join("case.json"), |t| t.replacen(f, to, 1)))
     };
-    let set = |pointer: &'static str, value: serde_json::Value| -> Box<dyn Fn(&Path, &Path)> {
+    let set = |pointer: &'static str, value: serde_json::Value| -> Breaks {
         Box::new(move |c: &Path, _: &Path| {
             edit(&c.join("case.json"), |t| {
                 let mut v: serde_json::Value = serde_json::from_str(&t).unwrap();
@@ -674,10 +677,10 @@ fn check_replay_refuses_hostile_folders_naming_the_cases_file() {
         ),
     )
     .unwrap();
-    let toml = |f: &'static str, to: &'static str| -> Box<dyn Fn(&Path, &Path)> {
+    let toml = |f: &'static str, to: &'static str| -> Breaks {
         Box::new(move |r: &Path, _: &Path| edit(&r.join("case.toml"), |t| t.replacen(f, to, 1)))
     };
-    let trees = |f: fn(String) -> String| -> Box<dyn Fn(&Path, &Path)> {
+    let trees = |f: fn(String) -> String| -> Breaks {
         Box::new(move |r: &Path, _: &Path| edit(&r.join("trees.csv"), f))
     };
     let rows: Vec<Row> = vec![

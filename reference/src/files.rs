@@ -34,10 +34,7 @@ fn label(path: &Path) -> String {
 pub fn size_text(bytes: u64) -> String {
     const MIB: u64 = 1 << 20;
     if bytes >= 1 << 30 {
-        format!(
-            "{bytes} bytes ({:.1} GiB)",
-            bytes as f64 / (1u64 << 30) as f64
-        )
+        format!("{bytes} bytes ({:.1} GiB)", bytes as f64 / (1u64 << 30) as f64)
     } else if bytes >= MIB {
         format!("{bytes} bytes ({:.1} MiB)", bytes as f64 / MIB as f64)
     } else {
@@ -133,8 +130,7 @@ mod tests {
     use super::*;
 
     fn temp_dir(name: &str) -> std::path::PathBuf {
-        let dir =
-            std::env::temp_dir().join(format!("forestlod-files-{name}-{}", std::process::id()));
+        let dir = std::env::temp_dir().join(format!("forestlod-files-{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         dir
@@ -147,10 +143,7 @@ mod tests {
         std::fs::write(&p, vec![b'x'; 2048]).unwrap();
         assert_eq!(read_limited(&p, 2048).unwrap().len(), 2048);
         let e = read_limited(&p, 2047).unwrap_err().to_string();
-        assert!(
-            e.contains("2048 bytes") && e.contains("limit of 2047 bytes"),
-            "{e}"
-        );
+        assert!(e.contains("2048 bytes") && e.contains("limit of 2047 bytes"), "{e}");
         assert!(e.starts_with(&p.display().to_string()), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -158,9 +151,7 @@ mod tests {
     #[test]
     fn devices_folders_and_links_to_them_are_refused() {
         let dir = temp_dir("special");
-        let e = read_limited(Path::new("/dev/zero"), 10)
-            .unwrap_err()
-            .to_string();
+        let e = read_limited(Path::new("/dev/zero"), 10).unwrap_err().to_string();
         assert!(e.contains("/dev/zero") && e.contains("special file"), "{e}");
         #[cfg(unix)]
         {

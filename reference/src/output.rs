@@ -47,15 +47,15 @@ fn check_declared_size(
     expected: Option<(u32, u32)>,
 ) -> Result<(u32, u32), InputError> {
     let size = format!("{width}x{height}");
-    if let Some((w, h)) = expected {
-        if (width, height) != (u64::from(w), u64::from(h)) {
-            return Err(InputError::new(
-                file,
-                "declared size",
-                size,
-                format!("expected the case's {w}x{h}"),
-            ));
-        }
+    if let Some((w, h)) = expected
+        && (width, height) != (u64::from(w), u64::from(h))
+    {
+        return Err(InputError::new(
+            file,
+            "declared size",
+            size,
+            format!("expected the case's {w}x{h}"),
+        ));
     }
     let side = 1..=u64::from(MAX_FRAME_SIDE);
     if !(side.contains(&width) && side.contains(&height)) {
