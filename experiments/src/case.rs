@@ -27,6 +27,20 @@
 //! job's code for "GPU parity failed"), 1 for bad input (a missing or malformed file, a size that
 //! is not the case's), naming the file.
 //!
+//! ## Bad input (issue 28)
+//! `--case` and `--outputs` must be folders (a missing path, a file, a FIFO or a dangling link is
+//! one error naming the flag). Every file is read through `forestlod_reference::files` (regular
+//! files only, a size limit checked before reading): `case.json` at most [`MAX_CASE_JSON_BYTES`],
+//! each `commands.csv` at most [`MAX_COMMANDS_FILE_BYTES`], each image at most
+//! `frame_file_limit(width, height)` of the case's size, whose declared size (PNG IHDR, EXR
+//! data window) must be the case's before a pixel is decoded. `case.json` is parsed by the pure
+//! [`parse_case_json`] (no lossy casts; unknown, missing or twice-given fields refused). The
+//! oracle's files (`reference/`, `alternatives/<k>/`) must hold only what `export-case` writes
+//! (depths finite in `[0, 1]`, grey LOD ids `0..=4`, 8-bit RGBA PNGs, one `f32` channel `Z`,
+//! `case.json`'s command count): anything else is a bad case (exit 1 naming the file and pixel),
+//! not blamed on the implementation. NaN or infinite depths in the outputs fail parity (exit 2,
+//! their count on the verdict line), whatever the edge rules would forgive.
+//!
 //! `export-case --with-gpu` also writes this project's own GPU frame into `CASE/gpu/` in exactly
 //! the format `verify` reads, which is how the round trip is tested
 //! (`experiments/tests/cli_verify.rs`).
@@ -777,7 +791,10 @@ fn case_params(f: &Fields, v: &serde_json::Value) -> std::result::Result<Params,
             return Err(f.error(
                 &field,
                 v,
-                format!("parameter {} given twice (also as {first})", spec.name),
+                format!(
+                    "parameter {} given twice: as {first} and as {key}",
+                    spec.name
+                ),
             ));
         }
         given.push((key, spec.name));

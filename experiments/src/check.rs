@@ -15,8 +15,9 @@
 //! order; the other half select flat over the grid. These draws come last in a case's stream, so
 //! the flat part of case `i` is the case `i` of before. `tree_cull` stays `none`: `refine` is
 //! judged by `parity::refine`, and a replayed case asking for it is refused. The trees go through
-//! the same CSV loader as a replay (`load_instances_with_builtin_species`), so a written case is
-//! the case that failed, bit for bit.
+//! the same CSV loader as a replay (`parse_instances_with_builtin_species`, from the text
+//! `trees.csv` holds, in memory: no scratch file), so a written case is the case that failed, bit
+//! for bit.
 //!
 //! **The comparison**: the reference frame's selection (`Prepared::select`: every selection stage
 //! of the plan before `refine`) against the GPU's (`harness::gpu_frame::SelectionChain`, which runs
@@ -37,6 +38,15 @@
 //! [`Camera`] fields) and `[params]`, every pipeline parameter under its [`Params`] field name
 //! (choices by name). A parameter a case does not give takes its default, so the folders written
 //! before the plan was drawn (five numeric parameters) replay as the flat cases they were.
+//!
+//! **Replays** (issue 28): `--replay DIR` must be a folder (a missing path, a file, a FIFO or a
+//! dangling link is one error naming `--replay`); `DIR/case.toml` (at most
+//! [`MAX_REPLAY_TOML_BYTES`], parsed by the pure [`parse_replay_toml`]: no lossy casts, unknown,
+//! missing or twice-given keys refused, every value checked where it is read) and `DIR/trees.csv`
+//! (at most [`MAX_REPLAY_TREES_BYTES`]) are regular files read through
+//! `forestlod_reference::files`, before a GPU adapter is looked for. Every error names
+//! `DIR/case.toml` or `DIR/trees.csv` with its line; nothing is written (to `$TMPDIR` or
+//! elsewhere).
 //!
 //! Test hook: `FORESTLOD_CHECK_BREAK=drop-last-command` drops the GPU's last command before
 //! comparing (a deliberately broken comparison: every case that draws something fails), so the
@@ -307,9 +317,10 @@ pub struct ReplayToml {
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ReplayCamera {
-    eye: toml::Spanned<[f64; 3]>,
-    forward: toml::Spanned<[f64; 3]>,
-    up: toml::Spanned<[f64; 3]>,
+    // Lists, their length checked here (a fixed-size array would take the first three of four).
+    eye: toml::Spanned<Vec<f64>>,
+    forward: toml::Spanned<Vec<f64>>,
+    up: toml::Spanned<Vec<f64>>,
     fov_y: toml::Spanned<f64>,
     near: toml::Spanned<f64>,
     far: toml::Spanned<f64>,
@@ -385,6 +396,15 @@ pub fn parse_replay_toml(text: &str, file: &str) -> std::result::Result<ReplayTo
     let bad = |span: std::ops::Range<usize>, field: &str, reason: String| {
         InputError::new(file, at(span.clone(), field), snippet(text, span), reason)
     };
+    for (v, field) in [
+        (&c.eye, "camera.eye"),
+        (&c.forward, "camera.forward"),
+        (&c.up, "camera.up"),
+    ] {
+        if v.get_ref().len() != 3 {
+            return Err(bad(v.span(), field, "expected three numbers".into()));
+        }
+    }
     let world = forestlod_reference::scene::load::MAX_WORLD_COORDINATE;
     if c.eye
         .get_ref()
@@ -409,7 +429,7 @@ pub fn parse_replay_toml(text: &str, file: &str) -> std::result::Result<ReplayTo
             ))
         }
     };
-    let triple = |v: &toml::Spanned<[f64; 3]>, field: &str| {
+    let triple = |v: &toml::Spanned<Vec<f64>>, field: &str| {
         let a = v.get_ref();
         let mut out = [0.0f32; 3];
         for (o, &x) in out.iter_mut().zip(a) {
@@ -457,7 +477,8 @@ pub fn parse_replay_toml(text: &str, file: &str) -> std::result::Result<ReplayTo
                 .strip_prefix(key)
                 .is_some_and(|r| r.trim_start().starts_with('='))
             {
-                return at + indent..at + indent + key.len();
+                // The key and its value: what an error shows.
+                return at + indent..at + line.trim_end().len();
             }
             at += line.len();
         }
@@ -479,7 +500,10 @@ pub fn parse_replay_toml(text: &str, file: &str) -> std::result::Result<ReplayTo
             return Err(bad(
                 key_span(key),
                 &field,
-                format!("parameter {} given twice (also as {first})", spec.name),
+                format!(
+                    "parameter {} given twice: as {first} and as {key}",
+                    spec.name
+                ),
             ));
         }
         given.push((key, spec.name));
@@ -525,15 +549,16 @@ pub fn parse_replay_toml(text: &str, file: &str) -> std::result::Result<ReplayTo
             key_span("tree_cull"),
             "params.tree_cull",
             format!(
-                "{:?}: check compares the selection stages before refine (parity::refine judges \
-                 refine); expected {:?}",
+                "{} runs refine: check compares the selection stages before refine \
+                 (parity::refine judges refine); expected {:?}",
                 mode.name(),
                 TreeCull::None.name()
             ),
         ));
     }
+    let eye = c.eye.get_ref();
     Ok(ReplayToml {
-        eye: *c.eye.get_ref(),
+        eye: [eye[0], eye[1], eye[2]],
         camera,
         params,
     })
@@ -1025,6 +1050,7 @@ mod tests {
                 "field camera.fov_y: value \"inf\"",
             ),
             ("near = ", "near = 1e300\n#", "field camera.near"),
+            ("eye = [", "eye = [1, ", "field camera.eye: value \"[1, "),
         ] {
             let e = with(from, to);
             assert!(
