@@ -15,8 +15,9 @@
 //! order; the other half select flat over the grid. These draws come last in a case's stream, so
 //! the flat part of case `i` is the case `i` of before. `tree_cull` stays `none`: `refine` is
 //! judged by `parity::refine`, and a replayed case asking for it is refused. The trees go through
-//! the same CSV loader as a replay (`load_instances_with_builtin_species`), so a written case is
-//! the case that failed, bit for bit.
+//! the same CSV loader as a replay (`parse_instances_with_builtin_species`, from the text
+//! `trees.csv` holds, in memory: no scratch file), so a written case is the case that failed, bit
+//! for bit.
 //!
 //! **The comparison**: the reference frame's selection (`Prepared::select`: every selection stage
 //! of the plan before `refine`) against the GPU's (`harness::gpu_frame::SelectionChain`, which runs
@@ -38,6 +39,15 @@
 //! (choices by name). A parameter a case does not give takes its default, so the folders written
 //! before the plan was drawn (five numeric parameters) replay as the flat cases they were.
 //!
+//! **Replays** (issue 28): `--replay DIR` must be a folder (a missing path, a file, a FIFO or a
+//! dangling link is one error naming `--replay`); `DIR/case.toml` (at most
+//! [`MAX_REPLAY_TOML_BYTES`], parsed by the pure [`parse_replay_toml`]: no lossy casts, unknown,
+//! missing or twice-given keys refused, every value checked where it is read) and `DIR/trees.csv`
+//! (at most [`MAX_REPLAY_TREES_BYTES`]) are regular files read through
+//! `forestlod_reference::files`, before a GPU adapter is looked for. Every error names
+//! `DIR/case.toml` or `DIR/trees.csv` with its line; nothing is written (to `$TMPDIR` or
+//! elsewhere).
+//!
 //! Test hook: `FORESTLOD_CHECK_BREAK=drop-last-command` drops the GPU's last command before
 //! comparing (a deliberately broken comparison: every case that draws something fails), so the
 //! CLI test can see a case being shrunk and written.
@@ -54,7 +64,7 @@ use forestlod_harness::gpu_frame::SelectionChain;
 use forestlod_reference::error::InputError;
 use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::scene::Scene;
-use forestlod_reference::scene::load::load_instances_with_builtin_species;
+use forestlod_reference::scene::load::parse_instances_with_builtin_species;
 use forestlod_reference::select::{Decision, batch_decisions};
 use forestlod_shared::{
     Camera, Coalesce, CommandOrder, FramePlan, Hierarchy, PARAMS, ParamKind, Params, StageId,
@@ -233,11 +243,8 @@ impl Case {
         s
     }
 
-    /// Writes `trees.csv` and `case.toml` into `dir`.
-    fn write(&self, dir: &Path) -> Result<()> {
-        std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
-        let csv = dir.join("trees.csv");
-        std::fs::write(&csv, self.csv()).map_err(|e| io(&csv, e))?;
+    /// `case.toml` of the case written into `dir` (what [`parse_replay_toml`] reads back).
+    pub fn toml(&self, dir: &Path) -> String {
         let c = &self.camera;
         let mut toml = format!(
             "# forestlod check case: replay with `forestlod check --replay {dir}`\n\
@@ -258,7 +265,8 @@ impl Case {
             c.far,
             c.width,
             c.height,
-            dir = dir.display(),
+            // One comment line whatever the folder's name holds.
+            dir = dir.display().to_string().replace(['\n', '\r'], " "),
         );
         // Every parameter (shortest round-trip decimals; choices by name).
         for spec in PARAMS {
@@ -268,143 +276,378 @@ impl Case {
                 _ => format!("{} = {v}\n", spec.name),
             };
         }
+        toml
+    }
+
+    /// Writes `trees.csv` and `case.toml` into `dir`.
+    fn write(&self, dir: &Path) -> Result<()> {
+        std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+        let csv = dir.join("trees.csv");
+        std::fs::write(&csv, self.csv()).map_err(|e| io(&csv, e))?;
+        let toml = self.toml(dir);
         let path = dir.join("case.toml");
         std::fs::write(&path, toml).map_err(|e| io(&path, e))?;
         Ok(())
     }
+}
 
-    /// Reads a case written by [`Case::write`].
-    fn read(dir: &Path) -> Result<Case> {
-        let path = dir.join("case.toml");
-        let text = std::fs::read_to_string(&path).map_err(|e| io(&path, e))?;
-        let v: toml::Value = toml::from_str(&text).map_err(|e| io(&path, e))?;
-        let num = |table: &str, key: &str| -> Result<f64> {
-            v.get(table)
-                .and_then(|t| t.get(key))
-                .and_then(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
-                .ok_or_else(|| {
-                    io(
-                        &path,
-                        format!("field {table}.{key}: missing or not a number"),
-                    )
-                    .into()
-                })
-        };
-        let vec3 = |key: &str| -> Result<[f64; 3]> {
-            let a = v
-                .get("camera")
-                .and_then(|t| t.get(key))
-                .and_then(|x| x.as_array())
-                .filter(|a| a.len() == 3)
-                .ok_or_else(|| io(&path, format!("field camera.{key}: expected 3 numbers")))?;
-            let mut out = [0.0; 3];
-            for (o, x) in out.iter_mut().zip(a) {
-                *o = x
-                    .as_float()
-                    .or_else(|| x.as_integer().map(|i| i as f64))
-                    .ok_or_else(|| io(&path, format!("field camera.{key}: expected numbers")))?;
-            }
-            Ok(out)
-        };
-        // The rows as written (shortest round-trip decimals parse back to the same f32s, so the
-        // case materializes exactly as it did when it failed).
-        let csv = dir.join("trees.csv");
-        let text = std::fs::read_to_string(&csv).map_err(|e| io(&csv, e))?;
-        let mut rows = Vec::new();
-        for (n, line) in text.lines().enumerate().skip(1) {
-            let bad = || {
-                io(
-                    &csv,
-                    format!("line {}: expected x,y,z,yaw,scale,species", n + 1),
-                )
-            };
-            let cols: Vec<&str> = line.split(',').collect();
-            if cols.len() != 6 {
-                return Err(bad().into());
-            }
-            let mut row = [0.0f32; 5];
-            for (r, c) in row.iter_mut().zip(&cols) {
-                *r = c.trim().parse().map_err(|_| bad())?;
-            }
-            rows.push((row, cols[5].trim().parse().map_err(|_| bad())?));
+/// Largest `case.toml` a replay may have (issue 28): `check` writes about 1 KB (a camera and
+/// every pipeline parameter); 64 KiB leaves room for comments a person adds, and no more.
+pub const MAX_REPLAY_TOML_BYTES: u64 = 64 << 10;
+
+/// Largest `trees.csv` a replay may have (issue 28): `check` writes at most 300 trees (about
+/// 20 KB); a hand-made replay may carry an exported case's `instances.csv`. 16 MiB is about
+/// 250 000 trees, more than a selection case to triage needs.
+pub const MAX_REPLAY_TREES_BYTES: u64 = 16 << 20;
+
+/// A replay's `case.toml` as [`parse_replay_toml`] validated it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReplayToml {
+    /// The eye in the coordinates of `trees.csv` (finite, within the world coordinate limit).
+    pub eye: [f64; 3],
+    /// The camera with its eye at zero (the eye is placed once the trees' origin is known); it
+    /// passes [`Camera::validate`] there.
+    pub camera: Camera,
+    /// Every parameter the file gives, the others their defaults; valid, with a plan
+    /// ([`FramePlan::new`]) that does not run `refine` (module docs).
+    pub params: Params,
+}
+
+/// `[camera]` of a replay's `case.toml`: every field required, no other.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ReplayCamera {
+    // Lists, their length checked here (a fixed-size array would take the first three of four).
+    eye: toml::Spanned<Vec<f64>>,
+    forward: toml::Spanned<Vec<f64>>,
+    up: toml::Spanned<Vec<f64>>,
+    fov_y: toml::Spanned<f64>,
+    near: toml::Spanned<f64>,
+    far: toml::Spanned<f64>,
+    width: toml::Spanned<u32>,
+    height: toml::Spanned<u32>,
+}
+
+/// A replay's `case.toml`: `[camera]` and `[params]`, no other table.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ReplayFile {
+    camera: toml::Spanned<ReplayCamera>,
+    params: toml::Spanned<toml::Table>,
+}
+
+/// 1-based line and column (in characters) of byte `at` of `text`.
+fn line_col(text: &str, at: usize) -> (usize, usize) {
+    let at = at.min(text.len());
+    let before = text.get(..at).unwrap_or(text);
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().unwrap_or("").chars().count() + 1;
+    (line, col)
+}
+
+/// The first line of `text[span]`, trimmed (an error's value).
+fn snippet(text: &str, span: std::ops::Range<usize>) -> String {
+    let end = span.end.min(text.len());
+    text.get(span.start.min(end)..end)
+        .unwrap_or("")
+        .lines()
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_string()
+}
+
+/// Parses and validates a replay's `case.toml` (module docs; what [`Case::write`] writes), `file`
+/// naming it in errors. Pure: no file is read (issue 28). Every refusal is one [`InputError`]
+/// naming `file`, the line, column and field, and the value: TOML that does not parse, a missing
+/// or unknown table or field, a duplicate key (TOML's rule) or a parameter given twice under two
+/// of its names, a non-integer or out-of-range `width`/`height` (`128.9` and `-5` are errors,
+/// never 128 and 0), a camera number that is not finite or beyond `f32`, an eye beyond
+/// [`MAX_WORLD_COORDINATE`], an invalid camera or parameter (named as [`Camera::validate`] and
+/// [`Params::validate`] name it), a parameter that is not one, an integer parameter given as a
+/// float, and `tree_cull` other than `none`.
+///
+/// [`MAX_WORLD_COORDINATE`]: forestlod_reference::scene::load::MAX_WORLD_COORDINATE
+pub fn parse_replay_toml(text: &str, file: &str) -> std::result::Result<ReplayToml, InputError> {
+    let at = |span: std::ops::Range<usize>, field: &str| {
+        let (line, col) = line_col(text, span.start);
+        if field.is_empty() {
+            format!("line {line}, column {col}")
+        } else {
+            format!("line {line}, column {col}, field {field}")
         }
-        let f = |x: [f64; 3]| x.map(|c| c as f32);
-        let camera = Camera {
-            eye: [0.0; 3],
-            forward: f(vec3("forward")?),
-            up: f(vec3("up")?),
-            fov_y: num("camera", "fov_y")? as f32,
-            near: num("camera", "near")? as f32,
-            far: num("camera", "far")? as f32,
-            width: num("camera", "width")? as u32,
-            height: num("camera", "height")? as u32,
-            tile: [0; 2],
+    };
+    let parsed: ReplayFile = toml::from_str(text).map_err(|e| {
+        let (position, value) = match e.span() {
+            Some(span) => (at(span.clone(), ""), snippet(text, span)),
+            None => ("file".to_string(), String::new()),
         };
-        // Every parameter the case gives, by the parameter table; the others their defaults.
-        let table = v
-            .get("params")
-            .and_then(|t| t.as_table())
-            .ok_or_else(|| io(&path, "table [params] missing"))?;
-        let mut params = Params::default();
-        for (key, value) in table {
-            let spec = PARAMS
-                .iter()
-                .find(|s| s.answers_to(key))
-                .ok_or_else(|| io(&path, format!("field params.{key}: not a parameter")))?;
-            let parsed = match value {
-                toml::Value::String(text) => spec.parse(text).ok(),
-                toml::Value::Integer(i) => spec.from_number(*i as f64).ok(),
-                toml::Value::Float(x) => spec.from_number(*x).ok(),
-                _ => None,
-            };
-            let parsed = parsed.ok_or_else(|| {
-                io(
-                    &path,
-                    format!("field params.{key} = {value}: {}", spec.expected()),
-                )
-            })?;
-            (spec.set)(&mut params, parsed);
+        InputError::new(
+            file,
+            position,
+            value,
+            format!(
+                "invalid replay case (expected [camera] and [params] as check writes them): {}",
+                e.message().replace('\n', " ")
+            ),
+        )
+    })?;
+    let c = parsed.camera.get_ref();
+    let bad = |span: std::ops::Range<usize>, field: &str, reason: String| {
+        InputError::new(file, at(span.clone(), field), snippet(text, span), reason)
+    };
+    for (v, field) in [
+        (&c.eye, "camera.eye"),
+        (&c.forward, "camera.forward"),
+        (&c.up, "camera.up"),
+    ] {
+        if v.get_ref().len() != 3 {
+            return Err(bad(v.span(), field, "expected three numbers".into()));
         }
-        if let Some(mode) = FramePlan::new(&params).ok().and_then(|p| p.refine) {
-            return Err(io(
-                &path,
+    }
+    let world = forestlod_reference::scene::load::MAX_WORLD_COORDINATE;
+    if c.eye
+        .get_ref()
+        .iter()
+        .any(|x| !x.is_finite() || x.abs() > world)
+    {
+        return Err(bad(
+            c.eye.span(),
+            "camera.eye",
+            format!("expected finite coordinates within ±{world} m"),
+        ));
+    }
+    let single = |v: &toml::Spanned<f64>, field: &str| {
+        let x = *v.get_ref();
+        if x.is_finite() && x.abs() <= f64::from(f32::MAX) {
+            Ok(x as f32)
+        } else {
+            Err(bad(
+                v.span(),
+                field,
+                "expected a finite number within the range of f32".into(),
+            ))
+        }
+    };
+    let triple = |v: &toml::Spanned<Vec<f64>>, field: &str| {
+        let a = v.get_ref();
+        let mut out = [0.0f32; 3];
+        for (o, &x) in out.iter_mut().zip(a) {
+            *o = single(&toml::Spanned::new(v.span(), x), field)?;
+        }
+        Ok::<_, InputError>(out)
+    };
+    let camera = Camera {
+        eye: [0.0; 3],
+        forward: triple(&c.forward, "camera.forward")?,
+        up: triple(&c.up, "camera.up")?,
+        fov_y: single(&c.fov_y, "camera.fov_y")?,
+        near: single(&c.near, "camera.near")?,
+        far: single(&c.far, "camera.far")?,
+        width: *c.width.get_ref(),
+        height: *c.height.get_ref(),
+        tile: [0; 2],
+    };
+    camera.validate().map_err(|e| {
+        let span = match e.field {
+            "camera.forward" => c.forward.span(),
+            "camera.up" => c.up.span(),
+            "camera.fov_y" => c.fov_y.span(),
+            "camera.near" => c.near.span(),
+            "camera.far" => c.far.span(),
+            "camera.viewport" if !(1..=16384).contains(c.width.get_ref()) => c.width.span(),
+            "camera.viewport" => c.height.span(),
+            _ => parsed.camera.span(),
+        };
+        bad(span, e.field, format!("{}: {}", e.value, e.reason))
+    })?;
+    // Every parameter the case gives, by the parameter table; the others their defaults.
+    let table = parsed.params.get_ref();
+    let mut params = Params::default();
+    let mut given: Vec<(&str, &str)> = Vec::new();
+    // `toml::Table` holds no spans: each key's span is the line after `[params]` that sets it
+    // (a bare key, as check writes them; else the table's).
+    let params_at = parsed.params.span().start.min(text.len());
+    let key_span = |key: &str| {
+        let mut at = params_at;
+        for line in text[params_at..].split_inclusive('\n') {
+            let indent = line.len() - line.trim_start().len();
+            let rest = line.trim_start();
+            if rest
+                .strip_prefix(key)
+                .is_some_and(|r| r.trim_start().starts_with('='))
+            {
+                // The key and its value: what an error shows.
+                return at + indent..at + line.trim_end().len();
+            }
+            at += line.len();
+        }
+        parsed.params.span()
+    };
+    for (key, value) in table {
+        let field = format!("params.{key}");
+        let spec = PARAMS.iter().find(|s| s.answers_to(key)).ok_or_else(|| {
+            bad(
+                key_span(key),
+                &field,
                 format!(
-                    "field params.tree_cull = {:?}: check compares the selection stages before \
-                     refine (parity::refine judges refine); expected {:?}",
-                    mode.name(),
-                    TreeCull::None.name()
+                    "not a parameter: expected one of {}",
+                    PARAMS.iter().map(|s| s.name).collect::<Vec<_>>().join(", ")
                 ),
             )
-            .into());
+        })?;
+        if let Some((first, _)) = given.iter().find(|(_, name)| *name == spec.name) {
+            return Err(bad(
+                key_span(key),
+                &field,
+                format!(
+                    "parameter {} given twice: as {first} and as {key}",
+                    spec.name
+                ),
+            ));
         }
-        Ok(Case {
-            rows,
-            eye: vec3("eye")?,
-            camera,
-            params,
-        })
+        given.push((key, spec.name));
+        let parsed = match (spec.kind, value) {
+            (ParamKind::Choice(_), toml::Value::String(text)) => spec.parse(text).ok(),
+            (ParamKind::Uint { .. }, toml::Value::Integer(i)) => spec.from_number(*i as f64).ok(),
+            (ParamKind::Float { .. }, toml::Value::Integer(i)) => spec.from_number(*i as f64).ok(),
+            (ParamKind::Float { .. }, toml::Value::Float(x)) if x.abs() <= f64::from(f32::MAX) => {
+                spec.from_number(*x).ok()
+            }
+            _ => None,
+        };
+        let parsed = parsed.ok_or_else(|| {
+            InputError::new(
+                file,
+                at(key_span(key), &field),
+                value.to_string(),
+                spec.expected(),
+            )
+        })?;
+        (spec.set)(&mut params, parsed);
     }
+    params.validate().map_err(|e| {
+        let key = given
+            .iter()
+            .find(|(_, name)| *name == e.field)
+            .map_or(e.field, |(key, _)| key);
+        bad(
+            key_span(key),
+            &format!("params.{key}"),
+            format!("{}: {}", e.value, e.reason),
+        )
+    })?;
+    let plan = FramePlan::new(&params).map_err(|e| {
+        bad(
+            parsed.params.span(),
+            "params",
+            format!("no frame plan: {e}"),
+        )
+    })?;
+    if let Some(mode) = plan.refine {
+        return Err(bad(
+            key_span("tree_cull"),
+            "params.tree_cull",
+            format!(
+                "{} runs refine: check compares the selection stages before refine \
+                 (parity::refine judges refine); expected {:?}",
+                mode.name(),
+                TreeCull::None.name()
+            ),
+        ));
+    }
+    let eye = c.eye.get_ref();
+    Ok(ReplayToml {
+        eye: [eye[0], eye[1], eye[2]],
+        camera,
+        params,
+    })
+}
+
+/// A replay folder (`check --replay DIR`) as read: its case and its trees as the CSV loader
+/// builds them, every error naming `DIR/case.toml` or `DIR/trees.csv` (issue 28: never a scratch
+/// copy; nothing is written).
+pub struct Replay {
+    /// The scene of `trees.csv` (built-in species).
+    pub scene: Scene,
+    /// The camera, its eye in the scene's coordinates (valid).
+    pub camera: Camera,
+    /// The parameters.
+    pub params: Params,
+}
+
+/// Reads a replay folder (module docs): `DIR` must be a folder (`--replay` names it otherwise),
+/// `case.toml` ([`parse_replay_toml`], at most [`MAX_REPLAY_TOML_BYTES`]) and `trees.csv` (the CSV
+/// loader of `--instances`, at most [`MAX_REPLAY_TREES_BYTES`]) regular files.
+pub fn read_replay(dir: &Path) -> Result<Replay> {
+    crate::case::input_folder(
+        "--replay",
+        dir,
+        "a replay folder holding case.toml and trees.csv",
+    )?;
+    let path = dir.join("case.toml");
+    let file = path.display().to_string();
+    let text = forestlod_reference::files::read_text_limited(&path, MAX_REPLAY_TOML_BYTES)?;
+    let case = parse_replay_toml(&text, &file)?;
+    let csv = dir.join("trees.csv");
+    let bytes = forestlod_reference::files::read_limited(&csv, MAX_REPLAY_TREES_BYTES)?;
+    let scene = parse_instances_with_builtin_species(
+        bytes.as_slice(),
+        &csv.display().to_string(),
+        "trees".into(),
+    )?;
+    let camera = placed(&scene, case.eye, case.camera).map_err(|e| {
+        InputError::new(
+            &file,
+            "field camera.eye",
+            format!("{:?}", case.eye),
+            format!(
+                "relative to the origin {:?} of {}: {}: {}",
+                scene.origin,
+                csv.display(),
+                e.value,
+                e.reason
+            ),
+        )
+    })?;
+    Ok(Replay {
+        scene,
+        camera,
+        params: case.params,
+    })
 }
 
 fn io(path: &Path, e: impl std::fmt::Display) -> InputError {
     InputError::new(path.display().to_string(), "", "", e.to_string())
 }
 
-/// The case's scene through the CSV loader (as a replay reads it) and its camera in that scene's
-/// coordinates. `scratch` is a file the CSV is written to.
-fn materialize(case: &Case, scratch: &Path) -> Result<(Scene, Camera)> {
-    std::fs::write(scratch, case.csv()).map_err(|e| io(scratch, e))?;
-    let scene = load_instances_with_builtin_species(scratch)?;
+/// What names a random case's trees in its errors (its trees are never written to a file while
+/// it runs: module docs).
+const RANDOM_TREES: &str = "<random case>/trees.csv";
+
+/// The case's scene through the CSV loader (as a replay reads it, from the text [`Case::write`]
+/// writes, in memory) and its camera in that scene's coordinates.
+fn materialize(case: &Case) -> std::result::Result<(Scene, Camera), InputError> {
+    let scene =
+        parse_instances_with_builtin_species(case.csv().as_bytes(), RANDOM_TREES, "trees".into())?;
+    let camera = placed(&scene, case.eye, case.camera)
+        .map_err(|e| InputError::new(RANDOM_TREES, "camera", e.value, e.reason))?;
+    Ok((scene, camera))
+}
+
+/// `camera` with its eye at `eye` (world coordinates) in `scene`'s coordinates, validated.
+fn placed(
+    scene: &Scene,
+    eye: [f64; 3],
+    camera: Camera,
+) -> std::result::Result<Camera, forestlod_shared::ParamError> {
     let o = scene.origin;
     let camera = Camera {
-        eye: [
-            (case.eye[0] - o[0]) as f32,
-            (case.eye[1] - o[1]) as f32,
-            (case.eye[2] - o[2]) as f32,
-        ],
-        ..case.camera
+        eye: [0, 1, 2].map(|k| (eye[k] - o[k]) as f32),
+        ..camera
     };
-    Ok((scene, camera))
+    camera.validate()?;
+    Ok(camera)
 }
 
 /// The case's scene prepared for selection only (module docs): grouped as the frame's plan says
@@ -461,14 +704,23 @@ struct Outcome {
     failure: Option<String>,
 }
 
-/// Runs one case (module docs). `Err` for a case no stage can run (an invalid camera or
+/// Runs one random case (module docs). `Err` for a case no stage can run (an invalid camera or
 /// parameters).
-fn run_case(ctx: &'static GpuContext, case: &Case, scratch: &Path) -> Result<Outcome> {
-    let (scene, camera) = materialize(case, scratch)?;
-    camera.validate().map_err(|e| io(scratch, e))?;
-    case.params.validate().map_err(|e| io(scratch, e))?;
-    let params = &case.params;
-    let plan = FramePlan::new(params).map_err(|e| io(scratch, e))?;
+fn run_case(ctx: &'static GpuContext, case: &Case) -> Result<Outcome> {
+    let (scene, camera) = materialize(case)?;
+    run_selection(ctx, scene, &camera, &case.params)
+}
+
+/// Runs the selection parity of `scene` seen by `camera` (valid, in the scene's coordinates).
+fn run_selection(
+    ctx: &'static GpuContext,
+    scene: Scene,
+    camera: &Camera,
+    params: &Params,
+) -> Result<Outcome> {
+    let camera = *camera;
+    params.validate().map_err(InputError::from)?;
+    let plan = FramePlan::new(params).map_err(|e| io(Path::new("<params>"), e))?;
     let prepared = selection_scene(scene, params)?;
     let hierarchy = prepared
         .hierarchy
@@ -584,7 +836,6 @@ fn shrink(
     ctx: &'static GpuContext,
     mut case: Case,
     mut why: String,
-    scratch: &Path,
     budget: u32,
 ) -> (Case, String) {
     let mut tries = 0;
@@ -601,7 +852,7 @@ fn shrink(
                 start = end;
                 continue;
             }
-            match run_case(ctx, &candidate, scratch).map(|o| o.failure) {
+            match run_case(ctx, &candidate).map(|o| o.failure) {
                 Ok(Some(w)) => {
                     case = candidate;
                     why = w;
@@ -629,19 +880,19 @@ pub fn run(args: &CheckArgs) -> Result<u8> {
     if args.cases == Some(0) {
         return Err("--cases 0: expected at least one case".into());
     }
+    // A replay is read (and refused, naming its files) before an adapter is looked for.
+    let replay = match &args.replay {
+        Some(dir) => Some((dir, read_replay(dir)?)),
+        None => None,
+    };
     let Some(ctx) = forestlod_harness::context::gpu_context() else {
         eprintln!(
             "check skipped: no suitable GPU adapter; install Mesa's lavapipe with scripts/install-deps"
         );
         return Ok(exit_code::GPU_SKIPPED);
     };
-    // Each case's trees go through this file and the CSV loader (module docs).
-    let scratch = std::env::temp_dir().join(format!("forestlod-check-{}.csv", std::process::id()));
-    if let Some(dir) = &args.replay {
-        let case = Case::read(dir)?;
-        let result = run_case(ctx, &case, &scratch);
-        let _ = std::fs::remove_file(&scratch);
-        let outcome = result?;
+    if let Some((dir, replay)) = replay {
+        let outcome = run_selection(ctx, replay.scene, &replay.camera, &replay.params)?;
         let stages = outcome.stages.iter().map(|s| s.name()).collect::<Vec<_>>();
         let ran = format!("{} over {}", stages.join(", "), outcome.hierarchy.name());
         return Ok(match outcome.failure {
@@ -676,7 +927,7 @@ pub fn run(args: &CheckArgs) -> Result<u8> {
     {
         let case = random_case(args.seed, index);
         index += 1;
-        match run_case(ctx, &case, &scratch) {
+        match run_case(ctx, &case) {
             // A random case the loader or validation refuses (none expected): counted apart.
             Err(_) => skipped += 1,
             Ok(outcome) => {
@@ -724,7 +975,7 @@ pub fn run(args: &CheckArgs) -> Result<u8> {
         }
         Some((i, case, why)) => {
             println!("case {i} FAILED ({} trees): {why}", case.rows.len());
-            let (small, why) = shrink(ctx, case, why, &scratch, 400);
+            let (small, why) = shrink(ctx, case, why, 400);
             let dir = args.out.join(format!("case-{}-{i}", args.seed));
             small.write(&dir)?;
             println!("shrunk to {} trees: {why}", small.rows.len());
@@ -733,6 +984,181 @@ pub fn run(args: &CheckArgs) -> Result<u8> {
             exit_code::PARITY_FAILED
         }
     };
-    let _ = std::fs::remove_file(&scratch);
     Ok(code)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const FILE: &str = "r/case.toml";
+
+    /// Every refusal is one line naming the file first.
+    fn named(e: &InputError) -> bool {
+        let s = e.to_string();
+        s.starts_with("r/case.toml: ") && !s.contains('\n')
+    }
+
+    #[test]
+    fn written_cases_read_back_exactly() {
+        for i in 0..64 {
+            let case = random_case(7, i);
+            let r = parse_replay_toml(&case.toml(Path::new("out/x")), FILE)
+                .unwrap_or_else(|e| panic!("case {i}: {e}"));
+            assert_eq!(r.eye, case.eye, "case {i}");
+            assert_eq!(
+                r.camera,
+                Camera {
+                    eye: [0.0; 3],
+                    ..case.camera
+                },
+                "case {i}"
+            );
+            assert_eq!(r.params, case.params, "case {i}");
+        }
+    }
+
+    #[test]
+    fn lossy_and_unknown_values_are_refused_naming_line_field_and_value() {
+        let good = random_case(1, 3).toml(Path::new("d"));
+        let with = |from: &str, to: &str| {
+            let text = good.replacen(from, to, 1);
+            assert_ne!(text, good, "{from}");
+            parse_replay_toml(&text, FILE).unwrap_err().to_string()
+        };
+        let width = format!("width = {}", random_case(1, 3).camera.width);
+        for (from, to, want) in [
+            (width.as_str(), "width = 128.9", "value \"128.9\""),
+            (width.as_str(), "width = -5", "value \"-5\""),
+            (
+                width.as_str(),
+                "width = 99999999999",
+                "value \"99999999999\"",
+            ),
+            ("[params]", "[params]\nbogus = 1", "field params.bogus"),
+            ("[params]", "[params]\ngrid-size = 3", "given twice"),
+            (
+                "tree_cull = \"none\"",
+                "tree_cull = \"lod0\"",
+                "field params.tree_cull",
+            ),
+            ("[params]", "[other]\n[params]", "unknown field `other`"),
+            (
+                "fov_y = ",
+                "fov_y = inf\n#",
+                "field camera.fov_y: value \"inf\"",
+            ),
+            ("near = ", "near = 1e300\n#", "field camera.near"),
+            ("eye = [", "eye = [1, ", "field camera.eye: value \"[1, "),
+        ] {
+            let e = with(from, to);
+            assert!(
+                e.starts_with("r/case.toml: line ") && e.contains(want),
+                "{to}: {e}"
+            );
+        }
+        let e = parse_replay_toml("[camera]\n", FILE).unwrap_err();
+        assert!(named(&e) && e.to_string().contains("missing field"), "{e}");
+    }
+
+    /// TOML-ish tokens, so that arbitrary soups reach the field checks.
+    fn token() -> impl Strategy<Value = &'static str> {
+        prop::sample::select(vec![
+            "[camera]",
+            "[params]",
+            "\n",
+            " = ",
+            "eye",
+            "forward",
+            "up",
+            "fov_y",
+            "near",
+            "far",
+            "width",
+            "height",
+            "[0, 0, 1]",
+            "[1, 0, 0]",
+            "[1e40, 0, 0]",
+            "1",
+            "0",
+            "-1",
+            "64",
+            "1.5",
+            "nan",
+            "inf",
+            "\"grid\"",
+            "grid_size",
+            "grid-size",
+            "tree_cull",
+            "\"lod0\"",
+            "hierarchy",
+            "lod_levels",
+            "\"x\"",
+            "#",
+            "[",
+            "]",
+            ",",
+            "=",
+        ])
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(512))]
+
+        #[test]
+        fn arbitrary_text_is_parsed_or_refused_naming_the_file(text in ".{0,400}") {
+            if let Err(e) = parse_replay_toml(&text, FILE) {
+                prop_assert!(named(&e), "{e}");
+            }
+        }
+
+        #[test]
+        fn token_soups_are_parsed_or_refused_naming_the_file(
+            tokens in prop::collection::vec(token(), 0..80)
+        ) {
+            let text = tokens.concat();
+            match parse_replay_toml(&text, FILE) {
+                Ok(r) => {
+                    prop_assert!(r.camera.validate().is_ok());
+                    prop_assert!(r.params.validate().is_ok());
+                }
+                Err(e) => prop_assert!(named(&e), "{e}"),
+            }
+        }
+
+        #[test]
+        fn a_written_case_with_one_value_replaced_is_valid_or_named(
+            i in 0u64..32, line in 0usize..40, value in prop::sample::select(vec![
+                "0", "-1", "1.5", "nan", "-inf", "1e39", "4294967296", "\"grid\"", "[1, 2]", "true",
+            ])
+        ) {
+            let good = random_case(3, i).toml(Path::new("d"));
+            let lines: Vec<String> = good.lines().map(|l| match l.split_once(" = ") {
+                Some((k, _)) if !l.is_empty() => k.to_string() + " = " + value,
+                _ => l.to_string(),
+            }).collect();
+            let mut edited: Vec<&str> = good.lines().collect();
+            let n = line % edited.len();
+            edited[n] = &lines[n];
+            match parse_replay_toml(&edited.join("\n"), FILE) {
+                Ok(r) => {
+                    prop_assert!(r.camera.validate().is_ok());
+                    prop_assert!(r.params.validate().is_ok());
+                    prop_assert!(r.camera.width >= 1 && r.camera.width <= 16384);
+                }
+                Err(e) => {
+                    // The edited line is named (or the plan its parameters make).
+                    let s = e.to_string();
+                    prop_assert!(named(&e), "{e}");
+                    prop_assert!(
+                        s.starts_with(&format!("r/case.toml: line {}, ", n + 1))
+                            || s.contains(", field params: ")
+                            || (edited[n].starts_with("near") && s.contains("field camera.far")),
+                        "line {}: {e}", n + 1
+                    );
+                }
+            }
+        }
+    }
 }

@@ -9,7 +9,7 @@
 use std::path::Path;
 
 use super::coords::{MAX_RELATIVE_COORDINATE, default_origin};
-use super::instances_csv::{InstanceRow, load_instances_csv};
+use super::instances_csv::InstanceRow;
 use super::paths::label;
 use crate::InputError;
 use crate::scene::builtin::{Species, species_meshes};
@@ -98,15 +98,27 @@ pub(super) fn build_scene(
 /// terrain at the lowest tree, name = file stem. What the CLI's `--instances trees.csv` uses.
 pub fn load_instances_with_builtin_species(csv: &Path) -> Result<Scene, InputError> {
     let file = label(csv);
-    let names: Vec<String> = Species::ALL.iter().map(|s| s.name().to_string()).collect();
-    let rows = load_instances_csv(csv, &names)?;
+    let f = super::paths::open_file(csv)?;
     let name = csv
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "instances".to_string());
+    parse_instances_with_builtin_species(std::io::BufReader::new(f), &file, name)
+}
+
+/// [`load_instances_with_builtin_species`] from a reader (text already read, or built in memory):
+/// `file` names it in errors, `name` is the scene's name. No file is touched (issue 28: `check`
+/// materializes its cases through this, never through a scratch file).
+pub fn parse_instances_with_builtin_species(
+    reader: impl std::io::Read,
+    file: &str,
+    name: String,
+) -> Result<Scene, InputError> {
+    let names: Vec<String> = Species::ALL.iter().map(|s| s.name().to_string()).collect();
+    let rows = super::instances_csv::parse_instances_csv(reader, file, &names)?;
     validated(
-        build_scene(name, species_meshes(), &rows, None, None, &file)?,
-        &file,
+        build_scene(name, species_meshes(), &rows, None, None, file)?,
+        file,
     )
 }
 

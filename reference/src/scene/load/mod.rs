@@ -77,7 +77,7 @@ mod test_util;
 
 use paths::label;
 
-pub use assemble::load_instances_with_builtin_species;
+pub use assemble::{load_instances_with_builtin_species, parse_instances_with_builtin_species};
 pub use coords::{MAX_RELATIVE_COORDINATE, MAX_WORLD_COORDINATE, UpAxis, default_origin};
 pub use gltf_mesh::{GltfBuffers, load_gltf_mesh, parse_gltf_mesh};
 pub use instances_csv::{
