@@ -581,4 +581,162 @@ mod tests {
         let e = error_of(&format!("{} x", serde_json::to_string(&good()).unwrap()));
         assert!(e.contains("trailing characters"), "{e}");
     }
+
+    // -----------------------------------------------------------------------------------------
+    // A little fuzzing on stable (the libFuzzer target is fuzz/fuzz_targets/sweep_json.rs, with
+    // the same checks): no input panics; a refusal is one line naming the file; an accepted
+    // manifest keeps the promises of the module docs and, written back, parses to itself.
+    // -----------------------------------------------------------------------------------------
+
+    use proptest::prelude::*;
+
+    const FILE: &str = "run/s/sweep.json";
+
+    fn check(text: &str) -> Result<(), TestCaseError> {
+        match parse_manifest(text, FILE) {
+            Ok(m) => {
+                prop_assert!((1..=MAX_TARGET_SIZE).contains(&m.width));
+                prop_assert!((1..=MAX_TARGET_SIZE).contains(&m.height));
+                prop_assert!(!m.name.trim().is_empty() && !m.csv.trim().is_empty());
+                prop_assert!(m.images.iter().all(|i| i.yaw_deg.is_finite()));
+                let back = serde_json::to_string_pretty(&m).unwrap();
+                let again = parse_manifest(&back, FILE);
+                prop_assert!(again.is_ok(), "written back, refused: {:?}", again.err());
+                prop_assert_eq!(
+                    serde_json::to_value(again.unwrap()).unwrap(),
+                    serde_json::to_value(&m).unwrap()
+                );
+            }
+            Err(e) => {
+                let shown = e.to_string();
+                prop_assert!(shown.starts_with(FILE), "{}", shown);
+                prop_assert_eq!(shown.lines().count(), 1, "{}", shown);
+            }
+        }
+        Ok(())
+    }
+
+    /// JSON tokens and the manifest's own keys, more likely than raw text to reach the checks.
+    fn token_soup() -> impl Strategy<Value = String> {
+        let token = prop::sample::select(
+            "{|}|[|]|,|:|\"name\"|\"title\"|\"width\"|\"height\"|\"csv\"|\"plots\"|\"images\"|\"accuracy\"|\"spec\"|\"settings\"|\"flip_mean\"|\"yaw_deg\"|\"shard\"|0|1|-1|128.9|1e300|1e400|-0|4294967296|18446744073709551616|null|true|false|\"\"|\"x\"|\"\\u0000\"|\"\\ud800\"|\"0/2\"| |\n"
+                .split('|')
+                .collect::<Vec<_>>(),
+        );
+        prop::collection::vec(token, 0..40).prop_map(|t| t.concat())
+    }
+
+    /// A JSON value to put somewhere in a good manifest.
+    fn json_value() -> impl Strategy<Value = serde_json::Value> {
+        prop::sample::select(vec![
+            serde_json::json!(null),
+            serde_json::json!(true),
+            serde_json::json!(0),
+            serde_json::json!(-1),
+            serde_json::json!(0.5),
+            serde_json::json!(128.9),
+            serde_json::json!(1e300),
+            serde_json::json!(4294967296u64),
+            serde_json::json!(""),
+            serde_json::json!("x"),
+            serde_json::json!("../../etc/passwd"),
+            serde_json::json!("a\u{7}b"),
+            serde_json::json!([]),
+            serde_json::json!(["a", "b"]),
+            serde_json::json!({}),
+            serde_json::json!({"k": 1}),
+        ])
+    }
+
+    /// Every path (`a.b[0].c`) of a JSON tree, objects and arrays included.
+    fn paths(v: &serde_json::Value, at: String, out: &mut Vec<String>) {
+        match v {
+            serde_json::Value::Object(map) => {
+                for (k, x) in map {
+                    let p = if at.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{at}.{k}")
+                    };
+                    paths(x, p.clone(), out);
+                    out.push(p);
+                }
+            }
+            serde_json::Value::Array(items) => {
+                for (i, x) in items.iter().enumerate() {
+                    let p = format!("{at}[{i}]");
+                    paths(x, p.clone(), out);
+                    out.push(p);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// The value at `path` of `v`, made if missing.
+    fn at_path<'a>(v: &'a mut serde_json::Value, path: &str) -> &'a mut serde_json::Value {
+        let mut cur = v;
+        for part in path.split('.') {
+            let (name, rest) = part.split_once('[').unwrap_or((part, ""));
+            if !name.is_empty() {
+                cur = &mut cur[name];
+            }
+            for index in rest.split('[').filter(|s| !s.is_empty()) {
+                cur = &mut cur[index.trim_end_matches(']').parse::<usize>().unwrap()];
+            }
+        }
+        cur
+    }
+
+    fn fuzz_cases() -> u32 {
+        std::env::var("PROPTEST_CASES")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(256)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig {
+            cases: fuzz_cases(),
+            failure_persistence: None,
+            ..ProptestConfig::default()
+        })]
+
+        #[test]
+        fn arbitrary_text_never_panics(text in ".*") {
+            check(&text)?;
+        }
+
+        #[test]
+        fn token_soups_never_panic(text in token_soup()) {
+            check(&text)?;
+        }
+
+        #[test]
+        fn a_good_manifest_with_one_value_replaced_is_checked(
+            pick in any::<prop::sample::Index>(),
+            value in json_value(),
+        ) {
+            let mut tree = good();
+            let mut all = Vec::new();
+            paths(&tree, String::new(), &mut all);
+            let path = pick.get(&all).clone();
+            *at_path(&mut tree, &path) = value;
+            check(&serde_json::to_string_pretty(&tree).unwrap())?;
+        }
+
+        #[test]
+        fn a_good_manifest_cut_or_spliced_is_checked(
+            at in any::<prop::sample::Index>(),
+            len in 0usize..20,
+            insert in token_soup(),
+        ) {
+            let text = serde_json::to_string_pretty(&good()).unwrap();
+            let start = at.index(text.len());
+            let end = (start + len).min(text.len());
+            if text.is_char_boundary(start) && text.is_char_boundary(end) {
+                check(&format!("{}{insert}{}", &text[..start], &text[end..]))?;
+            }
+        }
+    }
 }
