@@ -461,8 +461,21 @@ mod tests {
 
     /// The committed `mip_mode` manifest as a JSON tree.
     fn good() -> serde_json::Value {
-        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/mip_mode/sweep.json");
+        committed_tree("mip_mode")
+    }
+
+    /// The committed manifest of sweep `name` as a JSON tree.
+    fn committed_tree(name: &str) -> serde_json::Value {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("results/{name}/sweep.json"));
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    }
+
+    /// Committed manifests for the mutation properties: one without `spec`, one with (a
+    /// setting added, so its flattened parameters are there to mutate).
+    fn seeds() -> [serde_json::Value; 2] {
+        let mut with_spec = committed_tree("angles_texture");
+        with_spec["spec"]["settings"] = serde_json::json!([{"label": "a", "lod0_distance": 30.0}]);
+        [good(), with_spec]
     }
 
     fn error_of(text: &str) -> String {
@@ -714,10 +727,11 @@ mod tests {
 
         #[test]
         fn a_good_manifest_with_one_value_replaced_is_checked(
+            seed in 0usize..2,
             pick in any::<prop::sample::Index>(),
             value in json_value(),
         ) {
-            let mut tree = good();
+            let mut tree = seeds()[seed].clone();
             let mut all = Vec::new();
             paths(&tree, String::new(), &mut all);
             let path = pick.get(&all).clone();
@@ -727,11 +741,12 @@ mod tests {
 
         #[test]
         fn a_good_manifest_cut_or_spliced_is_checked(
+            seed in 0usize..2,
             at in any::<prop::sample::Index>(),
             len in 0usize..20,
             insert in token_soup(),
         ) {
-            let text = serde_json::to_string_pretty(&good()).unwrap();
+            let text = serde_json::to_string_pretty(&seeds()[seed]).unwrap();
             let start = at.index(text.len());
             let end = (start + len).min(text.len());
             if text.is_char_boundary(start) && text.is_char_boundary(end) {
