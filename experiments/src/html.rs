@@ -14,13 +14,45 @@
 //! other image path is shown as not embedded and never opened. Text the generator takes from a
 //! manifest goes through [`escape_markdown`] (or [`code_span`]), so it cannot become an image or
 //! a link, and paths through [`escape_destination`].
+//!
+//! **Bounded** (issue 28, unbounded reads): each embedded image is read through
+//! [`forestlod_reference::files`] (regular files only) with a limit of
+//! [`MAX_EMBEDDED_IMAGE_BYTES`], and all the images a page embeds, counted at every place the page
+//! shows them, may hold at most [`MAX_EMBEDDED_TOTAL_BYTES`]; past either the page is not made
+//! and the error names the file and the manifest key that named it ([`Embed::named_by`]).
+//! `report.rs` checks the same limits from the files' sizes before anything is read or written,
+//! so these are the second line (a file that grew or changed in between).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+use forestlod_reference::InputError;
+use forestlod_reference::files::{read_limited, size_text};
+
+/// Largest image a report embeds, bytes: 32 MiB. The sweeps' plots and frames are PNGs of at
+/// most a few MB (a 1280x720 frame is under 1 MB, the committed ones at most 0.7 MB); a 4K RGBA
+/// frame stored uncompressed would be 33 MB. Base64 makes it 43 MB of page.
+pub const MAX_EMBEDDED_IMAGE_BYTES: u64 = 32 << 20;
+
+/// Most bytes of images one report embeds, all together (each image counted every time the page
+/// shows it): 256 MiB, a page of about 350 MB, which a browser still opens. The committed run's
+/// images are 28 MB in all. Without this bound a manifest listing one large plot thousands of
+/// times would make a page of terabytes.
+pub const MAX_EMBEDDED_TOTAL_BYTES: u64 = 256 << 20;
+
+/// An image a page may embed: the file it was checked to be, and what named it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Embed {
+    /// The file (a regular file under the run folder, checked by the caller).
+    pub file: PathBuf,
+    /// The link an error about it is reached through, e.g. `run folder R: R/s/sweep.json: key
+    /// plots[0][0] = "runtime.png"`.
+    pub named_by: String,
+}
+
 /// The images a page may embed: each path as the Markdown writes it (unescaped), with the file
 /// it was checked to be (`None`: named but absent, shown as a missing image).
-pub type Embeds = BTreeMap<String, Option<PathBuf>>;
+pub type Embeds = BTreeMap<String, Option<Embed>>;
 
 /// Characters [`escape_markdown`] escapes: those this converter (or CommonMark) would read as
 /// the start or end of an image, link, emphasis, code span, escape or HTML tag.
@@ -154,8 +186,30 @@ fn escape(text: &str) -> String {
         .replace('"', "&quot;")
 }
 
+/// What a page's images have used so far: the bytes embedded, and the first error (after which
+/// no image is read).
+struct Images<'a> {
+    embeds: &'a Embeds,
+    /// Most bytes of all images ([`MAX_EMBEDDED_TOTAL_BYTES`]; smaller in tests).
+    limit: u64,
+    total: u64,
+    error: Option<InputError>,
+}
+
+impl Images<'_> {
+    fn image(&mut self, alt: &str, path: &str) -> String {
+        if self.error.is_some() {
+            return String::new();
+        }
+        image(alt, path, self.embeds, self.limit, &mut self.total).unwrap_or_else(|e| {
+            self.error = Some(e);
+            String::new()
+        })
+    }
+}
+
 /// Inline Markdown of one line (see module docs); images are embedded from `embeds` only.
-fn inline(text: &str, embeds: &Embeds) -> String {
+fn inline(text: &str, embeds: &mut Images) -> String {
     let mut out = String::new();
     let mut rest = text;
     'outer: while let Some(c) = rest.chars().next() {
@@ -179,7 +233,7 @@ fn inline(text: &str, embeds: &Embeds) -> String {
             let label = &after[..end];
             let target = unescape(&after[end + 2..end + 2 + close]);
             if is_image {
-                out.push_str(&image(&unescape(label), &target, embeds));
+                out.push_str(&embeds.image(&unescape(label), &target));
             } else {
                 out.push_str(&format!(
                     "<a href=\"{}\">{}</a>",
@@ -219,34 +273,68 @@ fn inline(text: &str, embeds: &Embeds) -> String {
     out
 }
 
-/// An image: embedded when `path` is one of `embeds` and its file reads, else marked.
-fn image(alt: &str, path: &str, embeds: &Embeds) -> String {
+/// An image: embedded when `path` is one of `embeds` (read within the limits of the module
+/// docs, `total` counting the bytes embedded so far), else marked as missing or not embedded.
+fn image(
+    alt: &str,
+    path: &str,
+    embeds: &Embeds,
+    limit: u64,
+    total: &mut u64,
+) -> Result<String, InputError> {
     let missing = || {
         format!(
             "<span class=\"missing\">[missing image {}]</span>",
             escape(path)
         )
     };
-    match embeds.get(path) {
-        Some(Some(file)) => match std::fs::read(file) {
-            Ok(bytes) => format!(
+    Ok(match embeds.get(path) {
+        Some(Some(embed)) => {
+            let bytes = read_limited(&embed.file, MAX_EMBEDDED_IMAGE_BYTES)
+                .map_err(|e| e.within(embed.named_by.clone()))?;
+            *total += bytes.len() as u64;
+            if *total > limit {
+                let file = embed.file.display().to_string();
+                return Err(InputError::new(
+                    &file,
+                    "embedded images",
+                    size_text(*total),
+                    format!(
+                        "embedding it brings the report's images over the limit of {} for one report",
+                        size_text(limit)
+                    ),
+                )
+                .within(embed.named_by.clone()));
+            }
+            format!(
                 "<img alt=\"{}\" title=\"{}\" loading=\"lazy\" src=\"data:image/png;base64,{}\">",
                 escape(alt),
                 escape(path),
                 base64(&bytes)
-            ),
-            Err(_) => missing(),
-        },
+            )
+        }
         Some(None) => missing(),
         None => format!(
             "<span class=\"missing\">[image not embedded: {} is not a file of this run's manifests]</span>",
             escape(path)
         ),
-    }
+    })
 }
 
-/// The page for the Markdown report `md`, embedding the images of `embeds` it names.
-pub fn report_page(md: &str, embeds: &Embeds, title: &str) -> String {
+/// The page for the Markdown report `md`, embedding the images of `embeds` it names; an error
+/// when an image is over its limit or cannot be read (module docs).
+pub fn report_page(md: &str, embeds: &Embeds, title: &str) -> Result<String, InputError> {
+    page(md, embeds, title, MAX_EMBEDDED_TOTAL_BYTES)
+}
+
+/// [`report_page`] with `limit` bytes of images in all.
+fn page(md: &str, embeds: &Embeds, title: &str, limit: u64) -> Result<String, InputError> {
+    let embeds = &mut Images {
+        embeds,
+        limit,
+        total: 0,
+        error: None,
+    };
     let mut body = String::new();
     let mut lines = md.lines().peekable();
     while let Some(line) = lines.next() {
@@ -301,10 +389,13 @@ pub fn report_page(md: &str, embeds: &Embeds, title: &str) -> String {
             body.push_str(&format!("<p>{}</p>\n", inline(t, embeds)));
         }
     }
-    format!(
+    if let Some(e) = embeds.error.take() {
+        return Err(e);
+    }
+    Ok(format!(
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>\n<style>\n{STYLE}</style></head>\n<body>\n{body}<div id=\"zoom\" onclick=\"this.style.display='none'\"></div>\n<script>{SCRIPT}</script>\n</body></html>\n",
         title = escape(title)
-    )
+    ))
 }
 
 const STYLE: &str = "body{font:15px/1.45 system-ui,sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}
@@ -328,6 +419,13 @@ const SCRIPT: &str = "document.querySelectorAll('body > * img').forEach(function
 mod tests {
     use super::*;
 
+    fn embed(file: PathBuf) -> Option<Embed> {
+        Some(Embed {
+            file,
+            named_by: "s/sweep.json: key plots[0][0]".into(),
+        })
+    }
+
     #[test]
     fn base64_matches_rfc_4648_vectors() {
         for (plain, encoded) in [
@@ -349,8 +447,8 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join("a.png"), [1u8, 2, 3]).unwrap();
         let md = "# Title\n\nSome **bold** and `a<b` and *it*.\n\n| x | y |\n|---|--:|\n| ![](a.png) | [l](#t) |\n\n- one\n- two\n";
-        let embeds = Embeds::from([("a.png".to_string(), Some(dir.join("a.png")))]);
-        let page = report_page(md, &embeds, "t");
+        let embeds = Embeds::from([("a.png".to_string(), (embed(dir.join("a.png"))))]);
+        let page = report_page(md, &embeds, "t").unwrap();
         std::fs::remove_dir_all(&dir).ok();
         assert!(page.contains("<h1 id=\"title\">Title</h1>"), "{page}");
         assert!(page.contains("<strong>bold</strong>") && page.contains("<code>a&lt;b</code>"));
@@ -376,9 +474,9 @@ mod tests {
         std::fs::write(dir.join("listed.png"), [1u8, 2, 3]).unwrap();
         std::fs::write(dir.join("secret"), [4u8, 5, 6]).unwrap();
         let secret = dir.join("secret").display().to_string();
-        let embeds = Embeds::from([("listed.png".to_string(), Some(dir.join("listed.png")))]);
+        let embeds = Embeds::from([("listed.png".to_string(), (embed(dir.join("listed.png"))))]);
         // An image the generator did not list is never opened, whatever its path.
-        let page = report_page(&format!("![x]({secret}) ![y](listed.png)"), &embeds, "t");
+        let page = report_page(&format!("![x]({secret}) ![y](listed.png)"), &embeds, "t").unwrap();
         assert!(
             !page.contains("BAUG"),
             "the unlisted file was embedded: {page}"
@@ -394,14 +492,14 @@ mod tests {
             format!("x`y![x]({secret})"),
         ] {
             let md = escape_markdown(&hostile);
-            let page = report_page(&format!("# {md}\n\n{md}\n\n| {md} |\n"), &embeds, "t");
+            let page = report_page(&format!("# {md}\n\n{md}\n\n| {md} |\n"), &embeds, "t").unwrap();
             assert!(
                 !page.contains("<img") && !page.contains("<a ") && !page.contains("not embedded"),
                 "{hostile:?} became markup: {page}"
             );
             assert!(!page.contains("<em>") && !page.contains("<img"), "{page}");
             let code = code_span(&hostile);
-            let page = report_page(&format!("- ({code})\n"), &embeds, "t");
+            let page = report_page(&format!("- ({code})\n"), &embeds, "t").unwrap();
             assert!(
                 !page.contains("<img") && !page.contains("not embedded"),
                 "{page}"
@@ -409,13 +507,64 @@ mod tests {
         }
         // Destinations round-trip through their escapes.
         std::fs::write(dir.join("a (1).png"), [1u8, 2, 3]).unwrap();
-        let embeds = Embeds::from([("a (1).png".to_string(), Some(dir.join("a (1).png")))]);
+        let embeds = Embeds::from([("a (1).png".to_string(), (embed(dir.join("a (1).png"))))]);
         let page = report_page(
             &format!("![]({})", escape_destination("a (1).png")),
             &embeds,
             "t",
-        );
+        )
+        .unwrap();
         std::fs::remove_dir_all(&dir).ok();
         assert!(page.contains("base64,AQID"), "{page}");
+    }
+
+    #[test]
+    fn images_are_read_bounded_and_errors_name_the_key() {
+        let dir =
+            std::env::temp_dir().join(format!("forestlod-html-limits-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // A special file (here a link to /dev/zero) is refused, naming the key that listed it.
+        #[cfg(unix)]
+        {
+            let zero = dir.join("zero.png");
+            let _ = std::fs::remove_file(&zero);
+            std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+            let embeds = Embeds::from([("z.png".to_string(), embed(zero))]);
+            let e = report_page("![](z.png)", &embeds, "t")
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.starts_with("s/sweep.json: key plots[0][0]: ") && e.contains("special file"),
+                "{e}"
+            );
+        }
+        // One image over the per-image limit.
+        let big = dir.join("big.png");
+        std::fs::File::create(&big)
+            .unwrap()
+            .set_len(MAX_EMBEDDED_IMAGE_BYTES + 1)
+            .unwrap();
+        let embeds = Embeds::from([("big.png".to_string(), embed(big.clone()))]);
+        let e = report_page("![](big.png)", &embeds, "t")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("key plots[0][0]") && e.contains("limit of 33554432 bytes"),
+            "{e}"
+        );
+        // An image within its limit, shown so often that the page would pass the total (a
+        // total of 1000 bytes here; the real one is checked the same way).
+        std::fs::write(&big, [7u8; 100]).unwrap();
+        let embeds = Embeds::from([("big.png".to_string(), embed(big))]);
+        assert!(page(&"![](big.png) ".repeat(10), &embeds, "t", 1000).is_ok());
+        let e = page(&"![](big.png) ".repeat(11), &embeds, "t", 1000)
+            .unwrap_err()
+            .to_string();
+        std::fs::remove_dir_all(&dir).ok();
+        assert!(
+            e.contains("embedded images: value \"1100 bytes\"")
+                && e.contains("limit of 1000 bytes"),
+            "{e}"
+        );
     }
 }

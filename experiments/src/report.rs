@@ -16,6 +16,17 @@
 //! as before. `report.html` embeds only the images so checked ([`crate::html::Embeds`]), and all
 //! text taken from a manifest or a CSV (titles, descriptions, captions, names, settings, labels)
 //! is escaped ([`crate::html::escape_markdown`]), so it cannot become an image or a link.
+//!
+//! **Hostile input** (issue 28): `--run` must be a folder (after resolving links); a file, a
+//! missing path, a dangling link or a special file is an error naming `--run`. Every
+//! `DIR/*/sweep.json` that exists must be a regular file under the run (a FIFO, a folder or a link
+//! to `/dev/zero` is an error naming it, never skipped), of at most [`MAX_MANIFEST_BYTES`], and a
+//! manifest [`parse_manifest`] accepts (types, ranges, no duplicate or unknown key). The CSV is
+//! read within [`crate::sweep::MAX_SWEEP_CSV_BYTES`] and must hold a row; each embedded image
+//! within [`MAX_EMBEDDED_IMAGE_BYTES`], and all of a report's images together (each counted
+//! every time the page shows it) within [`MAX_EMBEDDED_TOTAL_BYTES`]: sizes are checked before
+//! anything is read. Every file is read through [`forestlod_reference::files`]. All of this is
+//! checked and both pages are made before either is written: a refused run gets no report.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -23,9 +34,17 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use forestlod_reference::InputError;
+use forestlod_reference::error::{COMMAND_LINE, excerpt};
+use forestlod_reference::files::{read_text_limited, regular_file, size_text};
 
-use crate::html::{Embeds, code_span, escape_destination as dest, escape_markdown as md};
+use crate::html::{
+    Embed, Embeds, MAX_EMBEDDED_IMAGE_BYTES, MAX_EMBEDDED_TOTAL_BYTES, code_span,
+    escape_destination as dest, escape_markdown as md,
+};
 use crate::sweep::{Manifest, Row};
+
+pub mod manifest;
+pub use manifest::{MAX_MANIFEST_BYTES, parse_manifest};
 
 /// The run folder resolved, and how its errors name it.
 struct Run {
@@ -33,17 +52,53 @@ struct Run {
     given: PathBuf,
     /// Its canonical path: every file a report reads lies under it.
     root: PathBuf,
+    /// Bytes of images the report embeds so far, every place it shows them counted
+    /// ([`MAX_EMBEDDED_TOTAL_BYTES`]).
+    embedded: u64,
+}
+
+/// One sweep of the run: its folder, its manifest's path and the manifest, checked.
+struct Sweep {
+    dir: PathBuf,
+    mpath: PathBuf,
+    m: Manifest,
 }
 
 impl Run {
+    /// The run folder `--run` names: a folder (after resolving links), or an error naming
+    /// `--run` (issue 28: a file, a missing path or a dangling link is bad input).
     fn new(given: &Path) -> Result<Self, InputError> {
-        let root = std::fs::canonicalize(given).map_err(|e| {
-            InputError::new(given.display().to_string(), "run folder", "", e.to_string())
+        let flag = |reason: String| InputError::new(COMMAND_LINE, "--run", given.display(), reason);
+        let expected = "expected the folder `forestlod sweep --out` wrote";
+        let meta = std::fs::symlink_metadata(given)
+            .map_err(|e| flag(format!("cannot be read ({e}); {expected}")))?;
+        let target = std::fs::metadata(given).map_err(|e| {
+            if meta.file_type().is_symlink() {
+                flag(format!("is a link that does not resolve ({e}); {expected}"))
+            } else {
+                flag(format!("cannot be read ({e}); {expected}"))
+            }
         })?;
+        if !target.is_dir() {
+            let kind = if target.is_file() {
+                "a file"
+            } else {
+                "a special file (a FIFO, socket or device)"
+            };
+            return Err(flag(format!("is {kind}, not a folder; {expected}")));
+        }
+        let root = std::fs::canonicalize(given)
+            .map_err(|e| flag(format!("cannot be resolved ({e}); {expected}")))?;
         Ok(Self {
             given: given.to_path_buf(),
             root,
+            embedded: 0,
         })
+    }
+
+    /// The chain link of the run folder, outermost in every error about its files.
+    fn link(&self) -> String {
+        format!("run folder {}", self.given.display())
     }
 
     /// An error about `key = value` of the manifest `mpath`, chained through the run folder.
@@ -54,7 +109,18 @@ impl Run {
             value,
             reason,
         )
-        .within(format!("run folder {}", self.given.display()))
+        .within(self.link())
+    }
+
+    /// The link through which an error in a file that `key = value` of `mpath` names is
+    /// reached (outermost: the run folder).
+    fn named_by(&self, mpath: &Path, key: &str, value: &str) -> String {
+        format!(
+            "{}: {}: key {key} = {}",
+            self.link(),
+            mpath.display(),
+            excerpt(value)
+        )
     }
 
     /// `file` resolved (links followed), when that is a regular file under the run folder.
@@ -70,19 +136,22 @@ impl Run {
         }
         if !std::fs::metadata(&canon).is_ok_and(|m| m.is_file()) {
             return Err(format!(
-                "resolves to {}, not a regular file",
+                "resolves to {}, not a regular file (a folder, FIFO, socket or device)",
                 canon.display()
             ));
         }
         Ok(canon)
     }
 
-    /// The manifest `mpath`, checked to be a regular file under the run folder.
-    fn manifest(&self, mpath: &Path) -> Result<PathBuf, InputError> {
+    /// The manifest `mpath` (it exists), checked to be a regular file under the run folder,
+    /// read within [`MAX_MANIFEST_BYTES`] and parsed ([`parse_manifest`]).
+    fn manifest(&self, mpath: &Path) -> Result<Manifest, InputError> {
         self.resolve(mpath).map_err(|reason| {
-            InputError::new(mpath.display().to_string(), "manifest", "", reason)
-                .within(format!("run folder {}", self.given.display()))
-        })
+            InputError::new(mpath.display().to_string(), "manifest", "", reason).within(self.link())
+        })?;
+        let text =
+            read_text_limited(mpath, MAX_MANIFEST_BYTES).map_err(|e| e.within(self.link()))?;
+        parse_manifest(&text, &mpath.display().to_string()).map_err(|e| e.within(self.link()))
     }
 
     /// The path `value` that key `key` of the manifest `mpath` (in the sweep folder `dir`)
@@ -117,9 +186,37 @@ impl Run {
             .map_err(|reason| self.error(mpath, key, value, reason))
     }
 
-    /// Every image the manifest `m` (file `mpath`, sweep folder `dir`) names, checked, keyed as
-    /// the report's Markdown writes it ([`rel`]).
-    fn images(&self, mpath: &Path, dir: &Path, m: &Manifest) -> Result<Embeds, InputError> {
+    /// The rows of the sweep's CSV (key `csv`): a regular file under the run folder, read within
+    /// [`crate::sweep::MAX_SWEEP_CSV_BYTES`], holding at least one row.
+    fn rows(&self, sweep: &Sweep) -> Result<Vec<Row>, InputError> {
+        let Sweep { dir, mpath, m } = sweep;
+        if self.named(mpath, dir, "csv", &m.csv)?.is_none() {
+            return Err(self.error(
+                mpath,
+                "csv",
+                &m.csv,
+                format!("names no file in {}", dir.display()),
+            ));
+        }
+        let link = self.named_by(mpath, "csv", &m.csv);
+        let rows = read_rows(&dir.join(&m.csv)).map_err(|e| e.within(link.clone()))?;
+        if rows.is_empty() {
+            return Err(InputError::new(
+                dir.join(&m.csv).display().to_string(),
+                "rows",
+                "0 rows",
+                "expected the sweep's frames, one row each",
+            )
+            .within(link));
+        }
+        Ok(rows)
+    }
+
+    /// Every image the sweep's manifest names, checked (a regular file under the run folder,
+    /// within [`MAX_EMBEDDED_IMAGE_BYTES`], and the report's images within
+    /// [`MAX_EMBEDDED_TOTAL_BYTES`] in all), keyed as the report's Markdown writes it ([`rel`]).
+    fn images(&mut self, sweep: &Sweep) -> Result<Embeds, InputError> {
+        let Sweep { dir, mpath, m } = sweep;
         let mut named: Vec<(String, &str)> = Vec::new();
         for (i, (p, _)) in m.plots.iter().enumerate() {
             named.push((format!("plots[{i}][0]"), p));
@@ -154,9 +251,85 @@ impl Run {
             } else {
                 self.named(mpath, dir, &key, p)?
             };
-            embeds.insert(rel(dir, m, p), file);
+            let embed = match file {
+                None => None,
+                Some(file) => {
+                    let size =
+                        regular_file(&file).map_err(|e| e.within(self.named_by(mpath, &key, p)))?;
+                    if size > MAX_EMBEDDED_IMAGE_BYTES {
+                        return Err(self.error(
+                            mpath,
+                            &key,
+                            p,
+                            format!(
+                                "names an image of {}, over the limit of {} for an image a report embeds",
+                                size_text(size),
+                                size_text(MAX_EMBEDDED_IMAGE_BYTES)
+                            ),
+                        ));
+                    }
+                    self.embedded += size;
+                    if self.embedded > MAX_EMBEDDED_TOTAL_BYTES {
+                        return Err(self.error(
+                            mpath,
+                            &key,
+                            p,
+                            format!(
+                                "brings the report's embedded images to {}, over the limit of {} for one report",
+                                size_text(self.embedded),
+                                size_text(MAX_EMBEDDED_TOTAL_BYTES)
+                            ),
+                        ));
+                    }
+                    Some(Embed {
+                        file,
+                        named_by: self.named_by(mpath, &key, p),
+                    })
+                }
+            };
+            embeds.insert(rel(dir, m, p), embed);
         }
         Ok(embeds)
+    }
+
+    /// Every sweep of the run (each `DIR/*/sweep.json`, in name order), its manifest checked
+    /// and parsed. A `sweep.json` that is not a regular file under the run (a FIFO, a link to a
+    /// device or out of the run, a folder) is an error naming it, never skipped.
+    fn sweeps(&self) -> Result<Vec<Sweep>, InputError> {
+        let err = |p: &Path, e: &dyn std::fmt::Display| {
+            InputError::new(p.display().to_string(), "read", "", e.to_string())
+        };
+        let mut dirs = Vec::new();
+        for entry in std::fs::read_dir(&self.given).map_err(|e| err(&self.given, &e))? {
+            dirs.push(entry.map_err(|e| err(&self.given, &e))?.path());
+        }
+        dirs.sort();
+        let mut sweeps = Vec::new();
+        for dir in dirs {
+            let mpath = dir.join("sweep.json");
+            match std::fs::symlink_metadata(&mpath) {
+                Ok(_) => {}
+                // Not a sweep folder (or not a folder: `report.md`).
+                Err(e)
+                    if e.kind() == std::io::ErrorKind::NotFound
+                        || e.kind() == std::io::ErrorKind::NotADirectory =>
+                {
+                    continue;
+                }
+                Err(e) => return Err(err(&mpath, &e).within(self.link())),
+            }
+            let m = self.manifest(&mpath)?;
+            sweeps.push(Sweep { dir, mpath, m });
+        }
+        if sweeps.is_empty() {
+            return Err(InputError::new(
+                self.given.display().to_string(),
+                "sweeps",
+                "",
+                "no */sweep.json found: run `forestlod sweep --out DIR` first",
+            ));
+        }
+        Ok(sweeps)
     }
 }
 
@@ -518,9 +691,8 @@ pub fn noise_section(out: &mut String, groups: &[(String, Vec<&Row>)]) {
     let _ = writeln!(out);
 }
 
-fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), InputError> {
+fn sweep_section(out: &mut String, dir: &Path, m: &Manifest, rows: &[Row]) {
     let rel = |p: &str| dest(&rel(dir, m, p));
-    let rows = read_rows(&dir.join(&m.csv))?;
     let _ = writeln!(
         out,
         "## {}\n",
@@ -588,7 +760,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
     // Summary table.
     let mut groups: BTreeMap<String, Vec<&Row>> = BTreeMap::new();
     let mut order: Vec<String> = Vec::new();
-    for r in &rows {
+    for r in rows {
         let k = group_key(&m.x_axis, r);
         if !groups.contains_key(&k) {
             order.push(k.clone());
@@ -670,7 +842,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         );
         let _ = writeln!(out, "|---|---|--:|--:|--:|--:|--:|---|---|");
         let mut pairs: Vec<(String, String)> = Vec::new();
-        for r in &rows {
+        for r in rows {
             let key = (r.backend.clone(), r.camera.clone());
             if !pairs.contains(&key) {
                 pairs.push(key);
@@ -740,7 +912,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
         "distance" => format!("{} m ({})", r.distance_m, r.backend),
         _ => format!("all frames ({})", r.backend),
     };
-    for r in &rows {
+    for r in rows {
         let s = section_of(r);
         if !sections.contains(&s) {
             sections.push(s);
@@ -866,37 +1038,19 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest) -> Result<(), Input
             }
         }
     }
-    Ok(())
 }
 
-/// Writes `DIR/report.md` from every `DIR/*/sweep.json`; returns its path.
+/// Writes `DIR/report.md` and `DIR/report.html` from every `DIR/*/sweep.json`; returns the
+/// Markdown's path. Every input is read and checked (module docs) and both pages are made before
+/// either is written, so a refused run gets no report.
 pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
-    let err = |p: &Path, e: &dyn std::fmt::Display| {
-        InputError::new(p.display().to_string(), "read", "", e.to_string())
-    };
-    let checked = Run::new(run)?;
-    let mut manifests = Vec::new();
+    let mut checked = Run::new(run)?;
+    let mut sweeps = Vec::new();
     let mut embeds = Embeds::new();
-    let entries = std::fs::read_dir(run).map_err(|e| err(run, &e))?;
-    for entry in entries {
-        let entry = entry.map_err(|e| err(run, &e))?;
-        let mpath = entry.path().join("sweep.json");
-        if mpath.is_file() {
-            let file = checked.manifest(&mpath)?;
-            let text = std::fs::read_to_string(file).map_err(|e| err(&mpath, &e))?;
-            let m: Manifest = serde_json::from_str(&text).map_err(|e| err(&mpath, &e))?;
-            checked.named(&mpath, &entry.path(), "csv", &m.csv)?;
-            embeds.append(&mut checked.images(&mpath, &entry.path(), &m)?);
-            manifests.push((entry.path(), m));
-        }
-    }
-    if manifests.is_empty() {
-        return Err(InputError::new(
-            run.display().to_string(),
-            "sweeps",
-            "",
-            "no */sweep.json found: run `forestlod sweep --out DIR` first",
-        ));
+    for sweep in checked.sweeps()? {
+        let rows = checked.rows(&sweep)?;
+        embeds.append(&mut checked.images(&sweep)?);
+        sweeps.push((sweep, rows));
     }
     // Built-in order first, then by name.
     let rank = |n: &str| {
@@ -905,7 +1059,8 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
             .position(|(b, _)| *b == n)
             .unwrap_or(usize::MAX)
     };
-    manifests.sort_by(|a, b| (rank(&a.1.name), &a.1.name).cmp(&(rank(&b.1.name), &b.1.name)));
+    sweeps
+        .sort_by(|(a, _), (b, _)| (rank(&a.m.name), &a.m.name).cmp(&(rank(&b.m.name), &b.m.name)));
     let mut out = String::new();
     let _ = writeln!(out, "# forestlod: the speed–accuracy trade, measured\n");
     let _ = writeln!(
@@ -922,7 +1077,7 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
         code_span(&format!("forestlod report --run {}", run.display()))
     );
     let _ = writeln!(out, "Contents:\n");
-    for (_, m) in &manifests {
+    for (Sweep { m, .. }, _) in &sweeps {
         let heading = format!("{} ({})", m.title, m.scenes.join(", "));
         let anchor = crate::html::anchor(&heading);
         let _ = writeln!(
@@ -933,52 +1088,48 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
         );
     }
     let _ = writeln!(out);
-    for (dir, m) in &manifests {
-        sweep_section(&mut out, dir, m)?;
+    for (Sweep { dir, m, .. }, rows) in &sweeps {
+        sweep_section(&mut out, dir, m, rows);
     }
+    let page = crate::html::report_page(&out, &embeds, "forestlod sweep report")?;
     let path = run.join("report.md");
-    std::fs::write(&path, &out)
-        .map_err(|e| InputError::new(path.display().to_string(), "write", "", e.to_string()))?;
     let html = run.join("report.html");
-    let page = crate::html::report_page(&out, &embeds, "forestlod sweep report");
-    std::fs::write(&html, page)
-        .map_err(|e| InputError::new(html.display().to_string(), "write", "", e.to_string()))?;
+    for (file, text) in [(&path, &out), (&html, &page)] {
+        std::fs::write(file, text)
+            .map_err(|e| InputError::new(file.display().to_string(), "write", "", e.to_string()))?;
+    }
     Ok(path)
 }
 
 /// Redraws the plots of every `DIR/*/sweep.json` from its CSV and records them in the manifest;
-/// returns how many sweeps were redrawn.
+/// returns how many sweeps were redrawn. Every manifest and CSV is read and checked before the
+/// first plot is drawn.
 pub fn replot(run: &Path) -> Result<usize, InputError> {
     let err = |p: &Path, e: &dyn std::fmt::Display| {
         InputError::new(p.display().to_string(), "replot", "", e.to_string())
     };
     let checked = Run::new(run)?;
-    let mut n = 0;
-    for entry in std::fs::read_dir(run).map_err(|e| err(run, &e))? {
-        let dir = entry.map_err(|e| err(run, &e))?.path();
-        let mpath = dir.join("sweep.json");
-        if !mpath.is_file() {
-            continue;
-        }
-        let file = checked.manifest(&mpath)?;
-        let text = std::fs::read_to_string(file).map_err(|e| err(&mpath, &e))?;
-        let mut m: Manifest = serde_json::from_str(&text).map_err(|e| err(&mpath, &e))?;
-        checked.named(&mpath, &dir, "csv", &m.csv)?;
-        let spec = match &m.spec {
+    let mut sweeps = Vec::new();
+    for sweep in checked.sweeps()? {
+        let rows = checked.rows(&sweep)?;
+        let spec = match &sweep.m.spec {
             Some(spec) => spec.clone(),
             None => {
-                let spec = crate::sweep::resolve(Some(&m.name))?
+                let spec = crate::sweep::resolve(Some(&sweep.m.name))
+                    .map_err(|e| e.within(checked.named_by(&sweep.mpath, "name", &sweep.m.name)))?
                     .pop()
                     .expect("resolve returns one spec for a name");
-                if m.quick { spec.quick() } else { spec }
+                if sweep.m.quick { spec.quick() } else { spec }
             }
         };
-        let rows = read_rows(&dir.join(&m.csv))?;
+        sweeps.push((sweep, rows, spec));
+    }
+    let n = sweeps.len();
+    for (Sweep { dir, mpath, mut m }, rows, spec) in sweeps {
         m.plots = crate::sweep::write_plots(&spec, &rows, &dir)?;
         m.spec = Some(spec);
         let json = serde_json::to_string_pretty(&m).map_err(|e| err(&mpath, &e))?;
         std::fs::write(&mpath, json).map_err(|e| err(&mpath, &e))?;
-        n += 1;
     }
     Ok(n)
 }

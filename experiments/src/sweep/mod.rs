@@ -50,7 +50,7 @@ pub use load::{
     parse_sweep_toml,
 };
 pub use plots::write_plots;
-pub use rows::{FrameImages, MAX_SWEEP_CSV_BYTES, Manifest, Row, read_csv, write_csv};
+pub use rows::{FrameImages, MAX_SWEEP_CSV_BYTES, Manifest, Row, parse_csv, read_csv, write_csv};
 pub use runner::Runner;
 pub use spec::{
     AxisSpec, CameraSpec, DISTANCE_PATH_BASE_HEIGHT_M, DISTANCE_PATH_CLIMB,

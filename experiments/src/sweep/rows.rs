@@ -165,13 +165,18 @@ enum Column {
 }
 
 /// Reads a sweep CSV written by [`write_csv`] (or before a parameter column was added or
-/// renamed: module docs). A cell that does not parse is an error naming the row and column.
-/// Read through [`forestlod_reference::files::read_limited`]: a regular file of at most
-/// [`MAX_SWEEP_CSV_BYTES`] (issue 28).
+/// renamed: module docs): a regular file of at most [`MAX_SWEEP_CSV_BYTES`]
+/// ([`forestlod_reference::files`]). A cell that does not parse is an error naming the row and
+/// column.
 pub fn read_csv(path: &Path) -> Result<Vec<Row>, InputError> {
-    let file = path.display().to_string();
     let bytes = forestlod_reference::files::read_limited(path, MAX_SWEEP_CSV_BYTES)?;
-    let mut reader = csv::Reader::from_reader(&bytes[..]);
+    parse_csv(&bytes, &path.display().to_string())
+}
+
+/// [`read_csv`] of the bytes of a CSV; `file` names it in errors.
+pub fn parse_csv(bytes: &[u8], file: &str) -> Result<Vec<Row>, InputError> {
+    let file = file.to_string();
+    let mut reader = csv::Reader::from_reader(bytes);
     let headers = reader
         .headers()
         .map_err(|e| InputError::new(file.clone(), "header", "", e.to_string()))?
@@ -205,12 +210,30 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, InputError> {
             InputError::new(file.clone(), at.clone(), "", e.to_string())
         };
         let record = record.map_err(|e| bad(&e))?;
-        let mut row: Row = pick(&record, is_own)
+        // A cell that does not deserialize: named by its column and value where the csv crate
+        // says which field it was.
+        let cell = |picked: &StringRecord, names: &StringRecord, e: csv::Error| {
+            if let csv::ErrorKind::Deserialize { err, .. } = e.kind()
+                && let Some(i) = err.field().map(|i| i as usize)
+                && let (Some(name), Some(value)) = (names.get(i), picked.get(i))
+            {
+                return InputError::new(
+                    file.clone(),
+                    format!("{at}, column {name}"),
+                    value,
+                    err.kind().to_string(),
+                );
+            }
+            bad(&e)
+        };
+        let own = pick(&record, is_own);
+        let mut row: Row = own
             .deserialize(Some(&own_headers))
-            .map_err(|e| bad(&e))?;
-        row.accuracy = pick(&record, is_acc)
+            .map_err(|e| cell(&own, &own_headers, e))?;
+        let acc = pick(&record, is_acc);
+        row.accuracy = acc
             .deserialize(Some(&acc_headers))
-            .map_err(|e| bad(&e))?;
+            .map_err(|e| cell(&acc, &acc_headers, e))?;
         for ((kind, value), column) in kinds.iter().zip(&record).zip(&headers) {
             if let Column::Param(spec) = kind {
                 let v = spec.parse(value).map_err(|e| {

@@ -5,6 +5,21 @@
 //! named file ([`GltfBuffers`]). Every accessor read is bounds-checked; every failure names the
 //! file, the mesh/primitive/attribute and the value.
 //!
+//! Issue 28 (hostile input):
+//! - **GLB headers are checked here** before the `gltf` crate reads the file ([`check_glb`]): the
+//!   crate reports a wrong magic as a JSON parse error, a declared length past the end as "could
+//!   not completely read the object", subtracts the header from a declared length below 12
+//!   without a check, and accepts a file longer than declared. Each header field (magic,
+//!   version, length) and each chunk header (type, length) gets an error naming the field, the
+//!   value found and the value expected.
+//! - **Buffer URIs are percent-decoded**, as glTF 2.0 requires (its URIs are RFC 3986
+//!   references: a buffer file `my buffer.bin` is written `my%20buffer.bin`), by
+//!   [`buffer_path`]; a `%` not followed by two hex digits, a decoded NUL or non-UTF-8 bytes, a
+//!   query or fragment, and a scheme other than `data:` are errors naming the field. The
+//!   folder confinement applies to the decoded path, so `%2e%2e%2f` cannot leave the folder.
+//! - `data:` URIs are decoded in memory as before; they are bounded by the glTF file's own
+//!   limit ([`MAX_MESH_FILE_BYTES`]), since they are part of it.
+//!
 //! Depends on `paths`, `diagnostics`, `coords` and `png_texture`.
 
 use std::path::Path;
@@ -51,6 +66,183 @@ pub fn load_gltf_mesh(
     parse_gltf_mesh(name, &bytes, &label(gltf), up, image, &buffers)
 }
 
+/// The GLB header's magic, `glTF` (glTF 2.0 §4.4.2).
+const GLB_MAGIC: [u8; 4] = *b"glTF";
+/// The GLB container version this loader reads.
+const GLB_VERSION: u32 = 2;
+/// Bytes of the GLB header: magic, version, length.
+const GLB_HEADER_BYTES: usize = 12;
+/// Bytes of a chunk header: length, type.
+const GLB_CHUNK_HEADER_BYTES: usize = 8;
+/// The first chunk's type: the JSON document.
+const GLB_JSON: [u8; 4] = *b"JSON";
+/// The second chunk's type, when there is one: the binary buffer.
+const GLB_BIN: [u8; 4] = *b"BIN\0";
+
+/// Four bytes as an error shows them: as text with non-printable bytes escaped, and as the
+/// little-endian number the header holds.
+fn tag(bytes: [u8; 4]) -> String {
+    format!(
+        "{} ({:#010x})",
+        bytes.escape_ascii(),
+        u32::from_le_bytes(bytes)
+    )
+}
+
+fn u32_at(bytes: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]])
+}
+
+/// Whether `bytes` (of `file`) are read as a GLB: the name ends in `.glb`, or the bytes start
+/// with the GLB magic (as the `gltf` crate decides).
+fn is_glb(bytes: &[u8], file: &str) -> bool {
+    bytes.starts_with(&GLB_MAGIC)
+        || Path::new(file)
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("glb"))
+}
+
+/// Checks a GLB's header and chunk headers (glTF 2.0 §4.4, module docs): magic `glTF`, version
+/// 2, a declared length equal to the file's size, a first chunk of type `JSON` whose length fits
+/// the file, and, when more bytes follow, a chunk of type `BIN\0` whose length fits. Each error
+/// names `file`, the field (`GLB header, magic`, `GLB chunk 0 (JSON), length`...), the value
+/// found and the value expected.
+fn check_glb(bytes: &[u8], file: &str) -> Result<(), InputError> {
+    let err = |position: &str, value: String, reason: String| {
+        InputError::new(file, position, value, reason)
+    };
+    if bytes.len() < GLB_HEADER_BYTES {
+        return Err(err(
+            "GLB header",
+            format!("{} bytes", bytes.len()),
+            format!(
+                "expected the {GLB_HEADER_BYTES}-byte GLB header (magic, version, length): the file is truncated"
+            ),
+        ));
+    }
+    let magic = [bytes[0], bytes[1], bytes[2], bytes[3]];
+    if magic != GLB_MAGIC {
+        return Err(err(
+            "GLB header, magic",
+            tag(magic),
+            format!(
+                "expected {}: a .glb file starts with the binary glTF magic (a JSON glTF file ends in .gltf)",
+                tag(GLB_MAGIC)
+            ),
+        ));
+    }
+    let version = u32_at(bytes, 4);
+    if version != GLB_VERSION {
+        return Err(err(
+            "GLB header, version",
+            version.to_string(),
+            format!("expected {GLB_VERSION} (binary glTF 2.0)"),
+        ));
+    }
+    let length = u32_at(bytes, 8) as usize;
+    if length != bytes.len() {
+        return Err(err(
+            "GLB header, length",
+            format!("{length} bytes"),
+            format!(
+                "expected the file's size, {} bytes: the file is {}",
+                bytes.len(),
+                if length > bytes.len() {
+                    "truncated"
+                } else {
+                    "longer than its header says"
+                }
+            ),
+        ));
+    }
+    let mut at = GLB_HEADER_BYTES;
+    for (index, (want, name, what)) in [
+        (GLB_JSON, "JSON", "the glTF JSON"),
+        (GLB_BIN, "BIN", "the binary buffer"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let left = bytes.len() - at;
+        if index == 1 && left == 0 {
+            break; // no binary chunk
+        }
+        let chunk = format!("GLB chunk {index} ({name})");
+        if left < GLB_CHUNK_HEADER_BYTES {
+            return Err(err(
+                &format!("{chunk}, header"),
+                format!("{left} bytes"),
+                format!("expected an {GLB_CHUNK_HEADER_BYTES}-byte chunk header (length, type)"),
+            ));
+        }
+        let ty = [bytes[at + 4], bytes[at + 5], bytes[at + 6], bytes[at + 7]];
+        if ty != want {
+            return Err(err(
+                &format!("{chunk}, type"),
+                tag(ty),
+                format!("expected {}: chunk {index} holds {what}", tag(want)),
+            ));
+        }
+        let chunk_length = u32_at(bytes, at) as usize;
+        let room = left - GLB_CHUNK_HEADER_BYTES;
+        if chunk_length > room {
+            return Err(err(
+                &format!("{chunk}, length"),
+                format!("{chunk_length} bytes"),
+                format!("expected at most the {room} bytes left in the file"),
+            ));
+        }
+        at += GLB_CHUNK_HEADER_BYTES + chunk_length;
+    }
+    Ok(())
+}
+
+/// The path a relative buffer URI names (module docs): percent-decoded, as UTF-8. `at` is the
+/// field (`buffer 0, uri`) errors name in `file`.
+fn buffer_path(uri: &str, file: &str, at: &str) -> Result<String, InputError> {
+    let err = |reason: String| InputError::new(file, at, uri, reason);
+    // RFC 3986 §3.1: scheme = ALPHA *( ALPHA / DIGIT / "+" / "-" / "." ), then ':'.
+    if let Some((scheme, _)) = uri.split_once(':')
+        && scheme.starts_with(|c: char| c.is_ascii_alphabetic())
+        && scheme
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.'))
+    {
+        return Err(err(format!(
+            "expected a file path relative to the glTF file, or a data: URI; a {scheme}: URI is not read"
+        )));
+    }
+    if let Some(i) = uri.find(['?', '#']) {
+        return Err(err(format!(
+            "expected a file path: {:?} at character {i} starts a URI query or fragment (a file name holding it is written %3F or %23)",
+            &uri[i..=i]
+        )));
+    }
+    let raw = uri.as_bytes();
+    if let Some(i) = raw.iter().enumerate().position(|(i, &b)| {
+        b == b'%'
+            && !(raw.get(i + 1).is_some_and(u8::is_ascii_hexdigit)
+                && raw.get(i + 2).is_some_and(u8::is_ascii_hexdigit))
+    }) {
+        let shown: String = uri[i..].chars().take(3).collect();
+        return Err(err(format!(
+            "invalid percent-encoding {shown:?} at character {i}: expected % and two hex digits (a % in a file name is written %25)"
+        )));
+    }
+    let decoded = percent_encoding::percent_decode_str(uri)
+        .decode_utf8()
+        .map_err(|e| err(format!("percent-decodes to bytes that are not UTF-8 ({e})")))?;
+    if decoded.contains('\0') {
+        return Err(err(
+            "percent-decodes to a NUL byte, which no file name holds".into(),
+        ));
+    }
+    if decoded.is_empty() {
+        return Err(err("expected a file name".into()));
+    }
+    Ok(decoded.into_owned())
+}
+
 /// Decodes standard base64 (RFC 4648, `=` padding optional); `None` on any other character.
 fn decode_base64(text: &str) -> Option<Vec<u8>> {
     let mut out = Vec::with_capacity(text.len() / 4 * 3);
@@ -85,8 +277,10 @@ fn decode_base64(text: &str) -> Option<Vec<u8>> {
 /// - a node that uses the mesh must have the identity transform (apply transforms before
 ///   export): the mesh is taken in its own coordinates, converted from `up` (glTF's +Y by
 ///   default) to Z up;
+/// - a `.glb` file (or one starting with the GLB magic) has a valid GLB header and chunk
+///   headers ([`check_glb`]);
 /// - buffers come from the GLB's binary chunk, a base64 `data:` URI, or a file relative to
-///   the glTF file ([`GltfBuffers`]);
+///   the glTF file, its URI percent-decoded ([`buffer_path`], [`GltfBuffers`]);
 /// - materials and the file's own images are ignored: the scene file's `texture` is the mesh's
 ///   texture (glTF's UV origin is the top-left, as [`TreeMesh::uvs`]).
 ///
@@ -103,6 +297,9 @@ pub fn parse_gltf_mesh(
     let err = |position: String, value: String, reason: String| {
         InputError::new(file, position, value, reason)
     };
+    if is_glb(bytes, file) {
+        check_glb(bytes, file)?;
+    }
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| {
         let message = e.to_string().replace(['\n', '\r'], " ");
         err(
@@ -170,9 +367,10 @@ pub fn parse_gltf_mesh(
                 })?
             }
             gltf::buffer::Source::Uri(uri) => {
+                let named = buffer_path(uri, file, &format!("{at}, uri"))?;
                 let path = confine(
                     buffers.root,
-                    buffers.folder.join(uri),
+                    buffers.folder.join(&named),
                     uri,
                     buffers.options,
                     file,
