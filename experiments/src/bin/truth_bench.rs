@@ -196,8 +196,8 @@ fn plot(out: &std::path::Path, points: &[ScenePoints]) -> Result<(), String> {
 /// The plot points of a `truth_bench.csv`, by scene in file order.
 fn points_from_csv(path: &std::path::Path) -> Result<Vec<ScenePoints>, String> {
     // A CSV this program wrote (`--replot`): regular file, 64 MiB at most (issue 28).
-    let text = forestlod_reference::files::read_text_limited(path, 64 << 20)
-        .map_err(|e| e.to_string())?;
+    let text =
+        forestlod_reference::files::read_text_limited(path, 64 << 20).map_err(|e| e.to_string())?;
     let mut points: Vec<ScenePoints> = Vec::new();
     for (i, line) in text.lines().enumerate().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
