@@ -357,11 +357,14 @@ fn read_commands(path: &Path) -> Result<Vec<CommandRow>> {
 
 /// `forestlod export-case`.
 pub fn export(args: &ExportArgs) -> Result<u8> {
+    // `--out` checked before any work, and created only once the scene is prepared (issue 28).
+    crate::render::check_out(&args.out)?;
+    crate::render::check_viewport(args.width, args.height)?;
     let params = args.params.params()?;
     let scene = args.scene.load()?;
     let camera = args.camera.camera(&scene, args.width, args.height)?;
-    std::fs::create_dir_all(&args.out).map_err(|e| io(&args.out, e))?;
     let prepared = prepare(scene, &params)?;
+    std::fs::create_dir_all(&args.out).map_err(|e| io(&args.out, e))?;
     // The oracle's frame, and the commands it draws: every selection stage of the frame's plan,
     // `refine` included when `tree_cull` runs it (module docs).
     let frame = prepared.render(&camera, &params)?;

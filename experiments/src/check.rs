@@ -885,6 +885,10 @@ pub fn run(args: &CheckArgs) -> Result<u8> {
         Some(dir) => Some((dir, read_replay(dir)?)),
         None => None,
     };
+    if replay.is_none() {
+        // Where failing cases would be written: checked before any work (issue 28).
+        crate::render::check_out(&args.out)?;
+    }
     let Some(ctx) = forestlod_harness::context::gpu_context() else {
         eprintln!(
             "check skipped: no suitable GPU adapter; install Mesa's lavapipe with scripts/install-deps"

@@ -1,4 +1,4 @@
-//! Hostile command-line flags (issue 28, "errors name the flag" and "work and memory refused up
+//! Hostile command-line flags of `render`, `export-case` and `check` (issue 28, "errors name the flag" and "work and memory refused up
 //! front"), one table: each case runs the real `forestlod` binary under a deadline with a fresh
 //! `TMPDIR`, and must
 //! - exit with the expected code (1: bad input) within [`DEADLINE`] (no hang, no abort);
@@ -33,69 +33,85 @@ enum Out {
 
 struct Case {
     name: &'static str,
+    /// The command before `args`: [`RENDER`], [`EXPORT`] or [`CHECK`].
+    tool: &'static [&'static str],
     args: &'static [&'static str],
     out: Out,
     /// Fragments the one error line must contain.
     expect: &'static [&'static str],
 }
 
+const RENDER: &[&str] = &["render", "--scene", "tiny", "--no-gpu"];
+const EXPORT: &[&str] = &["export-case", "--scene", "tiny"];
+const CHECK: &[&str] = &["check", "--cases", "1"];
+
 const CASES: &[Case] = &[
     Case {
         name: "yaw inf",
+        tool: RENDER,
         args: &["--yaw", "inf"],
         out: Out::Absent,
         expect: &["--yaw", "inf", "finite"],
     },
     Case {
         name: "yaw nan",
+        tool: RENDER,
         args: &["--yaw", "NaN"],
         out: Out::Absent,
         expect: &["--yaw", "NaN", "finite"],
     },
     Case {
         name: "yaw -inf",
+        tool: RENDER,
         args: &["--yaw=-inf"],
         out: Out::Absent,
         expect: &["--yaw", "-inf"],
     },
     Case {
         name: "width 0",
+        tool: RENDER,
         args: &["--width", "0"],
         out: Out::Absent,
         expect: &["--width", "\"0\"", "pixels"],
     },
     Case {
         name: "height too large",
+        tool: RENDER,
         args: &["--height", "16385"],
         out: Out::Absent,
         expect: &["--height", "16385", "1..=16384"],
     },
     Case {
         name: "lod levels out of range",
+        tool: RENDER,
         args: &["--lod-levels", "9"],
         out: Out::Absent,
         expect: &["<command line>", "--lod-levels (field lod_levels)", "\"9\""],
     },
     Case {
         name: "out is a file",
+        tool: RENDER,
         args: &[],
         out: Out::File,
         expect: &["--out", "cannot be used as the output folder"],
     },
     Case {
         name: "out is a dangling link",
+        tool: RENDER,
         args: &[],
         out: Out::DanglingLink,
         expect: &["--out", "does not resolve", "nowhere"],
     },
     Case {
         name: "out is under a dangling link",
+        tool: RENDER,
         args: &[],
         out: Out::UnderDanglingLink,
         expect: &["--out", "does not resolve", "nowhere"],
     },
     Case {
         name: "bake memory: 4096 x 91 angles",
+        tool: RENDER,
         args: &["--texture-size", "4096", "--angles", "91"],
         out: Out::Absent,
         expect: &[
@@ -107,9 +123,38 @@ const CASES: &[Case] = &[
     },
     Case {
         name: "bake memory: 4096 x 10 angles",
+        tool: RENDER,
         args: &["--texture-size", "4096", "--angles", "10"],
         out: Out::Absent,
         expect: &["4096 x 10 angles", "over the limit of"],
+    },
+    Case {
+        name: "export-case out is a dangling link",
+        tool: EXPORT,
+        args: &[],
+        out: Out::DanglingLink,
+        expect: &["--out", "does not resolve", "nowhere"],
+    },
+    Case {
+        name: "export-case out is a file",
+        tool: EXPORT,
+        args: &[],
+        out: Out::File,
+        expect: &["--out", "cannot be used as the output folder"],
+    },
+    Case {
+        name: "export-case bake memory",
+        tool: EXPORT,
+        args: &["--texture-size", "4096", "--angles", "91"],
+        out: Out::Absent,
+        expect: &["4096 x 91 angles", "MAX_BAKE_BYTES"],
+    },
+    Case {
+        name: "check out under a dangling link",
+        tool: CHECK,
+        args: &[],
+        out: Out::UnderDanglingLink,
+        expect: &["--out", "does not resolve", "nowhere"],
     },
 ];
 
@@ -145,12 +190,19 @@ fn out_unchanged(dir: &Path, out: Out, path: &Path) -> bool {
     }
 }
 
-/// Runs `forestlod render ARGS --out OUT` (tiny scene, small viewport, no GPU) under
+/// Runs `forestlod TOOL ARGS --out OUT` (tiny scene, small viewport, no GPU for render) under
 /// [`DEADLINE`]; returns (exit code, stderr). A run past the deadline is killed and fails.
-fn run(dir: &Path, args: &[&str], out: &Path, tmp: &Path, what: &str) -> (Option<i32>, String) {
-    let mut all = vec!["render", "--scene", "tiny", "--no-gpu"];
+fn run(
+    dir: &Path,
+    tool: &[&str],
+    args: &[&str],
+    out: &Path,
+    tmp: &Path,
+    what: &str,
+) -> (Option<i32>, String) {
+    let mut all = tool.to_vec();
     for flag in ["--width", "--height"] {
-        if !args.contains(&flag) {
+        if tool != CHECK && !args.contains(&flag) {
             all.extend([flag, "32"]);
         }
     }
@@ -193,8 +245,13 @@ fn hostile_flags_are_refused_naming_the_flag() {
         let tmp = dir.join("tmp");
         std::fs::create_dir_all(&tmp).unwrap();
         let out = prepare_out(&dir, case.out);
-        let what = format!("{}: forestlod render {}", case.name, case.args.join(" "));
-        let (code, stderr) = run(&dir, case.args, &out, &tmp, &what);
+        let what = format!(
+            "{}: forestlod {} {}",
+            case.name,
+            case.tool.join(" "),
+            case.args.join(" ")
+        );
+        let (code, stderr) = run(&dir, case.tool, case.args, &out, &tmp, &what);
         let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
         let mut problems = Vec::new();
         if code != Some(1) {

@@ -475,7 +475,7 @@ fn cases() -> Vec<Case> {
                 "s.toml: sweep size",
                 "GiB",
                 "angle_count = 91, texture_size = 4096",
-                "MAX_BILLBOARD_BYTES",
+                "MAX_BILLBOARD_BYTES = MAX_BAKE_BYTES",
             ],
         },
         Case {

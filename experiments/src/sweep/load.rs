@@ -60,11 +60,14 @@ pub const MAX_FRAME_SIDE: u32 = 8192;
 /// not (6 GiB): a frame may take an eighth of a 32 GiB machine.
 pub const MAX_FRAME_BYTES: u128 = 4 << 30;
 
-/// Most memory one species' billboards may need ([`Estimate::billboard_bytes`]): `angle_count`
-/// layers of `texture_size²` RGBA8 texels, held as baked layers, mip chains and the texture array
-/// (each mip chain 4/3 of its base). `--texture-size 4096 --angles 91` asks for about 22 GiB
-/// a species; the largest built-in setting (20 angles of 512²) for 80 MiB.
-pub const MAX_BILLBOARD_BYTES: u128 = 4 << 30;
+/// Most memory the billboard bake may need: the reference's own limit
+/// ([`forestlod_reference::bake::MAX_BAKE_BYTES`], 16 GiB, which `prepare` applies to the whole
+/// scene), checked here at load for one species
+/// ([`forestlod_reference::bake::bake_memory_bytes`], exact for what the bake keeps): a sweep
+/// file does not say how many species its scenes have, so a scene of several species may still be
+/// refused by `prepare` before anything is built. `--texture-size 4096 --angles 91` asks for
+/// about 82 GiB a species.
+pub const MAX_BILLBOARD_BYTES: u128 = forestlod_reference::bake::MAX_BAKE_BYTES as u128;
 
 /// Most memory the ground-truth images of one sweep may take ([`Estimate::truth_bytes`]): the
 /// runner keeps every pose's truth image for the whole run (they are shared by every parameter
@@ -78,9 +81,6 @@ const TARGET_BYTES_PER_PIXEL: u128 = 32;
 const KEPT_BYTES_PER_PIXEL: u128 = 8;
 /// Bytes a ground-truth image takes per traced pixel (linear RGB, sRGB, class, tree fraction).
 const TRUTH_BYTES_PER_PIXEL: u128 = 24;
-/// Billboard bytes per texel of one layer: RGBA8 layer, mip chain and texture array (4/3 each),
-/// rounded up.
-const BILLBOARD_BYTES_PER_TEXEL: u128 = 15;
 
 /// One step of a key path: a table key or an array index.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -826,10 +826,7 @@ impl SweepSpec {
         })?;
         for set in &sets {
             let p = &set.params;
-            let bytes = u128::from(p.angle_count)
-                * u128::from(p.texture_size)
-                * u128::from(p.texture_size)
-                * BILLBOARD_BYTES_PER_TEXEL;
+            let bytes = u128::from(forestlod_reference::bake::bake_memory_bytes(1, p));
             if bytes > MAX_BILLBOARD_BYTES {
                 return over(
                     &format!(
@@ -838,7 +835,7 @@ impl SweepSpec {
                     ),
                     bytes_text(bytes),
                     bytes_text(MAX_BILLBOARD_BYTES),
-                    "MAX_BILLBOARD_BYTES",
+                    "MAX_BILLBOARD_BYTES = MAX_BAKE_BYTES",
                 );
             }
         }
