@@ -82,15 +82,37 @@ impl InputError {
     }
 }
 
+/// `text` with its control characters escaped (`\n`, `\u{1b}`), so that text a file put into a
+/// key, a file name or a library's message cannot break the error's one line (issue 28: a JSON
+/// key holding `\n` came back in serde's "unknown field" message; found by the `sweep_json`
+/// fuzz target).
+struct OneLine<'a>(&'a str);
+
+impl fmt::Display for OneLine<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for c in self.0.chars() {
+            if c.is_control() {
+                write!(f, "{}", c.escape_default())?;
+            } else {
+                write!(f, "{c}")?;
+            }
+        }
+        Ok(())
+    }
+}
+
 impl fmt::Display for InputError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         for link in &self.chain {
-            write!(f, "{link}: ")?;
+            write!(f, "{}: ", OneLine(link))?;
         }
         write!(
             f,
             "{}: {}: value {:?}: {}",
-            self.file, self.position, self.value, self.reason
+            OneLine(&self.file),
+            OneLine(&self.position),
+            self.value,
+            OneLine(&self.reason)
         )
     }
 }
@@ -126,5 +148,14 @@ mod tests {
         assert_eq!(cut("short"), "short");
         let e = InputError::new(COMMAND_LINE, "--out", &long, "bad");
         assert_eq!(e.value, long, "command-line values are echoed whole");
+        // Control characters anywhere (a key, a file name, a library's message) stay escaped.
+        let e =
+            InputError::new("a\nb.json", "key x\ny", "v", "unknown field `x\ny`").within("outer\r");
+        let text = e.to_string();
+        assert!(!text.contains('\n') && !text.contains('\r'), "{text}");
+        assert!(
+            text.contains("key x\\ny") && text.contains("a\\nb.json"),
+            "{text}"
+        );
     }
 }

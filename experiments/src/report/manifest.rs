@@ -434,6 +434,24 @@ mod tests {
     use super::*;
     use std::path::Path;
 
+    /// The `sweep_json` fuzz target's finding (crash-e2cc1337…): a key holding an escaped newline
+    /// came back raw in serde's "unknown field" message, a two-line error. Control characters are
+    /// escaped by `InputError`'s display, at every depth.
+    #[test]
+    fn a_key_holding_a_newline_gives_a_one_line_error() {
+        for text in [
+            "{\"na\\nme\": 1}",
+            "{\"spec\": {\"back\\nds\": [\"reference\"]}}",
+            "{\"x\\u001b[2J\\r\": 1}",
+        ] {
+            let e = parse_manifest(text, "run/s/sweep.json")
+                .unwrap_err()
+                .to_string();
+            assert_eq!(e.lines().count(), 1, "{text}: {e:?}");
+            assert!(!e.contains('\r') && !e.contains('\u{1b}'), "{text}: {e:?}");
+        }
+    }
+
     fn committed() -> Vec<std::path::PathBuf> {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("results");
         let mut found = Vec::new();
