@@ -8,8 +8,8 @@
 //!   empty.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Duration;
 
 #[path = "../../reference/tests/common/mod.rs"]
 mod common;
@@ -209,32 +209,18 @@ fn run(
     all.extend(args);
     let out_s = out.to_str().unwrap().to_string();
     all.extend(["--out", &out_s]);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_forestlod"))
-        .args(&all)
-        .current_dir(dir)
-        .env("TMPDIR", tmp)
-        .env("RUST_BACKTRACE", "0")
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run forestlod");
-    let start = Instant::now();
-    loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            let mut stderr = String::new();
-            std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut stderr).unwrap();
-            return (status.code(), stderr);
-        }
-        if start.elapsed() > DEADLINE {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!(
-                "{what}: still running after {DEADLINE:?} (a hang, or work not refused up front)"
-            );
-        }
-        std::thread::sleep(Duration::from_millis(20));
+    let (code, stderr) = common::run_with_deadline(
+        Command::new(env!("CARGO_BIN_EXE_forestlod"))
+            .args(&all)
+            .current_dir(dir)
+            .env("TMPDIR", tmp)
+            .env("RUST_BACKTRACE", "0"),
+        DEADLINE,
+    );
+    if code.is_none() {
+        panic!("{what}: {stderr} (a hang, or work not refused up front)");
     }
+    (code, stderr)
 }
 
 #[test]

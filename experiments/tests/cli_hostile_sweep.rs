@@ -15,8 +15,11 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Duration;
+
+#[path = "../../reference/tests/common/mod.rs"]
+mod common;
 
 use forestlod_experiments::sweep::{BUILTIN_SWEEPS, MAX_SWEEP_FRAMES, parse_sweep_toml};
 
@@ -648,30 +651,14 @@ fn cases() -> Vec<Case> {
 /// Runs `forestlod sweep ARGS` under [`DEADLINE`] with a fresh `$TMPDIR`, returning its exit
 /// code and stderr; the child is killed at the deadline.
 fn run_child(args: &[String], tmp: &Path) -> (Option<i32>, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_forestlod"))
-        .arg("sweep")
-        .args(args)
-        .env("TMPDIR", tmp)
-        .env("RUST_BACKTRACE", "0")
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run forestlod");
-    let start = Instant::now();
-    loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            let mut err = String::new();
-            std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut err).unwrap();
-            return (status.code(), err);
-        }
-        if start.elapsed() > DEADLINE {
-            let _ = child.kill();
-            let _ = child.wait();
-            return (None, format!("<no answer within {DEADLINE:?}>"));
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    common::run_with_deadline(
+        Command::new(env!("CARGO_BIN_EXE_forestlod"))
+            .arg("sweep")
+            .args(args)
+            .env("TMPDIR", tmp)
+            .env("RUST_BACKTRACE", "0"),
+        DEADLINE,
+    )
 }
 
 /// Whether `line` contains every fragment of `pattern`, in order.

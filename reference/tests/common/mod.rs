@@ -112,3 +112,35 @@ pub const CARD_UVS: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0
 pub fn gltf_card(indices: &[u16], mode: u32) -> String {
     gltf_json(&CARD_POSITIONS, &CARD_UVS, indices, mode)
 }
+
+/// Runs `command` (its stdin closed, stdout dropped, stderr captured) until it exits or
+/// `deadline` passes, when it is killed: `(exit code, stderr)`, or `(None, "<no answer within
+/// …>")` past the deadline. The hostile-input tables of issue 28 run every case through it, so a
+/// hang fails the case that hangs instead of the whole suite. Stderr is read after exit: the
+/// commands under test print one line, far below a pipe's buffer.
+pub fn run_with_deadline(
+    command: &mut std::process::Command,
+    deadline: std::time::Duration,
+) -> (Option<i32>, String) {
+    use std::process::Stdio;
+    let mut child = command
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run the command");
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            let mut err = String::new();
+            std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut err).unwrap();
+            return (status.code(), err);
+        }
+        if start.elapsed() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            return (None, format!("<no answer within {deadline:?}>"));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
