@@ -31,7 +31,7 @@ use forestlod_shared::Params;
 use toml::Spanned;
 use toml::de::{DeTable, DeValue};
 
-use super::spec::{QuickSpec, SweepSpec, set_param};
+use super::spec::{QuickSpec, SweepSpec, canonical, same_param, set_param};
 
 /// Largest sweep file read: the built-in ones are under 4 KiB; 1 MiB leaves room for long
 /// descriptions and generated axes while a huge or endless file (`/dev/zero`) is refused
@@ -436,14 +436,12 @@ fn quick_source(path: &KeyPath, q: &QuickSpec, spec: &SweepSpec) -> KeyPath {
     }
 }
 
-/// The canonical name of parameter key `k` (any spelling the parameter table answers to).
-fn canonical(k: &str) -> Option<&'static str> {
-    forestlod_shared::param(k).map(|s| s.name)
-}
-
-/// Whether two keys name the same parameter.
-pub(crate) fn same_param(a: &str, b: &str) -> bool {
-    a == b || canonical(a).is_some_and(|c| Some(c) == canonical(b))
+impl SweepSpec {
+    /// Parses and validates a sweep file's text ([`parse_sweep_toml`]: errors name the file,
+    /// line, column, key and value).
+    pub fn parse(text: &str, file: &str) -> Result<Self, InputError> {
+        parse_sweep_toml(text, file)
+    }
 }
 
 /// Checks that `name` is a plain folder name: 1 to 64 letters, digits, `_`, `-` or `.`, not

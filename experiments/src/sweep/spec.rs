@@ -11,7 +11,6 @@ use forestlod_reference::scene::Scene;
 use forestlod_shared::{Camera, Params};
 use serde::{Deserialize, Serialize};
 
-use super::load::same_param;
 use super::variant::{Engine, Pipeline, Registered};
 use crate::fair::TileSpec;
 
@@ -263,13 +262,17 @@ pub struct Pose {
     pub path_t: f32,
 }
 
-impl SweepSpec {
-    /// Parses and validates a sweep file's text ([`super::load::parse_sweep_toml`]: errors name
-    /// the file, line, column, key and value).
-    pub fn parse(text: &str, file: &str) -> Result<Self, InputError> {
-        super::load::parse_sweep_toml(text, file)
-    }
+/// The canonical name of parameter key `k` (any spelling the parameter table answers to).
+pub(crate) fn canonical(k: &str) -> Option<&'static str> {
+    forestlod_shared::param(k).map(|s| s.name)
+}
 
+/// Whether two keys name the same parameter.
+pub(crate) fn same_param(a: &str, b: &str) -> bool {
+    a == b || canonical(a).is_some_and(|c| Some(c) == canonical(b))
+}
+
+impl SweepSpec {
     /// Checks every setting, the sweep's size against the work and memory limits and every
     /// parameter set ([`super::load`]'s checks), naming `file` and the key (no line: for a sweep
     /// changed by `--quick` or the command line, or read back from a manifest).
