@@ -61,7 +61,7 @@ use std::time::Instant;
 use forestlod_gpu::{Compaction, GpuContext};
 use forestlod_harness::backend::decode_decision;
 use forestlod_harness::gpu_frame::SelectionChain;
-use forestlod_reference::error::InputError;
+use forestlod_reference::error::{InputError, line_col};
 use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::scene::Scene;
 use forestlod_reference::scene::load::parse_instances_with_builtin_species;
@@ -336,27 +336,6 @@ struct ReplayFile {
     params: toml::Spanned<toml::Table>,
 }
 
-/// 1-based line and column (in characters) of byte `at` of `text`.
-fn line_col(text: &str, at: usize) -> (usize, usize) {
-    let at = at.min(text.len());
-    let before = text.get(..at).unwrap_or(text);
-    let line = before.matches('\n').count() + 1;
-    let col = before.rsplit('\n').next().unwrap_or("").chars().count() + 1;
-    (line, col)
-}
-
-/// The first line of `text[span]`, trimmed (an error's value).
-fn snippet(text: &str, span: std::ops::Range<usize>) -> String {
-    let end = span.end.min(text.len());
-    text.get(span.start.min(end)..end)
-        .unwrap_or("")
-        .lines()
-        .next()
-        .unwrap_or("")
-        .trim()
-        .to_string()
-}
-
 /// Parses and validates a replay's `case.toml` (module docs; what [`Case::write`] writes), `file`
 /// naming it in errors. Pure: no file is read (issue 28). Every refusal is one [`InputError`]
 /// naming `file`, the line, column and field, and the value: TOML that does not parse, a missing
@@ -371,17 +350,10 @@ fn snippet(text: &str, span: std::ops::Range<usize>) -> String {
 pub fn parse_replay_toml(text: &str, file: &str) -> std::result::Result<ReplayToml, InputError> {
     let at = |span: std::ops::Range<usize>, field: &str| {
         let (line, col) = line_col(text, span.start);
-        if field.is_empty() {
-            format!("line {line}, column {col}")
-        } else {
-            format!("line {line}, column {col}, field {field}")
-        }
+        format!("line {line}, column {col}, field {field}")
     };
     let parsed: ReplayFile = toml::from_str(text).map_err(|e| {
-        let (position, value) = match e.span() {
-            Some(span) => (at(span.clone(), ""), snippet(text, span)),
-            None => ("file".to_string(), String::new()),
-        };
+        let (position, value) = forestlod_reference::error::span_position(text, e.span());
         InputError::new(
             file,
             position,
@@ -394,7 +366,8 @@ pub fn parse_replay_toml(text: &str, file: &str) -> std::result::Result<ReplayTo
     })?;
     let c = parsed.camera.get_ref();
     let bad = |span: std::ops::Range<usize>, field: &str, reason: String| {
-        InputError::new(file, at(span.clone(), field), snippet(text, span), reason)
+        let (_, value) = forestlod_reference::error::span_position(text, Some(span.clone()));
+        InputError::new(file, at(span, field), value, reason)
     };
     for (v, field) in [
         (&c.eye, "camera.eye"),

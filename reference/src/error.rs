@@ -82,6 +82,39 @@ impl InputError {
     }
 }
 
+/// 1-based line and column (in characters) of byte `offset` in `text` (an offset inside a
+/// character counts from that character's start).
+pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let mut offset = offset.min(text.len());
+    while !text.is_char_boundary(offset) {
+        offset -= 1;
+    }
+    let before = &text[..offset];
+    let line = before.matches('\n').count() + 1;
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    (line, before[line_start..].chars().count() + 1)
+}
+
+/// Where a parser's error points in `text`: `("line L, column C", the first line of the span,
+/// trimmed)`, or `("file", "")` without a span. The position and value of the TOML syntax errors
+/// of scene files, sweep files and replays.
+pub fn span_position(text: &str, span: Option<std::ops::Range<usize>>) -> (String, String) {
+    let Some(span) = span else {
+        return ("file".to_string(), String::new());
+    };
+    let (line, col) = line_col(text, span.start);
+    let end = span.end.min(text.len());
+    let snippet = text
+        .get(span.start.min(end)..end)
+        .unwrap_or("")
+        .lines()
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_string();
+    (format!("line {line}, column {col}"), snippet)
+}
+
 /// `text` with its control characters escaped (`\n`, `\u{1b}`), so that text a file put into a
 /// key, a file name or a library's message cannot break the error's one line (issue 28: a JSON
 /// key holding `\n` came back in serde's "unknown field" message; found by the `sweep_json`

@@ -27,6 +27,7 @@ use std::ops::Range;
 use std::path::Path;
 
 use forestlod_reference::InputError;
+use forestlod_reference::error::line_col;
 use forestlod_shared::Params;
 use toml::Spanned;
 use toml::de::{DeTable, DeValue};
@@ -184,18 +185,6 @@ impl Bad {
     }
 }
 
-/// 1-based line and column (in characters) of byte `offset` in `text`.
-fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let mut offset = offset.min(text.len());
-    while !text.is_char_boundary(offset) {
-        offset -= 1;
-    }
-    let before = &text[..offset];
-    let line = before.matches('\n').count() + 1;
-    let start = before.rfind('\n').map_or(0, |i| i + 1);
-    (line, before[start..].chars().count() + 1)
-}
-
 /// The span of `path` in `doc`: the value's (or with `at_key`, the last key's), or the deepest
 /// part of the path that exists.
 fn locate(doc: &Spanned<DeTable>, path: &KeyPath, at_key: bool) -> Option<Range<usize>> {
@@ -311,22 +300,7 @@ fn cut_quoted(message: &str) -> String {
 /// one line naming `file`, the line, column and key, and the value.
 pub fn parse_sweep_toml(text: &str, file: &str) -> Result<SweepSpec, InputError> {
     let syntax = |e: toml::de::Error| {
-        let (position, value) = match e.span() {
-            Some(span) => {
-                let (line, col) = line_col(text, span.start);
-                let end = span.end.min(text.len());
-                let snippet = text
-                    .get(span.start.min(end)..end)
-                    .unwrap_or("")
-                    .lines()
-                    .next()
-                    .unwrap_or("")
-                    .trim()
-                    .to_string();
-                (format!("line {line}, column {col}"), snippet)
-            }
-            None => ("file".to_string(), String::new()),
-        };
+        let (position, value) = forestlod_reference::error::span_position(text, e.span());
         InputError::new(
             file,
             position,

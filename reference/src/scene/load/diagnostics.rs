@@ -5,17 +5,7 @@
 //!
 //! Imports none of the other loader files.
 
-/// 1-based line and column (in characters) of byte `offset` in `text`.
-pub(super) fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let mut offset = offset.min(text.len());
-    while !text.is_char_boundary(offset) {
-        offset -= 1;
-    }
-    let before = &text[..offset];
-    let line = before.matches('\n').count() + 1;
-    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
-    (line, before[line_start..].chars().count() + 1)
-}
+pub(super) use crate::error::line_col;
 
 /// 1-based line of the first invalid UTF-8 byte.
 pub(super) fn utf8_error_line(bytes: &[u8], e: &std::str::Utf8Error) -> usize {

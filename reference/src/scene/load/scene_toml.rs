@@ -99,22 +99,7 @@ pub fn parse_scene_file_with(
         format!("line {line}, column {col}, field {field}")
     };
     let parsed: SceneFile = toml::from_str(text).map_err(|e| {
-        let (position, value) = match e.span() {
-            Some(span) => {
-                let (line, col) = line_col(text, span.start);
-                let end = span.end.min(text.len());
-                let snippet = text
-                    .get(span.start.min(end)..end)
-                    .unwrap_or("")
-                    .lines()
-                    .next()
-                    .unwrap_or("")
-                    .trim()
-                    .to_string();
-                (format!("line {line}, column {col}"), snippet)
-            }
-            None => ("file".to_string(), String::new()),
-        };
+        let (position, value) = crate::error::span_position(text, e.span());
         InputError::new(
             &file,
             position,
