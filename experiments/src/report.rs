@@ -222,26 +222,7 @@ impl Run {
             named.push((format!("plots[{i}][0]"), p));
         }
         for (i, im) in m.images.iter().enumerate() {
-            for (field, p) in [
-                ("color", &im.color),
-                ("lod", &im.lod),
-                ("flip", &im.flip),
-                ("lod_flip", &im.lod_flip),
-                ("total_flip", &im.total_flip),
-                ("ground_truth", &im.ground_truth),
-                ("ground_truth_class", &im.ground_truth_class),
-            ] {
-                named.push((format!("images[{i}].{field}"), p));
-            }
-            for (field, maps) in [
-                ("per_lod", &im.per_lod),
-                ("per_lod_lod_error", &im.per_lod_lod_error),
-                ("per_lod_total", &im.per_lod_total),
-            ] {
-                for (j, (_, p, _, _)) in maps.iter().enumerate() {
-                    named.push((format!("images[{i}].{field}[{j}][1]"), p));
-                }
-            }
+            named.extend(im.named_images(i).into_iter().map(|(k, p)| (k, p.as_str())));
         }
         let mut embeds = Embeds::new();
         for (key, p) in named {

@@ -300,6 +300,37 @@ pub struct FrameImages {
     pub accuracy: Accuracy,
 }
 
+impl FrameImages {
+    /// Every image path this entry names, with its manifest key for errors: the seven fixed
+    /// images (`images[{index}].color`, ...), then each per-LOD map
+    /// (`images[{index}].per_lod[{j}][1]`, ...). Empty paths are included (an error map that was
+    /// not measured); `report` and `sweep merge` read exactly these.
+    pub fn named_images(&self, index: usize) -> Vec<(String, &String)> {
+        let mut named: Vec<(String, &String)> = [
+            ("color", &self.color),
+            ("lod", &self.lod),
+            ("flip", &self.flip),
+            ("lod_flip", &self.lod_flip),
+            ("total_flip", &self.total_flip),
+            ("ground_truth", &self.ground_truth),
+            ("ground_truth_class", &self.ground_truth_class),
+        ]
+        .into_iter()
+        .map(|(k, p)| (format!("images[{index}].{k}"), p))
+        .collect();
+        for (k, maps) in [
+            ("per_lod", &self.per_lod),
+            ("per_lod_lod_error", &self.per_lod_lod_error),
+            ("per_lod_total", &self.per_lod_total),
+        ] {
+            for (j, (_, p, _, _)) in maps.iter().enumerate() {
+                named.push((format!("images[{index}].{k}[{j}][1]"), p));
+            }
+        }
+        named
+    }
+}
+
 /// What a sweep wrote: `sweep.json` in its folder, read by `forestlod report`.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Manifest {

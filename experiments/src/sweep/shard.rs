@@ -262,29 +262,11 @@ pub fn merge(
         for (shard_dir, m) in parts {
             rows.extend(read_csv(&shard_dir.join(&m.csv))?);
             for (i, im) in m.images.iter().enumerate() {
-                let fixed = [
-                    ("color", &im.color),
-                    ("lod", &im.lod),
-                    ("flip", &im.flip),
-                    ("lod_flip", &im.lod_flip),
-                    ("total_flip", &im.total_flip),
-                    ("ground_truth", &im.ground_truth),
-                    ("ground_truth_class", &im.ground_truth_class),
-                ]
-                .into_iter()
-                .map(|(k, p)| (format!("images[{i}].{k}"), p));
-                let maps = [
-                    ("per_lod", &im.per_lod),
-                    ("per_lod_lod_error", &im.per_lod_lod_error),
-                    ("per_lod_total", &im.per_lod_total),
-                ]
-                .into_iter()
-                .flat_map(|(k, list)| {
-                    list.iter()
-                        .enumerate()
-                        .map(move |(j, (_, p, _, _))| (format!("images[{i}].{k}[{j}][1]"), p))
-                });
-                for (key, p) in fixed.chain(maps).filter(|(_, p)| !p.is_empty()) {
+                for (key, p) in im
+                    .named_images(i)
+                    .into_iter()
+                    .filter(|(_, p)| !p.is_empty())
+                {
                     if !images.iter().any(|(q, _)| q == p) {
                         images.push((p.clone(), check_image(shard_dir, &key, p)?));
                     }
