@@ -30,7 +30,24 @@ pub struct StageEntry {
     pub backend: Option<&'static str>,
     /// The test file that judges the GPU twin against the reference.
     pub parity: &'static str,
+    /// The choice parameters (`forestlod_shared::registry::PARAMS` names) that select this
+    /// stage's rule: `parity::every_stage` runs the stage on the GPU at **every** choice of each
+    /// (issue 36: a mode kept on the reference only is a mode whose rule could change on one side
+    /// unseen).
+    pub modes: &'static [&'static str],
+    /// The numeric parameters this stage's rule reads: `parity::every_stage` runs the stage on
+    /// the GPU with each at its least and at its greatest accepted value (its registry kind).
+    pub params: &'static [&'static str],
 }
+
+/// The numeric parameters of the view-depth selection rule, read by every selection stage
+/// (`forestlod_shared::ViewUniform`: draw distance, fade band, LOD levels).
+const VIEW_PARAMS: [&str; 4] = [
+    "lod_levels",
+    "lod1_transition",
+    "fade_width",
+    "draw_distance",
+];
 
 /// Every stage, in [`StageId::ALL`] order.
 pub const STAGES: &[StageEntry] = &[
@@ -42,6 +59,8 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/bake.wgsl",
         backend: Some("stage::Bake"),
         parity: "tests/tests/parity/bake.rs",
+        modes: &[],
+        params: &["texture_size", "angle_count"],
     },
     StageEntry {
         id: StageId::Mips,
@@ -51,6 +70,8 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/mips.wgsl",
         backend: Some("stage::Mips"),
         parity: "tests/tests/parity/mips.rs",
+        modes: &["mip_mode"],
+        params: &["texture_size", "alpha_cutoff"],
     },
     StageEntry {
         id: StageId::Select,
@@ -60,6 +81,14 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/select.wgsl",
         backend: Some("stage::Select"),
         parity: "tests/tests/parity/select.rs",
+        modes: &[],
+        params: &[
+            "grid_size",
+            VIEW_PARAMS[0],
+            VIEW_PARAMS[1],
+            VIEW_PARAMS[2],
+            VIEW_PARAMS[3],
+        ],
     },
     StageEntry {
         id: StageId::HierSelect,
@@ -69,6 +98,16 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/hier_select.wgsl",
         backend: Some("stage::HierSelect"),
         parity: "tests/tests/parity/hier_select.rs",
+        modes: &["hierarchy"],
+        params: &[
+            "nodes_per_node",
+            "max_cull_depth",
+            "grid_size",
+            VIEW_PARAMS[0],
+            VIEW_PARAMS[1],
+            VIEW_PARAMS[2],
+            VIEW_PARAMS[3],
+        ],
     },
     StageEntry {
         id: StageId::Coalesce,
@@ -78,6 +117,8 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/coalesce.wgsl",
         backend: Some("stage::Coalesce"),
         parity: "tests/tests/parity/hier_select.rs",
+        modes: &["coalesce"],
+        params: &[],
     },
     StageEntry {
         id: StageId::CommandOrder,
@@ -87,6 +128,8 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/command_order.wgsl",
         backend: Some("stage::CommandOrder"),
         parity: "tests/tests/parity/hier_select.rs",
+        modes: &["command_order"],
+        params: &[],
     },
     StageEntry {
         id: StageId::Refine,
@@ -96,6 +139,8 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/refine.wgsl",
         backend: Some("stage::Refine"),
         parity: "tests/tests/parity/refine.rs",
+        modes: &["tree_cull"],
+        params: &VIEW_PARAMS,
     },
     StageEntry {
         id: StageId::Draw,
@@ -105,6 +150,16 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/draw.wgsl",
         backend: Some("stage::Draw"),
         parity: "tests/tests/parity/draw.rs",
+        modes: &["fade_mode", "angle_index_mode"],
+        params: &[
+            "alpha_cutoff",
+            "angle_count",
+            "texture_size",
+            VIEW_PARAMS[0],
+            VIEW_PARAMS[1],
+            VIEW_PARAMS[2],
+            VIEW_PARAMS[3],
+        ],
     },
     StageEntry {
         id: StageId::Cull,
@@ -114,6 +169,8 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/cull.wgsl",
         backend: Some("stage::Cull"),
         parity: "tests/tests/parity/baselines.rs",
+        modes: &[],
+        params: &VIEW_PARAMS,
     },
     StageEntry {
         id: StageId::Primitive,
@@ -123,6 +180,8 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/primitive.wgsl",
         backend: Some("stage::Primitive"),
         parity: "tests/tests/parity/baselines.rs",
+        modes: &[],
+        params: &[],
     },
 ];
 

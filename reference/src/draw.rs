@@ -172,6 +172,9 @@ pub fn tree_stage(
     };
     let within = tree_within_draw_distance(u, tree.sphere_center);
     coverage::hit(coverage::Threshold::DrawTreeDistance, !within);
+    if data.billboard == 0 {
+        coverage::hit(coverage::Threshold::DrawMeshTreeDistance, !within);
+    }
     if !within {
         return None;
     }

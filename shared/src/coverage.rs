@@ -50,8 +50,29 @@ pub enum Threshold {
     CutVisited,
     /// Hierarchy cut: a drawn interior node is drawn as one unit / hands over to its children.
     CutRecurse,
+    /// Hierarchy cut (every mode but `grid`), a node within the draw distance that one of its two
+    /// frustum tests culls: culled by the sphere test alone / by the box test alone (issue 36:
+    /// a mode that dropped either test is seen only on the side where that test alone culls).
+    CutCullSphereVsBox,
+    /// Octree cut (`octree`, `octree-euclidean`), a drawn interior node whose partial-visibility
+    /// test decides: above / at or past `max_cull_depth` (the test is not made there).
+    CutCullDepth,
+    /// Octree cut, the partial-visibility test made: the node's box lies inside every plane /
+    /// straddles one (partially visible, recurse).
+    CutPartial,
+    /// Octree cut, the partial-visibility test made: the box test on the node's box centre and the
+    /// same test on its sphere centre agree / differ (issue 36, class 5: a test that used the wrong
+    /// centre changes a decision only on this row's second side).
+    CutPartialCentre,
+    /// `octree-euclidean` cut with two LOD levels, a drawn interior node: its box's Euclidean
+    /// distance (G§3 `dist_to`) is under the fade end (recurse) / at or past it.
+    CutEuclidean,
     /// `draw`, vertex stage: a tree's centre is within / beyond the draw distance (discarded).
     DrawTreeDistance,
+    /// The same for a tree of a **mesh** (LOD0) command: beyond is reached only where no per-tree
+    /// refinement ran before the draw (`tree_cull = none`; `lod0` and `all` refine meshes), so the
+    /// draw stage's own distance test is the only thing removing the tree (issue 36, class 4).
+    DrawMeshTreeDistance,
     /// `draw`: a tree texel's alpha is at or above / below the alpha cutoff (discarded).
     DrawAlphaCutoff,
     /// `draw`: a fading fragment's depth is before / at or past the fade band's start.
@@ -65,7 +86,7 @@ pub enum Threshold {
 }
 
 /// Every threshold, in table order.
-pub const ALL: [Threshold; 24] = {
+pub const ALL: [Threshold; 30] = {
     use Threshold::*;
     [
         SelectDrawDistance,
@@ -86,7 +107,13 @@ pub const ALL: [Threshold; 24] = {
         CullFadeStart,
         CutVisited,
         CutRecurse,
+        CutCullSphereVsBox,
+        CutCullDepth,
+        CutPartial,
+        CutPartialCentre,
+        CutEuclidean,
         DrawTreeDistance,
+        DrawMeshTreeDistance,
         DrawAlphaCutoff,
         DrawFadeStart,
         DrawFadeEnd,
@@ -122,7 +149,33 @@ impl Threshold {
             CullFadeStart => ("cull: tree vs fade start (LOD1)", "no LOD1", "LOD1"),
             CutVisited => ("cut: node visited", "not visited", "visited"),
             CutRecurse => ("cut: drawn interior node", "as one unit", "recurses"),
+            CutCullSphereVsBox => (
+                "cut: frustum cull by one bound alone",
+                "sphere alone",
+                "box alone",
+            ),
+            CutCullDepth => (
+                "cut: octree interior node vs max_cull_depth",
+                "above (tested)",
+                "at/past (not tested)",
+            ),
+            CutPartial => (
+                "cut: octree partial visibility",
+                "box inside",
+                "box straddles",
+            ),
+            CutPartialCentre => ("cut: partial test, box vs sphere centre", "agree", "differ"),
+            CutEuclidean => (
+                "cut: octree-euclidean box distance vs fade end",
+                "nearer (recurse)",
+                "at/past",
+            ),
             DrawTreeDistance => ("draw: tree centre vs draw distance", "within", "beyond"),
+            DrawMeshTreeDistance => (
+                "draw: mesh tree centre vs draw distance",
+                "within",
+                "beyond",
+            ),
             DrawAlphaCutoff => ("draw: texel alpha vs cutoff", "kept", "discarded"),
             DrawFadeStart => ("draw: fading fragment vs fade start", "before", "at/past"),
             DrawFadeEnd => ("draw: fading fragment vs fade end", "before", "at/past"),

@@ -82,6 +82,13 @@ pub fn decide_node(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy) -> Decision {
     } else if !u.frustum.sphere_visible(n.center, n.radius, u.eye)
         || !u.frustum.aabb_visible(n.box_center, n.extent, u.eye)
     {
+        if crate::coverage::enabled() {
+            let sphere = u.frustum.sphere_visible(n.center, n.radius, u.eye);
+            let aabb = u.frustum.aabb_visible(n.box_center, n.extent, u.eye);
+            if sphere != aabb {
+                crate::coverage::hit(crate::coverage::Threshold::CutCullSphereVsBox, sphere);
+            }
+        }
         Decision::CulledFrustum
     } else {
         Decision::Draw(lod_needs(lo, hi, u.fade_start, u.fade_end, u.lod_levels))
@@ -98,8 +105,16 @@ pub fn node_code(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy, max_cull_depth:
     if n.child_count == 0 {
         return code;
     }
-    let partial =
-        || n.depth < max_cull_depth && !u.frustum.aabb_inside(n.box_center, n.extent, u.eye);
+    let partial = || {
+        if crate::coverage::enabled() {
+            record_partial(u, n, max_cull_depth);
+        }
+        n.depth < max_cull_depth && !u.frustum.aabb_inside(n.box_center, n.extent, u.eye)
+    };
+    if crate::coverage::enabled() && mode == Hierarchy::OctreeEuclidean && u.lod_levels >= 2 {
+        let near = aabb_distance(n.box_center, n.extent, u.eye) < u.fade_end;
+        crate::coverage::hit(crate::coverage::Threshold::CutEuclidean, !near);
+    }
     let recurse = match mode {
         Hierarchy::Grid | Hierarchy::GridAabb | Hierarchy::Kmeans => false,
         Hierarchy::Quadtree => true,
@@ -111,6 +126,23 @@ pub fn node_code(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy, max_cull_depth:
         }
     };
     code | if recurse { NODE_RECURSE } else { 0 }
+}
+
+/// Threshold coverage of the octree's partial-visibility test (test-only counters,
+/// [`crate::coverage`]): whether the depth allows the test, whether the box straddles a plane, and
+/// whether the same test on the sphere's centre would decide otherwise.
+fn record_partial(u: &ViewUniform, n: &NodeMeta, max_cull_depth: u32) {
+    use crate::coverage::{Threshold::*, hit};
+    let tested = n.depth < max_cull_depth;
+    hit(CutCullDepth, !tested);
+    if tested {
+        let inside = u.frustum.aabb_inside(n.box_center, n.extent, u.eye);
+        hit(CutPartial, !inside);
+        hit(
+            CutPartialCentre,
+            inside != u.frustum.aabb_inside(n.center, n.extent, u.eye),
+        );
+    }
 }
 
 /// The lower end of the view-depth interval `decide_node` decides on for a hierarchy node (every

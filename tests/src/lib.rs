@@ -3,6 +3,7 @@
 //! exercise the selection rules alone.
 
 pub mod scenarios;
+pub mod stage_cases;
 
 use forestlod_gpu::CullTree;
 use forestlod_harness::bridge::cull_trees_of;
@@ -506,5 +507,87 @@ impl FullCut {
     /// Nodes the recursion would visit (C§5 "nodes walked").
     pub fn nodes_visited(&self) -> u32 {
         self.selection.counters.batches_tested
+    }
+}
+
+/// Cameras aimed at the hard side of the octree's partial-visibility test (issue 36, class 5):
+/// for interior nodes above `params.max_cull_depth` whose box and sphere centres are apart, a
+/// camera `width x height` (50° vertical field of view) past the fade end of the node (so the
+/// octree tests partial visibility instead of recursing for LOD0), turned so that one side plane
+/// passes between the two centres: the "wholly inside" test on the box centre and the same test
+/// on the sphere centre then decide differently, which random cameras almost never do. Returns
+/// `(node, camera)` pairs, at most `want`, in node order; each camera sees its node drawn
+/// (within the draw distance, inside the frustum). Deterministic: a scan of yaw offsets.
+pub fn straddling_cameras(
+    nodes: &[forestlod_shared::NodeMeta],
+    params: &Params,
+    width: u32,
+    height: u32,
+    want: usize,
+) -> Vec<(usize, Camera)> {
+    let mut out = Vec::new();
+    for (i, n) in nodes.iter().enumerate() {
+        if out.len() >= want {
+            break;
+        }
+        let apart = (0..3)
+            .map(|k| (n.center[k] - n.box_center[k]).powi(2))
+            .sum::<f32>()
+            .sqrt();
+        if n.child_count == 0 || n.depth >= params.max_cull_depth || apart < 0.05 * n.radius {
+            continue;
+        }
+        let far = params.lod1_transition + 2.0 * n.radius + 20.0;
+        if far - n.radius > params.draw_distance {
+            continue;
+        }
+        let c = n.box_center;
+        'node: for heading in [0.3f32, 2.0, 3.6, 5.1] {
+            let eye = [
+                c[0] - far * heading.cos(),
+                c[1] - far * heading.sin(),
+                c[2] + 5.0,
+            ];
+            for step in 0..=800 {
+                let a = -1.0 + step as f32 * (2.0 / 800.0);
+                let (s, co) = a.sin_cos();
+                let d = [c[0] - eye[0], c[1] - eye[1]];
+                let target = [
+                    eye[0] + co * d[0] - s * d[1],
+                    eye[1] + s * d[0] + co * d[1],
+                    c[2],
+                ];
+                let camera = Camera::look_at(eye, target, 50.0, width, height);
+                let f = camera.frustum();
+                let drawn = f.sphere_visible(n.center, n.radius, eye)
+                    && f.aabb_visible(n.box_center, n.extent, eye);
+                if drawn
+                    && f.aabb_inside(n.box_center, n.extent, eye)
+                        != f.aabb_inside(n.center, n.extent, eye)
+                {
+                    out.push((i, camera));
+                    break 'node;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The parameters [`straddling_cameras`]' cases use with `mode` (an octree mode): eight trees per
+/// leaf and a culling depth of 8 so that `tiny`'s octree has interior nodes that test partial
+/// visibility, a 60 m transition (20 m fade) so that the cameras stand past the fade end, the
+/// draw distance far away.
+pub fn straddling_params(mode: forestlod_shared::Hierarchy) -> Params {
+    Params {
+        hierarchy: mode as u32,
+        grid_size: 50.0,
+        nodes_per_node: 8,
+        max_cull_depth: 8,
+        lod1_transition: 60.0,
+        fade_width: 20.0,
+        draw_distance: 4000.0,
+        texture_size: 32,
+        ..Params::default()
     }
 }

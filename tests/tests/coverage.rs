@@ -25,7 +25,11 @@ use forestlod_shared::{Camera, FadeMode, Hierarchy, Params, TreeCull};
 use forestlod_tests::scenarios::{
     golden_scenarios, named_views, tiny_and_crop_frames, tiny_params,
 };
-use forestlod_tests::{Packed, cameras, far_plane_cases, instances, params, scene_of};
+use forestlod_tests::stage_cases::stage_cases;
+use forestlod_tests::{
+    Packed, cameras, far_plane_cases, instances, params, scene_of, small_poses, straddling_cameras,
+    straddling_params,
+};
 use proptest::strategy::{Strategy, ValueTree};
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 
@@ -43,18 +47,75 @@ fn runner() -> TestRunner {
 
 /// One case source and its counts, per threshold of [`ALL`].
 struct Column {
-    name: &'static str,
+    name: String,
+    /// The one hierarchy mode every case of the column runs, where it has one (the per-mode
+    /// requirements of [`MODE_ROWS`] read these columns).
+    mode: Option<Hierarchy>,
     counts: Vec<(Threshold, [u64; 2])>,
 }
 
-fn record(name: &'static str, run: impl FnOnce()) -> Column {
+fn record(name: &str, run: impl FnOnce()) -> Column {
     coverage::enable();
     run();
     Column {
-        name,
+        name: name.to_string(),
+        mode: None,
         counts: coverage::disable(),
     }
 }
+
+fn record_mode(name: &str, mode: Hierarchy, run: impl FnOnce(Hierarchy)) -> Column {
+    Column {
+        mode: Some(mode),
+        ..record(&format!("{name} ({})", mode.name()), || run(mode))
+    }
+}
+
+/// The hierarchical modes, as `parity::hier_select::MODES`.
+const HIER_MODES: [Hierarchy; 5] = [
+    Hierarchy::GridAabb,
+    Hierarchy::Quadtree,
+    Hierarchy::Octree,
+    Hierarchy::OctreeEuclidean,
+    Hierarchy::Kmeans,
+];
+
+/// Every threshold of every mode (issue 36): per hierarchical mode, the cut's rows that its own
+/// rule decides on, each of which a column running that mode alone must straddle. The rows every
+/// mode shares (the node's decision on its two bounds, `CutCullSphereVsBox`) are one code path
+/// and are required once, by the table. `grid-aabb` and `kmeans` are depth-1 (every node is a
+/// root: always visited, none recurses) and have no row of their own; their columns must still
+/// reach the cut. The quadtree's interior nodes always recurse; the octrees decide recursion on
+/// LOD0, depth, partial visibility and (Euclidean) distance.
+const MODE_ROWS: &[(Hierarchy, &[Threshold])] = {
+    use Threshold::*;
+    &[
+        (Hierarchy::GridAabb, &[]),
+        (Hierarchy::Quadtree, &[CutVisited]),
+        (
+            Hierarchy::Octree,
+            &[
+                CutVisited,
+                CutRecurse,
+                CutCullDepth,
+                CutPartial,
+                CutPartialCentre,
+            ],
+        ),
+        (
+            Hierarchy::OctreeEuclidean,
+            &[
+                CutVisited,
+                CutRecurse,
+                CutCullDepth,
+                CutPartial,
+                CutPartialCentre,
+                CutEuclidean,
+            ],
+        ),
+        (Hierarchy::Kmeans, &[]),
+    ]
+};
 
 fn golden_frames() {
     let tiny = builtin::tiny();
@@ -155,31 +216,19 @@ fn far_plane_property_cases() {
     select_cases(far_plane_cases());
 }
 
-/// `parity::hier_select`'s property: its strategy (every hierarchical mode), the cut alone.
-fn hier_property_cases() {
-    let modes = [
-        Hierarchy::GridAabb,
-        Hierarchy::Quadtree,
-        Hierarchy::Octree,
-        Hierarchy::OctreeEuclidean,
-    ];
-    let strategy = (
-        instances(300),
-        cameras(),
-        params(),
-        2u32..24,
-        0u32..9,
-        0usize..modes.len(),
-    );
+/// `parity::hier_select`'s property: its strategy, the cut alone, `mode` in every case (the
+/// parity test draws one of [`HIER_MODES`] per case).
+fn hier_property_cases(mode: Hierarchy) {
+    let strategy = (instances(300), cameras(), params(), 2u32..24, 0u32..9);
     let mut runner = runner();
     for _ in 0..PROPERTY_CASES {
-        let (trees, camera, p, npn, mcd, mode_i) =
+        let (trees, camera, p, npn, mcd) =
             strategy.new_tree(&mut runner).expect("a case").current();
         let p = Params {
             nodes_per_node: npn,
             max_cull_depth: mcd,
             grid_size: p.grid_size.min(400.0),
-            hierarchy: modes[mode_i] as u32,
+            hierarchy: mode as u32,
             ..p
         };
         let packed = Packed::new(trees, p.grid_size);
@@ -191,26 +240,91 @@ fn hier_property_cases() {
     }
 }
 
-/// The image frames of `parity::refine` (`tree_cull` all, the draw distance pulled in to 150 m)
-/// and `parity::baselines` (our pipeline, the draw distance 300 m): `tiny`'s frames only.
+/// `parity::hier_select::gpu_cut_on_frustum_straddling_boxes`' cases for `mode` (an octree).
+fn straddling_cases(mode: Hierarchy) {
+    let p = straddling_params(mode);
+    let trees = builtin::tiny()
+        .instances
+        .iter()
+        .map(|t| forestlod_reference::scene::Instance {
+            mesh: t.mesh % 3,
+            ..t.clone()
+        })
+        .collect();
+    let packed = Packed::new(trees, p.grid_size);
+    let g = &packed.geometry;
+    let h = Tree::build(&packed.scene, &g.meshes, &p)
+        .expect("a hierarchy")
+        .expect("a hierarchical mode");
+    for (_, camera) in straddling_cameras(&h.nodes, &p, 96, 72, 16) {
+        forestlod_tests::full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
+    }
+}
+
+/// `parity::every_stage`'s walk (`forestlod_tests::stage_cases`): every case's frame on the
+/// reference (the GPU test runs each targeted stage alone on the reference's input of it).
+fn walk_frames() {
+    for case in stage_cases() {
+        let scene = forestlod_tests::stage_cases::scene(case.scene);
+        let p = prepare(scene, &case.params).expect("prepare");
+        let (_, _, camera) = small_poses(&p.scene, &[("medium", 0.0)]).remove(0);
+        p.render(&camera, &case.params).expect("render");
+    }
+}
+
+/// The image frames of `parity::refine` (`tree_cull` `lod0` and `all`, as `refine::MODES`; the
+/// draw distance pulled in to 150 m and to 300 m, the transition to 120 m) and `parity::baselines` (our
+/// pipeline at the frames' own `tree_cull`, `none`; the draw distance 300 m): `tiny`'s frames
+/// only. Mirrors each test's own frames and modes exactly (issue 36: this source used to run
+/// both lists with `none` and `all`, which claimed for `parity::refine` a `tree_cull = none`
+/// frame it never compares).
 fn refine_and_baseline_images() {
     let p = tiny_params(FadeMode::Alpha);
-    let dd = |d: f32| Params {
-        draw_distance: d,
-        ..p
-    };
-    let (prepared, frames) = tiny_and_crop_frames(&[
-        ("draw-distance-150", dd(150.0)),
-        ("draw-distance-300", dd(300.0)),
+    let refine = tiny_and_crop_frames(&[
+        (
+            "draw-distance-150",
+            Params {
+                draw_distance: 150.0,
+                ..p
+            },
+        ),
+        (
+            "transition-120",
+            Params {
+                lod1_transition: 120.0,
+                fade_width: 40.0,
+                ..p
+            },
+        ),
+        (
+            "draw-distance-300",
+            Params {
+                draw_distance: 300.0,
+                ..p
+            },
+        ),
     ]);
-    for f in frames.iter().filter(|f| f.prepared_key == 0) {
-        let pr = &prepared[f.prepared_key];
-        for tree_cull in [TreeCull::None, TreeCull::All] {
-            let params = Params {
-                tree_cull: tree_cull as u32,
-                ..f.params
-            };
-            pr.render(&f.camera, &params).expect("render");
+    let baselines = tiny_and_crop_frames(&[(
+        "draw-distance-300",
+        Params {
+            draw_distance: 300.0,
+            ..p
+        },
+    )]);
+    for ((prepared, frames), modes) in [
+        (refine, &[TreeCull::Lod0, TreeCull::All][..]),
+        (baselines, &[TreeCull::None][..]),
+    ] {
+        for f in frames.iter().filter(|f| f.prepared_key == 0) {
+            for &tree_cull in modes {
+                let params = Params {
+                    tree_cull: tree_cull as u32,
+                    ..f.params
+                };
+                prepared[f.prepared_key]
+                    .render(&f.camera, &params)
+                    .expect("render");
+            }
         }
     }
 }
@@ -235,7 +349,7 @@ fn table(columns: &[Column]) -> String {
                 format!(" {x}/{y} |")
             });
             if x > 0 && y > 0 {
-                by.push(c.name);
+                by.push(c.name.as_str());
             }
         }
         out.push_str(&format!(
@@ -263,12 +377,27 @@ fn every_threshold_is_straddled_by_a_parity_case() {
         record("metamorphic tiles", tile_frames),
         record("parity::select property", select_property_cases),
         record("parity::select far plane", far_plane_property_cases),
-        record("parity::hier_select property", hier_property_cases),
         record(
             "parity::refine + baselines images",
             refine_and_baseline_images,
         ),
+        record("parity::every_stage walk", walk_frames),
     ];
+    let mut columns = columns;
+    for mode in HIER_MODES {
+        columns.push(record_mode(
+            "parity::hier_select property",
+            mode,
+            hier_property_cases,
+        ));
+    }
+    for mode in [Hierarchy::Octree, Hierarchy::OctreeEuclidean] {
+        columns.push(record_mode(
+            "parity::hier_select straddling",
+            mode,
+            straddling_cases,
+        ));
+    }
     let table = table(&columns);
     println!("{table}");
     let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("coverage.md");
@@ -292,6 +421,31 @@ fn every_threshold_is_straddled_by_a_parity_case() {
         missing.is_empty(),
         "thresholds no parity case straddles: {}",
         missing.join("; ")
+    );
+    // Every threshold of every hierarchical mode, by a column running that mode alone.
+    let mut per_mode = Vec::new();
+    for &(mode, rows) in MODE_ROWS {
+        let reached = columns.iter().filter(|c| c.mode == Some(mode)).any(|c| {
+            let [x, y] = c.counts[Threshold::CutVisited as usize].1;
+            x + y > 0
+        });
+        if !reached {
+            per_mode.push(format!("{}: no case reaches the cut", mode.name()));
+        }
+        for &t in rows {
+            let straddled = columns.iter().filter(|c| c.mode == Some(mode)).any(|c| {
+                let [x, y] = c.counts[t as usize].1;
+                x > 0 && y > 0
+            });
+            if !straddled {
+                per_mode.push(format!("{}: {}", mode.name(), t.sides().0));
+            }
+        }
+    }
+    assert!(
+        per_mode.is_empty(),
+        "thresholds of a mode no case of that mode straddles: {}",
+        per_mode.join("; ")
     );
     // In this test, not a test of its own: the counters are global.
     cut_counters_count_what_they_name();

@@ -7,6 +7,13 @@
 //! two cameras each. Every row must run at least once and pass; the largest difference per stage
 //! is printed. The stage-specific parity files judge each stage in depth on random cases.
 //!
+//! And **the walk** (issue 36, coverage by construction): every case of
+//! `forestlod_tests::stage_cases` (every choice of every mode a stage's row names, every numeric
+//! parameter it names at its least and greatest accepted value) runs the stages it targets alone
+//! on the GPU against the reference; a target whose stage does not run (other than a choice that
+//! turns the stage off, where the plan must skip it) or differs fails the test, which prints the
+//! reached targets per stage and the largest difference.
+//!
 //! And the diagnosis (`forestlod_harness::diagnose::check_stages`) walks the frame's plan: on a
 //! cut with `refine`, its checks are the textures, then `hier_select`, `coalesce`,
 //! `command_order`, `refine` in that order, then the chained selection, and none differs.
@@ -21,6 +28,7 @@ use forestlod_harness::stages::STAGES;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
 use forestlod_shared::{Coalesce, CommandOrder, Hierarchy, Params, StageId, TreeCull};
+use forestlod_tests::stage_cases::{judged_elsewhere, skips, stage_cases};
 use forestlod_tests::{small_poses, tiny_hierarchy_params};
 
 /// The frames' parameters (module docs): one flat selection and two cuts covering both coalesce
@@ -170,4 +178,107 @@ fn the_diagnosis_walks_the_plan() {
     if let Some(f) = first_differing(&checks) {
         panic!("{f}");
     }
+}
+
+#[test]
+fn every_mode_and_parameter_extreme_of_every_stage_on_the_gpu() {
+    let Some(ctx) = gpu_context() else {
+        eprintln!("every_stage walk: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
+        return;
+    };
+    let started = Instant::now();
+    let cases = stage_cases();
+    let mut failures = Vec::new();
+    // Per stage: (targets reached, largest difference).
+    let mut seen: BTreeMap<StageId, (Vec<String>, f64)> = BTreeMap::new();
+    let mut targets = 0;
+    for case in &cases {
+        let scene = forestlod_tests::stage_cases::scene(case.scene);
+        let prepared = match prepare(scene, &case.params) {
+            Ok(p) => p,
+            Err(e) => {
+                failures.push(format!("{}: prepare failed: {e}", case.name));
+                continue;
+            }
+        };
+        let (_, _, camera) = small_poses(&prepared.scene, &[("medium", 0.0)]).remove(0);
+        let frame = FrameStages::new(&prepared, &camera, &case.params);
+        for stage in case.stages() {
+            let check = frame.check(ctx, stage);
+            for t in case.targets.iter().filter(|t| t.stage == stage) {
+                targets += 1;
+                let what = format!("{}: {} {} = {}", stage.name(), t.reach, t.param, t.value);
+                let skipped = skips(stage, t.param, &t.value);
+                match (&check, skipped) {
+                    (None, true) => {
+                        seen.entry(stage)
+                            .or_default()
+                            .0
+                            .push(format!("{}={} (skips the stage)", t.param, t.value));
+                    }
+                    (Some(_), true) => failures.push(format!(
+                        "{}: {what}: the stage ran, but this choice must turn it off",
+                        case.name
+                    )),
+                    (None, false) => failures.push(format!(
+                        "{}: {what}: the stage did not run (not reached)",
+                        case.name
+                    )),
+                    (Some(c), false) => {
+                        if let Some(test) = judged_elsewhere(t) {
+                            // Judged in depth by `test` (whose existence is checked below).
+                            let (module, name) = test.split_once("::").expect("module::test");
+                            let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                                .join(format!("tests/parity/{module}.rs"));
+                            let src = std::fs::read_to_string(&file).unwrap_or_default();
+                            if !src.contains(&format!("fn {name}()")) {
+                                failures.push(format!(
+                                    "{what}: judged by {test}, which does not exist"
+                                ));
+                            }
+                            eprintln!("walk: {what}: judged by {test} ({})", c.summary);
+                            seen.entry(stage)
+                                .or_default()
+                                .0
+                                .push(format!("{}={} (judged by {test})", t.param, t.value));
+                            continue;
+                        }
+                        if c.differs {
+                            failures.push(format!("{}: {what}: {}", case.name, c.summary));
+                        }
+                        let s = seen.entry(stage).or_default();
+                        s.0.push(format!("{}={}", t.param, t.value));
+                        s.1 = s.1.max(c.max_difference);
+                    }
+                }
+            }
+        }
+    }
+    for (id, (reached, max)) in &seen {
+        eprintln!(
+            "walk: {}: {} targets, max difference {max}: {}",
+            id.name(),
+            reached.len(),
+            reached.join(", ")
+        );
+    }
+    eprintln!(
+        "walk: {} cases, {targets} targets in {:.1} s",
+        cases.len(),
+        started.elapsed().as_secs_f64()
+    );
+    let unreached: Vec<&str> = STAGES
+        .iter()
+        .filter(|e| !(e.modes.is_empty() && e.params.is_empty()) && !seen.contains_key(&e.id))
+        .map(|e| e.id.name())
+        .collect();
+    assert!(
+        unreached.is_empty(),
+        "stages the walk never checked: {unreached:?}"
+    );
+    assert!(
+        failures.is_empty(),
+        "the walk failed:\n{}",
+        failures.join("\n")
+    );
 }

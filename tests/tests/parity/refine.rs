@@ -418,7 +418,7 @@ fn tree_cull_none_points_every_command_at_the_copy() {
 }
 
 /// The image comparisons' frames: the shared `tiny` and cropped `synthetic` frames, with the
-/// draw distance pulled in to 150 m and the transition to 120 m.
+/// draw distance pulled in to 150 m and to 300 m, the transition to 120 m.
 fn image_scenarios() -> (Vec<Prepared>, Vec<FrameScenario>) {
     let p = tiny_params(FadeMode::Alpha);
     tiny_and_crop_frames(&[
@@ -434,6 +434,16 @@ fn image_scenarios() -> (Vec<Prepared>, Vec<FrameScenario>) {
             Params {
                 lod1_transition: 120.0,
                 fade_width: 40.0,
+                ..p
+            },
+        ),
+        // Issue 36: the only frame where refine drops a needed tree for its centre being past the
+        // draw distance (the row "refine: needed tree vs draw distance" of the coverage table;
+        // at 150 m no needed tree's centre lies past it).
+        (
+            "draw-distance-300",
+            Params {
+                draw_distance: 300.0,
                 ..p
             },
         ),

@@ -151,3 +151,42 @@ fn no_gpu_stage_exists_without_a_row() {
     }
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
+
+/// Issue 36 (coverage by construction): the modes and numeric parameters a row names are entries
+/// of `forestlod_shared::registry::PARAMS` of that kind, and **every** entry of the registry is
+/// named by at least one row, so a parameter or mode added to the registry is walked by
+/// `parity::every_stage`'s walk (every choice; least and greatest value) once it names the stage
+/// that reads it, and this test fails until it does.
+#[test]
+fn every_parameter_is_walked_by_a_stage_that_reads_it() {
+    use forestlod_shared::registry::{PARAMS, ParamKind, param};
+    let mut problems = Vec::new();
+    for e in STAGES {
+        for &m in e.modes {
+            match param(m).map(|s| s.kind) {
+                Some(ParamKind::Choice(_)) => {}
+                Some(_) => problems.push(format!("{}: mode {m} is a number", e.id.name())),
+                None => problems.push(format!("{}: mode {m} is no parameter", e.id.name())),
+            }
+        }
+        for &p in e.params {
+            match param(p).map(|s| s.kind) {
+                Some(ParamKind::Float { .. } | ParamKind::Uint { .. }) => {}
+                Some(_) => problems.push(format!("{}: parameter {p} is a choice", e.id.name())),
+                None => problems.push(format!("{}: {p} is no parameter", e.id.name())),
+            }
+        }
+    }
+    for spec in &PARAMS {
+        let named = STAGES
+            .iter()
+            .any(|e| e.modes.contains(&spec.name) || e.params.contains(&spec.name));
+        if !named {
+            problems.push(format!(
+                "parameter {} is read by no stage row (harness/src/stages.rs `modes`/`params`)",
+                spec.name
+            ));
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}

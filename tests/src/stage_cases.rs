@@ -1,0 +1,232 @@
+//! Parity cases walked from the stage table (issue 36, "coverage by construction"): for every
+//! stage of `forestlod_harness::stages::STAGES`, one frame at **every choice** of each mode
+//! parameter the row names (`StageEntry::modes`) and one with **each numeric parameter** the row
+//! names (`StageEntry::params`) at its least and at its greatest accepted value (its kind in
+//! `forestlod_shared::registry::PARAMS`). A stage or a mode added to the table is then walked
+//! without a test being written for it.
+//!
+//! `tests/tests/parity/every_stage.rs` runs every case's stages on the GPU against the reference
+//! and fails when a target is not reached (the stage did not run where it should) or differs;
+//! `tests/tests/coverage.rs` runs the same cases on the reference as one column of the threshold
+//! table. The list is built here once, so the two cannot drift apart.
+//!
+//! Each case starts from one of two small bases on `tiny` ([`base`]): a **flat** frame (the
+//! thesis grid, `tree_cull = all`: bake, mips, select, refine, draw and the baselines run) and a
+//! **cut** frame (the octree with coalescing and front-to-back order: the cut's stages run). A
+//! case changes one parameter; cases that come out equal are merged (their targets joined).
+
+use forestlod_harness::stages::STAGES;
+use forestlod_shared::registry::{ParamKind, param};
+use forestlod_shared::{Coalesce, CommandOrder, Hierarchy, Params, StageId, TreeCull};
+
+use crate::tiny_hierarchy_params;
+
+/// What a case must reach for one stage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Target {
+    /// The stage that must run (and match) in the case.
+    pub stage: StageId,
+    /// The parameter (a `PARAMS` name).
+    pub param: &'static str,
+    /// The value as users write it (`front-to-back`, `0`, `4096`).
+    pub value: String,
+    /// `least`, `greatest` (numbers) or `choice` (modes).
+    pub reach: &'static str,
+}
+
+/// One frame of the walk (module docs).
+#[derive(Clone, Debug)]
+pub struct StageCase {
+    /// `<base>-<param>-<value>`.
+    pub name: String,
+    /// The built-in scene.
+    pub scene: &'static str,
+    /// The frame's parameters (valid).
+    pub params: Params,
+    /// Everything this case must reach.
+    pub targets: Vec<Target>,
+}
+
+impl StageCase {
+    /// The stages the case must check, in table order, once each.
+    pub fn stages(&self) -> Vec<StageId> {
+        StageId::ALL
+            .into_iter()
+            .filter(|s| self.targets.iter().any(|t| t.stage == *s))
+            .collect()
+    }
+}
+
+/// Choices with which a stage does not run at all, and why: for these the walk asserts that the
+/// frame's plan **skips** the stage (the GPU check returns nothing) instead of a match.
+pub const CHOICES_THAT_SKIP_THE_STAGE: &[(StageId, &str, &str, &str)] = &[
+    (
+        StageId::HierSelect,
+        "hierarchy",
+        "grid",
+        "the thesis grid builds no hierarchy: `select` decides its batches",
+    ),
+    (
+        StageId::Refine,
+        "tree_cull",
+        "none",
+        "no per-tree refinement: every command draws its whole batch",
+    ),
+];
+
+/// Targets the stage's generic judge (`forestlod_harness::judge`) cannot judge, each with the
+/// parity test (`<module>::<fn>` of `tests/tests/parity/`) that judges it in depth, and why. The
+/// walk still runs them (the GPU must run without error) and checks that the named test exists.
+pub const JUDGED_ELSEWHERE: &[(StageId, &str, &str, &str, &str)] = &[(
+    StageId::Bake,
+    "texture_size",
+    "least",
+    "bake::gpu_bake_equals_the_reference_at_the_extremes",
+    "at r = 1 the one texel of a view is an edge texel of every triangle: the judge's budget of \
+     texels beyond ±1 (a fraction of 0.006) cannot judge 50 texels (measured: 32 beyond, max 120); \
+     the bake test classifies each texel against the projected triangles at r = 1, 2, 4",
+)];
+
+/// The test that judges `t` in place of the walk ([`JUDGED_ELSEWHERE`]), if any.
+pub fn judged_elsewhere(t: &Target) -> Option<&'static str> {
+    JUDGED_ELSEWHERE
+        .iter()
+        .find(|&&(s, p, r, _, _)| s == t.stage && p == t.param && r == t.reach)
+        .map(|&(_, _, _, test, _)| test)
+}
+
+/// Whether `(stage, param, choice)` is one of [`CHOICES_THAT_SKIP_THE_STAGE`].
+pub fn skips(stage: StageId, param: &str, choice: &str) -> bool {
+    CHOICES_THAT_SKIP_THE_STAGE
+        .iter()
+        .any(|&(s, p, c, _)| s == stage && p == param && c == choice)
+}
+
+/// The base frame of a stage (module docs): the cut's stages on the octree cut, the rest flat.
+pub fn base(stage: StageId) -> (&'static str, Params) {
+    match stage {
+        StageId::HierSelect | StageId::Coalesce | StageId::CommandOrder => (
+            "cut",
+            Params {
+                coalesce: Coalesce::On as u32,
+                command_order: CommandOrder::FrontToBack as u32,
+                tree_cull: TreeCull::Lod0 as u32,
+                ..tiny_hierarchy_params(Hierarchy::Octree)
+            },
+        ),
+        _ => (
+            "flat",
+            Params {
+                tree_cull: TreeCull::All as u32,
+                ..tiny_hierarchy_params(Hierarchy::Grid)
+            },
+        ),
+    }
+}
+
+/// A numeric kind's least and greatest accepted values.
+pub fn extremes(kind: ParamKind) -> Option<(f64, f64)> {
+    match kind {
+        ParamKind::Float { min, max } => Some((f64::from(min), f64::from(max))),
+        ParamKind::Uint { min, max, .. } => Some((f64::from(min), f64::from(max))),
+        ParamKind::Choice(_) => None,
+    }
+}
+
+/// Billboards of the greatest texture side are baked for one species at one angle
+/// ([`SINGLE_SPECIES`]): `tiny`'s five species at ten angles would be 50 layers of 4096² texels
+/// (several GB on the reference), and five layers of 4096² exceed lavapipe's storage-buffer
+/// binding limit in the mips stage (measured: 335,544,320 bytes of level-1 texels refused).
+fn affordable(scene: &mut &'static str, p: &mut Params) {
+    if p.texture_size >= 1024 {
+        *scene = SINGLE_SPECIES;
+        p.angle_count = 1;
+    }
+}
+
+/// The scene name of `single` with its one species only (built-in scenes carry all five meshes).
+pub const SINGLE_SPECIES: &str = "single-species";
+
+/// The scene a case names: a built-in scene, or [`SINGLE_SPECIES`].
+pub fn scene(name: &str) -> forestlod_reference::scene::Scene {
+    use forestlod_reference::scene::builtin;
+    if name == SINGLE_SPECIES {
+        let mut s = builtin::single();
+        let mesh = s.instances[0].mesh as usize;
+        s.meshes = vec![s.meshes[mesh].clone()];
+        s.instances[0].mesh = 0;
+        s.name = SINGLE_SPECIES.to_string();
+        return s;
+    }
+    builtin::by_name(name).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Every case of the walk (module docs), merged where equal.
+pub fn stage_cases() -> Vec<StageCase> {
+    let mut out: Vec<StageCase> = Vec::new();
+    let mut push = |name: String, scene: &'static str, params: Params, target: Target| {
+        if let Some(c) = out
+            .iter_mut()
+            .find(|c| c.scene == scene && c.params == params)
+        {
+            c.targets.push(target);
+        } else {
+            out.push(StageCase {
+                name,
+                scene,
+                params,
+                targets: vec![target],
+            });
+        }
+    };
+    for e in STAGES {
+        let (base_name, base_params) = base(e.id);
+        for &name in e.modes {
+            let spec =
+                param(name).unwrap_or_else(|| panic!("{}: no parameter {name}", e.id.name()));
+            let ParamKind::Choice(choices) = spec.kind else {
+                panic!("{}: {name} is not a choice", e.id.name());
+            };
+            for (choice, code) in choices() {
+                let mut p = base_params;
+                (spec.set)(&mut p, f64::from(code));
+                push(
+                    format!("{base_name}-{name}-{choice}"),
+                    "tiny",
+                    p,
+                    Target {
+                        stage: e.id,
+                        param: name,
+                        value: choice.to_string(),
+                        reach: "choice",
+                    },
+                );
+            }
+        }
+        for &name in e.params {
+            let spec =
+                param(name).unwrap_or_else(|| panic!("{}: no parameter {name}", e.id.name()));
+            let (least, greatest) = extremes(spec.kind)
+                .unwrap_or_else(|| panic!("{}: {name} is not numeric", e.id.name()));
+            for (reach, v) in [("least", least), ("greatest", greatest)] {
+                let mut p = base_params;
+                (spec.set)(&mut p, v);
+                let mut scene = "tiny";
+                affordable(&mut scene, &mut p);
+                let value = spec.format(&p);
+                push(
+                    format!("{base_name}-{name}-{value}"),
+                    scene,
+                    p,
+                    Target {
+                        stage: e.id,
+                        param: name,
+                        value,
+                        reach,
+                    },
+                );
+            }
+        }
+    }
+    out
+}
