@@ -198,3 +198,43 @@ pub fn tiny_and_crop_frames(tiny_medium: &[(&str, Params)]) -> (Vec<Prepared>, V
     }
     (prepared, out)
 }
+
+/// `tiny` from `medium` with `tree_cull = none` and the draw distance pulled in so that drawn
+/// **mesh** batches straddle it: nothing refines the trees before the draw, so the draw stage's
+/// own per-tree distance test (`draw.wgsl`'s `tree_within_draw_distance` in the vertex stage) is
+/// the only thing removing those past it (issue 36, class 4). The draw distance is the view depth
+/// of the tree centre at 40 % of the trees nearer than the fade start (rounded to 1 m), so that
+/// it cuts through the LOD0 trees whatever the scene's layout. Used by
+/// `parity::draw::unrefined_mesh_batches_straddling_the_draw_distance` and by
+/// `tests/tests/coverage.rs` (row "draw: mesh tree centre vs draw distance").
+pub fn unrefined_straddling_case() -> (Prepared, Camera, Params) {
+    let tiny = builtin::tiny();
+    let base = Params {
+        tree_cull: forestlod_shared::TreeCull::None as u32,
+        ..tiny_params(FadeMode::DitherSequential)
+    };
+    let camera = named_camera("medium", &tiny, 0.0, 96, 96).expect("camera");
+    let prepared = prepare(tiny, &base).expect("prepare tiny");
+    let u = forestlod_shared::ViewUniform::new(&camera, &base);
+    let mut depths: Vec<f32> = prepared
+        .scene
+        .instances
+        .iter()
+        .map(|t| {
+            let meta = &prepared.geometry.meshes[t.mesh as usize];
+            let (centre, _) = forestlod_reference::scene::tree_sphere(t, meta);
+            forestlod_shared::view_interval(centre, 0.0, u.eye, u.forward).d
+        })
+        .filter(|&d| d > 0.0 && d < u.fade_start)
+        .collect();
+    depths.sort_by(f32::total_cmp);
+    let draw_distance = depths
+        .get(depths.len() * 2 / 5)
+        .expect("trees nearer than the fade start")
+        .round();
+    let params = Params {
+        draw_distance,
+        ..base
+    };
+    (prepared, camera, params)
+}

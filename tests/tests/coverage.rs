@@ -13,6 +13,7 @@
 //! `experiments/results/coverage/README.md`. It runs in its own test binary so that no other test
 //! records into the global counters while it runs.
 
+use forestlod_reference::baselines::{proxies, render_primitive, render_vegetation, tree_spheres};
 use forestlod_reference::batches::build_batches;
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::geometry::pack_geometry;
@@ -23,7 +24,7 @@ use forestlod_reference::select::{select, select_per_tree};
 use forestlod_shared::coverage::{self, ALL, Threshold};
 use forestlod_shared::{Camera, FadeMode, Hierarchy, Params, TreeCull};
 use forestlod_tests::scenarios::{
-    golden_scenarios, named_views, tiny_and_crop_frames, tiny_params,
+    golden_scenarios, named_views, tiny_and_crop_frames, tiny_params, unrefined_straddling_case,
 };
 use forestlod_tests::stage_cases::stage_cases;
 use forestlod_tests::{
@@ -273,9 +274,8 @@ fn walk_frames() {
 }
 
 /// The image frames of `parity::refine` (`tree_cull` `lod0` and `all`, as `refine::MODES`; the
-/// draw distance pulled in to 150 m and to 300 m, the transition to 120 m) and `parity::baselines` (our
-/// pipeline at the frames' own `tree_cull`, `none`; the draw distance 300 m): `tiny`'s frames
-/// only. Mirrors each test's own frames and modes exactly (issue 36: this source used to run
+/// draw distance pulled in to 150 m and to 300 m, the transition to 120 m) and `parity::baselines`
+/// (the Vegetation and Primitive baselines; the draw distance 300 m): `tiny`'s frames only. Mirrors each test's own frames and modes exactly (issue 36: this source used to run
 /// both lists with `none` and `all`, which claimed for `parity::refine` a `tree_cull = none`
 /// frame it never compares).
 fn refine_and_baseline_images() {
@@ -304,29 +304,41 @@ fn refine_and_baseline_images() {
             },
         ),
     ]);
-    let baselines = tiny_and_crop_frames(&[(
+    let (prepared, frames) = refine;
+    for f in frames.iter().filter(|f| f.prepared_key == 0) {
+        for tree_cull in [TreeCull::Lod0, TreeCull::All] {
+            let params = Params {
+                tree_cull: tree_cull as u32,
+                ..f.params
+            };
+            prepared[f.prepared_key]
+                .render(&f.camera, &params)
+                .expect("render");
+        }
+    }
+    // `parity::baselines` judges the Vegetation and Primitive baselines there, not our pipeline
+    // (issue 36: this source used to render ours, claiming a `tree_cull = none` frame of the draw
+    // stage at 300 m that no GPU test compared).
+    let (prepared, frames) = tiny_and_crop_frames(&[(
         "draw-distance-300",
         Params {
             draw_distance: 300.0,
             ..p
         },
     )]);
-    for ((prepared, frames), modes) in [
-        (refine, &[TreeCull::Lod0, TreeCull::All][..]),
-        (baselines, &[TreeCull::None][..]),
-    ] {
-        for f in frames.iter().filter(|f| f.prepared_key == 0) {
-            for &tree_cull in modes {
-                let params = Params {
-                    tree_cull: tree_cull as u32,
-                    ..f.params
-                };
-                prepared[f.prepared_key]
-                    .render(&f.camera, &params)
-                    .expect("render");
-            }
-        }
+    for f in frames.iter().filter(|f| f.prepared_key == 0) {
+        let pr = &prepared[f.prepared_key];
+        let spheres = tree_spheres(&pr.scene, &pr.geometry.meshes);
+        render_vegetation(pr, &spheres, &f.camera, &f.params);
+        let proxy_list = proxies(pr, f.params.alpha_cutoff);
+        render_primitive(pr, &spheres, &proxy_list, &f.camera, &f.params);
     }
+}
+
+/// `parity::draw::unrefined_mesh_batches_straddling_the_draw_distance`.
+fn unrefined_straddling() {
+    let (prepared, camera, params) = unrefined_straddling_case();
+    prepared.render(&camera, &params).expect("render");
 }
 
 fn table(columns: &[Column]) -> String {
@@ -382,6 +394,7 @@ fn every_threshold_is_straddled_by_a_parity_case() {
             refine_and_baseline_images,
         ),
         record("parity::every_stage walk", walk_frames),
+        record("parity::draw unrefined straddling", unrefined_straddling),
     ];
     let mut columns = columns;
     for mode in HIER_MODES {

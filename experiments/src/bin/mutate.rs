@@ -14,19 +14,23 @@
 //! - `drop`: a WGSL assignment statement commented out.
 //!
 //! Rust mutants target `shared/src`, the reference stages (`reference/src/{select,refine,
-//! hier_select,mips,bake,draw,raster,sampler,batches}.rs`) and the GPU drivers (`gpu/src/*.rs`), code before the
+//! hier_select,coalesce,command_order,hierarchy,mips,bake,draw,raster,sampler,batches,baselines}.rs`),
+//! the ground truth (`reference/src/ground_truth.rs`), the harness's judges
+//! (`harness/src/{stats,image_compare,texel_compare,judge}.rs`) and the GPU drivers
+//! (`gpu/src/*.rs`), code before the
 //! first `#[cfg(test)]` and outside comments; each needs a rebuild of the test binary. WGSL
 //! mutants target every `gpu/src/shaders/*.wgsl` and need no rebuild: the mutated text is passed
 //! through `FORESTLOD_MUTANT_WGSL` (`gpu/src/shaders.rs`, `mutant_or`).
 //!
 //! **Run**: each mutant against the tests that target its file (`targets`: the parity module of
 //! the stage, plus `properties` for Rust mutants of `shared` and the reference) with a timeout;
-//! a mutant is *killed* when a test fails (the first failing test is recorded), *survived* when
-//! all pass, *invalid* when it does not compile (Rust) or its module does not validate (counted
+//! a mutant is *killed* when a test fails (the first failing test is recorded), *timeout* when a
+//! test binary outlives the timeout (not a kill: issue 36), *survived* when all pass, *invalid* when it does not compile (Rust) or its module does not validate (counted
 //! apart: not a behaviour). Rust mutants are applied in place and always restored; their test
 //! binaries are rebuilt before the timeout starts (the timeout bounds the tests only).
 //! `--sample N` runs every `M/N`-th mutant of the list (a deterministic stride), so a slow machine
-//! can run a representative slice; `--only ID,ID` runs those ids of the list (a re-run after a
+//! can run a representative slice; `--stratified N` about `N` mutants spread over every file
+//! (at least one each, the rest in proportion to each file's count: issue 36); `--only ID,ID` runs those ids of the list (a re-run after a
 //! survivor got a sharper test); `--csv NAME` names the table. Writes `experiments/results/mutation/mutants.csv` (mutant,
 //! file, line, operator, before, after, verdict, killed by, seconds) and prints the kill rate,
 //! Rust and WGSL apart.
@@ -83,16 +87,45 @@ fn rust_files(root: &Path) -> Vec<PathBuf> {
         "select",
         "refine",
         "hier_select",
+        "coalesce",
+        "command_order",
+        "hierarchy",
         "mips",
         "bake",
         "draw",
         "raster",
         "sampler",
         "batches",
+        "baselines",
+        "ground_truth",
     ] {
         out.push(PathBuf::from(format!("reference/src/{f}.rs")));
     }
+    // The harness's judges (issue 36: the verifiers are code that can be wrong too).
+    for f in ["stats", "image_compare", "texel_compare", "judge"] {
+        out.push(PathBuf::from(format!("harness/src/{f}.rs")));
+    }
     out.sort();
+    out
+}
+
+/// A stratified sample of about `n` mutants (issue 36): every file gets at least one, the rest
+/// shared in proportion to each file's count, evenly spaced within the file; ids of the full list.
+fn stratified(mutants: &[Mutant], n: usize) -> Vec<usize> {
+    let mut files: Vec<&Path> = mutants.iter().map(|m| m.file.as_path()).collect();
+    files.dedup();
+    let total = mutants.len().max(1);
+    let spare = n.saturating_sub(files.len());
+    let mut out = Vec::new();
+    for f in files {
+        let ids: Vec<usize> = (0..mutants.len())
+            .filter(|&i| mutants[i].file == f)
+            .collect();
+        let quota = (1 + spare * ids.len() / total).min(ids.len());
+        for k in 0..quota {
+            out.push(ids[k * ids.len() / quota + ids.len() / (2 * quota)]);
+        }
+    }
     out
 }
 
@@ -206,6 +239,29 @@ fn mutants_of(root: &Path, file: &Path) -> Vec<Mutant> {
 /// record threshold coverage (`select`, `refine`, `hier_select`, `draw`) are also targeted by the
 /// `coverage` binary, which checks what those counters count.
 fn targets(file: &Path) -> Vec<(&'static str, String)> {
+    let stem = file.file_stem().unwrap().to_string_lossy().to_string();
+    // The truth and the judges: their unit tests (`lib` runs `cargo test --workspace --lib`
+    // with the module as filter), then the tests that use them.
+    if file.starts_with("harness") {
+        return vec![
+            ("lib", format!("{stem}::")),
+            ("gate_sensitivity", String::new()),
+            ("parity", "every_stage::".into()),
+        ];
+    }
+    if stem == "ground_truth" {
+        return vec![
+            ("lib", "ground_truth::".into()),
+            ("truth_oracle", String::new()),
+            ("reference", String::new()),
+        ];
+    }
+    if matches!(stem.as_str(), "hierarchy" | "coalesce" | "command_order") {
+        return vec![
+            ("properties", String::new()),
+            ("parity", "hier_select::".into()),
+        ];
+    }
     let mut t = targets_of_stage(file);
     let stem = file.file_stem().unwrap().to_string_lossy();
     if file.starts_with("reference")
@@ -268,15 +324,7 @@ fn run_tests(
         let name = m.file.file_name().unwrap().to_string_lossy();
         let out = Command::new("cargo")
             .current_dir(root)
-            .args([
-                "test",
-                "-q",
-                "-p",
-                "forestlod-gpu",
-                "--lib",
-                "--test",
-                "layout",
-            ])
+            .args(["test", "-q", "--workspace", "--test", "layout"])
             .args(["--", "--test-threads", "1"])
             .env("FORESTLOD_MUTANT_WGSL", format!("{name}={}", f.display()))
             .output()
@@ -299,9 +347,13 @@ fn run_tests(
         let mut build = Command::new("cargo");
         build
             .current_dir(root)
-            .args(["test", "-q", "--no-run", "-p", "forestlod-tests"]);
+            .args(["test", "-q", "--no-run", "--workspace"]);
         for (binary, _) in &targets {
-            build.args(["--test", binary]);
+            if *binary == "lib" {
+                build.arg("--lib");
+            } else {
+                build.args(["--test", binary]);
+            }
         }
         let out = build.output().map_err(|e| e.to_string())?;
         if !out.status.success() {
@@ -310,18 +362,18 @@ fn run_tests(
     }
     for (binary, filter) in targets {
         let mut cmd = Command::new("cargo");
-        cmd.current_dir(root)
-            .args([
-                "test",
-                "-q",
-                "-p",
-                "forestlod-tests",
-                "--test",
-                binary,
-                "--",
-            ])
+        cmd.current_dir(root).args(["test", "-q", "--workspace"]);
+        if binary == "lib" {
+            cmd.arg("--lib");
+        } else {
+            cmd.args(["--test", binary]);
+        }
+        // Proptest shrinking is cut short: only the failure is wanted, and a shrinking run
+        // that outlasts the timeout would count as a timeout instead of a named failing test.
+        cmd.arg("--")
             .arg(&filter)
             .args(["--test-threads", "1"])
+            .env("PROPTEST_MAX_SHRINK_ITERS", "0")
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
         if let Some(f) = mutant_file {
@@ -431,25 +483,34 @@ fn main() {
     let stride = (mutants.len() / sample.max(1)).max(1);
     let only: Option<Vec<usize>> =
         flag("--only").map(|s| s.split(',').filter_map(|x| x.trim().parse().ok()).collect());
-    let chosen: Vec<(usize, Mutant)> = match &only {
-        // `--only 88,110`: these ids of the list (after survivors got a sharper test).
-        Some(ids) => ids
-            .iter()
-            .filter_map(|&i| mutants.get(i).cloned().map(|m| (i, m)))
+    let strat: Option<usize> = flag("--stratified").and_then(|s| s.parse().ok());
+    let chosen: Vec<(usize, Mutant)> = match (&only, strat) {
+        // `--stratified N`: every file, in proportion to its count (issue 36).
+        (None, Some(n)) => stratified(&mutants, n)
+            .into_iter()
+            .map(|i| (i, mutants[i].clone()))
             .collect(),
-        None => mutants
-            .iter()
-            .cloned()
-            .enumerate()
-            .step_by(stride)
-            .take(sample)
-            .collect(),
+        _ => match &only {
+            // `--only 88,110`: these ids of the list (after survivors got a sharper test).
+            Some(ids) => ids
+                .iter()
+                .filter_map(|&i| mutants.get(i).cloned().map(|m| (i, m)))
+                .collect(),
+            None => mutants
+                .iter()
+                .cloned()
+                .enumerate()
+                .step_by(stride)
+                .take(sample)
+                .collect(),
+        },
     };
     let out_dir = root.join("experiments/results/mutation");
     std::fs::create_dir_all(&out_dir).expect("create experiments/results/mutation");
     let csv_path = out_dir.join(flag("--csv").unwrap_or_else(|| "mutants.csv".into()));
     let mut csv = String::from("id,file,line,operator,before,after,verdict,killed_by,seconds\n");
-    let (mut killed, mut survived, mut invalid) = ([0u32; 2], [0u32; 2], [0u32; 2]);
+    let (mut killed, mut survived, mut invalid, mut timeouts) =
+        ([0u32; 2], [0u32; 2], [0u32; 2], [0u32; 2]);
     eprintln!(
         "{} of {} mutants (every {stride}th)",
         chosen.len(),
@@ -486,6 +547,12 @@ fn main() {
         };
         let k = usize::from(m.wgsl());
         let (verdict, by) = match result {
+            // A timeout is not a named failing test (issue 36): counted apart, triaged like a
+            // survivor.
+            Ok(Some(t)) if t.ends_with("(timeout)") => {
+                timeouts[k] += 1;
+                ("timeout", t)
+            }
             Ok(Some(t)) => {
                 killed[k] += 1;
                 ("killed", t)
@@ -520,11 +587,13 @@ fn main() {
         );
     }
     for (k, lang) in ["Rust", "WGSL"].iter().enumerate() {
-        let valid = killed[k] + survived[k];
+        let valid = killed[k] + survived[k] + timeouts[k];
         if valid + invalid[k] > 0 {
             println!(
-                "{lang}: {} killed, {} survived, {} invalid; kill rate {:.0} % of {valid} valid mutants",
+                "{lang}: {} killed by a failing test, {} timed out, {} survived, {} invalid; \
+                 kill rate {:.0} % of {valid} valid mutants (timeouts not counted as kills)",
                 killed[k],
+                timeouts[k],
                 survived[k],
                 invalid[k],
                 100.0 * killed[k] as f64 / valid.max(1) as f64
