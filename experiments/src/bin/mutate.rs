@@ -263,7 +263,14 @@ fn targets(file: &Path) -> Vec<(&'static str, String)> {
         ];
     }
     let mut t = targets_of_stage(file);
-    let stem = file.file_stem().unwrap().to_string_lossy();
+    // Every GPU-side mutant also meets the walk of every mode and parameter extreme (issue 36),
+    // and `common.wgsl` holds the cut's rules too.
+    if file.starts_with("gpu") {
+        if stem == "common" {
+            t.insert(1, ("parity", "hier_select::".into()));
+        }
+        t.push(("parity", "every_stage::".into()));
+    }
     if file.starts_with("reference")
         && matches!(stem.as_ref(), "select" | "refine" | "hier_select" | "draw")
     {
