@@ -253,7 +253,7 @@ fn reference_counters_equal_their_recount() {
         failure_persistence: None,
         ..Config::default()
     });
-    let mut checked = [0u64; 4];
+    let checked = std::cell::RefCell::new([0u64; 4]);
     let strategy = (
         instances(300),
         cameras(),
@@ -263,6 +263,7 @@ fn reference_counters_equal_their_recount() {
         2u32..16,
     );
     let result = runner.run(&strategy, |(trees, camera, p, mode_i, cull_i, npn)| {
+        let mut checked = checked.borrow_mut();
         let p = Params {
             nodes_per_node: npn,
             ..case_params(p, TREE_CULLS[cull_i])
@@ -344,6 +345,7 @@ fn reference_counters_equal_their_recount() {
         }
         Ok(())
     });
+    let checked = checked.into_inner();
     eprintln!(
         "counters (reference): {} grid cases, {} cuts, {} transition nodes, {} nodes visited",
         checked[0], checked[1], checked[2], checked[3]
@@ -391,8 +393,8 @@ fn check_batching(
     Ok(())
 }
 
-/// `tiny` at its named views (`medium`, `close`, `far`, yaw 0, with the default and a 150 m draw
-/// distance) through the whole frame (`Prepared::render`, what the render job's metrics.json and
+/// `tiny` at its named views (`medium`, `close`, `far`, yaw 0, with the default draw distance and
+/// with the trees' median view depth as the draw distance) through the whole frame (`Prepared::render`, what the render job's metrics.json and
 /// the sweep's reference rows read), the grid and every hierarchy, `tree_cull` none, lod0 and
 /// all: the selection's counters, `refine`'s, the batching counts, `trees_drawn` and the draw's
 /// `trees_discarded` equal their recount.
@@ -406,7 +408,7 @@ fn reference_frame_counters_equal_their_recount() {
     };
     let views: Vec<_> = named_views(&scene, &base, 32)
         .into_iter()
-        .filter(|v| v.yaw == 0.0)
+        .filter(|v| v.yaw == 0.0 && v.params.draw_distance == base.draw_distance)
         .collect();
     let mut frames = 0;
     let mut reached = [0u64; 4];
@@ -421,10 +423,21 @@ fn reference_frame_counters_equal_their_recount() {
             &prepared.scene,
             &prepared.geometry.meshes,
         );
-        for v in &views {
-            for tree_cull in TREE_CULLS {
+        for (v, tree_cull) in views.iter().flat_map(|v| TREE_CULLS.map(|t| (v, t))) {
+            // The view's draw distance, and the median view depth of the trees (so that trees
+            // of one drawn batch lie on either side of it: the draw's per-tree discard).
+            let mut depths: Vec<f32> = spheres
+                .iter()
+                .map(|(c, _)| {
+                    (0..3)
+                        .map(|k| (c[k] - v.camera.eye[k]) * v.camera.forward[k])
+                        .sum()
+                })
+                .collect();
+            depths.sort_by(f32::total_cmp);
+            for draw_distance in [v.params.draw_distance, depths[depths.len() / 2].max(1.0)] {
                 let p = Params {
-                    draw_distance: v.params.draw_distance,
+                    draw_distance,
                     tree_cull: tree_cull as u32,
                     ..p
                 };
@@ -516,7 +529,7 @@ fn gpu_counters_equal_their_recount() {
     });
     // Cases, cases whose grid commands differ from the reference's (decision counters not
     // recounted there), cuts, refines.
-    let mut tally = [0u64; 4];
+    let tally = std::cell::RefCell::new([0u64; 4]);
     let strategy = (
         instances(300),
         cameras(),
@@ -526,6 +539,7 @@ fn gpu_counters_equal_their_recount() {
         2u32..16,
     );
     let result = runner.run(&strategy, |(trees, camera, p, mode_i, cull_i, npn)| {
+        let mut tally = tally.borrow_mut();
         let fail = |e: forestlod_gpu::GpuError| TestCaseError::fail(e.to_string());
         let mode = TREE_CULLS[cull_i];
         let p = Params {
@@ -626,6 +640,7 @@ fn gpu_counters_equal_their_recount() {
         tally[2] += 1;
         Ok(())
     });
+    let tally = tally.into_inner();
     eprintln!(
         "counters (GPU): {} cases ({} select runs with commands differing from the reference's: \
          decision counters not recounted there), {} cuts, {} refines",
