@@ -1325,6 +1325,194 @@ mod tests {
         assert!(format!("{r}").contains(&format!("colour window {}/", r.color.window)));
     }
 
+    /// A report of `pixels` pixels (`edges` of them edge pixels), every class empty and the
+    /// histograms empty: it passes (the sensitivity tests below move one count at a time).
+    fn report_of(pixels: usize, edges: usize) -> ImageReport {
+        let mut r = ImageReport::empty("budgets", 1000, (pixels / 1000) as u32);
+        r.edge_pixels = edges;
+        for k in [&mut r.color, &mut r.depth, &mut r.lod_id] {
+            k.pixels = pixels;
+            k.exact = pixels;
+        }
+        assert!(r.passed(), "{:?}", r.failures());
+        r
+    }
+
+    /// Sensitivity of every class budget (issue 36, class 2): on a report of 1,000,000 pixels,
+    /// 100,000 of them edge pixels, each budgeted class holds exactly its budget (passes) and
+    /// then one more (fails, naming the buffer and the class). The budgets are literal:
+    /// `ceil(fraction · of) + CLASS_BUDGET_FLOOR`, so a changed fraction, floor or base (all
+    /// pixels instead of the edge pixels) shows.
+    #[test]
+    fn gate_every_class_budget_at_budget_passes_one_more_fails() {
+        type Field = fn(&mut ImageReport) -> &mut usize;
+        let table: [(&str, &str, usize, Field); 8] = [
+            ("colour", "window", 30_004, |r| &mut r.color.window),
+            ("colour", "threshold-ambiguous", 7_004, |r| {
+                &mut r.color.threshold_ambiguous
+            }),
+            ("colour", "edge-ambiguous", 64, |r| {
+                &mut r.color.edge_ambiguous
+            }),
+            ("depth", "threshold-ambiguous", 35_004, |r| {
+                &mut r.depth.threshold_ambiguous
+            }),
+            ("depth", "translucent", 1_004, |r| &mut r.depth.translucent),
+            ("depth", "edge-ambiguous", 3_304, |r| {
+                &mut r.depth.edge_ambiguous
+            }),
+            ("LOD id", "threshold-ambiguous", 8_004, |r| {
+                &mut r.lod_id.threshold_ambiguous
+            }),
+            ("LOD id", "edge-ambiguous", 204, |r| {
+                &mut r.lod_id.edge_ambiguous
+            }),
+        ];
+        for (buffer, class, budget, field) in table {
+            let mut r = report_of(1_000_000, 100_000);
+            *field(&mut r) = budget;
+            let listed = r
+                .class_budgets()
+                .into_iter()
+                .find(|&(b, c, _, _)| (b, c) == (buffer, class))
+                .unwrap_or_else(|| panic!("{buffer} {class} is not a budgeted class"));
+            assert_eq!(listed, (buffer, class, budget, budget), "{buffer} {class}");
+            assert!(
+                r.passed(),
+                "{buffer} {class} at its budget {budget}: {:?}",
+                r.failures()
+            );
+            *field(&mut r) = budget + 1;
+            let failures = r.failures();
+            assert_eq!(
+                failures.len(),
+                1,
+                "{buffer} {class} at {}: {failures:?}",
+                budget + 1
+            );
+            assert!(
+                failures[0].starts_with(&format!(
+                    "{buffer}: {} {class} pixels exceed the class budget {budget} ",
+                    budget + 1
+                )),
+                "{failures:?}"
+            );
+        }
+        // The floor alone: 100 pixels, 10 edge pixels.
+        let mut r = report_of(100, 10);
+        r.color.edge_ambiguous = 5; // ceil(0.0006 · 10) + 4
+        assert!(r.passed(), "{:?}", r.failures());
+        r.color.edge_ambiguous = 6;
+        assert!(!r.passed());
+    }
+
+    /// The compound (mismatch) budget: `floor(1e-5 · pixels)` per buffer, zero below 316x316.
+    #[test]
+    fn gate_compound_budget_at_budget_passes_one_more_fails() {
+        for (pixels, budget) in [(99_856, 0), (100_489, 1), (1_000_000, 10)] {
+            assert_eq!(
+                report_of(pixels, 0).compound_budget(),
+                budget,
+                "{pixels} pixels"
+            );
+        }
+        type Field = fn(&mut ImageReport) -> &mut usize;
+        let buffers: [(&str, Field); 3] = [
+            ("colour", |r| &mut r.color.mismatches),
+            ("depth", |r| &mut r.depth.mismatches),
+            ("LOD id", |r| &mut r.lod_id.mismatches),
+        ];
+        for (buffer, field) in buffers {
+            let mut r = report_of(1_000_000, 0);
+            *field(&mut r) = 10;
+            assert!(r.passed(), "{buffer} at 10: {:?}", r.failures());
+            *field(&mut r) = 11;
+            let failures = r.failures();
+            assert!(
+                failures.len() == 1 && failures[0].starts_with(&format!("{buffer}: 11 ")),
+                "{failures:?}"
+            );
+        }
+    }
+
+    /// The depth-tie gate (1 % of the pixels), the FLIP gate (0.03, NaN fails) and the two bias
+    /// gates (colour per value 1.5, depth 8 ulp) at their limits and one step past.
+    #[test]
+    fn gate_depth_tie_flip_and_bias_limits() {
+        let mut r = report_of(1_000_000, 0);
+        r.color.depth_tie = 10_000;
+        assert!(r.passed(), "{:?}", r.failures());
+        r.color.depth_tie = 10_001;
+        let f = r.failures();
+        assert!(
+            f.len() == 1 && f[0].contains("10001 depth-tie pixels"),
+            "{f:?}"
+        );
+
+        let mut r = report_of(1_000_000, 0);
+        r.flip_mean = FLIP_MEAN_MAX;
+        assert!(r.passed(), "{:?}", r.failures());
+        r.flip_mean = f32::from_bits(FLIP_MEAN_MAX.to_bits() + 1);
+        let f = r.failures();
+        assert!(f.len() == 1 && f[0].starts_with("FLIP mean"), "{f:?}");
+        r.flip_mean = f32::NAN;
+        assert!(!r.passed());
+
+        // Colour: 30 reference values in green each +1.5 on average (one +1 and one +2): the
+        // per-value mean is exactly COLOR_BIAS_MAX; one value at +2 instead moves it past.
+        let colour = |last: i64| {
+            let mut r = report_of(1_000_000, 0);
+            for v in 0..30 {
+                r.color_signed[1].record_at(v, 1);
+                r.color_signed[1].record_at(v, if v == 29 { last } else { 2 });
+            }
+            r
+        };
+        let at = colour(2);
+        assert_eq!(at.color_signed[1].value_bias().0, COLOR_BIAS_MAX);
+        assert!(at.passed(), "{:?}", at.failures());
+        let f = colour(3).failures();
+        assert!(
+            f.len() == 1 && f[0].starts_with("colour channel G: bias"),
+            "{f:?}"
+        );
+        // Depth: 100 pixels +8 ulp is a mean of exactly DEPTH_BIAS_MAX_ULPS; one more ulp fails.
+        let depth = |extra: i64| {
+            let mut r = report_of(1_000_000, 0);
+            for i in 0..100 {
+                r.depth_signed.record(8 + i64::from(i == 0) * extra);
+            }
+            r
+        };
+        assert_eq!(depth(0).depth_signed.mean(), DEPTH_BIAS_MAX_ULPS);
+        assert!(depth(0).passed(), "{:?}", depth(0).failures());
+        let f = depth(1).failures();
+        assert!(
+            f.len() == 1 && f[0].starts_with("depth (ulp): bias"),
+            "{f:?}"
+        );
+    }
+
+    /// The per-pixel colour tolerance through the public comparison: an interior pixel of a flat
+    /// frame [`COLOR_TOLERANCE`] away in one channel is within tolerance, one more is not matched
+    /// (its window holds the same colour, no alternative, no edge: with the reference's id and
+    /// depth it falls to the depth-tie class, 1 of 64 pixels, past that class's 1 % gate).
+    #[test]
+    fn gate_color_tolerance_at_tolerance_passes_one_more_fails() {
+        let reference = flat(1, [100, 100, 100, 255], 0.9);
+        for (d, within) in [(COLOR_TOLERANCE, true), (COLOR_TOLERANCE + 1, false)] {
+            let mut gpu = reference.clone();
+            gpu.color[3 * 8 + 3][2] = 100 + d;
+            let r = compare_images("tolerance", &gpu, &reference, &[], &camera());
+            assert_eq!(
+                (r.color.within_tolerance, r.color.window, r.color.depth_tie),
+                if within { (1, 0, 0) } else { (0, 0, 1) },
+                "difference {d}: {r}"
+            );
+            assert_eq!(r.passed(), within, "{r}");
+        }
+    }
+
     #[test]
     fn depth_is_judged_in_ulps() {
         let reference = flat(1, [0; 4], 0.5);

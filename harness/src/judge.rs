@@ -697,3 +697,84 @@ pub fn primitive_args(visible: usize) -> DrawIndirectArgs {
         first_instance: 0,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bytemuck::Zeroable;
+    use forestlod_shared::LOD_BILLBOARD;
+
+    /// Sensitivity of [`AMBIGUITY_REL`] (issue 36, class 2): a sphere ahead of the eye with its
+    /// interval's near end `lo` at 500 m; the draw distance is moved up from `lo` one `f32` step
+    /// at a time, and the decision stops being ambiguous exactly where `|lo - t| = rel ·
+    /// (|c - e|₁ + r + t)` says (within 2 steps of the exact boundary in `f64`), not at a multiple
+    /// of it or with another magnitude.
+    #[test]
+    fn gate_ambiguity_rel_flips_at_its_boundary() {
+        let camera = Camera::look_at([0.0; 3], [1.0, 0.0, 0.0], 60.0, 64, 64);
+        let mut u = SelectUniform::new(&camera, &Params::default());
+        let (center, radius) = ([1000.0, 0.0, 0.0], 500.0);
+        let i = view_interval(center, radius, u.eye, u.forward);
+        let magnitude = 1000.0 + f64::from(radius);
+        let rel = f64::from(AMBIGUITY_REL);
+        let boundary = (f64::from(i.lo) + rel * magnitude) / (1.0 - rel);
+        let checks = Thresholds {
+            centre_depth: false,
+            fade_band: false,
+        };
+        let mut t = i.lo;
+        let mut steps = 0;
+        loop {
+            u.draw_distance = t;
+            if threshold_ambiguity(center, radius, &u, AMBIGUITY_REL, checks).is_none() {
+                break;
+            }
+            t = f32::from_bits(t.to_bits() + 1);
+            steps += 1;
+            assert!(steps < 1_000_000, "still ambiguous at {t}");
+        }
+        let ulp = f64::from(f32::from_bits(t.to_bits() + 1) - t);
+        assert!(
+            (f64::from(t) - boundary).abs() <= 2.0 * ulp,
+            "ambiguity ends at draw distance {t} ({steps} steps above lo {}), the rule's boundary \
+             is {boundary}",
+            i.lo
+        );
+        assert!(steps > 100, "only {steps} steps ambiguous");
+    }
+
+    /// Sensitivity of [`KEY_ULPS`]: a run key one step from the reference's is ambiguous (and the
+    /// order is then checked under the backend's keys), two steps fail naming the run.
+    #[test]
+    fn gate_key_ulps_one_step_ambiguous_two_fail() {
+        let command = |first_instance| DrawCommand {
+            index_count: 6,
+            instance_count: 1,
+            first_index: 0,
+            base_vertex: 0,
+            first_instance,
+        };
+        let data = |batch| CommandData {
+            batch,
+            lod: LOD_BILLBOARD,
+            ..CommandData::zeroed()
+        };
+        let merged = Selection {
+            commands: vec![command(0), command(1)],
+            data: vec![data(0), data(1)],
+            ..Selection::default()
+        };
+        let ref_keys = [100.0f32.to_bits(), 200.0f32.to_bits()];
+        for (step, ok) in [(1, true), (2, false)] {
+            let keys = vec![ref_keys[0] + step, ref_keys[1]];
+            let (got, sorted) = order(merged.clone(), keys.clone(), CommandOrder::FrontToBack);
+            let pairs: Vec<(u32, u32)> = sorted.iter().zip(0..).map(|(&k, r)| (k, r)).collect();
+            let result = check_order(&got, &pairs, &merged, &ref_keys);
+            match (ok, result) {
+                (true, Ok(found)) => assert_eq!(found, (1, 1)),
+                (false, Err(why)) => assert!(why.starts_with("run 0: key"), "{why}"),
+                (_, result) => panic!("key {step} steps off: {result:?}"),
+            }
+        }
+    }
+}

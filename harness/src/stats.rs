@@ -336,6 +336,131 @@ mod tests {
         assert!(why.contains("256 values shifted up"), "{why}");
     }
 
+    /// `n` elements, `plus` of them `+d`, the rest 0.
+    fn sparse(n: u64, plus: u64, d: i64) -> SignedHistogram {
+        let mut h = SignedHistogram::new(1);
+        for i in 0..n {
+            h.record(if i < plus { d } else { 0 });
+        }
+        h
+    }
+
+    /// Sensitivity (issue 36, class 2): sparse one-sided differences among many equal elements.
+    /// 100 of 10,000 elements +1: mean 0.01 above a limit of 1e-3, and `|P - N| = 100` against
+    /// `BIAS_SIGN_Z sqrt(P + N) = 50`: biased. A sign test that counted the zeros too
+    /// (`sqrt(n)`: 500) would pass it.
+    #[test]
+    fn gate_sign_test_sparse_one_sided_among_zeros_fails() {
+        let h = sparse(10_000, 100, 1);
+        assert_eq!((h.positive, h.negative, h.n), (100, 0, 10_000));
+        assert!(h.signs_unbalanced(), "{h}");
+        let why = h
+            .bias_failure("sparse", 1e-3)
+            .unwrap_or_else(|| panic!("100 of 10,000 elements +1 must be a bias: {h}"));
+        assert!(why.contains("100 elements +, 0 -, of 10000"), "{why}");
+        // The same shape per reference value: 10,000 distinct values, 100 of them +1.
+        let mut v = SignedHistogram::new(1);
+        for i in 0..10_000 {
+            v.record_at(i, i64::from(i < 100));
+        }
+        let why = v
+            .value_bias_failure("sparse values", 1e-3)
+            .unwrap_or_else(|| {
+                panic!("100 of 10,000 values shifted up must be a bias per value: {v}")
+            });
+        assert!(
+            why.contains("100 values shifted up, 0 down, of 10000"),
+            "{why}"
+        );
+    }
+
+    /// Balanced noise of a large magnitude passes: 520 elements +10 and 480 -10 have a mean of
+    /// +0.4 (above a limit of 0.1) and 10 per element, but `|P - N| = 40 <= 5 sqrt(1000) = 158`:
+    /// chance. The same per reference value.
+    #[test]
+    fn gate_sign_test_balanced_large_noise_passes() {
+        let mut h = SignedHistogram::new(10);
+        for i in 0..1000 {
+            h.record(if i < 520 { 10 } else { -10 });
+        }
+        assert!(h.mean() > 0.1, "{h}");
+        assert!(!h.signs_unbalanced(), "{h}");
+        assert_eq!(h.bias_failure("balanced", 0.1), None, "{h}");
+        let mut v = SignedHistogram::new(10);
+        for i in 0..1000 {
+            v.record_at(i, if i < 520 { 10 } else { -10 });
+        }
+        assert!(v.value_bias().0 > 0.1, "{v}");
+        assert_eq!(v.value_bias_failure("balanced values", 0.1), None, "{v}");
+    }
+
+    /// The doc's claim "caught from 26 elements on": `n` one-signed elements are unbalanced
+    /// exactly when `n > 5 sqrt(n)`, i.e. `n > 25`. Per element and per value.
+    #[test]
+    fn gate_sign_test_boundary_is_26_elements() {
+        for (n, biased) in [(25, false), (26, true)] {
+            let h = sparse(n, n, 1);
+            assert_eq!(
+                h.bias_failure("one-signed", 1e-3).is_some(),
+                biased,
+                "{n} one-signed elements: {h}"
+            );
+            let mut v = SignedHistogram::new(1);
+            for i in 0..n as i64 {
+                v.record_at(i, -1);
+            }
+            assert_eq!(
+                v.value_bias_failure("one-signed values", 1e-3).is_some(),
+                biased,
+                "{n} values shifted down: {v}"
+            );
+        }
+    }
+
+    /// The mean gate at its limit passes and one element past it fails (the sign test firing):
+    /// 100 of 1,000 elements +1 is a mean of exactly 0.1.
+    #[test]
+    fn gate_bias_mean_at_limit_passes_one_past_fails() {
+        let at = sparse(1000, 100, 1);
+        assert_eq!(at.mean(), 0.1);
+        assert!(at.signs_unbalanced(), "{at}");
+        assert_eq!(at.bias_failure("at", 0.1), None, "{at}");
+        let past = sparse(1000, 101, 1);
+        assert!(past.bias_failure("past", 0.1).is_some(), "{past}");
+        // Per value: 1,000 values, 100 (then 101) of them +1, the same means.
+        let values = |plus: i64| {
+            let mut v = SignedHistogram::new(1);
+            for i in 0..1000 {
+                v.record_at(i, i64::from(i < plus));
+            }
+            v
+        };
+        let at = values(100);
+        assert_eq!(at.value_bias().0, 0.1);
+        assert_eq!(at.value_bias_failure("at", 0.1), None, "{at}");
+        assert!(values(101).value_bias_failure("past", 0.1).is_some());
+    }
+
+    /// `decision_budget_failure`: the budget is `ceil(1e-3 · decisions) + 2`; at it passes, one
+    /// more fails naming the run. Literal budgets, so a changed fraction or floor shows.
+    #[test]
+    fn gate_decision_budget_at_budget_passes_one_more_fails() {
+        // (decisions, budget): the floor alone; the fraction rounded up; the fraction.
+        for (decisions, budget) in [(0u64, 2u64), (1001, 4), (10_000, 12), (1_000_000, 1002)] {
+            assert_eq!(
+                decision_budget_failure("run", budget, decisions),
+                None,
+                "{budget} of {decisions} is within the budget"
+            );
+            let why = decision_budget_failure("run", budget + 1, decisions)
+                .unwrap_or_else(|| panic!("{} of {decisions} must exceed it", budget + 1));
+            assert!(
+                why.starts_with("run: ") && why.contains(&format!("class budget {budget} ")),
+                "{why}"
+            );
+        }
+    }
+
     #[test]
     fn many_bins_are_grouped() {
         let mut h = SignedHistogram::new(64);

@@ -346,6 +346,66 @@ impl Backend<Bake> for Reference {
 mod tests {
     use super::*;
 
+    /// A tally of `values` distinct reference values in red (`texels_per_value` texels each, every
+    /// other channel equal), where the first `shifted` values have one texel one step up: a
+    /// per-value bias of exactly `shifted / (texels_per_value · values)`.
+    fn red_shift(values: u8, texels_per_value: u32, shifted: u8) -> TexelTally {
+        let mut tally = TexelTally::default();
+        for v in 0..values {
+            for k in 0..texels_per_value {
+                let want = [v, 7, 7, 255];
+                let got = [v + u8::from(v < shifted && k == 0), 7, 7, 255];
+                tally.texel(|| format!("value {v} texel {k}"), got, want, 1);
+            }
+        }
+        tally
+    }
+
+    /// Sensitivity of the texel bias gates (issue 36, class 2), each at its limit and one value
+    /// past: [`TEXEL_BIAS_MAX`] (200 values, 1 of 4 texels up on 40 of them: exactly 0.05; 41
+    /// fail) and [`MIPS_BIAS_MAX`] (250 values, 1 of 128 texels up on 32 of them: exactly 1e-3;
+    /// 33 fail). Both have at least 26 values up, so the sign test fires and the mean decides.
+    #[test]
+    fn gate_texel_and_mips_bias_at_limit_pass_one_past_fail() {
+        for (what, limit, values, per, at) in [
+            ("texel", TEXEL_BIAS_MAX, 200, 4, 40),
+            ("mips", MIPS_BIAS_MAX, 250, 128, 32),
+        ] {
+            let tally = red_shift(values, per, at);
+            assert_eq!(tally.channels[0].value_bias(), (limit, u64::from(at), 0));
+            assert_eq!(tally.over_tolerance, 0);
+            assert!(
+                tally.bias_failures(what, limit).is_empty(),
+                "{what} at {limit}: {}",
+                tally.summary()
+            );
+            let past = red_shift(values, per, at + 1);
+            let failures = past.bias_failures(what, limit);
+            assert!(
+                failures.len() == 1 && failures[0].starts_with(&format!("{what} channel R: ")),
+                "{what} one value past {limit}: {failures:?}"
+            );
+        }
+    }
+
+    /// The per-texel tolerance: a channel `tolerance` away is differing but within it, one more
+    /// is over it and is the first offender.
+    #[test]
+    fn gate_texel_tolerance_at_tolerance_passes_one_more_fails() {
+        let mut tally = TexelTally::default();
+        tally.compare("a", &[[11, 0, 0, 0]], &[[10, 0, 0, 0]], 1);
+        assert_eq!((tally.differing, tally.over_tolerance), (1, 0));
+        tally.compare("b", &[[12, 0, 0, 0]], &[[10, 0, 0, 0]], 1);
+        assert_eq!(
+            (tally.differing, tally.over_tolerance, tally.max_diff),
+            (2, 1, 2)
+        );
+        assert_eq!(
+            tally.first_over,
+            Some(("b texel 0".to_string(), [12, 0, 0, 0], [10, 0, 0, 0]))
+        );
+    }
+
     #[test]
     fn every_texel_one_step_up_is_within_tolerance_but_biased() {
         let want: Vec<[u8; 4]> = (0..4096u32)

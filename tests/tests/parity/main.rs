@@ -18,6 +18,7 @@
 
 mod bake;
 mod baselines;
+mod counters;
 mod draw;
 mod every_stage;
 mod from_cpu;
