@@ -2,7 +2,7 @@
 //! stage of `forestlod_harness::stages::STAGES`, one frame at **every choice** of each mode
 //! parameter the row names (`StageEntry::modes`) and one with **each numeric parameter** the row
 //! names (`StageEntry::params`) at its least and at its greatest accepted value (its kind in
-//! `forestlod_shared::registry::PARAMS`). A stage or a mode added to the table is then walked
+//! `forestlod_shared::registry::PARAMS`), each extreme at every choice of the row's first mode. A stage or a mode added to the table is then walked
 //! without a test being written for it.
 //!
 //! `tests/tests/parity/every_stage.rs` runs every case's stages on the GPU against the reference
@@ -203,28 +203,53 @@ pub fn stage_cases() -> Vec<StageCase> {
                 );
             }
         }
+        // The extremes at every choice of the stage's first mode (a rule may differ per mode
+        // exactly at an extreme: the mips' alpha test at cutoff 0 counts only in the coverage
+        // mode), choices that turn the stage off left out.
+        let first_mode: Vec<(&str, u32, &str)> = match e.modes.first() {
+            Some(&m) => {
+                let spec = param(m).expect("a mode parameter");
+                let ParamKind::Choice(choices) = spec.kind else {
+                    panic!("{}: {m} is not a choice", e.id.name());
+                };
+                choices()
+                    .into_iter()
+                    .filter(|(c, _)| !skips(e.id, m, c))
+                    .map(|(c, code)| (m, code, c))
+                    .collect()
+            }
+            None => vec![("", 0, "")],
+        };
         for &name in e.params {
             let spec =
                 param(name).unwrap_or_else(|| panic!("{}: no parameter {name}", e.id.name()));
             let (least, greatest) = extremes(spec.kind)
                 .unwrap_or_else(|| panic!("{}: {name} is not numeric", e.id.name()));
-            for (reach, v) in [("least", least), ("greatest", greatest)] {
-                let mut p = base_params;
-                (spec.set)(&mut p, v);
-                let mut scene = "tiny";
-                affordable(&mut scene, &mut p);
-                let value = spec.format(&p);
-                push(
-                    format!("{base_name}-{name}-{value}"),
-                    scene,
-                    p,
-                    Target {
-                        stage: e.id,
-                        param: name,
-                        value,
-                        reach,
-                    },
-                );
+            for &(mode, code, choice) in &first_mode {
+                for (reach, v) in [("least", least), ("greatest", greatest)] {
+                    let mut p = base_params;
+                    if let Some(m) = param(mode) {
+                        (m.set)(&mut p, f64::from(code));
+                    }
+                    (spec.set)(&mut p, v);
+                    let mut scene = "tiny";
+                    affordable(&mut scene, &mut p);
+                    let mut value = spec.format(&p);
+                    if !mode.is_empty() {
+                        value = format!("{value} with {mode} = {choice}");
+                    }
+                    push(
+                        format!("{base_name}-{name}-{value}"),
+                        scene,
+                        p,
+                        Target {
+                            stage: e.id,
+                            param: name,
+                            value,
+                            reach,
+                        },
+                    );
+                }
             }
         }
     }

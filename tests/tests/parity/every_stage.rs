@@ -180,18 +180,20 @@ fn the_diagnosis_walks_the_plan() {
     }
 }
 
-#[test]
-fn every_mode_and_parameter_extreme_of_every_stage_on_the_gpu() {
+/// The walk of one stage (module docs): every case of `forestlod_tests::stage_cases` with a
+/// target of `stage`, that stage alone on the GPU against the reference.
+fn walk(stage: StageId) {
     let Some(ctx) = gpu_context() else {
         eprintln!("every_stage walk: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
         return;
     };
     let started = Instant::now();
-    let cases = stage_cases();
+    let cases: Vec<_> = stage_cases()
+        .into_iter()
+        .filter(|c| c.targets.iter().any(|t| t.stage == stage))
+        .collect();
     let mut failures = Vec::new();
-    // Per stage: (targets reached, largest difference).
-    let mut seen: BTreeMap<StageId, (Vec<String>, f64)> = BTreeMap::new();
-    let mut targets = 0;
+    let (mut reached, mut max, mut targets) = (Vec::new(), 0.0f64, 0);
     for case in &cases {
         let scene = forestlod_tests::stage_cases::scene(case.scene);
         let prepared = match prepare(scene, &case.params) {
@@ -203,82 +205,99 @@ fn every_mode_and_parameter_extreme_of_every_stage_on_the_gpu() {
         };
         let (_, _, camera) = small_poses(&prepared.scene, &[("medium", 0.0)]).remove(0);
         let frame = FrameStages::new(&prepared, &camera, &case.params);
-        for stage in case.stages() {
-            let check = frame.check(ctx, stage);
-            for t in case.targets.iter().filter(|t| t.stage == stage) {
-                targets += 1;
-                let what = format!("{}: {} {} = {}", stage.name(), t.reach, t.param, t.value);
-                let skipped = skips(stage, t.param, &t.value);
-                match (&check, skipped) {
-                    (None, true) => {
-                        seen.entry(stage)
-                            .or_default()
-                            .0
-                            .push(format!("{}={} (skips the stage)", t.param, t.value));
-                    }
-                    (Some(_), true) => failures.push(format!(
-                        "{}: {what}: the stage ran, but this choice must turn it off",
-                        case.name
-                    )),
-                    (None, false) => failures.push(format!(
-                        "{}: {what}: the stage did not run (not reached)",
-                        case.name
-                    )),
-                    (Some(c), false) => {
-                        if let Some(test) = judged_elsewhere(t) {
-                            // Judged in depth by `test` (whose existence is checked below).
-                            let (module, name) = test.split_once("::").expect("module::test");
-                            let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                                .join(format!("tests/parity/{module}.rs"));
-                            let src = std::fs::read_to_string(&file).unwrap_or_default();
-                            if !src.contains(&format!("fn {name}()")) {
-                                failures.push(format!(
-                                    "{what}: judged by {test}, which does not exist"
-                                ));
-                            }
-                            eprintln!("walk: {what}: judged by {test} ({})", c.summary);
-                            seen.entry(stage)
-                                .or_default()
-                                .0
-                                .push(format!("{}={} (judged by {test})", t.param, t.value));
-                            continue;
+        let check = frame.check(ctx, stage);
+        for t in case.targets.iter().filter(|t| t.stage == stage) {
+            targets += 1;
+            let what = format!("{}: {} {} = {}", stage.name(), t.reach, t.param, t.value);
+            let skipped = skips(stage, t.param, &t.value);
+            match (&check, skipped) {
+                (None, true) => reached.push(format!("{}={} (skips the stage)", t.param, t.value)),
+                (Some(_), true) => failures.push(format!(
+                    "{}: {what}: the stage ran, but this choice must turn it off",
+                    case.name
+                )),
+                (None, false) => failures.push(format!(
+                    "{}: {what}: the stage did not run (not reached)",
+                    case.name
+                )),
+                (Some(c), false) => {
+                    if let Some(test) = judged_elsewhere(t) {
+                        // Judged in depth by `test`, which must exist.
+                        let (module, name) = test.split_once("::").expect("module::test");
+                        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                            .join(format!("tests/parity/{module}.rs"));
+                        let src = std::fs::read_to_string(&file).unwrap_or_default();
+                        if !src.contains(&format!("fn {name}()")) {
+                            failures
+                                .push(format!("{what}: judged by {test}, which does not exist"));
                         }
-                        if c.differs {
-                            failures.push(format!("{}: {what}: {}", case.name, c.summary));
-                        }
-                        let s = seen.entry(stage).or_default();
-                        s.0.push(format!("{}={}", t.param, t.value));
-                        s.1 = s.1.max(c.max_difference);
+                        eprintln!("walk: {what}: judged by {test} ({})", c.summary);
+                        reached.push(format!("{}={} (judged by {test})", t.param, t.value));
+                        continue;
                     }
+                    if c.differs {
+                        failures.push(format!("{}: {what}: {}", case.name, c.summary));
+                    }
+                    reached.push(format!("{}={}", t.param, t.value));
+                    max = max.max(c.max_difference);
                 }
             }
         }
     }
-    for (id, (reached, max)) in &seen {
-        eprintln!(
-            "walk: {}: {} targets, max difference {max}: {}",
-            id.name(),
-            reached.len(),
-            reached.join(", ")
-        );
-    }
     eprintln!(
-        "walk: {} cases, {targets} targets in {:.1} s",
+        "walk: {}: {} cases, {targets} targets, max difference {max}, {:.1} s: {}",
+        stage.name(),
         cases.len(),
-        started.elapsed().as_secs_f64()
+        started.elapsed().as_secs_f64(),
+        reached.join(", ")
     );
-    let unreached: Vec<&str> = STAGES
-        .iter()
-        .filter(|e| !(e.modes.is_empty() && e.params.is_empty()) && !seen.contains_key(&e.id))
-        .map(|e| e.id.name())
-        .collect();
+    let entry = STAGES.iter().find(|e| e.id == stage).expect("a row");
     assert!(
-        unreached.is_empty(),
-        "stages the walk never checked: {unreached:?}"
+        targets > 0 || (entry.modes.is_empty() && entry.params.is_empty()),
+        "the walk reached no target of {}",
+        stage.name()
     );
     assert!(
         failures.is_empty(),
         "the walk failed:\n{}",
         failures.join("\n")
+    );
+}
+
+/// One walk test per stage (they run in parallel; a failure names its stage), and the list of
+/// stages they cover, which must be every [`StageId`].
+macro_rules! walks {
+    ($($test:ident => $stage:ident),+ $(,)?) => {
+        $(
+            #[test]
+            fn $test() {
+                walk(StageId::$stage);
+            }
+        )+
+        const WALKED: &[StageId] = &[$(StageId::$stage),+];
+    };
+}
+
+walks! {
+    walk_bake => Bake,
+    walk_mips => Mips,
+    walk_select => Select,
+    walk_hier_select => HierSelect,
+    walk_coalesce => Coalesce,
+    walk_command_order => CommandOrder,
+    walk_refine => Refine,
+    walk_draw => Draw,
+    walk_cull => Cull,
+    walk_primitive => Primitive,
+}
+
+/// The walk covers every stage of the table: a stage added to [`StageId`] needs its `walks!`
+/// line.
+#[test]
+fn the_walk_covers_every_stage() {
+    assert_eq!(
+        WALKED,
+        &StageId::ALL[..],
+        "one walk test per stage, in StageId::ALL order"
     );
 }

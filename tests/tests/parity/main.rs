@@ -9,6 +9,8 @@
 //! - [`metamorphic`]: relations between two runs of one backend (translation, permutation,
 //!   LOD0 everywhere = Vegetation, LOD monotone in distance), on the reference and the GPU;
 //! - [`threads`]: frames recorded from several threads on one context equal single-thread ones;
+//! - [`mutants`]: the CI-sized mutation subset (issue 36): WGSL mutants that must stay killed,
+//!   each run through the mutation hook in a child of this binary;
 //! - [`sampler_lod`]: the adapter's implicit level of detail, measured (the data behind the
 //!   tolerances of `forestlod_harness::image_compare`).
 //!
@@ -25,6 +27,7 @@ mod from_cpu;
 mod hier_select;
 mod metamorphic;
 mod mips;
+mod mutants;
 mod refine;
 mod sampler_lod;
 mod select;
