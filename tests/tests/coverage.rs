@@ -249,7 +249,7 @@ fn straddling_cases(mode: Hierarchy) {
         .iter()
         .map(|t| forestlod_reference::scene::Instance {
             mesh: t.mesh % 3,
-            ..t.clone()
+            ..*t
         })
         .collect();
     let packed = Packed::new(trees, p.grid_size);

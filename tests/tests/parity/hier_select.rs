@@ -340,7 +340,7 @@ fn gpu_cut_on_frustum_straddling_boxes() {
             .iter()
             .map(|t| forestlod_reference::scene::Instance {
                 mesh: t.mesh % 3,
-                ..t.clone()
+                ..*t
             })
             .collect();
         let packed = Packed::new(trees, p.grid_size);
