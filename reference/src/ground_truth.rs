@@ -34,11 +34,19 @@
 //! - **Colour** is the unlit texture colour, as LOD0 writes it: the texel's linear RGB (its alpha
 //!   only decides the test). Ground: the interpolated vertex colour. Sky: [`SKY_SRGB`].
 //! - **Supersampling**: an `s x s` ordered grid of samples per pixel, at `((i + 0.5)/s, (j + 0.5)/s)`
-//!   within the pixel (stratified without jitter, so deterministic), box-filtered in linear light
-//!   and encoded to sRGB8 once. Default `s` = [`DEFAULT_SAMPLES_PER_AXIS`].
-//! - **Classification** per pixel ([`PixelClass`]): *tree* when at least half the samples hit a
-//!   tree, else *ground* or *sky* by majority of the rest (ties to ground). Beside it the exact
-//!   tree fraction.
+//!   within the pixel (stratified without jitter, so deterministic; [`sample_offsets`], rows
+//!   outer), box-filtered in linear light (weight `1/s²` each, [`box_filter`]) and encoded to
+//!   sRGB8 once. Default `s` = [`DEFAULT_SAMPLES_PER_AXIS`].
+//! - **Classification** per pixel ([`PixelClass`], [`classify`]): *tree* when at least half the
+//!   samples hit a tree, else *ground* or *sky* by majority of the rest (ties to ground). Beside
+//!   it the exact fraction of samples that hit a tree ([`tree_fraction`]).
+//! - **Sampling error** (the oracle of `reference/tests/truth_oracle.rs`): a pixel's tree
+//!   fraction estimates the area of the pixel that trees cover. With the ordered grid the
+//!   estimate is exact in every sub-cell (the `1/s x 1/s` square around a sample) that lies wholly
+//!   inside or wholly outside the covered region, so it differs from the exact coverage by at
+//!   most `(sub-cells the region's boundary crosses) / s²` per pixel. Analytic scenes (a square,
+//!   a disc, half-planes, seen head-on) hold the truth to that bound and its colour to
+//!   `fraction·c + (1 - fraction)·sky`.
 //! - **Deterministic**: rows are traced in parallel (rayon) but each pixel is a pure function of the
 //!   scene and the camera: identical output for any thread count.
 
@@ -174,6 +182,55 @@ pub fn primary_ray(camera: &Camera, fx: f32, fy: f32) -> ([f32; 3], [f32; 3]) {
     let ndc_y = 1.0 - 2.0 * fy / camera.height as f32;
     let d = b.forward + b.right * (ndc_x * tx) + b.up * (ndc_y * ty);
     (camera.eye, d.to_array())
+}
+
+/// The supersampling pattern (module docs, *Supersampling*): the `s x s` ordered grid of sample
+/// offsets within a pixel, in pixels from the pixel's top-left corner, for `s =
+/// samples_per_axis` (0 reads as 1). Sample `k = j·s + i` (row `j` outer, column `i` inner: the
+/// order [`GroundTruthScene::render_region`] traces and sums them in) lies at
+/// `((i + 0.5)/s, (j + 0.5)/s)`, computed in `f32` as `(i as f32 + 0.5) / s as f32`: the centres
+/// of the `s²` equal sub-cells of the pixel, so every sample is strictly inside the pixel and
+/// their centroid is the pixel centre. Pixel `(x, y)` traces the primary rays
+/// ([`primary_ray`]) through `(x + ox, y + oy)`.
+pub fn sample_offsets(samples_per_axis: u32) -> Vec<[f32; 2]> {
+    let s = samples_per_axis.max(1);
+    (0..s)
+        .flat_map(|j| {
+            (0..s).map(move |i| [(i as f32 + 0.5) / s as f32, (j as f32 + 0.5) / s as f32])
+        })
+        .collect()
+}
+
+/// The box filter (module docs): every one of a pixel's `s²` samples has weight `1/s²`; the
+/// pixel's linear colour is the `f64` sum of its samples' colours divided by `s²`, rounded once
+/// to `f32`.
+pub fn box_filter(sum: [f64; 3], samples_per_axis: u32) -> [f32; 3] {
+    let s = samples_per_axis.max(1);
+    let n = (s * s) as f64;
+    sum.map(|v| (v / n) as f32)
+}
+
+/// The fraction of a pixel's `s²` samples that hit a tree ([`GroundTruthImage::tree_fraction`]):
+/// `counts[Tree] / s²` in `f32`. `counts` are the samples per class, indexed by
+/// `PixelClass as usize`.
+pub fn tree_fraction(counts: [u32; 3], samples_per_axis: u32) -> f32 {
+    let s = samples_per_axis.max(1);
+    counts[PixelClass::Tree as usize] as f32 / (s * s) as f32
+}
+
+/// The classification rule (module docs) of a pixel whose `s²` samples fell `counts[c]` in
+/// class `c` (indexed by `PixelClass as usize`): [`PixelClass::Tree`] when at least half the
+/// samples hit a tree (`2·trees >= s²`), else [`PixelClass::Ground`] when at least as many
+/// samples hit the ground as the sky (ties to ground), else [`PixelClass::Sky`].
+pub fn classify(counts: [u32; 3], samples_per_axis: u32) -> PixelClass {
+    let s = samples_per_axis.max(1);
+    if 2 * counts[PixelClass::Tree as usize] >= s * s {
+        PixelClass::Tree
+    } else if counts[PixelClass::Ground as usize] >= counts[PixelClass::Sky as usize] {
+        PixelClass::Ground
+    } else {
+        PixelClass::Sky
+    }
 }
 
 /// Ray–triangle intersection, the Möller–Trumbore formulation of obvhs's
@@ -554,6 +611,7 @@ impl GroundTruthScene {
             "region outside the frame"
         );
         let s = samples_per_axis.max(1);
+        let offsets = sample_offsets(s);
         let sky = SKY_SRGB.map(srgb_to_linear);
         let rows: Vec<Vec<([f32; 3], PixelClass, f32)>> = (y0..y0 + h)
             .into_par_iter()
@@ -563,35 +621,24 @@ impl GroundTruthScene {
                     .map(|x| {
                         let mut sum = [0.0f64; 3];
                         let mut counts = [0u32; 3];
-                        for j in 0..s {
-                            for i in 0..s {
-                                let fx = x as f32 + (i as f32 + 0.5) / s as f32;
-                                let fy = y as f32 + (j as f32 + 0.5) / s as f32;
-                                let (o, d) = primary_ray(camera, fx, fy);
-                                let (class, color) =
-                                    match self.trace(o, d, camera.near, camera.far, true) {
-                                        Some(hit) => (hit.class, hit.color),
-                                        None => (PixelClass::Sky, sky),
-                                    };
-                                counts[class as usize] += 1;
-                                for c in 0..3 {
-                                    sum[c] += color[c] as f64;
-                                }
+                        // The pattern's order (rows outer, columns inner) is the summation order.
+                        for &[ox, oy] in &offsets {
+                            let (o, d) = primary_ray(camera, x as f32 + ox, y as f32 + oy);
+                            let (class, color) =
+                                match self.trace(o, d, camera.near, camera.far, true) {
+                                    Some(hit) => (hit.class, hit.color),
+                                    None => (PixelClass::Sky, sky),
+                                };
+                            counts[class as usize] += 1;
+                            for c in 0..3 {
+                                sum[c] += color[c] as f64;
                             }
                         }
-                        let n = (s * s) as f64;
-                        let linear = sum.map(|v| (v / n) as f32);
-                        let tree_fraction = counts[PixelClass::Tree as usize] as f32 / n as f32;
-                        let class = if 2 * counts[PixelClass::Tree as usize] >= s * s {
-                            PixelClass::Tree
-                        } else if counts[PixelClass::Ground as usize]
-                            >= counts[PixelClass::Sky as usize]
-                        {
-                            PixelClass::Ground
-                        } else {
-                            PixelClass::Sky
-                        };
-                        (linear, class, tree_fraction)
+                        (
+                            box_filter(sum, s),
+                            classify(counts, s),
+                            tree_fraction(counts, s),
+                        )
                     })
                     .collect()
             })
@@ -650,6 +697,120 @@ mod tests {
     use super::*;
     use crate::draw::terrain_triangles;
     use crate::scene::builtin;
+
+    /// The sampling pattern against its definition (module docs, *Supersampling*): `s²` offsets,
+    /// sample `k = j·s + i` at `((i + 0.5)/s, (j + 0.5)/s)`, strictly inside the pixel, distinct,
+    /// one in each `1/s x 1/s` sub-cell, centroid the pixel centre (exactly for `s` a power of
+    /// two, within the offsets' `f32` rounding otherwise). Mutation-checked:
+    /// `+ 0.5` -> `+ 1.5`, `i` and `j` swapped, and `/ s` -> `/ (s + 1)` in `sample_offsets`
+    /// each fail it.
+    #[test]
+    fn sample_offsets_are_the_ordered_grid_of_the_definition() {
+        assert_eq!(sample_offsets(0), vec![[0.5, 0.5]], "s = 0 reads as 1");
+        for s in 1..=9u32 {
+            let offsets = sample_offsets(s);
+            assert_eq!(offsets.len(), (s * s) as usize, "s = {s}: offset count");
+            let mut cells = vec![false; (s * s) as usize];
+            let (mut cx, mut cy) = (0.0f64, 0.0f64);
+            for (k, &[ox, oy]) in offsets.iter().enumerate() {
+                let (i, j) = (k as u32 % s, k as u32 / s);
+                let want = [
+                    ((i as f64 + 0.5) / s as f64) as f32,
+                    ((j as f64 + 0.5) / s as f64) as f32,
+                ];
+                assert_eq!([ox, oy], want, "s = {s}: sample {k} (column {i}, row {j})");
+                assert!(
+                    ox > 0.0 && ox < 1.0 && oy > 0.0 && oy < 1.0,
+                    "s = {s}: sample {k} at ({ox}, {oy}) not strictly inside the pixel"
+                );
+                // Its sub-cell: distinct samples, one per cell.
+                let cell = ((oy * s as f32) as u32 * s + (ox * s as f32) as u32) as usize;
+                assert!(!cells[cell], "s = {s}: two samples in sub-cell {cell}");
+                cells[cell] = true;
+                cx += ox as f64;
+                cy += oy as f64;
+            }
+            let n = (s * s) as f64;
+            let err = (cx / n - 0.5).abs().max((cy / n - 0.5).abs());
+            // Exact for s a power of two (every offset is a dyadic fraction); otherwise each
+            // offset is one correctly rounded f32 division, off by at most half an f32 ulp below
+            // 1, and so is their mean.
+            let tolerance = if s.is_power_of_two() {
+                0.0
+            } else {
+                OFFSET_ROUNDING
+            };
+            assert!(
+                err <= tolerance,
+                "s = {s}: centroid ({}, {}) off the pixel centre by {err:e} > {tolerance:e}",
+                cx / n,
+                cy / n
+            );
+        }
+    }
+
+    /// Half an `f32` ulp in `[0.5, 1)`: the largest rounding error of one offset `(i + 0.5)/s`.
+    const OFFSET_ROUNDING: f64 = 1.0 / (1u64 << 25) as f64;
+
+    /// The box filter's weights are `1/s²` each and sum to 1: `s²` equal samples filter to their
+    /// value exactly, one sample of value `1` among zeros to `1/s²`, and a ramp to its mean.
+    /// Mutation-checked: dividing by `s² + 1` or by `s` in `box_filter` fails it.
+    #[test]
+    fn box_filter_weights_are_one_over_s_squared_and_sum_to_one() {
+        for s in 1..=9u32 {
+            let n = s * s;
+            let c = [0.3f32, 0.7, 1.0];
+            let mut sum = [0.0f64; 3];
+            for _ in 0..n {
+                for k in 0..3 {
+                    sum[k] += c[k] as f64;
+                }
+            }
+            assert_eq!(box_filter(sum, s), c, "s = {s}: weights do not sum to 1");
+            let one = box_filter([1.0, 0.0, 2.0], s);
+            let w = (1.0 / n as f64) as f32;
+            assert_eq!(one, [w, 0.0, (2.0 / n as f64) as f32], "s = {s}: weight");
+            // Samples 0, 1, ..., n - 1: the mean is (n - 1) / 2.
+            let ramp: f64 = (0..n).map(f64::from).sum();
+            assert_eq!(box_filter([ramp; 3], s)[0], (n - 1) as f32 / 2.0, "s = {s}");
+        }
+    }
+
+    /// The classification rule at its boundaries (module docs): exactly half the samples on trees
+    /// is a tree pixel, one fewer is not; the rest by majority, ties to ground; and the tree
+    /// fraction is `trees / s²`. Mutation-checked: `>=` -> `>` in either comparison of
+    /// `classify`, and the tree count read from the ground's slot, each fail it.
+    #[test]
+    fn classification_rule_at_its_boundaries() {
+        use PixelClass::*;
+        // counts are [sky, ground, tree].
+        let cases: [([u32; 3], u32, PixelClass); 13] = [
+            ([0, 0, 16], 4, Tree),
+            ([8, 0, 8], 4, Tree),   // exactly half: tree
+            ([0, 8, 8], 4, Tree),   // exactly half: tree
+            ([9, 0, 7], 4, Sky),    // one short of half
+            ([0, 9, 7], 4, Ground), // one short of half
+            ([5, 4, 7], 4, Sky),    // one short, sky majority of the rest
+            ([4, 5, 7], 4, Ground),
+            ([8, 8, 0], 4, Ground), // ground-sky tie: ground
+            ([9, 7, 0], 4, Sky),
+            ([2, 2, 5], 3, Tree), // odd s²: 5 of 9 is more than half
+            ([3, 2, 4], 3, Sky),  // 4 of 9 is less than half
+            ([0, 0, 1], 1, Tree),
+            ([1, 0, 0], 1, Sky),
+        ];
+        for (counts, s, want) in cases {
+            assert_eq!(counts.iter().sum::<u32>(), s * s, "case {counts:?}");
+            assert_eq!(classify(counts, s), want, "counts {counts:?}, s = {s}");
+            assert_eq!(
+                tree_fraction(counts, s),
+                counts[2] as f32 / (s * s) as f32,
+                "counts {counts:?}, s = {s}"
+            );
+        }
+        assert_eq!(tree_fraction([8, 0, 8], 4), 0.5);
+        assert_eq!((Sky as usize, Ground as usize, Tree as usize), (0, 1, 2));
+    }
 
     #[test]
     fn intersection_matches_obvhs_and_its_barycentrics_rebuild_the_hit_point() {

@@ -481,10 +481,20 @@ fn xy(spheres: &[([f32; 3], f32)], t: u32) -> [f64; 2] {
     [c[0] as f64, c[1] as f64]
 }
 
-/// Splits `trees` into `parts` groups of sizes as equal as possible, by recursive bisection at
-/// the median of the longer side of their X/Y box (ties by tree index), appending to `out` in
-/// bisection order (left before right). Deterministic.
-fn bisect(trees: &mut [u32], parts: usize, spheres: &[([f32; 3], f32)], out: &mut Vec<Vec<u32>>) {
+/// Splits `trees` (indices into `spheres`) into `parts` groups of sizes as equal as possible, by
+/// recursive bisection at the median of the longer side of their X/Y box (the sphere centres'; Y
+/// only when strictly longer), the set sorted along that side (ties by tree index), the first
+/// `len · ⌊parts/2⌋ / parts` trees going left with `⌊parts/2⌋` of the parts; appends the groups to
+/// `out` in bisection order (left before right) and leaves `trees` permuted. Deterministic. With
+/// `1 <= parts <= trees.len()` it appends exactly `parts` groups whose sizes differ by at most
+/// one, and each split separates its halves along its axis (property-tested in
+/// `tests/tests/properties/hierarchy_properties.rs`). The k-means builder's seeds (module docs).
+pub fn bisect(
+    trees: &mut [u32],
+    parts: usize,
+    spheres: &[([f32; 3], f32)],
+    out: &mut Vec<Vec<u32>>,
+) {
     if parts <= 1 || trees.len() <= 1 {
         out.push(trees.to_vec());
         return;
@@ -595,8 +605,11 @@ impl CentreGrid {
     }
 }
 
-/// Size-constrained k-means over one mesh's trees (module docs): clusters of at most `cap`.
-fn kmeans(trees: &[u32], spheres: &[([f32; 3], f32)], cap: usize) -> Vec<Vec<u32>> {
+/// Size-constrained k-means over one mesh's trees (module docs): the clusters of `trees` (indices
+/// into `spheres`; `cap >= 1`), each of at most `cap` trees, in the order the hierarchy's nodes
+/// take. What [`Hierarchy::build`] runs per mesh for [`HierarchyMode::Kmeans`]; public so that the
+/// builder's contract can be property-tested on its own.
+pub fn kmeans(trees: &[u32], spheres: &[([f32; 3], f32)], cap: usize) -> Vec<Vec<u32>> {
     let k = trees.len().div_ceil(cap);
     let mut seeds = Vec::with_capacity(k);
     bisect(&mut trees.to_vec(), k, spheres, &mut seeds);
