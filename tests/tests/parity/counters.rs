@@ -19,7 +19,7 @@
 //!   beyond the draw distance).
 //!
 //! Backends: every counter on the **reference** (random cases with a fixed seed, grid and every
-//! hierarchy, coalescing on and off, `tree_cull` none, lod0 and all; and `tiny` at its named views
+//! hierarchy, coalescing on and off, every `tree_cull` mode; and `tiny` at its named views
 //! through the whole frame, `Prepared::render`, as the render job and the sweep read it). On the
 //! **GPU**, the counters it reports: `select.wgsl`'s eight (both compactions), the cut's eight
 //! before and after coalescing (against a recount from the GPU's own per-node codes and
