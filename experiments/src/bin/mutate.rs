@@ -36,7 +36,7 @@
 //! Rust and WGSL apart.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 /// One mutant: a line of a file with one replacement.
@@ -269,7 +269,13 @@ fn targets(file: &Path) -> Vec<(&'static str, String)> {
         if stem == "common" {
             t.insert(1, ("parity", "hier_select::".into()));
         }
-        t.push(("parity", "every_stage::".into()));
+        // A stage's own walk; `common.wgsl` and the shared drivers every walk.
+        let walk = if forestlod_shared::StageId::from_name(&stem).is_some() {
+            format!("every_stage::walk_{stem}")
+        } else {
+            "every_stage::walk_".into()
+        };
+        t.push(("parity", walk));
     }
     if file.starts_with("reference")
         && matches!(stem.as_ref(), "select" | "refine" | "hier_select" | "draw")
@@ -380,13 +386,21 @@ fn run_tests(
         cmd.arg("--")
             .arg(&filter)
             .args(["--test-threads", "1"])
-            .env("PROPTEST_MAX_SHRINK_ITERS", "0")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped());
+            .env("PROPTEST_MAX_SHRINK_ITERS", "0");
+        // Output to a file, not a pipe: a failing run prints more than a pipe holds, and a child
+        // blocked on a full pipe that nobody reads until it exits would end as a timeout.
+        let log = std::env::temp_dir().join(format!("forestlod-mutant-{}.log", std::process::id()));
+        let file = std::fs::File::create(&log).map_err(|e| format!("{}: {e}", log.display()))?;
+        cmd.stdout(file.try_clone().map_err(|e| e.to_string())?)
+            .stderr(file);
         if let Some(f) = mutant_file {
             let name = m.file.file_name().unwrap().to_string_lossy();
             cmd.env("FORESTLOD_MUTANT_WGSL", format!("{name}={}", f.display()));
         }
+        // Its own process group, so that a timeout kills the test binary too: killing `cargo`
+        // alone left the test binary running, holding the output pipe, and the tool waited on
+        // it for as long as the mutant's hang lasted.
+        std::os::unix::process::CommandExt::process_group(&mut cmd, 0);
         let mut child = cmd.spawn().map_err(|e| e.to_string())?;
         let start = Instant::now();
         let status = loop {
@@ -394,18 +408,16 @@ fn run_tests(
                 break Some(s);
             }
             if start.elapsed() > timeout {
+                let _ = Command::new("kill")
+                    .args(["-KILL", "--", &format!("-{}", child.id())])
+                    .status();
                 let _ = child.kill();
                 let _ = child.wait();
                 break None;
             }
             std::thread::sleep(Duration::from_millis(200));
         };
-        let out = child.wait_with_output().map_err(|e| e.to_string())?;
-        let text = format!(
-            "{}{}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let text = String::from_utf8_lossy(&std::fs::read(&log).unwrap_or_default()).to_string();
         match status {
             None => return Ok(Some(format!("{binary} {filter} (timeout)"))),
             Some(s) if s.success() => continue,
