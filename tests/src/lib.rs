@@ -591,3 +591,16 @@ pub fn straddling_params(mode: forestlod_shared::Hierarchy) -> Params {
         ..Params::default()
     }
 }
+
+/// `tiny`'s tree positions with the test scenes' three card trees ([`scene_of`]: mesh index
+/// modulo 3), the trees of [`straddling_cameras`]' cases.
+pub fn tiny_card_trees() -> Vec<Instance> {
+    forestlod_reference::scene::builtin::tiny()
+        .instances
+        .iter()
+        .map(|t| Instance {
+            mesh: t.mesh % 3,
+            ..*t
+        })
+        .collect()
+}

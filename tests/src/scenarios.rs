@@ -238,3 +238,36 @@ pub fn unrefined_straddling_case() -> (Prepared, Camera, Params) {
     };
     (prepared, camera, params)
 }
+
+/// `parity::refine`'s image frames (and the coverage test's mirror of them): the shared `tiny` and cropped `synthetic` frames, with the
+/// draw distance pulled in to 150 m and to 300 m, the transition to 120 m.
+pub fn refine_image_frames() -> (Vec<Prepared>, Vec<FrameScenario>) {
+    let p = tiny_params(FadeMode::Alpha);
+    tiny_and_crop_frames(&[
+        (
+            "draw-distance-150",
+            Params {
+                draw_distance: 150.0,
+                ..p
+            },
+        ),
+        (
+            "transition-120",
+            Params {
+                lod1_transition: 120.0,
+                fade_width: 40.0,
+                ..p
+            },
+        ),
+        // Issue 36: the only frame where refine drops a needed tree for its centre being past the
+        // draw distance (the row "refine: needed tree vs draw distance" of the coverage table;
+        // at 150 m no needed tree's centre lies past it).
+        (
+            "draw-distance-300",
+            Params {
+                draw_distance: 300.0,
+                ..p
+            },
+        ),
+    ])
+}

@@ -24,7 +24,8 @@ use forestlod_reference::select::{select, select_per_tree};
 use forestlod_shared::coverage::{self, ALL, Threshold};
 use forestlod_shared::{Camera, FadeMode, Hierarchy, Params, TreeCull};
 use forestlod_tests::scenarios::{
-    golden_scenarios, named_views, tiny_and_crop_frames, tiny_params, unrefined_straddling_case,
+    golden_scenarios, named_views, refine_image_frames, tiny_and_crop_frames, tiny_params,
+    unrefined_straddling_case,
 };
 use forestlod_tests::stage_cases::stage_cases;
 use forestlod_tests::{
@@ -244,14 +245,7 @@ fn hier_property_cases(mode: Hierarchy) {
 /// `parity::hier_select::gpu_cut_on_frustum_straddling_boxes`' cases for `mode` (an octree).
 fn straddling_cases(mode: Hierarchy) {
     let p = straddling_params(mode);
-    let trees = builtin::tiny()
-        .instances
-        .iter()
-        .map(|t| forestlod_reference::scene::Instance {
-            mesh: t.mesh % 3,
-            ..*t
-        })
-        .collect();
+    let trees = forestlod_tests::tiny_card_trees();
     let packed = Packed::new(trees, p.grid_size);
     let g = &packed.geometry;
     let h = Tree::build(&packed.scene, &g.meshes, &p)
@@ -280,30 +274,7 @@ fn walk_frames() {
 /// frame it never compares).
 fn refine_and_baseline_images() {
     let p = tiny_params(FadeMode::Alpha);
-    let refine = tiny_and_crop_frames(&[
-        (
-            "draw-distance-150",
-            Params {
-                draw_distance: 150.0,
-                ..p
-            },
-        ),
-        (
-            "transition-120",
-            Params {
-                lod1_transition: 120.0,
-                fade_width: 40.0,
-                ..p
-            },
-        ),
-        (
-            "draw-distance-300",
-            Params {
-                draw_distance: 300.0,
-                ..p
-            },
-        ),
-    ]);
+    let refine = refine_image_frames();
     let (prepared, frames) = refine;
     for f in frames.iter().filter(|f| f.prepared_key == 0) {
         for tree_cull in [TreeCull::Lod0, TreeCull::All] {

@@ -330,19 +330,10 @@ fn gpu_cut_on_frustum_straddling_boxes() {
     };
     let started = Instant::now();
     let mut tally = Tally::default();
-    let tiny = builtin::tiny();
     let (mut cases, mut failures) = (0usize, Vec::new());
     for mode in [Mode::Octree, Mode::OctreeEuclidean] {
         let p = straddling_params(mode);
-        // `tiny`'s positions with the test scenes' three card trees (`Packed`).
-        let trees = tiny
-            .instances
-            .iter()
-            .map(|t| forestlod_reference::scene::Instance {
-                mesh: t.mesh % 3,
-                ..*t
-            })
-            .collect();
+        let trees = forestlod_tests::tiny_card_trees();
         let packed = Packed::new(trees, p.grid_size);
         let g = &packed.geometry;
         let h = Hierarchy::build(&packed.scene, &g.meshes, &p)

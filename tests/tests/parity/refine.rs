@@ -41,13 +41,12 @@ use forestlod_harness::stats::decision_budget_failure;
 use forestlod_reference::batches::{Batches, build_batches};
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::geometry::PackedGeometry;
-use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::refine::{Refined, refine};
 use forestlod_reference::scene::{Scene, builtin};
 use forestlod_reference::select::{Selection, select};
 use forestlod_shared::{Camera, FadeMode, Params, TreeCull};
 use forestlod_tests::scenarios::{
-    FrameScenario, crop_params, cropped_synthetic, named_views, tiny_and_crop_frames, tiny_params,
+    crop_params, cropped_synthetic, named_views, refine_image_frames, tiny_params,
 };
 use forestlod_tests::{
     CullInput, assert_no_failures, cameras, cameras_around, half_side, instances, params,
@@ -417,44 +416,11 @@ fn tree_cull_none_points_every_command_at_the_copy() {
     assert!(err.to_string().contains("batch indirection"), "{err}");
 }
 
-/// The image comparisons' frames: the shared `tiny` and cropped `synthetic` frames, with the
-/// draw distance pulled in to 150 m and to 300 m, the transition to 120 m.
-fn image_scenarios() -> (Vec<Prepared>, Vec<FrameScenario>) {
-    let p = tiny_params(FadeMode::Alpha);
-    tiny_and_crop_frames(&[
-        (
-            "draw-distance-150",
-            Params {
-                draw_distance: 150.0,
-                ..p
-            },
-        ),
-        (
-            "transition-120",
-            Params {
-                lod1_transition: 120.0,
-                fade_width: 40.0,
-                ..p
-            },
-        ),
-        // Issue 36: the only frame where refine drops a needed tree for its centre being past the
-        // draw distance (the row "refine: needed tree vs draw distance" of the coverage table;
-        // at 150 m no needed tree's centre lies past it).
-        (
-            "draw-distance-300",
-            Params {
-                draw_distance: 300.0,
-                ..p
-            },
-        ),
-    ])
-}
-
 #[test]
 fn gpu_refined_images_match_the_reference() {
     let Some(ctx) = gpu_context() else { return };
     let started = Instant::now();
-    let (prepared, scenarios) = image_scenarios();
+    let (prepared, scenarios) = refine_image_frames();
     let mut sweeps: Vec<GpuScene> = prepared
         .iter()
         .zip([tiny_params(FadeMode::Alpha), crop_params(FadeMode::Alpha)])
