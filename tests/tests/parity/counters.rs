@@ -35,6 +35,7 @@ use forestlod_harness::bridge::cull_trees_of;
 use forestlod_harness::context::gpu_context;
 use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, SelectionChain, StagesFromCpu};
 use forestlod_reference::baselines::trees_drawn_by_selection;
+use forestlod_reference::draw::{LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TRANSITION};
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::refine::refine;
@@ -412,6 +413,7 @@ fn reference_frame_counters_equal_their_recount() {
         .collect();
     let mut frames = 0;
     let mut reached = [0u64; 4];
+    let mut reached_draw = 0u64;
     for grouping in std::iter::once(None).chain(MODES.map(Some)) {
         let p = Params {
             hierarchy: grouping.map_or(Mode::Grid as u32, |m| m as u32),
@@ -496,6 +498,44 @@ fn reference_frame_counters_equal_their_recount() {
                 );
                 reached[2] += discarded;
                 reached[3] += u64::from(frame.selection.counters.transition_batches);
+                // The draw's work counters (metrics.json `draw.*`): the triangles submitted are
+                // those of every command's trees within the draw distance; the later counters
+                // can only shrink down the pipeline; every pixel that shows a tree was written by
+                // at least one tree fragment.
+                let ds = &frame.drawn.tree_stats;
+                let triangles: u64 = frame
+                    .selection
+                    .commands
+                    .iter()
+                    .map(|c| {
+                        let within = indirection[c.first_instance as usize
+                            ..(c.first_instance + c.instance_count) as usize]
+                            .iter()
+                            .filter(|&&t| tree_within_draw_distance(&u, spheres[t as usize].0))
+                            .count() as u64;
+                        within * u64::from(c.index_count / 3)
+                    })
+                    .sum();
+                assert_eq!(ds.triangles_in, triangles, "{what}: triangles submitted");
+                assert!(
+                    ds.triangles_rasterized <= ds.triangles_clipped
+                        && ds.fragments_written <= ds.fragments_shaded
+                        && ds.fragments_shaded <= ds.fragments_covered,
+                    "{what}: draw counters out of order: {ds:?}"
+                );
+                let tree_pixels = frame
+                    .drawn
+                    .target
+                    .aux()
+                    .iter()
+                    .filter(|&&id| [LOD_ID_MESH, LOD_ID_BILLBOARD, LOD_ID_TRANSITION].contains(&id))
+                    .count() as u64;
+                assert!(
+                    ds.fragments_written >= tree_pixels,
+                    "{what}: {} tree fragments written, but {tree_pixels} pixels show a tree",
+                    ds.fragments_written
+                );
+                reached_draw += tree_pixels.min(ds.triangles_in);
                 frames += 1;
             }
         }
@@ -506,8 +546,8 @@ fn reference_frame_counters_equal_their_recount() {
         reached[0], reached[1], reached[2], reached[3]
     );
     assert!(
-        reached.iter().all(|&r| r > 0),
-        "some counter is never non-zero: {reached:?}"
+        reached.iter().all(|&r| r > 0) && reached_draw > 0,
+        "some counter is never non-zero: {reached:?}, draw {reached_draw}"
     );
 }
 
