@@ -278,23 +278,34 @@ fn off_axis_mesh_near_the_draw_distance() {
 /// in `reference/src/select.rs`, which no scenario's centre depth ever tied).
 #[test]
 fn tree_centre_exactly_at_the_draw_distance_is_drawn() {
+    centre_at_draw_distance(44.0, true);
+}
+
+/// The other side of the same bound (issue 36, case generators on the hard side): the draw
+/// distance one `f32` step short of the centre's depth discards the tree, on both backends.
+#[test]
+fn tree_centre_one_step_past_the_draw_distance_is_discarded() {
+    centre_at_draw_distance(44.0f32.next_down(), false);
+}
+
+/// `single`'s tree seen along +y from 44 m (its centre's view depth is exactly 44), the draw
+/// distance `draw_distance`: the reference draws the tree iff `drawn`, and the GPU draw stage
+/// (`from-cpu: select,textures`) matches the reference frame.
+fn centre_at_draw_distance(draw_distance: f32, drawn: bool) {
     let Some(ctx) = gpu_context() else { return };
     let scene = builtin::single();
     let (centre, _) =
         forestlod_reference::scene::tree_sphere(&scene.instances[0], &scene.mesh_metas()[0]);
     let params = Params {
         lod_levels: 1,
-        draw_distance: 44.0,
+        draw_distance,
         ..billboard_params()
     };
     let eye = [centre[0], centre[1] - 44.0, centre[2]];
     let camera = Camera::look_at(eye, centre, 40.0, 64, 64);
     let u = forestlod_reference::select::SelectUniform::new(&camera, &params);
     let d = forestlod_shared::view_interval(centre, 0.0, u.eye, u.forward).d;
-    assert_eq!(
-        d, params.draw_distance,
-        "the centre's depth ties the draw distance"
-    );
+    assert_eq!(d, 44.0, "the centre's depth is exactly 44 m");
     let prepared = prepare(scene, &params).expect("prepare single");
     let input = FrameInput {
         prepared: &prepared,
@@ -307,10 +318,14 @@ fn tree_centre_exactly_at_the_draw_distance_is_drawn() {
         .iter()
         .filter(|&&id| id == forestlod_reference::draw::LOD_ID_MESH)
         .count();
-    assert!(
-        tree_pixels > 100,
-        "the reference draws the tree: {tree_pixels} mesh pixels"
-    );
+    if drawn {
+        assert!(
+            tree_pixels > 100,
+            "the reference draws the tree: {tree_pixels} mesh pixels"
+        );
+    } else {
+        assert_eq!(tree_pixels, 0, "the reference discards the tree");
+    }
     let got = GpuRenderer {
         ctx,
         option: StagesFromCpu::ALL,
@@ -318,7 +333,7 @@ fn tree_centre_exactly_at_the_draw_distance_is_drawn() {
     .run(input);
     let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
     let report = compare_images(
-        "centre-at-draw-distance",
+        &format!("centre-at-draw-distance-{draw_distance}"),
         &got,
         &want,
         &alternatives,
@@ -334,70 +349,6 @@ fn tree_centre_exactly_at_the_draw_distance_is_drawn() {
             dir.display()
         );
     }
-}
-
-/// Issue 36, class 4: see [`unrefined_straddling_case`]. The test counts on the reference the
-/// trees of drawn LOD0 commands whose centre lies past the draw distance (there must be some),
-/// then judges the draw stage alone (`from-cpu: select,textures`) and the whole GPU pipeline
-/// against the reference frame. Mutation check: `draw.wgsl`'s discard made unconditional-false
-/// (`if false && !tree_within_draw_distance(..)`) passes every other image test and fails this.
-#[test]
-fn unrefined_mesh_batches_straddling_the_draw_distance() {
-    let Some(ctx) = gpu_context() else { return };
-    let (prepared, camera, params) = unrefined_straddling_case();
-    let frame = prepared.render(&camera, &params).expect("reference frame");
-    let u = forestlod_reference::select::SelectUniform::new(&camera, &params);
-    let (mut mesh_trees, mut past) = (0u32, 0u32);
-    for (c, d) in frame.selection.commands.iter().zip(&frame.selection.data) {
-        if d.lod != forestlod_shared::LOD_MESH {
-            continue;
-        }
-        for k in c.first_instance..c.first_instance + c.instance_count {
-            let t = &prepared.scene.instances[prepared.batches.indirection[k as usize] as usize];
-            let meta = &prepared.geometry.meshes[t.mesh as usize];
-            let (centre, _) = forestlod_reference::scene::tree_sphere(t, meta);
-            mesh_trees += 1;
-            if !forestlod_reference::select::tree_within_draw_distance(&u, centre) {
-                past += 1;
-            }
-        }
-    }
-    eprintln!(
-        "unrefined straddling: {mesh_trees} trees in LOD0 commands, {past} past the draw distance"
-    );
-    assert!(
-        past > 0,
-        "no drawn mesh tree past the draw distance: the case does not straddle it"
-    );
-    let input = FrameInput {
-        prepared: &prepared,
-        camera: &camera,
-        params: &params,
-    };
-    let want = Backend::<Draw>::run(&Reference, input);
-    let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
-    let mut failures = Vec::new();
-    for option in [StagesFromCpu::ALL, StagesFromCpu::TEXTURES] {
-        let got = GpuRenderer { ctx, option }.run(input);
-        let report = compare_images(
-            &format!("unrefined-straddling/{option:?}"),
-            &got,
-            &want,
-            &alternatives,
-            &camera,
-        );
-        eprintln!("{report}");
-        if !report.passed() {
-            let dir = write_failure_images(&report, &got, &want);
-            failures.push(format!(
-                "{}: {} (images in {})",
-                report.name,
-                report.failures().join("; "),
-                dir.display()
-            ));
-        }
-    }
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 /// One multi-draw call draws every command whatever the command count, and the fallback without
