@@ -351,6 +351,70 @@ fn centre_at_draw_distance(draw_distance: f32, drawn: bool) {
     }
 }
 
+/// Issue 36, class 4: see [`unrefined_straddling_case`]. The test counts on the reference the
+/// trees of drawn LOD0 commands whose centre lies past the draw distance (there must be some),
+/// then judges the draw stage alone (`from-cpu: select,textures`) and the whole GPU pipeline
+/// against the reference frame. Mutation check: `draw.wgsl`'s discard made unconditional-false
+/// (`if false && !tree_within_draw_distance(..)`) passes every other image test and fails this.
+#[test]
+fn unrefined_mesh_batches_straddling_the_draw_distance() {
+    let Some(ctx) = gpu_context() else { return };
+    let (prepared, camera, params) = unrefined_straddling_case();
+    let frame = prepared.render(&camera, &params).expect("reference frame");
+    let u = forestlod_reference::select::SelectUniform::new(&camera, &params);
+    let (mut mesh_trees, mut past) = (0u32, 0u32);
+    for (c, d) in frame.selection.commands.iter().zip(&frame.selection.data) {
+        if d.lod != forestlod_shared::LOD_MESH {
+            continue;
+        }
+        for k in c.first_instance..c.first_instance + c.instance_count {
+            let t = &prepared.scene.instances[prepared.batches.indirection[k as usize] as usize];
+            let meta = &prepared.geometry.meshes[t.mesh as usize];
+            let (centre, _) = forestlod_reference::scene::tree_sphere(t, meta);
+            mesh_trees += 1;
+            if !forestlod_reference::select::tree_within_draw_distance(&u, centre) {
+                past += 1;
+            }
+        }
+    }
+    eprintln!(
+        "unrefined straddling: {mesh_trees} trees in LOD0 commands, {past} past the draw distance"
+    );
+    assert!(
+        past > 0,
+        "no drawn mesh tree past the draw distance: the case does not straddle it"
+    );
+    let input = FrameInput {
+        prepared: &prepared,
+        camera: &camera,
+        params: &params,
+    };
+    let want = Backend::<Draw>::run(&Reference, input);
+    let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
+    let mut failures = Vec::new();
+    for option in [StagesFromCpu::ALL, StagesFromCpu::TEXTURES] {
+        let got = GpuRenderer { ctx, option }.run(input);
+        let report = compare_images(
+            &format!("unrefined-straddling/{option:?}"),
+            &got,
+            &want,
+            &alternatives,
+            &camera,
+        );
+        eprintln!("{report}");
+        if !report.passed() {
+            let dir = write_failure_images(&report, &got, &want);
+            failures.push(format!(
+                "{}: {} (images in {})",
+                report.name,
+                report.failures().join("; "),
+                dir.display()
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 /// One multi-draw call draws every command whatever the command count, and the fallback without
 /// a count buffer (`multi_draw_indexed_indirect` over the whole capacity) ignores stale commands
 /// past the count: selection runs first with two LOD levels (meshes, the band and billboards:

@@ -312,6 +312,89 @@ fn gpu_cut_matches_reference() {
     );
 }
 
+/// Coalescing reads no slot past the command count (issue 36, a survivor of the WGSL sample):
+/// eight contiguous commands of one mesh and LOD are uploaded, the count says five, and slot 5
+/// (stale: what an earlier, longer cut left there) continues the last run. The GPU's runs must
+/// equal the reference's coalescing of the first five: one command of 50 instances. A rule that
+/// asks whether slot `n` starts a run to end the last one (`coalesce.wgsl`'s
+/// `j + 1u == n || is_head(j + 1u)` with `==` flipped, which every other test passes: on
+/// lavapipe its race has the right winner) leaves the last run's count unwritten.
+#[test]
+fn gpu_coalescing_ignores_stale_slots_past_the_count() {
+    use forestlod_harness::stage::{Backend, Coalesce as CoalesceStage, CoalesceInput, Reference};
+    use forestlod_shared::{CommandData, DrawCommand};
+    let Some(ctx) = gpu_context() else {
+        eprintln!("hier_select stale slots: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
+        return;
+    };
+    let (uploaded, count) = (8u32, 5u32);
+    let mut full = Selection::default();
+    for i in 0..uploaded {
+        full.commands.push(DrawCommand {
+            index_count: 6,
+            instance_count: 10,
+            first_index: 0,
+            base_vertex: (i << forestlod_shared::COMMAND_SHIFT) as i32,
+            first_instance: 10 * i,
+        });
+        full.data.push(CommandData {
+            fade_start: 100.0,
+            fade_end: 120.0,
+            batch: i,
+            mesh: 0,
+            lod: forestlod_shared::LOD_MESH,
+            billboard: 0,
+            fading: 0,
+            _pad0: 0,
+        });
+    }
+    full.counters.commands = uploaded;
+    let mut prefix = full.clone();
+    prefix.commands.truncate(count as usize);
+    prefix.data.truncate(count as usize);
+    prefix.counters.commands = count;
+    full.counters.commands = count;
+    let want = Backend::<CoalesceStage>::run(
+        &Reference,
+        CoalesceInput {
+            raw: &prefix,
+            mode: Coalesce::On,
+        },
+    );
+    assert_eq!(
+        want.selection.commands.len(),
+        1,
+        "the reference merges the five"
+    );
+    assert_eq!(want.selection.commands[0].instance_count, 50);
+    // All eight uploaded, then the count lowered to five on the GPU: slots 5..8 are stale.
+    let input = forestlod_gpu::SelectBuffers::from_cpu(ctx, &full.commands, &full.data, &{
+        let mut c = full.counters;
+        c.commands = uploaded;
+        c
+    })
+    .expect("upload");
+    ctx.queue.write_buffer(
+        &input.counters,
+        forestlod_gpu::SelectBuffers::COUNT_OFFSET,
+        bytemuck::bytes_of(&count),
+    );
+    let mut gpu = forestlod_gpu::coalesce::GpuCoalesce::new(ctx, &input).expect("GpuCoalesce");
+    let mut encoder = ctx
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("stale"),
+        });
+    gpu.encode(&mut encoder, Coalesce::On);
+    ctx.queue.submit([encoder.finish()]);
+    let out = gpu.buffers().read(ctx).expect("read the runs");
+    let got_commands: Vec<_> = out.commands.clone();
+    let got_data: Vec<_> = out.data.clone();
+    eprintln!("stale slots: GPU runs {got_commands:?}");
+    assert_eq!(got_commands, want.selection.commands, "commands");
+    assert_eq!(got_data, want.selection.data, "data");
+}
+
 /// Cameras that get fewer than this many hard-side cases from `tiny`'s octrees fail the test: the
 /// generator must keep reaching what it is for (measured: see the test's output).
 const STRADDLING_CASES_MIN: usize = 8;
