@@ -30,7 +30,9 @@
 //!   vertices inclusive: a ray through an edge or a vertex that triangles share hits one or all of
 //!   them, never none, so a closed surface shows no sky or ground through its seams (the
 //!   rasterizer's fill rule gives such a sample to exactly one triangle; here the tie rule below
-//!   picks one). It replaced obvhs's Möller–Trumbore (`Triangle::intersect`), which is not
+//!   picks one). The leaf test is what is watertight; obvhs's traversal reaches both leaves of a
+//!   seam because its compressed child boxes are rounded outward, and the oracle checks the whole
+//!   trace end to end. It replaced obvhs's Möller–Trumbore (`Triangle::intersect`), which is not
 //!   watertight: the truth oracle (`reference/tests/truth_oracle.rs`) saw rays through the shared
 //!   diagonal of a two-triangle square miss both triangles (9 of 81 diagonal samples at `s = 3`,
 //!   8 of 108 at 4, 6 of 135 at 5). Effect on the built-in scenes (`pair`, `tiny`, `synthetic`,
