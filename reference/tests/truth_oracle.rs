@@ -27,18 +27,21 @@
 //!   [`SLIVER`], see there).
 //! - **Sample positions.** The truth's tree count equals the number of the definition's sample
 //!   points `(x + (i + 0.5)/s, y + (j + 0.5)/s)` inside the polygon, except for points within
-//!   [`AMBIGUOUS_PX`] of an edge, which may fall either way (counted and reported: none here).
+//!   [`AMBIGUOUS_PX`] of its **outer** boundary, which may fall either way (a genuine tie between
+//!   the polygon and the sky; counted and reported: none here). Points on an edge that two of
+//!   its triangles share are inside: they must hit (next section).
 //! - **Colour**: the linear pixel is `fraction · c + (1 - fraction) · sky` ([`COLOUR_TOLERANCE`]).
 //! - **Class**: tree when `2 · count >= s²`, else sky; never ground.
 //!
 //! ## Shared edges
-//! The truth's ray–triangle test (Möller–Trumbore with a sign test, obvhs's) is not watertight: a
-//! ray through an edge that two of a mesh's triangles share can miss both, where the rasterizer's
-//! fill rule gives the sample to exactly one. The pixel-aligned square's diagonal runs through
-//! samples exactly, and some of them leak sky (9 of 81 at `s = 3`, 8 of 108 at 4, 6 of 135 at 5;
-//! printed per case). The oracle
-//! lets a sample within [`AMBIGUOUS_PX`] of a shared edge fall either way, counts it in the
-//! coverage bound, and reports how many missed.
+//! The polygon is closed: a sample on an edge that two of its triangles share lies inside it and
+//! must hit one of them. The truth's ray–triangle test is watertight (Woop, Benthin, Wald 2013;
+//! `intersect_triangle`), so the oracle allows no slack there: such samples count as inside in
+//! the sample-position check and nothing is added to the coverage bound for them. The
+//! pixel-aligned square's diagonal runs through samples exactly (`27·s` of them, asserted), so it
+//! is the case that would show a gap. The Möller–Trumbore test the truth used before leaked sky
+//! there (9 of 81 diagonal samples at `s = 3`, 8 of 108 at 4, 6 of 135 at 5), which this oracle
+//! now fails.
 //!
 //! Each test prints the largest `|fraction - A|` it saw beside the bound there.
 
@@ -76,7 +79,8 @@ const SAMPLE_COUNTS: [u32; 3] = [3, DEFAULT_SAMPLES_PER_AXIS, 5];
 /// cell's area at most), and the shoelace formula's `f64` rounding.
 const SLIVER: f64 = 1e-4;
 
-/// Sample points this close to a polygon edge (pixels) may fall on either side: the truth sets up
+/// Sample points this close to the polygon's outer boundary (pixels) may fall on either side (an
+/// edge two of its triangles share gets no such slack: the surface is closed): the truth sets up
 /// its rays in `f32` (tan, basis, NDC) and intersects in `f32`, which places an edge within
 /// ~1e-5 px of where this file's `f64` projection puts it at this resolution. 1e-3 px leaves a
 /// margin of 100, and is far below the distance `1/(2s) >= 0.1` px from a sample to its sub-cell's
@@ -266,10 +270,9 @@ struct Measured {
     edge_pixels: usize,
     /// Sample points within `AMBIGUOUS_PX` of the polygon's boundary.
     ambiguous: usize,
-    /// Sample points inside, within `AMBIGUOUS_PX` of an edge two of its triangles share.
+    /// Sample points inside, within `AMBIGUOUS_PX` of an edge two of its triangles share (they
+    /// must hit, like every point inside).
     on_shared: usize,
-    /// Of those, how many the truth missed (per pixel: points inside minus samples that hit).
-    missed_on_shared: usize,
     /// Pixels classed tree.
     tree_pixels: usize,
 }
@@ -328,30 +331,26 @@ fn check(name: &str, pixels: &[P], s: u32) -> (Measured, GroundTruthImage) {
                     if d.abs() <= AMBIGUOUS_PX {
                         ambiguous += 1;
                     } else if d > 0.0 {
-                        if shared
+                        // Inside, shared edges included: the surface is closed (module docs).
+                        inside += 1;
+                        on_shared += shared
                             .iter()
                             .any(|&e| segment_distance(e, p) <= AMBIGUOUS_PX)
-                        {
-                            on_shared += 1;
-                        } else {
-                            inside += 1;
-                        }
+                            as u32;
                     }
                 }
             }
             m.ambiguous += ambiguous as usize;
             m.on_shared += on_shared as usize;
-            m.missed_on_shared += (inside + on_shared).saturating_sub(count) as usize;
             assert!(
-                count >= inside && count <= inside + ambiguous + on_shared,
+                count >= inside && count <= inside + ambiguous,
                 "{name} s={s} pixel ({x}, {y}): {count} samples hit the polygon, but {inside} \
-                 of the pattern's points lie inside it ({ambiguous} on its boundary, {on_shared} \
-                 on an edge shared by two of its triangles)"
+                 of the pattern's points lie inside it ({on_shared} of them on an edge shared by \
+                 two of its triangles, which must hit) and {ambiguous} on its outer boundary"
             );
 
-            // Coverage within the ordered grid's sampling error (and the shared-edge samples
-            // that may leak, module docs).
-            let bound = (crossed + on_shared) as f64 / n + SLIVER;
+            // Coverage within the ordered grid's sampling error (no slack for shared edges).
+            let bound = crossed as f64 / n + SLIVER;
             let err = (fraction - exact).abs();
             assert!(
                 err <= bound,
@@ -394,16 +393,15 @@ fn check(name: &str, pixels: &[P], s: u32) -> (Measured, GroundTruthImage) {
     }
     println!(
         "{name} s={s}: largest |fraction - exact| {:.6} (bound there {:.6}), largest bound {:.6}, \
-         {} edge pixels, {} tree pixels, {} samples on the boundary, {} on a shared edge \
-         ({} of them missed)",
+         {} edge pixels, {} tree pixels, {} samples on the outer boundary, {} on a shared edge \
+         (all hit)",
         m.worst.0,
         m.worst.1,
         m.largest_bound,
         m.edge_pixels,
         m.tree_pixels,
         m.ambiguous,
-        m.on_shared,
-        m.missed_on_shared
+        m.on_shared
     );
     assert!(
         m.tree_pixels > 0 && m.edge_pixels > 0,
@@ -431,8 +429,10 @@ fn half_plane(p: P, theta: f64) -> Vec<P> {
 }
 
 /// A square aligned with the pixel grid: every pixel is wholly in or out, so the truth's image is
-/// exactly 0 or 1 everywhere (no crossed sub-cells, the bound is `SLIVER`) except where samples
-/// lie on the diagonal its two triangles share (module docs, *Shared edges*).
+/// exactly 0 or 1 everywhere (no crossed sub-cells, the bound is `SLIVER`), the samples on the
+/// diagonal its two triangles share included: none may leak (module docs, *Shared edges*).
+/// Mutation-checked: the truth's old Möller–Trumbore leaf test fails it (see the report in
+/// `reference/src/ground_truth.rs`'s `intersect_triangle`).
 #[test]
 fn a_pixel_aligned_square_is_exact() {
     for s in SAMPLE_COUNTS {
