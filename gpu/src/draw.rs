@@ -619,8 +619,11 @@ impl DrawTarget {
     }
 
     /// The depth buffer through a compute pass (`shaders/depth_copy.wgsl`: `textureLoad` into a
-    /// storage buffer), with the context's [`DepthCopyPipelines`].
-    fn read_depth_by_compute(&self, ctx: &GpuContext) -> Result<Vec<f32>, GpuError> {
+    /// storage buffer), with the context's [`DepthCopyPipelines`]. [`Self::read`] takes it only
+    /// where the device cannot copy depth textures; public so that the parity suite checks it
+    /// against the direct copy on adapters that have both (lavapipe has the copy: without that
+    /// check no test ran this path, issue 36's WGSL sample survivor 268).
+    pub fn read_depth_by_compute(&self, ctx: &GpuContext) -> Result<Vec<f32>, GpuError> {
         let pipelines = ctx.pipelines::<DepthCopyPipelines>()?;
         let n = self.width as u64 * self.height as u64;
         let buffer = crate::readback::zeroed_buffer(
@@ -674,7 +677,9 @@ impl StagePipelines for DepthCopyPipelines {
         let (layout, [pipeline]) = compute_stage(
             ctx,
             "depth_copy",
-            DEPTH_COPY_WGSL,
+            // Through the mutation hook like every other module (issue 36: it bypassed it, so
+            // `mutate`'s depth_copy.wgsl mutants ran the unmutated shader and "survived").
+            &crate::shaders::mutant_or("depth_copy.wgsl", DEPTH_COPY_WGSL),
             &[
                 Slot::Texture(wgpu::TextureViewDimension::D2),
                 Slot::Write(0),

@@ -489,6 +489,19 @@ fn one_draw_call_and_stale_slots_past_the_count_are_ignored() {
         assert_eq!((calls.terrain, calls.trees), (1, 1), "{calls:?}");
         assert_eq!(calls.mode, mode);
         let out = target.read(ctx).unwrap();
+        // The compute path of the depth readback (adapters without depth-texture copies) reads
+        // the same texels bit for bit.
+        let by_compute = target.read_depth_by_compute(ctx).unwrap();
+        let differing = by_compute
+            .iter()
+            .zip(&out.depth)
+            .filter(|(a, b)| a.to_bits() != b.to_bits())
+            .count();
+        assert_eq!(
+            (by_compute.len(), differing),
+            (out.depth.len(), 0),
+            "depth by compute vs the depth copy: texels, differing texels"
+        );
         let got = Images {
             width: out.width,
             height: out.height,

@@ -161,6 +161,15 @@ const MUTANTS: &[Mutant] = &[
         killer: "baselines::gpu_cull_matches_per_tree_culling",
         why: "a mesh with one visible tree gets no draw command",
     },
+    Mutant {
+        file: "depth_copy.wgsl",
+        line: "out[id.y * size.x + id.x] = textureLoad(depth_texture, vec2<i32>(id.xy), 0).x;",
+        before: "size.x + id.x",
+        after: "size.x - id.x",
+        killer: "draw::one_draw_call_and_stale_slots_past_the_count_are_ignored",
+        why: "the depth readback by compute scrambles its rows (issue 36's WGSL sample, survivor \
+              268: no test ran that path on lavapipe, and the module bypassed the mutation hook)",
+    },
 ];
 
 fn shader_dir() -> PathBuf {
