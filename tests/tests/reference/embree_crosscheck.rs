@@ -1,9 +1,10 @@
 //! obvhs against Embree (SPEC §10: "embreex cross-checks obvhs hits on the same triangles").
 //!
-//! The ground truth ([`forestlod_reference::ground_truth`]) traces rays with obvhs. This test dumps
+//! The ground truth ([`forestlod_reference::ground_truth`]) traces rays through obvhs's BVH with
+//! its own watertight leaf test (Woop, Benthin and Wald 2013). This test dumps
 //! the `tiny` scene's triangles (every tree and the ground, as the ground truth places them), a few
 //! thousand rays (primary rays of the `medium` and `close` cameras plus seeded random rays inside
-//! the forest) and obvhs's nearest hits (geometric query: no alpha test) to a file, then runs
+//! the forest) and the truth's nearest hits (geometric query: no alpha test) to a file, then runs
 //! `experiments/embree_check/check.py FILE`, which casts the same rays with Embree 4 (the `embreex`
 //! wheel) and passes when hit/miss and distances agree within its stated tolerances, ambiguous
 //! edge hits aside (see the script's docstring).
