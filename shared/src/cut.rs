@@ -206,6 +206,26 @@ mod tests {
     use super::*;
     use crate::{Camera, Params};
 
+    /// The sort key at its edges (module docs): `-0.0`, `0.0` and negative depths all key 0;
+    /// positive depths key as they order. Added for a survivor of issue 36's Rust sample (mutant
+    /// 1892: `near_depth > 0.0` → `>= 0.0` keys `-0.0` as `0x8000_0000`, behind every node, and no
+    /// test met a node whose nearest depth was exactly `-0.0`).
+    #[test]
+    fn depth_keys_at_zero_and_below_are_zero_and_order_like_depths_above() {
+        for d in [-0.0f32, 0.0, -1e-30, -5.0, f32::MIN] {
+            assert_eq!(command_depth_key(d), 0, "key of {d:?}");
+        }
+        let depths = [f32::MIN_POSITIVE / 2.0, 1e-6, 0.5, 1.0, 1000.0, 1e7];
+        for w in depths.windows(2) {
+            assert!(
+                0 < command_depth_key(w[0]) && command_depth_key(w[0]) < command_depth_key(w[1]),
+                "keys of {} and {}",
+                w[0],
+                w[1]
+            );
+        }
+    }
+
     fn node(center: [f32; 3], half: f32, depth: u32, children: u32) -> NodeMeta {
         NodeMeta {
             center,

@@ -433,6 +433,64 @@ fn every_threshold_is_straddled_by_a_parity_case() {
     );
     // In this test, not a test of its own: the counters are global.
     cut_counters_count_what_they_name();
+    select_counters_count_what_they_name();
+}
+
+/// `select`'s decision rows count what they name, recomputed from the per-batch decisions
+/// (`batch_decisions`): `SelectDrawDistance` every batch (culled by distance or not),
+/// `SelectFrustum` every batch within the draw distance (culled by the frustum or not), the fade
+/// rows every drawn batch (its LODs). Added for a survivor of issue 36's Rust sample (mutant 1705:
+/// `SelectFrustum`'s side `==` flipped to `!=` in `reference/src/select.rs`: both sides were still
+/// reached, so the straddle test passed with the labels swapped).
+fn select_counters_count_what_they_name() {
+    use forestlod_reference::select::{Decision, batch_decisions};
+    let tiny = builtin::tiny();
+    let params = tiny_params(FadeMode::DitherSequential);
+    let p = prepare(tiny.clone(), &params).expect("prepare");
+    let (mut distance, mut frustum, mut fade_end, mut fade_start) =
+        ([0u64; 2], [0u64; 2], [0u64; 2], [0u64; 2]);
+    coverage::enable();
+    for camera in ["medium", "close", "far"] {
+        let c = named_camera(camera, &tiny, 0.0, 96, 96).expect("camera");
+        p.select(&c, &params);
+        for d in batch_decisions(&p.batches.metas, &c, &params) {
+            distance[usize::from(d == Decision::CulledDistance)] += 1;
+            if d == Decision::CulledDistance {
+                continue;
+            }
+            frustum[usize::from(d == Decision::CulledFrustum)] += 1;
+            if let Decision::Draw(n) = d {
+                fade_end[usize::from(n.lod0)] += 1;
+                fade_start[usize::from(n.lod1)] += 1;
+            }
+        }
+    }
+    let counts = coverage::disable();
+    let row = |t: Threshold| counts.iter().find(|(u, _)| *u == t).expect("a row").1;
+    assert_eq!(
+        row(Threshold::SelectDrawDistance),
+        distance,
+        "SelectDrawDistance"
+    );
+    assert_eq!(
+        row(Threshold::SelectFrustum),
+        frustum,
+        "SelectFrustum: [inside, outside]"
+    );
+    assert_eq!(
+        row(Threshold::SelectFadeEnd),
+        fade_end,
+        "SelectFadeEnd: [no LOD0, LOD0]"
+    );
+    assert_eq!(
+        row(Threshold::SelectFadeStart),
+        fade_start,
+        "SelectFadeStart: [no LOD1, LOD1]"
+    );
+    assert!(
+        distance[1] > 0 && frustum[0] > 0 && frustum[1] > 0,
+        "the cases reach both sides: distance {distance:?}, frustum {frustum:?}"
+    );
 }
 
 /// The cut's counters count what their rows name, recomputed from the cut's own per-node codes
