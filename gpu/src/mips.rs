@@ -927,6 +927,40 @@ impl<'a> GpuMips<'a> {
 mod tests {
     use super::*;
 
+    /// How long the 512 threshold searches may take: each is a bisection of at most 31 steps
+    /// over the `f32` bits of `[0, 1]` (microseconds in all); a search that does not end within
+    /// this is a hang, reported by name instead of as a suite that never finishes.
+    const SEARCH_DEADLINE: std::time::Duration = std::time::Duration::from_secs(20);
+
+    /// Every encode threshold is found, and is the least `f32` that encodes to its byte. Added for
+    /// a survivor of issue 36's Rust sample (mutant 327: the bisection's `hi - lo > 1` → `>= 1`
+    /// never ends; the suite only hung, which the mutation run counts as a timeout, not a kill).
+    #[test]
+    fn threshold_searches_end_at_the_least_value_of_each_byte() {
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut out = Vec::new();
+            for b in 1..=255u8 {
+                for encode in [linear_to_srgb_exact as fn(f32) -> u8, unorm8_exact] {
+                    out.push((b, encode, threshold(b, encode)));
+                }
+            }
+            let _ = tx.send(out);
+        });
+        let found = rx
+            .recv_timeout(SEARCH_DEADLINE)
+            .expect("the threshold searches did not end within the deadline (a hang)");
+        for (b, encode, t) in found {
+            assert!(encode(t) >= b, "byte {b}: threshold {t} encodes below it");
+            let below = f32::from_bits(t.to_bits() - 1);
+            assert!(
+                t == 0.0 || encode(below) < b,
+                "byte {b}: threshold {t} is not the least (the value below encodes to {})",
+                encode(below)
+            );
+        }
+    }
+
     #[test]
     fn decode_then_encode_round_trips_every_byte() {
         let t = mip_tables();

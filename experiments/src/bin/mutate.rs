@@ -263,8 +263,8 @@ fn targets(file: &Path) -> Vec<(&'static str, String)> {
         ];
     }
     let mut t = targets_of_stage(file);
-    // A Rust mutant of `shared` or the reference also meets its module's unit tests.
-    if file.starts_with("shared") || file.starts_with("reference") {
+    // A Rust mutant also meets its module's unit tests.
+    if file.extension().is_some_and(|e| e == "rs") {
         t.insert(0, ("lib", format!("{stem}::")));
     }
     // Every GPU-side mutant also meets the walk of every mode and parameter extreme (issue 36),
