@@ -319,6 +319,8 @@ fn targets_of_stage(file: &Path) -> Vec<(&'static str, String)> {
         "raster" | "sampler" => vec![parity("draw"), parity("bake"), parity("sampler_lod")],
         "batches" => vec![parity("metamorphic"), ("properties", String::new())],
         "depth_copy" => vec![parity("draw")],
+        // The layout checker: the naga layout tests read it.
+        "wgsl_layout" => vec![("layout", String::new()), parity("draw")],
         _ => vec![
             parity("draw"),
             parity("metamorphic"),
