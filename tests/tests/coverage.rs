@@ -436,7 +436,8 @@ fn every_threshold_is_straddled_by_a_parity_case() {
     select_counters_count_what_they_name();
 }
 
-/// `select`'s decision rows count what they name, recomputed from the per-batch decisions
+/// `select`'s decision rows (and the per-tree oracle's) count what they name, recomputed from the
+/// per-batch (per-tree) decisions
 /// (`batch_decisions`): `SelectDrawDistance` every batch (culled by distance or not),
 /// `SelectFrustum` every batch within the draw distance (culled by the frustum or not), the fade
 /// rows every drawn batch (its LODs). Added for a survivor of issue 36's Rust sample (mutant 1705:
@@ -449,9 +450,23 @@ fn select_counters_count_what_they_name() {
     let p = prepare(tiny.clone(), &params).expect("prepare");
     let (mut distance, mut frustum, mut fade_end, mut fade_start) =
         ([0u64; 2], [0u64; 2], [0u64; 2], [0u64; 2]);
+    let mut cull = [[0u64; 2]; 4];
     coverage::enable();
     for camera in ["medium", "close", "far"] {
         let c = named_camera(camera, &tiny, 0.0, 96, 96).expect("camera");
+        // The per-tree oracle's rows (`Cull*`), from its own returned decisions (Rust sample
+        // mutant 1710 swapped `CullFrustum`'s sides).
+        for d in select_per_tree(&p.tree_spheres, &c, &params) {
+            cull[0][usize::from(d == Decision::CulledDistance)] += 1;
+            if d == Decision::CulledDistance {
+                continue;
+            }
+            cull[1][usize::from(d == Decision::CulledFrustum)] += 1;
+            if let Decision::Draw(n) = d {
+                cull[2][usize::from(n.lod0)] += 1;
+                cull[3][usize::from(n.lod1)] += 1;
+            }
+        }
         p.select(&c, &params);
         for d in batch_decisions(&p.batches.metas, &c, &params) {
             distance[usize::from(d == Decision::CulledDistance)] += 1;
@@ -487,6 +502,17 @@ fn select_counters_count_what_they_name() {
         fade_start,
         "SelectFadeStart: [no LOD1, LOD1]"
     );
+    for (t, want) in [
+        Threshold::CullDrawDistance,
+        Threshold::CullFrustum,
+        Threshold::CullFadeEnd,
+        Threshold::CullFadeStart,
+    ]
+    .into_iter()
+    .zip(cull)
+    {
+        assert_eq!(row(t), want, "{}", t.sides().0);
+    }
     assert!(
         distance[1] > 0 && frustum[0] > 0 && frustum[1] > 0,
         "the cases reach both sides: distance {distance:?}, frustum {frustum:?}"

@@ -321,6 +321,8 @@ fn targets_of_stage(file: &Path) -> Vec<(&'static str, String)> {
         "depth_copy" => vec![parity("draw")],
         // The layout checker: the naga layout tests read it.
         "wgsl_layout" => vec![("layout", String::new()), parity("draw")],
+        // The threshold counters: the coverage test recounts them.
+        "coverage" => vec![("coverage", String::new())],
         _ => vec![
             parity("draw"),
             parity("metamorphic"),
