@@ -743,6 +743,55 @@ mod tests {
         assert!(steps > 100, "only {steps} steps ambiguous");
     }
 
+    /// The plane thresholds of [`threshold_ambiguity`]: a sphere placed exactly on each frustum
+    /// plane's cull limit (`n · d + w = -r - m`) of a tilted camera is ambiguous **at that plane**,
+    /// and the same sphere well inside the frustum is not. Added for a survivor of issue 36's Rust
+    /// sample (mutant 683: the plane distance with `- p[2] · d[2]`; the classifier was exercised
+    /// only at the draw distance, and only on axis-aligned views).
+    #[test]
+    fn gate_ambiguity_finds_each_plane_of_a_tilted_view() {
+        let camera = Camera::look_at([10.0, -20.0, 5.0], [300.0, 90.0, 140.0], 50.0, 96, 64);
+        let params = Params {
+            draw_distance: 1e7,
+            ..Params::default()
+        };
+        let u = SelectUniform::new(&camera, &params);
+        let checks = Thresholds {
+            centre_depth: false,
+            fade_band: false,
+        };
+        let radius = 3.0f32;
+        let inside = [
+            camera.eye[0] + 200.0 * camera.forward[0],
+            camera.eye[1] + 200.0 * camera.forward[1],
+            camera.eye[2] + 200.0 * camera.forward[2],
+        ];
+        assert_eq!(
+            threshold_ambiguity(inside, radius, &u, AMBIGUITY_REL, checks),
+            None,
+            "a sphere in the middle of the view is near no threshold"
+        );
+        for (k, p) in u.frustum.planes.iter().enumerate().take(4) {
+            // Move the centre along the plane's normal until its distance is the cull limit
+            // (the margin depends on the position: a few fixed-point steps).
+            let n2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+            let mut c = inside;
+            for _ in 0..8 {
+                let d = [c[0] - u.eye[0], c[1] - u.eye[1], c[2] - u.eye[2]];
+                let m = selection_margin(d, radius);
+                let dist = p[0] * d[0] + p[1] * d[1] + p[2] * d[2] + p[3];
+                let step = (dist + radius + m) / n2;
+                c = [c[0] - step * p[0], c[1] - step * p[1], c[2] - step * p[2]];
+            }
+            let why = threshold_ambiguity(c, radius, &u, AMBIGUITY_REL, checks);
+            assert!(
+                why.as_deref()
+                    .is_some_and(|w| w.starts_with(&format!("plane {k} "))),
+                "a sphere on plane {k}'s cull limit at {c:?}: {why:?}"
+            );
+        }
+    }
+
     /// Sensitivity of [`KEY_ULPS`]: a run key one step from the reference's is ambiguous (and the
     /// order is then checked under the backend's keys), two steps fail naming the run.
     #[test]

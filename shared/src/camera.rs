@@ -372,6 +372,25 @@ mod tests {
         Camera::look_at([0.0, 0.0, 10.0], [100.0, 0.0, 10.0], 60.0, 160, 90)
     }
 
+    /// The degenerate-direction bound of `validate` (squared length 1e-12) on both sides: a
+    /// forward of squared length 5e-13 is refused naming `camera.forward`, one of 2.25e-12 is
+    /// accepted. Added for a survivor of issue 36's Rust sample (mutant 1773: the bound 1e-12 →
+    /// 1e-13 went unseen).
+    #[test]
+    fn a_forward_just_below_the_degenerate_bound_is_refused_and_just_above_accepted() {
+        let refused = Camera {
+            forward: [5e-13f32.sqrt(), 0.0, 0.0],
+            ..cam()
+        };
+        let err = refused.validate().expect_err("a degenerate forward");
+        assert!(format!("{err}").contains("camera.forward"), "{err}");
+        let accepted = Camera {
+            forward: [1.5e-6, 0.0, 0.0],
+            ..cam()
+        };
+        accepted.validate().expect("a short but valid forward");
+    }
+
     #[test]
     fn frustum_keeps_what_is_ahead_and_drops_what_is_behind() {
         let c = cam();
