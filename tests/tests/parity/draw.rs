@@ -672,3 +672,33 @@ fn draw_probes_remove_what_they_say() {
         "(tree pixels in NoTrees, non-tree pixels of NoTrees unlike the frame, pixels of NoTreeFragments unlike NoTrees)"
     );
 }
+
+/// A non-square texture uploads with its full mip chain (levels `max(1, w >> k)` x
+/// `max(1, h >> k)` down to 1 x 1: `log2(max(w, h)) + 1` of them), and one level more is refused
+/// naming the levels. Added for a survivor of issue 36's Rust sample (mutant 220: the chain's
+/// length from `min(w, h)` refused the full chain of a non-square mesh texture; every test
+/// texture was square).
+#[test]
+fn a_non_square_texture_uploads_with_its_full_mip_chain() {
+    use forestlod_gpu::draw::{MipLevel, upload_texture_array};
+    let Some(ctx) = gpu_context() else { return };
+    let (w, h) = (16u32, 4u32);
+    let full = 5; // 16x4, 8x2, 4x1, 2x1, 1x1
+    let texels: Vec<Vec<[u8; 4]>> = (0..=full)
+        .map(|k| vec![[k as u8 * 40, 90, 160, 255]; ((w >> k).max(1) * (h >> k).max(1)) as usize])
+        .collect();
+    let levels = |n: usize| -> Vec<MipLevel<'_>> {
+        (0..n)
+            .map(|k| MipLevel {
+                width: (w >> k).max(1),
+                height: (h >> k).max(1),
+                texels: &texels[k],
+            })
+            .collect()
+    };
+    upload_texture_array(ctx, "non-square", &[levels(full)])
+        .expect("a 16x4 texture with its full chain of 5 levels");
+    let err = upload_texture_array(ctx, "non-square", &[levels(full + 1)])
+        .expect_err("6 levels for 16x4");
+    assert!(format!("{err}").contains("texture levels"), "{err}");
+}
