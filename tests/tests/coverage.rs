@@ -482,36 +482,30 @@ fn select_counters_count_what_they_name() {
     }
     let counts = coverage::disable();
     let row = |t: Threshold| counts.iter().find(|(u, _)| *u == t).expect("a row").1;
-    assert_eq!(
-        row(Threshold::SelectDrawDistance),
-        distance,
-        "SelectDrawDistance"
-    );
-    assert_eq!(
-        row(Threshold::SelectFrustum),
-        frustum,
-        "SelectFrustum: [inside, outside]"
-    );
-    assert_eq!(
-        row(Threshold::SelectFadeEnd),
-        fade_end,
-        "SelectFadeEnd: [no LOD0, LOD0]"
-    );
-    assert_eq!(
-        row(Threshold::SelectFadeStart),
-        fade_start,
-        "SelectFadeStart: [no LOD1, LOD1]"
-    );
     for (t, want) in [
+        Threshold::SelectDrawDistance,
+        Threshold::SelectFrustum,
+        Threshold::SelectFadeEnd,
+        Threshold::SelectFadeStart,
         Threshold::CullDrawDistance,
         Threshold::CullFrustum,
         Threshold::CullFadeEnd,
         Threshold::CullFadeStart,
     ]
     .into_iter()
-    .zip(cull)
-    {
-        assert_eq!(row(t), want, "{}", t.sides().0);
+    .zip(
+        [distance, frustum, fade_end, fade_start]
+            .into_iter()
+            .chain(cull),
+    ) {
+        assert_eq!(
+            row(t),
+            want,
+            "{} [{}, {}]",
+            t.sides().0,
+            t.sides().1,
+            t.sides().2
+        );
     }
     assert!(
         distance[1] > 0 && frustum[0] > 0 && frustum[1] > 0,

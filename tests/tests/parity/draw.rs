@@ -33,7 +33,7 @@ use forestlod_harness::bridge::{DrawSceneData, upload_reference_textures};
 use forestlod_harness::context::gpu_context;
 use forestlod_harness::diagnose::{check_stages, first_differing};
 use forestlod_harness::gpu_frame::{StagesFromCpu, gpu_draw, render_gpu};
-use forestlod_harness::image_compare::{Images, compare_images, write_failure_images};
+use forestlod_harness::image_compare::{Images, compare_images, judge_image, write_failure_images};
 use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::builtin;
@@ -332,22 +332,15 @@ fn centre_at_draw_distance(draw_distance: f32, drawn: bool) {
     }
     .run(input);
     let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
-    let report = compare_images(
+    if let Some(failure) = judge_image(
         &format!("centre-at-draw-distance-{draw_distance}"),
         &got,
         &want,
         &alternatives,
         &camera,
-    );
-    eprintln!("{report}");
-    if !report.passed() {
-        let dir = write_failure_images(&report, &got, &want);
-        panic!(
-            "{}: {} (images in {})",
-            report.name,
-            report.failures().join("; "),
-            dir.display()
-        );
+        &mut Default::default(),
+    ) {
+        panic!("{failure}");
     }
 }
 
@@ -394,23 +387,14 @@ fn unrefined_mesh_batches_straddling_the_draw_distance() {
     let mut failures = Vec::new();
     for option in [StagesFromCpu::ALL, StagesFromCpu::TEXTURES] {
         let got = GpuRenderer { ctx, option }.run(input);
-        let report = compare_images(
+        failures.extend(judge_image(
             &format!("unrefined-straddling/{option:?}"),
             &got,
             &want,
             &alternatives,
             &camera,
-        );
-        eprintln!("{report}");
-        if !report.passed() {
-            let dir = write_failure_images(&report, &got, &want);
-            failures.push(format!(
-                "{}: {} (images in {})",
-                report.name,
-                report.failures().join("; "),
-                dir.display()
-            ));
-        }
+            &mut Default::default(),
+        ));
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
