@@ -397,6 +397,13 @@ impl<'a> GpuRefine<'a> {
             counters: read_buffer::<RefineCounters>(self.ctx, &self.counters, 0, 1)?[0],
         })
     }
+
+    /// The grid `refine_args` computed for the last [`GpuRefine::encode`] (pass 2 of the module
+    /// docs: the indirect arguments of passes 3 and 5, and the largest chunk count), read back
+    /// for tests: nothing else reads it on the CPU. Blocks.
+    pub fn read_dispatch(&self) -> Result<RefineDispatch, GpuError> {
+        Ok(read_buffer::<RefineDispatch>(self.ctx, &self.dispatch, 0, 1)?[0])
+    }
 }
 
 #[cfg(test)]

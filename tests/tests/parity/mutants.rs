@@ -104,6 +104,15 @@ const MUTANTS: &[Mutant] = &[
         why: "refine counts the trees tested as kept (issue 36, class 6)",
     },
     Mutant {
+        file: "refine.wgsl",
+        line: "let y = min(slots, u.max_workgroups);",
+        before: "min(",
+        after: "max(",
+        killer: "refine::refine_dispatch_grid_follows_its_formula",
+        why: "refine's indirect grid takes the per-dimension limit, not the slot count, as its rows \
+              (issue 36's WGSL sample, survivor 626: the same result, slowly, below the limit)",
+    },
+    Mutant {
         file: "coalesce.wgsl",
         line: "&& pc.first_instance + pc.instance_count == c.first_instance;",
         before: "pc.instance_count ==",

@@ -29,7 +29,7 @@ use std::time::Instant;
 
 use forestlod_gpu::{
     Compaction, CullTree, GpuContext, GpuRefine, GpuRefined, GpuSelect, RefineCounters,
-    SelectBuffers,
+    RefineDispatch, SelectBuffers,
 };
 use forestlod_harness::alternatives::alpha_test_alternatives;
 use forestlod_harness::context::gpu_context;
@@ -532,4 +532,154 @@ fn gpu_refined_images_match_the_reference() {
     }
     assert!(kept < tested, "refinement dropped no tree in any scenario");
     assert_no_failures("refined image parity failed", &failures);
+}
+
+/// Slots past the per-dimension workgroup limit in the large case of
+/// [`refine_dispatch_grid_follows_its_formula`]: enough for a second row (`z = 2`), few enough
+/// that the count and write passes (two rows of `limit` one-slot workgroups, all but one slot
+/// exiting at once) stay well under a second on lavapipe.
+const SLOTS_PAST_THE_LIMIT: u32 = 4_465;
+
+/// The grid `refine_args` must write (`refine.rs`'s module docs, pass 2) for the selection
+/// `commands`/`data` under `mode`, with `limit` workgroups per dimension: `max_chunks` the largest
+/// `ceil(len / 64)` of the refined commands; all zero when none is refined or no command was
+/// emitted; else `x = ceil(max_chunks / 64)`, `y = min(slots, limit)`, `z = ceil(slots / y)`.
+fn expected_grid(
+    commands: &[forestlod_shared::DrawCommand],
+    data: &[forestlod_shared::CommandData],
+    mode: TreeCull,
+    limit: u32,
+) -> RefineDispatch {
+    use forestlod_gpu::refine::REFINE_WORKGROUP_SIZE as W;
+    let max_chunks = commands
+        .iter()
+        .zip(data)
+        .filter(|(_, d)| mode.refines(d.lod))
+        .map(|(c, _)| c.instance_count.div_ceil(W))
+        .max()
+        .unwrap_or(0);
+    let slots = commands.len() as u32;
+    if max_chunks == 0 || slots == 0 {
+        return RefineDispatch::default();
+    }
+    let y = slots.min(limit);
+    RefineDispatch {
+        x: max_chunks.div_ceil(W),
+        y,
+        z: slots.div_ceil(y),
+        max_chunks,
+    }
+}
+
+/// Refine's indirect grid (pass 2, `refine_args`), read back after each refine, equals its
+/// formula ([`expected_grid`]): for the reference's selections of `tiny` from its named views
+/// under `lod0` and `all` (every slot count below the limit, so `y` is the slot count), for a
+/// selection with nothing to refine (all zero, after a frame that had a grid), and for a
+/// synthetic selection of [`SLOTS_PAST_THE_LIMIT`] slots past the per-dimension limit (`y` the
+/// limit, `z = 2`). A grid too large runs the same result slowly (issue 36's WGSL survivor 626:
+/// `y = max(slots, limit)` dispatched 65,535 rows for a few commands), so only the grid itself
+/// shows it.
+#[test]
+fn refine_dispatch_grid_follows_its_formula() {
+    let Some(ctx) = gpu_context() else { return };
+    let limit = ctx.limits.max_compute_workgroups_per_dimension;
+    let mut failures = Vec::new();
+    let mut check = |name: &str, refine: &GpuRefine, want: RefineDispatch| {
+        let got = refine.read_dispatch().expect("read the refine grid");
+        if got != want {
+            failures.push(format!(
+                "{name}: refine grid {got:?}, expected {want:?} (limit {limit})"
+            ));
+        }
+    };
+    // The reference's selections of `tiny`.
+    let tiny = builtin::tiny();
+    let p = tiny_params(FadeMode::Alpha);
+    let i = CullInput::new(&tiny);
+    let mut b = Batched::new(ctx, &tiny, &i.geometry, &i.spheres, &i.trees, p.grid_size).unwrap();
+    let (mut frames, mut below_limit) = (0, 0);
+    for v in named_views(&tiny, &p, 96) {
+        for mode in MODES {
+            let params = Params {
+                tree_cull: mode as u32,
+                ..v.params
+            };
+            let g = b.geometry;
+            let s = select(&b.batches.metas, &g.meshes, &g.billboard, &v.camera, &params);
+            let mut buffers =
+                SelectBuffers::from_cpu(ctx, &s.commands, &s.data, &s.counters).unwrap();
+            b.refine.dispatch(&mut buffers, &v.camera, &params).unwrap();
+            let want = expected_grid(&s.commands, &s.data, mode, limit);
+            frames += 1;
+            below_limit += u32::from(want.y > 0 && want.y < limit);
+            check(
+                &format!("tiny-{}-yaw{}-{}", v.camera_name, v.yaw, mode.name()),
+                &b.refine,
+                want,
+            );
+        }
+    }
+    // Under `lod0` a frame without mesh commands refines nothing (an all-zero grid).
+    println!("refine grids: {below_limit} of {frames} tiny frames with a grid below the limit");
+    assert!(
+        below_limit > 0,
+        "none of {frames} tiny frames had a grid with fewer slots than the limit"
+    );
+    // Synthetic selections over a small scene of `TREES` trees, one batch of them all.
+    const TREES: u32 = 100;
+    let trees: Vec<CullTree> = (0..TREES)
+        .map(|t| CullTree {
+            center: [t as f32, 0.0, 20.0],
+            radius: 1.0,
+            mesh: 0,
+        })
+        .collect();
+    let indirection: Vec<u32> = (0..TREES).collect();
+    let mut refine = GpuRefine::new(ctx, &trees, &indirection).unwrap();
+    let camera = Camera::look_at([0.0, 2.0, 0.0], [0.0, 2.0, 20.0], 60.0, 64, 64);
+    let synthetic = |slots: u32, meshes: u32| {
+        let commands: Vec<_> = (0..slots)
+            .map(|k| forestlod_shared::DrawCommand {
+                index_count: 6,
+                instance_count: if k < meshes { TREES } else { 1 },
+                first_index: 0,
+                base_vertex: (k << forestlod_shared::COMMAND_SHIFT) as i32,
+                first_instance: 0,
+            })
+            .collect();
+        let data: Vec<_> = (0..slots)
+            .map(|k| forestlod_shared::CommandData {
+                lod: if k < meshes {
+                    forestlod_shared::LOD_MESH
+                } else {
+                    forestlod_shared::LOD_BILLBOARD
+                },
+                ..bytemuck::Zeroable::zeroed()
+            })
+            .collect();
+        let counters = forestlod_shared::SelectCounters {
+            commands: slots,
+            ..Default::default()
+        };
+        (commands, data, counters)
+    };
+    let params = Params {
+        tree_cull: TreeCull::Lod0 as u32,
+        ..p
+    };
+    for (name, slots, meshes) in [
+        ("one mesh command of two chunks", 3, 1),
+        ("nothing to refine", 3, 0),
+        ("past the limit", limit + SLOTS_PAST_THE_LIMIT, 1),
+    ] {
+        let (commands, data, counters) = synthetic(slots, meshes);
+        let mut buffers = SelectBuffers::from_cpu(ctx, &commands, &data, &counters).unwrap();
+        refine.dispatch(&mut buffers, &camera, &params).unwrap();
+        let want = expected_grid(&commands, &data, TreeCull::Lod0, limit);
+        check(name, &refine, want);
+    }
+    assert_no_failures(
+        &format!("refine grids differ from their formula ({})", failures.len()),
+        &failures,
+    );
 }
