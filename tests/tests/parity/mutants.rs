@@ -163,6 +163,15 @@ const MUTANTS: &[Mutant] = &[
         why: "the Primitive baseline's trunk-cylinder intersection",
     },
     Mutant {
+        file: "primitive.wgsl",
+        line: "best = take(best, (-b + s) / a, t_min);",
+        before: "-b + s",
+        after: "-b - s",
+        killer: "baselines::gpu_baseline_images_match_the_reference",
+        why: "the Primitive crown sphere's far root lost, which alone decides with the crown \
+              across the near plane (issue 36's WGSL sample, survivor 581)",
+    },
+    Mutant {
         file: "cull.wgsl",
         line: "if count > 0u {",
         before: "count > 0u",
