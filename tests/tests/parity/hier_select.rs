@@ -451,6 +451,101 @@ fn gpu_cut_on_frustum_straddling_boxes() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// The cut's LOD decision on the knife edges of its box interval (issue 36's WGSL survivor 203:
+/// `aabb_view_interval`'s `hi = d + r + m` with the margin subtracted passed every case): for
+/// every root node of `tiny`'s card trees under each mode whose box interval end is nearer the
+/// eye than its sphere's (so the box decides), seen along +x from outside, two frames with the
+/// band's edge at the box's unwidened end: the fade start at `d + r` (the widened `hi` lies `m`
+/// past it, so LOD1 is needed) and the fade end at `d - r` (the widened `lo` lies `m` before
+/// it, so LOD0 is needed). Those nodes are within the ambiguity of a threshold, which the random
+/// property excuses; the margin `m` (at least 16 `f32` steps of `|d|`) exists for exactly this
+/// rounding, so here the GPU must take the conservative side: its code for the node equals the
+/// reference's, which needs the LOD.
+#[test]
+fn gpu_cut_on_box_knife_edges() {
+    let Some(ctx) = gpu_context() else {
+        eprintln!("hier_select knife edges: no GPU adapter (FORESTLOD_ALLOW_NO_GPU=1)");
+        return;
+    };
+    use forestlod_shared::{DECISION_LOD0, DECISION_LOD1, NO_PARENT, aabb_view_interval};
+    let trees = forestlod_tests::tiny_card_trees();
+    let (mut frames, mut failures) = (0usize, Vec::new());
+    for mode in [Mode::GridAabb, Mode::Quadtree, Mode::Octree, Mode::Kmeans] {
+        let base = straddling_params(mode);
+        let packed = Packed::new(trees.clone(), base.grid_size);
+        let g = &packed.geometry;
+        let h = Hierarchy::build(&packed.scene, &g.meshes, &base)
+            .unwrap()
+            .unwrap();
+        let mut gpu =
+            SelectionChain::cut(ctx, &h.nodes, mode as u32, &g.meshes, &g.billboard).unwrap();
+        for (i, n) in h.nodes.iter().enumerate() {
+            if n.parent != NO_PARENT {
+                continue;
+            }
+            // From outside along +x, three node radii away.
+            let back = n.extent[0] + 3.0 * n.radius;
+            let eye = [n.box_center[0] - back, n.box_center[1], n.box_center[2]];
+            let target = [n.box_center[0], n.box_center[1], n.box_center[2]];
+            let camera = Camera::look_at(eye, target, 60.0, 64, 64);
+            let u = ViewUniform::new(&camera, &base);
+            let b = aabb_view_interval(n.box_center, n.extent, u.eye, u.forward);
+            let sphere = forestlod_shared::view_interval(n.center, n.radius, u.eye, u.forward);
+            let f = u.forward;
+            let r = f[0].abs() * n.extent[0] + f[1].abs() * n.extent[1] + f[2].abs() * n.extent[2];
+            for (edge, at, box_decides, bit) in [
+                (
+                    "fade start at the box's d + r",
+                    b.d + r,
+                    b.hi < sphere.hi,
+                    DECISION_LOD1,
+                ),
+                (
+                    "fade end at the box's d - r",
+                    b.d - r,
+                    b.lo > sphere.lo,
+                    DECISION_LOD0,
+                ),
+            ] {
+                if !box_decides {
+                    continue;
+                }
+                // A band of width 0 puts both its ends at `at` exactly.
+                let p = Params {
+                    lod1_transition: at,
+                    fade_width: 0.0,
+                    ..base
+                };
+                let want = full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
+                gpu.run(&camera, &p, Compaction::Stable).unwrap();
+                let (codes, _) = gpu.read_codes_and_states().unwrap();
+                frames += 1;
+                let name = format!("{mode:?} root {i}, {edge} = {at}");
+                if want.codes[i] & bit == 0 {
+                    failures.push(format!(
+                        "{name}: the reference's code {:#x} lacks the LOD (box interval {b:?})",
+                        want.codes[i]
+                    ));
+                } else if codes[i] != want.codes[i] {
+                    failures.push(format!(
+                        "{name}: code {:#x} on the GPU, {:#x} in the reference (box interval {b:?})",
+                        codes[i], want.codes[i]
+                    ));
+                }
+            }
+        }
+    }
+    eprintln!(
+        "hier_select knife edges: {frames} frames, {} failures",
+        failures.len()
+    );
+    assert!(
+        frames >= 4,
+        "only {frames} knife-edge frames: the box decides too rarely"
+    );
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 /// The GPU frame with a hierarchy equals the GPU frame with the grid: bit for bit with
 /// dither-sequential, and in `alpha` mode only inside the fade band (blending order). Counts
 /// reported per frame.

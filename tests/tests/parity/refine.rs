@@ -605,7 +605,13 @@ fn refine_dispatch_grid_follows_its_formula() {
                 ..v.params
             };
             let g = b.geometry;
-            let s = select(&b.batches.metas, &g.meshes, &g.billboard, &v.camera, &params);
+            let s = select(
+                &b.batches.metas,
+                &g.meshes,
+                &g.billboard,
+                &v.camera,
+                &params,
+            );
             let mut buffers =
                 SelectBuffers::from_cpu(ctx, &s.commands, &s.data, &s.counters).unwrap();
             b.refine.dispatch(&mut buffers, &v.camera, &params).unwrap();
@@ -679,7 +685,10 @@ fn refine_dispatch_grid_follows_its_formula() {
         check(name, &refine, want);
     }
     assert_no_failures(
-        &format!("refine grids differ from their formula ({})", failures.len()),
+        &format!(
+            "refine grids differ from their formula ({})",
+            failures.len()
+        ),
         &failures,
     );
 }
