@@ -963,6 +963,8 @@ mod tests {
             billboard_half_width: (lo[0].abs().max(hi[0].abs()).powi(2)
                 + lo[1].abs().max(hi[1].abs()).powi(2))
             .sqrt(),
+            // As `TreeMesh::meta`: half the box diagonal, about the box centre.
+            sphere_radius: ((Vec3::from(hi) - Vec3::from(lo)) * 0.5).length(),
             ..bytemuck::Zeroable::zeroed()
         };
         let meshes = [
