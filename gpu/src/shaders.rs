@@ -184,7 +184,11 @@ mod tests {
     #[test]
     fn the_mutation_hook_gives_the_named_file_its_path_and_no_other() {
         let var = "select.wgsl=/tmp/m17.wgsl";
-        assert_eq!(mutant_path(var, "select.wgsl"), Some("/tmp/m17.wgsl"));
+        assert_eq!(
+            mutant_path(var, "select.wgsl"),
+            Some("/tmp/m17.wgsl"),
+            "the named file"
+        );
         for other in [
             "common.wgsl",
             "draw.wgsl",
