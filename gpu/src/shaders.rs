@@ -156,8 +156,7 @@ pub fn with_common(stage: &str) -> String {
 /// mutant costs a test run, not a rebuild. Unset (always, outside `mutate`), the compiled-in text.
 pub fn mutant_or(file: &str, own: &str) -> String {
     if let Ok(v) = std::env::var("FORESTLOD_MUTANT_WGSL")
-        && let Some((f, path)) = v.split_once('=')
-        && f == file
+        && let Some(path) = mutant_path(&v, file)
     {
         return std::fs::read_to_string(path)
             .unwrap_or_else(|e| panic!("FORESTLOD_MUTANT_WGSL: {path}: {e}"));
@@ -165,9 +164,53 @@ pub fn mutant_or(file: &str, own: &str) -> String {
     own.to_string()
 }
 
+/// The path [`mutant_or`]'s hook reads `file` from, given the variable's value `var`: the text
+/// after the first `=` when the text before it is `file` exactly; `None` for another file or a
+/// value without `=`.
+fn mutant_path<'a>(var: &'a str, file: &str) -> Option<&'a str> {
+    var.split_once('=')
+        .and_then(|(f, path)| (f == file).then_some(path))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The mutation hook's parsing (`mutant_path`): `<file>=<path>` gives `file` its path (the
+    /// text after the first `=`, which may itself hold `=`), every other file none, and a value
+    /// without `=`, an empty one or a file name that only starts or ends like `file` none. Added
+    /// for issue 36's Rust mutant 514 (`f == file` -> `!=`: every other module read the mutant,
+    /// the mutated one its own text; with the variable unset nothing else sees it).
+    #[test]
+    fn the_mutation_hook_gives_the_named_file_its_path_and_no_other() {
+        let var = "select.wgsl=/tmp/m17.wgsl";
+        assert_eq!(
+            mutant_path(var, "select.wgsl"),
+            Some("/tmp/m17.wgsl"),
+            "the named file"
+        );
+        for other in [
+            "common.wgsl",
+            "draw.wgsl",
+            "select",
+            "elect.wgsl",
+            "select.wgsl2",
+            "",
+        ] {
+            assert_eq!(mutant_path(var, other), None, "file `{other}`");
+        }
+        assert_eq!(
+            mutant_path("draw.wgsl=/tmp/a=b.wgsl", "draw.wgsl"),
+            Some("/tmp/a=b.wgsl")
+        );
+        for malformed in ["select.wgsl", "", "/tmp/m17.wgsl"] {
+            assert_eq!(
+                mutant_path(malformed, "select.wgsl"),
+                None,
+                "value `{malformed}`"
+            );
+        }
+    }
 
     /// The shared values are the Rust ones (a spot check of each source of values).
     #[test]

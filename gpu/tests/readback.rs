@@ -31,6 +31,37 @@ fn buffers_round_trip() {
     assert!(read_buffer::<u32>(&ctx, &buffer, 0, 5000).is_err());
 }
 
+/// A range `read_buffer` cannot read is refused with an error naming the input, the range asked
+/// for and the rule it breaks, with the real alignment (4 bytes: `copy_buffer_to_buffer`'s):
+/// a misaligned start and a range past the end. Added for issue 36's Rust mutant 453 (the
+/// message's "a multiple of 4" -> "5": the project's rule is that errors name the field and
+/// value, so a wrong rule in the message misleads the caller).
+#[test]
+fn a_bad_range_is_refused_naming_the_range_and_the_alignment() {
+    let Some(ctx) = gpu_or_explain() else {
+        return;
+    };
+    let data: Vec<u32> = (0..16).collect();
+    let buffer = upload_storage(&ctx, "bad range", &data, wgpu::BufferUsages::empty());
+    let size = buffer.size();
+    for (offset, count, range) in [
+        (2u64, 3usize, format!("2..14 of {size} bytes")),
+        (8, 40, format!("8..168 of {size} bytes")),
+    ] {
+        let message = read_buffer::<u32>(&ctx, &buffer, offset, count)
+            .expect_err("a bad range must be refused")
+            .to_string();
+        assert_eq!(
+            message,
+            format!(
+                "invalid input read_buffer range = {range}: expected a range inside the buffer \
+                 starting at a multiple of 4"
+            ),
+            "offset {offset}, {count} elements"
+        );
+    }
+}
+
 #[test]
 fn texture_layers_and_levels_round_trip() {
     let Some(ctx) = gpu_or_explain() else {

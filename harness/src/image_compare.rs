@@ -1524,6 +1524,43 @@ mod tests {
         assert_eq!(r.depth.mismatches, 1);
     }
 
+    /// The depth judge's *translucent* class (module docs, **Depth**) against its definition: an
+    /// interior pixel whose depth differs by far more than [`DEPTH_MAX_ULPS`] is translucent only
+    /// where **both** frames show a fading fragment (LOD id transition) and the colours match at
+    /// the same position; with either id another, or the colour past [`COLOR_TOLERANCE`], it is
+    /// a depth mismatch. A correct build's frames never put the judge on the wrong side of this,
+    /// so only a classification test sees a weaker rule: added for issue 36's Rust mutant 641
+    /// (`gpu.lod_id[i] == LOD_ID_TRANSITION` -> `!=`).
+    #[test]
+    fn depth_is_translucent_only_where_both_frames_fade_and_the_colours_match() {
+        let (t, m) = (LOD_ID_TRANSITION, forestlod_reference::draw::LOD_ID_MESH);
+        let colour = [90, 140, 60, 255];
+        let far = f32::from_bits(0.5f32.to_bits() + 50 * DEPTH_MAX_ULPS);
+        // (GPU id, reference id, GPU colour shift, translucent?)
+        for (gpu_id, ref_id, shift, translucent) in [
+            (t, t, 0, true),
+            (t, t, COLOR_TOLERANCE, true),
+            (t, t, COLOR_TOLERANCE + 1, false),
+            (m, m, 0, false),
+            (m, t, 0, false),
+            (t, m, 0, false),
+        ] {
+            let reference = flat(ref_id, colour, 0.5);
+            let mut gpu = flat(ref_id, colour, 0.5);
+            let i = 3 * 8 + 4;
+            gpu.lod_id[i] = gpu_id;
+            gpu.depth[i] = far;
+            gpu.color[i][0] += shift;
+            let r = compare_images("translucent", &gpu, &reference, &[], &camera());
+            assert_eq!(r.edge_pixels, 0, "{r}");
+            assert_eq!(
+                (r.depth.translucent, r.depth.mismatches),
+                if translucent { (1, 0) } else { (0, 1) },
+                "GPU id {gpu_id}, reference id {ref_id}, colour shift {shift}: {r}"
+            );
+        }
+    }
+
     /// A frame pair with every class populated, for the banding test: a hash decides per pixel
     /// what the GPU changed (nothing, a small shift, a large one, the id, the depth) and what the
     /// two alternative frames show.

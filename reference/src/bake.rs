@@ -250,7 +250,9 @@ pub fn bake(
 }
 
 /// A contact sheet of level 0 of every layer: one row per mesh, one column per angle, over a
-/// checkerboard so transparency shows.
+/// checkerboard (grey 200 and 150 in 8-texel squares) so transparency shows. `meshes` rows
+/// (at least the bake's meshes); the pixels no layer covers (rows past the bake's meshes) are
+/// opaque black `[0, 0, 0, 255]`.
 pub fn contact_sheet(baked: &BakedBillboards, meshes: usize) -> Rgba8Image {
     let (k, r) = (baked.angle_count, baked.texture_size);
     let (w, h) = (k * r, meshes as u32 * r);
@@ -283,6 +285,45 @@ pub fn contact_sheet(baked: &BakedBillboards, meshes: usize) -> Rgba8Image {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The contact sheet against its doc, on a hand-made bake of one mesh at two angles drawn
+    /// with two rows: each layer in its cell, composited over the checkerboard (opaque texels as
+    /// they are, a transparent one the checker's grey, a half-transparent one the mix), and
+    /// every pixel of the row no layer covers opaque black. Added for issue 36's Rust mutant 845
+    /// (the sheet's background `[0, 0, 0, 255]` -> `[1, 0, 0, 255]`).
+    #[test]
+    fn the_contact_sheet_shows_each_layer_over_the_checkerboard_on_black() {
+        let r = 16;
+        let mut opaque = Rgba8Image::new(r, r, [200, 30, 30, 255]);
+        opaque.texels[0] = [0, 0, 0, 0];
+        let half = Rgba8Image::new(r, r, [100, 100, 100, 128]);
+        let baked = BakedBillboards {
+            angle_count: 2,
+            texture_size: r,
+            layers: vec![opaque.clone(), half],
+            chains: Vec::new(),
+            texture: Texture::new(vec![opaque]).unwrap(),
+            extents: Vec::new(),
+        };
+        let sheet = contact_sheet(&baked, 2);
+        assert_eq!((sheet.width, sheet.height), (2 * r, 2 * r));
+        // Layer 0 at column 0: opaque texels, and the transparent (0, 0) on the light checker.
+        assert_eq!(sheet.get(5, 3), [200, 30, 30, 255]);
+        assert_eq!(sheet.get(0, 0), [200, 200, 200, 255]);
+        // Layer 1 at column 1, texel (8, 0) on the dark checker: 100 · a + 150 · (1 - a),
+        // a = 128 / 255.
+        assert_eq!(sheet.get(r + 8, 0), [125, 125, 125, 255]);
+        // Row 1: no layer; every pixel the background.
+        for y in r..2 * r {
+            for x in 0..2 * r {
+                assert_eq!(
+                    sheet.get(x, y),
+                    [0, 0, 0, 255],
+                    "pixel ({x}, {y}) outside every layer"
+                );
+            }
+        }
+    }
 
     /// The estimate that refuses a bake up front is what a real bake holds: exact for the
     /// structures it keeps (a mutant dropping the `texture`'s linear copy, or counting one level,

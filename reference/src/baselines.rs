@@ -596,6 +596,81 @@ mod tests {
         assert!((t.unwrap() - 4.0).abs() < 1e-4);
     }
 
+    /// How far (metres, at the meshes' unit scale) the proxy's measures may sit from the mesh's
+    /// own extents: both are `f32` sums and halvings of the same vertex coordinates (tens of
+    /// metres at most), a few ulps; a wrong proxy is off by a good fraction of a crown.
+    const PROXY_EXTENT_EPS: f32 = 1e-4;
+
+    /// The Primitive's proxy against its definition (module docs) and the meshes it stands for:
+    /// the crown sphere's radius is half the mesh's larger horizontal extent (so the sphere is as
+    /// wide as the crown, no wider), it touches the box top (or, on a squat box, the bottom), the
+    /// trunk is [`TRUNK_RADIUS_FRACTION`] of the crown and starts at the box bottom. Checked on a
+    /// hand-made box with unequal widths and on every species mesh, whose extents are recomputed
+    /// from its vertices. Both backends read the same proxies, so parity cannot see a wrong one:
+    /// added for issue 36's Rust mutant 878 (`let r = 0.5 * ex.max(ey)` -> `1.5 *`).
+    #[test]
+    fn the_proxy_is_the_crown_and_trunk_its_doc_derives_from_the_mesh_box() {
+        let view = crate::texture::Rgba8Image::new(1, 1, [50, 120, 40, 255]);
+        let boxed = |lo: [f32; 3], hi: [f32; 3]| MeshMeta {
+            bbox_min: lo,
+            bbox_max: hi,
+            ..bytemuck::Zeroable::zeroed()
+        };
+        // Tall, 4 m by 6 m: R = 3, the sphere from 14 to 20 m.
+        let tall = Proxy::of_mesh(&boxed([-2.0, -3.0, 0.5], [2.0, 3.0, 20.0]), &view, 0.5);
+        assert_eq!(
+            (tall.crown_radius, tall.crown_z, tall.bottom_z),
+            (3.0, 17.0, 0.5),
+            "{tall:?}"
+        );
+        assert_eq!(tall.trunk_radius, TRUNK_RADIUS_FRACTION * 3.0, "{tall:?}");
+        // Squat, 10 m by 8 m and 6 m high: R = 5, the sphere rests on the box bottom.
+        let squat = Proxy::of_mesh(&boxed([-5.0, -4.0, 0.0], [5.0, 4.0, 6.0]), &view, 0.5);
+        assert_eq!((squat.crown_radius, squat.crown_z), (5.0, 5.0), "{squat:?}");
+        let scene = crate::scene::builtin::pair();
+        for mesh in &scene.meshes {
+            let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+            for p in &mesh.positions {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+            let width = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+            let proxy = Proxy::of_mesh(&mesh.meta(), &view, 0.5);
+            let diameter = 2.0 * proxy.crown_radius;
+            assert!(
+                (diameter - width).abs() <= PROXY_EXTENT_EPS,
+                "{}: crown diameter {diameter} m, the mesh's larger horizontal extent {width} m",
+                mesh.name
+            );
+            let top = proxy.crown_z + proxy.crown_radius;
+            let bottom = proxy.crown_z - proxy.crown_radius;
+            assert!(
+                (top - hi[2]).abs() <= PROXY_EXTENT_EPS
+                    || (bottom - lo[2]).abs() <= PROXY_EXTENT_EPS,
+                "{}: crown sphere {bottom}..{top} m touches neither the mesh's top {} nor its \
+                 bottom {}",
+                mesh.name,
+                hi[2],
+                lo[2]
+            );
+            assert!(
+                bottom >= lo[2] - PROXY_EXTENT_EPS,
+                "{}: crown sphere reaches {bottom} m, below the mesh's bottom {}",
+                mesh.name,
+                lo[2]
+            );
+            assert_eq!(proxy.bottom_z, lo[2], "{}", mesh.name);
+            assert_eq!(
+                proxy.trunk_radius,
+                TRUNK_RADIUS_FRACTION * proxy.crown_radius,
+                "{}",
+                mesh.name
+            );
+        }
+    }
+
     #[test]
     fn the_quad_covers_the_projection_of_its_sphere() {
         let camera = Camera::look_at([0.0, 0.0, 5.0], [100.0, 10.0, 0.0], 60.0, 64, 48);

@@ -941,6 +941,104 @@ mod tests {
             .collect()
     }
 
+    /// Relative slack on [`tree_footprint_radius`] in its containment test: the corners are `f32`
+    /// sums of products of the same few metres (ulps); a radius that leaves out a quad corner is
+    /// short by metres (a good fraction of the crown).
+    const FOOTPRINT_TEST_REL: f32 = 1e-5;
+
+    /// [`tree_footprint_radius`] against its doc: every vertex the vertex stage can give a tree
+    /// lies within it of the base, the mesh's box corners (any yaw, the tree's scale) and its
+    /// billboard quad's corners `base + R·a + U·b` (built as `tree_stage` builds them) at every
+    /// elevation in `[0, π/2]` (a sweep and every layer of `1..=16` layers) and toward every
+    /// horizontal direction. The meshes are asymmetric in `z`: a box standing on its base that
+    /// is as wide as it is high (the quad reaches beyond the mesh's sphere at about 35°), one
+    /// hanging below its base, one floating above it. Added for issue 36's Rust mutant 1080
+    /// (`bbox_min[2].abs().max(bbox_max[2].abs())` -> `.min(..)`: a smaller footprint could drop
+    /// a tree from a masked draw; `tiny`'s trees are symmetric enough that no test saw it).
+    #[test]
+    fn the_footprint_holds_every_mesh_and_billboard_vertex() {
+        let meta = |lo: [f32; 3], hi: [f32; 3]| MeshMeta {
+            bbox_min: lo,
+            bbox_max: hi,
+            billboard_half_width: (lo[0].abs().max(hi[0].abs()).powi(2)
+                + lo[1].abs().max(hi[1].abs()).powi(2))
+            .sqrt(),
+            // As `TreeMesh::meta`: half the box diagonal, about the box centre.
+            sphere_radius: ((Vec3::from(hi) - Vec3::from(lo)) * 0.5).length(),
+            ..bytemuck::Zeroable::zeroed()
+        };
+        let meshes = [
+            ("square", meta([-5.0, -5.0, 0.0], [5.0, 5.0, 10.0])),
+            ("hanging", meta([-3.0, -3.0, -12.0], [3.0, 3.0, 1.0])),
+            ("floating", meta([-4.0, -2.0, 6.0], [3.0, 2.0, 9.0])),
+        ];
+        let mut elevations: Vec<f32> = (0..=90).map(|d| (d as f32).to_radians()).collect();
+        for k_count in 1..=16 {
+            elevations.extend((0..k_count).map(|k| bake_elevation(k, k_count)));
+        }
+        let mut worst = 0.0f32;
+        for (name, mesh) in &meshes {
+            for (position, yaw, scale) in [
+                ([0.0, 0.0, 0.0], 0.0, 1.0),
+                ([120.0, -40.0, 7.5], 2.3, 1.7),
+                ([-3.0, 900.0, -2.0], 5.1, 0.4),
+            ] {
+                let instance = Instance {
+                    position,
+                    yaw,
+                    scale,
+                    mesh: 0,
+                };
+                let r = tree_footprint_radius(&instance, mesh);
+                let base = Vec3::from(position);
+                let mut check = |what: &str, p: Vec3| {
+                    let d = (p - base).length();
+                    worst = worst.max(d / r);
+                    assert!(
+                        d <= r * (1.0 + FOOTPRINT_TEST_REL),
+                        "{name} (scale {scale}): {what} at {d} m from the base, footprint {r} m"
+                    );
+                };
+                let (s, c) = yaw.sin_cos();
+                for corner in 0..8 {
+                    let pick = |k: usize| {
+                        if corner >> k & 1 == 0 {
+                            mesh.bbox_min[k]
+                        } else {
+                            mesh.bbox_max[k]
+                        }
+                    };
+                    let p = Vec3::new(pick(0), pick(1), pick(2)) * scale;
+                    let rotated = Vec3::new(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
+                    check("box corner", base + rotated);
+                }
+                for &elevation in &elevations {
+                    for j in 0..8 {
+                        let a = j as f32 * core::f32::consts::FRAC_PI_4 + 0.3;
+                        let h = Vec3::new(a.cos(), a.sin(), 0.0);
+                        let right = Vec3::Z.cross(h);
+                        let (se, ce) = elevation.sin_cos();
+                        let up = Vec3::Z * ce - h * se;
+                        let e = billboard_extent(mesh, elevation);
+                        for (u, v) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+                            let along_right = (2.0 * u - 1.0) * e.half_width * scale;
+                            let along_up = (e.bottom + (1.0 - v) * e.height) * scale;
+                            check(
+                                &format!("quad corner ({u}, {v}) at elevation {elevation}"),
+                                base + right * along_right + up * along_up,
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        println!("largest vertex distance over footprint radius: {worst}");
+        assert!(
+            worst > 0.5,
+            "the vertices reach {worst} of the footprint only"
+        );
+    }
+
     /// `terrain_triangles` (remembered grid, shared vertices projected once) equals the plain
     /// evaluation bit for bit, for scenes that differ only in their footprint or only in their
     /// terrain, asked for in an order that hits and misses the memo.

@@ -1316,6 +1316,54 @@ mod tests {
         }
     }
 
+    /// [`GroundTruthScene::memory_bytes`] is what its doc lists, recounted from each structure's
+    /// own length and element type (`size_of_val` of its elements, not the estimate's byte
+    /// constants): the BVH's nodes and primitive index, the triangles, the per-tree and
+    /// per-cluster ranges and mesh ids, the uvs, the textures' level 0 and the ground colours.
+    /// For `pair` in both layouts (their primitive indices differ in length). The sweeps publish
+    /// this number (`truth_memory`); added for issue 36's Rust mutant 1245 (the primitive
+    /// index's 4 bytes -> 5).
+    #[test]
+    fn the_memory_estimate_is_the_recount_of_what_the_truth_holds() {
+        use std::mem::size_of_val;
+        let scene = builtin::pair();
+        for layout in [TruthLayout::TREES, TruthLayout::TRIANGLES] {
+            let gt = GroundTruthScene::build_with(&scene, 0.5, layout).unwrap();
+            let parts: [(&str, usize); 10] = [
+                ("bvh nodes", size_of_val(&gt.bvh.nodes[..])),
+                (
+                    "bvh primitive index",
+                    size_of_val(&gt.bvh.primitive_indices[..]),
+                ),
+                ("triangles", size_of_val(&gt.triangles[..])),
+                ("tree ranges", size_of_val(&gt.tree_first[..])),
+                ("cluster ranges", size_of_val(&gt.cluster_first[..])),
+                ("cluster trees", size_of_val(&gt.cluster_tree[..])),
+                ("tree meshes", size_of_val(&gt.tree_mesh[..])),
+                ("uvs", gt.mesh_uvs.iter().map(|m| size_of_val(&m[..])).sum()),
+                (
+                    "textures",
+                    gt.textures
+                        .iter()
+                        .map(|t| size_of_val(&t.level(0, 0).texels[..]))
+                        .sum(),
+                ),
+                ("ground colours", size_of_val(&gt.ground_colors[..])),
+            ];
+            let recount: usize = parts.iter().map(|(_, n)| n).sum();
+            assert!(
+                parts.iter().all(|(_, n)| *n > 0),
+                "{layout:?}: a structure is empty, so the recount checks nothing of it: {parts:?}"
+            );
+            assert_eq!(
+                gt.memory_bytes(),
+                recount as u64,
+                "{layout:?}: the estimate differs from the recount by {} bytes: {parts:?}",
+                gt.memory_bytes() as i64 - recount as i64
+            );
+        }
+    }
+
     #[test]
     fn a_pair_of_trees_is_seen_with_sky_and_ground_and_the_image_is_thread_independent() {
         let scene = builtin::pair();

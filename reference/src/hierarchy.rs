@@ -696,6 +696,47 @@ mod tests {
         assert_eq!(quadtree_groups(&same, 4).len(), 3);
     }
 
+    /// The leaves of a built tree, depth first, each its trees in order.
+    fn leaves(b: &Build) -> Vec<Vec<u32>> {
+        match b {
+            Build::Leaf(trees) => vec![trees.clone()],
+            Build::Interior(children) => children.iter().flat_map(leaves).collect(),
+        }
+    }
+
+    /// The quadtree's fallback at its boundary (module docs: "when a level would not at least
+    /// halve ... grouped in its current order in runs"): a level of 4 trees the quadrant split
+    /// puts into 2 cells halves exactly, so it keeps the cells (trees 0 and 2 west, 1 and 3 east),
+    /// not runs of scene order; 3 trees in 2 cells do not halve, so they become runs. The trees
+    /// alternate between two stands 100 m apart so that cells and runs differ. Added for issue
+    /// 36's Rust mutant 1392 (`groups.len() * 2 > items.len()` -> `>=` at level 0, which made
+    /// the 4-tree level runs `[0, 1], [2, 3]`).
+    #[test]
+    fn quadtree_level_that_exactly_halves_keeps_its_cells_and_one_that_does_not_becomes_runs() {
+        let at = |x: f32| ([x, 0.0, 4.0], 3.0);
+        let spheres = vec![at(0.0), at(100.0), at(1.0), at(101.0)];
+        // The quadrant split alone: two cells of two, a tie (2 · 2 = 4 items).
+        let items: Vec<([f64; 2], u32)> = spheres
+            .iter()
+            .enumerate()
+            .map(|(i, (c, _))| ([c[0] as f64, c[1] as f64], i as u32))
+            .collect();
+        assert_eq!(quadtree_groups(&items, 2), vec![vec![0, 2], vec![1, 3]]);
+        let tie = quadtree(vec![0, 1, 2, 3], &spheres, 2);
+        assert_eq!(
+            leaves(&tie),
+            vec![vec![0, 2], vec![1, 3]],
+            "4 trees in 2 cells (an exact halving) must keep the quadtree's cells"
+        );
+        // One tree fewer: 2 cells for 3 trees do not halve the level: runs of 2 in scene order.
+        let past = quadtree(vec![0, 1, 2], &spheres, 2);
+        assert_eq!(
+            leaves(&past),
+            vec![vec![0, 1], vec![2]],
+            "3 trees in 2 cells (no halving) must fall back to runs of scene order"
+        );
+    }
+
     /// The centre grid's ring search is the brute-force nearest centre (ties to the lower index),
     /// for points inside and outside the centres' box. Mutation-checked: stopping at the first
     /// ring with a centre fails it.

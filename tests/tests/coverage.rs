@@ -520,29 +520,61 @@ fn select_counters_count_what_they_name() {
 /// `n.child_count > 0` → `>= 0` in `reference/src/hier_select.rs` counted every drawn leaf as an
 /// interior node drawn "as one unit", and every test passed).
 fn cut_counters_count_what_they_name() {
+    use forestlod_reference::scene::Instance;
     use forestlod_shared::{DECISION_DRAW, DECISION_KIND_MASK, NODE_VISITED, code_recurses};
     let tiny = builtin::tiny();
-    let (mut visited, mut recurse, mut drawn_leaves) = ([0u64; 2], [0u64; 2], 0u64);
+    let (mut visited, mut recurse, mut drawn_leaves, mut drawn_one_child) =
+        ([0u64; 2], [0u64; 2], 0u64, 0u64);
+    // A stand of three trees and one tree 60 m east, in leaves of at most 2 (the least
+    // `nodes_per_node`), seen from 30 m: the octree's stand octant halves three times before its
+    // trees part, a chain of interior nodes of **one** child each, which `CutRecurse` must count
+    // like any interior node. Issue 36, Rust mutant 1313 (`n.child_count > 0` -> `> 1` in
+    // `reference/src/hier_select.rs`): `tiny`'s cuts below have no one-child node, so the recount
+    // passed.
+    let tree = |x: f32, y: f32| Instance {
+        position: [x, y, 0.0],
+        yaw: 0.0,
+        scale: 1.0,
+        mesh: 0,
+    };
+    let stand = scene_of(vec![
+        tree(0.0, 0.0),
+        tree(2.0, 0.0),
+        tree(0.0, 2.0),
+        tree(60.0, 0.0),
+    ]);
+    let stand_camera = Camera::look_at([-30.0, 1.0, 10.0], [10.0, 1.0, 4.0], 60.0, 96, 96);
     coverage::enable();
-    // `hierarchy_frames`' cases, each recomputed from its own cut.
+    // `hierarchy_frames`' cases, then the stand's, each recomputed from its own cut.
     for mode in [Hierarchy::Quadtree, Hierarchy::Octree] {
         let params = Params {
             hierarchy: mode as u32,
             ..tiny_params(FadeMode::DitherSequential)
         };
-        let p = prepare(tiny.clone(), &params).expect("prepare");
-        let h = p.hierarchy.as_ref().expect("a hierarchy");
-        for camera in ["medium", "close", "far"] {
-            let c = named_camera(camera, &tiny, 0.0, 96, 96).expect("camera");
-            let cut = p.hier_select(&c, &params).expect("a hierarchy");
-            for (i, n) in h.nodes.iter().enumerate() {
-                let (code, seen) = (cut.codes[i], cut.states[i] & NODE_VISITED != 0);
-                visited[usize::from(seen)] += 1;
-                if seen && code & DECISION_KIND_MASK == DECISION_DRAW {
-                    if n.child_count > 0 {
-                        recurse[usize::from(code_recurses(code))] += 1;
-                    } else {
-                        drawn_leaves += 1;
+        let stand_params = Params {
+            nodes_per_node: 2,
+            ..params
+        };
+        let tiny_cameras = ["medium", "close", "far"]
+            .map(|camera| named_camera(camera, &tiny, 0.0, 96, 96).expect("camera"));
+        for (scene, params, cameras) in [
+            (&tiny, params, &tiny_cameras[..]),
+            (&stand, stand_params, &[stand_camera][..]),
+        ] {
+            let p = prepare(scene.clone(), &params).expect("prepare");
+            let h = p.hierarchy.as_ref().expect("a hierarchy");
+            for c in cameras {
+                let cut = p.hier_select(c, &params).expect("a hierarchy");
+                for (i, n) in h.nodes.iter().enumerate() {
+                    let (code, seen) = (cut.codes[i], cut.states[i] & NODE_VISITED != 0);
+                    visited[usize::from(seen)] += 1;
+                    if seen && code & DECISION_KIND_MASK == DECISION_DRAW {
+                        if n.child_count > 0 {
+                            recurse[usize::from(code_recurses(code))] += 1;
+                            drawn_one_child += u64::from(n.child_count == 1);
+                        } else {
+                            drawn_leaves += 1;
+                        }
                     }
                 }
             }
@@ -563,8 +595,9 @@ fn cut_counters_count_what_they_name() {
     // The cases reach what the check is about: interior nodes that recurse, and drawn leaves
     // (which `CutRecurse` must not count).
     assert!(
-        recurse[1] > 0 && drawn_leaves > 0,
-        "recursing interior nodes {}, drawn leaves {drawn_leaves}",
+        recurse[1] > 0 && drawn_leaves > 0 && drawn_one_child > 0,
+        "recursing interior nodes {}, drawn leaves {drawn_leaves}, drawn one-child interior \
+         nodes {drawn_one_child}",
         recurse[1]
     );
 }
