@@ -36,6 +36,7 @@ fn selection(c: &mut Criterion) {
                 b.iter(|| {
                     select(
                         &batches.metas,
+                        &batches.scales,
                         &geometry.meshes,
                         &geometry.billboard,
                         &camera,

@@ -655,6 +655,7 @@ pub fn selection_scene(scene: Scene, params: &Params) -> Result<Prepared> {
         extents: Vec::new(),
     };
     Ok(Prepared {
+        tree_scales: scene.instances.iter().map(|t| t.scale).collect(),
         scene,
         geometry,
         batches,

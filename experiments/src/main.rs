@@ -203,11 +203,13 @@ fn select_frame(
         .iter()
         .map(|t| tree_sphere(t, &geometry.meshes[t.mesh as usize]))
         .collect();
+    let scales: Vec<f32> = scene.instances.iter().map(|t| t.scale).collect();
     let frame_scene = SelectScene {
         geometry: &geometry,
         batches: &batches,
         hierarchy: hierarchy.as_ref(),
         tree_spheres: &spheres,
+        tree_scales: &scales,
     };
     let trace = select_stages(&frame_scene, &camera, &params, false);
     let selection = &trace.selection;

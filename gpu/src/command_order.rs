@@ -55,7 +55,7 @@ pub struct OrderUniform {
     /// Explicit padding.
     pub _pad1: u32,
 }
-const _: () = assert!(size_of::<OrderUniform>() == 160);
+const _: () = assert!(size_of::<OrderUniform>() == 176);
 
 /// One bitonic merge step `(k, j)`, one per dynamic-offset slot. Keep in sync with `struct
 /// OrderStep` in `command_order.wgsl`.

@@ -80,8 +80,11 @@ pub struct CullTree {
     pub radius: f32,
     /// Mesh index.
     pub mesh: u32,
+    /// The tree's scale (`Instance::scale`): what a scaled LOD metric scales the band of the
+    /// tree's command by (`refine.wgsl`, issue 29).
+    pub scale: f32,
 }
-const _: () = assert!(size_of::<CullTree>() == 20);
+const _: () = assert!(size_of::<CullTree>() == 24);
 
 /// `wgpu::util::DrawIndirectArgs` (`VkDrawIndirectCommand`), field for field. Keep in sync with
 /// `struct DrawIndirectArgs` in `cull.wgsl`.
@@ -117,7 +120,7 @@ pub struct CullUniform {
     /// Explicit padding.
     pub _pad1: u32,
 }
-const _: () = assert!(size_of::<CullUniform>() == 160);
+const _: () = assert!(size_of::<CullUniform>() == 176);
 
 impl CullUniform {
     /// The uniform for a camera and parameters ([`ViewUniform::new`], as the reference's).

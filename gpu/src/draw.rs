@@ -147,7 +147,7 @@ pub struct DrawUniform {
     /// Explicit padding.
     pub _pad2: u32,
 }
-const _: () = assert!(size_of::<DrawUniform>() == 240);
+const _: () = assert!(size_of::<DrawUniform>() == 256);
 
 impl DrawUniform {
     /// The uniform of a validated camera and parameters, derived as the reference derives its

@@ -24,7 +24,9 @@ use crate::context::{
     Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines,
 };
 use crate::readback::{read_buffer, stage_uniform, upload_storage, zeroed_buffer};
-use crate::select::{GpuSelection, SelectBuffers, check_command_capacity, check_mesh_indices};
+use crate::select::{
+    GpuSelection, SelectBuffers, check_command_capacity, check_mesh_indices, check_scale_count,
+};
 use crate::{GpuContext, GpuError};
 
 /// Invocations per workgroup of the per-node passes (generated into `hier_select.wgsl`'s module).
@@ -63,7 +65,7 @@ pub struct HierUniform {
     /// Explicit padding.
     pub _pad2: u32,
 }
-const _: () = assert!(size_of::<HierUniform>() == 176);
+const _: () = assert!(size_of::<HierUniform>() == 192);
 
 compute_pipelines! {
     /// The compiled pipelines of `hier_select.wgsl`, one set per [`GpuContext`] (cached there).
@@ -71,6 +73,7 @@ compute_pipelines! {
         Slot::Uniform(size_of::<HierUniform>() as u64),
         READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE,
         Slot::Write(size_of::<SelectCounters>() as u64),
+        READ,
     ],
     {
         decide: "hier_decide",
@@ -104,10 +107,12 @@ impl<'a> GpuHierSelect<'a> {
     pub fn new(
         ctx: &'a GpuContext,
         nodes: &[NodeMeta],
+        scales: &[[f32; 2]],
         mode: u32,
         meshes: &[MeshMeta],
         billboard: &MeshMeta,
     ) -> Result<Self, GpuError> {
+        check_scale_count("node scales", nodes.len(), scales.len())?;
         check_mesh_indices(
             "node.mesh",
             "node",
@@ -124,6 +129,7 @@ impl<'a> GpuHierSelect<'a> {
         let n = (nodes.len() as u64).max(1);
         let node_buffer = upload_storage(ctx, "hier nodes", nodes, U::empty());
         let mesh_buffer = upload_storage(ctx, "hier meshes", meshes, U::empty());
+        let scale_buffer = upload_storage(ctx, "hier scales", scales, U::empty());
         let uniform = stage_uniform::<HierUniform>(ctx, "hier uniform");
         let codes = zeroed_buffer(ctx, "hier codes", n * 4, U::STORAGE | U::COPY_SRC);
         let states = zeroed_buffer(ctx, "hier states", n * 4, U::STORAGE | U::COPY_SRC);
@@ -144,6 +150,7 @@ impl<'a> GpuHierSelect<'a> {
                     &raw.commands,
                     &raw.data,
                     &raw.counters,
+                    &scale_buffer,
                 ],
             )
         })?;

@@ -107,7 +107,7 @@ pub struct RefineUniform {
     /// Explicit padding.
     pub _pad0: u32,
 }
-const _: () = assert!(size_of::<RefineUniform>() == 160);
+const _: () = assert!(size_of::<RefineUniform>() == 176);
 
 impl RefineUniform {
     /// The uniform for a camera and parameters ([`ViewUniform::new`], as the reference's)

@@ -110,7 +110,7 @@ pub struct SelectUniform {
     /// Index count of the billboard quad.
     pub billboard_index_count: u32,
 }
-const _: () = assert!(size_of::<SelectUniform>() == 160);
+const _: () = assert!(size_of::<SelectUniform>() == 176);
 
 impl SelectUniform {
     /// The uniform for a camera and parameters ([`ViewUniform::new`], as the reference's).
@@ -262,6 +262,23 @@ pub(crate) fn check_command_capacity(
     Ok(capacity)
 }
 
+/// Fails with [`GpuError::Input`] on `field` unless there is one scale range per group
+/// (`groups` batches or nodes, `scales` ranges given).
+pub(crate) fn check_scale_count(
+    field: &'static str,
+    groups: usize,
+    scales: usize,
+) -> Result<(), GpuError> {
+    if groups == scales {
+        return Ok(());
+    }
+    Err(GpuError::Input {
+        field,
+        value: format!("{scales} scale ranges for {groups} groups"),
+        reason: "expected one [min, max] tree scale range per group",
+    })
+}
+
 /// Fails with [`GpuError::Input`] on `field` (`"{item}.mesh"`) at the first `item` whose mesh
 /// index (`mesh_indices`, in order) is not below `mesh_count`.
 pub(crate) fn check_mesh_indices(
@@ -290,6 +307,7 @@ compute_pipelines! {
         Slot::Uniform(size_of::<SelectUniform>() as u64),
         READ, READ, WRITE, WRITE, WRITE, WRITE,
         Slot::Write(size_of::<SelectCounters>() as u64),
+        READ,
     ],
     {
         decide: "select_decide",
@@ -314,16 +332,20 @@ pub struct GpuSelect<'a> {
 }
 
 impl<'a> GpuSelect<'a> {
-    /// Uploads the batches and meshes (`meshes` with their packed index ranges, as the
-    /// reference's `pack_geometry` gives them; `billboard` the quad's range) and allocates room
-    /// for two commands per batch. Fails on a batch whose mesh index is out of range or on more
-    /// commands than `base_vertex` can address ([`MAX_COMMANDS`]).
+    /// Uploads the batches, their trees' scale ranges (`scales`, one `[min, max]` per batch, the
+    /// reference's `Batches::scales`: a scaled LOD metric's group bands) and meshes (`meshes`
+    /// with their packed index ranges, as the reference's `pack_geometry` gives them;
+    /// `billboard` the quad's range) and allocates room for two commands per batch. Fails on a
+    /// scale range count other than the batch count, a batch whose mesh index is out of range
+    /// or more commands than `base_vertex` can address ([`MAX_COMMANDS`]).
     pub fn new(
         ctx: &'a GpuContext,
         batches: &[BatchMeta],
+        scales: &[[f32; 2]],
         meshes: &[MeshMeta],
         billboard: &MeshMeta,
     ) -> Result<Self, GpuError> {
+        check_scale_count("batch scales", batches.len(), scales.len())?;
         check_mesh_indices(
             "batch.mesh",
             "batch",
@@ -340,6 +362,7 @@ impl<'a> GpuSelect<'a> {
         let n = batches.len() as u64;
         let batch_buffer = upload_storage(ctx, "select batches", batches, U::empty());
         let mesh_buffer = upload_storage(ctx, "select meshes", meshes, U::empty());
+        let scale_buffer = upload_storage(ctx, "select scales", scales, U::empty());
         let uniform = stage_uniform::<SelectUniform>(ctx, "select uniform");
         let decisions = zeroed_buffer(ctx, "select decisions", n * 4, U::STORAGE | U::COPY_SRC);
         let offsets = zeroed_buffer(ctx, "select offsets", n * 4, U::STORAGE | U::COPY_SRC);
@@ -358,6 +381,7 @@ impl<'a> GpuSelect<'a> {
                     &out.commands,
                     &out.data,
                     &out.counters,
+                    &scale_buffer,
                 ],
             )
         })?;

@@ -117,6 +117,7 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("HIERARCHY", s::Hierarchy::choices()),
         ("COALESCE", s::Coalesce::choices()),
         ("COMMAND_ORDER", s::CommandOrder::choices()),
+        ("LOD_METRIC", s::LodMetric::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {

@@ -115,7 +115,11 @@ pub fn view_uniform_layout() -> RustLayout {
         fade_end,
         draw_distance,
         lod_levels,
+        metric,
+        metric_factor,
+        band_ratio,
         _pad0,
-        _pad1
+        _pad1,
+        _pad2
     })
 }

@@ -70,7 +70,11 @@ fn rust_layouts() -> Vec<RustLayout> {
             bbox_min,
             billboard_half_width,
             bbox_max,
-            sphere_radius
+            sphere_radius,
+            area_size,
+            error_size,
+            _pad0,
+            _pad1
         }),
         rust_layout!(SelectCounters {
             batches_tested,
@@ -85,7 +89,8 @@ fn rust_layouts() -> Vec<RustLayout> {
         rust_layout!(CullTree {
             center,
             radius,
-            mesh
+            mesh,
+            scale
         }),
         rust_layout!(FrustumPlanes { planes }),
         view_uniform_layout(),

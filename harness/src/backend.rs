@@ -39,8 +39,8 @@ impl Backend<Select> for GpuSelectBackend {
         self.option == Compaction::Stable
     }
     fn run(&self, i: SelectInput<'_>) -> BackendSelection {
-        let mut gpu =
-            GpuSelect::new(self.ctx, i.batches, i.meshes, i.billboard).expect("GpuSelect::new");
+        let mut gpu = GpuSelect::new(self.ctx, i.batches, i.scales, i.meshes, i.billboard)
+            .expect("GpuSelect::new");
         let out = gpu
             .run(i.camera, i.params, self.option)
             .expect("GpuSelect::run");

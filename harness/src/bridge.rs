@@ -220,6 +220,7 @@ pub fn cull_trees_of(scene: &Scene, spheres: &[([f32; 3], f32)]) -> Vec<CullTree
             center,
             radius,
             mesh: t.mesh,
+            scale: t.scale,
         })
         .collect()
 }

@@ -27,6 +27,7 @@ use forestlod_reference::hier_select::HierSelection;
 use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::refine::Refined;
 use forestlod_reference::select::Selection;
+use forestlod_reference::select::tree_bands;
 use forestlod_shared::{
     Camera, Coalesce as CoalesceMode, CommandOrder as OrderMode, MipMode, Params, SelectionPlan,
     StageId, ViewUniform,
@@ -99,7 +100,14 @@ impl Backend<HierSelect> for GpuStage {
         let h = i.hierarchy;
         let mut gpu = ok(
             "GpuHierSelect::new",
-            GpuHierSelect::new(self.ctx, &h.nodes, h.mode as u32, i.meshes, i.billboard),
+            GpuHierSelect::new(
+                self.ctx,
+                &h.nodes,
+                &h.scales,
+                h.mode as u32,
+                i.meshes,
+                i.billboard,
+            ),
         );
         ok(
             "hier_select dispatch",
@@ -308,6 +316,7 @@ impl<'a> FrameStages<'a> {
                 }
                 let input = SelectInput {
                     batches: &p.batches.metas,
+                    scales: &p.batches.scales,
                     meshes: &g.meshes,
                     billboard: &g.billboard,
                     camera,
@@ -352,11 +361,14 @@ impl<'a> FrameStages<'a> {
             StageId::Refine => {
                 self.trace.plan.refine?;
                 let trees = cull_trees(p);
+                let bands = tree_bands(&p.scene, &p.geometry.meshes, camera, params);
                 let input = RefineInput {
                     case: RefineCase {
                         selection: self.trace.unrefined.as_ref()?,
                         batch_indirection: &p.batches.indirection,
                         spheres: &p.tree_spheres,
+                        scales: &p.tree_scales,
+                        bands: &bands,
                         camera,
                         params,
                     },

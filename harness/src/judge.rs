@@ -21,7 +21,7 @@ use forestlod_reference::hier_select::{HierSelection, resolve_and_compact};
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::refine::Refined;
 use forestlod_reference::scene::Scene;
-use forestlod_reference::select::{SelectUniform, Selection, select_per_tree};
+use forestlod_reference::select::{SelectUniform, Selection, select_per_tree_banded};
 use forestlod_shared::{
     Camera, CommandData, CommandOrder, DrawCommand, LOD_MESH, MeshMeta, NodeMeta, Params, TreeCull,
     ViewUniform, aabb_distance, aabb_margin, aabb_view_interval, selection_margin, view_interval,
@@ -335,6 +335,10 @@ pub struct RefineCase<'a> {
     pub batch_indirection: &'a [u32],
     /// Every tree's bounding sphere.
     pub spheres: &'a [([f32; 3], f32)],
+    /// Every tree's scale (`refine`'s per-tree band, issue 29).
+    pub scales: &'a [f32],
+    /// Every tree's own band (`reference::select::tree_bands`): the per-tree oracle's.
+    pub bands: &'a [[f32; 2]],
     /// The camera.
     pub camera: &'a Camera,
     /// Parameters (valid, `tree_cull` not `none`).
@@ -509,18 +513,19 @@ pub fn judge_refine(
     // The per-tree oracle under `all`: the (tree, LOD) pairs drawn are the oracle's.
     if oracle && mode == TreeCull::All {
         out.oracle = true;
-        let want_pairs: BTreeSet<(u32, u32)> = select_per_tree(c.spheres, c.camera, c.params)
-            .iter()
-            .enumerate()
-            .flat_map(|(t, decision)| {
-                let need = decision.needs();
-                [
-                    need.lod0.then_some((t as u32, LOD_MESH)),
-                    need.lod1.then_some((t as u32, 1)),
-                ]
-            })
-            .flatten()
-            .collect();
+        let want_pairs: BTreeSet<(u32, u32)> =
+            select_per_tree_banded(c.spheres, c.bands, c.camera, c.params)
+                .iter()
+                .enumerate()
+                .flat_map(|(t, decision)| {
+                    let need = decision.needs();
+                    [
+                        need.lod0.then_some((t as u32, LOD_MESH)),
+                        need.lod1.then_some((t as u32, 1)),
+                    ]
+                })
+                .flatten()
+                .collect();
         if let Some(&(t, lod)) = pairs
             .symmetric_difference(&want_pairs)
             .find(|(t, _)| !out.ambiguous.contains(t) && ambiguity(*t).is_none())

@@ -23,7 +23,7 @@
 
 use forestlod_reference::pipeline::Prepared;
 use forestlod_reference::scene::TreeMesh;
-use forestlod_reference::select::{batch_decisions, select};
+use forestlod_reference::select::{batch_decisions_banded, select};
 use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::{BatchMeta, Camera, MeshMeta, MipMode, Params, StageId};
 
@@ -138,6 +138,8 @@ pub struct Select;
 pub struct SelectInput<'a> {
     /// Batch records.
     pub batches: &'a [BatchMeta],
+    /// Each batch's tree scale range (issue 29's group band).
+    pub scales: &'a [[f32; 2]],
     /// Mesh records.
     pub meshes: &'a [MeshMeta],
     /// The billboard quad's record.
@@ -156,8 +158,15 @@ impl Stage for Select {
 impl Backend<Select> for Reference {
     fn run(&self, i: SelectInput<'_>) -> BackendSelection {
         BackendSelection {
-            selection: select(i.batches, i.meshes, i.billboard, i.camera, i.params),
-            decisions: batch_decisions(i.batches, i.camera, i.params),
+            selection: select(
+                i.batches,
+                i.scales,
+                i.meshes,
+                i.billboard,
+                i.camera,
+                i.params,
+            ),
+            decisions: batch_decisions_banded(i.batches, i.scales, i.meshes, i.camera, i.params),
         }
     }
 }

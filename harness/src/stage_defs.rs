@@ -263,6 +263,7 @@ impl Backend<Refine> for Reference {
             &mut selection,
             c.batch_indirection,
             c.spheres,
+            c.scales,
             c.camera,
             c.params,
         );

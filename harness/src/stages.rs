@@ -49,6 +49,11 @@ const VIEW_PARAMS: [&str; 4] = [
     "draw_distance",
 ];
 
+/// The numeric parameters of the scaled LOD metrics (issue 29, `forestlod_shared::LodMetric`),
+/// read by every stage that decides or draws on a band: each is read under its own metric only
+/// (`forestlod_tests::stage_cases` walks its extremes there).
+const METRIC_PARAMS: [&str; 2] = ["lod_pixel_area", "lod_screen_error"];
+
 /// Every stage, in [`StageId::ALL`] order.
 pub const STAGES: &[StageEntry] = &[
     StageEntry {
@@ -81,13 +86,15 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/select.wgsl",
         backend: Some("stage::Select"),
         parity: "tests/tests/parity/select.rs",
-        modes: &[],
+        modes: &["lod_metric"],
         params: &[
             "grid_size",
             VIEW_PARAMS[0],
             VIEW_PARAMS[1],
             VIEW_PARAMS[2],
             VIEW_PARAMS[3],
+            METRIC_PARAMS[0],
+            METRIC_PARAMS[1],
         ],
     },
     StageEntry {
@@ -98,7 +105,7 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/hier_select.wgsl",
         backend: Some("stage::HierSelect"),
         parity: "tests/tests/parity/hier_select.rs",
-        modes: &["hierarchy"],
+        modes: &["hierarchy", "lod_metric"],
         params: &[
             "nodes_per_node",
             "max_cull_depth",
@@ -107,6 +114,8 @@ pub const STAGES: &[StageEntry] = &[
             VIEW_PARAMS[1],
             VIEW_PARAMS[2],
             VIEW_PARAMS[3],
+            METRIC_PARAMS[0],
+            METRIC_PARAMS[1],
         ],
     },
     StageEntry {
@@ -139,8 +148,15 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/refine.wgsl",
         backend: Some("stage::Refine"),
         parity: "tests/tests/parity/refine.rs",
-        modes: &["tree_cull"],
-        params: &VIEW_PARAMS,
+        modes: &["tree_cull", "lod_metric"],
+        params: &[
+            VIEW_PARAMS[0],
+            VIEW_PARAMS[1],
+            VIEW_PARAMS[2],
+            VIEW_PARAMS[3],
+            METRIC_PARAMS[0],
+            METRIC_PARAMS[1],
+        ],
     },
     StageEntry {
         id: StageId::Draw,
@@ -150,7 +166,7 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/draw.wgsl",
         backend: Some("stage::Draw"),
         parity: "tests/tests/parity/draw.rs",
-        modes: &["fade_mode", "angle_index_mode"],
+        modes: &["fade_mode", "angle_index_mode", "lod_metric"],
         params: &[
             "alpha_cutoff",
             "angle_count",
@@ -159,6 +175,8 @@ pub const STAGES: &[StageEntry] = &[
             VIEW_PARAMS[1],
             VIEW_PARAMS[2],
             VIEW_PARAMS[3],
+            METRIC_PARAMS[0],
+            METRIC_PARAMS[1],
         ],
     },
     StageEntry {

@@ -56,8 +56,17 @@ pub use forestlod_shared::{
     TERRAIN_CELLS, TERRAIN_MARGIN, ground_color,
 };
 
-/// Varyings of the tree pipeline: `u, v, view depth, texture layer, command index`.
-pub const TREE_VARYINGS: usize = 5;
+/// Varyings of the tree pipeline: `u, v, view depth, texture layer, command index, tree scale`.
+///
+/// The tree scale is what the fragment scales its command's band by under a scaled LOD metric
+/// ([`forestlod_shared::ViewUniform::group_band`] with `[s, s]`: a tree's own band, the one the
+/// per-tree selection decides on). It is constant over the tree's triangles, and a constant
+/// varying interpolates to itself bit for bit: clipping's `x + t (x - x)` is `x`, and the
+/// perspective-correct `Σ q_i x / Σ q_i` is computed in `f64`, whose relative error (a few
+/// 2^-53, the fragment's barycentrics lying in [0, 1]) is far below the half-ulp of the `f32`
+/// it is rounded to. The GPU twin passes it flat (`draw.wgsl`), so both read the tree's scale
+/// exactly (`raster::setup::tests::a_constant_varying_interpolates_to_itself`).
+pub const TREE_VARYINGS: usize = 6;
 
 /// The tree's world transform pieces the vertex stage needs.
 #[derive(Clone, Copy, Debug)]
@@ -321,7 +330,7 @@ impl TreeStage {
         let clip = *view_proj * Vec4::new(world.x, world.y, world.z, 1.0);
         Vertex::new(
             clip.to_array(),
-            [uv[0], uv[1], depth, layer, self.command as f32],
+            [uv[0], uv[1], depth, layer, self.command as f32, self.scale],
         )
     }
 }
@@ -339,6 +348,9 @@ pub struct TreeShader<'a> {
     /// `Camera::pixel_origin`: the frame pixel of the viewport's (0, 0) (a tile camera's is
     /// non-zero); the dither threshold is the frame pixel's.
     pixel_origin: [u32; 2],
+    /// The frame's view constants: the LOD metric a fragment's band is scaled under
+    /// ([`forestlod_shared::ViewUniform::group_band`]).
+    view: SelectUniform,
 }
 
 impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
@@ -347,7 +359,7 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
         f: &Fragment<TREE_VARYINGS>,
         passes: PassSet,
     ) -> Option<(FragmentOutput, PassSet)> {
-        let [u, v, depth, layer, command] = f.varyings;
+        let [u, v, depth, layer, command, scale] = f.varyings;
         // `round_exact` is `f32::round` bit for bit, without a libm call (issue 14).
         let data = &self.selection.data[round_exact(command) as usize];
         let layer = round_exact(layer) as u32;
@@ -375,17 +387,23 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
         if kept == 0 {
             return None;
         }
+        // The tree's own band (C§4.6: its transition depths follow its scale): the command's
+        // band at unit scale times the tree's scale under a scaled metric, the command's band
+        // under `distance`. The same product as the per-tree selection's (`tree_band`).
+        let [fade_start, fade_end] = self
+            .view
+            .group_band([data.fade_start, data.fade_end], [scale, scale]);
         if coverage::enabled() && data.fading != 0 {
             use coverage::{Threshold::*, hit};
-            hit(DrawFadeStart, depth >= data.fade_start);
-            hit(DrawFadeEnd, depth >= data.fade_end);
+            hit(DrawFadeStart, depth >= fade_start);
+            hit(DrawFadeEnd, depth >= fade_end);
         }
         let weight = if data.fading != 0 {
             lod_weights(
                 self.fade,
                 depth,
-                data.fade_start,
-                data.fade_end,
+                fade_start,
+                fade_end,
                 dither_threshold(f.x + self.pixel_origin[0], f.y + self.pixel_origin[1]),
             )
             .of(data.lod)
@@ -402,7 +420,7 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
             return None;
         }
         let in_band = data.fading != 0 && {
-            let t = fade_progress(depth, data.fade_start, data.fade_end);
+            let t = fade_progress(depth, fade_start, fade_end);
             t > 0.0 && t < 1.0
         };
         if data.fading != 0 {
@@ -852,6 +870,7 @@ pub fn draw_frame_cutoffs(
             .expect("parameters are validated before drawing"),
         alpha_cutoffs: cutoffs,
         pixel_origin: camera.pixel_origin(),
+        view: SelectUniform::new(camera, params),
     };
     let state = DrawState {
         depth_write: true,

@@ -130,6 +130,8 @@ pub struct SelectScene<'a> {
     pub hierarchy: Option<&'a Hierarchy>,
     /// Every tree's bounding sphere (`refine`'s input).
     pub tree_spheres: &'a [([f32; 3], f32)],
+    /// Every tree's scale (`refine`'s per-tree band, issue 29).
+    pub tree_scales: &'a [f32],
 }
 
 /// Runs the selection stages of `params`' plan on `prepared` (grouped as `params` says,
@@ -149,6 +151,7 @@ pub fn select_stages(
             let s = seconds.time(StageId::Select, || {
                 select(
                     &prepared.batches.metas,
+                    &prepared.batches.scales,
                     &g.meshes,
                     &g.billboard,
                     camera,
@@ -187,6 +190,7 @@ pub fn select_stages(
                     &mut selection,
                     &prepared.batches.indirection,
                     prepared.tree_spheres,
+                    prepared.tree_scales,
                     camera,
                     params,
                 )

@@ -92,10 +92,15 @@ pub fn hier_select(
     params: &Params,
 ) -> HierSelection {
     let u = ViewUniform::new(camera, params);
+    // Each node decides on its group band (issue 29; the frame's band under `distance`).
     let codes: Vec<u32> = h
         .nodes
         .par_iter()
-        .map(|n| node_code(&u, n, h.mode, params.max_cull_depth))
+        .zip(&h.scales)
+        .map(|(n, &s)| {
+            let band = u.group_band(u.mesh_band(&meshes[n.mesh as usize]), s);
+            node_code(&u.with_band(band), n, h.mode, params.max_cull_depth)
+        })
         .collect();
     resolve_and_compact(h, codes, meshes, billboard, &u)
 }
@@ -139,14 +144,16 @@ pub fn resolve_and_compact(
         }
         let needs = emitted_needs(code, n, h.mode, u.lod_levels);
         out.counters.transition_batches += needs.both() as u32;
+        // Commands carry the mesh's band at unit scale; the draw scales it per tree.
+        let mesh_band = u.mesh_band(&meshes[n.mesh as usize]);
         let group = EmitGroup {
             index: i as u32,
             mesh: n.mesh,
             len: n.len,
             offset: n.offset,
             fading: needs.both(),
-            fade_start: u.fade_start,
-            fade_end: u.fade_end,
+            fade_start: mesh_band[0],
+            fade_end: mesh_band[1],
         };
         for (lod, wanted) in [(LOD_MESH, needs.lod0), (LOD_BILLBOARD, needs.lod1)] {
             if !wanted {

@@ -56,6 +56,9 @@ pub struct Hierarchy {
     pub nodes: Vec<NodeMeta>,
     /// Tree indices ordered by (mesh, depth-first leaf order).
     pub indirection: Vec<u32>,
+    /// Per node, the `[least, greatest]` scale of its trees (issue 29's group band,
+    /// [`crate::batches::scale_range`]), parallel to `nodes`.
+    pub scales: Vec<[f32; 2]>,
 }
 
 /// A node while building: its trees (leaves) or children (interior).
@@ -143,6 +146,7 @@ impl Hierarchy {
             mode,
             nodes,
             indirection: batches.indirection.clone(),
+            scales: batches.scales.clone(),
         }
     }
 
@@ -205,10 +209,18 @@ impl Hierarchy {
                 )
             })
             .collect();
+        let scales = shapes
+            .par_iter()
+            .map(|s| {
+                let range = &indirection[s.offset as usize..(s.offset + s.len) as usize];
+                crate::batches::scale_range(scene, range)
+            })
+            .collect();
         Self {
             mode,
             nodes,
             indirection,
+            scales,
         }
     }
 
@@ -233,10 +245,18 @@ impl Hierarchy {
                 _pad0: 0,
             })
             .collect();
+        let scales = self
+            .nodes
+            .iter()
+            .zip(&self.scales)
+            .filter(|(n, _)| n.child_count == 0)
+            .map(|(_, s)| *s)
+            .collect();
         Batches {
             metas,
             indirection: self.indirection.clone(),
             grid_size,
+            scales,
         }
     }
 

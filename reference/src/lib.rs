@@ -45,6 +45,7 @@ pub mod geometry;
 pub mod ground_truth;
 pub mod hier_select;
 pub mod hierarchy;
+pub mod metric;
 pub mod mips;
 pub mod output;
 pub mod pipeline;

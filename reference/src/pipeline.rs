@@ -56,6 +56,8 @@ pub struct Prepared {
     pub memory: MemoryReport,
     /// Every tree's bounding sphere ([`tree_sphere`]), the input of the `refine` stage.
     pub tree_spheres: Vec<([f32; 3], f32)>,
+    /// Every tree's scale: `refine`'s per-tree band under a scaled LOD metric (issue 29).
+    pub tree_scales: Vec<f32>,
     /// Slow-path timings.
     pub timings: PrepareTimings,
 }
@@ -126,7 +128,9 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
             .map(|t| tree_sphere(t, &geometry.meshes[t.mesh as usize]))
             .collect()
     };
+    let tree_scales = scene.instances.iter().map(|t| t.scale).collect();
     Ok(Prepared {
+        tree_scales,
         scene,
         geometry,
         batches,
@@ -193,6 +197,7 @@ impl Prepared {
             batches: &self.batches,
             hierarchy: self.hierarchy.as_ref(),
             tree_spheres: &self.tree_spheres,
+            tree_scales: &self.tree_scales,
         }
     }
 

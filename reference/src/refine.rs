@@ -57,13 +57,19 @@ pub struct Refined {
 
 /// One workgroup: refines command `command` of `selection` in place, writing its kept trees into
 /// `out` (the command's own range of the `3n` array, module docs). Returns `(tested, kept)`.
+///
+/// `band` is the command's band at unit scale (its `CommandData`'s); each tree decides on it
+/// scaled by its own scale (`scales`, issue 29's per-tree band: the band itself under
+/// `distance`).
+#[allow(clippy::too_many_arguments)]
 pub fn refine_command(
     u: &SelectUniform,
     mode: TreeCull,
     lod: u32,
+    band: [f32; 2],
     command: &mut forestlod_shared::DrawCommand,
     batch_indirection: &[u32],
-    spheres: &[([f32; 3], f32)],
+    (spheres, scales): (&[([f32; 3], f32)], &[f32]),
     out: &mut [u32],
 ) -> (u64, u64) {
     let n = batch_indirection.len() as u32;
@@ -76,7 +82,11 @@ pub fn refine_command(
     let mut kept = 0usize;
     for &tree in trees {
         let (center, radius) = spheres[tree as usize];
-        let needed = match u.decide(center, radius) {
+        let s = scales[tree as usize];
+        let needed = match u
+            .with_band(u.group_band(band, [s, s]))
+            .decide(center, radius)
+        {
             Decision::Draw(needs) => {
                 if lod == forestlod_shared::LOD_MESH {
                     needs.lod0
@@ -112,9 +122,11 @@ pub fn refine(
     selection: &mut Selection,
     batch_indirection: &[u32],
     spheres: &[([f32; 3], f32)],
+    scales: &[f32],
     camera: &Camera,
     params: &Params,
 ) -> Refined {
+    assert_eq!(spheres.len(), scales.len(), "one scale per tree");
     let mode = params
         .tree_culling()
         .expect("parameters are validated before refine");
@@ -140,9 +152,10 @@ pub fn refine(
                 &u,
                 mode,
                 data.lod,
+                [data.fade_start, data.fade_end],
                 command,
                 batch_indirection,
-                spheres,
+                (spheres, scales),
                 &mut out,
             );
             out.truncate(kept as usize);

@@ -61,16 +61,23 @@ pub fn tree_within_draw_distance(u: &SelectUniform, tree_center: [f32; 3]) -> bo
 
 /// One compute invocation: the up to two commands of batch `index` (without `base_vertex`, which
 /// compaction assigns).
+///
+/// The batch decides on its group band (issue 29, [`SelectUniform::group_band`] of its mesh's band
+/// and its trees' `scale` range: the frame's band under the `distance` metric); its commands
+/// carry the mesh's band at unit scale, which the draw stage scales by each tree's own scale.
 pub fn select_batch(
     u: &SelectUniform,
     index: u32,
     batch: &BatchMeta,
+    scale: [f32; 2],
     meshes: &[MeshMeta],
     billboard: &MeshMeta,
 ) -> (Decision, [Option<(DrawCommand, CommandData)>; 2]) {
-    let decision = u.decide(batch.center, batch.radius);
+    let mesh_band = u.mesh_band(&meshes[batch.mesh as usize]);
+    let ub = u.with_band(u.group_band(mesh_band, scale));
+    let decision = ub.decide(batch.center, batch.radius);
     if coverage::enabled() {
-        cover_select(u, batch, decision);
+        cover_select(&ub, batch, decision);
     }
     let needs = decision.needs();
     let group = EmitGroup {
@@ -79,8 +86,8 @@ pub fn select_batch(
         len: batch.len,
         offset: batch.offset,
         fading: needs.both(),
-        fade_start: u.fade_start,
-        fade_end: u.fade_end,
+        fade_start: mesh_band[0],
+        fade_end: mesh_band[1],
     };
     // The slot (and so `base_vertex`) is assigned by the compaction.
     let emit = |lod| emit_command(0, &group, lod, &meshes[batch.mesh as usize], billboard);
@@ -123,19 +130,23 @@ fn cover_select(u: &SelectUniform, batch: &BatchMeta, decision: Decision) {
 }
 
 /// Selection for one frame over all batches, stably compacted (see the module docs).
-/// `meshes` must carry their packed index ranges ([`crate::geometry::pack_geometry`]).
+/// `meshes` must carry their packed index ranges ([`crate::geometry::pack_geometry`]); `scales`
+/// is each batch's tree scale range ([`crate::batches::Batches::scales`]).
 pub fn select(
     batches: &[BatchMeta],
+    scales: &[[f32; 2]],
     meshes: &[MeshMeta],
     billboard: &MeshMeta,
     camera: &Camera,
     params: &Params,
 ) -> Selection {
+    assert_eq!(batches.len(), scales.len(), "one scale range per batch");
     let u = SelectUniform::new(camera, params);
     let per_batch: Vec<_> = batches
         .par_iter()
+        .zip(scales)
         .enumerate()
-        .map(|(i, b)| select_batch(&u, i as u32, b, meshes, billboard))
+        .map(|(i, (b, &s))| select_batch(&u, i as u32, b, s, meshes, billboard))
         .collect();
     let mut out = Selection::default();
     out.counters.batches_tested = batches.len() as u32;
@@ -156,12 +167,55 @@ pub fn select(
     out
 }
 
-/// The per-batch decisions alone (for tests and experiments).
+/// The per-batch decisions alone (for tests and experiments), on the frame's band: the
+/// `distance` metric's (a scaled metric's group bands need [`select`]).
 pub fn batch_decisions(batches: &[BatchMeta], camera: &Camera, params: &Params) -> Vec<Decision> {
     let u = SelectUniform::new(camera, params);
     batches
         .par_iter()
         .map(|b| u.decide(b.center, b.radius))
+        .collect()
+}
+
+/// The per-batch decisions of [`select`] under any metric: each batch on its group band
+/// (`scales`, `meshes` as [`select`] takes them).
+pub fn batch_decisions_banded(
+    batches: &[BatchMeta],
+    scales: &[[f32; 2]],
+    meshes: &[MeshMeta],
+    camera: &Camera,
+    params: &Params,
+) -> Vec<Decision> {
+    let u = SelectUniform::new(camera, params);
+    batches
+        .par_iter()
+        .zip(scales)
+        .map(|(b, &s)| {
+            let band = u.group_band(u.mesh_band(&meshes[b.mesh as usize]), s);
+            u.with_band(band).decide(b.center, b.radius)
+        })
+        .collect()
+}
+
+/// One tree's band under the frame's metric: its mesh's band scaled by its own scale (issue 29;
+/// the frame's band under `distance`).
+pub fn tree_band(u: &SelectUniform, mesh: &MeshMeta, scale: f32) -> [f32; 2] {
+    u.group_band(u.mesh_band(mesh), [scale, scale])
+}
+
+/// Every tree's band ([`tree_band`]) for `camera` and `params`: the per-tree oracle's input
+/// under a scaled metric ([`select_per_tree_banded`]).
+pub fn tree_bands(
+    scene: &crate::scene::Scene,
+    meshes: &[MeshMeta],
+    camera: &Camera,
+    params: &Params,
+) -> Vec<[f32; 2]> {
+    let u = SelectUniform::new(camera, params);
+    scene
+        .instances
+        .iter()
+        .map(|t| tree_band(&u, &meshes[t.mesh as usize], t.scale))
         .collect()
 }
 
@@ -174,10 +228,26 @@ pub fn select_per_tree(
     params: &Params,
 ) -> Vec<Decision> {
     let u = SelectUniform::new(camera, params);
+    let band = [u.fade_start, u.fade_end];
+    select_per_tree_banded(spheres, &vec![band; spheres.len()], camera, params)
+}
+
+/// [`select_per_tree`] with each tree deciding on its own band (`bands[i]`, [`tree_bands`]):
+/// the oracle of a scaled metric (issue 29). With every band the frame's it is
+/// [`select_per_tree`].
+pub fn select_per_tree_banded(
+    spheres: &[([f32; 3], f32)],
+    bands: &[[f32; 2]],
+    camera: &Camera,
+    params: &Params,
+) -> Vec<Decision> {
+    assert_eq!(spheres.len(), bands.len(), "one band per tree");
+    let u = SelectUniform::new(camera, params);
     spheres
         .par_iter()
-        .map(|&(c, r)| {
-            let d = u.decide(c, r);
+        .zip(bands)
+        .map(|(&(c, r), &band)| {
+            let d = u.with_band(band).decide(c, r);
             let d = if matches!(d, Decision::Draw(_)) && !tree_within_draw_distance(&u, c) {
                 Decision::CulledDistance
             } else {

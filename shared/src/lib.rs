@@ -38,6 +38,7 @@ pub mod emit;
 pub mod fade;
 pub mod frame;
 pub mod interval;
+pub mod metric;
 pub mod modes;
 pub mod params;
 pub mod registry;
@@ -66,6 +67,7 @@ pub use interval::{
     LodNeeds, ViewInterval, aabb_margin, aabb_view_interval, lod_needs, selection_margin,
     view_interval,
 };
+pub use metric::{LodMetric, band_ratio, focal_px, mesh_size, metric_factor};
 pub use params::{
     AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,
 };

@@ -182,12 +182,19 @@ pub struct Params {
     /// [`CommandOrder`] as `u32`. Default `Node`; read by the hierarchical cut only (after
     /// coalescing), so the grid path and the main job do not depend on it.
     pub command_order: u32,
-    /// Explicit padding (keeps the uniform a multiple of 16 B).
-    pub _pad0: u32,
-    /// Explicit padding.
-    pub _pad1: u32,
-    /// Explicit padding.
-    pub _pad2: u32,
+    /// [`crate::LodMetric`] as `u32` (issue 29). Default `Distance` (the thesis): the others make
+    /// the transition depth per tree, from its size on screen (`shared/src/metric.rs`).
+    pub lod_metric: u32,
+    /// The `pixel-area` metrics' threshold (C§4.6.3): a tree changes to its billboard where the
+    /// billboard's opaque area covers this many pixels (px²). Default 16: the built-in species' mean `√A` is
+    /// 7.1 m (`reference::metric`, 4.9 to 9.4 m), so at 720 rows and 60° (`f_px` 623.5) the mean
+    /// unit-scale tree changes at 7.1 · 623.5 / 4 = 1,110 m, near the thesis's 1000 m.
+    pub lod_pixel_area: f32,
+    /// The `screen-error` metric's threshold, pixels (3D Tiles `maximumScreenSpaceError`): the
+    /// billboard is drawn where its geometric error covers at most this many pixels. Default 2:
+    /// the built-in species' mean geometric error is 3.0 m (1.8 to 6.0 m), so at 720 rows and
+    /// 60° the mean unit-scale tree changes at 3.0 · 623.5 / 2 = 930 m.
+    pub lod_screen_error: f32,
 }
 const _: () = assert!(core::mem::size_of::<Params>() == 80);
 
@@ -211,9 +218,9 @@ impl Default for Params {
             max_cull_depth: 7,
             coalesce: Coalesce::On as u32,
             command_order: CommandOrder::Node as u32,
-            _pad0: 0,
-            _pad1: 0,
-            _pad2: 0,
+            lod_metric: crate::LodMetric::Distance as u32,
+            lod_pixel_area: 16.0,
+            lod_screen_error: 2.0,
         }
     }
 }

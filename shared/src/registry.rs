@@ -18,7 +18,8 @@ use std::borrow::Cow;
 
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{
-    AngleIndexMode, Coalesce, CommandOrder, FadeMode, Hierarchy, MipMode, Params, TreeCull,
+    AngleIndexMode, Coalesce, CommandOrder, FadeMode, Hierarchy, LodMetric, MipMode, Params,
+    TreeCull,
 };
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.
@@ -325,7 +326,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 17] = [
+pub const PARAMS: [ParamSpec; 20] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -354,7 +355,19 @@ pub const PARAMS: [ParamSpec; 17] = [
         "Octree depth below which partially visible nodes recurse (G§3 max_cull_depth)"),
     choice!(coalesce, "coalesce", Coalesce, "Merge adjacent draw commands of the hierarchical cut (issue 13): ", ""),
     choice!(command_order, "command-order", CommandOrder, "Order of the hierarchical cut's commands after coalescing: ", ""),
+    choice!(lod_metric, "lod-metric", LodMetric, "Where a tree changes to its billboard (issue 29): ", ""),
+    param!(lod_pixel_area, "pixel-area", float(MIN_METRIC_THRESHOLD, MAX_METRIC_THRESHOLD),
+        "expected a finite area in 1e-6..=1e9 px²",
+        "Pixel-area metrics: billboard once the tree's opaque area covers at most this many px² (C§4.6.3)"),
+    param!(lod_screen_error, "screen-error", float(MIN_METRIC_THRESHOLD, MAX_METRIC_THRESHOLD),
+        "expected a finite error in 1e-6..=1e9 px",
+        "Screen-error metric: billboard once its geometric error covers at most this many px (3D Tiles)"),
 ];
+
+/// Least pixel-area or screen-error threshold: below it every tree is a mesh out to 1e7 m.
+pub const MIN_METRIC_THRESHOLD: f32 = 1.0e-6;
+/// Greatest threshold: above it every tree is a billboard from the eye on.
+pub const MAX_METRIC_THRESHOLD: f32 = 1.0e9;
 
 /// The parameter `key` names (canonical name, flag in either form, or alias).
 pub fn param(key: &str) -> Option<&'static ParamSpec> {

@@ -162,8 +162,20 @@ pub struct MeshMeta {
     pub bbox_max: [f32; 3],
     /// Local bounding-sphere radius (half the box diagonal) around the box centre.
     pub sphere_radius: f32,
+    /// `√A`, `A` the opaque area (alpha >= 0.5) of the mesh's level-view billboard at unit scale,
+    /// m (issue 29, the pixel-area metrics' size; `reference::metric::measure_mesh`). 0 for the
+    /// billboard quad's record.
+    pub area_size: f32,
+    /// The level-view billboard's geometric error at unit scale, m: the largest distance of the
+    /// mesh surface it shows from the billboard's plane (issue 29, the `screen-error` metric's
+    /// size; `reference::metric::measure_mesh`).
+    pub error_size: f32,
+    /// Explicit padding.
+    pub _pad0: u32,
+    /// Explicit padding.
+    pub _pad1: u32,
 }
-const _: () = assert!(core::mem::size_of::<MeshMeta>() == 48);
+const _: () = assert!(core::mem::size_of::<MeshMeta>() == 64);
 
 /// Work counters of one selection pass.
 ///

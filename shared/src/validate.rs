@@ -50,6 +50,11 @@ impl Params {
         CommandOrder::from_id(self.command_order).ok_or_else(|| rejected("command_order", self))
     }
 
+    /// The LOD metric (issue 29), validated.
+    pub fn lod_metric_mode(&self) -> Result<crate::LodMetric, ParamError> {
+        crate::LodMetric::from_id(self.lod_metric).ok_or_else(|| rejected("lod_metric", self))
+    }
+
     /// Checks every field against the parameter table ([`crate::registry::PARAMS`], in its
     /// order), returning the first impossible one. Nothing downstream runs on invalid parameters,
     /// so no stage needs to guard against NaN or zero divisors (SPEC §7).

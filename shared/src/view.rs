@@ -19,7 +19,10 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::{Camera, FrustumPlanes, LodNeeds, Params, lod_needs, view_interval};
+use crate::{
+    Camera, FrustumPlanes, LodMetric, LodNeeds, MeshMeta, Params, band_ratio, lod_needs, mesh_size,
+    metric_factor, view_interval,
+};
 
 /// Decision code (low two bits): culled beyond the draw distance.
 pub const DECISION_CULLED_DISTANCE: u32 = 0;
@@ -101,12 +104,20 @@ pub struct ViewUniform {
     pub draw_distance: f32,
     /// LOD levels (1 or 2).
     pub lod_levels: u32,
+    /// The [`crate::LodMetric`] id (an unknown id decides as `distance`).
+    pub metric: u32,
+    /// The frame's transition depth per unit of mesh size ([`crate::metric_factor`]).
+    pub metric_factor: f32,
+    /// The scaled bands' start over end ([`crate::band_ratio`]).
+    pub band_ratio: f32,
     /// Explicit padding.
     pub _pad0: u32,
     /// Explicit padding.
     pub _pad1: u32,
+    /// Explicit padding.
+    pub _pad2: u32,
 }
-const _: () = assert!(size_of::<ViewUniform>() == 144);
+const _: () = assert!(size_of::<ViewUniform>() == 160);
 
 impl ViewUniform {
     /// The view constants of a validated camera and validated parameters.
@@ -119,8 +130,48 @@ impl ViewUniform {
             fade_end: params.lod1_transition,
             draw_distance: params.draw_distance,
             lod_levels: params.lod_levels,
+            metric: params.lod_metric,
+            metric_factor: metric_factor(camera, params),
+            band_ratio: band_ratio(params),
             _pad0: 0,
             _pad1: 0,
+            _pad2: 0,
+        }
+    }
+
+    /// The scaled metric of these constants, or `None` for `distance` (and an unknown id).
+    pub fn scaled_metric(&self) -> Option<LodMetric> {
+        LodMetric::from_id(self.metric).filter(|m| m.is_scaled())
+    }
+
+    /// The LOD band `[start, end]` of a tree of `mesh` at unit scale (`shared/src/metric.rs`): the
+    /// frame's `[fade_start, fade_end]` under `distance`, else `end = size · metric_factor`
+    /// (the size the metric reads, [`crate::mesh_size`]), `start = end · band_ratio`.
+    pub fn mesh_band(&self, mesh: &MeshMeta) -> [f32; 2] {
+        let Some(metric) = self.scaled_metric() else {
+            return [self.fade_start, self.fade_end];
+        };
+        let end = mesh_size(metric, mesh) * self.metric_factor;
+        [end * self.band_ratio, end]
+    }
+
+    /// The band of a group (a batch, a node, or one tree: `scale = [s, s]`) whose trees' scales
+    /// lie in `scale = [min, max]`, from their mesh's band: `[min · start, max · end]`, which
+    /// contains every tree's own band; the mesh band itself under `distance`.
+    pub fn group_band(&self, mesh_band: [f32; 2], scale: [f32; 2]) -> [f32; 2] {
+        if self.scaled_metric().is_none() {
+            return mesh_band;
+        }
+        [scale[0] * mesh_band[0], scale[1] * mesh_band[1]]
+    }
+
+    /// These view constants with the band `[start, end]` in place of the frame's: what the
+    /// selection rule ([`ViewUniform::decide`], [`crate::decide_node`]) of a group decides on.
+    pub fn with_band(&self, band: [f32; 2]) -> Self {
+        Self {
+            fade_start: band[0],
+            fade_end: band[1],
+            ..*self
         }
     }
 

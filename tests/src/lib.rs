@@ -277,6 +277,11 @@ pub struct Packed {
 }
 
 impl Packed {
+    /// Every tree's scale (`refine`'s per-tree band, issue 29).
+    pub fn scales(&self) -> Vec<f32> {
+        self.scene.instances.iter().map(|t| t.scale).collect()
+    }
+
     pub fn new(trees: Vec<Instance>, grid_size: f32) -> Self {
         let scene = scene_of(trees);
         let geometry = pack_geometry(&scene);
@@ -341,6 +346,7 @@ impl AxisFrame {
         let g = &self.geometry;
         select(
             &self.batches.metas,
+            &self.batches.scales,
             &g.meshes,
             &g.billboard,
             &self.camera,

@@ -102,6 +102,14 @@ pub fn skips(stage: StageId, param: &str, choice: &str) -> bool {
         .any(|&(s, p, c, _)| s == stage && p == param && c == choice)
 }
 
+/// Numeric parameters read under one choice of a mode only, with that choice: their extremes are
+/// walked there (at the distance metric `lod_pixel_area` changes nothing, and a case equal to
+/// its base would reach nothing).
+pub const READ_ONLY_UNDER: &[(&str, &str, &str)] = &[
+    ("lod_pixel_area", "lod_metric", "pixel-area"),
+    ("lod_screen_error", "lod_metric", "screen-error"),
+];
+
 /// The base frame of a stage (module docs): the cut's stages on the octree cut, the rest flat.
 pub fn base(stage: StageId) -> (&'static str, Params) {
     match stage {
@@ -225,7 +233,12 @@ pub fn stage_cases() -> Vec<StageCase> {
                 param(name).unwrap_or_else(|| panic!("{}: no parameter {name}", e.id.name()));
             let (least, greatest) = extremes(spec.kind)
                 .unwrap_or_else(|| panic!("{}: {name} is not numeric", e.id.name()));
+            let only_under = READ_ONLY_UNDER.iter().find(|r| r.0 == name);
             for &(mode, code, choice) in &first_mode {
+                // The first mode is the one the parameter is read under: its own choice only.
+                if only_under.is_some_and(|&(_, m, c)| m == mode && c != choice) {
+                    continue;
+                }
                 for (reach, v) in [("least", least), ("greatest", greatest)] {
                     let mut p = base_params;
                     if let Some(m) = param(mode) {
@@ -237,6 +250,20 @@ pub fn stage_cases() -> Vec<StageCase> {
                     let mut value = spec.format(&p);
                     if !mode.is_empty() {
                         value = format!("{value} with {mode} = {choice}");
+                    }
+                    if let Some(&(_, m, c)) = only_under {
+                        let spec = param(m).expect("a mode parameter");
+                        let ParamKind::Choice(choices) = spec.kind else {
+                            panic!("{m} is not a choice");
+                        };
+                        let (_, code) = choices()
+                            .into_iter()
+                            .find(|&(x, _)| x == c)
+                            .unwrap_or_else(|| panic!("{m} has no choice {c}"));
+                        (spec.set)(&mut p, f64::from(code));
+                        if m != mode {
+                            value = format!("{value} with {m} = {c}");
+                        }
                     }
                     push(
                         format!("{base_name}-{name}-{value}"),

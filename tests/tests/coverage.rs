@@ -202,6 +202,7 @@ fn select_cases(
         let batches = build_batches(&scene, &geometry.meshes, p.grid_size).expect("batches");
         select(
             &batches.metas,
+            &batches.scales,
             &geometry.meshes,
             &geometry.billboard,
             &camera,

@@ -178,12 +178,14 @@ fn prepared_like(base: &Prepared, scene: Scene, membership: &Batches) -> Prepare
         })
         .collect();
     Prepared {
+        tree_scales: scene.instances.iter().map(|t| t.scale).collect(),
         scene,
         geometry,
         batches: Batches {
             metas,
             indirection: membership.indirection.clone(),
             grid_size: membership.grid_size,
+            scales: membership.scales.clone(),
         },
         hierarchy: None,
         mesh_textures: base.mesh_textures.clone(),

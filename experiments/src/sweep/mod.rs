@@ -60,7 +60,7 @@ pub use spec::{
 pub use variant::{Engine, Pipeline, ReferenceRenderer, Registered};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 15] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 17] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -91,6 +91,8 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 15] = [
         "command_order",
         include_str!("../../sweeps/command_order.toml"),
     ),
+    ("lod_metric", include_str!("../../sweeps/lod_metric.toml")),
+    ("celba_detail", include_str!("../../sweeps/celba_detail.toml")),
 ];
 
 /// Options of `forestlod sweep` (`Default`: no file, no override, an empty `out`).

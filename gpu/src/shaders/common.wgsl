@@ -82,6 +82,10 @@ struct MeshMeta {
     billboard_half_width: f32,
     bbox_max: array<f32, 3>,
     sphere_radius: f32,
+    area_size: f32,
+    error_size: f32,
+    _pad0: u32,
+    _pad1: u32,
 }
 
 // Keep in sync with forestlod_shared::SelectCounters (shared/src/types.rs).
@@ -117,6 +121,8 @@ struct CullTree {
     center: array<f32, 3>,
     radius: f32,
     mesh: u32,
+    // The tree's scale: what a scaled LOD metric scales its band by (refine.wgsl `tree_needs`).
+    scale: f32,
 }
 
 // Keep in sync with forestlod_shared::ViewInterval (shared/src/interval.rs).
@@ -177,8 +183,40 @@ struct ViewUniform {
     fade_end: f32,
     draw_distance: f32,
     lod_levels: u32,
+    metric: u32,
+    metric_factor: f32,
+    band_ratio: f32,
     _pad0: u32,
     _pad1: u32,
+    _pad2: u32,
+}
+
+// forestlod_shared::ViewUniform::mesh_band (shared/src/metric.rs): the band of a tree of mesh
+// `m` at unit scale; the size the metric scales is forestlod_shared::mesh_size.
+fn mesh_band(v: ViewUniform, m: MeshMeta) -> vec2<f32> {
+    if v.metric == LOD_METRIC_DISTANCE {
+        return vec2<f32>(v.fade_start, v.fade_end);
+    }
+    let size = select(m.area_size, m.error_size, v.metric == LOD_METRIC_SCREEN_ERROR);
+    let end = size * v.metric_factor;
+    return vec2<f32>(end * v.band_ratio, end);
+}
+
+// forestlod_shared::ViewUniform::group_band: a group's band from its mesh band and its trees'
+// scale range [min, max].
+fn group_band(v: ViewUniform, band: vec2<f32>, scale: vec2<f32>) -> vec2<f32> {
+    if v.metric == LOD_METRIC_DISTANCE {
+        return band;
+    }
+    return vec2<f32>(scale.x * band.x, scale.y * band.y);
+}
+
+// forestlod_shared::ViewUniform::with_band.
+fn with_band(v: ViewUniform, band: vec2<f32>) -> ViewUniform {
+    var out = v;
+    out.fade_start = band.x;
+    out.fade_end = band.y;
+    return out;
 }
 
 // Twin of forestlod_shared::ViewUniform::decide: the same rule for a batch

@@ -67,14 +67,17 @@ struct DrawInstance {
 // Two locations, not four (issue 14): lavapipe keeps every set-up triangle of a frame's scene
 // with three vec4s per location (a0, d/dx, d/dy), so packing the reference's five varyings
 // `u, v, depth | layer, command` into one perspective vec3 and one flat vec2 cuts that memory
-// by about a quarter; each component is interpolated alone, so no value changes.
+// by about a quarter; each component is interpolated alone, so no value changes. The tree's
+// scale rides in the flat vector as bits (the reference's sixth varying, which interpolates to
+// itself exactly: reference/src/draw.rs TREE_VARYINGS).
 struct TreeVaryings {
     @builtin(position) clip: vec4<f32>,
     // `uv` and the view depth `(p - eye) · forward`, clamped to the tree's sphere interval for
     // billboards.
     @location(0) uv_depth: vec3<f32>,
-    // Texture layer and command index.
-    @location(1) @interpolate(flat) layer_command: vec2<u32>,
+    // Texture layer, command index, and the tree's scale as bits (what a scaled LOD metric
+    // scales the command's band by, C§4.6).
+    @location(1) @interpolate(flat) layer_command_scale: vec3<u32>,
 }
 
 struct TargetOutput {
@@ -122,7 +125,7 @@ fn tree_vertex(
     var out: TreeVaryings;
     out.clip = DISCARDED_POSITION;
     out.uv_depth = vec3<f32>(0.0, 0.0, 0.0);
-    out.layer_command = vec2<u32>(0u, 0u);
+    out.layer_command_scale = vec3<u32>(0u, 0u, 0u);
     let command = vertex_index >> COMMAND_SHIFT;
     let local = vertex_index & (MAX_MESH_VERTICES - 1u);
     // Without a count buffer the multi-draw runs every slot; slots past the count may hold a
@@ -187,7 +190,7 @@ fn tree_vertex(
     }
     out.clip = u.view_proj * vec4<f32>(world, 1.0);
     out.uv_depth = vec3<f32>(uv, depth);
-    out.layer_command = vec2<u32>(layer, command);
+    out.layer_command_scale = vec3<u32>(layer, command, bitcast<u32>(t.scale));
     return out;
 }
 
@@ -196,8 +199,12 @@ fn tree_vertex(
 fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     let uv = in.uv_depth.xy;
     let depth = in.uv_depth.z;
-    let layer = in.layer_command.x;
-    let data = command_data[in.layer_command.y];
+    let layer = in.layer_command_scale.x;
+    let data = command_data[in.layer_command_scale.y];
+    let scale = bitcast<f32>(in.layer_command_scale.z);
+    // The tree's own band: the command's (unit scale) times the tree's scale under a scaled
+    // metric (reference TreeShader).
+    let band = group_band(u.view, vec2<f32>(data.fade_start, data.fade_end), vec2<f32>(scale, scale));
     // Both textures are sampled before any branch: implicit-LOD sampling needs uniform control
     // flow (the quad's derivatives); the layer index clamps to the array (WGSL and Vulkan).
     let mesh_texel = textureSample(mesh_textures, tree_sampler, uv, layer);
@@ -212,8 +219,8 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
         let w = lod_weights(
             u.fade_mode,
             depth,
-            data.fade_start,
-            data.fade_end,
+            band.x,
+            band.y,
             dither_threshold(pixel.x + u.pixel_origin_x, pixel.y + u.pixel_origin_y),
         );
         weight = lod_weight_of(w, data.lod);
@@ -223,7 +230,7 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     }
     var in_band = false;
     if data.fading != 0u {
-        let t = fade_progress(depth, data.fade_start, data.fade_end);
+        let t = fade_progress(depth, band.x, band.y);
         in_band = t > 0.0 && t < 1.0;
     }
     var out: TargetOutput;

@@ -41,6 +41,9 @@ struct HierUniform {
 @group(0) @binding(6) var<storage, read_write> commands: array<DrawCommand>;
 @group(0) @binding(7) var<storage, read_write> command_data: array<CommandData>;
 @group(0) @binding(8) var<storage, read_write> counters: SelectCountersAtomic;
+// Per node: its trees' scale range [min, max] (reference Hierarchy::scales), what a scaled LOD
+// metric widens the node's band by (common.wgsl `group_band`, C§4.6).
+@group(0) @binding(9) var<storage, read> scales: array<vec2<f32>>;
 
 fn node_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
     return gid.y * (groups.x * HIER_WORKGROUP_SIZE) + gid.x;
@@ -63,7 +66,10 @@ fn hier_decide(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
     if i >= u.node_count {
         return;
     }
-    codes[i] = node_code(nodes[i], u.mode, u.max_cull_depth, u.view);
+    // The node decides on its group band (the frame's band under the distance metric).
+    let n = nodes[i];
+    let band = group_band(u.view, mesh_band(u.view, meshes[n.mesh]), scales[i]);
+    codes[i] = node_code(n, u.mode, u.max_cull_depth, with_band(u.view, band));
 }
 
 @compute @workgroup_size(HIER_WORKGROUP_SIZE)
@@ -135,7 +141,9 @@ fn emit(slot: u32, i: u32, n: NodeMeta, lod: u32, fading: bool) {
         first_index = m.first_index;
         index_count = m.index_count;
     }
-    let e = emit_command(slot, i, n.mesh, n.len, n.offset, fading, lod, first_index, index_count, u.view);
+    // Commands carry the mesh's band at unit scale; the draw scales it per tree.
+    let view = with_band(u.view, mesh_band(u.view, meshes[n.mesh]));
+    let e = emit_command(slot, i, n.mesh, n.len, n.offset, fading, lod, first_index, index_count, view);
     commands[slot] = e.command;
     command_data[slot] = e.data;
 }

@@ -84,10 +84,13 @@ fn refines(mode: u32, lod: u32) -> bool {
     return mode == TREE_CULL_ALL || (mode == TREE_CULL_LOD0 && lod == LOD_MESH);
 }
 
-// The reference's per-tree test in `refine_command`: the tree's own sphere is drawn and needs LOD
-// `lod`, and its centre passes the draw stage's per-tree draw-distance discard.
-fn tree_needs(tree: u32, lod: u32) -> bool {
-    let decision = decide_tree(trees[tree], u.view);
+// The reference's per-tree test in `refine_command`: the tree's own sphere, on its own band (the
+// command's band at unit scale, `band`, scaled by the tree's scale under a scaled LOD metric), is
+// drawn and needs LOD `lod`, and its centre passes the draw stage's per-tree draw-distance discard.
+fn tree_needs(tree: u32, lod: u32, band: vec2<f32>) -> bool {
+    let t = trees[tree];
+    let view = with_band(u.view, group_band(u.view, band, vec2<f32>(t.scale, t.scale)));
+    let decision = decide_tree(t, view);
     let bit = select(DECISION_LOD1, DECISION_LOD0, lod == LOD_MESH);
     return (decision & DECISION_KIND_MASK) == DECISION_DRAW && (decision & bit) != 0u;
 }
@@ -147,6 +150,8 @@ fn refine_args() {
 struct Chunk {
     ok: bool,
     lod: u32,
+    // The command's band at unit scale (its CommandData's fade_start, fade_end).
+    band: vec2<f32>,
     off: u32,
     len: u32,
     chunk: u32,
@@ -156,12 +161,14 @@ struct Chunk {
 }
 
 fn invocation_chunk(inv: Invocation) -> Chunk {
-    var c = Chunk(false, 0u, 0u, 0u, inv.wid.x * REFINE_WORKGROUP_SIZE + inv.lid, 0u, 0u, 0u);
+    var c = Chunk(false, 0u, vec2<f32>(0.0, 0.0), 0u, 0u, inv.wid.x * REFINE_WORKGROUP_SIZE + inv.lid, 0u, 0u, 0u);
     let slot = inv.wid.z * inv.groups.y + inv.wid.y;
     if slot >= counters.commands {
         return c;
     }
-    c.lod = command_data[slot].lod;
+    let data = command_data[slot];
+    c.lod = data.lod;
+    c.band = vec2<f32>(data.fade_start, data.fade_end);
     if !refines(u.tree_cull, c.lod) {
         return c;
     }
@@ -184,7 +191,7 @@ fn refine_count(inv: Invocation) {
     }
     var kept = 0u;
     for (var j = c.first; j < c.end; j++) {
-        kept += u32(tree_needs(indirection[c.src + j], c.lod));
+        kept += u32(tree_needs(indirection[c.src + j], c.lod, c.band));
     }
     chunk_counts[chunk_base(c.lod, c.off) + c.chunk] = kept;
 }
@@ -225,7 +232,7 @@ fn refine_write(inv: Invocation) {
     var k = c.lod * u.tree_count + c.off + chunk_counts[chunk_base(c.lod, c.off) + c.chunk];
     for (var j = c.first; j < c.end; j++) {
         let tree = indirection[c.src + j];
-        if tree_needs(tree, c.lod) {
+        if tree_needs(tree, c.lod, c.band) {
             indirection[k] = tree;
             k++;
         }

@@ -43,11 +43,17 @@ struct SelectUniform {
 @group(0) @binding(5) var<storage, read_write> commands: array<DrawCommand>;
 @group(0) @binding(6) var<storage, read_write> command_data: array<CommandData>;
 @group(0) @binding(7) var<storage, read_write> counters: SelectCountersAtomic;
+// Per batch: its trees' scale range [min, max] (reference Batches::scales), what a scaled LOD
+// metric widens the batch's band by (common.wgsl `group_band`, C§4.6).
+@group(0) @binding(8) var<storage, read> scales: array<vec2<f32>>;
 
-// Twin of reference SelectUniform::decide for a batch's sphere (common.wgsl `decide_sphere`).
-fn decide(b: BatchMeta) -> u32 {
+// Twin of reference select_batch's decision: the batch's sphere (common.wgsl `decide_sphere`)
+// on its group band, its mesh's band widened by its trees' scale range (the frame's band under
+// the distance metric).
+fn decide(b: BatchMeta, index: u32) -> u32 {
     let center = vec3<f32>(b.center[0], b.center[1], b.center[2]);
-    return decide_view(center, b.radius, u.view);
+    let band = group_band(u.view, mesh_band(u.view, meshes[b.mesh]), scales[index]);
+    return decide_view(center, b.radius, with_band(u.view, band));
 }
 
 // The batch's counter contributions (the reference's compaction loop, per batch); returns the
@@ -99,7 +105,9 @@ fn emit(slot: u32, index: u32, b: BatchMeta, lod: u32, fading: bool) {
         first_index = m.first_index;
         index_count = m.index_count;
     }
-    let e = emit_command(slot, index, b.mesh, b.len, b.offset, fading, lod, first_index, index_count, u.view);
+    // Commands carry the mesh's band at unit scale; the draw scales it per tree.
+    let view = with_band(u.view, mesh_band(u.view, meshes[b.mesh]));
+    let e = emit_command(slot, index, b.mesh, b.len, b.offset, fading, lod, first_index, index_count, view);
     commands[slot] = e.command;
     command_data[slot] = e.data;
 }
@@ -127,7 +135,7 @@ fn batch_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
 
 // The batch's decision (`decide`), recorded in `decisions`.
 fn decide_batch(index: u32) -> u32 {
-    let decision = decide(batches[index]);
+    let decision = decide(batches[index], index);
     decisions[index] = decision;
     return decision;
 }

@@ -68,6 +68,7 @@ impl<'a> SelectionChain<'a> {
                 first: First::Select(GpuSelect::new(
                     ctx,
                     &prepared.batches.metas,
+                    &prepared.batches.scales,
                     &g.meshes,
                     &g.billboard,
                 )?),
@@ -75,7 +76,14 @@ impl<'a> SelectionChain<'a> {
                 order: None,
                 gpu_stages: vec![StageId::Select],
             },
-            Some(h) => Self::cut(ctx, &h.nodes, h.mode as u32, &g.meshes, &g.billboard)?,
+            Some(h) => Self::cut(
+                ctx,
+                &h.nodes,
+                &h.scales,
+                h.mode as u32,
+                &g.meshes,
+                &g.billboard,
+            )?,
         })
     }
 
@@ -85,11 +93,12 @@ impl<'a> SelectionChain<'a> {
     pub fn cut(
         ctx: &'a GpuContext,
         nodes: &[NodeMeta],
+        scales: &[[f32; 2]],
         mode: u32,
         meshes: &[MeshMeta],
         billboard: &MeshMeta,
     ) -> Result<Self, GpuError> {
-        let hier = GpuHierSelect::new(ctx, nodes, mode, meshes, billboard)?;
+        let hier = GpuHierSelect::new(ctx, nodes, scales, mode, meshes, billboard)?;
         let coalesce = GpuCoalesce::new(ctx, hier.buffers())?;
         let order = GpuCommandOrder::new(
             ctx,

@@ -669,6 +669,59 @@ mod tests {
         assert!(checked > 4_000_000, "{checked}");
     }
 
+    /// A varying with the same value at every vertex (the draw's tree scale,
+    /// `draw::TREE_VARYINGS`) reads back bit for bit at every covered sample: through the
+    /// clipper (triangles crossing the near plane and the sides) and the perspective-correct
+    /// `f64` interpolation. Planted `(num / denom) as f32` -> `(num as f32) / (denom as f32)`
+    /// fails it.
+    #[test]
+    fn a_constant_varying_interpolates_to_itself() {
+        let vp = Viewport::new(64, 48);
+        let mut next = unit_random(29);
+        let (mut samples, mut clipped) = (0u64, 0u64);
+        for case in 0..3000 {
+            // Values of every magnitude a scale takes, odd mantissas included.
+            let c = f32::from_bits(0x3a00_0000 + (next() * 0x0a00_0000 as f32) as u32);
+            let tri = [0, 1, 2].map(|_| {
+                let w = if case % 3 == 0 {
+                    next() * 4.0 - 1.0
+                } else {
+                    0.2 + 4.0 * next()
+                };
+                let (x, y) = (
+                    (next() * 3.0 - 1.5) * w.abs(),
+                    (next() * 3.0 - 1.5) * w.abs(),
+                );
+                Vertex::new([x, y, next() * w.abs(), w], [c])
+            });
+            let mut out = Vec::new();
+            let counts = setup_primitive(case, &tri, &vp, &DrawState::OPAQUE, &mut out);
+            clipped += u64::from(counts.clipped > 1 || tri.iter().any(|v| v.clip[3] <= 0.0));
+            for t in &out {
+                let Some(bbox) = t.bbox else { continue };
+                for y in bbox.y0..bbox.y1 {
+                    for x in bbox.x0..bbox.x1 {
+                        let e = t.edges(x, y);
+                        if !t.covers(&e) {
+                            continue;
+                        }
+                        let got = t.varyings(&t.barycentrics(&e))[0];
+                        assert_eq!(
+                            got.to_bits(),
+                            c.to_bits(),
+                            "case {case}: a constant varying {c:e} read back as {got:e} at ({x}, {y})"
+                        );
+                        samples += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            samples > 100_000 && clipped > 500,
+            "{samples} samples, {clipped} clipped"
+        );
+    }
+
     /// Random set-up triangles of several sizes, depths and perspectives, for the walk's exact
     /// shortcuts below.
     fn random_setup_triangles(seed: u64, cases: usize) -> Vec<SetupTriangle<0>> {

@@ -140,6 +140,15 @@ impl TreeMesh {
     /// Per-mesh metadata (E§4.1): bounding box, sphere and billboard size. Index and vertex offsets
     /// are filled in when meshes are packed into shared buffers; here they are 0.
     pub fn meta(&self) -> MeshMeta {
+        let mut meta = self.bounds_meta();
+        let sizes = crate::metric::measure_mesh(self, &meta);
+        meta.area_size = sizes.opaque_area.sqrt();
+        meta.error_size = sizes.geometric_error;
+        meta
+    }
+
+    /// [`TreeMesh::meta`] without the metric sizes (0): the bounds alone.
+    pub fn bounds_meta(&self) -> MeshMeta {
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
         for p in &self.positions {
@@ -162,6 +171,10 @@ impl TreeMesh {
             billboard_half_width: half_width,
             bbox_max: hi.to_array(),
             sphere_radius: round_up(half.length()),
+            area_size: 0.0,
+            error_size: 0.0,
+            _pad0: 0,
+            _pad1: 0,
         }
     }
 

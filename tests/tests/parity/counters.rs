@@ -272,12 +272,19 @@ fn reference_counters_equal_their_recount() {
         let packed = Packed::new(trees, p.grid_size);
         let (g, b) = (&packed.geometry, &packed.batches);
         // The grid.
-        let s = select(&b.metas, &g.meshes, &g.billboard, &camera, &p);
+        let s = select(&b.metas, &b.scales, &g.meshes, &g.billboard, &camera, &p);
         let want = grid_recount(&batch_decisions(&b.metas, &camera, &p), &s);
         prop_assert_eq_counters(&s.counters, &want, "grid select")?;
         check_batching(&packed.spheres, &b.indirection, &s, &camera, &p, "grid")?;
         let mut refined = s.clone();
-        let r = refine(&mut refined, &b.indirection, &packed.spheres, &camera, &p);
+        let r = refine(
+            &mut refined,
+            &b.indirection,
+            &packed.spheres,
+            &packed.scales(),
+            &camera,
+            &p,
+        );
         let mode = TREE_CULLS[cull_i];
         let want = if mode == TreeCull::None {
             (0, 0)
@@ -590,9 +597,10 @@ fn gpu_counters_equal_their_recount() {
         let (g, b) = (&packed.geometry, &packed.batches);
         tally[0] += 1;
         // select.wgsl.
-        let reference = select(&b.metas, &g.meshes, &g.billboard, &camera, &p);
+        let reference = select(&b.metas, &b.scales, &g.meshes, &g.billboard, &camera, &p);
         let decisions = batch_decisions(&b.metas, &camera, &p);
-        let mut gpu = GpuSelect::new(ctx, &b.metas, &g.meshes, &g.billboard).map_err(fail)?;
+        let mut gpu =
+            GpuSelect::new(ctx, &b.metas, &b.scales, &g.meshes, &g.billboard).map_err(fail)?;
         for compaction in Compaction::ALL {
             let s = gpu.run(&camera, &p, compaction).map_err(fail)?;
             let s = Selection {
@@ -652,8 +660,15 @@ fn gpu_counters_equal_their_recount() {
         let h = Hierarchy::build(&packed.scene, &g.meshes, &p)
             .unwrap()
             .unwrap();
-        let mut chain = SelectionChain::cut(ctx, &h.nodes, hmode as u32, &g.meshes, &g.billboard)
-            .map_err(fail)?;
+        let mut chain = SelectionChain::cut(
+            ctx,
+            &h.nodes,
+            &h.scales,
+            hmode as u32,
+            &g.meshes,
+            &g.billboard,
+        )
+        .map_err(fail)?;
         let sel = chain.run(&camera, &p, Compaction::Stable).map_err(fail)?;
         let (codes, _) = chain.read_codes_and_states().map_err(fail)?;
         let raw = chain.read_uncoalesced().map_err(fail)?;

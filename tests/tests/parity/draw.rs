@@ -441,6 +441,7 @@ fn one_draw_call_and_stale_slots_past_the_count_are_ignored() {
     let mut select = GpuSelect::new(
         ctx,
         &prepared.batches.metas,
+        &prepared.batches.scales,
         &prepared.geometry.meshes,
         &prepared.geometry.billboard,
     )
@@ -586,6 +587,7 @@ fn draw_probes_remove_what_they_say() {
     let mut select = GpuSelect::new(
         ctx,
         &prepared.batches.metas,
+        &prepared.batches.scales,
         &prepared.geometry.meshes,
         &prepared.geometry.billboard,
     )

@@ -97,8 +97,15 @@ fn check_cut(
     let merge = coalesce == Coalesce::On;
     let sort = p.command_order == CommandOrder::FrontToBack as u32;
     let want = full_cut(h, &g.meshes, &g.billboard, camera, p);
-    let mut gpu = SelectionChain::cut(ctx, &h.nodes, mode as u32, &g.meshes, &g.billboard)
-        .map_err(|e| TestCaseError::fail(e.to_string()))?;
+    let mut gpu = SelectionChain::cut(
+        ctx,
+        &h.nodes,
+        &h.scales,
+        mode as u32,
+        &g.meshes,
+        &g.billboard,
+    )
+    .map_err(|e| TestCaseError::fail(e.to_string()))?;
     let sel = gpu
         .run(camera, p, Compaction::Stable)
         .map_err(|e| TestCaseError::fail(e.to_string()))?;
@@ -477,8 +484,15 @@ fn gpu_cut_on_box_knife_edges() {
         let h = Hierarchy::build(&packed.scene, &g.meshes, &base)
             .unwrap()
             .unwrap();
-        let mut gpu =
-            SelectionChain::cut(ctx, &h.nodes, mode as u32, &g.meshes, &g.billboard).unwrap();
+        let mut gpu = SelectionChain::cut(
+            ctx,
+            &h.nodes,
+            &h.scales,
+            mode as u32,
+            &g.meshes,
+            &g.billboard,
+        )
+        .unwrap();
         for (i, n) in h.nodes.iter().enumerate() {
             if n.parent != NO_PARENT {
                 continue;
@@ -664,13 +678,20 @@ fn gpu_cut_walks_every_ancestor() {
             .collect();
         let h = Hierarchy {
             mode: Mode::Quadtree,
+            scales: vec![[1.0, 1.0]; nodes.len()],
             nodes: nodes.clone(),
             indirection: vec![0],
         };
         let want = full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
-        let mut gpu =
-            SelectionChain::cut(ctx, &nodes, Mode::Quadtree as u32, &g.meshes, &g.billboard)
-                .unwrap();
+        let mut gpu = SelectionChain::cut(
+            ctx,
+            &nodes,
+            &h.scales,
+            Mode::Quadtree as u32,
+            &g.meshes,
+            &g.billboard,
+        )
+        .unwrap();
         let sel = gpu.run(&camera, &p, Compaction::Stable).unwrap();
         let (codes, states) = gpu.read_codes_and_states().unwrap();
         assert_eq!(codes, want.codes, "culled node {culled}");
@@ -706,8 +727,15 @@ fn gpu_coalescing_spans_scan_chunks() {
     let prepared = prepare(scene, &p).unwrap();
     let h = prepared.hierarchy.as_ref().unwrap();
     let g = &prepared.geometry;
-    let mut gpu =
-        SelectionChain::cut(ctx, &h.nodes, h.mode as u32, &g.meshes, &g.billboard).unwrap();
+    let mut gpu = SelectionChain::cut(
+        ctx,
+        &h.nodes,
+        &h.scales,
+        h.mode as u32,
+        &g.meshes,
+        &g.billboard,
+    )
+    .unwrap();
     let mut most = 0;
     for yaw in [0.0, 330.0] {
         let camera =
@@ -762,8 +790,15 @@ fn gpu_front_to_back_spans_workgroups() {
     let prepared = prepare(scene, &base).unwrap();
     let h = prepared.hierarchy.as_ref().unwrap();
     let g = &prepared.geometry;
-    let mut gpu =
-        SelectionChain::cut(ctx, &h.nodes, h.mode as u32, &g.meshes, &g.billboard).unwrap();
+    let mut gpu = SelectionChain::cut(
+        ctx,
+        &h.nodes,
+        &h.scales,
+        h.mode as u32,
+        &g.meshes,
+        &g.billboard,
+    )
+    .unwrap();
     let (mut ambiguous, mut moved, mut most) = (0, 0, 0);
     for coalesce in [Coalesce::Off, Coalesce::On] {
         let p = Params {

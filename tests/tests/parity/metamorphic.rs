@@ -113,6 +113,7 @@ fn command_multiset(
 ) -> Vec<CommandKey> {
     let out = backend.run(SelectInput {
         batches: &p.batches.metas,
+        scales: &p.batches.scales,
         meshes: &p.geometry.meshes,
         billboard: &p.geometry.billboard,
         camera,
@@ -341,6 +342,7 @@ fn a_trees_lod_is_monotone_in_its_distance() {
             let camera = Camera::look_at([-x, 0.3, 10.0], [0.0, 0.0, 8.0], 50.0, 64, 64);
             let out = backend.run(SelectInput {
                 batches: &p.batches.metas,
+                scales: &p.batches.scales,
                 meshes: &p.geometry.meshes,
                 billboard: &p.geometry.billboard,
                 camera: &camera,

@@ -43,7 +43,7 @@ use forestlod_reference::cameras::named_camera;
 use forestlod_reference::geometry::PackedGeometry;
 use forestlod_reference::refine::{Refined, refine};
 use forestlod_reference::scene::{Scene, builtin};
-use forestlod_reference::select::{Selection, select};
+use forestlod_reference::select::{Selection, select, tree_bands};
 use forestlod_shared::{Camera, FadeMode, Params, TreeCull};
 use forestlod_tests::scenarios::{
     crop_params, cropped_synthetic, named_views, refine_image_frames, tiny_params,
@@ -102,6 +102,8 @@ impl std::fmt::Display for Tally {
 
 /// One batching of a scene on both sides.
 struct Batched<'a> {
+    /// The scene's trees (their scales and meshes give the per-tree bands, issue 29).
+    scene: Scene,
     batches: Batches,
     geometry: &'a PackedGeometry,
     spheres: &'a [([f32; 3], f32)],
@@ -119,10 +121,17 @@ impl<'a> Batched<'a> {
         grid: f32,
     ) -> Result<Self, String> {
         let batches = build_batches(scene, &geometry.meshes, grid).map_err(|e| e.to_string())?;
-        let select = GpuSelect::new(ctx, &batches.metas, &geometry.meshes, &geometry.billboard)
-            .map_err(|e| e.to_string())?;
+        let select = GpuSelect::new(
+            ctx,
+            &batches.metas,
+            &batches.scales,
+            &geometry.meshes,
+            &geometry.billboard,
+        )
+        .map_err(|e| e.to_string())?;
         let refine = GpuRefine::new(ctx, trees, &batches.indirection).map_err(|e| e.to_string())?;
         Ok(Self {
+            scene: scene.clone(),
             batches,
             geometry,
             spheres,
@@ -147,10 +156,14 @@ fn judge(
     oracle: bool,
     tally: &mut Tally,
 ) -> Result<(), String> {
+    let scales: Vec<f32> = b.scene.instances.iter().map(|t| t.scale).collect();
+    let bands = tree_bands(&b.scene, &b.geometry.meshes, camera, params);
     let case = RefineCase {
         selection: input,
         batch_indirection: &b.batches.indirection,
         spheres: b.spheres,
+        scales: &scales,
+        bands: &bands,
         camera,
         params,
     };
@@ -159,6 +172,7 @@ fn judge(
         &mut selection,
         case.batch_indirection,
         b.spheres,
+        &scales,
         camera,
         params,
     );
@@ -202,7 +216,14 @@ fn check_frame(
 ) -> Result<(), String> {
     let e = |e: forestlod_gpu::GpuError| format!("{name}: {e}");
     let g = b.geometry;
-    let reference = select(&b.batches.metas, &g.meshes, &g.billboard, camera, params);
+    let reference = select(
+        &b.batches.metas,
+        &b.batches.scales,
+        &g.meshes,
+        &g.billboard,
+        camera,
+        params,
+    );
     // 1. The reference's selection: refine.wgsl alone.
     let mut buffers = SelectBuffers::from_cpu(
         ctx,
@@ -607,6 +628,7 @@ fn refine_dispatch_grid_follows_its_formula() {
             let g = b.geometry;
             let s = select(
                 &b.batches.metas,
+                &b.batches.scales,
                 &g.meshes,
                 &g.billboard,
                 &v.camera,
@@ -638,6 +660,7 @@ fn refine_dispatch_grid_follows_its_formula() {
             center: [t as f32, 0.0, 20.0],
             radius: 1.0,
             mesh: 0,
+            scale: 1.0,
         })
         .collect();
     let indirection: Vec<u32> = (0..TREES).collect();

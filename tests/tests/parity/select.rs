@@ -71,8 +71,16 @@ struct Tally {
 }
 
 /// Why a batch's decision is ambiguous, or `None` when it is not near any threshold.
-fn ambiguity(b: &BatchMeta, u: &SelectUniform) -> Option<String> {
-    threshold_ambiguity(b.center, b.radius, u, AMBIGUITY_REL, Thresholds::BATCH)
+/// A batch decides on its group band (issue 29): the near-threshold classification reads that
+/// band, not the frame's (the same under `distance`).
+fn ambiguity(
+    b: &BatchMeta,
+    scale: [f32; 2],
+    meshes: &[MeshMeta],
+    u: &SelectUniform,
+) -> Option<String> {
+    let band = u.with_band(u.group_band(u.mesh_band(&meshes[b.mesh as usize]), scale));
+    threshold_ambiguity(b.center, b.radius, &band, AMBIGUITY_REL, Thresholds::BATCH)
 }
 
 /// Comparable key of a command and its data, `base_vertex` masked off (for multisets).
@@ -129,7 +137,7 @@ fn judge(
     backend: &dyn Backend<Select>,
     want: &BackendSelection,
     got: &BackendSelection,
-    batches: &[BatchMeta],
+    (batches, scales): (&[BatchMeta], &[[f32; 2]]),
     meshes: &[MeshMeta],
     billboard: &MeshMeta,
     u: &SelectUniform,
@@ -155,7 +163,7 @@ fn judge(
     let mut ambiguous = BTreeSet::new();
     for (b, (dw, dg)) in want.decisions.iter().zip(&got.decisions).enumerate() {
         if dw != dg {
-            match ambiguity(&batches[b], u) {
+            match ambiguity(&batches[b], scales[b], meshes, u) {
                 Some(why) => {
                     eprintln!("{name}: batch {b} ambiguous ({why}): reference {dw:?}, GPU {dg:?}");
                     ambiguous.insert(b as u32);
@@ -222,10 +230,20 @@ fn judge(
             got.decisions[d.batch as usize]
         );
         prop_assert_eq!(d.fading, need.both() as u32);
-        let diff = (d.fade_start - u.fade_start)
+        // A command carries its mesh's band at unit scale (the frame's under `distance`).
+        let band = u.mesh_band(&meshes[d.mesh as usize]);
+        let diff = (d.fade_start - band[0])
             .abs()
-            .max((d.fade_end - u.fade_end).abs());
+            .max((d.fade_end - band[1]).abs());
         tally.max_float_diff = tally.max_float_diff.max(diff);
+        prop_assert_eq!(
+            [d.fade_start.to_bits(), d.fade_end.to_bits()],
+            band.map(f32::to_bits),
+            "{}: command {} of batch {} carries a band other than its mesh's",
+            name,
+            i,
+            d.batch
+        );
     }
 
     // 3. The buffers against the reference.
@@ -282,6 +300,7 @@ fn check_case(
     let (metas, meshes, billboard) = (&batches.metas, &geometry.meshes, &geometry.billboard);
     let input = SelectInput {
         batches: metas,
+        scales: &batches.scales,
         meshes,
         billboard,
         camera,
@@ -291,7 +310,16 @@ fn check_case(
     let u = SelectUniform::new(camera, p);
     for (backend, tally) in backends.iter().zip(tallies.iter_mut()) {
         let got = backend.run(input);
-        judge(backend, &want, &got, metas, meshes, billboard, &u, tally)?;
+        judge(
+            backend,
+            &want,
+            &got,
+            (metas, &batches.scales),
+            meshes,
+            billboard,
+            &u,
+            tally,
+        )?;
     }
     Ok(())
 }
@@ -407,6 +435,32 @@ fn gpu_select_matches_reference() {
     );
 }
 
+/// Cases of the scaled-metric property: a quarter of the main one's (each is as costly).
+const METRIC_CASES: u32 = CASES / 4;
+
+/// Issue 29: the main property under the scaled metrics (`pixel-area`, `pixel-area-seed`,
+/// `screen-error`, thresholds from a tenth to a hundred times the defaults), over the random
+/// scenes' scales (0.5-2): batches decide on their group bands, commands carry their mesh's
+/// band; near-threshold batches are classified on the group band and counted in the report.
+#[test]
+fn gpu_select_matches_reference_under_the_scaled_metrics() {
+    let metric = (1u32..4, 0.1f32..100.0);
+    run_property(
+        "scaled-metric",
+        METRIC_CASES,
+        (parity_cases(), metric),
+        |((trees, camera, p), (m, k)), backends, tallies| {
+            let p = Params {
+                lod_metric: m,
+                lod_pixel_area: 16.0 * k,
+                lod_screen_error: 2.0 * k,
+                ..p
+            };
+            check_case(trees, &camera, &p, backends, tallies)
+        },
+    );
+}
+
 /// Cases of the far-plane property.
 const FAR_PLANE_CASES: u32 = 32;
 
@@ -497,27 +551,18 @@ fn zero_batches_select_nothing() {
         ..empty_mesh_meta()
     };
     let camera = Camera::look_at([0.0, 0.0, 5.0], [100.0, 0.0, 5.0], 60.0, 64, 64);
-    let mut gpu = GpuSelect::new(ctx, &[], &[], &billboard).unwrap();
+    let mut gpu = GpuSelect::new(ctx, &[], &[], &[], &billboard).unwrap();
     for compaction in Compaction::ALL {
         let s = gpu.run(&camera, &Params::default(), compaction).unwrap();
         assert!(s.commands.is_empty() && s.data.is_empty(), "{compaction:?}");
         assert_eq!(s.counters, SelectCounters::default(), "{compaction:?}");
     }
-    let reference = select(&[], &[], &billboard, &camera, &Params::default());
+    let reference = select(&[], &[], &[], &billboard, &camera, &Params::default());
     assert!(reference.commands.is_empty());
 }
 
 fn empty_mesh_meta() -> MeshMeta {
-    MeshMeta {
-        first_index: 0,
-        index_count: 0,
-        first_vertex: 0,
-        vertex_count: 0,
-        bbox_min: [0.0; 3],
-        billboard_half_width: 0.0,
-        bbox_max: [0.0; 3],
-        sphere_radius: 0.0,
-    }
+    bytemuck::Zeroable::zeroed()
 }
 
 /// The hand-checked scene of `properties::select_properties::straddling_batches_emit_both_lods`
@@ -539,6 +584,7 @@ fn straddling_batches_emit_both_lods_on_the_gpu() {
         let s = backend
             .run(SelectInput {
                 batches: &batches.metas,
+                scales: &batches.scales,
                 meshes: &geometry.meshes,
                 billboard: &geometry.billboard,
                 camera: &camera,

@@ -195,7 +195,7 @@ proptest! {
         let p = Params { coalesce: Coalesce::Off as u32, ..p };
         let packed = Packed::new(trees, p.grid_size);
         let g = &packed.geometry;
-        let want = select(&packed.batches.metas, &g.meshes, &g.billboard, &camera, &p);
+        let want = select(&packed.batches.metas, &packed.batches.scales, &g.meshes, &g.billboard, &camera, &p);
         let h = Hierarchy::from_batches(&packed.batches, &packed.spheres, Mode::Grid);
         let got = full_cut(&h, &g.meshes, &g.billboard, &camera, &p);
         prop_assert_eq!(&got.selection, &want);

@@ -19,14 +19,16 @@ proptest! {
     /// trees that need the other LOD breaks the first assertion.
     #[test]
     fn refine_draws_the_per_tree_oracles_trees(trees in instances(300), camera in cameras(), p in params()) {
-        let Packed { geometry, spheres, batches, .. } = Packed::new(trees, p.grid_size);
+        let packed = Packed::new(trees, p.grid_size);
+        let scales = packed.scales();
+        let Packed { geometry, spheres, batches, .. } = packed;
         let oracle = select_per_tree(&spheres, &camera, &p);
         let n = batches.indirection.len() as u32;
         for mode in [TreeCull::Lod0, TreeCull::All] {
             let p = Params { tree_cull: mode as u32, ..p };
-            let original = select(&batches.metas, &geometry.meshes, &geometry.billboard, &camera, &p);
+            let original = select(&batches.metas, &batches.scales, &geometry.meshes, &geometry.billboard, &camera, &p);
             let mut s = original.clone();
-            let r = refine(&mut s, &batches.indirection, &spheres, &camera, &p);
+            let r = refine(&mut s, &batches.indirection, &spheres, &scales, &camera, &p);
             prop_assert_eq!(r.indirection.len() as u32, 3 * n);
             prop_assert_eq!(s.commands.len(), original.commands.len());
             let mut drawn = vec![[false; 2]; spheres.len()];
@@ -66,11 +68,13 @@ proptest! {
     /// Identical output with 1 and 2 rayon threads.
     #[test]
     fn refine_is_thread_count_independent(trees in instances(300), camera in cameras(), p in params()) {
-        let Packed { geometry, spheres, batches, .. } = Packed::new(trees, p.grid_size);
+        let packed = Packed::new(trees, p.grid_size);
+        let scales = packed.scales();
+        let Packed { geometry, spheres, batches, .. } = packed;
         let p = Params { tree_cull: TreeCull::All as u32, ..p };
         let run = || {
-            let mut s = select(&batches.metas, &geometry.meshes, &geometry.billboard, &camera, &p);
-            let r = refine(&mut s, &batches.indirection, &spheres, &camera, &p);
+            let mut s = select(&batches.metas, &batches.scales, &geometry.meshes, &geometry.billboard, &camera, &p);
+            let r = refine(&mut s, &batches.indirection, &spheres, &scales, &camera, &p);
             (s, r)
         };
         prop_assert_eq!(with_threads(1, run), with_threads(2, run));

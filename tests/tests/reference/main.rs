@@ -10,3 +10,4 @@ mod alternatives;
 mod baselines;
 mod embree_crosscheck;
 mod goldens;
+mod metric;
