@@ -103,6 +103,9 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("NODE_VISITED", s::NODE_VISITED),
         ("NODE_EMITTED", s::NODE_EMITTED),
         ("MAX_HIERARCHY_DEPTH", s::MAX_HIERARCHY_DEPTH),
+        ("SUBSET_WEIGHT_STEPS", s::SUBSET_WEIGHT_STEPS),
+        // An f32 constant as its bits (`bitcast<f32>` in common.wgsl): the same value, exactly.
+        ("SUBSET_FADE_BITS", s::SUBSET_FADE.to_bits()),
     ]
     .into_iter()
     .map(|(n, v)| (n.to_string(), v))
@@ -118,6 +121,7 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("COALESCE", s::Coalesce::choices()),
         ("COMMAND_ORDER", s::CommandOrder::choices()),
         ("LOD_METRIC", s::LodMetric::choices()),
+        ("SUBSET_MODE", s::SubsetMode::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {

@@ -118,8 +118,8 @@ pub fn view_uniform_layout() -> RustLayout {
         metric,
         metric_factor,
         band_ratio,
-        _pad0,
-        _pad1,
-        _pad2
+        subset_mode,
+        subset_distance,
+        subset_min
     })
 }

@@ -60,6 +60,8 @@ fn rust_layouts() -> Vec<RustLayout> {
             lod,
             billboard,
             fading,
+            first_tree,
+            group_len,
             _pad0
         }),
         rust_layout!(MeshMeta {

@@ -54,6 +54,10 @@ const VIEW_PARAMS: [&str; 4] = [
 /// (`forestlod_tests::stage_cases` walks its extremes there).
 const METRIC_PARAMS: [&str; 2] = ["lod_pixel_area", "lod_screen_error"];
 
+/// The numeric parameters of the far-field subsets (issue 29, `forestlod_shared::subset`), read
+/// by `select` (the count) and `draw` (each tree's weight) under a subset mode only.
+const SUBSET_PARAMS: [&str; 2] = ["subset_distance", "subset_min"];
+
 /// Every stage, in [`StageId::ALL`] order.
 pub const STAGES: &[StageEntry] = &[
     StageEntry {
@@ -86,7 +90,7 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/select.wgsl",
         backend: Some("stage::Select"),
         parity: "tests/tests/parity/select.rs",
-        modes: &["lod_metric"],
+        modes: &["lod_metric", "subset_mode"],
         params: &[
             "grid_size",
             VIEW_PARAMS[0],
@@ -95,6 +99,8 @@ pub const STAGES: &[StageEntry] = &[
             VIEW_PARAMS[3],
             METRIC_PARAMS[0],
             METRIC_PARAMS[1],
+            SUBSET_PARAMS[0],
+            SUBSET_PARAMS[1],
         ],
     },
     StageEntry {
@@ -166,7 +172,7 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/draw.wgsl",
         backend: Some("stage::Draw"),
         parity: "tests/tests/parity/draw.rs",
-        modes: &["fade_mode", "angle_index_mode", "lod_metric"],
+        modes: &["fade_mode", "angle_index_mode", "lod_metric", "subset_mode"],
         params: &[
             "alpha_cutoff",
             "angle_count",
@@ -177,6 +183,8 @@ pub const STAGES: &[StageEntry] = &[
             VIEW_PARAMS[3],
             METRIC_PARAMS[0],
             METRIC_PARAMS[1],
+            SUBSET_PARAMS[0],
+            SUBSET_PARAMS[1],
         ],
     },
     StageEntry {

@@ -217,6 +217,8 @@ pub fn vegetation_commands(
             lod: LOD_MESH,
             billboard: 0,
             fading: 0,
+            first_tree: 0,
+            group_len: 0,
             _pad0: 0,
         });
         indirection.extend_from_slice(trees);

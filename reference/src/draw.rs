@@ -34,7 +34,8 @@
 use forestlod_shared::coverage;
 use forestlod_shared::{
     COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, MeshMeta, Params, angle_index_for,
-    bake_elevation, billboard_extent, dither_threshold, fade_progress, lod_weights, view_interval,
+    bake_elevation, billboard_extent, dither_threshold, fade_progress, lod_weights, subset_fragment_weight, subset_pack, subset_scale,
+    subset_weight_code, view_interval,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -56,7 +57,12 @@ pub use forestlod_shared::{
     TERRAIN_CELLS, TERRAIN_MARGIN, ground_color,
 };
 
-/// Varyings of the tree pipeline: `u, v, view depth, texture layer, command index, tree scale`.
+/// Varyings of the tree pipeline: `u, v, view depth, texture layer, command index, tree scale,
+/// subset word`.
+///
+/// The subset word ([`forestlod_shared::subset_pack`], issue 29) is the tree's far-field subset
+/// weight code and its rank's dither shift, 24 bits, so exact in an `f32`, and constant over the
+/// tree like the scale.
 ///
 /// The tree scale is what the fragment scales its command's band by under a scaled LOD metric
 /// ([`forestlod_shared::ViewUniform::group_band`] with `[s, s]`: a tree's own band, the one the
@@ -66,7 +72,7 @@ pub use forestlod_shared::{
 /// 2^-53, the fragment's barycentrics lying in [0, 1]) is far below the half-ulp of the `f32`
 /// it is rounded to. The GPU twin passes it flat (`draw.wgsl`), so both read the tree's scale
 /// exactly (`raster::setup::tests::a_constant_varying_interpolates_to_itself`).
-pub const TREE_VARYINGS: usize = 6;
+pub const TREE_VARYINGS: usize = 7;
 
 /// The tree's world transform pieces the vertex stage needs.
 #[derive(Clone, Copy, Debug)]
@@ -187,6 +193,48 @@ pub fn tree_stage(
     if !within {
         return None;
     }
+    // Far-field subsets (issue 29, E§7, `forestlod_shared::subset`): the tree's rank in its
+    // batch's progressive order, its weight at its centre's view depth; weight 0 drops it, and
+    // `thin-scale` enlarges a kept tree about its base.
+    let rank = instance_index.wrapping_sub(data.first_tree);
+    let d_tree = view_interval(tree.sphere_center, 0.0, u.eye, u.forward).d;
+    let code = subset_weight_code(
+        rank,
+        data.group_len,
+        d_tree,
+        u.subset_mode,
+        u.subset_distance,
+        u.subset_min,
+    );
+    if coverage::enabled() && data.group_len > 0 && u.subset_mode != 0 {
+        coverage::hit(coverage::Threshold::DrawSubsetDrop, code == 0);
+        if code > 0 {
+            coverage::hit(
+                coverage::Threshold::DrawSubsetFade,
+                code < forestlod_shared::SUBSET_WEIGHT_STEPS,
+            );
+        }
+    }
+    if code == 0 {
+        return None;
+    }
+    let subset = subset_pack(rank, code) as f32;
+    let grow = subset_scale(d_tree, u.subset_mode, u.subset_distance, u.subset_min);
+    let tree = if grow == 1.0 {
+        tree
+    } else {
+        let drawn = Instance {
+            scale: t.scale * grow,
+            ..*t
+        };
+        let (sphere_center, sphere_radius) = tree_sphere(&drawn, mesh_meta);
+        TreeFrame {
+            scale: drawn.scale,
+            sphere_center,
+            sphere_radius,
+            ..tree
+        }
+    };
     let eye = Vec3::from(camera.eye);
     let forward = Vec3::from(u.forward);
     let kind = if data.billboard == 0 {
@@ -235,6 +283,8 @@ pub fn tree_stage(
         command,
         base: tree.base,
         scale: tree.scale,
+        band_scale: t.scale,
+        subset,
         kind,
     })
 }
@@ -244,7 +294,12 @@ pub fn tree_stage(
 pub struct TreeStage {
     command: u32,
     base: Vec3,
+    /// The scale the tree is drawn at (its own, or enlarged by `thin-scale`).
     scale: f32,
+    /// The tree's own scale: what its LOD band scales with (the selection's).
+    band_scale: f32,
+    /// The subset word ([`TREE_VARYINGS`]) as an `f32`.
+    subset: f32,
     kind: TreeKind,
 }
 
@@ -330,7 +385,15 @@ impl TreeStage {
         let clip = *view_proj * Vec4::new(world.x, world.y, world.z, 1.0);
         Vertex::new(
             clip.to_array(),
-            [uv[0], uv[1], depth, layer, self.command as f32, self.scale],
+            [
+                uv[0],
+                uv[1],
+                depth,
+                layer,
+                self.command as f32,
+                self.band_scale,
+                self.subset,
+            ],
         )
     }
 }
@@ -359,7 +422,7 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
         f: &Fragment<TREE_VARYINGS>,
         passes: PassSet,
     ) -> Option<(FragmentOutput, PassSet)> {
-        let [u, v, depth, layer, command, scale] = f.varyings;
+        let [u, v, depth, layer, command, scale, subset] = f.varyings;
         // `round_exact` is `f32::round` bit for bit, without a libm call (issue 14).
         let data = &self.selection.data[round_exact(command) as usize];
         let layer = round_exact(layer) as u32;
@@ -398,18 +461,21 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
             hit(DrawFadeStart, depth >= fade_start);
             hit(DrawFadeEnd, depth >= fade_end);
         }
+        let (px, py) = (f.x + self.pixel_origin[0], f.y + self.pixel_origin[1]);
         let weight = if data.fading != 0 {
             lod_weights(
                 self.fade,
                 depth,
                 fade_start,
                 fade_end,
-                dither_threshold(f.x + self.pixel_origin[0], f.y + self.pixel_origin[1]),
+                dither_threshold(px, py),
             )
             .of(data.lod)
         } else {
             1.0
         };
+        // A tree leaving its far-field subset fades by its own screen door (issue 29).
+        let weight = weight * subset_fragment_weight(round_exact(subset) as u32, self.fade as u32, px, py);
         if coverage::enabled()
             && data.fading != 0
             && matches!(self.fade, FadeMode::Dither | FadeMode::DitherSequential)

@@ -154,6 +154,8 @@ pub fn resolve_and_compact(
             fading: needs.both(),
             fade_start: mesh_band[0],
             fade_end: mesh_band[1],
+            // Far-field subsets are the grid's (issue 29): a node draws all its trees.
+            count: n.len,
         };
         for (lod, wanted) in [(LOD_MESH, needs.lod0), (LOD_BILLBOARD, needs.lod1)] {
             if !wanted {

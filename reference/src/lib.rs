@@ -55,6 +55,7 @@ pub mod refine;
 pub mod sampler;
 pub mod scene;
 pub mod select;
+pub mod subset;
 pub mod texture;
 
 pub use error::InputError;

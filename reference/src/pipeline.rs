@@ -73,7 +73,14 @@ pub fn group_trees(
     let hierarchy = Hierarchy::build(scene, meshes, params)?;
     let batches = match &hierarchy {
         Some(h) => h.leaf_batches(params.grid_size),
-        None => build_batches(scene, meshes, params.grid_size)?,
+        None => {
+            let mut batches = build_batches(scene, meshes, params.grid_size)?;
+            // Far-field subsets draw prefixes of each batch (issue 29, E§7): their order.
+            if params.subset()? != forestlod_shared::SubsetMode::Off {
+                crate::subset::order_batches(scene, &mut batches);
+            }
+            batches
+        }
     };
     Ok((hierarchy, batches))
 }

@@ -88,6 +88,7 @@ pub fn select_batch(
         fading: needs.both(),
         fade_start: mesh_band[0],
         fade_end: mesh_band[1],
+        count: batch_count(u, batch),
     };
     // The slot (and so `base_vertex`) is assigned by the compaction.
     let emit = |lod| emit_command(0, &group, lod, &meshes[batch.mesh as usize], billboard);
@@ -98,6 +99,14 @@ pub fn select_batch(
             needs.lod1.then(|| emit(LOD_BILLBOARD)),
         ],
     )
+}
+
+/// How many of the batch's trees its commands draw: all, or its far-field subset's count from the
+/// near end of its view-depth interval ([`forestlod_shared::subset_count`], issue 29, E§7). The
+/// interval is the batch sphere's own, not the group band's: the subset is a distance rule.
+pub fn batch_count(u: &SelectUniform, batch: &BatchMeta) -> u32 {
+    let lo = view_interval(batch.center, batch.radius, u.eye, u.forward).lo;
+    u.subset_count(batch.len, lo)
 }
 
 /// Threshold coverage (test-only, [`forestlod_shared::coverage`]): the sides of `select`'s
@@ -126,6 +135,9 @@ fn cover_select(u: &SelectUniform, batch: &BatchMeta, decision: Decision) {
     if let Decision::Draw(n) = decision {
         hit(SelectFadeEnd, n.lod0);
         hit(SelectFadeStart, n.lod1);
+        if n.lod0 || n.lod1 {
+            hit(SelectSubset, batch_count(u, batch) < batch.len);
+        }
     }
 }
 

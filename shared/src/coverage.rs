@@ -83,10 +83,16 @@ pub enum Threshold {
     DrawDither,
     /// `draw`: a drawn fading fragment writes a LOD id other than / the transition id.
     DrawTransitionId,
+    /// `select`: a drawn batch's commands draw all its trees / a far-field subset (issue 29).
+    SelectSubset,
+    /// `draw`, vertex stage: a tree in its command has a subset weight above 0 / of 0 (dropped).
+    DrawSubsetDrop,
+    /// `draw`, vertex stage: a kept tree's subset weight is whole / fading (a screen door).
+    DrawSubsetFade,
 }
 
 /// Every threshold, in table order.
-pub const ALL: [Threshold; 30] = {
+pub const ALL: [Threshold; 33] = {
     use Threshold::*;
     [
         SelectDrawDistance,
@@ -119,6 +125,9 @@ pub const ALL: [Threshold; 30] = {
         DrawFadeEnd,
         DrawDither,
         DrawTransitionId,
+        SelectSubset,
+        DrawSubsetDrop,
+        DrawSubsetFade,
     ]
 };
 
@@ -181,6 +190,9 @@ impl Threshold {
             DrawFadeEnd => ("draw: fading fragment vs fade end", "before", "at/past"),
             DrawDither => ("draw: dithered weight", "0 (discarded)", "1"),
             DrawTransitionId => ("draw: fading fragment's LOD id", "other", "transition"),
+            SelectSubset => ("select: drawn batch's trees", "all", "a subset"),
+            DrawSubsetDrop => ("draw: tree's subset weight", "above 0", "0 (dropped)"),
+            DrawSubsetFade => ("draw: kept tree's subset weight", "whole", "fading"),
         }
     }
 }

@@ -32,6 +32,9 @@ pub struct EmitGroup {
     pub fade_start: f32,
     /// The frame's fade band end.
     pub fade_end: f32,
+    /// How many of its trees the commands draw: `len`, or the far-field subset's count
+    /// ([`crate::ViewUniform::subset_count`], issue 29).
+    pub count: u32,
 }
 
 /// The command of `group` at `lod` in output slot `slot`: over the index range of `mesh` (the
@@ -46,7 +49,7 @@ pub fn emit_command(
     let range = if lod == LOD_MESH { mesh } else { billboard };
     let command = DrawCommand {
         index_count: range.index_count,
-        instance_count: group.len,
+        instance_count: group.count,
         first_index: range.first_index,
         base_vertex: (slot << COMMAND_SHIFT) as i32,
         first_instance: group.offset,
@@ -59,6 +62,8 @@ pub fn emit_command(
         lod,
         billboard: (lod == LOD_BILLBOARD) as u32,
         fading: group.fading as u32,
+        first_tree: group.offset,
+        group_len: group.len,
         _pad0: 0,
     };
     (command, data)

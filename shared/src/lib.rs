@@ -42,6 +42,7 @@ pub mod metric;
 pub mod modes;
 pub mod params;
 pub mod registry;
+pub mod subset;
 pub mod terrain;
 pub mod types;
 mod validate;
@@ -72,6 +73,10 @@ pub use params::{
     AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,
 };
 pub use registry::{PARAMS, ParamKind, ParamSpec, param};
+pub use subset::{
+    SUBSET_FADE, SUBSET_WEIGHT_STEPS, SubsetMode, subset_count, subset_density,
+    subset_dither_shift, subset_fragment_weight, subset_pack, subset_scale, subset_weight_code,
+};
 pub use terrain::{
     TERRAIN_CELLS, TERRAIN_MARGIN, TERRAIN_SINK, ground_color, terrain_grid,
     terrain_grid_triangles, terrain_grid_vertices, terrain_vertex,

@@ -195,8 +195,17 @@ pub struct Params {
     /// the built-in species' mean geometric error is 3.0 m (1.8 to 6.0 m), so at 720 rows and
     /// 60° the mean unit-scale tree changes at 3.0 · 623.5 / 2 = 930 m.
     pub lod_screen_error: f32,
+    /// [`crate::SubsetMode`] as `u32` (issue 29, E§7 far-field subsets). Default `Off` (the
+    /// thesis): every tree of a drawn batch is drawn.
+    pub subset_mode: u32,
+    /// View depth past which a batch draws a subset of its trees, metres (`shared/src/subset.rs`).
+    /// Default 1000 m, the thesis's transition: the subsets thin the billboards only.
+    pub subset_distance: f32,
+    /// The least density a subset keeps, `ρ_min` in `(0, 1]`. Default 0.125: past
+    /// `subset_distance · √8` (2.8 km at the default) one tree in eight is drawn.
+    pub subset_min: f32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 80);
+const _: () = assert!(core::mem::size_of::<Params>() == 92);
 
 impl Default for Params {
     fn default() -> Self {
@@ -221,6 +230,9 @@ impl Default for Params {
             lod_metric: crate::LodMetric::Distance as u32,
             lod_pixel_area: 16.0,
             lod_screen_error: 2.0,
+            subset_mode: crate::SubsetMode::Off as u32,
+            subset_distance: 1000.0,
+            subset_min: 0.125,
         }
     }
 }

@@ -18,7 +18,7 @@ use std::borrow::Cow;
 
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{
-    AngleIndexMode, Coalesce, CommandOrder, FadeMode, Hierarchy, LodMetric, MipMode, Params,
+    AngleIndexMode, Coalesce, CommandOrder, FadeMode, Hierarchy, LodMetric, SubsetMode, MipMode, Params,
     TreeCull,
 };
 
@@ -326,7 +326,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 20] = [
+pub const PARAMS: [ParamSpec; 23] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -362,7 +362,16 @@ pub const PARAMS: [ParamSpec; 20] = [
     param!(lod_screen_error, "screen-error", float(MIN_METRIC_THRESHOLD, MAX_METRIC_THRESHOLD),
         "expected a finite error in 1e-6..=1e9 px",
         "Screen-error metric: billboard once its geometric error covers at most this many px (3D Tiles)"),
+    choice!(subset_mode, "subset", SubsetMode, "Far-field subsets of each batch's trees (issue 29): ", " (E§7)"),
+    param!(subset_distance, "subset-distance", distance(0.0), "expected a finite distance in 0..=1e7 m",
+        "View depth past which batches draw a thinning subset of their trees, metres (E§7)"),
+    param!(subset_min, "subset-min", float(MIN_SUBSET_DENSITY, 1.0), "expected a finite density in 0.001..=1",
+        "Least density of a far-field subset, in 0.001..=1 (E§7)"),
 ];
+
+/// Least `subset_min`: one tree in a thousand (a smaller floor leaves batches of a few hundred
+/// trees with none, which is a draw distance, not a subset).
+pub const MIN_SUBSET_DENSITY: f32 = 0.001;
 
 /// Least pixel-area or screen-error threshold: below it every tree is a mesh out to 1e7 m.
 pub const MIN_METRIC_THRESHOLD: f32 = 1.0e-6;

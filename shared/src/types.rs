@@ -133,10 +133,17 @@ pub struct CommandData {
     pub billboard: u32,
     /// 1 when the batch's interval overlaps the fade band, so the fragment stage must fade.
     pub fading: u32,
+    /// The indirection index of rank 0 of the command's group (its batch's offset): a tree's
+    /// rank in its batch's subset order is `instance_index - first_tree` (issue 29, E§7
+    /// far-field subsets, `shared/src/subset.rs`).
+    pub first_tree: u32,
+    /// Trees in the command's group (the batch's `len`; `instance_count` is at most it); 0 when
+    /// the command's instances carry no subset rank (baselines, refined and coalesced commands).
+    pub group_len: u32,
     /// Explicit padding.
     pub _pad0: u32,
 }
-const _: () = assert!(core::mem::size_of::<CommandData>() == 32);
+const _: () = assert!(core::mem::size_of::<CommandData>() == 40);
 
 /// Per-mesh metadata for command generation and billboards (E§4.1).
 ///

@@ -55,11 +55,31 @@ impl Params {
         crate::LodMetric::from_id(self.lod_metric).ok_or_else(|| rejected("lod_metric", self))
     }
 
+    /// The far-field subset mode (issue 29), validated.
+    pub fn subset(&self) -> Result<crate::SubsetMode, ParamError> {
+        crate::SubsetMode::from_id(self.subset_mode).ok_or_else(|| rejected("subset_mode", self))
+    }
+
     /// Checks every field against the parameter table ([`crate::registry::PARAMS`], in its
     /// order), returning the first impossible one. Nothing downstream runs on invalid parameters,
     /// so no stage needs to guard against NaN or zero divisors (SPEC §7).
     pub fn validate(&self) -> Result<(), ParamError> {
-        PARAMS.iter().try_for_each(|spec| spec.check(self))
+        PARAMS.iter().try_for_each(|spec| spec.check(self))?;
+        // Far-field subsets (issue 29) rank a tree by its place in its grid batch's range: a
+        // hierarchy's node ranges and refine's compacted ranges carry no such rank.
+        let subset = self.subset()?;
+        if subset != crate::SubsetMode::Off
+            && (self.hierarchy_mode()? != Hierarchy::Grid || self.tree_culling()? != TreeCull::None)
+        {
+            return Err(ParamError {
+                field: "subset_mode",
+                value: subset.name().to_string(),
+                reason: "far-field subsets need hierarchy = grid and tree_cull = none (a subset \
+                         ranks trees within a grid batch's range)"
+                    .into(),
+            });
+        }
+        Ok(())
     }
 }
 

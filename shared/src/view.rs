@@ -110,12 +110,12 @@ pub struct ViewUniform {
     pub metric_factor: f32,
     /// The scaled bands' start over end ([`crate::band_ratio`]).
     pub band_ratio: f32,
-    /// Explicit padding.
-    pub _pad0: u32,
-    /// Explicit padding.
-    pub _pad1: u32,
-    /// Explicit padding.
-    pub _pad2: u32,
+    /// The [`crate::SubsetMode`] id (issue 29, `shared/src/subset.rs`).
+    pub subset_mode: u32,
+    /// View depth past which batches draw a subset, `Params::subset_distance`.
+    pub subset_distance: f32,
+    /// The least subset density, `Params::subset_min`.
+    pub subset_min: f32,
 }
 const _: () = assert!(size_of::<ViewUniform>() == 160);
 
@@ -133,9 +133,9 @@ impl ViewUniform {
             metric: params.lod_metric,
             metric_factor: metric_factor(camera, params),
             band_ratio: band_ratio(params),
-            _pad0: 0,
-            _pad1: 0,
-            _pad2: 0,
+            subset_mode: params.subset_mode,
+            subset_distance: params.subset_distance,
+            subset_min: params.subset_min,
         }
     }
 
@@ -163,6 +163,12 @@ impl ViewUniform {
             return mesh_band;
         }
         [scale[0] * mesh_band[0], scale[1] * mesh_band[1]]
+    }
+
+    /// How many of a group's `len` trees its commands draw when its nearest view depth is `lo`
+    /// ([`crate::subset_count`] on these constants).
+    pub fn subset_count(&self, len: u32, lo: f32) -> u32 {
+        crate::subset_count(len, lo, self.subset_mode, self.subset_distance, self.subset_min)
     }
 
     /// These view constants with the band `[start, end]` in place of the frame's: what the

@@ -108,7 +108,18 @@ pub fn skips(stage: StageId, param: &str, choice: &str) -> bool {
 pub const READ_ONLY_UNDER: &[(&str, &str, &str)] = &[
     ("lod_pixel_area", "lod_metric", "pixel-area"),
     ("lod_screen_error", "lod_metric", "screen-error"),
+    ("subset_distance", "subset_mode", "thin"),
+    ("subset_min", "subset_mode", "thin"),
 ];
+
+/// Makes a case's parameters coherent ([`Params::validate`]'s cross-field rule): far-field
+/// subsets rank trees within a grid batch, so a case that turns them on drops the flat base's
+/// per-tree refinement (`tree_cull = none`; refine is skipped there, as the plan says).
+pub fn coherent(p: &mut Params) {
+    if p.subset_mode != forestlod_shared::SubsetMode::Off as u32 {
+        p.tree_cull = TreeCull::None as u32;
+    }
+}
 
 /// The base frame of a stage (module docs): the cut's stages on the octree cut, the rest flat.
 pub fn base(stage: StageId) -> (&'static str, Params) {
@@ -172,7 +183,8 @@ pub fn scene(name: &str) -> forestlod_reference::scene::Scene {
 /// Every case of the walk (module docs), merged where equal.
 pub fn stage_cases() -> Vec<StageCase> {
     let mut out: Vec<StageCase> = Vec::new();
-    let mut push = |name: String, scene: &'static str, params: Params, target: Target| {
+    let mut push = |name: String, scene: &'static str, mut params: Params, target: Target| {
+        coherent(&mut params);
         if let Some(c) = out
             .iter_mut()
             .find(|c| c.scene == scene && c.params == params)

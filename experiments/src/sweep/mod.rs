@@ -92,7 +92,10 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 17] = [
         include_str!("../../sweeps/command_order.toml"),
     ),
     ("lod_metric", include_str!("../../sweeps/lod_metric.toml")),
-    ("celba_detail", include_str!("../../sweeps/celba_detail.toml")),
+    (
+        "celba_detail",
+        include_str!("../../sweeps/celba_detail.toml"),
+    ),
 ];
 
 /// Options of `forestlod sweep` (`Default`: no file, no override, an empty `out`).

@@ -69,6 +69,8 @@ struct CommandData {
     lod: u32,
     billboard: u32,
     fading: u32,
+    first_tree: u32,
+    group_len: u32,
     _pad0: u32,
 }
 
@@ -186,9 +188,9 @@ struct ViewUniform {
     metric: u32,
     metric_factor: f32,
     band_ratio: f32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
+    subset_mode: u32,
+    subset_distance: f32,
+    subset_min: f32,
 }
 
 // forestlod_shared::ViewUniform::mesh_band (shared/src/metric.rs): the band of a tree of mesh
@@ -559,10 +561,84 @@ struct EmittedCommand {
 
 fn emit_command(
     slot: u32, index: u32, mesh: u32, len: u32, offset: u32, fading: bool, lod: u32,
-    first_index: u32, index_count: u32, view: ViewUniform,
+    first_index: u32, index_count: u32, view: ViewUniform, count: u32,
 ) -> EmittedCommand {
     return EmittedCommand(
-        DrawCommand(index_count, len, first_index, i32(slot << COMMAND_SHIFT), offset),
-        CommandData(view.fade_start, view.fade_end, index, mesh, lod, u32(lod == LOD_BILLBOARD), u32(fading), 0u),
+        DrawCommand(index_count, count, first_index, i32(slot << COMMAND_SHIFT), offset),
+        CommandData(view.fade_start, view.fade_end, index, mesh, lod, u32(lod == LOD_BILLBOARD), u32(fading), offset, len, 0u),
     );
+}
+
+// forestlod_shared::subset (shared/src/subset.rs): far-field subsets (issue 29, E§7). The
+// SUBSET_MODE_* ids, SUBSET_WEIGHT_STEPS and SUBSET_FADE_BITS are generated from Rust.
+// forestlod_shared::SUBSET_FADE, from its bits (naga takes no bitcast in a const).
+fn subset_fade() -> f32 {
+    return bitcast<f32>(SUBSET_FADE_BITS);
+}
+
+// forestlod_shared::subset_density.
+fn subset_density(d: f32, d_sub: f32, rho_min: f32) -> f32 {
+    if !(d > d_sub) {
+        return 1.0;
+    }
+    let r = d_sub / d;
+    return max(r * r, rho_min);
+}
+
+// forestlod_shared::subset_count.
+fn subset_count(len: u32, lo: f32, v: ViewUniform) -> u32 {
+    if v.subset_mode == SUBSET_MODE_OFF {
+        return len;
+    }
+    let rho = subset_density(lo, v.subset_distance, v.subset_min);
+    if rho >= 1.0 {
+        return len;
+    }
+    let want = u32(ceil(rho * (1.0 + subset_fade()) * f32(len)));
+    return min(want + 1u, len);
+}
+
+// forestlod_shared::subset_weight_code.
+fn subset_weight_code(rank: u32, len: u32, d: f32, v: ViewUniform) -> u32 {
+    if v.subset_mode == SUBSET_MODE_OFF || len == 0u {
+        return SUBSET_WEIGHT_STEPS;
+    }
+    let rho = subset_density(d, v.subset_distance, v.subset_min);
+    if rho >= 1.0 {
+        return SUBSET_WEIGHT_STEPS;
+    }
+    let q = (f32(rank) + 0.5) / f32(len);
+    let w = clamp((rho * (1.0 + subset_fade()) - q) / (rho * subset_fade()), 0.0, 1.0);
+    return u32(w * f32(SUBSET_WEIGHT_STEPS) + 0.5);
+}
+
+// forestlod_shared::subset_scale.
+fn subset_scale(d: f32, v: ViewUniform) -> f32 {
+    if v.subset_mode != SUBSET_MODE_THIN_SCALE || !(d > v.subset_distance) {
+        return 1.0;
+    }
+    let r = v.subset_distance / d;
+    if r * r > v.subset_min {
+        return d / v.subset_distance;
+    }
+    return 1.0 / sqrt(v.subset_min);
+}
+
+// forestlod_shared::subset_pack.
+fn subset_pack(rank: u32, code: u32) -> u32 {
+    return (((rank * 0x9E3779B9u) >> 16u) << 8u) | (code & 0xFFu);
+}
+
+// forestlod_shared::subset_fragment_weight.
+fn subset_fragment_weight(packed: u32, fade_mode: u32, x: u32, y: u32) -> f32 {
+    let code = packed & 0xFFu;
+    if code >= SUBSET_WEIGHT_STEPS {
+        return 1.0;
+    }
+    let w = f32(code) * (1.0 / f32(SUBSET_WEIGHT_STEPS));
+    if fade_mode == FADE_ALPHA {
+        return w;
+    }
+    let h = dither_threshold(x + (packed >> 8u), y);
+    return select(0.0, 1.0, h < w);
 }

@@ -91,7 +91,7 @@ fn cull_commands() {
         if count > 0u {
             let mesh = meshes[m];
             commands[n] = DrawCommand(mesh.index_count, count, mesh.first_index, i32(n << COMMAND_SHIFT), offset);
-            command_data[n] = CommandData(u.view.fade_start, u.view.fade_end, 0u, m, LOD_MESH, 0u, 0u, 0u);
+            command_data[n] = CommandData(u.view.fade_start, u.view.fade_end, 0u, m, LOD_MESH, 0u, 0u, 0u, 0u, 0u);
             n += 1u;
         }
         offset += count;

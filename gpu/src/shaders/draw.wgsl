@@ -75,9 +75,10 @@ struct TreeVaryings {
     // `uv` and the view depth `(p - eye) · forward`, clamped to the tree's sphere interval for
     // billboards.
     @location(0) uv_depth: vec3<f32>,
-    // Texture layer, command index, and the tree's scale as bits (what a scaled LOD metric
-    // scales the command's band by, C§4.6).
-    @location(1) @interpolate(flat) layer_command_scale: vec3<u32>,
+    // Texture layer, command index, the tree's scale as bits (what a scaled LOD metric
+    // scales the command's band by, C§4.6), and its far-field subset word (common.wgsl
+    // `subset_pack`, issue 29).
+    @location(1) @interpolate(flat) layer_command_scale: vec4<u32>,
 }
 
 struct TargetOutput {
@@ -125,7 +126,7 @@ fn tree_vertex(
     var out: TreeVaryings;
     out.clip = DISCARDED_POSITION;
     out.uv_depth = vec3<f32>(0.0, 0.0, 0.0);
-    out.layer_command_scale = vec3<u32>(0u, 0u, 0u);
+    out.layer_command_scale = vec4<u32>(0u, 0u, 0u, 0u);
     let command = vertex_index >> COMMAND_SHIFT;
     let local = vertex_index & (MAX_MESH_VERTICES - 1u);
     // Without a count buffer the multi-draw runs every slot; slots past the count may hold a
@@ -135,11 +136,25 @@ fn tree_vertex(
     }
     let data = command_data[command];
     let tree_index = indirection[instance_index];
-    let t = instances[tree_index];
+    var t = instances[tree_index];
     let mesh_meta = meshes[t.mesh];
-    let sphere = tree_sphere(t, mesh_meta);
+    var sphere = tree_sphere(t, mesh_meta);
     if !tree_within_draw_distance(sphere.center) {
         return out;
+    }
+    // Far-field subsets (reference tree_stage; common.wgsl subset_*): weight 0 drops the tree,
+    // `thin-scale` enlarges a kept one about its base.
+    let rank = instance_index - data.first_tree;
+    let d_tree = view_interval(sphere.center, 0.0, u.view.eye, u.view.forward).d;
+    let code = subset_weight_code(rank, data.group_len, d_tree, u.view);
+    if code == 0u {
+        return out;
+    }
+    let band_scale = t.scale;
+    let grow = subset_scale(d_tree, u.view);
+    if grow != 1.0 {
+        t.scale = t.scale * grow;
+        sphere = tree_sphere(t, mesh_meta);
     }
     let base = vec3<f32>(t.position[0], t.position[1], t.position[2]);
     var world: vec3<f32>;
@@ -190,7 +205,7 @@ fn tree_vertex(
     }
     out.clip = u.view_proj * vec4<f32>(world, 1.0);
     out.uv_depth = vec3<f32>(uv, depth);
-    out.layer_command_scale = vec3<u32>(layer, command, bitcast<u32>(t.scale));
+    out.layer_command_scale = vec4<u32>(layer, command, bitcast<u32>(band_scale), subset_pack(rank, code));
     return out;
 }
 
@@ -225,6 +240,11 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
         );
         weight = lod_weight_of(w, data.lod);
     }
+    // A tree leaving its far-field subset fades by its own screen door (issue 29).
+    let pixel = vec2<u32>(in.clip.xy);
+    weight = weight * subset_fragment_weight(
+        in.layer_command_scale.w, u.fade_mode, pixel.x + u.pixel_origin_x, pixel.y + u.pixel_origin_y,
+    );
     if weight <= 0.0 {
         discard;
     }

@@ -143,7 +143,7 @@ fn emit(slot: u32, i: u32, n: NodeMeta, lod: u32, fading: bool) {
     }
     // Commands carry the mesh's band at unit scale; the draw scales it per tree.
     let view = with_band(u.view, mesh_band(u.view, meshes[n.mesh]));
-    let e = emit_command(slot, i, n.mesh, n.len, n.offset, fading, lod, first_index, index_count, view);
+    let e = emit_command(slot, i, n.mesh, n.len, n.offset, fading, lod, first_index, index_count, view, n.len);
     commands[slot] = e.command;
     command_data[slot] = e.data;
 }

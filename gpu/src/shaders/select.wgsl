@@ -56,6 +56,14 @@ fn decide(b: BatchMeta, index: u32) -> u32 {
     return decide_view(center, b.radius, with_band(u.view, band));
 }
 
+// How many of the batch's trees its commands draw: all, or its far-field subset's count from the
+// near end of its view-depth interval (common.wgsl `subset_count`, issue 29, E§7).
+fn batch_count(b: BatchMeta) -> u32 {
+    let center = vec3<f32>(b.center[0], b.center[1], b.center[2]);
+    let lo = view_interval(center, b.radius, u.view.eye, u.view.forward).lo;
+    return subset_count(b.len, lo, u.view);
+}
+
 // The batch's counter contributions (the reference's compaction loop, per batch); returns the
 // first slot of a contiguous range of `command_count(decision)` slots reserved on the counter.
 fn count(b: BatchMeta, decision: u32) -> u32 {
@@ -84,7 +92,7 @@ fn count(b: BatchMeta, decision: u32) -> u32 {
     if n == 0u {
         return 0u;
     }
-    atomicAdd(&counters.instances, b.len * n);
+    atomicAdd(&counters.instances, batch_count(b) * n);
     return atomicAdd(&counters.commands, n);
 }
 
@@ -107,7 +115,7 @@ fn emit(slot: u32, index: u32, b: BatchMeta, lod: u32, fading: bool) {
     }
     // Commands carry the mesh's band at unit scale; the draw scales it per tree.
     let view = with_band(u.view, mesh_band(u.view, meshes[b.mesh]));
-    let e = emit_command(slot, index, b.mesh, b.len, b.offset, fading, lod, first_index, index_count, view);
+    let e = emit_command(slot, index, b.mesh, b.len, b.offset, fading, lod, first_index, index_count, view, batch_count(b));
     commands[slot] = e.command;
     command_data[slot] = e.data;
 }

@@ -352,6 +352,8 @@ fn gpu_coalescing_ignores_stale_slots_past_the_count() {
             lod: forestlod_shared::LOD_MESH,
             billboard: 0,
             fading: 0,
+            first_tree: 0,
+            group_len: 0,
             _pad0: 0,
         });
     }
