@@ -34,8 +34,8 @@
 use forestlod_shared::coverage;
 use forestlod_shared::{
     COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, MeshMeta, Params, angle_index_for,
-    bake_elevation, billboard_extent, dither_threshold, fade_progress, lod_weights, subset_fragment_weight, subset_pack, subset_scale,
-    subset_weight_code, view_interval,
+    bake_elevation, billboard_extent, dither_threshold, fade_progress, lod_weights,
+    subset_fragment_weight, subset_pack, subset_scale, subset_weight_code, view_interval,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -475,7 +475,8 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
             1.0
         };
         // A tree leaving its far-field subset fades by its own screen door (issue 29).
-        let weight = weight * subset_fragment_weight(round_exact(subset) as u32, self.fade as u32, px, py);
+        let weight =
+            weight * subset_fragment_weight(round_exact(subset) as u32, self.fade as u32, px, py);
         if coverage::enabled()
             && data.fading != 0
             && matches!(self.fade, FadeMode::Dither | FadeMode::DitherSequential)

@@ -84,10 +84,7 @@ pub fn progressive_order(ids: &[u32], xy: &[[f32; 2]]) -> Vec<u32> {
             if occupied.contains_key(&cell) {
                 continue;
             }
-            let centre = [
-                (cell.0 as f64 + 0.5) / cells,
-                (cell.1 as f64 + 0.5) / cells,
-            ];
+            let centre = [(cell.0 as f64 + 0.5) / cells, (cell.1 as f64 + 0.5) / cells];
             let d2 = (unit[i][0] - centre[0]).powi(2) + (unit[i][1] - centre[1]).powi(2);
             let e = best.entry(cell).or_insert((d2, i));
             if (d2, i) < *e {

@@ -18,8 +18,8 @@ use std::borrow::Cow;
 
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{
-    AngleIndexMode, Coalesce, CommandOrder, FadeMode, Hierarchy, LodMetric, SubsetMode, MipMode, Params,
-    TreeCull,
+    AngleIndexMode, Coalesce, CommandOrder, FadeMode, Hierarchy, LodMetric, MipMode, Params,
+    SubsetMode, TreeCull,
 };
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.

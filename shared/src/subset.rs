@@ -196,7 +196,10 @@ mod tests {
             assert_eq!(subset_count(100, 10.0, mode, 500.0, 0.1), 100);
             assert_eq!(subset_weight_code(99, 100, 499.0, mode, 500.0, 0.1), 255);
         }
-        assert_eq!(subset_count(100, 1e4, SubsetMode::Off as u32, 500.0, 0.1), 100);
+        assert_eq!(
+            subset_count(100, 1e4, SubsetMode::Off as u32, 500.0, 0.1),
+            100
+        );
         assert_eq!(subset_weight_code(99, 100, f32::NAN, THIN, 500.0, 0.1), 255);
     }
 
@@ -233,9 +236,15 @@ mod tests {
         let kept = (0..n)
             .filter(|i| subset_fragment_weight(packed, 3, i % 256, i / 256) == 1.0)
             .count();
-        assert!((kept as f32 / n as f32 - 128.0 / 255.0).abs() < 0.02, "{kept}");
+        assert!(
+            (kept as f32 / n as f32 - 128.0 / 255.0).abs() < 0.02,
+            "{kept}"
+        );
         assert_eq!(subset_fragment_weight(subset_pack(5, 255), 3, 1, 1), 1.0);
-        assert_eq!(subset_fragment_weight(subset_pack(5, 51), 1, 1, 1), 51.0 * (1.0 / 255.0));
+        assert_eq!(
+            subset_fragment_weight(subset_pack(5, 51), 1, 1, 1),
+            51.0 * (1.0 / 255.0)
+        );
         assert!(subset_pack(u32::MAX, 255) < 1 << 24);
     }
 }

@@ -168,7 +168,13 @@ impl ViewUniform {
     /// How many of a group's `len` trees its commands draw when its nearest view depth is `lo`
     /// ([`crate::subset_count`] on these constants).
     pub fn subset_count(&self, len: u32, lo: f32) -> u32 {
-        crate::subset_count(len, lo, self.subset_mode, self.subset_distance, self.subset_min)
+        crate::subset_count(
+            len,
+            lo,
+            self.subset_mode,
+            self.subset_distance,
+            self.subset_min,
+        )
     }
 
     /// These view constants with the band `[start, end]` in place of the frame's: what the

@@ -11,6 +11,7 @@
 //!   node order;
 //! - [`tree_assembly_properties`]: the tree draw's input assembly in pieces (issue 14) against
 //!   the plain multi-draw;
+//! - [`subset_properties`]: far-field subsets (issue 29): even prefixes, counts against weights;
 //! - [`extremes`]: the numerical-extremes catalogue of SPEC §7.
 //!
 //! Run one module with `cargo test -p forestlod-tests --test properties <module>::`. proptest
@@ -23,4 +24,5 @@ mod extremes;
 mod hierarchy_properties;
 mod refine_properties;
 mod select_properties;
+mod subset_properties;
 mod tree_assembly_properties;
