@@ -321,18 +321,43 @@ pub fn batching_counts(
     params: &Params,
 ) -> BatchingCounts {
     let u = SelectUniform::new(camera, params);
+    let bands = vec![[u.fade_start, u.fade_end]; spheres.len()];
+    batching_counts_banded(spheres, &bands, indirection, selection, camera, params)
+}
+
+/// [`batching_counts`] against the per-tree oracle on each tree's own band (`bands[i]`,
+/// [`tree_bands`]): the counts of a frame under a scaled LOD metric (issue 29), whose grouped
+/// selection is conservative against that oracle, not against the frame band's. Under far-field
+/// subsets a command's whole group counts as commanded: the trees past its subset count are
+/// dropped by design (their price is in the image error and `trees_drawn`), not missed.
+pub fn batching_counts_banded(
+    spheres: &[([f32; 3], f32)],
+    bands: &[[f32; 2]],
+    indirection: &[u32],
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+) -> BatchingCounts {
+    let u = SelectUniform::new(camera, params);
     // Bit 0: LOD0 commanded, bit 1: LOD1 commanded.
     let mut commanded = vec![0u8; spheres.len()];
     for (cmd, data) in selection.commands.iter().zip(&selection.data) {
         let bit = if data.lod == LOD_MESH { 1 } else { 2 };
-        let range = cmd.first_instance as usize..(cmd.first_instance + cmd.instance_count) as usize;
+        // Subsets need the grid and no refine (Params::validate): `first_instance` is the
+        // group's first tree there.
+        let len = if u.subset_mode != 0 {
+            cmd.instance_count.max(data.group_len)
+        } else {
+            cmd.instance_count
+        };
+        let range = cmd.first_instance as usize..(cmd.first_instance + len) as usize;
         for &tree in &indirection[range] {
             if tree_within_draw_distance(&u, spheres[tree as usize].0) {
                 commanded[tree as usize] |= bit;
             }
         }
     }
-    let oracle = select_per_tree(spheres, camera, params);
+    let oracle = select_per_tree_banded(spheres, bands, camera, params);
     let mut c = BatchingCounts::default();
     for (got, want) in commanded.iter().zip(&oracle) {
         let need = want.needs();

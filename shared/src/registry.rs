@@ -362,7 +362,7 @@ pub const PARAMS: [ParamSpec; 23] = [
     param!(lod_screen_error, "screen-error", float(MIN_METRIC_THRESHOLD, MAX_METRIC_THRESHOLD),
         "expected a finite error in 1e-6..=1e9 px",
         "Screen-error metric: billboard once its geometric error covers at most this many px (3D Tiles)"),
-    choice!(subset_mode, "subset", SubsetMode, "Far-field subsets of each batch's trees (issue 29): ", " (E§7)"),
+    choice!(subset_mode, "subset", SubsetMode, "Far-field subsets of each batch's trees (issue 29): ", ""),
     param!(subset_distance, "subset-distance", distance(0.0), "expected a finite distance in 0..=1e7 m",
         "View depth past which batches draw a thinning subset of their trees, metres (E§7)"),
     param!(subset_min, "subset-min", float(MIN_SUBSET_DENSITY, 1.0), "expected a finite density in 0.001..=1",

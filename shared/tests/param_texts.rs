@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 17] = [
+const PINNED: [(&str, &str, &str); 23] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -91,6 +91,36 @@ const PINNED: [(&str, &str, &str); 17] = [
         "command_order",
         "expected 0 (node) or 1 (front-to-back)",
         "Order of the hierarchical cut's commands after coalescing: node, front-to-back (E§7 distance-sorted)",
+    ),
+    (
+        "lod_metric",
+        "expected 0 (distance), 1 (pixel-area), 2 (pixel-area-seed) or 3 (screen-error)",
+        "Where a tree changes to its billboard (issue 29): distance (E§4.3), pixel-area (C§4.6.3, corrected), pixel-area-seed (C Eq. 4.2 as written), screen-error (3D Tiles SSE)",
+    ),
+    (
+        "lod_pixel_area",
+        "expected a finite area in 1e-6..=1e9 px²",
+        "Pixel-area metrics: billboard once the tree's opaque area covers at most this many px² (C§4.6.3)",
+    ),
+    (
+        "lod_screen_error",
+        "expected a finite error in 1e-6..=1e9 px",
+        "Screen-error metric: billboard once its geometric error covers at most this many px (3D Tiles)",
+    ),
+    (
+        "subset_mode",
+        "expected 0 (off), 1 (thin) or 2 (thin-scale)",
+        "Far-field subsets of each batch's trees (issue 29): off, thin (E§7), thin-scale",
+    ),
+    (
+        "subset_distance",
+        "expected a finite distance in 0..=1e7 m",
+        "View depth past which batches draw a thinning subset of their trees, metres (E§7)",
+    ),
+    (
+        "subset_min",
+        "expected a finite density in 0.001..=1",
+        "Least density of a far-field subset, in 0.001..=1 (E§7)",
     ),
 ];
 

@@ -19,7 +19,7 @@ use forestlod_reference::ground_truth::{GroundTruthImage, GroundTruthScene};
 use forestlod_reference::output::{lod_id_image, write_png};
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::{Scene, builtin, load};
-use forestlod_reference::select::{BatchingCounts, batching_counts};
+use forestlod_reference::select::{BatchingCounts, batching_counts_banded, tree_bands};
 use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::{Camera, CommandData, DrawCommand, FramePlan, Params};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -521,8 +521,15 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
                     camera,
                     params,
                 );
-                let batching =
-                    batching_counts(spheres, indirection, &frame.selection, camera, params);
+                let bands = tree_bands(&prepared.scene, &prepared.geometry.meshes, camera, params);
+                let batching = batching_counts_banded(
+                    spheres,
+                    &bands,
+                    indirection,
+                    &frame.selection,
+                    camera,
+                    params,
+                );
                 let s = frame.drawn.tree_stats;
                 let target = frame.drawn.target;
                 VariantFrame {
@@ -611,8 +618,20 @@ fn render_gpu_variant(
                     f.camera,
                     f.params,
                 );
-                let batching =
-                    batching_counts(f.spheres, indirection, &selection, f.camera, f.params);
+                let bands = tree_bands(
+                    &f.prepared.scene,
+                    &f.prepared.geometry.meshes,
+                    f.camera,
+                    f.params,
+                );
+                let batching = batching_counts_banded(
+                    f.spheres,
+                    &bands,
+                    indirection,
+                    &selection,
+                    f.camera,
+                    f.params,
+                );
                 (
                     // Batches tested (the grid) or nodes the cut visits (a hierarchy), from
                     // the reference's selection of the same frame.
