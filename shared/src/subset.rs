@@ -64,7 +64,7 @@ pub const SUBSET_WEIGHT_STEPS: u32 = 255;
 /// The density kept at view depth `d` (module docs): 1 up to `d_sub`, then `(d_sub / d)²`, not
 /// below `rho_min`. NaN `d` keeps everything.
 pub fn subset_density(d: f32, d_sub: f32, rho_min: f32) -> f32 {
-    if !(d > d_sub) {
+    if d.partial_cmp(&d_sub) != Some(core::cmp::Ordering::Greater) {
         return 1.0;
     }
     let r = d_sub / d;
@@ -105,7 +105,9 @@ pub fn subset_weight_code(rank: u32, len: u32, d: f32, mode: u32, d_sub: f32, rh
 /// `thin-scale`, written `d / d_sub` (or `1/√ρ_min` at the floor) so that both twins compute it
 /// with one division; 1 otherwise.
 pub fn subset_scale(d: f32, mode: u32, d_sub: f32, rho_min: f32) -> f32 {
-    if mode != SubsetMode::ThinScale as u32 || !(d > d_sub) {
+    if mode != SubsetMode::ThinScale as u32
+        || d.partial_cmp(&d_sub) != Some(core::cmp::Ordering::Greater)
+    {
         return 1.0;
     }
     let r = d_sub / d;
