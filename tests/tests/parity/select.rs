@@ -109,7 +109,7 @@ fn key(c: &DrawCommand, d: &CommandData) -> Key {
 }
 
 /// The counters a set of decisions implies (the reference's compaction loop, counters only).
-fn counters_of(decisions: &[Decision], batches: &[BatchMeta]) -> SelectCounters {
+fn counters_of(decisions: &[Decision], batches: &[BatchMeta], u: &SelectUniform) -> SelectCounters {
     let mut c = SelectCounters {
         batches_tested: batches.len() as u32,
         ..Default::default()
@@ -124,7 +124,8 @@ fn counters_of(decisions: &[Decision], batches: &[BatchMeta]) -> SelectCounters 
                 c.lod1_commands += n.lod1 as u32;
                 let k = n.lod0 as u32 + n.lod1 as u32;
                 c.commands += k;
-                c.instances += k * b.len;
+                // The far-field subset's count (issue 29): `len` unless subsets are on.
+                c.instances += k * forestlod_reference::select::batch_count(u, b);
             }
         }
     }
@@ -188,7 +189,7 @@ fn judge(
     prop_assert_eq!(g.commands.len(), g.data.len(), "{}", name);
     prop_assert_eq!(
         g.counters,
-        counters_of(&got.decisions, batches),
+        counters_of(&got.decisions, batches, u),
         "{}: counters disagree with the GPU's own decisions",
         name
     );
@@ -201,10 +202,14 @@ fn judge(
             i
         );
         let b = &batches[d.batch as usize];
+        // The instance count is the far-field subset's (issue 29; `len` when off), exact; the
+        // group the draw ranks trees in is the whole batch.
+        let count = forestlod_reference::select::batch_count(u, b);
         prop_assert_eq!(
             (c.first_instance, c.instance_count, d.mesh),
-            (b.offset, b.len, b.mesh)
+            (b.offset, count, b.mesh)
         );
+        prop_assert_eq!((d.first_tree, d.group_len), (b.offset, b.len));
         let range = if d.lod == LOD_MESH {
             meshes[b.mesh as usize]
         } else {
@@ -454,6 +459,32 @@ fn gpu_select_matches_reference_under_the_scaled_metrics() {
                 lod_metric: m,
                 lod_pixel_area: 16.0 * k,
                 lod_screen_error: 2.0 * k,
+                ..p
+            };
+            check_case(trees, &camera, &p, backends, tallies)
+        },
+    );
+}
+
+/// Cases of the far-field subset property: a quarter of the main one's.
+const SUBSET_CASES: u32 = CASES / 4;
+
+/// Issue 29 (E§7): the main property under far-field subsets (`thin` and `thin-scale`, subset
+/// distances 0-3 km, floors 0.001-1): every command's instance count, the subset's, is compared
+/// exactly (`subset_count` is one division, a multiply and a ceiling; both are exact on an IEEE
+/// adapter such as lavapipe, so no tolerance is allowed).
+#[test]
+fn gpu_select_matches_reference_under_subsets() {
+    let subset = (1u32..3, 0.0f32..3000.0, 0.001f32..1.0);
+    run_property(
+        "subsets",
+        SUBSET_CASES,
+        (parity_cases(), subset),
+        |((trees, camera, p), (mode, d_sub, rho_min)), backends, tallies| {
+            let p = Params {
+                subset_mode: mode,
+                subset_distance: d_sub,
+                subset_min: rho_min,
                 ..p
             };
             check_case(trees, &camera, &p, backends, tallies)

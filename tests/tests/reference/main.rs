@@ -11,3 +11,4 @@ mod baselines;
 mod embree_crosscheck;
 mod goldens;
 mod metric;
+mod subsets;
