@@ -71,6 +71,9 @@ impl SceneArgs {
     }
 }
 
+/// The `--preset` flag's name.
+const PRESET_ARG: &str = "preset";
+
 /// Pipeline parameters: one flag per entry of the parameter table
 /// ([`forestlod_shared::registry::PARAMS`]), each defaulting to `Params::default()` (the thesis
 /// values, E§4.5.1, E§5.0.2, with the fade mode `dither-sequential`). The flags are generated
@@ -79,6 +82,11 @@ impl SceneArgs {
 pub struct ParamArgs {
     /// The flags' texts by canonical parameter name (every parameter: defaults filled in).
     values: BTreeMap<&'static str, String>,
+    /// The parameters whose flag was given on the command line (not defaulted).
+    given: std::collections::BTreeSet<&'static str>,
+    /// `--preset`: a named bundle of settings (`forestlod_shared::presets`), applied before the
+    /// flags given on the command line, which override it.
+    preset: Option<String>,
 }
 
 impl clap::FromArgMatches for ParamArgs {
@@ -91,7 +99,13 @@ impl clap::FromArgMatches for ParamArgs {
         for spec in &PARAMS {
             if let Some(text) = matches.get_one::<String>(spec.name) {
                 self.values.insert(spec.name, text.clone());
+                if matches.value_source(spec.name) == Some(clap::parser::ValueSource::CommandLine) {
+                    self.given.insert(spec.name);
+                }
             }
+        }
+        if let Some(name) = matches.get_one::<String>(PRESET_ARG) {
+            self.preset = Some(name.clone());
         }
         Ok(())
     }
@@ -100,6 +114,11 @@ impl clap::FromArgMatches for ParamArgs {
 impl clap::Args for ParamArgs {
     fn augment_args(cmd: clap::Command) -> clap::Command {
         let defaults = Params::default();
+        let cmd = cmd.arg(clap::Arg::new(PRESET_ARG).long(PRESET_ARG).help(format!(
+            "A named bundle of settings, applied before the other flags (which override \
+                     it): {}",
+            forestlod_shared::presets::preset_names().join(", ")
+        )));
         PARAMS.iter().fold(cmd, |cmd, spec| {
             // clap keeps `&'static str`s; the defaults are formatted once per process.
             let default: &'static str = Box::leak(spec.format(&defaults).into_boxed_str());
@@ -127,7 +146,28 @@ impl ParamArgs {
     /// that parses but is out of range names its flag and the field (`Params::validate`).
     pub fn params(&self) -> Result<Params, InputError> {
         let mut p = Params::default();
+        let preset = match &self.preset {
+            Some(name) => Some(forestlod_shared::presets::preset(name).ok_or_else(|| {
+                InputError::new(
+                    COMMAND_LINE,
+                    format!("--{PRESET_ARG}"),
+                    name,
+                    format!(
+                        "unknown preset; expected one of {}",
+                        forestlod_shared::presets::preset_names().join(", ")
+                    ),
+                )
+            })?),
+            None => None,
+        };
+        if let Some(pr) = preset {
+            pr.apply(&mut p).map_err(InputError::from)?;
+        }
         for spec in &PARAMS {
+            // A preset's parameter keeps the preset's value unless its flag was given.
+            if preset.is_some_and(|pr| pr.sets(spec.name)) && !self.given.contains(spec.name) {
+                continue;
+            }
             if let Some(text) = self.values.get(spec.name) {
                 let value = spec.parse(text).map_err(|e| {
                     InputError::new(COMMAND_LINE, format!("--{}", spec.flag), text, e.expected)
@@ -148,5 +188,36 @@ impl ParamArgs {
                 None => InputError::from(e),
             })?;
         Ok(p)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::{Args, FromArgMatches};
+
+    fn parse(args: &[&str]) -> Result<Params, InputError> {
+        let cmd = ParamArgs::augment_args(clap::Command::new("t"));
+        let m = cmd
+            .try_get_matches_from(std::iter::once("t").chain(args.iter().copied()))
+            .expect("clap parses");
+        ParamArgs::from_arg_matches(&m).expect("args").params()
+    }
+
+    #[test]
+    fn a_preset_applies_first_and_given_flags_override_it() {
+        let p = parse(&["--preset", "celba-high"]).unwrap();
+        assert_eq!(
+            (p.lod_metric, p.lod_pixel_area),
+            (forestlod_shared::LodMetric::PixelAreaSeed as u32, 10.0)
+        );
+        let p = parse(&["--preset", "celba-high", "--pixel-area", "7"]).unwrap();
+        assert_eq!(p.lod_pixel_area, 7.0);
+        // A flag given at its default value still overrides the preset.
+        let p = parse(&["--preset", "celba-high", "--lod-metric", "distance"]).unwrap();
+        assert_eq!(p.lod_metric, forestlod_shared::LodMetric::Distance as u32);
+        assert_eq!(parse(&[]).unwrap(), Params::default());
+        let e = parse(&["--preset", "celba-ultra"]).unwrap_err().to_string();
+        assert!(e.contains("--preset") && e.contains("celba-normal"), "{e}");
     }
 }

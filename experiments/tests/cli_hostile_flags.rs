@@ -47,6 +47,20 @@ const CHECK: &[&str] = &["check", "--cases", "1"];
 
 const CASES: &[Case] = &[
     Case {
+        name: "unknown preset",
+        tool: RENDER,
+        args: &["--preset", "celba-ultra"],
+        out: Out::Absent,
+        expect: &["--preset", "celba-ultra", "celba-extra-high"],
+    },
+    Case {
+        name: "subsets with a hierarchy",
+        tool: RENDER,
+        args: &["--subset", "thin", "--hierarchy", "octree"],
+        out: Out::Absent,
+        expect: &["--subset", "subset_mode", "thin", "hierarchy = grid"],
+    },
+    Case {
         name: "yaw inf",
         tool: RENDER,
         args: &["--yaw", "inf"],

@@ -41,6 +41,7 @@ pub mod interval;
 pub mod metric;
 pub mod modes;
 pub mod params;
+pub mod presets;
 pub mod registry;
 pub mod subset;
 pub mod terrain;

@@ -460,6 +460,17 @@ fn check_param_table<'a>(
 
 /// One parameter value, checked by the parameter table: returns the parameter's canonical name.
 fn check_param_value(k: &str, v: &toml::Value, path: &KeyPath) -> Result<&'static str, Bad> {
+    if k == super::spec::PRESET_KEY {
+        let mut p = Params::default();
+        super::spec::apply_preset(&mut p, v, "").map_err(|e| {
+            Bad::new(
+                path.clone(),
+                super::spec::value_label(v),
+                e.reason.to_string(),
+            )
+        })?;
+        return Ok(super::spec::PRESET_KEY);
+    }
     let Some(name) = canonical(k) else {
         return Err(Bad::new(
             path.clone(),

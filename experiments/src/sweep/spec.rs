@@ -215,6 +215,39 @@ pub fn set_param(
     Ok(())
 }
 
+/// The key of a parameter table that names a preset ([`forestlod_shared::presets`]): applied
+/// first, the table's other keys override it.
+pub const PRESET_KEY: &str = "preset";
+
+/// Applies a parameter table (`[params]`, a setting): its [`PRESET_KEY`] first, then every
+/// other key ([`set_param`]).
+pub fn apply_table(p: &mut Params, table: &toml::Table, file: &str) -> Result<(), InputError> {
+    if let Some(v) = table.get(PRESET_KEY) {
+        apply_preset(p, v, file)?;
+    }
+    for (k, v) in table.iter().filter(|(k, _)| k.as_str() != PRESET_KEY) {
+        set_param(p, k, v, file)?;
+    }
+    Ok(())
+}
+
+/// Applies the preset a table's [`PRESET_KEY`] names.
+pub fn apply_preset(p: &mut Params, value: &toml::Value, file: &str) -> Result<(), InputError> {
+    use forestlod_shared::presets::{preset, preset_names};
+    let found = value.as_str().and_then(preset).ok_or_else(|| {
+        InputError::new(
+            file,
+            PRESET_KEY,
+            value_label(value),
+            format!(
+                "unknown preset; expected one of {}",
+                preset_names().join(", ")
+            ),
+        )
+    })?;
+    found.apply(p).map_err(InputError::from)
+}
+
 pub(super) fn value_label(v: &toml::Value) -> String {
     match v {
         toml::Value::String(s) => s.clone(),
@@ -378,9 +411,7 @@ impl SweepSpec {
 
     fn param_sets_one_size(&self, file: &str) -> Result<Vec<ParamSet>, InputError> {
         let mut base = Params::default();
-        for (k, v) in &self.params {
-            set_param(&mut base, k, v, file)?;
-        }
+        apply_table(&mut base, &self.params, file)?;
         let settings: Vec<SettingSpec> = if self.settings.is_empty() {
             vec![SettingSpec {
                 label: "default".into(),
@@ -415,9 +446,7 @@ impl SweepSpec {
         for s in &settings {
             for point in &points {
                 let mut params = base;
-                for (k, v) in &s.params {
-                    set_param(&mut params, k, v, file)?;
-                }
+                apply_table(&mut params, &s.params, file)?;
                 let mut label = vec![s.label.clone()];
                 let mut series = if settings.len() > 1 {
                     vec![s.label.clone()]
