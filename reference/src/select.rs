@@ -12,6 +12,10 @@
 //!    LOD0 when some point is nearer than the end of the fade band, LOD1 when some point is at or
 //!    past its start, both when it overlaps the band ("the batch needs to be drawn twice", E§3.1).
 //!
+//! 4. draw, in each command, the batch's far-field subset ([`batch_count`], issue 29, E§7):
+//!    every tree unless `subset_mode` thins batches past `subset_distance`
+//!    (`forestlod_shared::subset`), the draw then fading each tree by its rank.
+//!
 //! Commands are compacted **stably**: in batch order, LOD0 before LOD1. Command `i` has
 //! `base_vertex = i << COMMAND_SHIFT` and `first_instance = batch.offset` (see
 //! [`forestlod_shared::DrawCommand`]). The GPU's atomic-counter variant may emit them in any order;
