@@ -38,6 +38,9 @@ pub const TRADE_PREFIX: &str = "trade_";
 pub struct TradePoint {
     /// The group ([`group_of`]).
     pub group: String,
+    /// The group without its backend (`ours, grid 50`): the plot's legend when every point is of
+    /// one backend (legend rows are short).
+    pub short: String,
     /// Its backend (a front is per backend).
     pub backend: String,
     /// Frames averaged (those whose truth shows a tree and whose LOD error was measured).
@@ -141,8 +144,13 @@ pub fn trade_points(rows: &[Row], scene: &str) -> Vec<TradePoint> {
                 .iter()
                 .filter_map(|r| r.fragments.map(|f| f as f64))
                 .collect();
+            let short = match rows[0].setting.as_str() {
+                "" => rows[0].variant.clone(),
+                setting => format!("{}, {setting}", rows[0].variant),
+            };
             Some(TradePoint {
                 group,
+                short,
                 backend,
                 frames: rows.len(),
                 lod: of(&|r| r.accuracy.lod_flip_mean),
@@ -255,6 +263,7 @@ fn draw(
         series.clear();
     }
     let several = fronts.len() > 1;
+    let one_backend = points.iter().all(|p| p.backend == points[0].backend);
     let mut number = 0;
     for (k, (backend, front)) in fronts.iter().enumerate() {
         series.push(IntervalSeries {
@@ -273,7 +282,14 @@ fn draw(
         for &i in front {
             number += 1;
             series.push(IntervalSeries {
-                label: format!("{number} {}", points[i].group),
+                label: format!(
+                    "{number} {}",
+                    if one_backend {
+                        &points[i].short
+                    } else {
+                        &points[i].group
+                    }
+                ),
                 points: vec![point(&points[i])],
                 line: false,
                 markers: true,
@@ -351,6 +367,7 @@ mod tests {
     fn point(group: &str, backend: &str, lod: f64, ms: f64, fragments: f64) -> TradePoint {
         TradePoint {
             group: group.into(),
+            short: group.into(),
             backend: backend.into(),
             frames: 3,
             lod: (lod, 0.001),
