@@ -121,9 +121,9 @@ fn three_merged_shards_equal_the_unsharded_run_row_for_row() {
         temporal += want.iter().filter(|r| r.temporal_mean.is_some()).count();
     }
     assert!(compared > 50, "only {compared} rows compared");
-    // Path sweeps' later poses compared their temporal error too (most of them, with 3 shards,
-    // in a shard that does not own the previous pose).
-    assert!(temporal > 10, "only {temporal} temporal errors compared");
+    // Path sweeps' later poses compared their temporal error too (with 3 shards, consecutive
+    // units lie in different shards: every one in a shard that does not own the previous pose).
+    assert!(temporal > 0, "no temporal error compared");
     std::fs::remove_dir_all(&root).ok();
 }
 
