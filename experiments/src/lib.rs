@@ -19,3 +19,4 @@ pub mod render;
 pub mod report;
 pub mod resident;
 pub mod sweep;
+pub mod temporal;

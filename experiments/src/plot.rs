@@ -355,14 +355,47 @@ fn grid_and_ticks(pixmap: &mut Pixmap, xs: &Scale, ys: &Scale) {
 }
 
 fn legend(pixmap: &mut Pixmap, labels: &[String], markers: bool) {
+    let swatch = if markers { Swatch::Marker } else { Swatch::Box };
+    let entries: Vec<(String, [u8; 3], Swatch, usize)> = labels
+        .iter()
+        .enumerate()
+        .map(|(i, l)| (l.clone(), PALETTE[i % PALETTE.len()], swatch, i))
+        .collect();
+    legend_entries(pixmap, &entries);
+}
+
+/// How a legend entry shows its series.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Swatch {
+    /// The series' marker (its shape index is the entry's).
+    Marker,
+    /// A filled box (bars).
+    Box,
+    /// A short line (a series drawn as a line only).
+    Line,
+}
+
+/// Legend rows `(label, colour, swatch, marker shape)` right of the plot; rows that do not fit
+/// the plot's height are replaced by one `+N more` row.
+fn legend_entries(pixmap: &mut Pixmap, entries: &[(String, [u8; 3], Swatch, usize)]) {
     let x = pixmap.width() as f32 - RIGHT + 16.0;
-    for (i, label) in labels.iter().enumerate() {
+    let rows = (((pixmap.height() as f32 - BOTTOM) - (TOP + 10.0)) / 18.0).max(1.0) as usize;
+    let shown = if entries.len() > rows {
+        rows - 1
+    } else {
+        entries.len()
+    };
+    for (i, (label, c, swatch, shape)) in entries[..shown].iter().enumerate() {
         let y = TOP + 10.0 + i as f32 * 18.0;
-        let c = PALETTE[i % PALETTE.len()];
-        if markers {
-            marker(pixmap, x + 6.0, y + 4.0, c, i);
-        } else if let Some(r) = Rect::from_xywh(x, y, 12.0, 9.0) {
-            pixmap.fill_rect(r, &paint(c), Transform::identity(), None);
+        let c = *c;
+        match swatch {
+            Swatch::Marker => marker(pixmap, x + 6.0, y + 4.0, c, *shape),
+            Swatch::Box => {
+                if let Some(r) = Rect::from_xywh(x, y, 12.0, 9.0) {
+                    pixmap.fill_rect(r, &paint(c), Transform::identity(), None);
+                }
+            }
+            Swatch::Line => stroke_line(pixmap, &[(x, y + 4.0), (x + 12.0, y + 4.0)], c, 2.0),
         }
         // Cut long labels (e.g. `select vegetation (reference)`) to the legend's width, marking
         // the cut with `~`, so that no label runs off the image.
@@ -374,6 +407,11 @@ fn legend(pixmap: &mut Pixmap, labels: &[String], markers: bool) {
             short.push('~');
         }
         draw_text(pixmap, &short, x + 18.0, y, 1, [20, 20, 20]);
+    }
+    if shown < entries.len() {
+        let y = TOP + 10.0 + shown as f32 * 18.0;
+        let more = format!("+{} more", entries.len() - shown);
+        draw_text(pixmap, &more, x + 18.0, y, 1, [20, 20, 20]);
     }
 }
 
@@ -407,6 +445,119 @@ pub fn xy_plot(path: &Path, axes: &Axes, series: &[Series], style: Style) -> std
         &series.iter().map(|s| s.label.clone()).collect::<Vec<_>>(),
         true,
     );
+    save(&pixmap, path)
+}
+
+/// A point with the half-widths of its intervals (e.g. 95 % intervals of two means); a
+/// half-width that is NaN or not positive draws no bar.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IntervalPoint {
+    /// X value.
+    pub x: f64,
+    /// Half-width of the horizontal interval around `x`.
+    pub x_half: f64,
+    /// Y value.
+    pub y: f64,
+    /// Half-width of the vertical interval around `y`.
+    pub y_half: f64,
+}
+
+/// A series of an [`interval_plot`]: points with interval bars, optionally joined by a line.
+#[derive(Clone, Debug)]
+pub struct IntervalSeries {
+    /// Legend label; an empty label gets no legend row.
+    pub label: String,
+    /// Points; non-finite ones are skipped.
+    pub points: Vec<IntervalPoint>,
+    /// Join the points with a line, in x order.
+    pub line: bool,
+    /// Draw a marker (and the interval bars) at each point.
+    pub markers: bool,
+    /// Colour.
+    pub colour: [u8; 3],
+    /// Marker shape (circle, square, triangle, cycled).
+    pub shape: usize,
+    /// Text drawn beside each point (e.g. its number in the legend); empty for none.
+    pub tag: String,
+}
+
+/// Points with horizontal and vertical interval bars (whiskers with caps), series joined by
+/// lines where asked, tags beside points and a legend of the labelled series: e.g. cost against
+/// error with their 95 % intervals and a Pareto front. The axes cover the intervals.
+pub fn interval_plot(path: &Path, axes: &Axes, series: &[IntervalSeries]) -> std::io::Result<()> {
+    let mut pixmap = Pixmap::new(WIDTH, HEIGHT).expect("non-zero plot size");
+    frame(&mut pixmap, axes);
+    let finite = |p: &&IntervalPoint| p.x.is_finite() && p.y.is_finite();
+    let half = |h: f64| if h.is_finite() && h > 0.0 { h } else { 0.0 };
+    let all: Vec<IntervalPoint> = series
+        .iter()
+        .flat_map(|s| s.points.iter().filter(finite).copied())
+        .collect();
+    let (w, h) = (WIDTH as f32, HEIGHT as f32);
+    let xs = Scale::new(
+        all.iter()
+            .flat_map(|p| [p.x - half(p.x_half), p.x + half(p.x_half)]),
+        axes.log_x,
+        LEFT,
+        w - RIGHT,
+    );
+    let ys = Scale::new(
+        all.iter()
+            .flat_map(|p| [p.y - half(p.y_half), p.y + half(p.y_half)]),
+        axes.log_y,
+        h - BOTTOM,
+        TOP,
+    );
+    grid_and_ticks(&mut pixmap, &xs, &ys);
+    // A log axis cannot show an interval reaching 0 or below: it is cut at the axis' end.
+    let map_x = |v: f64| xs.map(if xs.log { v.max(10f64.powf(xs.lo)) } else { v });
+    let map_y = |v: f64| ys.map(if ys.log { v.max(10f64.powf(ys.lo)) } else { v });
+    for s in series {
+        let mut pts: Vec<IntervalPoint> = s.points.iter().filter(finite).copied().collect();
+        pts.sort_by(|a, b| a.x.total_cmp(&b.x));
+        if s.line {
+            let px: Vec<(f32, f32)> = pts.iter().map(|p| (map_x(p.x), map_y(p.y))).collect();
+            stroke_line(&mut pixmap, &px, s.colour, 2.0);
+        }
+        if !s.markers {
+            continue;
+        }
+        for p in &pts {
+            let (x, y) = (map_x(p.x), map_y(p.y));
+            let cap = 3.0;
+            if half(p.x_half) > 0.0 {
+                let (a, b) = (map_x(p.x - p.x_half), map_x(p.x + p.x_half));
+                stroke_line(&mut pixmap, &[(a, y), (b, y)], s.colour, 1.0);
+                for e in [a, b] {
+                    stroke_line(&mut pixmap, &[(e, y - cap), (e, y + cap)], s.colour, 1.0);
+                }
+            }
+            if half(p.y_half) > 0.0 {
+                let (a, b) = (map_y(p.y - p.y_half), map_y(p.y + p.y_half));
+                stroke_line(&mut pixmap, &[(x, a), (x, b)], s.colour, 1.0);
+                for e in [a, b] {
+                    stroke_line(&mut pixmap, &[(x - cap, e), (x + cap, e)], s.colour, 1.0);
+                }
+            }
+            marker(&mut pixmap, x, y, s.colour, s.shape);
+            if !s.tag.is_empty() {
+                draw_text(&mut pixmap, &s.tag, x + 6.0, y - 12.0, 1, [20, 20, 20]);
+            }
+        }
+    }
+    let entries: Vec<(String, [u8; 3], Swatch, usize)> = series
+        .iter()
+        .filter(|s| !s.label.is_empty())
+        .map(|s| {
+            let swatch = if s.markers {
+                Swatch::Marker
+            } else {
+                Swatch::Line
+            };
+            (s.label.clone(), s.colour, swatch, s.shape)
+        })
+        .collect();
+    legend_entries(&mut pixmap, &entries);
     save(&pixmap, path)
 }
 
@@ -553,7 +704,24 @@ mod tests {
             &[vec![1.0, 2.0]],
         )
         .unwrap();
+        let p = |x, y| IntervalPoint {
+            x,
+            x_half: 0.1,
+            y,
+            y_half: f64::NAN,
+        };
+        let front = IntervalSeries {
+            label: "front".into(),
+            points: vec![p(0.5, 2.0), p(1.0, 1.0), p(f64::NAN, 1.0)],
+            line: true,
+            markers: true,
+            colour: PALETTE[0],
+            shape: 0,
+            tag: "1".into(),
+        };
+        interval_plot(&dir.join("c.png"), &axes, &[front]).unwrap();
         assert!(dir.join("a.png").is_file() && dir.join("b.png").is_file());
+        assert!(dir.join("c.png").is_file());
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -5,8 +5,11 @@
 //! Per sweep: the question, the setup, a summary table (means per variant / setting / camera of
 //! cost and accuracy), the speed-up of ours over the baselines where they ran (frame-time ratios,
 //! E§5's "70 % up to 500 %"), the Pareto front of cost against FLIP (the settings no other setting
-//! beats on both), the plots, and the saved frames side by side: ground truth, frame, FLIP error,
-//! LOD ids, then ours' per-LOD error maps.
+//! beats on both), per scene the trade as a curve (frame time and fragments against LOD error,
+//! with intervals and the Pareto front named: [`trade`]), the plots, and the saved frames side by
+//! side: ground truth, frame, FLIP error, LOD ids, then ours' per-LOD error maps. Beside the LOD
+//! error and the total error, the summary and the paired differences give the temporal error of
+//! camera paths (`Row::temporal_mean`, [`crate::temporal`]) where the sweep has one.
 //!
 //! **A report reads only its run** (issue 28; a report is a file people mail around). Every path
 //! a `sweep.json` names (`csv`, `plots`, every frame image) must be relative to its sweep folder,
@@ -44,6 +47,7 @@ use crate::html::{
 use crate::sweep::{Manifest, Row};
 
 pub mod manifest;
+pub mod trade;
 pub use manifest::{MAX_MANIFEST_BYTES, parse_manifest};
 
 /// The run folder resolved, and how its errors name it.
@@ -398,6 +402,15 @@ pub struct Summary {
     pub truth_fraction: f64,
     /// Mean seconds the truth of a frame took to trace.
     pub truth_s: f64,
+    /// Frames with a temporal error (`Row::temporal_mean`: a camera path's frames after its
+    /// first), among those counted.
+    pub temporal_frames: usize,
+    /// Mean temporal error over them (NaN when none: no path, or only first frames).
+    pub temporal_mean: f64,
+    /// Half-width of its 95% interval.
+    pub temporal_ci: f64,
+    /// Mean 99th percentile of the temporal error over them.
+    pub temporal_p99: f64,
 }
 
 /// Two-sided 95% quantiles of Student's t for 1..=30 degrees of freedom; 1.96 beyond.
@@ -431,7 +444,8 @@ pub fn within_noise((a, a_ci): (f64, f64), (b, b_ci): (f64, f64)) -> bool {
 }
 
 /// Means of `rows` over the frames whose ground truth shows a tree (the others are counted in
-/// [`Summary::empty`]), with 95% intervals for frame time, FLIP and LOD error.
+/// [`Summary::empty`]), with 95% intervals for frame time, FLIP, LOD error, total error and
+/// temporal error (over the frames that have one: not a path's first).
 pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     let mut s = Summary::default();
     let mut counted = 0usize;
@@ -439,6 +453,7 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     let (mut lod_p99, mut lod_changed) = (0.0, 0.0);
     let (mut totals, mut total_cov) = (Vec::new(), 0.0);
     let (mut truth_fraction, mut truth_s) = (0.0, 0.0);
+    let (mut temporal, mut temporal_p99) = (Vec::new(), 0.0);
     for r in rows {
         if r.accuracy.gt_tree_fraction <= 0.0 {
             s.empty += 1;
@@ -453,6 +468,10 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
         total_cov += r.accuracy.total_coverage_error;
         truth_fraction += r.truth_fraction.unwrap_or(1.0);
         truth_s += r.truth_s.unwrap_or(f64::NAN);
+        if let Some(t) = r.temporal_mean {
+            temporal.push(t);
+            temporal_p99 += r.temporal_p99.unwrap_or(f64::NAN);
+        }
         s.frames += 1;
         s.select_s += r.select_s;
         s.draw_s += r.draw_s;
@@ -505,6 +524,9 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     s.total_coverage_error = total_cov / n;
     s.truth_fraction = truth_fraction / n;
     s.truth_s = truth_s / n;
+    s.temporal_frames = temporal.len();
+    (s.temporal_mean, s.temporal_ci) = mean_ci(&temporal);
+    s.temporal_p99 = temporal_p99 / temporal.len() as f64;
     s
 }
 
@@ -564,22 +586,34 @@ fn big(v: f64) -> String {
     }
 }
 
+/// The Pareto front of `points` `(x, y)`, both to be small: the indices of the points no other
+/// point beats on both (at most as large on each, smaller on one), by increasing `x` (ties in
+/// input order). The one front rule of the report: [`pareto`] and the trade plots
+/// ([`trade::fronts`]).
+pub fn pareto_indices(points: &[(f64, f64)]) -> Vec<usize> {
+    let mut front: Vec<usize> = (0..points.len())
+        .filter(|&i| {
+            let a = points[i];
+            !points
+                .iter()
+                .any(|b| b.0 <= a.0 && b.1 <= a.1 && (b.0 < a.0 || b.1 < a.1))
+        })
+        .collect();
+    front.sort_by(|&a, &b| points[a].0.total_cmp(&points[b].0));
+    front
+}
+
 /// Groups whose (frame time, FLIP mean) no other group beats on both (the Pareto front), fastest
 /// first.
 pub fn pareto(groups: &[(String, Summary)]) -> Vec<(String, Summary)> {
-    let mut front: Vec<(String, Summary)> = groups
+    let xy: Vec<(f64, f64)> = groups
         .iter()
-        .filter(|(_, a)| {
-            !groups.iter().any(|(_, b)| {
-                b.frame_s <= a.frame_s
-                    && b.flip_mean <= a.flip_mean
-                    && (b.frame_s < a.frame_s || b.flip_mean < a.flip_mean)
-            })
-        })
-        .cloned()
+        .map(|(_, s)| (s.frame_s, s.flip_mean))
         .collect();
-    front.sort_by(|a, b| a.1.frame_s.total_cmp(&b.1.frame_s));
-    front
+    pareto_indices(&xy)
+        .into_iter()
+        .map(|i| groups[i].clone())
+        .collect()
 }
 
 /// A pose's identity within a camera: what pairs two groups' frames (the same view rendered
@@ -633,9 +667,9 @@ pub fn noise_section(out: &mut String, groups: &[(String, Vec<&Row>)]) {
     );
     let _ = writeln!(
         out,
-        "| group | against | pairs | LOD error | total error | FLIP (1 sample) |"
+        "| group | against | pairs | LOD error | total error | temporal error | FLIP (1 sample) |"
     );
-    let _ = writeln!(out, "|---|---|--:|--:|--:|--:|");
+    let _ = writeln!(out, "|---|---|--:|--:|--:|--:|--:|");
     let cell = |(m, h, _): (f64, f64, usize)| {
         if m.is_nan() {
             "-".to_string()
@@ -658,18 +692,114 @@ pub fn noise_section(out: &mut String, groups: &[(String, Vec<&Row>)]) {
         let lod = paired_difference(rows, base, |r| r.accuracy.lod_flip_mean);
         let total = paired_difference(rows, base, |r| r.accuracy.total_flip_mean);
         let flip = paired_difference(rows, base, |r| r.accuracy.flip_mean);
+        // A path's first pose has no temporal error: it pairs nothing (NaN is skipped).
+        let temporal = paired_difference(rows, base, |r| r.temporal_mean.unwrap_or(f64::NAN));
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} |",
             md(k),
             md(fk),
             lod.2.max(flip.2),
             cell(lod),
             cell(total),
+            cell(temporal),
             cell(flip)
         );
     }
     let _ = writeln!(out);
+}
+
+/// Cost against LOD error per scene ([`trade`]): the sweep's trade plots, and under each its
+/// Pareto front with the intervals of its points. A run written before the trade plots existed
+/// gets the fronts and a hint to redraw the plots (`--replot`).
+fn trade_section(out: &mut String, m: &Manifest, rows: &[Row], rel: &dyn Fn(&str) -> String) {
+    let scenes = trade::files(rows);
+    let any = scenes.iter().any(|(scene, _)| {
+        let points = trade::trade_points(rows, scene);
+        trade::Cost::ALL
+            .iter()
+            .any(|&c| !trade::fronts(&points, c).is_empty())
+    });
+    if !any {
+        return; // no LOD error measured (a CSV written before it)
+    }
+    let _ = writeln!(
+        out,
+        "### Cost against LOD error
+
+Per scene, one point per variant / backend / setting: mean LOD error (FLIP against the same backend's full-detail frame) against mean frame time and mean tree fragments (reference backend only), over the group's frames that show trees, with 95% intervals. The **Pareto front** (per backend: times of two backends are not comparable) is the groups no other group beats on both; in the plots its points are numbered and joined by a line.
+"
+    );
+    for (scene, stem) in &scenes {
+        let points = trade::trade_points(rows, scene);
+        for cost in trade::Cost::ALL {
+            let fronts = trade::fronts(&points, cost);
+            if fronts.is_empty() {
+                continue;
+            }
+            let name = trade::plot_name(stem, cost);
+            let plot = m.plots.iter().find(|(p, _)| *p == name);
+            let _ = writeln!(
+                out,
+                "Scene {}, {}:
+",
+                crate::html::code_span(scene),
+                cost.label()
+            );
+            match plot {
+                Some((p, caption)) => {
+                    let caption = md(caption);
+                    let _ = writeln!(
+                        out,
+                        "![{caption}]({})
+
+*{caption}*
+",
+                        rel(p)
+                    );
+                }
+                None => {
+                    let _ = writeln!(
+                        out,
+                        "(No plot in this run: `forestlod report --replot` draws it.)
+"
+                    );
+                }
+            }
+            let _ = writeln!(
+                out,
+                "| # | Pareto front | backend | frames | LOD error ±95% | {} ±95% |
+|--:|---|---|--:|--:|--:|",
+                cost.label()
+            );
+            let mut number = 0;
+            for (backend, front) in &fronts {
+                for &i in front {
+                    number += 1;
+                    let p = &points[i];
+                    let (c, h) = cost.of(p);
+                    let _ = writeln!(
+                        out,
+                        "| {number} | **{}** | {} | {} | {} | {} |",
+                        md(&p.group),
+                        md(backend),
+                        p.frames,
+                        pm(p.lod.0, p.lod.1, 4),
+                        if cost == trade::Cost::Fragments {
+                            if h.is_nan() {
+                                big(c)
+                            } else {
+                                format!("{} ± {}", big(c), big(h))
+                            }
+                        } else {
+                            pm(c, h, 2)
+                        }
+                    );
+                }
+            }
+            let _ = writeln!(out);
+        }
+    }
 }
 
 fn sweep_section(out: &mut String, dir: &Path, m: &Manifest, rows: &[Row]) {
@@ -757,16 +887,16 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest, rows: &[Row]) {
         .collect();
     let _ = writeln!(
         out,
-        "| group | frames (no tree) | frame ms ±95% | select ms | draw ms | commands | trees finer / coarser | triangles | fragments | overdraw | memory MB | FLIP mean ±95% | FLIP p95 | FLIP p99 | coverage err | LOD error ±95% | LOD p99 | LOD changed | total error ±95% | total coverage err | truth traced |"
+        "| group | frames (no tree) | frame ms ±95% | select ms | draw ms | commands | trees finer / coarser | triangles | fragments | overdraw | memory MB | FLIP mean ±95% | FLIP p95 | FLIP p99 | coverage err | LOD error ±95% | LOD p99 | LOD changed | total error ±95% | total coverage err | temporal error ±95% (pairs) | temporal p99 | truth traced |"
     );
     let _ = writeln!(
         out,
-        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
     );
     for (k, s) in &summaries {
         let _ = writeln!(
             out,
-            "| {} | {} ({}) | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} ({}) | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} |",
             md(k),
             s.frames,
             s.empty,
@@ -797,6 +927,16 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest, rows: &[Row]) {
             },
             pm(s.total_flip_mean, s.total_flip_ci, 4),
             opt(s.total_coverage_error, 4),
+            if s.temporal_frames == 0 {
+                "-".to_string()
+            } else {
+                format!(
+                    "{} ({})",
+                    pm(s.temporal_mean, s.temporal_ci, 4),
+                    s.temporal_frames
+                )
+            },
+            opt(s.temporal_p99, 4),
             if s.frames == 0 {
                 "-".to_string()
             } else {
@@ -931,8 +1071,13 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest, rows: &[Row]) {
         let _ = writeln!(out);
     }
 
-    // Plots.
+    trade_section(out, m, rows, &rel);
+
+    // Plots (the trade plots are shown above).
     for (p, caption) in &m.plots {
+        if p.starts_with(trade::TRADE_PREFIX) {
+            continue;
+        }
         let caption = md(caption);
         let _ = writeln!(out, "![{caption}]({})\n\n*{caption}*\n", rel(p));
     }

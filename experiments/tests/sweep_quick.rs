@@ -5,8 +5,11 @@
 //! coverage error), the LOD error and the total error (our frame at the truth's sampling rate),
 //! with the truth's cost. The quick tables exercise every measure of issue 12 on `tiny`: sampled
 //! truth tiles (`angles_texture`), two resolutions (`mip_mode`) and the four scene-defined camera
-//! paths (orbit, dolly, flyover, pan), each of whose frames must show trees. No timing is
-//! asserted; the quick run's wall time is printed.
+//! paths (orbit, dolly, flyover, pan), each of whose frames must show trees, and whose frames
+//! after the first carry the temporal error (`temporal_mean`, `temporal_p99`: finite; empty on a
+//! path's first pose and on other cameras, never NaN). The report shows, per sweep and scene, the
+//! trade plots (cost against LOD error), linked, embedded and with their Pareto front named. No
+//! timing is asserted; the quick run's wall time is printed.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -40,6 +43,7 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
         start.elapsed().as_secs_f64()
     );
     let mut cameras: BTreeMap<String, usize> = BTreeMap::new();
+    let mut temporal_rows = 0;
     let mut sizes: BTreeMap<(&str, u32, u32), usize> = BTreeMap::new();
     for (name, text) in BUILTIN_SWEEPS {
         let Some(spec) = configure(SweepSpec::parse(text, name).unwrap(), &args).unwrap() else {
@@ -103,6 +107,7 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
             );
         }
         let rows = read_rows(&dir.join(&manifest.csv)).unwrap();
+        temporal_rows += check_temporal_columns(name, &dir.join(&manifest.csv), &rows);
         let mut per_variant: BTreeMap<(&str, &str), usize> = BTreeMap::new();
         for r in &rows {
             let cost = [r.select_s, r.draw_s, r.frame_s];
@@ -239,6 +244,7 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
             }
         }
     }
+    assert!(temporal_rows > 0, "no quick sweep scored a temporal error");
     for path in ["orbit", "dolly", "flyover", "pan"] {
         assert!(
             cameras.contains_key(path),
@@ -267,6 +273,136 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
             continue; // GPU-only sweep with the GPU opted out
         }
         assert!(text.contains(&format!("`{name}`")), "report lacks {name}");
+        check_trade_plots(name, &out, &text, &html);
     }
     let _ = std::fs::remove_dir_all(&out);
+}
+
+/// The temporal error (issue 29) of sweep `name`: the CSV has the `temporal_mean` and
+/// `temporal_p99` columns, whose cells are empty or finite (never `NaN`); in the rows, a camera
+/// path's frames after its first have both, finite and in `[0, 1]` (Vegetation's exactly 0: its
+/// frames are the full-detail frames), and its first frame and every other camera's have neither.
+/// Returns how many rows have one.
+fn check_temporal_columns(
+    name: &str,
+    csv_path: &std::path::Path,
+    rows: &[forestlod_experiments::sweep::Row],
+) -> usize {
+    let mut reader = csv::Reader::from_path(csv_path).unwrap();
+    let headers = reader.headers().unwrap().clone();
+    let column = |c: &str| {
+        headers
+            .iter()
+            .position(|h| h == c)
+            .unwrap_or_else(|| panic!("{name}: no column {c} in {headers:?}"))
+    };
+    let columns = [column("temporal_mean"), column("temporal_p99")];
+    for record in reader.records() {
+        let record = record.unwrap();
+        for &c in &columns {
+            let cell = &record[c];
+            assert!(
+                cell.is_empty() || cell.parse::<f64>().is_ok_and(f64::is_finite),
+                "{name}: temporal cell {cell:?} is neither empty nor finite"
+            );
+        }
+    }
+    // Frames of one path, setting, variant and backend, in the CSV's (pose) order.
+    let mut seen: BTreeMap<(&str, &str, &str, &str, &str), usize> = BTreeMap::new();
+    let mut scored = 0;
+    for r in rows {
+        let key = (
+            r.scene.as_str(),
+            r.camera.as_str(),
+            r.setting.as_str(),
+            r.variant.as_str(),
+            r.backend.as_str(),
+        );
+        let step = seen.entry(key).or_default();
+        let pair = (r.temporal_mean, r.temporal_p99);
+        let at = format!(
+            "{name}: {} {} {} {} step {step}",
+            r.camera, r.setting, r.variant, r.backend
+        );
+        if forestlod_experiments::sweep::paths::is_path(&r.camera) && *step > 0 {
+            let (Some(mean), Some(p99)) = pair else {
+                panic!("{at}: no temporal error {pair:?}");
+            };
+            assert!(
+                [mean, p99]
+                    .iter()
+                    .all(|v| v.is_finite() && (0.0..=1.0).contains(v)),
+                "{at}: {pair:?}"
+            );
+            if r.variant == "vegetation" {
+                assert_eq!((mean, p99), (0.0, 0.0), "{at}");
+            }
+            scored += 1;
+        } else {
+            assert_eq!(pair, (None, None), "{at}: a first pose or no path");
+        }
+        *step += 1;
+    }
+    scored
+}
+
+/// The trade as a curve (issue 29) in the report of sweep `name`: its manifest lists a
+/// `trade_*` plot per scene and cost, each linked from `report.md` (`text`) and embedded in
+/// `report.html` (`html`), and the report names every group of its Pareto front.
+fn check_trade_plots(name: &str, out: &std::path::Path, text: &str, html: &str) {
+    use forestlod_experiments::html::escape_markdown;
+    use forestlod_experiments::report::trade::{Cost, files, fronts, plot_name, trade_points};
+    let dir = out.join(name);
+    let manifest: Manifest =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sweep.json")).unwrap()).unwrap();
+    let rows = read_rows(&dir.join(&manifest.csv)).unwrap();
+    assert!(
+        text.contains("### Cost against LOD error"),
+        "{name}: no trade section"
+    );
+    let mut plots = 0;
+    for (scene, stem) in files(&rows) {
+        let points = trade_points(&rows, &scene);
+        for cost in Cost::ALL {
+            let fronts = fronts(&points, cost);
+            let plot = plot_name(&stem, cost);
+            let listed = manifest.plots.iter().find(|(p, _)| *p == plot);
+            if fronts.is_empty() {
+                assert!(listed.is_none(), "{name}: {plot} without a front");
+                continue;
+            }
+            let (_, caption) = listed.unwrap_or_else(|| panic!("{name}: {plot} not listed"));
+            assert!(dir.join(&plot).is_file(), "{name}: {plot} missing");
+            let path = format!("{name}/{plot}");
+            assert!(
+                text.contains(&format!("]({path})")),
+                "{name}: {plot} not linked"
+            );
+            assert!(
+                html.contains(&format!(
+                    "title=\"{path}\" loading=\"lazy\" src=\"data:image/png;base64,"
+                )),
+                "{name}: {plot} not embedded"
+            );
+            for (backend, front) in &fronts {
+                assert!(
+                    caption.contains(&format!("Pareto front ({backend}): ")),
+                    "{name}: {caption}"
+                );
+                for &i in front {
+                    let group = &points[i].group;
+                    assert!(
+                        caption.contains(group.as_str()),
+                        "{name}: {group} not in {caption}"
+                    );
+                    assert!(
+                        text.contains(&format!("| **{}** | {} |", escape_markdown(group), backend)),
+                        "{name}: front group {group} not named in the report"
+                    );
+                }
+            }
+            plots += 1;
+        }
+    }
+    assert!(plots > 0, "{name}: no trade plot");
 }

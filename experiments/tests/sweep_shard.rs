@@ -1,7 +1,8 @@
 //! `forestlod sweep --shard I/N` and `forestlod sweep merge` (issue 12): every built-in sweep in
 //! quick mode on the reference backend, unsharded and as 3 shards, then merged. The merged CSV
 //! must equal the unsharded one row for row in everything but wall-clock times (frame and truth
-//! times, which differ between any two runs), and the merge must refuse an incomplete set of
+//! times, which differ between any two runs), the temporal error included (a shard that lacks a
+//! path's previous pose renders it again), and the merge must refuse an incomplete set of
 //! shards. Beside it, the runner's reuse of a timed Vegetation frame as the pose's full-detail
 //! frame must give the same rows and images as rendering that frame on its own.
 
@@ -26,7 +27,7 @@ fn args(out: &Path, shard: Option<Shard>) -> SweepArgs {
 /// Everything of a row a second run must reproduce (all but the times).
 fn deterministic(r: &Row) -> String {
     format!(
-        "{} {} {} {} {} {} {} {} {} {:?} {}x{} {:?} | {} {} {} {} {} {} {} {:?} {:?} {:?} {:?} {} | {:?}",
+        "{} {} {} {} {} {} {} {} {} {:?} {}x{} {:?} | {} {} {} {} {} {} {} {:?} {:?} {:?} {:?} {} | {:?} {:?} | {:?}",
         r.frame,
         r.sweep,
         r.scene,
@@ -52,6 +53,8 @@ fn deterministic(r: &Row) -> String {
         r.fragments_written,
         r.overdraw,
         r.memory_bytes,
+        r.temporal_mean,
+        r.temporal_p99,
         r.accuracy
     )
 }
@@ -82,6 +85,7 @@ fn three_merged_shards_equal_the_unsharded_run_row_for_row() {
     merge.shards = shard_dirs.clone();
     run(&merge).expect("merge");
     let mut compared = 0;
+    let mut temporal = 0;
     for (name, _) in BUILTIN_SWEEPS {
         let w = whole.join(name);
         if !w.join("sweep.json").is_file() {
@@ -114,8 +118,12 @@ fn three_merged_shards_equal_the_unsharded_run_row_for_row() {
             );
         }
         compared += want.len();
+        temporal += want.iter().filter(|r| r.temporal_mean.is_some()).count();
     }
     assert!(compared > 50, "only {compared} rows compared");
+    // Path sweeps' later poses compared their temporal error too (with 3 shards, consecutive
+    // units lie in different shards: every one in a shard that does not own the previous pose).
+    assert!(temporal > 0, "no temporal error compared");
     std::fs::remove_dir_all(&root).ok();
 }
 

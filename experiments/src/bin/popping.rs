@@ -17,6 +17,9 @@
 //! cancel; what remains is change the LOD made, which is what a user sees as a pop (a hard
 //! switch) or as shimmer (a dither moving its pixel sets). Its 99th percentile over pixels is
 //! reported beside the mean because a single popping tree is a few hundred pixels of a frame.
+//! The measure itself (box filter, excess, mean and p99) is
+//! [`forestlod_experiments::temporal`], the one implementation the sweeps' `temporal_mean` and
+//! `temporal_p99` columns use too; the pop score on tiles is this program's own.
 //!
 //! Why not against the ray-traced truth, as the issue suggests as one option: the truth has no
 //! aliasing, the rasterized frames do, so `FLIP(v_t, v_t+1) − FLIP(truth_t, truth_t+1)` would
@@ -34,10 +37,11 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use clap::Parser;
-use forestlod_experiments::metrics::{error_image, flip_map, percentile};
+use forestlod_experiments::metrics::{error_image, flip_map};
 use forestlod_experiments::plot::{Axes, Series, Style, xy_plot};
 use forestlod_experiments::report::{mean_ci, within_noise};
 use forestlod_experiments::sweep::paths::{path_camera, path_fraction};
+use forestlod_experiments::temporal::{DEFAULT_POOL, full_change, pair_excess, pool, score};
 use forestlod_reference::InputError;
 use forestlod_reference::baselines::{render_vegetation, tree_spheres};
 use forestlod_reference::draw::billboard_layer;
@@ -110,8 +114,10 @@ struct Args {
     /// 160x90). One-sample alpha-tested foliage shimmers from any sub-pixel motion, in the
     /// full-detail frames as much as in ours, and that shimmer is not what a pop is; the filter
     /// averages it out as a supersampled render would, while a tree that changes LOD still
-    /// changes the mean colour of the blocks it covers. 1 scores the frames as rendered.
-    #[arg(long, default_value_t = 4)]
+    /// changes the mean colour of the blocks it covers. 1 scores the frames as rendered. The
+    /// sweeps' `temporal_mean` column uses the same measure at this default
+    /// (`forestlod_experiments::temporal`).
+    #[arg(long, default_value_t = DEFAULT_POOL)]
     pool: u32,
     /// Explain one pair instead of scoring the path: for pair `N` (frames `N`, `N + 1`) and each
     /// mode, which trees change LOD or baked elevation layer, and how much of the pair's excess
@@ -213,7 +219,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let full_pooled: Vec<Rgba8Image> = full.iter().map(|f| pool(f, args.pool)).collect();
     let full_maps: Vec<Vec<f32>> = full_pooled
         .windows(2)
-        .map(|w| flip_map(&w[0], &w[1]))
+        .map(|w| full_change(&w[0], &w[1]))
         .collect();
     let (pw, ph) = (full_pooled[0].width, full_pooled[0].height);
 
@@ -248,10 +254,11 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
             let (lod_map, excess) = pair_excess(&pooled[t], &pooled[t + 1], &full_maps[t]);
             let n = excess.len().max(1) as f64;
             let mean = |m: &[f32]| m.iter().map(|&e| e as f64).sum::<f64>() / n;
+            let scored = score(&excess);
             pairs.push(Pair {
                 distance: distances[t],
-                excess_mean: mean(&excess),
-                excess_p99: percentile(&excess, 99.0),
+                excess_mean: scored.mean,
+                excess_p99: scored.p99,
                 pop: worst_tile(&excess, pw as usize, ph as usize),
                 pop_interior: interior_worst_tile(&excess, pw as usize, ph as usize),
                 lod_change: mean(&lod_map),
@@ -510,7 +517,7 @@ fn explain_pair(
         })
         .collect();
     let full: Vec<Rgba8Image> = full_frames.iter().map(|f| pool(f, k)).collect();
-    let full_map = flip_map(&full[0], &full[1]);
+    let full_map = full_change(&full[0], &full[1]);
     let mut md = format!(
         "# Pair {pair} ({:.1} m to {:.1} m before the forest's west edge)\n\n",
         distances[p],
@@ -803,38 +810,9 @@ fn rectangle(img: &mut Rgba8Image, x: u32, y: u32, side: u32, colour: [u8; 4]) {
     }
 }
 
-/// The change between two LOD frames (FLIP map) and its excess over `full_map`, the change
-/// between the two full-detail frames at the same pixels: `max(0, FLIP(v0, v1) − full_map)`.
-fn pair_excess(v0: &Rgba8Image, v1: &Rgba8Image, full_map: &[f32]) -> (Vec<f32>, Vec<f32>) {
-    let lod_map = flip_map(v0, v1);
-    let excess = lod_map
-        .iter()
-        .zip(full_map)
-        .map(|(v, f)| (v - f).max(0.0))
-        .collect();
-    (lod_map, excess)
-}
-
 /// Side of the pop score's tiles, pixels of the pooled frame: 4 (16 frame pixels at the
 /// default pool), about a tree's crown in the band at 640x360.
 const TILE: usize = 4;
-
-/// `img` box-filtered by `k` in each direction (sRGB bytes averaged: a measure, not a
-/// rendering); a partial block at the right or bottom edge is dropped.
-fn pool(img: &Rgba8Image, k: u32) -> Rgba8Image {
-    let k = k.max(1);
-    let n = k * k;
-    Rgba8Image::from_fn(img.width / k, img.height / k, |x, y| {
-        let mut sum = [0u32; 4];
-        for (dx, dy) in (0..k).flat_map(|dy| (0..k).map(move |dx| (dx, dy))) {
-            let t = img.get(x * k + dx, y * k + dy);
-            for c in 0..4 {
-                sum[c] += u32::from(t[c]);
-            }
-        }
-        sum.map(|v| ((v + n / 2) / n) as u8)
-    })
-}
 
 /// `img` enlarged to `width x height` by nearest neighbour (for the strips).
 fn upscale(img: &Rgba8Image, width: u32, height: u32) -> Rgba8Image {
@@ -901,20 +879,6 @@ mod tests {
 
     const GREEN: [u8; 4] = [40, 90, 30, 255];
     const SKY: [u8; 4] = [165, 195, 225, 255];
-
-    #[test]
-    fn pooling_averages_blocks() {
-        let img = image(4, 2, |x, _| {
-            if x % 2 == 0 {
-                [0, 0, 0, 255]
-            } else {
-                [200, 100, 50, 255]
-            }
-        });
-        let p = pool(&img, 2);
-        assert_eq!((p.width, p.height), (2, 1));
-        assert_eq!(p.texels, vec![[100, 50, 25, 255]; 2]);
-    }
 
     /// The finding of `--explain-pair 21` (`experiments/popping/README.md`, "What it means"):
     /// between frames 21 and 22 of the dolly (78.5 m to 77 m before the forest) no billboard

@@ -1,5 +1,6 @@
-//! The sweep's PNG plots from its rows ([`write_plots`]): cost against accuracy and the
-//! thesis-style runtime plots (E Fig. 5.1–5.7). Reads only the spec and the rows, so
+//! The sweep's PNG plots from its rows ([`write_plots`]): cost against accuracy, the
+//! thesis-style runtime plots (E Fig. 5.1–5.7) and, per scene, cost against LOD error with the
+//! Pareto front named ([`crate::report::trade`]). Reads only the spec and the rows, so
 //! `forestlod report --replot` redraws them from a CSV. Series are variants (or variant–backend
 //! pairs when several backends ran), split further by the parameter sets' series labels.
 
@@ -60,6 +61,9 @@ pub fn write_plots(
 ) -> Result<Vec<(String, String)>, InputError> {
     let file = format!("<sweep {}>", spec.name);
     let sets = spec.param_sets(&file)?;
+    // Cost against LOD error per scene, the Pareto front named (`crate::report::trade`): from the
+    // rows as written (its groups keep variant and backend apart themselves).
+    let trade = crate::report::trade::write_trade_plots(&spec.name, rows, dir)?;
     let series_by_label: HashMap<String, String> = sets
         .iter()
         .map(|s| (s.label.clone(), s.series.clone()))
@@ -370,5 +374,6 @@ pub fn write_plots(
             }
         }
     }
+    out.extend(trade);
     Ok(out)
 }

@@ -94,6 +94,16 @@ pub struct Row {
     pub overdraw: Option<f64>,
     /// Bytes the method adds to the scene data (ours: E Eq. 4.1's terms as allocated).
     pub memory_bytes: u64,
+    /// Temporal (popping) error of this frame against the previous frame of its camera path
+    /// (`crate::temporal`: mean over pixels of the LOD frames' change beyond the full-detail
+    /// frames' change, both box-filtered by [`crate::temporal::DEFAULT_POOL`]), scored against the
+    /// same scene, setting, backend and variant at the path's previous pose. Empty for a path's
+    /// first frame, for cameras that are no path and in CSVs written before it existed; never NaN.
+    #[serde(default)]
+    pub temporal_mean: Option<f64>,
+    /// Temporal error: 99th percentile over pixels (empty where `temporal_mean` is).
+    #[serde(default)]
+    pub temporal_p99: Option<f64>,
     /// Accuracy against the ground truth. In the CSV: [`Accuracy`]'s columns, last
     /// ([`write_csv`]); serde skips it here, so a figure added to `Accuracy` is a column with
     /// no edit of this file or the runner.

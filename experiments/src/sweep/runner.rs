@@ -2,6 +2,8 @@
 //! ([`render_variant`] on the reference, [`render_gpu_variant`] on the wgpu twin), scores it
 //! against the shared ground-truth image, and writes the CSV, images, plots and manifest.
 //! [`Runner`] keeps the scene, its ground-truth BVH and images, and the GPU context across sweeps.
+//! Along a camera path it keeps the previous pose's frames ([`PathFrames`]) for the temporal
+//! error (`crate::temporal`).
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -26,6 +28,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::fair::{TruthLayout, box_filter, supersampled};
 use crate::metrics::{Accuracy, accuracy, error_image, lod_error, per_lod_error_maps, total_error};
+use crate::temporal::{DEFAULT_POOL, TemporalError, full_change, pair_excess, pool, score};
 
 use super::io::io_err;
 use super::paths::path_camera;
@@ -215,25 +218,26 @@ impl Runner {
                 if !truth_layouts.contains(&layout_text) {
                     truth_layouts.push(layout_text);
                 }
+                // The previous pose's frames, box-filtered, while they are a path's previous
+                // frame (the temporal error's predecessor: [`PathFrames`]).
+                let mut previous: Option<PathFrames> = None;
                 for (pose_i, pose) in poses.iter().enumerate() {
                     let unit = unit_of(pose_i);
                     if !mine(unit) {
                         continue;
                     }
-                    // A path's pose gets its yaw and distance from the path (`super::paths`).
-                    let mut pose = pose.clone();
-                    let camera = if pose.camera == "distance" {
-                        distance_camera(scene, pose.distance_m, width, height)
-                    } else if let Some((c, yaw, d)) =
-                        path_camera(&pose.camera, scene, &set.params, pose.path_t, width, height)
-                    {
-                        (pose.yaw_deg, pose.distance_m) = (yaw, d);
-                        c
-                    } else {
-                        named_camera(&pose.camera, scene, pose.yaw_deg, width, height)?
-                    };
+                    let (camera, pose) = pose_camera(pose, scene, &set.params, width, height)?;
                     let pose = &pose;
-                    camera.validate().map_err(InputError::from)?;
+                    // This pose's predecessor, when this run rendered it; and whether the next
+                    // pose will want this one's frames.
+                    let before = previous
+                        .take()
+                        .filter(|p| pose.follows_previous() && p.pose + 1 == pose_i);
+                    let keep = poses.get(pose_i + 1).is_some_and(Pose::follows_previous);
+                    let mut current = PathFrames {
+                        pose: pose_i,
+                        backends: Vec::new(),
+                    };
                     let key = format!(
                         "{}|{}|{}|{}|{}x{}|{}|{:?}",
                         scene.name,
@@ -312,6 +316,51 @@ impl Runner {
                             (FullFrame::Untimed, Some(full)) => full,
                             (FullFrame::Untimed, None) => unreachable!("rendered above"),
                         };
+                        // The temporal error against the path's previous pose ([`PathFrames`]).
+                        let pooled_full = pool(&full, DEFAULT_POOL);
+                        let pooled: Vec<Rgba8Image> = timed
+                            .iter()
+                            .map(|vf| pool(&vf.color, DEFAULT_POOL))
+                            .collect();
+                        let rendered_before;
+                        let frames_before = if !pose.follows_previous() {
+                            None
+                        } else if let Some(b) = &before {
+                            Some(&b.backends[backend_i])
+                        } else {
+                            // A shard that does not own the path's previous pose renders its
+                            // frames again, untimed: the same images the run that owns it
+                            // scores, so merged shards equal the unsharded run.
+                            let (camera_before, _) =
+                                pose_camera(&poses[pose_i - 1], scene, &set.params, width, height)?;
+                            let frame_before = Frame {
+                                camera: &camera_before,
+                                ..frame
+                            };
+                            let full_before =
+                                render(Pipeline::Vegetation, &frame_before, 1, false)?.color;
+                            let mut lods = Vec::with_capacity(variants.len());
+                            for &variant in &variants {
+                                let vf = render(variant, &frame_before, 1, false)?;
+                                lods.push(pool(&vf.color, DEFAULT_POOL));
+                            }
+                            rendered_before = (pool(&full_before, DEFAULT_POOL), lods);
+                            Some(&rendered_before)
+                        };
+                        let temporal: Vec<Option<TemporalError>> = match frames_before {
+                            None => vec![None; variants.len()],
+                            Some((full_before, lods_before)) => {
+                                let full_map = full_change(full_before, &pooled_full);
+                                lods_before
+                                    .iter()
+                                    .zip(&pooled)
+                                    .map(|(a, b)| Some(score(&pair_excess(a, b, &full_map).1)))
+                                    .collect()
+                            }
+                        };
+                        if keep {
+                            current.backends.push((pooled_full, pooled));
+                        }
                         for (variant_i, (&variant, vf)) in variants.iter().zip(timed).enumerate() {
                             let frame_index =
                                 (unit * per_unit + backend_i * variants.len() + variant_i) as u64;
@@ -368,6 +417,8 @@ impl Runner {
                                 fragments_written: vf.fragments_written,
                                 overdraw: vf.fragments_written.map(|f| f as f64 / pixels as f64),
                                 memory_bytes: vf.memory_bytes,
+                                temporal_mean: temporal[variant_i].map(|t| t.mean),
+                                temporal_p99: temporal[variant_i].map(|t| t.p99),
                                 accuracy: acc,
                             });
                             if pose.save_images {
@@ -386,6 +437,9 @@ impl Runner {
                             }
                             bar.inc(1);
                         }
+                    }
+                    if keep {
+                        previous = Some(current);
                     }
                 }
             }
@@ -432,6 +486,49 @@ impl Runner {
             .map_err(|e| io_err(&mpath, e))?;
         Ok(manifest)
     }
+}
+
+/// The camera of `pose` in `scene` for a parameter set of `width x height` frames, and the pose
+/// with a path's yaw and distance filled in (a path's pose gets them from the path,
+/// `super::paths`).
+fn pose_camera(
+    pose: &Pose,
+    scene: &Scene,
+    params: &Params,
+    width: u32,
+    height: u32,
+) -> Result<(Camera, Pose), InputError> {
+    let mut pose = pose.clone();
+    let camera = if pose.camera == "distance" {
+        distance_camera(scene, pose.distance_m, width, height)
+    } else if let Some((c, yaw, d)) =
+        path_camera(&pose.camera, scene, params, pose.path_t, width, height)
+    {
+        (pose.yaw_deg, pose.distance_m) = (yaw, d);
+        c
+    } else {
+        named_camera(&pose.camera, scene, pose.yaw_deg, width, height)?
+    };
+    camera.validate().map_err(InputError::from)?;
+    Ok((camera, pose))
+}
+
+/// One pose's frames, kept for the temporal error of the next pose when that is the next frame
+/// of the same camera path (`crate::temporal`): per backend (in the sweep's order) the
+/// full-detail frame and each variant's frame (in the sweep's order), box-filtered by
+/// [`DEFAULT_POOL`]. Only the previous pose's frames are kept, so the memory is one pose's.
+///
+/// **Shards**: a shard that owns a path's pose but not the one before it (units are dealt
+/// round-robin, so with `N > 1` that is most of them) renders the previous pose's full-detail
+/// and LOD frames again, untimed, and scores against those: the reference is deterministic, so
+/// every `temporal_*` cell of the merged CSV equals the unsharded run's
+/// (`experiments/tests/sweep_shard.rs`). It costs those shards one extra untimed render per
+/// variant and backend of such a pose; no timed figure changes.
+struct PathFrames {
+    /// The pose's index in the sweep's poses.
+    pose: usize,
+    /// Per backend: `(full-detail frame, each variant's frame)`.
+    backends: Vec<(Rgba8Image, Vec<Rgba8Image>)>,
 }
 
 /// The total error's FLIP map and the filtered frame's LOD ids, on the truth's layout.

@@ -293,6 +293,18 @@ pub struct Pose {
     pub save_images: bool,
     /// For a camera path: where along it, in `[0, 1]` ([`super::paths::path_fraction`]).
     pub path_t: f32,
+    /// For a camera path: the frame's index along it (0 otherwise). A path's frames are
+    /// consecutive poses, so the pose before one with `path_step > 0` is the path's previous
+    /// frame: what the temporal error compares with (`crate::temporal`).
+    pub path_step: u32,
+}
+
+impl Pose {
+    /// Whether the pose before this one is the previous frame of the same camera path (the
+    /// temporal error's predecessor; none for a path's first frame and for other cameras).
+    pub fn follows_previous(&self) -> bool {
+        super::paths::is_path(&self.camera) && self.path_step > 0
+    }
 }
 
 /// The canonical name of parameter key `k` (any spelling the parameter table answers to).
@@ -496,6 +508,7 @@ impl SweepSpec {
                         distance_m: d,
                         save_images: i == 0,
                         path_t: 0.0,
+                        path_step: 0,
                     });
                 }
             } else if super::paths::is_path(&c.name) {
@@ -507,6 +520,7 @@ impl SweepSpec {
                         distance_m: 0.0,
                         save_images: i == 0,
                         path_t: super::paths::path_fraction(&c.name, i, steps),
+                        path_step: i,
                     });
                 }
             } else {
@@ -519,6 +533,7 @@ impl SweepSpec {
                         distance_m: 0.0,
                         save_images: i == 0,
                         path_t: 0.0,
+                        path_step: 0,
                     });
                 }
             }
