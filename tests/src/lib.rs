@@ -610,3 +610,22 @@ pub fn tiny_card_trees() -> Vec<Instance> {
         })
         .collect()
 }
+
+/// How many pixels of two frames differ in colour, in depth (as bits) and in LOD id: the count a
+/// bit-for-bit frame equality asserts to be `(0, 0, 0)`.
+pub fn differing_pixels(
+    a: &forestlod_harness::stage::Images,
+    b: &forestlod_harness::stage::Images,
+) -> (usize, usize, usize) {
+    let colour = a.color.iter().zip(&b.color).filter(|(x, y)| x != y).count();
+    let depth = (a.depth.iter().zip(&b.depth))
+        .filter(|(x, y)| x.to_bits() != y.to_bits())
+        .count();
+    let ids = a
+        .lod_id
+        .iter()
+        .zip(&b.lod_id)
+        .filter(|(x, y)| x != y)
+        .count();
+    (colour, depth, ids)
+}

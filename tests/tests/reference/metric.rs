@@ -12,7 +12,7 @@ use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
 use forestlod_reference::select::SelectUniform;
 use forestlod_shared::{Camera, FadeMode, Hierarchy, LodMetric, Params};
-use forestlod_tests::tiny_hierarchy_params;
+use forestlod_tests::{differing_pixels, tiny_hierarchy_params};
 
 /// The threshold of `metric` (its `Params` field set by `set`) nearest `guess` whose band for
 /// `mesh` at unit scale is exactly `want`, searching 256 `f32` steps either side; `None` when no
@@ -123,22 +123,8 @@ fn matched_frames(distance: Params) -> usize {
         for q in [pixel_area, screen_error].into_iter().flatten() {
             let got = images_of(&prepared.render(&camera, &q).expect("render").drawn.target);
             let metric = q.lod_metric_mode().unwrap().name();
-            let differ = |a: &[u32], b: &[u32]| a.iter().zip(b).filter(|(x, y)| x != y).count();
-            let colour = got
-                .color
-                .iter()
-                .zip(&want_frame.color)
-                .filter(|(a, b)| a != b)
-                .count();
-            let depth = got
-                .depth
-                .iter()
-                .zip(&want_frame.depth)
-                .filter(|(a, b)| a.to_bits() != b.to_bits())
-                .count();
-            let ids = differ(&got.lod_id, &want_frame.lod_id);
             assert_eq!(
-                (colour, depth, ids),
+                differing_pixels(&got, &want_frame),
                 (0, 0, 0),
                 "{name} yaw {yaw}, {fade}: {metric} matched to the distance mode differs (colour, depth, LOD-id pixels)"
             );
@@ -148,7 +134,7 @@ fn matched_frames(distance: Params) -> usize {
             off.lod_screen_error *= 2.0;
             let moved = images_of(&prepared.render(&camera, &off).expect("render").drawn.target);
             assert!(
-                differ(&moved.lod_id, &want_frame.lod_id) > 0,
+                differing_pixels(&moved, &want_frame).2 > 0,
                 "{name} yaw {yaw}, {fade}: {metric} with half the transition draws the same LOD ids"
             );
             checked += 1;

@@ -14,6 +14,7 @@ use forestlod_reference::draw::{DrawUniform, tree_stage};
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::builtin;
 use forestlod_shared::{Camera, FadeMode, Params, SubsetMode, TreeCull, view_interval};
+use forestlod_tests::differing_pixels;
 
 fn thin(p: &Params, d_sub: f32) -> Params {
     Params {
@@ -59,23 +60,8 @@ fn an_infinite_subset_distance_draws_todays_frame_bit_for_bit() {
             let camera = named_camera(name, &today.scene, yaw, 160, 90).expect("camera");
             let want = images_of(&today.render(&camera, &off).expect("render").drawn.target);
             let got = images_of(&subset.render(&camera, &on).expect("render").drawn.target);
-            let colour = want
-                .color
-                .iter()
-                .zip(&got.color)
-                .filter(|(a, b)| a != b)
-                .count();
-            let depth = (want.depth.iter().zip(&got.depth))
-                .filter(|(a, b)| a.to_bits() != b.to_bits())
-                .count();
-            let ids = want
-                .lod_id
-                .iter()
-                .zip(&got.lod_id)
-                .filter(|(a, b)| a != b)
-                .count();
             assert_eq!(
-                (colour, depth, ids),
+                differing_pixels(&want, &got),
                 (0, 0, 0),
                 "{name} yaw {yaw}, {}: subsets at 1e7 m differ from today (colour, depth, LOD-id pixels)",
                 fade.name()
