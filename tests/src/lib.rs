@@ -614,8 +614,8 @@ pub fn tiny_card_trees() -> Vec<Instance> {
 /// How many pixels of two frames differ in colour, in depth (as bits) and in LOD id: the count a
 /// bit-for-bit frame equality asserts to be `(0, 0, 0)`.
 pub fn differing_pixels(
-    a: &forestlod_harness::stage::Images,
-    b: &forestlod_harness::stage::Images,
+    a: &forestlod_harness::image_compare::Images,
+    b: &forestlod_harness::image_compare::Images,
 ) -> (usize, usize, usize) {
     let colour = a.color.iter().zip(&b.color).filter(|(x, y)| x != y).count();
     let depth = (a.depth.iter().zip(&b.depth))
