@@ -105,7 +105,7 @@ fn command_count(decision: u32) -> u32 {
 
 // The batch's command at `lod` in `slot` (common.wgsl `emit_command`, the twin of
 // forestlod_shared::emit_command, which the reference's select_batch calls).
-fn emit(slot: u32, index: u32, b: BatchMeta, lod: u32, fading: bool) {
+fn emit(slot: u32, index: u32, b: BatchMeta, lod: u32, fading: bool, count: u32) {
     var first_index = u.billboard_first_index;
     var index_count = u.billboard_index_count;
     if lod == LOD_MESH {
@@ -115,7 +115,7 @@ fn emit(slot: u32, index: u32, b: BatchMeta, lod: u32, fading: bool) {
     }
     // Commands carry the mesh's band at unit scale; the draw scales it per tree.
     let view = with_band(u.view, mesh_band(u.view, meshes[b.mesh]));
-    let e = emit_command(slot, index, b.mesh, b.len, b.offset, fading, lod, first_index, index_count, view, batch_count(b));
+    let e = emit_command(slot, index, b.mesh, b.len, b.offset, fading, lod, first_index, index_count, view, count);
     commands[slot] = e.command;
     command_data[slot] = e.data;
 }
@@ -128,11 +128,13 @@ fn emit_all(slot: u32, index: u32, b: BatchMeta, decision: u32) {
     let lod0 = (decision & DECISION_LOD0) != 0u;
     let lod1 = (decision & DECISION_LOD1) != 0u;
     let fading = lod0 && lod1;
+    // Both commands draw the same subset: its count once.
+    let count = batch_count(b);
     if lod0 {
-        emit(slot, index, b, LOD_MESH, fading);
+        emit(slot, index, b, LOD_MESH, fading, count);
     }
     if lod1 {
-        emit(slot + u32(lod0), index, b, LOD_BILLBOARD, fading);
+        emit(slot + u32(lod0), index, b, LOD_BILLBOARD, fading, count);
     }
 }
 

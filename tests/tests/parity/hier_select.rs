@@ -729,15 +729,7 @@ fn gpu_coalescing_spans_scan_chunks() {
     let prepared = prepare(scene, &p).unwrap();
     let h = prepared.hierarchy.as_ref().unwrap();
     let g = &prepared.geometry;
-    let mut gpu = SelectionChain::cut(
-        ctx,
-        &h.nodes,
-        &h.scales,
-        h.mode as u32,
-        &g.meshes,
-        &g.billboard,
-    )
-    .unwrap();
+    let mut gpu = SelectionChain::gpu(ctx, &prepared).unwrap();
     let mut most = 0;
     for yaw in [0.0, 330.0] {
         let camera =
@@ -792,15 +784,7 @@ fn gpu_front_to_back_spans_workgroups() {
     let prepared = prepare(scene, &base).unwrap();
     let h = prepared.hierarchy.as_ref().unwrap();
     let g = &prepared.geometry;
-    let mut gpu = SelectionChain::cut(
-        ctx,
-        &h.nodes,
-        &h.scales,
-        h.mode as u32,
-        &g.meshes,
-        &g.billboard,
-    )
-    .unwrap();
+    let mut gpu = SelectionChain::gpu(ctx, &prepared).unwrap();
     let (mut ambiguous, mut moved, mut most) = (0, 0, 0);
     for coalesce in [Coalesce::Off, Coalesce::On] {
         let p = Params {
