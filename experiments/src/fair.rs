@@ -27,7 +27,7 @@
 //!   mean over the mosaic is an unbiased estimate of the full frame's mean. A frame's right and
 //!   bottom margins narrower than a tile are never sampled (none at 1280x720 and 80-pixel tiles).
 
-use forestlod_reference::ground_truth::{GroundTruthImage, GroundTruthScene};
+use forestlod_reference::ground_truth::{GroundTruthImage, GroundTruthScene, TruthLighting};
 use forestlod_reference::texture::{Rgba8Image, linear_to_srgb, srgb_to_linear};
 use forestlod_shared::Camera;
 use serde::{Deserialize, Serialize};
@@ -178,20 +178,21 @@ impl TruthLayout {
         }
     }
 
-    /// The truth on this layout: the full frame, or each tile traced alone
+    /// The truth on this layout, lit by `lighting` (`None`: unlit): the full frame, or each tile traced alone
     /// ([`GroundTruthScene::render_region`]) and packed into the mosaic.
     pub fn render_truth(
         &self,
         scene: &GroundTruthScene,
         camera: &Camera,
         samples_per_axis: u32,
+        lighting: Option<TruthLighting>,
     ) -> GroundTruthImage {
         let Self::Tiles { size, rects } = self else {
-            return scene.render(camera, samples_per_axis);
+            return scene.render_lit(camera, samples_per_axis, lighting);
         };
         let tiles: Vec<GroundTruthImage> = rects
             .iter()
-            .map(|&r| scene.render_region(camera, samples_per_axis, r))
+            .map(|&r| scene.render_region(camera, samples_per_axis, r, lighting))
             .collect();
         let s = *size as usize;
         let mut out = GroundTruthImage {

@@ -144,10 +144,14 @@ pub struct DrawUniform {
     pub pixel_origin_x: u32,
     /// See `pixel_origin_x`.
     pub pixel_origin_y: u32,
-    /// Explicit padding.
-    pub _pad2: u32,
+    /// `Shading` as `u32` (issue 30, `forestlod_shared::light`).
+    pub shading: u32,
+    /// The unit direction towards the sun ([`Params::sun_dir`]).
+    pub sun: [f32; 3],
+    /// The ambient level of sun-depth shading.
+    pub ambient: f32,
 }
-const _: () = assert!(size_of::<DrawUniform>() == 256);
+const _: () = assert!(size_of::<DrawUniform>() == 272);
 
 impl DrawUniform {
     /// The uniform of a validated camera and parameters, derived as the reference derives its
@@ -164,7 +168,9 @@ impl DrawUniform {
             billboard_first_vertex,
             pixel_origin_x: camera.pixel_origin()[0],
             pixel_origin_y: camera.pixel_origin()[1],
-            _pad2: 0,
+            shading: params.shading,
+            sun: params.sun_dir(),
+            ambient: params.ambient,
         }
     }
 }
@@ -1233,7 +1239,9 @@ pub(crate) mod tests {
                 billboard_first_vertex,
                 pixel_origin_x,
                 pixel_origin_y,
-                _pad2
+                shading,
+                sun,
+                ambient
             }),
             rust_layout!(DrawVertex { position, uv }),
             draw_instance_layout(),

@@ -106,6 +106,7 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("SUBSET_WEIGHT_STEPS", s::SUBSET_WEIGHT_STEPS),
         // An f32 constant as its bits (`bitcast<f32>` in common.wgsl): the same value, exactly.
         ("SUBSET_FADE_BITS", s::SUBSET_FADE.to_bits()),
+        ("MIN_CROWN_RADIUS_BITS", s::MIN_CROWN_RADIUS.to_bits()),
     ]
     .into_iter()
     .map(|(n, v)| (n.to_string(), v))
@@ -122,6 +123,7 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("COMMAND_ORDER", s::CommandOrder::choices()),
         ("LOD_METRIC", s::LodMetric::choices()),
         ("SUBSET_MODE", s::SubsetMode::choices()),
+        ("SHADING", s::Shading::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {

@@ -57,6 +57,8 @@ const METRIC_PARAMS: [&str; 2] = ["lod_pixel_area", "lod_screen_error"];
 /// The numeric parameters of the far-field subsets (issue 29, `forestlod_shared::subset`), read
 /// by `select` (the count) and `draw` (each tree's weight) under a subset mode only.
 const SUBSET_PARAMS: [&str; 2] = ["subset_distance", "subset_min"];
+/// The sun-depth shading's parameters (issue 30, G§5): read by the draw under a sun-depth mode.
+const LIGHT_PARAMS: [&str; 3] = ["sun_azimuth", "sun_elevation", "ambient"];
 
 /// Every stage, in [`StageId::ALL`] order.
 pub const STAGES: &[StageEntry] = &[
@@ -172,11 +174,20 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/draw.wgsl",
         backend: Some("stage::Draw"),
         parity: "tests/tests/parity/draw.rs",
-        modes: &["fade_mode", "angle_index_mode", "lod_metric", "subset_mode"],
+        modes: &[
+            "fade_mode",
+            "angle_index_mode",
+            "lod_metric",
+            "subset_mode",
+            "shading",
+        ],
         params: &[
             "alpha_cutoff",
             "angle_count",
             "texture_size",
+            LIGHT_PARAMS[0],
+            LIGHT_PARAMS[1],
+            LIGHT_PARAMS[2],
             VIEW_PARAMS[0],
             VIEW_PARAMS[1],
             VIEW_PARAMS[2],

@@ -29,13 +29,17 @@
 //! - **Outputs**: colour (RGBA8 sRGB), depth, and the LOD-id view of E Fig. 3.1 in the aux target:
 //!   [`LOD_ID_TERRAIN`], [`LOD_ID_MESH`], [`LOD_ID_BILLBOARD`], [`LOD_ID_TRANSITION`] (a fragment
 //!   of a fading command whose view depth lies strictly inside the band, in every fade mode).
+//! - **Shading** (G§5, issue 30; `forestlod_shared::light`): under a sun-depth mode each vertex
+//!   carries its lightness (the 8th varying, perspective-interpolated) and the fragment multiplies
+//!   its texel's linear RGB by it; under `unlit` nothing is multiplied (bit-identical frames).
 //! - A flat terrain-following ground grid is drawn first ([`terrain_triangles`]), opaque.
 
 use forestlod_shared::coverage;
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, MeshMeta, Params, angle_index_for,
-    bake_elevation, billboard_extent, dither_threshold, fade_progress, lod_weights,
-    subset_fragment_weight, subset_pack, subset_scale, subset_weight_code, view_interval,
+    COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, MeshMeta, Params, Shading, angle_index_for,
+    bake_elevation, billboard_extent, crown_radii, dither_threshold, fade_progress, lod_weights,
+    subset_fragment_weight, subset_pack, subset_scale, subset_weight_code, vertex_lightness,
+    view_interval,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -58,7 +62,9 @@ pub use forestlod_shared::{
 };
 
 /// Varyings of the tree pipeline: `u, v, view depth, texture layer, command index, tree scale,
-/// subset word`.
+/// subset word, lightness`.
+///
+/// The lightness (issue 30, `forestlod_shared::light`) is 1 under `unlit`, and then unused.
 ///
 /// The subset word ([`forestlod_shared::subset_pack`], issue 29) is the tree's far-field subset
 /// weight code and its rank's dither shift, 24 bits, so exact in an `f32`, and constant over the
@@ -72,7 +78,7 @@ pub use forestlod_shared::{
 /// 2^-53, the fragment's barycentrics lying in [0, 1]) is far below the half-ulp of the `f32`
 /// it is rounded to. The GPU twin passes it flat (`draw.wgsl`), so both read the tree's scale
 /// exactly (`raster::setup::tests::a_constant_varying_interpolates_to_itself`).
-pub const TREE_VARYINGS: usize = 7;
+pub const TREE_VARYINGS: usize = 8;
 
 /// The tree's world transform pieces the vertex stage needs.
 #[derive(Clone, Copy, Debug)]
@@ -110,6 +116,8 @@ pub struct DrawUniform<'a> {
     pub view_proj: Mat4,
     /// The parameters.
     pub params: &'a Params,
+    /// The unit direction towards the sun ([`Params::sun_dir`]), computed once per frame.
+    pub sun: [f32; 3],
 }
 
 impl<'a> DrawUniform<'a> {
@@ -120,6 +128,7 @@ impl<'a> DrawUniform<'a> {
             camera,
             view_proj: camera.view_projection(),
             params,
+            sun: params.sun_dir(),
         }
     }
 }
@@ -269,6 +278,7 @@ pub fn tree_stage(
             u.forward,
         );
         TreeKind::Billboard {
+            toward_eye: h.to_array(),
             right,
             up,
             half_width: e.half_width,
@@ -279,6 +289,18 @@ pub fn tree_stage(
             depth_hi: interval.hi,
         }
     };
+    // Sun-depth shading (G§5): the crown of the tree as drawn, its centre the drawn sphere's.
+    let light = TreeLight {
+        shading: params.shading,
+        centre: tree.sphere_center,
+        radii: crown_radii(mesh_meta, tree.scale),
+        toward_eye: match kind {
+            TreeKind::Billboard { toward_eye, .. } => toward_eye,
+            TreeKind::Mesh { .. } => [0.0; 3],
+        },
+        sun: uniform.sun,
+        ambient: params.ambient,
+    };
     Some(TreeStage {
         command,
         base: tree.base,
@@ -286,6 +308,7 @@ pub fn tree_stage(
         band_scale: t.scale,
         subset,
         kind,
+        light,
     })
 }
 
@@ -301,6 +324,19 @@ pub struct TreeStage {
     /// The subset word ([`TREE_VARYINGS`]) as an `f32`.
     subset: f32,
     kind: TreeKind,
+    light: TreeLight,
+}
+
+/// What a tree's vertices are lit by ([`forestlod_shared::vertex_lightness`]'s per-tree inputs).
+#[derive(Clone, Copy, Debug)]
+struct TreeLight {
+    shading: u32,
+    centre: [f32; 3],
+    radii: [f32; 2],
+    /// The billboard's unit horizontal direction to the eye (zero for a mesh, which never reads it).
+    toward_eye: [f32; 3],
+    sun: [f32; 3],
+    ambient: f32,
 }
 
 /// The per-tree values of a mesh (LOD0) or a billboard (LOD1) command.
@@ -314,6 +350,8 @@ enum TreeKind {
         layer: f32,
     },
     Billboard {
+        /// The unit horizontal direction from the tree to the eye (`ĥ`), the quad's facing.
+        toward_eye: [f32; 3],
         right: Vec3,
         up: Vec3,
         half_width: f32,
@@ -383,6 +421,17 @@ impl TreeStage {
             depth = depth.max(depth_lo).min(depth_hi);
         }
         let clip = *view_proj * Vec4::new(world.x, world.y, world.z, 1.0);
+        let l = &self.light;
+        let lightness = vertex_lightness(
+            l.shading,
+            world.to_array(),
+            matches!(self.kind, TreeKind::Billboard { .. }),
+            l.toward_eye,
+            l.centre,
+            l.radii,
+            l.sun,
+            l.ambient,
+        );
         Vertex::new(
             clip.to_array(),
             [
@@ -393,6 +442,7 @@ impl TreeStage {
                 self.command as f32,
                 self.band_scale,
                 self.subset,
+                lightness,
             ],
         )
     }
@@ -414,6 +464,8 @@ pub struct TreeShader<'a> {
     /// The frame's view constants: the LOD metric a fragment's band is scaled under
     /// ([`forestlod_shared::ViewUniform::group_band`]).
     view: SelectUniform,
+    /// The shading mode (issue 30): whether the lightness varying multiplies the texel.
+    shading: Shading,
 }
 
 impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
@@ -422,7 +474,7 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
         f: &Fragment<TREE_VARYINGS>,
         passes: PassSet,
     ) -> Option<(FragmentOutput, PassSet)> {
-        let [u, v, depth, layer, command, scale, subset] = f.varyings;
+        let [u, v, depth, layer, command, scale, subset, lightness] = f.varyings;
         // `round_exact` is `f32::round` bit for bit, without a libm call (issue 14).
         let data = &self.selection.data[round_exact(command) as usize];
         let layer = round_exact(layer) as u32;
@@ -499,6 +551,17 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
             LOD_ID_MESH
         } else {
             LOD_ID_BILLBOARD
+        };
+        // Sun-depth shading (issue 30): nothing is multiplied when unlit.
+        let texel = if self.shading == Shading::Unlit {
+            texel
+        } else {
+            [
+                texel[0] * lightness,
+                texel[1] * lightness,
+                texel[2] * lightness,
+                texel[3],
+            ]
         };
         let out = FragmentOutput {
             color: [texel[0], texel[1], texel[2], weight],
@@ -938,6 +1001,9 @@ pub fn draw_frame_cutoffs(
         alpha_cutoffs: cutoffs,
         pixel_origin: camera.pixel_origin(),
         view: SelectUniform::new(camera, params),
+        shading: params
+            .shading_mode()
+            .expect("parameters are validated before drawing"),
     };
     let state = DrawState {
         depth_write: true,

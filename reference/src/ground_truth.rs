@@ -51,6 +51,20 @@
 //!   to the lowest triangle id, so the result does not depend on the BVH's shape.
 //! - **Colour** is the unlit texture colour, as LOD0 writes it: the texel's linear RGB (its alpha
 //!   only decides the test). Ground: the interpolated vertex colour. Sky: [`SKY_SRGB`].
+//! - **Lighting** (issue 30, G§5; [`TruthLighting`]): a shaded frame's truth multiplies each tree
+//!   hit's colour by a lightness, one of two:
+//!   - *model*: the sun-depth model ([`forestlod_shared::light`]) evaluated at the hit point itself
+//!     on the full mesh, so that a frame's error against it is the error of the representation
+//!     (billboard, per-vertex interpolation), not of the model;
+//!   - *shadow*: one ray from the hit towards the sun through the alpha-tested trees, lightness 1
+//!     when it escapes and the ambient level when a tree stops it (self- and mutual shadowing,
+//!     what the sun-depth model stands in for). It starts [`SHADOW_RAY_OFFSET`] off the hit (and
+//!     at least 8 ulps of the hit's largest coordinate), so the hit's own card does not shadow
+//!     it. One ray per hit: a hard shadow of a point sun, deterministic.
+//!
+//!   The ground stays unlit under both (no variant shades it, so its error would be no
+//!   representation's), and the crown of each tree is the one the draw lights: its
+//!   bounding-sphere centre ([`crate::scene::tree_sphere`]) and [`forestlod_shared::crown_radii`].
 //! - **Supersampling**: an `s x s` ordered grid of samples per pixel, at `((i + 0.5)/s, (j + 0.5)/s)`
 //!   within the pixel (stratified without jitter, so deterministic; [`sample_offsets`], rows
 //!   outer), box-filtered in linear light (weight `1/s²` each, [`box_filter`]) and encoded to
@@ -100,6 +114,39 @@ pub enum PixelClass {
     /// A tree.
     Tree = 2,
 }
+
+/// How a truth lights its tree hits (module docs); `None` in the render calls is unlit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TruthLighting {
+    /// Unit direction towards the sun.
+    pub sun: [f32; 3],
+    /// The ambient level (the sun-depth model's far side; the shadow truth's shadowed level).
+    pub ambient: f32,
+    /// Shadow rays (`shadow`) instead of the sun-depth model at the hit (`model`).
+    pub shadows: bool,
+}
+
+impl TruthLighting {
+    /// The lighting a frame of validated `params` is measured against under truth mode `mode`:
+    /// `None` when its trees are unlit, else its sun and ambient level.
+    pub fn of(
+        params: &forestlod_shared::Params,
+        mode: forestlod_shared::TruthLight,
+    ) -> Option<Self> {
+        if params.shading_mode().ok()? == forestlod_shared::Shading::Unlit {
+            return None;
+        }
+        Some(Self {
+            sun: params.sun_dir(),
+            ambient: params.ambient,
+            shadows: mode == forestlod_shared::TruthLight::Shadow,
+        })
+    }
+}
+
+/// The least distance a shadow ray starts from its hit, metres (module docs): a centimetre, far
+/// below a leaf card's size and above the rounding of a hit point in a scene of a few km.
+pub const SHADOW_RAY_OFFSET: f32 = 0.01;
 
 /// The nearest accepted hit of one ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -157,6 +204,8 @@ pub struct GroundTruthScene {
     cluster_tree: Vec<u32>,
     /// Tree mesh index per tree.
     tree_mesh: Vec<u32>,
+    /// Per tree, its crown for the lit truths: `[centre x, y, z, R_h, R_v]` (module docs).
+    tree_crown: Vec<[f32; 5]>,
     /// Per mesh: uvs of each triangle's three corners.
     mesh_uvs: Vec<Vec<[[f32; 2]; 3]>>,
     /// Per mesh: its texture, level 0 only.
@@ -550,6 +599,19 @@ impl GroundTruthScene {
             cluster_first,
             cluster_tree,
             tree_mesh: scene.instances.iter().map(|t| t.mesh).collect(),
+            tree_crown: {
+                let metas: Vec<_> = scene.meshes.iter().map(|m| m.bounds_meta()).collect();
+                scene
+                    .instances
+                    .iter()
+                    .map(|t| {
+                        let meta = &metas[t.mesh as usize];
+                        let (c, _) = crate::scene::tree_sphere(t, meta);
+                        let [rh, rv] = forestlod_shared::crown_radii(meta, t.scale);
+                        [c[0], c[1], c[2], rh, rv]
+                    })
+                    .collect()
+            },
             mesh_uvs,
             textures,
             ground_colors,
@@ -592,6 +654,7 @@ impl GroundTruthScene {
             + bytes(self.cluster_first.len(), 4)
             + bytes(self.cluster_tree.len(), 4)
             + bytes(self.tree_mesh.len(), 4)
+            + bytes(self.tree_crown.len(), size_of::<[f32; 5]>())
             + self
                 .mesh_uvs
                 .iter()
@@ -710,11 +773,54 @@ impl GroundTruthScene {
     /// Renders the ground truth for a camera with `samples_per_axis`² samples per pixel (module
     /// docs). The camera must be valid.
     pub fn render(&self, camera: &Camera, samples_per_axis: u32) -> GroundTruthImage {
+        self.render_lit(camera, samples_per_axis, None)
+    }
+
+    /// [`GroundTruthScene::render`] with the trees lit by `lighting` (module docs; `None`:
+    /// unlit, the same image).
+    pub fn render_lit(
+        &self,
+        camera: &Camera,
+        samples_per_axis: u32,
+        lighting: Option<TruthLighting>,
+    ) -> GroundTruthImage {
         self.render_region(
             camera,
             samples_per_axis,
             [0, 0, camera.width, camera.height],
+            lighting,
         )
+    }
+
+    /// The lightness of a tree hit at `t` along `origin + t·direction` on scene triangle
+    /// `triangle` under `lighting` (module docs), and the shadow rays it traced (0 or 1).
+    fn tree_lightness(
+        &self,
+        lighting: &TruthLighting,
+        (origin, direction, t): ([f32; 3], [f32; 3], f32),
+        triangle: u32,
+    ) -> (f32, u64) {
+        let Some(tree) = self.tree_of(triangle) else {
+            return (1.0, 0);
+        };
+        let p = [0, 1, 2].map(|i| origin[i] + t * direction[i]);
+        if lighting.shadows {
+            let largest = p.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+            let tmin = SHADOW_RAY_OFFSET.max(8.0 * f32::EPSILON * largest);
+            let blocked = self
+                .trace(
+                    p,
+                    lighting.sun,
+                    tmin,
+                    forestlod_shared::params::MAX_DISTANCE,
+                    true,
+                )
+                .is_some_and(|h| h.class == PixelClass::Tree);
+            return (if blocked { lighting.ambient } else { 1.0 }, 1);
+        }
+        let [cx, cy, cz, rh, rv] = self.tree_crown[tree as usize];
+        let delta = forestlod_shared::sun_depth(p, [cx, cy, cz], [rh, rv], lighting.sun);
+        (forestlod_shared::lightness(delta, lighting.ambient), 0)
     }
 
     /// Renders only the pixel rectangle `[x0, y0, w, h]` of the camera's frame (a `w x h` image
@@ -726,6 +832,7 @@ impl GroundTruthScene {
         camera: &Camera,
         samples_per_axis: u32,
         [x0, y0, w, h]: [u32; 4],
+        lighting: Option<TruthLighting>,
     ) -> GroundTruthImage {
         assert!(
             x0 + w <= camera.width && y0 + h <= camera.height,
@@ -734,7 +841,7 @@ impl GroundTruthScene {
         let s = samples_per_axis.max(1);
         let offsets = sample_offsets(s);
         let sky = SKY_SRGB.map(srgb_to_linear);
-        let rows: Vec<Vec<([f32; 3], PixelClass, f32)>> = (y0..y0 + h)
+        let rows: Vec<Vec<([f32; 3], PixelClass, f32, u64)>> = (y0..y0 + h)
             .into_par_iter()
             .with_max_len(1)
             .map(|y| {
@@ -742,12 +849,21 @@ impl GroundTruthScene {
                     .map(|x| {
                         let mut sum = [0.0f64; 3];
                         let mut counts = [0u32; 3];
+                        let mut shadow_rays = 0u64;
                         // The pattern's order (rows outer, columns inner) is the summation order.
                         for &[ox, oy] in &offsets {
                             let (o, d) = primary_ray(camera, x as f32 + ox, y as f32 + oy);
                             let (class, color) =
                                 match self.trace(o, d, camera.near, camera.far, true) {
-                                    Some(hit) => (hit.class, hit.color),
+                                    Some(hit) => match (&lighting, hit.class) {
+                                        (Some(l), PixelClass::Tree) => {
+                                            let (light, rays) =
+                                                self.tree_lightness(l, (o, d, hit.t), hit.triangle);
+                                            shadow_rays += rays;
+                                            (hit.class, hit.color.map(|c| c * light))
+                                        }
+                                        _ => (hit.class, hit.color),
+                                    },
                                     None => (PixelClass::Sky, sky),
                                 };
                             counts[class as usize] += 1;
@@ -759,6 +875,7 @@ impl GroundTruthScene {
                             box_filter(sum, s),
                             classify(counts, s),
                             tree_fraction(counts, s),
+                            shadow_rays,
                         )
                     })
                     .collect()
@@ -789,7 +906,7 @@ impl GroundTruthScene {
             srgb,
             class: pixels.iter().map(|p| p.1).collect(),
             tree_fraction: pixels.iter().map(|p| p.2).collect(),
-            rays: w as u64 * h as u64 * (s * s) as u64,
+            rays: w as u64 * h as u64 * (s * s) as u64 + pixels.iter().map(|p| p.3).sum::<u64>(),
         }
     }
 }
@@ -1329,7 +1446,7 @@ mod tests {
         let scene = builtin::pair();
         for layout in [TruthLayout::TREES, TruthLayout::TRIANGLES] {
             let gt = GroundTruthScene::build_with(&scene, 0.5, layout).unwrap();
-            let parts: [(&str, usize); 10] = [
+            let parts: [(&str, usize); 11] = [
                 ("bvh nodes", size_of_val(&gt.bvh.nodes[..])),
                 (
                     "bvh primitive index",
@@ -1340,6 +1457,7 @@ mod tests {
                 ("cluster ranges", size_of_val(&gt.cluster_first[..])),
                 ("cluster trees", size_of_val(&gt.cluster_tree[..])),
                 ("tree meshes", size_of_val(&gt.tree_mesh[..])),
+                ("tree crowns", size_of_val(&gt.tree_crown[..])),
                 ("uvs", gt.mesh_uvs.iter().map(|m| size_of_val(&m[..])).sum()),
                 (
                     "textures",
@@ -1388,7 +1506,7 @@ mod tests {
         assert_eq!(one, two);
         // A region is the full frame's pixels there, bit for bit (the sweeps' sampled tiles).
         let (x0, y0, rw, rh) = (13, 5, 20, 17);
-        let region = gt.render_region(&camera, 2, [x0, y0, rw, rh]);
+        let region = gt.render_region(&camera, 2, [x0, y0, rw, rh], None);
         assert_eq!((region.width, region.height), (rw, rh));
         assert_eq!(region.rays, (rw * rh * 4) as u64);
         for y in 0..rh {

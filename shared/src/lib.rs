@@ -38,6 +38,7 @@ pub mod emit;
 pub mod fade;
 pub mod frame;
 pub mod interval;
+pub mod light;
 pub mod metric;
 pub mod modes;
 pub mod params;
@@ -68,6 +69,10 @@ pub use frame::{FramePart, FramePlan, SelectionPlan, StageId};
 pub use interval::{
     LodNeeds, ViewInterval, aabb_margin, aabb_view_interval, lod_needs, selection_margin,
     view_interval,
+};
+pub use light::{
+    MIN_CROWN_RADIUS, Shading, TruthLight, crown_radii, light_point, lightness, sun_depth,
+    sun_direction, vertex_lightness,
 };
 pub use metric::{LodMetric, band_ratio, focal_px, mesh_size, metric_factor};
 pub use params::{

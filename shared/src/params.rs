@@ -204,8 +204,22 @@ pub struct Params {
     /// The least density a subset keeps, `ρ_min` in `(0, 1]`. Default 0.125: past
     /// `subset_distance · √8` (2.8 km at the default) one tree in eight is drawn.
     pub subset_min: f32,
+    /// [`crate::Shading`] as `u32` (issue 30, G§5). Default `Unlit`: flat albedo, the frames of
+    /// before issue 30 bit for bit (`shared/src/light.rs`).
+    pub shading: u32,
+    /// The sun's azimuth, degrees counter-clockwise from +X (issue 30). Default 135°: the sun
+    /// in the north-west, and the named cameras (`reference::cameras`) look east, so a crown's
+    /// side towards them is half in the sun: neither the seed's best view (sun behind the
+    /// camera) nor its worst (sun ahead).
+    pub sun_azimuth: f32,
+    /// The sun's elevation above the horizon, degrees (issue 30). Default 45°, the higher of the
+    /// issue's two sweep settings (15° and 45°).
+    pub sun_elevation: f32,
+    /// The ambient level `a` of sun-depth shading: the lightness of a crown's far side (issue
+    /// 30). Default 0.35, the design study's reading (G§5 gives no constant).
+    pub ambient: f32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 92);
+const _: () = assert!(core::mem::size_of::<Params>() == 108);
 
 impl Default for Params {
     fn default() -> Self {
@@ -233,6 +247,10 @@ impl Default for Params {
             subset_mode: crate::SubsetMode::Off as u32,
             subset_distance: 1000.0,
             subset_min: 0.125,
+            shading: crate::Shading::Unlit as u32,
+            sun_azimuth: 135.0,
+            sun_elevation: 45.0,
+            ambient: 0.35,
         }
     }
 }
@@ -275,6 +293,12 @@ impl Params {
     /// The one place the band's start is derived in `f32` ([`crate::ViewUniform::new`] uses it).
     pub fn fade_start(&self) -> f32 {
         self.lod1_transition - self.fade_width
+    }
+
+    /// The unit direction towards the sun ([`crate::sun_direction`] of `sun_azimuth` and
+    /// `sun_elevation`): the one place it is derived.
+    pub fn sun_dir(&self) -> [f32; 3] {
+        crate::sun_direction(self.sun_azimuth, self.sun_elevation)
     }
 
     /// Number of mip levels of a billboard layer, `log2(r) + 1` (r = 1 has one level).

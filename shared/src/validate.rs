@@ -60,6 +60,11 @@ impl Params {
         crate::SubsetMode::from_id(self.subset_mode).ok_or_else(|| rejected("subset_mode", self))
     }
 
+    /// Tree shading (issue 30), validated.
+    pub fn shading_mode(&self) -> Result<crate::Shading, ParamError> {
+        crate::Shading::from_id(self.shading).ok_or_else(|| rejected("shading", self))
+    }
+
     /// Checks every field against the parameter table ([`crate::registry::PARAMS`], in its
     /// order), returning the first impossible one. Nothing downstream runs on invalid parameters,
     /// so no stage needs to guard against NaN or zero divisors (SPEC §7).

@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 23] = [
+const PINNED: [(&str, &str, &str); 27] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -121,6 +121,26 @@ const PINNED: [(&str, &str, &str); 23] = [
         "subset_min",
         "expected a finite density in 0.001..=1",
         "Least density of a far-field subset, in 0.001..=1 (E§7)",
+    ),
+    (
+        "shading",
+        "expected 0 (unlit), 1 (sun-depth) or 2 (sun-depth-plane)",
+        "Tree shading (issue 30): unlit, sun-depth (G§5 Fig. 8), sun-depth-plane (G§5 Fig. 9)",
+    ),
+    (
+        "sun_azimuth",
+        "expected a finite azimuth in -360..=360 degrees",
+        "Sun azimuth, degrees counter-clockwise from +X (G§5)",
+    ),
+    (
+        "sun_elevation",
+        "expected a finite elevation in 0..=90 degrees",
+        "Sun elevation above the horizon, degrees (G§5)",
+    ),
+    (
+        "ambient",
+        "expected a finite level in 0..=1",
+        "Ambient level of sun-depth shading: the lightness of a crown's far side, in 0..=1 (G§5)",
     ),
 ];
 

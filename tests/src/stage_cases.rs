@@ -110,6 +110,9 @@ pub const READ_ONLY_UNDER: &[(&str, &str, &str)] = &[
     ("lod_screen_error", "lod_metric", "screen-error"),
     ("subset_distance", "subset_mode", "thin"),
     ("subset_min", "subset_mode", "thin"),
+    ("sun_azimuth", "shading", "sun-depth-plane"),
+    ("sun_elevation", "shading", "sun-depth-plane"),
+    ("ambient", "shading", "sun-depth-plane"),
 ];
 
 /// Makes a case's parameters coherent ([`Params::validate`]'s cross-field rule): far-field

@@ -749,6 +749,14 @@ impl SweepSpec {
             t.check()
                 .or_else(|r| e(key("truth_tiles"), &format!("{t:?}"), &r))?;
         }
+        if forestlod_shared::TruthLight::from_name(&self.truth_light).is_none() {
+            let names: Vec<_> = forestlod_shared::TruthLight::ALL.map(|m| m.name()).to_vec();
+            return e(
+                key("truth_light"),
+                &self.truth_light,
+                &format!("expected one of {}", names.join(", ")),
+            );
+        }
         let axes = self.check_params()?;
         let x = self.x_axis.as_str();
         if !["yaw", "distance", "setting"].contains(&x) && !axes.iter().any(|a| same_param(a, x)) {

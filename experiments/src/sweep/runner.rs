@@ -17,7 +17,7 @@ use forestlod_reference::baselines::{
     tree_spheres, trees_drawn_by_selection,
 };
 use forestlod_reference::cameras::named_camera;
-use forestlod_reference::ground_truth::{GroundTruthImage, GroundTruthScene};
+use forestlod_reference::ground_truth::{GroundTruthImage, GroundTruthScene, TruthLighting};
 use forestlod_reference::output::{lod_id_image, write_png};
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::{Scene, builtin, load};
@@ -177,6 +177,9 @@ impl Runner {
         let truth_seconds_before = self.truth_seconds;
         let mut truth_memory = 0u64;
         let mut truth_layouts: Vec<String> = Vec::new();
+        // Checked when the file was loaded (`load.rs`); `model` for a spec built in code.
+        let truth_light = forestlod_shared::TruthLight::from_name(&spec.truth_light)
+            .unwrap_or(forestlod_shared::TruthLight::Model);
         for (scene_i, scene_name) in spec.scenes.iter().enumerate() {
             self.scene(scene_name, alpha_cutoff)?;
             let (_, scene, gt_scene) = self.scene.as_ref().expect("loaded");
@@ -238,8 +241,11 @@ impl Runner {
                         pose: pose_i,
                         backends: Vec::new(),
                     };
+                    // A shaded set's truth is lit the same way (issue 30): its lighting is part
+                    // of the truth's identity.
+                    let lighting = TruthLighting::of(&set.params, truth_light);
                     let key = format!(
-                        "{}|{}|{}|{}|{}x{}|{}|{:?}",
+                        "{}|{}|{}|{}|{}x{}|{}|{:?}|{:?}",
                         scene.name,
                         pose.camera,
                         pose.yaw_deg,
@@ -247,11 +253,12 @@ impl Runner {
                         width,
                         height,
                         spec.samples,
-                        layout
+                        layout,
+                        lighting
                     );
                     if !self.images.contains_key(&key) {
                         let t0 = Instant::now();
-                        let img = layout.render_truth(gt_scene, &camera, spec.samples);
+                        let img = layout.render_truth(gt_scene, &camera, spec.samples, lighting);
                         let seconds = t0.elapsed().as_secs_f64();
                         self.rays += img.rays;
                         self.truth_seconds += seconds;

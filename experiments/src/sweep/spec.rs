@@ -117,6 +117,11 @@ pub struct SweepSpec {
     /// Trace the truth on sampled tiles only (`crate::fair::TruthLayout`); absent: the full frame.
     #[serde(default)]
     pub truth_tiles: Option<TileSpec>,
+    /// How the truth lights a shaded set's trees (issue 30): `model` (default, the sun-depth
+    /// model at each hit: the representation's error) or `shadow` (shadow rays: the model's
+    /// error too); [`forestlod_shared::TruthLight`]. Unlit sets' truths are unlit.
+    #[serde(default = "default_truth_light")]
+    pub truth_light: String,
     /// Measure the total error: every frame rendered again at the truth's sampling rate
     /// (`samples`² times the pixels, untimed) and box-filtered (`crate::fair`). Default true.
     #[serde(default = "default_true")]
@@ -169,6 +174,9 @@ fn default_height() -> u32 {
 }
 fn default_true() -> bool {
     true
+}
+fn default_truth_light() -> String {
+    forestlod_shared::TruthLight::Model.name().to_string()
 }
 fn default_samples() -> u32 {
     forestlod_reference::ground_truth::DEFAULT_SAMPLES_PER_AXIS

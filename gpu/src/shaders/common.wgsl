@@ -642,3 +642,53 @@ fn subset_fragment_weight(packed: u32, fade_mode: u32, x: u32, y: u32) -> f32 {
     let h = dither_threshold(x + (packed >> 8u), y);
     return select(0.0, 1.0, h < w);
 }
+
+// ---- Sun-depth shading (issue 30, G§5): twin of forestlod_shared::light. SHADING_* ids and
+// MIN_CROWN_RADIUS_BITS are generated from Rust.
+
+// forestlod_shared::crown_radii.
+fn crown_radii(mesh: MeshMeta, scale: f32) -> vec2<f32> {
+    return vec2<f32>(mesh.billboard_half_width * scale, (mesh.bbox_max[2] - mesh.bbox_min[2]) * 0.5 * scale);
+}
+
+// forestlod_shared::sun_depth: the same operations in the same order; clamped, NaN to -1
+// (`max` then `min`, as the reference's `max(-1).min(1)`).
+fn sun_depth(p: vec3<f32>, centre: vec3<f32>, radii: vec2<f32>, sun: vec3<f32>) -> f32 {
+    let dx = p.x - centre.x;
+    let dy = p.y - centre.y;
+    let dz = p.z - centre.z;
+    let along = dx * sun.x + dy * sun.y + dz * sun.z;
+    let min_radius = bitcast<f32>(MIN_CROWN_RADIUS_BITS);
+    let rh = max(radii.x, min_radius);
+    let rv = max(radii.y, min_radius);
+    let sh = sqrt(sun.x * sun.x + sun.y * sun.y) / rh;
+    let sv = sun.z / rv;
+    let inv_radius = sqrt(sh * sh + sv * sv);
+    return min(max(along * inv_radius, -1.0), 1.0);
+}
+
+// forestlod_shared::lightness.
+fn lightness(delta: f32, ambient: f32) -> f32 {
+    return ambient + (1.0 - ambient) * ((delta + 1.0) * 0.5);
+}
+
+// forestlod_shared::light_point.
+fn light_point(p: vec3<f32>, billboard: bool, shading: u32, toward_eye: vec3<f32>, r_h: f32) -> vec3<f32> {
+    if !billboard || shading != SHADING_SUN_DEPTH_PLANE {
+        return p;
+    }
+    let o = 0.5 * r_h;
+    return vec3<f32>(p.x + o * toward_eye.x, p.y + o * toward_eye.y, p.z + o * toward_eye.z);
+}
+
+// forestlod_shared::vertex_lightness.
+fn vertex_lightness(
+    shading: u32, p: vec3<f32>, billboard: bool, toward_eye: vec3<f32>, centre: vec3<f32>,
+    radii: vec2<f32>, sun: vec3<f32>, ambient: f32,
+) -> f32 {
+    if shading != SHADING_SUN_DEPTH && shading != SHADING_SUN_DEPTH_PLANE {
+        return 1.0;
+    }
+    let q = light_point(p, billboard, shading, toward_eye, radii.x);
+    return lightness(sun_depth(q, centre, radii, sun), ambient);
+}

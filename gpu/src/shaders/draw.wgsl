@@ -33,7 +33,11 @@ struct DrawUniform {
     // the dither threshold is the frame pixel's.
     pixel_origin_x: u32,
     pixel_origin_y: u32,
-    _pad2: u32,
+    // Shading (issue 30, common.wgsl `vertex_lightness`): the mode, the unit direction towards
+    // the sun and the ambient level.
+    shading: u32,
+    sun: vec3<f32>,
+    ambient: f32,
 }
 
 // Keep in sync with gpu/src/draw.rs `DrawVertex` (= reference PackedVertex).
@@ -72,9 +76,10 @@ struct DrawInstance {
 // itself exactly: reference/src/draw.rs TREE_VARYINGS).
 struct TreeVaryings {
     @builtin(position) clip: vec4<f32>,
-    // `uv` and the view depth `(p - eye) · forward`, clamped to the tree's sphere interval for
-    // billboards.
-    @location(0) uv_depth: vec3<f32>,
+    // `uv`, the view depth `(p - eye) · forward` (clamped to the tree's sphere interval for
+    // billboards) and the vertex's lightness (issue 30; 1 when unlit): one location, so the
+    // lightness costs lavapipe no set-up memory.
+    @location(0) uv_depth_light: vec4<f32>,
     // Texture layer, command index, the tree's scale as bits (what a scaled LOD metric
     // scales the command's band by, C§4.6), and its far-field subset word (common.wgsl
     // `subset_pack`, issue 29).
@@ -125,7 +130,7 @@ fn tree_vertex(
 ) -> TreeVaryings {
     var out: TreeVaryings;
     out.clip = DISCARDED_POSITION;
-    out.uv_depth = vec3<f32>(0.0, 0.0, 0.0);
+    out.uv_depth_light = vec4<f32>(0.0, 0.0, 0.0, 1.0);
     out.layer_command_scale = vec4<u32>(0u, 0u, 0u, 0u);
     let command = vertex_index >> COMMAND_SHIFT;
     let local = vertex_index & (MAX_MESH_VERTICES - 1u);
@@ -160,6 +165,8 @@ fn tree_vertex(
     var world: vec3<f32>;
     var uv: vec2<f32>;
     var layer: u32;
+    // The billboard's unit horizontal direction to the eye (sun-depth-plane's offset, issue 30).
+    var toward_eye = vec3<f32>(0.0, 0.0, 0.0);
     if data.billboard == 0u {
         let v = vertices[mesh_meta.first_vertex + local];
         let p = vec3<f32>(v.position[0], v.position[1], v.position[2]) * t.scale;
@@ -185,6 +192,7 @@ fn tree_vertex(
             h = vec3<f32>(1.0, 0.0, 0.0);
         }
         h = h * (1.0 / length(h));
+        toward_eye = h;
         // Z × h and Z cos e - h sin e, written out (h.z = 0).
         let right = vec3<f32>(-h.y, h.x, 0.0);
         let s = sin(elevation);
@@ -204,7 +212,11 @@ fn tree_vertex(
         depth = min(max(depth, i.lo), i.hi);
     }
     out.clip = u.view_proj * vec4<f32>(world, 1.0);
-    out.uv_depth = vec3<f32>(uv, depth);
+    let radii = crown_radii(mesh_meta, t.scale);
+    let lightness = vertex_lightness(
+        u.shading, world, data.billboard != 0u, toward_eye, sphere.center, radii, u.sun, u.ambient,
+    );
+    out.uv_depth_light = vec4<f32>(uv, depth, lightness);
     out.layer_command_scale = vec4<u32>(layer, command, bitcast<u32>(band_scale), subset_pack(rank, code));
     return out;
 }
@@ -212,8 +224,8 @@ fn tree_vertex(
 // reference `TreeShader::shade`.
 @fragment
 fn tree_fragment(in: TreeVaryings) -> TargetOutput {
-    let uv = in.uv_depth.xy;
-    let depth = in.uv_depth.z;
+    let uv = in.uv_depth_light.xy;
+    let depth = in.uv_depth_light.z;
     let layer = in.layer_command_scale.x;
     let data = command_data[in.layer_command_scale.y];
     let scale = bitcast<f32>(in.layer_command_scale.z);
@@ -254,7 +266,12 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
         in_band = t > 0.0 && t < 1.0;
     }
     var out: TargetOutput;
-    out.color = vec4<f32>(texel.rgb, weight);
+    // Sun-depth shading (issue 30): nothing is multiplied when unlit (bit-identical frames).
+    var rgb = texel.rgb;
+    if u.shading != SHADING_UNLIT {
+        rgb = rgb * in.uv_depth_light.w;
+    }
+    out.color = vec4<f32>(rgb, weight);
     if in_band {
         out.lod_id = LOD_ID_TRANSITION;
     } else if data.billboard == 0u {
