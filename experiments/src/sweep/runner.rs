@@ -827,8 +827,17 @@ fn save_frame_images(
     ));
     let (w, h) = (color.width, color.height);
     let rel = |name: String| format!("img/{name}");
-    let gt_path = rel(format!("{}_gt.png", slug(&pose_slug)));
-    let gt_class = rel(format!("{}_gt_class.png", slug(&pose_slug)));
+    // A lit truth (issue 30) is its own image: its shading, sun and ambient level name it, so
+    // the unlit truth of the same pose is not shown beside a lit frame.
+    let truth_slug = match forestlod_shared::Shading::from_id(set.params.shading) {
+        Some(forestlod_shared::Shading::Unlit) | None => pose_slug.clone(),
+        Some(_) => format!(
+            "{pose_slug}_lit_a{}_e{}_amb{}",
+            set.params.sun_azimuth, set.params.sun_elevation, set.params.ambient
+        ),
+    };
+    let gt_path = rel(format!("{}_gt.png", slug(&truth_slug)));
+    let gt_class = rel(format!("{}_gt_class.png", slug(&truth_slug)));
     if !dir.join(&gt_path).is_file() {
         write_png(&dir.join(&gt_path), &gt.srgb)?;
         write_png(&dir.join(&gt_class), &gt.class_image())?;

@@ -672,12 +672,16 @@ fn lightness(delta: f32, ambient: f32) -> f32 {
     return ambient + (1.0 - ambient) * ((delta + 1.0) * 0.5);
 }
 
-// forestlod_shared::light_point.
-fn light_point(p: vec3<f32>, billboard: bool, shading: u32, toward_eye: vec3<f32>, r_h: f32) -> vec3<f32> {
+// forestlod_shared::light_point: the projection onto the lighting plane.
+fn light_point(
+    p: vec3<f32>, billboard: bool, shading: u32, toward_eye: vec3<f32>, centre: vec3<f32>, r_h: f32,
+) -> vec3<f32> {
     if !billboard || shading != SHADING_SUN_DEPTH_PLANE {
         return p;
     }
-    let o = 0.5 * r_h;
+    let along = (p.x - centre.x) * toward_eye.x + (p.y - centre.y) * toward_eye.y
+        + (p.z - centre.z) * toward_eye.z;
+    let o = 0.5 * r_h - along;
     return vec3<f32>(p.x + o * toward_eye.x, p.y + o * toward_eye.y, p.z + o * toward_eye.z);
 }
 
@@ -689,6 +693,6 @@ fn vertex_lightness(
     if shading != SHADING_SUN_DEPTH && shading != SHADING_SUN_DEPTH_PLANE {
         return 1.0;
     }
-    let q = light_point(p, billboard, shading, toward_eye, radii.x);
+    let q = light_point(p, billboard, shading, toward_eye, centre, radii.x);
     return lightness(sun_depth(q, centre, radii, sun), ambient);
 }

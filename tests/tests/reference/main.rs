@@ -2,7 +2,8 @@
 //! binary (CPU only).
 //! - [`goldens`]: the reference against the golden images in `goldens/`;
 //! - [`baselines`]: the reference baselines (Vegetation, Primitive) see the same trees as ours;
-//! - [`embree_crosscheck`]: obvhs, behind the ground truth, agrees with Embree (embreex).
+//! - [`embree_crosscheck`]: obvhs, behind the ground truth, agrees with Embree (embreex);
+//! - [`shading`]: sun-depth shading (G§5) on lone trees: the seed's defect and its fix.
 //!
 //! Run one module with `cargo test -p forestlod-tests --test reference <module>::`.
 
@@ -11,4 +12,5 @@ mod baselines;
 mod embree_crosscheck;
 mod goldens;
 mod metric;
+mod shading;
 mod subsets;
