@@ -661,10 +661,10 @@ fn sun_depth(p: vec3<f32>, centre: vec3<f32>, radii: vec2<f32>, sun: vec3<f32>) 
     let min_radius = bitcast<f32>(MIN_CROWN_RADIUS_BITS);
     let rh = max(radii.x, min_radius);
     let rv = max(radii.y, min_radius);
-    let sh = sqrt(sun.x * sun.x + sun.y * sun.y) / rh;
-    let sv = sun.z / rv;
-    let inv_radius = sqrt(sh * sh + sv * sv);
-    return min(max(along * inv_radius, -1.0), 1.0);
+    let sh = sqrt(sun.x * sun.x + sun.y * sun.y) * rh;
+    let sv = sun.z * rv;
+    let extent = sqrt(sh * sh + sv * sv);
+    return min(max(along / extent, -1.0), 1.0);
 }
 
 // forestlod_shared::lightness.
