@@ -204,8 +204,19 @@ pub struct Params {
     /// The least density a subset keeps, `ρ_min` in `(0, 1]`. Default 0.125: past
     /// `subset_distance · √8` (2.8 km at the default) one tree in eight is drawn.
     pub subset_min: f32,
+    /// [`crate::DitherSpace`] as `u32` (issue 30, G§4). Default `Screen`: the dithered fades'
+    /// threshold is the frame pixel's, as before.
+    pub dither_space: u32,
+    /// [`crate::FadeGranularity`] as `u32` (issue 30, G§4). Default `Fragment`: each fragment's
+    /// progress through the band is its own depth's, as before.
+    pub fade_granularity: u32,
+    /// Side `r_n` of the texture-space noise (`shared/src/noise.rs`), a power of two. Read only
+    /// under `dither_space = texture`. Default 256: twice the billboards' default side, so a
+    /// billboard seen at its own texel size already gets one noise texel per pixel at level 1;
+    /// closer (magnified), noise texels grow to `r_lod / r_n` texels of the tree's texture.
+    pub noise_size: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 92);
+const _: () = assert!(core::mem::size_of::<Params>() == 104);
 
 impl Default for Params {
     fn default() -> Self {
@@ -233,6 +244,9 @@ impl Default for Params {
             subset_mode: crate::SubsetMode::Off as u32,
             subset_distance: 1000.0,
             subset_min: 0.125,
+            dither_space: crate::DitherSpace::Screen as u32,
+            fade_granularity: crate::FadeGranularity::Fragment as u32,
+            noise_size: 256,
         }
     }
 }

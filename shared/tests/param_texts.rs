@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 23] = [
+const PINNED: [(&str, &str, &str); 26] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -121,6 +121,21 @@ const PINNED: [(&str, &str, &str); 23] = [
         "subset_min",
         "expected a finite density in 0.001..=1",
         "Least density of a far-field subset, in 0.001..=1 (E§7)",
+    ),
+    (
+        "dither_space",
+        "expected 0 (screen) or 1 (texture)",
+        "Where the dithered fades' threshold comes from (issue 30): screen, texture (G§4)",
+    ),
+    (
+        "fade_granularity",
+        "expected 0 (fragment) or 1 (tree)",
+        "What a fade's progress through the band is taken from (issue 30): fragment, tree (G§4)",
+    ),
+    (
+        "noise_size",
+        "expected a power of two in 1..=4096",
+        "Side of the texture-space noise under dither-space texture, a power of two (G§4)",
     ),
 ];
 
