@@ -146,8 +146,18 @@ pub struct DrawUniform {
     pub pixel_origin_y: u32,
     /// Explicit padding.
     pub _pad2: u32,
+    /// `DitherSpace` as `u32` (issue 30, G§4): the dithered fades' threshold from the frame
+    /// pixel or from the texture-space noise (`forestlod_shared::noise`).
+    pub dither_space: u32,
+    /// `FadeGranularity` as `u32` (issue 30, G§4): under `tree` the vertex stage passes the
+    /// tree's progress in place of its scale.
+    pub fade_granularity: u32,
+    /// The texture-space noise's side, `Params::noise_size`.
+    pub noise_size: u32,
+    /// Explicit padding.
+    pub _pad3: u32,
 }
-const _: () = assert!(size_of::<DrawUniform>() == 256);
+const _: () = assert!(size_of::<DrawUniform>() == 272);
 
 impl DrawUniform {
     /// The uniform of a validated camera and parameters, derived as the reference derives its
@@ -165,6 +175,10 @@ impl DrawUniform {
             pixel_origin_x: camera.pixel_origin()[0],
             pixel_origin_y: camera.pixel_origin()[1],
             _pad2: 0,
+            dither_space: params.dither_space,
+            fade_granularity: params.fade_granularity,
+            noise_size: params.noise_size,
+            _pad3: 0,
         }
     }
 }
@@ -1233,7 +1247,11 @@ pub(crate) mod tests {
                 billboard_first_vertex,
                 pixel_origin_x,
                 pixel_origin_y,
-                _pad2
+                _pad2,
+                dither_space,
+                fade_granularity,
+                noise_size,
+                _pad3
             }),
             rust_layout!(DrawVertex { position, uv }),
             draw_instance_layout(),

@@ -122,6 +122,8 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("COMMAND_ORDER", s::CommandOrder::choices()),
         ("LOD_METRIC", s::LodMetric::choices()),
         ("SUBSET_MODE", s::SubsetMode::choices()),
+        ("DITHER_SPACE", s::DitherSpace::choices()),
+        ("FADE_GRANULARITY", s::FadeGranularity::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {

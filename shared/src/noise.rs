@@ -107,15 +107,21 @@ pub fn noise_level_scaled(ddx: [f32; 2], ddy: [f32; 2], size: u32, rho2_scale: f
     lx.max(ly).min(q)
 }
 
-/// The value at `uv` of noise level `level` of a side `size` texture (module docs): nearest,
-/// repeat addressing.
-pub fn noise_at(uv: [f32; 2], level: u32, size: u32) -> f32 {
+/// The texel `[i, j]` of noise level `level` of a side `size` texture that `uv` falls in
+/// (module docs): nearest, repeat addressing.
+pub fn noise_index(uv: [f32; 2], level: u32, size: u32) -> [u32; 2] {
     let side = (size >> level).max(1);
     let s = side as f32;
     let mask = side - 1;
     // `as i32` saturates (NaN to 0), as WGSL's `i32()` of an `f32` clamps; then wrap by the mask.
     let i = ((uv[0] * s).floor() as i32 as u32) & mask;
     let j = ((uv[1] * s).floor() as i32 as u32) & mask;
+    [i, j]
+}
+
+/// The value at `uv` of noise level `level` of a side `size` texture ([`noise_index`]).
+pub fn noise_at(uv: [f32; 2], level: u32, size: u32) -> f32 {
+    let [i, j] = noise_index(uv, level, size);
     noise_texel(level, i, j)
 }
 
