@@ -166,13 +166,20 @@ pub const STAGES: &[StageEntry] = &[
     },
     StageEntry {
         id: StageId::Draw,
-        seed: "E§3.3.1, §4.4",
+        seed: "E§3.3.1, §4.4, G§4",
         reference: "reference/src/draw.rs",
         driver: "gpu/src/draw.rs",
         wgsl: "gpu/src/shaders/draw.wgsl",
         backend: Some("stage::Draw"),
         parity: "tests/tests/parity/draw.rs",
-        modes: &["fade_mode", "angle_index_mode", "lod_metric", "subset_mode"],
+        modes: &[
+            "fade_mode",
+            "angle_index_mode",
+            "lod_metric",
+            "subset_mode",
+            "dither_space",
+            "fade_granularity",
+        ],
         params: &[
             "alpha_cutoff",
             "angle_count",
@@ -185,6 +192,7 @@ pub const STAGES: &[StageEntry] = &[
             METRIC_PARAMS[1],
             SUBSET_PARAMS[0],
             SUBSET_PARAMS[1],
+            "noise_size",
         ],
     },
     StageEntry {

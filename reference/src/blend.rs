@@ -107,14 +107,17 @@ impl BlendRule {
                 // command's band at unit scale times the tree's scale (`word`) under a scaled
                 // metric, the command's band under `distance`. The same product as the
                 // per-tree selection's (`tree_band`).
-                let [fade_start, fade_end] = view
-                    .group_band([data.fade_start, data.fade_end], [word, word]);
+                let [fade_start, fade_end] =
+                    view.group_band([data.fade_start, data.fade_end], [word, word]);
                 if coverage::enabled() {
                     use coverage::{Threshold::*, hit};
                     hit(DrawFadeStart, depth >= fade_start);
                     hit(DrawFadeEnd, depth >= fade_end);
                 }
-                (fade_progress(depth, fade_start, fade_end), depth >= fade_end)
+                (
+                    fade_progress(depth, fade_start, fade_end),
+                    depth >= fade_end,
+                )
             }
             FadeGranularity::Tree => {
                 coverage::hit(
@@ -220,13 +223,15 @@ pub fn probe_fragments(
                 let command = round_exact(f.varyings[4]) as u32;
                 let (px, py) = (f.x + origin[0], f.y + origin[1]);
                 let alpha_kept = shader.texel(f)[3] >= params.alpha_cutoff;
-                let fade = (data.fading != 0).then(|| shader.blend().fade(
-                    &shader.view(),
-                    &selection.data[command as usize],
-                    f,
-                    px,
-                    py,
-                ));
+                let fade = (data.fading != 0).then(|| {
+                    shader.blend().fade(
+                        &shader.view(),
+                        &selection.data[command as usize],
+                        f,
+                        px,
+                        py,
+                    )
+                });
                 seen.lock()
                     .unwrap_or_else(|e| e.into_inner())
                     .push(ProbedFragment {

@@ -36,9 +36,9 @@
 
 use forestlod_shared::coverage;
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, FadeGranularity, FadeMode, MAX_MESH_VERTICES, MeshMeta, Params, angle_index_for,
-    bake_elevation, billboard_extent, fade_progress, subset_fragment_weight, subset_pack,
-    subset_scale, subset_weight_code, view_interval,
+    COMMAND_SHIFT, Camera, FadeGranularity, FadeMode, MAX_MESH_VERTICES, MeshMeta, Params,
+    angle_index_for, bake_elevation, billboard_extent, fade_progress, subset_fragment_weight,
+    subset_pack, subset_scale, subset_weight_code, view_interval,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -49,11 +49,11 @@ use crate::raster::{
     ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, MaskCounts, PassSet, PassShader,
     RenderTarget, SETUP_CHUNK, Triangle, TriangleSource, Vertex, draw_passes_streamed, round_exact,
 };
-use forestlod_shared::CommandData;
 use crate::sampler::{Sampler, Texture};
 use crate::scene::{Instance, Scene, tree_sphere};
 use crate::select::{SelectUniform, Selection, tree_within_draw_distance};
 use crate::texture::srgb_to_linear;
+use forestlod_shared::CommandData;
 
 // The LOD-id codes, the sky colour and the ground grid are shared with the GPU twin
 // (`forestlod_shared::{color, terrain}`); re-exported where the reference's users find them.

@@ -201,7 +201,11 @@ impl Threshold {
             SelectSubset => ("select: drawn batch's trees", "all", "a subset"),
             DrawSubsetDrop => ("draw: tree's subset weight", "above 0", "0 (dropped)"),
             DrawSubsetFade => ("draw: kept tree's subset weight", "whole", "fading"),
-            DrawTreeProgress => ("draw: fading tree's own progress", "at a band end", "inside"),
+            DrawTreeProgress => (
+                "draw: fading tree's own progress",
+                "at a band end",
+                "inside",
+            ),
             DrawNoiseLevel => ("draw: texture-space noise level", "0 (finest)", "coarser"),
         }
     }

@@ -75,8 +75,8 @@ pub use interval::{
 };
 pub use metric::{LodMetric, band_ratio, focal_px, mesh_size, metric_factor};
 pub use noise::{
-    noise_at, noise_index, noise_level, noise_level_of, noise_level_scaled, noise_level_texels, noise_texel,
-    texture_noise,
+    noise_at, noise_index, noise_level, noise_level_of, noise_level_scaled, noise_level_texels,
+    noise_texel, texture_noise,
 };
 pub use params::{
     AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,

@@ -233,11 +233,7 @@ mod tests {
         assert_eq!(noise_level_of(0.0), 0);
         assert_eq!(noise_level_of(1.0), 0);
         assert_eq!(noise_level_of(f32::MIN_POSITIVE / 2.0), 0);
-        assert_eq!(noise_level(
-            [f32::NAN, 0.0],
-            [0.0, 0.0],
-            256
-        ), 8);
+        assert_eq!(noise_level([f32::NAN, 0.0], [0.0, 0.0], 256), 8);
         assert_eq!(noise_level([f32::INFINITY, 0.0], [0.0, 0.0], 256), 8);
         // One noise texel per pixel: level 0 at ρ = 1, level 3 at 8 texels per pixel.
         assert_eq!(noise_level([1.0 / 256.0, 0.0], [0.0, 1.0 / 256.0], 256), 0);
@@ -297,7 +293,10 @@ mod tests {
             let side = size >> level;
             let texels = noise_level_texels(level, size);
             for (j, i) in [(0, 0), (side - 1, 0), (0, side - 1), (side / 2, side / 3)] {
-                let uv = [(i as f32 + 0.5) / side as f32, (j as f32 + 0.5) / side as f32];
+                let uv = [
+                    (i as f32 + 0.5) / side as f32,
+                    (j as f32 + 0.5) / side as f32,
+                ];
                 assert_eq!(noise_at(uv, level, size), texels[(j * side + i) as usize]);
             }
         }

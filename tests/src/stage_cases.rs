@@ -110,6 +110,7 @@ pub const READ_ONLY_UNDER: &[(&str, &str, &str)] = &[
     ("lod_screen_error", "lod_metric", "screen-error"),
     ("subset_distance", "subset_mode", "thin"),
     ("subset_min", "subset_mode", "thin"),
+    ("noise_size", "dither_space", "texture"),
 ];
 
 /// Makes a case's parameters coherent ([`Params::validate`]'s cross-field rule): far-field

@@ -2,12 +2,15 @@
 //! binary (CPU only).
 //! - [`goldens`]: the reference against the golden images in `goldens/`;
 //! - [`baselines`]: the reference baselines (Vegetation, Primitive) see the same trees as ours;
-//! - [`embree_crosscheck`]: obvhs, behind the ground truth, agrees with Embree (embreex).
+//! - [`embree_crosscheck`]: obvhs, behind the ground truth, agrees with Embree (embreex);
+//! - [`blend`]: issue 30's G§4 blend per tree (one t per tree, covered pixels, kept fractions,
+//!   translation invariance of the kept texels).
 //!
 //! Run one module with `cargo test -p forestlod-tests --test reference <module>::`.
 
 mod alternatives;
 mod baselines;
+mod blend;
 mod embree_crosscheck;
 mod goldens;
 mod metric;
