@@ -19,7 +19,10 @@ use std::collections::{BTreeMap, BTreeSet};
 use forestlod_reference::blend::{ProbedFragment, probe_fragments};
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::builtin;
-use forestlod_shared::{Camera, DitherSpace, FadeGranularity, FadeMode, Params};
+use forestlod_reference::scene::tree_sphere;
+use forestlod_shared::{
+    Camera, DitherSpace, FadeGranularity, FadeMode, Params, fade_progress, view_interval,
+};
 use forestlod_tests::scenarios::with_blend;
 
 /// Frame size of every probe (small: the probe draws each tree alone).
@@ -119,7 +122,23 @@ fn under_tree_granularity_every_fragment_of_a_tree_reads_one_t() {
             );
             assert!(trees > 50, "the frame must show the band: {trees} trees");
             match granularity {
-                FadeGranularity::Tree => assert_eq!(split, 0, "a tree read two values of t"),
+                FadeGranularity::Tree => {
+                    assert_eq!(split, 0, "a tree read two values of t");
+                    // And it is the tree's centre's progress through the band (the distance
+                    // metric: every tree's band is the frame's).
+                    let metas = p.scene.mesh_metas();
+                    for (&tree, t) in &ts {
+                        let instance = &p.scene.instances[tree as usize];
+                        let (centre, _) = tree_sphere(instance, &metas[instance.mesh as usize]);
+                        let d = view_interval(centre, 0.0, camera.eye, camera.basis().forward.to_array()).d;
+                        let want = fade_progress(d, params.fade_start(), params.lod1_transition);
+                        assert_eq!(
+                            t.iter().next().copied(),
+                            Some(want.to_bits()),
+                            "tree {tree}: t is not its centre's progress {want}"
+                        );
+                    }
+                }
                 // The test has teeth: per fragment, t follows the depth.
                 FadeGranularity::Fragment => assert!(split > trees / 2, "{split} of {trees}"),
             }
