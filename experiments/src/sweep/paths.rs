@@ -214,7 +214,8 @@ mod tests {
         assert_eq!(first.eye, last.eye, "the eye stands still");
         let f0 = glam::Vec3::from(first.forward);
         let f1 = glam::Vec3::from(last.forward);
-        let turned = f0.angle_between(f1).to_degrees();
+        // The turn about the vertical: the forward vectors' azimuths.
+        let turned = (f1.y.atan2(f1.x) - f0.y.atan2(f0.x)).to_degrees();
         assert!((turned - SLOW_YAW_DEGREES).abs() < 1e-3, "{turned}");
         assert!(
             (f0.z - f1.z).abs() < 1e-6,

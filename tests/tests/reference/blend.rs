@@ -130,7 +130,13 @@ fn under_tree_granularity_every_fragment_of_a_tree_reads_one_t() {
                     for (&tree, t) in &ts {
                         let instance = &p.scene.instances[tree as usize];
                         let (centre, _) = tree_sphere(instance, &metas[instance.mesh as usize]);
-                        let d = view_interval(centre, 0.0, camera.eye, camera.basis().forward.to_array()).d;
+                        let d = view_interval(
+                            centre,
+                            0.0,
+                            camera.eye,
+                            camera.basis().forward.to_array(),
+                        )
+                        .d;
                         let want = fade_progress(d, params.fade_start(), params.lod1_transition);
                         assert_eq!(
                             t.iter().next().copied(),
