@@ -278,7 +278,7 @@ mod tests {
                 crate::noise_texel(1, k % n, k / n),
             );
             let t = 0.5;
-            lost_parallel += u32::from(!(h0 < 1.0 - t) && !(h1 < t));
+            lost_parallel += u32::from(h0 >= 1.0 - t && h1 >= t);
             let w = |h0, h1| {
                 tree_lod_weights(FadeMode::DitherSequential, t, h0).lod0
                     + tree_lod_weights(FadeMode::DitherSequential, t, h1).lod1

@@ -191,6 +191,12 @@ fn under_tree_granularity_a_pixel_both_lods_cover_keeps_one() {
 /// million, and the frame has some hundreds of groups.
 const KEPT_FRACTION_SIGMAS: f32 = 5.0;
 
+/// A (tree, LOD) group: the tree's `t` and each distinct sample's kept status.
+type Group = (f32, BTreeMap<[u32; 3], bool>);
+
+/// A (tree, LOD, noise texel `[level, i, j]`) key.
+type TexelKey = (u32, u32, [u32; 3]);
+
 /// Least samples (distinct texels or pixels) of a (tree, LOD) group to be judged.
 const MIN_GROUP: usize = 30;
 
@@ -203,7 +209,7 @@ fn each_trees_kept_fraction_is_its_cover() {
         let fragments = probe(&p, &camera, &params);
         // Per (tree, LOD): the tree's t and each distinct sample's kept status (texture: the
         // noise texel; screen: the pixel).
-        let mut groups: BTreeMap<(u32, u32), (f32, BTreeMap<[u32; 3], bool>)> = BTreeMap::new();
+        let mut groups: BTreeMap<(u32, u32), Group> = BTreeMap::new();
         for f in in_band(&fragments) {
             let d = f.fade.expect("in band");
             let key = match space {
@@ -244,7 +250,7 @@ fn each_trees_kept_fraction_is_its_cover() {
 /// Shared (tree, LOD, noise texel) keys with a cover strictly between 0 and 1, and how many of
 /// them were kept in one fragment and discarded in another, over `frames`.
 fn texel_conflicts(frames: &[Vec<ProbedFragment>]) -> (usize, usize) {
-    let mut status: BTreeMap<(u32, u32, [u32; 3]), (bool, bool, usize)> = BTreeMap::new();
+    let mut status: BTreeMap<TexelKey, (bool, bool, usize)> = BTreeMap::new();
     for (k, fragments) in frames.iter().enumerate() {
         for f in in_band(fragments) {
             let d = f.fade.expect("in band");
