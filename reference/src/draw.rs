@@ -36,9 +36,9 @@
 
 use forestlod_shared::coverage;
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, FadeGranularity, FadeMode, MAX_MESH_VERTICES, MeshMeta, Params,
-    angle_index_for, bake_elevation, billboard_extent, fade_progress, subset_fragment_weight,
-    subset_pack, subset_scale, subset_weight_code, view_interval,
+    COMMAND_SHIFT, Camera, CommandData, FadeGranularity, FadeMode, MAX_MESH_VERTICES, MeshMeta,
+    Params, angle_index_for, bake_elevation, billboard_extent, fade_progress,
+    subset_fragment_weight, subset_pack, subset_scale, subset_weight_code, view_interval,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -53,7 +53,6 @@ use crate::sampler::{Sampler, Texture};
 use crate::scene::{Instance, Scene, tree_sphere};
 use crate::select::{SelectUniform, Selection, tree_within_draw_distance};
 use crate::texture::srgb_to_linear;
-use forestlod_shared::CommandData;
 
 // The LOD-id codes, the sky colour and the ground grid are shared with the GPU twin
 // (`forestlod_shared::{color, terrain}`); re-exported where the reference's users find them.
