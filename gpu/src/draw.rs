@@ -146,12 +146,22 @@ pub struct DrawUniform {
     pub pixel_origin_y: u32,
     /// `Shading` as `u32` (issue 30, `forestlod_shared::light`).
     pub shading: u32,
-    /// The unit direction towards the sun ([`Params::sun_dir`]).
-    pub sun: [f32; 3],
+    /// `DitherSpace` as `u32` (issue 30, G§4): the dithered fades' threshold from the frame
+    /// pixel or from the texture-space noise (`forestlod_shared::noise`).
+    pub dither_space: u32,
+    /// `FadeGranularity` as `u32` (issue 30, G§4): under `tree` the vertex stage passes the
+    /// tree's progress in place of its scale.
+    pub fade_granularity: u32,
+    /// The texture-space noise's side, `Params::noise_size`.
+    pub noise_size: u32,
     /// The ambient level of sun-depth shading.
     pub ambient: f32,
+    /// The unit direction towards the sun ([`Params::sun_dir`]).
+    pub sun: [f32; 3],
+    /// Explicit padding.
+    pub _pad3: u32,
 }
-const _: () = assert!(size_of::<DrawUniform>() == 272);
+const _: () = assert!(size_of::<DrawUniform>() == 288);
 
 impl DrawUniform {
     /// The uniform of a validated camera and parameters, derived as the reference derives its
@@ -169,8 +179,12 @@ impl DrawUniform {
             pixel_origin_x: camera.pixel_origin()[0],
             pixel_origin_y: camera.pixel_origin()[1],
             shading: params.shading,
-            sun: params.sun_dir(),
+            dither_space: params.dither_space,
+            fade_granularity: params.fade_granularity,
+            noise_size: params.noise_size,
             ambient: params.ambient,
+            sun: params.sun_dir(),
+            _pad3: 0,
         }
     }
 }
@@ -1240,8 +1254,12 @@ pub(crate) mod tests {
                 pixel_origin_x,
                 pixel_origin_y,
                 shading,
+                dither_space,
+                fade_granularity,
+                noise_size,
+                ambient,
                 sun,
-                ambient
+                _pad3
             }),
             rust_layout!(DrawVertex { position, uv }),
             draw_instance_layout(),

@@ -124,6 +124,8 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("LOD_METRIC", s::LodMetric::choices()),
         ("SUBSET_MODE", s::SubsetMode::choices()),
         ("SHADING", s::Shading::choices()),
+        ("DITHER_SPACE", s::DitherSpace::choices()),
+        ("FADE_GRANULARITY", s::FadeGranularity::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {

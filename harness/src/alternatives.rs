@@ -51,6 +51,42 @@ pub fn alpha_test_alternatives_at(
         .collect()
 }
 
+/// The reference frames with the texture-space noise level's `ρ²` multiplied by `1 ∓ s` for
+/// each `s` of `image_compare::NOISE_RHO2_SHIFTS` (`reference::draw::draw_frame_noise_scaled`):
+/// the alternatives that classify the pixels whose noise level a quad's derivatives decide
+/// within the twins' rounding of a level boundary (issue 30, G§4; `shared/src/noise.rs`). Empty
+/// unless the frame draws texture-space noise (`dither_space = texture`).
+pub fn noise_level_alternatives(
+    prepared: &Prepared,
+    camera: &Camera,
+    params: &Params,
+) -> Vec<Images> {
+    if params.dither_space != forestlod_shared::DitherSpace::Texture as u32 {
+        return Vec::new();
+    }
+    camera.validate().expect("a valid camera");
+    params.validate().expect("valid parameters");
+    let (selection, refined) = prepared.select_refined(camera, params);
+    let res = forestlod_reference::draw::DrawResources {
+        indirection: refined
+            .as_ref()
+            .map_or(&prepared.batches.indirection, |r| &r.indirection),
+        ..prepared.resources()
+    };
+    crate::image_compare::NOISE_RHO2_SHIFTS
+        .iter()
+        .flat_map(|&s| [1.0 - s, 1.0 + s])
+        .map(|scale| {
+            moved_images(
+                forestlod_reference::draw::draw_frame_noise_scaled(
+                    &res, &selection, camera, params, scale, None,
+                )
+                .target,
+            )
+        })
+        .collect()
+}
+
 /// A target's buffers as [`Images`], moved, not copied.
 fn moved_images(target: RenderTarget) -> Images {
     let (width, height) = (target.width(), target.height());

@@ -114,6 +114,24 @@ pub const ALPHA_TEST_EPSILON: f32 = 0.09;
 /// nearest the cutoff; smaller rungs reproduce that.
 pub const ALPHA_TEST_SHIFTS: [f32; 3] = [0.01, 0.03, ALPHA_TEST_EPSILON];
 
+/// How far the alternative frames of the texture-space noise (issue 30, G§4) move the noise
+/// level's squared scale factor `ρ²`, relative (`alternatives::noise_level_alternatives`: each
+/// frame at `ρ² · (1 ∓ s)`), a ladder like [`ALPHA_TEST_SHIFTS`].
+///
+/// Why up to 1/8: the level is Vulkan's nearest mip of `log2 ρ`, decided exactly from the bits of
+/// `ρ²` on both sides (`shared/src/noise.rs`), so only the derivatives differ: the reference's are
+/// the rasterizer's coarse per-quad differences of `f64`-interpolated `uv`, lavapipe's
+/// `dpdxCoarse` are its own `f32` plane equations' and, on llvmpipe, per row and per column of
+/// the quad (a "fine" derivative), so they differ by the change of the derivative across one
+/// pixel: for a perspective-mapped surface, about `|∂w/∂x| / w` per pixel, a few percent of `ρ²`
+/// on the crown cards of a mesh seen edge-on, far less on a billboard. 1/8 of `ρ²` (1/16 of `ρ`,
+/// as [`ALPHA_TEST_EPSILON`]'s λ error) covers that; a wrong level formula (off by one level,
+/// a factor 4 in `ρ²`, or the wrong texture size) moves every quad and still fails.
+pub const NOISE_RHO2_EPSILON: f32 = 0.125;
+
+/// The shifts of the noise-level alternative frames, a ladder up to [`NOISE_RHO2_EPSILON`].
+pub const NOISE_RHO2_SHIFTS: [f32; 3] = [1.0 / 256.0, 1.0 / 32.0, NOISE_RHO2_EPSILON];
+
 /// How many roundings of the discriminant the Primitive's alternative frames move its root tests
 /// by (`reference::baselines::Proxy::intersect`: `disc >= k · ε · m`, `m` the larger of
 /// the two products the discriminant subtracts).

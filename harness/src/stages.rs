@@ -168,7 +168,7 @@ pub const STAGES: &[StageEntry] = &[
     },
     StageEntry {
         id: StageId::Draw,
-        seed: "E§3.3.1, §4.4",
+        seed: "E§3.3.1, §4.4, G§4",
         reference: "reference/src/draw.rs",
         driver: "gpu/src/draw.rs",
         wgsl: "gpu/src/shaders/draw.wgsl",
@@ -180,6 +180,8 @@ pub const STAGES: &[StageEntry] = &[
             "lod_metric",
             "subset_mode",
             "shading",
+            "dither_space",
+            "fade_granularity",
         ],
         params: &[
             "alpha_cutoff",
@@ -196,6 +198,7 @@ pub const STAGES: &[StageEntry] = &[
             METRIC_PARAMS[1],
             SUBSET_PARAMS[0],
             SUBSET_PARAMS[1],
+            "noise_size",
         ],
     },
     StageEntry {

@@ -21,7 +21,10 @@
 //!   poking out of the sphere never asks for a LOD its batch was not selected for. Weights come from
 //!   [`forestlod_shared::lod_weights`] with the per-pixel [`forestlod_shared::dither_threshold`]; a
 //!   weight of 0 discards, otherwise the fragment's alpha is the weight and blending is source-over
-//!   (so weight 1 is an opaque write).
+//!   (so weight 1 is an opaque write). Issue 30 (G§4) adds where the threshold comes from (the
+//!   frame pixel, or a noise texture in the LOD's texture space) and what the progress is taken
+//!   from (the fragment's depth, or the tree's centre, once per tree in the vertex stage):
+//!   `crate::blend`, whose defaults are the rule above.
 //! - **Alpha test**: a texel with alpha below `params.alpha_cutoff` is discarded; kept texels count
 //!   as opaque (the fade weight alone sets the output alpha).
 //! - **Textures**: LOD0 samples its mesh's texture, LOD1 the billboard array layer
@@ -36,14 +39,15 @@
 
 use forestlod_shared::coverage;
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, FadeMode, MAX_MESH_VERTICES, MeshMeta, Params, Shading, angle_index_for,
-    bake_elevation, billboard_extent, crown_radii, dither_threshold, fade_progress, lod_weights,
+    COMMAND_SHIFT, Camera, CommandData, FadeGranularity, FadeMode, MAX_MESH_VERTICES, MeshMeta,
+    Params, Shading, angle_index_for, bake_elevation, billboard_extent, crown_radii, fade_progress,
     subset_fragment_weight, subset_pack, subset_scale, subset_weight_code, vertex_lightness,
     view_interval,
 };
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::bake::BakedBillboards;
+use crate::blend::BlendRule;
 use crate::geometry::PackedGeometry;
 use crate::raster::{
     ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, MaskCounts, PassSet, PassShader,
@@ -61,10 +65,15 @@ pub use forestlod_shared::{
     TERRAIN_CELLS, TERRAIN_MARGIN, ground_color,
 };
 
-/// Varyings of the tree pipeline: `u, v, view depth, texture layer, command index, tree scale,
-/// subset word, lightness`.
+/// Varyings of the tree pipeline: `u, v, view depth, texture layer, command index, tree scale
+/// (or the tree's fade progress), subset word, lightness`.
 ///
-/// The lightness (issue 30, `forestlod_shared::light`) is 1 under `unlit`, and then unused.
+/// The lightness (issue 30, G§5, `forestlod_shared::light`) is 1 under `unlit`, and then unused.
+///
+/// Under `fade_granularity = tree` (issue 30, G§4, `crate::blend`) the sixth varying carries the
+/// tree's progress `t` through its band instead of its scale: the fragment then needs no band,
+/// so no scale, and `t` is constant over the tree like the scale (the argument below holds for
+/// it too), so both LODs' fragments read it exactly.
 ///
 /// The subset word ([`forestlod_shared::subset_pack`], issue 29) is the tree's far-field subset
 /// weight code and its rank's dither shift, 24 bits, so exact in an `f32`, and constant over the
@@ -301,11 +310,22 @@ pub fn tree_stage(
         sun: uniform.sun,
         ambient: params.ambient,
     };
+    // The sixth varying ([`TREE_VARYINGS`]): the tree's own scale, or under the `tree`
+    // granularity (issue 30, G§4) its progress through its own band at its centre's depth,
+    // the band the fragment would otherwise scale by that scale (`crate::blend`).
+    let fade_word = match params.fade_granularity {
+        g if g == FadeGranularity::Tree as u32 => {
+            let [fade_start, fade_end] =
+                u.group_band([data.fade_start, data.fade_end], [t.scale, t.scale]);
+            fade_progress(d_tree, fade_start, fade_end)
+        }
+        _ => t.scale,
+    };
     Some(TreeStage {
         command,
         base: tree.base,
         scale: tree.scale,
-        band_scale: t.scale,
+        fade_word,
         subset,
         kind,
         light,
@@ -319,8 +339,9 @@ pub struct TreeStage {
     base: Vec3,
     /// The scale the tree is drawn at (its own, or enlarged by `thin-scale`).
     scale: f32,
-    /// The tree's own scale: what its LOD band scales with (the selection's).
-    band_scale: f32,
+    /// The tree's own scale, what its LOD band scales with (the selection's); or, under the
+    /// `tree` fade granularity, its progress through that band ([`TREE_VARYINGS`]).
+    fade_word: f32,
     /// The subset word ([`TREE_VARYINGS`]) as an `f32`.
     subset: f32,
     kind: TreeKind,
@@ -440,7 +461,7 @@ impl TreeStage {
                 depth,
                 layer,
                 self.command as f32,
-                self.band_scale,
+                self.fade_word,
                 self.subset,
                 lightness,
             ],
@@ -456,7 +477,8 @@ impl TreeStage {
 pub struct TreeShader<'a> {
     res: &'a DrawResources<'a>,
     selection: &'a Selection,
-    fade: FadeMode,
+    /// The fade rule (`crate::blend`): mode, threshold space, progress granularity.
+    blend: BlendRule,
     alpha_cutoffs: &'a [f32],
     /// `Camera::pixel_origin`: the frame pixel of the viewport's (0, 0) (a tile camera's is
     /// non-zero); the dither threshold is the frame pixel's.
@@ -468,26 +490,79 @@ pub struct TreeShader<'a> {
     shading: Shading,
 }
 
-impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
-    fn shade_passes(
-        &self,
-        f: &Fragment<TREE_VARYINGS>,
-        passes: PassSet,
-    ) -> Option<(FragmentOutput, PassSet)> {
-        let [u, v, depth, layer, command, scale, subset, lightness] = f.varyings;
+impl<'a> TreeShader<'a> {
+    /// The fragment shader of a frame drawn by `camera` under validated `params`, one pass per
+    /// cutoff of `alpha_cutoffs`, the noise level's `ρ²` multiplied by `rho2_scale`
+    /// ([`BlendRule::rho2_scale`]: 1 except in the parity test's alternative frames).
+    pub(crate) fn new(
+        res: &'a DrawResources<'a>,
+        selection: &'a Selection,
+        camera: &Camera,
+        params: &Params,
+        alpha_cutoffs: &'a [f32],
+        rho2_scale: f32,
+    ) -> Self {
+        TreeShader {
+            res,
+            selection,
+            blend: BlendRule {
+                rho2_scale,
+                ..BlendRule::new(params)
+            },
+            alpha_cutoffs,
+            pixel_origin: camera.pixel_origin(),
+            view: SelectUniform::new(camera, params),
+            shading: params
+                .shading_mode()
+                .expect("parameters are validated before drawing"),
+        }
+    }
+
+    /// The fade rule.
+    pub(crate) fn blend(&self) -> BlendRule {
+        self.blend
+    }
+
+    /// The frame's view constants.
+    pub(crate) fn view(&self) -> SelectUniform {
+        self.view
+    }
+
+    /// The command data of the fragment's command.
+    fn data(&self, f: &Fragment<TREE_VARYINGS>) -> &'a CommandData {
         // `round_exact` is `f32::round` bit for bit, without a libm call (issue 14).
-        let data = &self.selection.data[round_exact(command) as usize];
+        &self.selection.data[round_exact(f.varyings[4]) as usize]
+    }
+
+    /// The fragment's texel: its mesh's texture (LOD0) or its billboard layer, trilinear with
+    /// the implicit level of detail of its `uv` derivatives.
+    pub(crate) fn texel(&self, f: &Fragment<TREE_VARYINGS>) -> [f32; 4] {
+        let [u, v, _, layer, ..] = f.varyings;
+        let data = self.data(f);
         let layer = round_exact(layer) as u32;
         let uv = [u, v];
         let (ddx, ddy) = ([f.ddx[0], f.ddx[1]], [f.ddy[0], f.ddy[1]]);
-        let texel = if data.billboard == 0 {
+        if data.billboard == 0 {
             self.res.mesh_textures[layer as usize].sample(&Sampler::TRILINEAR, 0, uv, ddx, ddy)
         } else {
             self.res
                 .billboards
                 .texture
                 .sample(&Sampler::TRILINEAR, layer, uv, ddx, ddy)
-        };
+        }
+    }
+}
+
+impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
+    fn shade_passes(
+        &self,
+        f: &Fragment<TREE_VARYINGS>,
+        passes: PassSet,
+    ) -> Option<(FragmentOutput, PassSet)> {
+        let subset = f.varyings[6];
+        let lightness = f.varyings[7];
+        let data = self.data(f);
+        let texel = self.texel(f);
         // The alpha test, per pass.
         let mut kept: PassSet = 0;
         for (p, &cutoff) in self.alpha_cutoffs.iter().enumerate() {
@@ -502,46 +577,25 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
         if kept == 0 {
             return None;
         }
-        // The tree's own band (C§4.6: its transition depths follow its scale): the command's
-        // band at unit scale times the tree's scale under a scaled metric, the command's band
-        // under `distance`. The same product as the per-tree selection's (`tree_band`).
-        let [fade_start, fade_end] = self
-            .view
-            .group_band([data.fade_start, data.fade_end], [scale, scale]);
-        if coverage::enabled() && data.fading != 0 {
-            use coverage::{Threshold::*, hit};
-            hit(DrawFadeStart, depth >= fade_start);
-            hit(DrawFadeEnd, depth >= fade_end);
-        }
         let (px, py) = (f.x + self.pixel_origin[0], f.y + self.pixel_origin[1]);
-        let weight = if data.fading != 0 {
-            lod_weights(
-                self.fade,
-                depth,
-                fade_start,
-                fade_end,
-                dither_threshold(px, py),
-            )
-            .of(data.lod)
-        } else {
-            1.0
-        };
+        // The fade of a fading command (`crate::blend`: the threshold's space, the progress's
+        // granularity; the rule before issue 30 at their defaults).
+        let faded = (data.fading != 0).then(|| self.blend.fade(&self.view, data, f, px, py));
+        let weight = faded.map_or(1.0, |d| d.weight);
         // A tree leaving its far-field subset fades by its own screen door (issue 29).
+        let fade = self.blend.fade;
         let weight =
-            weight * subset_fragment_weight(round_exact(subset) as u32, self.fade as u32, px, py);
+            weight * subset_fragment_weight(round_exact(subset) as u32, fade as u32, px, py);
         if coverage::enabled()
             && data.fading != 0
-            && matches!(self.fade, FadeMode::Dither | FadeMode::DitherSequential)
+            && matches!(fade, FadeMode::Dither | FadeMode::DitherSequential)
         {
             coverage::hit(coverage::Threshold::DrawDither, weight > 0.0);
         }
         if weight <= 0.0 {
             return None;
         }
-        let in_band = data.fading != 0 && {
-            let t = fade_progress(depth, fade_start, fade_end);
-            t > 0.0 && t < 1.0
-        };
+        let in_band = faded.is_some_and(|d| d.in_band());
         if data.fading != 0 {
             coverage::hit(coverage::Threshold::DrawTransitionId, in_band);
         }
@@ -985,6 +1039,44 @@ pub fn draw_frame_cutoffs(
     cutoffs: &[f32],
     mask: Option<Vec<bool>>,
 ) -> Vec<DrawnFrame> {
+    draw_frame_with(res, selection, camera, params, cutoffs, mask, 1.0)
+}
+
+/// [`draw_frame`] with the texture-space noise level's `ρ²` multiplied by `rho2_scale`
+/// ([`forestlod_shared::noise_level_scaled`]), restricted to `mask` when given: the parity test's
+/// alternative frames, whose noise levels move where a quad's `ρ²` lies within that factor of a
+/// level boundary (the twins' derivatives differ by rounding, `shared/src/noise.rs`). At 1 it is
+/// [`draw_frame`]. `params` must be valid ([`Params::validate`]).
+pub fn draw_frame_noise_scaled(
+    res: &DrawResources,
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+    rho2_scale: f32,
+    mask: Option<Vec<bool>>,
+) -> DrawnFrame {
+    let mut frames = draw_frame_with(
+        res,
+        selection,
+        camera,
+        params,
+        &[params.alpha_cutoff],
+        mask,
+        rho2_scale,
+    );
+    frames.pop().expect("one cutoff, one frame")
+}
+
+/// [`draw_frame_cutoffs`] with the noise level's `ρ²` scaled ([`draw_frame_noise_scaled`]).
+fn draw_frame_with(
+    res: &DrawResources,
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+    cutoffs: &[f32],
+    mask: Option<Vec<bool>>,
+    rho2_scale: f32,
+) -> Vec<DrawnFrame> {
     // The sky and ground do not depend on the cutoff: drawn once, copied (issue 14).
     let mut grounds: Vec<(RenderTarget, DrawStats)> =
         vec![sky_and_ground_masked(res.scene, camera, mask.clone()); cutoffs.len()];
@@ -992,19 +1084,7 @@ pub fn draw_frame_cutoffs(
         .as_ref()
         .map(|m| MaskCounts::new(m, camera.width, camera.height));
     let mut source = TreeTriangles::new(res, selection, camera, params, counts.as_ref());
-    let shader = TreeShader {
-        res,
-        selection,
-        fade: params
-            .fade()
-            .expect("parameters are validated before drawing"),
-        alpha_cutoffs: cutoffs,
-        pixel_origin: camera.pixel_origin(),
-        view: SelectUniform::new(camera, params),
-        shading: params
-            .shading_mode()
-            .expect("parameters are validated before drawing"),
-    };
+    let shader = TreeShader::new(res, selection, camera, params, cutoffs, rho2_scale);
     let state = DrawState {
         depth_write: true,
         ..DrawState::TRANSPARENT

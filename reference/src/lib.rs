@@ -34,6 +34,7 @@
 pub mod bake;
 pub mod baselines;
 pub mod batches;
+pub mod blend;
 pub mod cameras;
 pub mod coalesce;
 pub mod command_order;

@@ -89,10 +89,16 @@ pub enum Threshold {
     DrawSubsetDrop,
     /// `draw`, vertex stage: a kept tree's subset weight is whole / fading (a screen door).
     DrawSubsetFade,
+    /// `draw`, `fade_granularity = tree` (issue 30, G§4): a fading fragment's tree progress is at
+    /// an end of the band (0 or 1) / strictly inside it.
+    DrawTreeProgress,
+    /// `draw`, `dither_space = texture` (issue 30, G§4): a dithered fading fragment's noise level
+    /// is 0 (the finest) / coarser.
+    DrawNoiseLevel,
 }
 
 /// Every threshold, in table order.
-pub const ALL: [Threshold; 33] = {
+pub const ALL: [Threshold; 35] = {
     use Threshold::*;
     [
         SelectDrawDistance,
@@ -128,6 +134,8 @@ pub const ALL: [Threshold; 33] = {
         SelectSubset,
         DrawSubsetDrop,
         DrawSubsetFade,
+        DrawTreeProgress,
+        DrawNoiseLevel,
     ]
 };
 
@@ -193,6 +201,12 @@ impl Threshold {
             SelectSubset => ("select: drawn batch's trees", "all", "a subset"),
             DrawSubsetDrop => ("draw: tree's subset weight", "above 0", "0 (dropped)"),
             DrawSubsetFade => ("draw: kept tree's subset weight", "whole", "fading"),
+            DrawTreeProgress => (
+                "draw: fading tree's own progress",
+                "at a band end",
+                "inside",
+            ),
+            DrawNoiseLevel => ("draw: texture-space noise level", "0 (finest)", "coarser"),
         }
     }
 }

@@ -41,6 +41,7 @@ pub mod interval;
 pub mod light;
 pub mod metric;
 pub mod modes;
+pub mod noise;
 pub mod params;
 pub mod presets;
 pub mod registry;
@@ -64,7 +65,10 @@ pub use cut::{
     command_depth_key, continues_run, decide_node, emitted_needs, node_code, node_near_depth,
 };
 pub use emit::{EmitGroup, count_command, emit_command};
-pub use fade::{FadeMode, LodWeights, fade_progress, lod_weights};
+pub use fade::{
+    DitherSpace, FadeGranularity, FadeMode, LodWeights, fade_progress, lod_weights,
+    tree_lod_weights, weights_at,
+};
 pub use frame::{FramePart, FramePlan, SelectionPlan, StageId};
 pub use interval::{
     LodNeeds, ViewInterval, aabb_margin, aabb_view_interval, lod_needs, selection_margin,
@@ -75,6 +79,10 @@ pub use light::{
     sun_direction, vertex_lightness,
 };
 pub use metric::{LodMetric, band_ratio, focal_px, mesh_size, metric_factor};
+pub use noise::{
+    noise_at, noise_index, noise_level, noise_level_of, noise_level_scaled, noise_level_texels,
+    noise_texel, texture_noise,
+};
 pub use params::{
     AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,
 };

@@ -218,8 +218,19 @@ pub struct Params {
     /// The ambient level `a` of sun-depth shading: the lightness of a crown's far side (issue
     /// 30). Default 0.35, the design study's reading (G§5 gives no constant).
     pub ambient: f32,
+    /// [`crate::DitherSpace`] as `u32` (issue 30, G§4). Default `Screen`: the dithered fades'
+    /// threshold is the frame pixel's, as before.
+    pub dither_space: u32,
+    /// [`crate::FadeGranularity`] as `u32` (issue 30, G§4). Default `Fragment`: each fragment's
+    /// progress through the band is its own depth's, as before.
+    pub fade_granularity: u32,
+    /// Side `r_n` of the texture-space noise (`shared/src/noise.rs`), a power of two. Read only
+    /// under `dither_space = texture`. Default 256: twice the billboards' default side, so a
+    /// billboard seen at its own texel size already gets one noise texel per pixel at level 1;
+    /// closer (magnified), noise texels grow to `r_lod / r_n` texels of the tree's texture.
+    pub noise_size: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 108);
+const _: () = assert!(core::mem::size_of::<Params>() == 120);
 
 impl Default for Params {
     fn default() -> Self {
@@ -251,6 +262,9 @@ impl Default for Params {
             sun_azimuth: 135.0,
             sun_elevation: 45.0,
             ambient: 0.35,
+            dither_space: crate::DitherSpace::Screen as u32,
+            fade_granularity: crate::FadeGranularity::Fragment as u32,
+            noise_size: 256,
         }
     }
 }

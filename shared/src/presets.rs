@@ -11,6 +11,10 @@
 //! table's largest tree-level point size: 5, 10, 15, 20 and 30 px². The table's other columns
 //! (point and triangle sizes) set the point representation of Celba's later variant and mean
 //! nothing for billboards.
+//!
+//! Guerrero 2006 §4 names one blend (issue 30): `guerrero-blend` is the sequential dithered fade
+//! with the noise in each LOD's texture space and the blend factor per tree
+//! (`shared/src/fade.rs`, `shared/src/noise.rs`).
 
 use crate::registry::{ParseError, param};
 use crate::{ParamError, Params};
@@ -27,12 +31,21 @@ pub struct Preset {
 }
 
 /// Every preset, in table order (module docs).
-pub const PRESETS: [Preset; 5] = [
+pub const PRESETS: [Preset; 6] = [
     celba("celba-extra-high", &[CELBA_METRIC, ("lod_pixel_area", "5")]),
     celba("celba-high", &[CELBA_METRIC, ("lod_pixel_area", "10")]),
     celba("celba-normal", &[CELBA_METRIC, ("lod_pixel_area", "15")]),
     celba("celba-low", &[CELBA_METRIC, ("lod_pixel_area", "20")]),
     celba("celba-extra-low", &[CELBA_METRIC, ("lod_pixel_area", "30")]),
+    Preset {
+        name: "guerrero-blend",
+        seed: "G§4",
+        settings: &[
+            ("fade_mode", "dither-sequential"),
+            ("dither_space", "texture"),
+            ("fade_granularity", "tree"),
+        ],
+    },
 ];
 
 /// Celba's presets select on his own metric, constant as printed.
@@ -102,6 +115,7 @@ mod tests {
     fn celbas_presets_are_table_5_2s_tree_level_sizes_under_his_constant() {
         let areas: Vec<f32> = PRESETS
             .iter()
+            .filter(|pr| pr.seed == "C Table 5.2")
             .map(|pr| {
                 let mut p = Params::default();
                 pr.apply(&mut p).unwrap();
@@ -113,5 +127,23 @@ mod tests {
         assert!(preset("celba-high").unwrap().sets("lod_pixel_area"));
         assert!(!preset("celba-high").unwrap().sets("grid_size"));
         assert!(preset("celba-ultra").is_none());
+    }
+
+    #[test]
+    fn guerreros_blend_is_the_sequential_dither_in_texture_space_per_tree() {
+        let mut p = Params::default();
+        preset("guerrero-blend").unwrap().apply(&mut p).unwrap();
+        assert_eq!(p.fade().unwrap(), crate::FadeMode::DitherSequential);
+        assert_eq!(p.dither().unwrap(), crate::DitherSpace::Texture);
+        assert_eq!(p.granularity().unwrap(), crate::FadeGranularity::Tree);
+        assert_eq!(
+            Params {
+                dither_space: 0,
+                fade_granularity: 0,
+                ..p
+            },
+            Params::default(),
+            "the preset changes the space and the granularity only"
+        );
     }
 }

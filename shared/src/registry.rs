@@ -18,8 +18,8 @@ use std::borrow::Cow;
 
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{
-    AngleIndexMode, Coalesce, CommandOrder, FadeMode, Hierarchy, LodMetric, MipMode, Params,
-    Shading, SubsetMode, TreeCull,
+    AngleIndexMode, Coalesce, CommandOrder, DitherSpace, FadeGranularity, FadeMode, Hierarchy,
+    LodMetric, MipMode, Params, Shading, SubsetMode, TreeCull,
 };
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.
@@ -326,7 +326,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 27] = [
+pub const PARAMS: [ParamSpec; 30] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -374,6 +374,10 @@ pub const PARAMS: [ParamSpec; 27] = [
         "Sun elevation above the horizon, degrees (G§5)"),
     param!(ambient, "ambient", float(0.0, 1.0), "expected a finite level in 0..=1",
         "Ambient level of sun-depth shading: the lightness of a crown's far side, in 0..=1 (G§5)"),
+    choice!(dither_space, "dither-space", DitherSpace, "Where the dithered fades' threshold comes from (issue 30): ", ""),
+    choice!(fade_granularity, "fade-granularity", FadeGranularity, "What a fade's progress through the band is taken from (issue 30): ", ""),
+    param!(noise_size, "noise-size", power_of_two(MAX_TEXTURE_SIZE), "expected a power of two in 1..=4096",
+        "Side of the texture-space noise under dither-space texture, a power of two (G§4)"),
 ];
 
 /// Least `subset_min`: one tree in a thousand (a smaller floor leaves batches of a few hundred

@@ -65,6 +65,17 @@ impl Params {
         crate::Shading::from_id(self.shading).ok_or_else(|| rejected("shading", self))
     }
 
+    /// Where the dithered fades' threshold comes from (issue 30), validated.
+    pub fn dither(&self) -> Result<crate::DitherSpace, ParamError> {
+        crate::DitherSpace::from_id(self.dither_space).ok_or_else(|| rejected("dither_space", self))
+    }
+
+    /// What a fade's progress is taken from (issue 30), validated.
+    pub fn granularity(&self) -> Result<crate::FadeGranularity, ParamError> {
+        crate::FadeGranularity::from_id(self.fade_granularity)
+            .ok_or_else(|| rejected("fade_granularity", self))
+    }
+
     /// Checks every field against the parameter table ([`crate::registry::PARAMS`], in its
     /// order), returning the first impossible one. Nothing downstream runs on invalid parameters,
     /// so no stage needs to guard against NaN or zero divisors (SPEC §7).

@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 27] = [
+const PINNED: [(&str, &str, &str); 30] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -141,6 +141,21 @@ const PINNED: [(&str, &str, &str); 27] = [
         "ambient",
         "expected a finite level in 0..=1",
         "Ambient level of sun-depth shading: the lightness of a crown's far side, in 0..=1 (G§5)",
+    ),
+    (
+        "dither_space",
+        "expected 0 (screen) or 1 (texture)",
+        "Where the dithered fades' threshold comes from (issue 30): screen, texture (G§4)",
+    ),
+    (
+        "fade_granularity",
+        "expected 0 (fragment) or 1 (tree)",
+        "What a fade's progress through the band is taken from (issue 30): fragment, tree (G§4)",
+    ),
+    (
+        "noise_size",
+        "expected a power of two in 1..=4096",
+        "Side of the texture-space noise under dither-space texture, a power of two (G§4)",
     ),
 ];
 

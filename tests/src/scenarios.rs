@@ -271,3 +271,93 @@ pub fn refine_image_frames() -> (Vec<Prepared>, Vec<FrameScenario>) {
         ),
     ])
 }
+
+/// `params` with the blend of issue 30 (G§4): the dithered fades' threshold `space` and the
+/// progress `granularity` (`reference::blend`).
+pub fn with_blend(
+    params: Params,
+    space: forestlod_shared::DitherSpace,
+    granularity: forestlod_shared::FadeGranularity,
+) -> Params {
+    Params {
+        dither_space: space as u32,
+        fade_granularity: granularity as u32,
+        ..params
+    }
+}
+
+/// One frame of [`blend_scenarios`].
+#[derive(Clone, Debug)]
+pub struct BlendScenario {
+    /// `<scene>-<camera>-<fade>-<space>-<granularity>[-<note>]`.
+    pub name: String,
+    /// The cropped `synthetic` ([`cropped_synthetic`]`(300)`) or `tiny`.
+    pub crop: bool,
+    /// The named camera.
+    pub camera_name: &'static str,
+    /// Its side, pixels.
+    pub size: u32,
+    /// The parameters.
+    pub params: Params,
+}
+
+impl BlendScenario {
+    /// The scene the scenario draws.
+    pub fn scene(&self) -> Scene {
+        if self.crop {
+            cropped_synthetic(300.0)
+        } else {
+            builtin::tiny()
+        }
+    }
+
+    /// The camera on `scene` ([`Self::scene`]).
+    pub fn camera(&self, scene: &Scene) -> Camera {
+        named_camera(self.camera_name, scene, 0.0, self.size, self.size).expect("named camera")
+    }
+}
+
+/// The blend frames of issue 30 (G§4) that `parity::blend` compares across backends and the
+/// coverage table runs: the cropped `synthetic` from `medium` ([`crop_params`]: meshes, the band
+/// and billboards on screen) in `dither-sequential` at every space and granularity but the
+/// defaults (which `parity::draw` compares), `alpha` and `dither` per tree, and `tiny` from
+/// `close` with the band pulled in and a 32-texel noise, whose near trees take noise level 0
+/// (magnified noise: G§4's "too small" texture) beside coarser levels.
+pub fn blend_scenarios() -> Vec<BlendScenario> {
+    use forestlod_shared::{DitherSpace as S, FadeGranularity as G};
+    let mut out = Vec::new();
+    let crop = |fade: FadeMode, space: S, granularity: G| BlendScenario {
+        name: format!(
+            "crop-medium-{}-{}-{}",
+            fade.name(),
+            space.name(),
+            granularity.name()
+        ),
+        crop: true,
+        camera_name: "medium",
+        size: 160,
+        params: with_blend(crop_params(fade), space, granularity),
+    };
+    for (space, granularity) in [
+        (S::Texture, G::Tree),
+        (S::Texture, G::Fragment),
+        (S::Screen, G::Tree),
+    ] {
+        out.push(crop(FadeMode::DitherSequential, space, granularity));
+    }
+    out.push(crop(FadeMode::Alpha, S::Texture, G::Tree));
+    out.push(crop(FadeMode::Dither, S::Texture, G::Tree));
+    out.push(BlendScenario {
+        name: "tiny-close-dither-sequential-texture-tree-noise32".into(),
+        crop: false,
+        camera_name: "close",
+        size: 128,
+        params: Params {
+            lod1_transition: 90.0,
+            fade_width: 60.0,
+            noise_size: 32,
+            ..with_blend(tiny_params(FadeMode::DitherSequential), S::Texture, G::Tree)
+        },
+    });
+    out
+}

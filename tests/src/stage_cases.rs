@@ -113,6 +113,7 @@ pub const READ_ONLY_UNDER: &[(&str, &str, &str)] = &[
     ("sun_azimuth", "shading", "sun-depth-plane"),
     ("sun_elevation", "shading", "sun-depth-plane"),
     ("ambient", "shading", "sun-depth-plane"),
+    ("noise_size", "dither_space", "texture"),
 ];
 
 /// Makes a case's parameters coherent ([`Params::validate`]'s cross-field rule): far-field

@@ -348,6 +348,14 @@ fn table(columns: &[Column]) -> String {
     out
 }
 
+/// `parity::blend`'s frames (issue 30, G§4: texture-space noise, per-tree progress).
+fn blend_frames() {
+    for s in forestlod_tests::scenarios::blend_scenarios() {
+        let p = prepare(s.scene(), &s.params).expect("prepare");
+        p.render(&s.camera(&p.scene), &s.params).expect("render");
+    }
+}
+
 #[test]
 fn every_threshold_is_straddled_by_a_parity_case() {
     let columns = vec![
@@ -367,6 +375,7 @@ fn every_threshold_is_straddled_by_a_parity_case() {
         ),
         record("parity::every_stage walk", walk_frames),
         record("parity::draw unrefined straddling", unrefined_straddling),
+        record("parity::blend frames", blend_frames),
     ];
     let mut columns = columns;
     for mode in HIER_MODES {

@@ -845,7 +845,7 @@ impl SweepSpec {
                 return Err(Bad::new(
                     at.key("name"),
                     &c.name,
-                    "expected far, medium, close, distance, orbit, dolly, flyover or pan",
+                    "expected far, medium, close, distance, orbit, dolly, flyover, pan or slow-yaw",
                 ));
             }
             for (field, given, applies, hint) in [
@@ -859,7 +859,7 @@ impl SweepSpec {
                     "steps",
                     c.steps.is_some(),
                     is_path,
-                    "for the paths orbit, dolly, flyover and pan",
+                    "for the paths orbit, dolly, flyover, pan and slow-yaw",
                 ),
                 (
                     "distances",

@@ -60,7 +60,7 @@ pub use spec::{
 pub use variant::{Engine, Pipeline, ReferenceRenderer, Registered};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 20] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 21] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -102,6 +102,10 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 20] = [
         "shading_shadow",
         include_str!("../../sweeps/shading_shadow.toml"),
     ),
+    (
+        "blend_temporal",
+        include_str!("../../sweeps/blend_temporal.toml"),
+    ),
 ];
 
 /// Options of `forestlod sweep` (`Default`: no file, no override, an empty `out`).
@@ -135,7 +139,7 @@ pub struct SweepArgs {
     /// Replace the yaw steps of every 360° camera.
     #[arg(long)]
     pub yaw_steps: Option<u32>,
-    /// Replace the frames of every scene-defined camera path (orbit, dolly, flyover, pan).
+    /// Replace the frames of every scene-defined camera path (orbit, dolly, flyover, pan, slow-yaw).
     #[arg(long)]
     pub path_steps: Option<u32>,
     /// Replace the ground truth's samples per pixel side (the total error's too).

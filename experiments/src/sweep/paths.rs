@@ -5,7 +5,7 @@
 //!
 //! ```toml
 //! [[cameras]]
-//! name = "orbit"     # orbit, dolly, flyover or pan
+//! name = "orbit"     # orbit, dolly, flyover, pan or slow-yaw
 //! steps = 8
 //! ```
 //!
@@ -23,6 +23,13 @@
 //!   `distance_m` is the distance flown.
 //! - **pan**: a 360° pan from inside the forest: the eye at the centre, [`PAN_HEIGHT_M`] above the
 //!   ground (above the built-in canopies), pitched down [`PAN_PITCH_DEGREES`]; `steps` yaws.
+//! - **slow-yaw** (issue 30): a slow turn with the forest's front in the fade band. The eye
+//!   stands still where the dolly passes `T - W` before the west edge (so the front `W` metres of
+//!   forest are in the band `[T - W, T]`), at the dolly's height, pitched down to the dolly's
+//!   ground point `3.75 T` ahead, and turns about the vertical by [`SLOW_YAW_DEGREES`] in all,
+//!   from `-½` to `+½` of it (row column `yaw_deg`; `distance_m` is `T - W`): trees slide
+//!   sideways by a few pixels a step at 1280x720 (0.25° a step at 9 steps, 2.7 px at the image
+//!   centre), the motion under which a screen-space dither stays put while the trees move.
 //!
 //! Every frame records its tree fraction (the truth's and the frame's, `gt_tree_fraction`,
 //! `tree_fraction`), and the report leaves frames whose truth shows no tree out of the means.
@@ -32,7 +39,7 @@ use forestlod_reference::scene::Scene;
 use forestlod_shared::{Camera, Params};
 
 /// Names of the scene-defined paths.
-pub const PATH_NAMES: [&str; 4] = ["orbit", "dolly", "flyover", "pan"];
+pub const PATH_NAMES: [&str; 5] = ["orbit", "dolly", "flyover", "pan", "slow-yaw"];
 
 /// Frames of a path when the sweep file gives no `steps`.
 pub const DEFAULT_PATH_STEPS: u32 = 8;
@@ -49,6 +56,9 @@ pub const FLYOVER_PITCH_DEGREES: f32 = 30.0;
 pub const PAN_HEIGHT_M: f32 = 40.0;
 /// The pan's pitch below the horizon, degrees.
 pub const PAN_PITCH_DEGREES: f32 = 5.0;
+
+/// The slow yaw's whole turn, degrees (module docs).
+pub const SLOW_YAW_DEGREES: f32 = 2.0;
 
 /// Whether `name` is a scene-defined path.
 pub fn is_path(name: &str) -> bool {
@@ -133,6 +143,16 @@ pub fn path_camera(
             let eye = [cx, cy, ground(cx, cy) + PAN_HEIGHT_M];
             (aimed(eye, yaw, -PAN_PITCH_DEGREES, width, height), yaw, 0.0)
         }
+        "slow-yaw" => {
+            let big_t = params.lod1_transition;
+            let d = (big_t - params.fade_width).max(0.0);
+            let ex = x0 - d;
+            let eye = [ex, cy, ground(ex, cy) + (DOLLY_HEIGHT * big_t).max(1.0)];
+            let ahead = 3.75 * big_t.max(1.0);
+            let pitch = (ground(ex + ahead, cy) - eye[2]).atan2(ahead).to_degrees();
+            let yaw = SLOW_YAW_DEGREES * (t - 0.5);
+            (aimed(eye, yaw, pitch, width, height), yaw, d)
+        }
         _ => return None,
     })
 }
@@ -177,6 +197,31 @@ mod tests {
             }
         }
         assert!(path_camera("medium", &builtin::tiny(), &Params::default(), 0.0, 8, 8).is_none());
+    }
+
+    #[test]
+    fn the_slow_yaw_turns_slowly_with_the_front_in_the_band() {
+        let scene = builtin::tiny();
+        let params = Params {
+            lod1_transition: 80.0,
+            fade_width: 30.0,
+            ..Params::default()
+        };
+        let pose = |t| path_camera("slow-yaw", &scene, &params, t, 64, 48).unwrap();
+        let (first, yaw0, d) = pose(0.0);
+        let (last, yaw1, _) = pose(1.0);
+        assert_eq!((yaw0, yaw1, d), (-1.0, 1.0, 50.0));
+        assert_eq!(first.eye, last.eye, "the eye stands still");
+        let f0 = glam::Vec3::from(first.forward);
+        let f1 = glam::Vec3::from(last.forward);
+        // The turn about the vertical: the forward vectors' azimuths.
+        let turned = (f1.y.atan2(f1.x) - f0.y.atan2(f0.x)).to_degrees();
+        assert!((turned - SLOW_YAW_DEGREES).abs() < 1e-3, "{turned}");
+        assert!(
+            (f0.z - f1.z).abs() < 1e-6,
+            "a pure yaw: the pitch is the same"
+        );
+        assert_eq!(path_fraction("slow-yaw", 8, 9), 1.0);
     }
 
     #[test]

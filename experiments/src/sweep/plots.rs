@@ -371,6 +371,43 @@ pub fn write_plots(
                         )
                     },
                 )?;
+                // The temporal error per setting, one bar per camera path that scored one
+                // (issue 30: the blends differ in motion, not in a still frame).
+                let mut paths: Vec<String> = Vec::new();
+                for r in rows.iter().filter(|r| r.temporal_mean.is_some()) {
+                    if !paths.contains(&r.camera) {
+                        paths.push(r.camera.clone());
+                    }
+                }
+                if !paths.is_empty() {
+                    let temporal: Vec<Vec<f64>> = labels
+                        .iter()
+                        .map(|l| {
+                            paths
+                                .iter()
+                                .map(|c| {
+                                    mean(
+                                        rows.iter()
+                                            .filter(|r| &r.setting == l && &r.camera == c)
+                                            .filter_map(|r| r.temporal_mean),
+                                    )
+                                })
+                                .collect()
+                        })
+                        .collect();
+                    let axes = Axes::linear(
+                        format!("{}: temporal error per setting", spec.name),
+                        "setting",
+                        "mean temporal error",
+                    );
+                    plot(
+                        "temporal.png",
+                        "Mean temporal error per setting, one bar per camera path (the report \
+                         gives its 95% intervals and the paired differences)."
+                            .into(),
+                        &|p| bar_plot(p, &axes, &labels, &paths, &temporal),
+                    )?;
+                }
             }
         }
     }

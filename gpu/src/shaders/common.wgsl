@@ -407,8 +407,15 @@ fn lod_weight_of(w: LodWeights, lod: u32) -> f32 {
 // per-pixel threshold `dither`.
 fn lod_weights(mode: u32, d: f32, fade_start: f32, fade_end: f32, dither: f32) -> LodWeights {
     let t = fade_progress(d, fade_start, fade_end);
+    return weights_at(mode, t, d >= fade_end, dither);
+}
+
+// forestlod_shared::weights_at (shared/src/fade.rs): the fade modes' schedules at progress `t`;
+// `past_end` is where `none` switches (a fragment's depth at or past the band's end, a tree's
+// `t >= 1`).
+fn weights_at(mode: u32, t: f32, past_end: bool, dither: f32) -> LodWeights {
     if mode == FADE_NONE {
-        let one = select(0.0, 1.0, d >= fade_end);
+        let one = select(0.0, 1.0, past_end);
         return LodWeights(1.0 - one, one);
     }
     if mode == FADE_ALPHA {
@@ -422,6 +429,68 @@ fn lod_weights(mode: u32, d: f32, fade_start: f32, fade_end: f32, dither: f32) -
     let cover1 = min(2.0 * t, 1.0);
     let cover0 = min(2.0 - 2.0 * t, 1.0);
     return LodWeights(select(0.0, 1.0, dither < cover0), select(0.0, 1.0, dither < cover1));
+}
+
+// ---------------------------------------------------------------------------------------------
+// The texture-space noise of G§4's blend (issue 30): twins of shared/src/noise.rs. Integer
+// arithmetic on the bits, so both twins choose the same level and texel from the same `uv` and
+// derivatives; only the derivatives themselves may differ (dpdxCoarse against the reference
+// rasterizer's coarse differences).
+
+// forestlod_shared::noise pcg_unit: the last step of dither_threshold, 24 bits as a fraction.
+fn pcg_unit(v0: u32) -> f32 {
+    let state = v0 * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    let v = (word >> 22u) ^ word;
+    return f32(v >> 8u) * (1.0 / 16777216.0);
+}
+
+// forestlod_shared::noise_texel: texel (i, j) of noise level `level`, re-hashed per level.
+fn noise_texel(level: u32, i: u32, j: u32) -> f32 {
+    return pcg_unit(i * 1664525u + j * 1013904223u + level * 0x632BE5ABu + 0x85EBCA6Bu);
+}
+
+// forestlod_shared::noise_level_of: the least k with rho2 <= 2^(2k+1), from the bits.
+fn noise_level_of(rho2: f32) -> u32 {
+    let bits = bitcast<u32>(rho2) & 0x7FFFFFFFu;
+    let exponent = bits >> 23u;
+    if exponent < 127u {
+        return 0u;
+    }
+    let above = select(0u, 1u, (bits & 0x7FFFFFu) != 0u);
+    return (exponent - 127u + above) / 2u;
+}
+
+// forestlod_shared::noise scaled_length2: |d · size|².
+fn noise_length2(d: vec2<f32>, size: f32) -> f32 {
+    let a = d.x * size;
+    let b = d.y * size;
+    return a * a + b * b;
+}
+
+// forestlod_shared::noise_level: Vulkan's nearest mip of log2(max(|ddx|, |ddy|) · size),
+// clamped to log2(size).
+fn noise_level(ddx: vec2<f32>, ddy: vec2<f32>, size: u32) -> u32 {
+    let q = firstLeadingBit(max(size, 1u));
+    let s = f32(size);
+    return min(max(noise_level_of(noise_length2(ddx, s)), noise_level_of(noise_length2(ddy, s))), q);
+}
+
+// forestlod_shared::noise_index: the texel under `uv` at `level`, repeat addressing.
+fn noise_index(uv: vec2<f32>, level: u32, size: u32) -> vec2<u32> {
+    let side = max(size >> level, 1u);
+    let s = f32(side);
+    let mask = side - 1u;
+    let i = bitcast<u32>(i32(floor(uv.x * s))) & mask;
+    let j = bitcast<u32>(i32(floor(uv.y * s))) & mask;
+    return vec2<u32>(i, j);
+}
+
+// forestlod_shared::texture_noise: the noise at `uv` at its explicit level.
+fn texture_noise(uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, size: u32) -> f32 {
+    let level = noise_level(ddx, ddy, size);
+    let ij = noise_index(uv, level, size);
+    return noise_texel(level, ij.x, ij.y);
 }
 
 // ---------------------------------------------------------------------------------------------

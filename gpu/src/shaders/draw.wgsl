@@ -33,11 +33,17 @@ struct DrawUniform {
     // the dither threshold is the frame pixel's.
     pixel_origin_x: u32,
     pixel_origin_y: u32,
-    // Shading (issue 30, common.wgsl `vertex_lightness`): the mode, the unit direction towards
-    // the sun and the ambient level.
+    // Shading (issue 30, G§5, common.wgsl `vertex_lightness`): the mode; the ambient level and
+    // the unit direction towards the sun below.
     shading: u32,
-    sun: vec3<f32>,
+    // Issue 30 (G§4): the dithered fades' threshold space, the progress's granularity and the
+    // texture-space noise's side (reference/src/blend.rs).
+    dither_space: u32,
+    fade_granularity: u32,
+    noise_size: u32,
     ambient: f32,
+    sun: vec3<f32>,
+    _pad3: u32,
 }
 
 // Keep in sync with gpu/src/draw.rs `DrawVertex` (= reference PackedVertex).
@@ -81,8 +87,9 @@ struct TreeVaryings {
     // lightness costs lavapipe no set-up memory.
     @location(0) uv_depth_light: vec4<f32>,
     // Texture layer, command index, the tree's scale as bits (what a scaled LOD metric
-    // scales the command's band by, C§4.6), and its far-field subset word (common.wgsl
-    // `subset_pack`, issue 29).
+    // scales the command's band by, C§4.6; under `fade_granularity = tree`, issue 30, the
+    // tree's progress through that band instead: the fragment then needs no band), and its
+    // far-field subset word (common.wgsl `subset_pack`, issue 29).
     @location(1) @interpolate(flat) layer_command_scale: vec4<u32>,
 }
 
@@ -217,7 +224,14 @@ fn tree_vertex(
         u.shading, world, data.billboard != 0u, toward_eye, sphere.center, radii, u.sun, u.ambient,
     );
     out.uv_depth_light = vec4<f32>(uv, depth, lightness);
-    out.layer_command_scale = vec4<u32>(layer, command, bitcast<u32>(band_scale), subset_pack(rank, code));
+    // The tree's scale, or under the `tree` granularity its progress through its own band at
+    // its centre's depth (reference tree_stage's `fade_word`).
+    var fade_word = bitcast<u32>(band_scale);
+    if u.fade_granularity == FADE_GRANULARITY_TREE {
+        let band = group_band(u.view, vec2<f32>(data.fade_start, data.fade_end), vec2<f32>(band_scale, band_scale));
+        fade_word = bitcast<u32>(fade_progress(d_tree, band.x, band.y));
+    }
+    out.layer_command_scale = vec4<u32>(layer, command, fade_word, subset_pack(rank, code));
     return out;
 }
 
@@ -228,29 +242,45 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     let depth = in.uv_depth_light.z;
     let layer = in.layer_command_scale.x;
     let data = command_data[in.layer_command_scale.y];
-    let scale = bitcast<f32>(in.layer_command_scale.z);
-    // The tree's own band: the command's (unit scale) times the tree's scale under a scaled
-    // metric (reference TreeShader).
-    let band = group_band(u.view, vec2<f32>(data.fade_start, data.fade_end), vec2<f32>(scale, scale));
+    // The tree's scale, or its progress under the `tree` granularity (tree_vertex).
+    let word = bitcast<f32>(in.layer_command_scale.z);
     // Both textures are sampled before any branch: implicit-LOD sampling needs uniform control
-    // flow (the quad's derivatives); the layer index clamps to the array (WGSL and Vulkan).
+    // flow (the quad's derivatives); the layer index clamps to the array (WGSL and Vulkan). The
+    // texture-space noise's explicit level reads the same derivatives, taken here for the same
+    // reason (the reference's are the rasterizer's coarse ones).
     let mesh_texel = textureSample(mesh_textures, tree_sampler, uv, layer);
     let billboard_texel = textureSample(billboard_textures, tree_sampler, uv, layer);
+    let duv_dx = dpdxCoarse(uv);
+    let duv_dy = dpdyCoarse(uv);
     let texel = select(mesh_texel, billboard_texel, data.billboard != 0u);
     if texel.a < u.alpha_cutoff {
         discard;
     }
+    // The fade of a fading command (reference/src/blend.rs BlendRule::fade).
     var weight = 1.0;
+    var in_band = false;
     if data.fading != 0u {
         let pixel = vec2<u32>(in.clip.xy);
-        let w = lod_weights(
-            u.fade_mode,
-            depth,
-            band.x,
-            band.y,
-            dither_threshold(pixel.x + u.pixel_origin_x, pixel.y + u.pixel_origin_y),
-        );
-        weight = lod_weight_of(w, data.lod);
+        var t: f32;
+        var past_end: bool;
+        if u.fade_granularity == FADE_GRANULARITY_TREE {
+            t = word;
+            past_end = word >= 1.0;
+        } else {
+            // The tree's own band: the command's (unit scale) times the tree's scale under a
+            // scaled metric.
+            let band = group_band(u.view, vec2<f32>(data.fade_start, data.fade_end), vec2<f32>(word, word));
+            t = fade_progress(depth, band.x, band.y);
+            past_end = depth >= band.y;
+        }
+        var h: f32;
+        if u.dither_space == DITHER_SPACE_TEXTURE {
+            h = texture_noise(uv, duv_dx, duv_dy, u.noise_size);
+        } else {
+            h = dither_threshold(pixel.x + u.pixel_origin_x, pixel.y + u.pixel_origin_y);
+        }
+        weight = lod_weight_of(weights_at(u.fade_mode, t, past_end, h), data.lod);
+        in_band = t > 0.0 && t < 1.0;
     }
     // A tree leaving its far-field subset fades by its own screen door (issue 29).
     let pixel = vec2<u32>(in.clip.xy);
@@ -259,11 +289,6 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     );
     if weight <= 0.0 {
         discard;
-    }
-    var in_band = false;
-    if data.fading != 0u {
-        let t = fade_progress(depth, band.x, band.y);
-        in_band = t > 0.0 && t < 1.0;
     }
     var out: TargetOutput;
     // Sun-depth shading (issue 30): nothing is multiplied when unlit (bit-identical frames).

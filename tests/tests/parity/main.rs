@@ -3,6 +3,8 @@
 //! against the reference pipeline:
 //! - [`hier_select`]: the hierarchical cut (issue 13) against the reference, frames against the grid's;
 //! - [`select`], [`refine`], [`draw`], [`mips`], [`bake`]: the GPU twin of each reference stage;
+//! - [`blend`]: issue 30's G§4 blend (texture-space noise, per-tree progress) in the draw stage,
+//!   with the noise level's rounding boundary classified;
 //! - [`every_stage`]: every stage of the stage table run alone on the GPU and judged by its
 //!   harness judge, on a few small frames (issue 27);
 //! - [`baselines`]: the GPU Vegetation and Primitive baselines against the reference's;
@@ -20,6 +22,7 @@
 
 mod bake;
 mod baselines;
+mod blend;
 mod counters;
 mod draw;
 mod every_stage;

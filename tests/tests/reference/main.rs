@@ -4,11 +4,14 @@
 //! - [`baselines`]: the reference baselines (Vegetation, Primitive) see the same trees as ours;
 //! - [`embree_crosscheck`]: obvhs, behind the ground truth, agrees with Embree (embreex);
 //! - [`shading`]: sun-depth shading (G§5) on lone trees: the seed's defect and its fix.
+//! - [`blend`]: issue 30's G§4 blend per tree (one t per tree, covered pixels, kept fractions,
+//!   translation invariance of the kept texels).
 //!
 //! Run one module with `cargo test -p forestlod-tests --test reference <module>::`.
 
 mod alternatives;
 mod baselines;
+mod blend;
 mod embree_crosscheck;
 mod goldens;
 mod metric;
