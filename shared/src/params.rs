@@ -204,8 +204,14 @@ pub struct Params {
     /// The least density a subset keeps, `ρ_min` in `(0, 1]`. Default 0.125: past
     /// `subset_distance · √8` (2.8 km at the default) one tree in eight is drawn.
     pub subset_min: f32,
+    /// Billboard azimuth views `J` per elevation (issue 30, E§7; `shared/src/azimuth.rs`).
+    /// Default 1: the thesis's one azimuth (trees taken as radially symmetric, E§3.3.1).
+    pub azimuth_count: u32,
+    /// [`crate::AzimuthMode`] as `u32` (issue 30): the nearest azimuth view or a blend of the two
+    /// nearest. Default `Nearest`; with one azimuth both draw today's frame.
+    pub azimuth_mode: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 92);
+const _: () = assert!(core::mem::size_of::<Params>() == 100);
 
 impl Default for Params {
     fn default() -> Self {
@@ -233,6 +239,8 @@ impl Default for Params {
             subset_mode: crate::SubsetMode::Off as u32,
             subset_distance: 1000.0,
             subset_min: 0.125,
+            azimuth_count: 1,
+            azimuth_mode: crate::AzimuthMode::Nearest as u32,
         }
     }
 }

@@ -16,10 +16,11 @@
 
 use std::borrow::Cow;
 
+use crate::azimuth::MAX_AZIMUTH_COUNT;
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{
-    AngleIndexMode, Coalesce, CommandOrder, FadeMode, Hierarchy, LodMetric, MipMode, Params,
-    SubsetMode, TreeCull,
+    AngleIndexMode, AzimuthMode, Coalesce, CommandOrder, FadeMode, Hierarchy, LodMetric, MipMode,
+    Params, SubsetMode, TreeCull,
 };
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.
@@ -326,7 +327,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 23] = [
+pub const PARAMS: [ParamSpec; 25] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -367,6 +368,9 @@ pub const PARAMS: [ParamSpec; 23] = [
         "View depth past which batches draw a thinning subset of their trees, metres (E§7)"),
     param!(subset_min, "subset-min", float(MIN_SUBSET_DENSITY, 1.0), "expected a finite density in 0.001..=1",
         "Least density of a far-field subset, in 0.001..=1 (E§7)"),
+    param!(azimuth_count, "azimuths", uint(1, MAX_AZIMUTH_COUNT), "expected 1..=64 azimuth views",
+        "Number of billboard azimuth views J per elevation (E§7)"),
+    choice!(azimuth_mode, "azimuth-mode", AzimuthMode, "Billboard azimuth view (issue 30): ", ""),
 ];
 
 /// Least `subset_min`: one tree in a thousand (a smaller floor leaves batches of a few hundred

@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 23] = [
+const PINNED: [(&str, &str, &str); 25] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -121,6 +121,16 @@ const PINNED: [(&str, &str, &str); 23] = [
         "subset_min",
         "expected a finite density in 0.001..=1",
         "Least density of a far-field subset, in 0.001..=1 (E§7)",
+    ),
+    (
+        "azimuth_count",
+        "expected 1..=64 azimuth views",
+        "Number of billboard azimuth views J per elevation (E§7)",
+    ),
+    (
+        "azimuth_mode",
+        "expected 0 (nearest) or 1 (blend)",
+        "Billboard azimuth view (issue 30): nearest, blend",
     ),
 ];
 
