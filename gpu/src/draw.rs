@@ -146,8 +146,16 @@ pub struct DrawUniform {
     pub pixel_origin_y: u32,
     /// Explicit padding.
     pub _pad2: u32,
+    /// Billboard azimuth views `J` (issue 30, `Params::azimuth_count`).
+    pub azimuth_count: u32,
+    /// `AzimuthMode` as `u32`.
+    pub azimuth_mode: u32,
+    /// Explicit padding.
+    pub _pad3: u32,
+    /// Explicit padding.
+    pub _pad4: u32,
 }
-const _: () = assert!(size_of::<DrawUniform>() == 256);
+const _: () = assert!(size_of::<DrawUniform>() == 272);
 
 impl DrawUniform {
     /// The uniform of a validated camera and parameters, derived as the reference derives its
@@ -165,6 +173,10 @@ impl DrawUniform {
             pixel_origin_x: camera.pixel_origin()[0],
             pixel_origin_y: camera.pixel_origin()[1],
             _pad2: 0,
+            azimuth_count: params.azimuth_count,
+            azimuth_mode: params.azimuth_mode,
+            _pad3: 0,
+            _pad4: 0,
         }
     }
 }
@@ -1088,20 +1100,21 @@ impl GpuDraw {
             selection,
             indirection,
         } = *inputs;
+        let views = forestlod_shared::BillboardViews::of(params);
         if textures.mesh_layers < scene.mesh_count
-            || (textures.billboard_layers as u64)
-                < scene.mesh_count as u64 * params.angle_count as u64
+            || u64::from(textures.billboard_layers) < views.layers(scene.mesh_count as usize)
         {
             return Err(GpuError::Input {
                 field: "draw textures",
                 value: format!(
-                    "{} mesh layers, {} billboard layers for {} meshes x {} angles",
+                    "{} mesh layers, {} billboard layers for {} meshes x {} angles x {} azimuths",
                     textures.mesh_layers,
                     textures.billboard_layers,
                     scene.mesh_count,
-                    params.angle_count
+                    params.angle_count,
+                    params.azimuth_count
                 ),
-                reason: "expected a layer per mesh and K layers per mesh in the billboard array",
+                reason: "expected a layer per mesh and K·J layers per mesh in the billboard array",
             });
         }
         if selection.capacity > MAX_COMMANDS {
@@ -1233,7 +1246,11 @@ pub(crate) mod tests {
                 billboard_first_vertex,
                 pixel_origin_x,
                 pixel_origin_y,
-                _pad2
+                _pad2,
+                azimuth_count,
+                azimuth_mode,
+                _pad3,
+                _pad4
             }),
             rust_layout!(DrawVertex { position, uv }),
             draw_instance_layout(),

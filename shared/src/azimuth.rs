@@ -9,7 +9,7 @@
 //! ## Contract
 //! - **Views** ([`BillboardViews`]): per mesh, `K` elevations times `J` azimuths. View `(k, j)`
 //!   of mesh `m` is layer `(m·K + k)·J + j` = `m·K·J + k·J + j` of the billboard array
-//!   ([`billboard_layer`]): the `J` azimuths of one elevation are adjacent, so the blend's second
+//!   ([`view_layer`]): the `J` azimuths of one elevation are adjacent, so the blend's second
 //!   layer follows from the first and `J` alone ([`azimuth_second_layer`]), and `J = 1` is
 //!   today's `m·K + k` exactly.
 //! - **Bake azimuth** ([`bake_azimuth`]): view `j` looks at the mesh from the mesh-local
@@ -33,7 +33,7 @@
 //!   array-layer limit, SPEC §8), refused naming `azimuth_count`. Memory: E Eq. 4.1's `16amr²`
 //!   becomes `16aJmr²` (`reference::batches::eq41_bytes`).
 //!
-//! Twin: `gpu/src/shaders/common.wgsl` (`billboard_layer`, `azimuth_position`, `azimuth_view`,
+//! Twin: `gpu/src/shaders/common.wgsl` (`view_layer`, `azimuth_position`, `azimuth_view`,
 //! `azimuth_second_layer`, `azimuth_mix`, `azimuth_to_view`), read by `draw.wgsl` and `bake.wgsl`.
 
 use core::f32::consts::TAU;
@@ -66,6 +66,13 @@ pub const AZIMUTH_WEIGHT_STEPS: u32 = 4095;
 
 /// Bits of the packed varying ([`azimuth_pack`]) that hold the layer.
 pub const AZIMUTH_LAYER_BITS: u32 = 12;
+
+/// One step of the blend weight, `1 / AZIMUTH_WEIGHT_STEPS`, rounded once to `f32` (the GPU
+/// twin reads these bits).
+pub const AZIMUTH_WEIGHT_SCALE: f32 = 1.0 / AZIMUTH_WEIGHT_STEPS as f32;
+
+/// Turns per radian, `1/2π`, rounded once to `f32` (the GPU twin reads these bits).
+pub const AZIMUTH_TURN: f32 = 1.0 / TAU;
 
 const _: () = assert!(MAX_BILLBOARD_LAYERS <= 1 << AZIMUTH_LAYER_BITS);
 const _: () = assert!(AZIMUTH_WEIGHT_STEPS < 1 << (24 - AZIMUTH_LAYER_BITS));
@@ -106,7 +113,7 @@ impl BillboardViews {
         (meshes as u64).saturating_mul(u64::from(self.per_mesh()))
     }
 
-    /// Every `(mesh, k, j)` of `meshes` meshes in layer order ([`billboard_layer`]).
+    /// Every `(mesh, k, j)` of `meshes` meshes in layer order ([`view_layer`]).
     pub fn views(&self, meshes: usize) -> impl Iterator<Item = (usize, u32, u32)> + use<> {
         let (k_count, j_count) = (self.angle_count, self.azimuth_count);
         (0..meshes)
@@ -115,7 +122,7 @@ impl BillboardViews {
 }
 
 /// The billboard array layer of view `(k, j)` of mesh `mesh`: `(mesh·K + k)·J + j` (module docs).
-pub fn billboard_layer(mesh: u32, k: u32, k_count: u32, j: u32, j_count: u32) -> u32 {
+pub fn view_layer(mesh: u32, k: u32, k_count: u32, j: u32, j_count: u32) -> u32 {
     (mesh * k_count + k) * j_count + j
 }
 
@@ -149,7 +156,7 @@ pub fn azimuth_position(h_x: f32, h_y: f32, yaw: f32, j_count: u32) -> f32 {
     if j_count <= 1 {
         return 0.0;
     }
-    let turns = (h_y.atan2(h_x) - yaw) * (1.0 / TAU);
+    let turns = (h_y.atan2(h_x) - yaw) * AZIMUTH_TURN;
     let j = j_count as f32;
     let t = (turns - turns.floor()) * j;
     // `t` rounds up to `J` just below a whole turn (the same view as 0); NaN fails both tests.
@@ -198,7 +205,7 @@ pub fn azimuth_view(mode: u32, t: f32, j_count: u32) -> AzimuthView {
 
 /// The weights `[1 − w, w]` of the first and second view of a blend code.
 pub fn azimuth_weights(code: u32) -> [f32; 2] {
-    let w = code.min(AZIMUTH_WEIGHT_STEPS) as f32 * (1.0 / AZIMUTH_WEIGHT_STEPS as f32);
+    let w = code.min(AZIMUTH_WEIGHT_STEPS) as f32 * AZIMUTH_WEIGHT_SCALE;
     [1.0 - w, w]
 }
 
@@ -299,7 +306,7 @@ mod tests {
         assert_eq!(azimuth_position(-3.0, 0.5, 2.0, 1), 0.0);
         assert_eq!(azimuth_view(BLEND, 0.7, 1), AzimuthView { j: 0, code: 0 });
         for layer in [0, 7, 2047] {
-            assert_eq!(billboard_layer(layer / 10, layer % 10, 10, 0, 1), layer);
+            assert_eq!(view_layer(layer / 10, layer % 10, 10, 0, 1), layer);
             assert_eq!(azimuth_pack(layer, 0), layer);
             assert_eq!(azimuth_second_layer(layer, 1), layer);
         }
@@ -321,10 +328,10 @@ mod tests {
         };
         let order: Vec<u32> = v
             .views(2)
-            .map(|(m, k, j)| billboard_layer(m as u32, k, 3, j, 4))
+            .map(|(m, k, j)| view_layer(m as u32, k, 3, j, 4))
             .collect();
         assert_eq!(order, (0..24).collect::<Vec<_>>());
-        assert_eq!(billboard_layer(1, 2, 3, 1, 4), 12 + 8 + 1);
+        assert_eq!(view_layer(1, 2, 3, 1, 4), 12 + 8 + 1);
         // The second view wraps within its (mesh, elevation).
         assert_eq!(azimuth_second_layer(12 + 8 + 3, 4), 12 + 8);
         assert_eq!(azimuth_second_layer(12 + 8 + 1, 4), 12 + 8 + 2);

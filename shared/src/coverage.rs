@@ -89,10 +89,14 @@ pub enum Threshold {
     DrawSubsetDrop,
     /// `draw`, vertex stage: a kept tree's subset weight is whole / fading (a screen door).
     DrawSubsetFade,
+    /// `draw`, vertex stage, a billboard with azimuth views (issue 30): the eye's azimuth lies
+    /// nearer the lower / the upper of the two views around it (the nearest view rounds down / up;
+    /// a rule that truncated would be seen only on the second side).
+    DrawAzimuthRound,
 }
 
 /// Every threshold, in table order.
-pub const ALL: [Threshold; 33] = {
+pub const ALL: [Threshold; 34] = {
     use Threshold::*;
     [
         SelectDrawDistance,
@@ -128,6 +132,7 @@ pub const ALL: [Threshold; 33] = {
         SelectSubset,
         DrawSubsetDrop,
         DrawSubsetFade,
+        DrawAzimuthRound,
     ]
 };
 
@@ -193,6 +198,11 @@ impl Threshold {
             SelectSubset => ("select: drawn batch's trees", "all", "a subset"),
             DrawSubsetDrop => ("draw: tree's subset weight", "above 0", "0 (dropped)"),
             DrawSubsetFade => ("draw: kept tree's subset weight", "whole", "fading"),
+            DrawAzimuthRound => (
+                "draw: billboard azimuth between two views",
+                "nearer the lower",
+                "nearer the upper",
+            ),
         }
     }
 }

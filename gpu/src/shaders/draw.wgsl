@@ -34,6 +34,11 @@ struct DrawUniform {
     pixel_origin_x: u32,
     pixel_origin_y: u32,
     _pad2: u32,
+    // Billboard azimuth views J and the AzimuthMode id (issue 30, common.wgsl azimuth_*).
+    azimuth_count: u32,
+    azimuth_mode: u32,
+    _pad3: u32,
+    _pad4: u32,
 }
 
 // Keep in sync with gpu/src/draw.rs `DrawVertex` (= reference PackedVertex).
@@ -59,7 +64,7 @@ struct DrawInstance {
 @group(0) @binding(6) var<storage, read> counters: SelectCounters;
 // One layer per mesh (all mesh textures share one size).
 @group(0) @binding(7) var mesh_textures: texture_2d_array<f32>;
-// Layer `mesh * K + k` (E Alg. 3.1).
+// Layer `mesh * K + k` (E Alg. 3.1), `mesh·K·J + k·J + j` with J azimuth views (issue 30).
 @group(0) @binding(8) var billboard_textures: texture_2d_array<f32>;
 // Trilinear, clamp-to-edge (reference Sampler::TRILINEAR).
 @group(0) @binding(9) var tree_sampler: sampler;
@@ -75,9 +80,10 @@ struct TreeVaryings {
     // `uv` and the view depth `(p - eye) · forward`, clamped to the tree's sphere interval for
     // billboards.
     @location(0) uv_depth: vec3<f32>,
-    // Texture layer, command index, the tree's scale as bits (what a scaled LOD metric
-    // scales the command's band by, C§4.6), and its far-field subset word (common.wgsl
-    // `subset_pack`, issue 29).
+    // Texture layer (for a billboard, the azimuth word: common.wgsl `azimuth_pack`, issue 30;
+    // the layer itself with one azimuth or the nearest view), command index, the tree's scale as
+    // bits (what a scaled LOD metric scales the command's band by, C§4.6), and its far-field
+    // subset word (common.wgsl `subset_pack`, issue 29).
     @location(1) @interpolate(flat) layer_command_scale: vec4<u32>,
 }
 
@@ -185,6 +191,9 @@ fn tree_vertex(
             h = vec3<f32>(1.0, 0.0, 0.0);
         }
         h = h * (1.0 / length(h));
+        // Azimuth views (issue 30): the eye's mesh-local azimuth picks the view(s).
+        let t_az = azimuth_position(h.x, h.y, t.yaw, u.azimuth_count);
+        let view = azimuth_view(u.azimuth_mode, t_az, u.azimuth_count);
         // Z × h and Z cos e - h sin e, written out (h.z = 0).
         let right = vec3<f32>(-h.y, h.x, 0.0);
         let s = sin(elevation);
@@ -195,7 +204,7 @@ fn tree_vertex(
         let along_up = (e.bottom + (1.0 - corner.y) * e.height) * t.scale;
         world = base + right * along_right + up * along_up;
         uv = corner;
-        layer = t.mesh * k_count + k;
+        layer = azimuth_pack(view_layer(t.mesh, k, k_count, view.j, u.azimuth_count), view.code);
     }
     let rel = world - u.view.eye;
     var depth = rel.x * u.view.forward.x + rel.y * u.view.forward.y + rel.z * u.view.forward.z;
@@ -215,6 +224,9 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     let uv = in.uv_depth.xy;
     let depth = in.uv_depth.z;
     let layer = in.layer_command_scale.x;
+    // A billboard's azimuth word (issue 30): its view's layer and the blend's weight code.
+    let view_layer = layer & ((1u << AZIMUTH_LAYER_BITS) - 1u);
+    let azimuth_code = layer >> AZIMUTH_LAYER_BITS;
     let data = command_data[in.layer_command_scale.y];
     let scale = bitcast<f32>(in.layer_command_scale.z);
     // The tree's own band: the command's (unit scale) times the tree's scale under a scaled
@@ -223,7 +235,14 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     // Both textures are sampled before any branch: implicit-LOD sampling needs uniform control
     // flow (the quad's derivatives); the layer index clamps to the array (WGSL and Vulkan).
     let mesh_texel = textureSample(mesh_textures, tree_sampler, uv, layer);
-    let billboard_texel = textureSample(billboard_textures, tree_sampler, uv, layer);
+    var billboard_texel = textureSample(billboard_textures, tree_sampler, uv, view_layer);
+    // The azimuth blend samples the second view too (a uniform branch: the derivatives stay
+    // defined) and mixes before the alpha test.
+    if u.azimuth_mode == AZIMUTH_MODE_BLEND && u.azimuth_count > 1u {
+        let second = azimuth_second_layer(view_layer, u.azimuth_count);
+        let other = textureSample(billboard_textures, tree_sampler, uv, second);
+        billboard_texel = azimuth_mix(billboard_texel, other, azimuth_code);
+    }
     let texel = select(mesh_texel, billboard_texel, data.billboard != 0u);
     if texel.a < u.alpha_cutoff {
         discard;
