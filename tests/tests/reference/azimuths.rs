@@ -9,7 +9,7 @@
 //!   `f32` carries out exactly);
 //! - too many layers (`m·K·J`) is a parameter error naming `azimuth_count`, never a panic.
 //!
-//! Decisions within [`AZIMUTH_BIN_EPSILON`] of a rounding boundary (the two views tie, or the
+//! Decisions within `AZIMUTH_BIN_EPSILON` (`forestlod_tests::azimuth`) of a rounding boundary (the two views tie, or the
 //! blend weight's quantisation step) are classified ambiguous, counted and printed, and held
 //! under a budget; they are not compared.
 
@@ -25,17 +25,10 @@ use forestlod_shared::{
     AZIMUTH_WEIGHT_STEPS, AzimuthMode, BillboardViews, Camera, FadeMode, Params, azimuth_unpack,
     bake_azimuth, bake_elevation,
 };
+use forestlod_tests::azimuth::{
+    AZIMUTH_BIN_EPSILON, azimuth_near_boundary, to_half, true_view,
+};
 use forestlod_tests::differing_pixels;
-
-/// How close (in the units of a bin: views for the azimuth, weight steps for the blend code) a
-/// decision may come to its rounding boundary before it is classified ambiguous.
-///
-/// Why 1e-3: the pipeline decides in `f32` (`atan2` of the horizontal direction, the yaw's
-/// subtraction, the turn's fraction times `J`), a few ulps of each: at yaws below 2π and
-/// `J <= 8` that is under 1e-5 of a bin; `asin` of the elevation likewise. The test decides in
-/// `f64` from the same scene; a hundred times the `f32` error separates a true disagreement from
-/// rounding.
-const AZIMUTH_BIN_EPSILON: f64 = 1e-3;
 
 /// Largest fraction of the billboard decisions (or of the rotation poses) that may be ambiguous:
 /// with decisions spread evenly, a band of ±ε around one boundary per bin is 2ε of them (0.2 %);
@@ -106,37 +99,6 @@ fn one_azimuth_draws_todays_frame_under_either_rule() {
         }
     }
     println!("one azimuth, nearest vs blend: {frames} frames bit-identical");
-}
-
-/// The true nearest elevation index and azimuth position (`t = φ·J/2π` in `[0, J)`) of a
-/// billboard of the tree at `base` with `yaw`, seen from `eye`, in `f64`; `None` when the eye is
-/// straight above (the pipeline's fallbacks decide then, not the geometry).
-fn true_view(base: [f32; 3], yaw: f32, eye: [f32; 3], v: BillboardViews) -> Option<(f64, f64)> {
-    let d = [0, 1, 2].map(|i| f64::from(eye[i]) - f64::from(base[i]));
-    let horizontal = (d[0] * d[0] + d[1] * d[1]).sqrt();
-    if horizontal < 1e-3 {
-        return None;
-    }
-    let elevation = d[2].atan2(horizontal).max(0.0);
-    let k = if v.angle_count <= 1 {
-        0.0
-    } else {
-        elevation / (std::f64::consts::FRAC_PI_2 / f64::from(v.angle_count - 1))
-    };
-    let phi = (d[1].atan2(d[0]) - f64::from(yaw)).rem_euclid(std::f64::consts::TAU);
-    let t = phi / std::f64::consts::TAU * f64::from(v.azimuth_count);
-    Some((k, t % f64::from(v.azimuth_count)))
-}
-
-/// Distance of `x` to the nearest `n + 0.5`.
-fn to_half(x: f64) -> f64 {
-    (x - x.floor() - 0.5).abs()
-}
-
-/// Distance of `x` to the nearest integer.
-fn to_whole(x: f64) -> f64 {
-    let f = x - x.floor();
-    f.min(1.0 - f)
 }
 
 /// Level 0 of view `(k, j)` of `mesh`, baked alone (not read from the prepared array).
@@ -229,14 +191,7 @@ fn the_drawn_layers_hold_the_views_nearest_the_eye() {
                         let blend = mode == AzimuthMode::Blend && j_count > 1;
                         let frac = t_true - t_true.floor();
                         let ambiguous = (k_count > 1 && to_half(k_true) < AZIMUTH_BIN_EPSILON)
-                            || (j_count > 1
-                                && if blend {
-                                    to_whole(t_true) < AZIMUTH_BIN_EPSILON
-                                        || to_half(frac * f64::from(AZIMUTH_WEIGHT_STEPS))
-                                            < AZIMUTH_BIN_EPSILON
-                                } else {
-                                    to_half(t_true) < AZIMUTH_BIN_EPSILON
-                                });
+                            || azimuth_near_boundary(t_true, mode, j_count);
                         if ambiguous {
                             tally.ambiguous += 1;
                             continue;
@@ -335,15 +290,7 @@ fn rotating_the_tree_and_the_camera_by_a_view_step_keeps_the_billboard_pixels() 
                     for n in 1..j_count {
                         let turns = n * step;
                         let (_, t_true) = true_view([0.0, 0.0, 10.0], 0.3, eye, v).unwrap();
-                        let frac = t_true - t_true.floor();
-                        let near = if mode == AzimuthMode::Blend {
-                            to_whole(t_true) < AZIMUTH_BIN_EPSILON
-                                || to_half(frac * f64::from(AZIMUTH_WEIGHT_STEPS))
-                                    < AZIMUTH_BIN_EPSILON
-                        } else {
-                            to_half(t_true) < AZIMUTH_BIN_EPSILON
-                        };
-                        if near {
+                        if azimuth_near_boundary(t_true, mode, j_count) {
                             ambiguous += 1;
                             continue;
                         }
