@@ -69,7 +69,7 @@ pub const STAGES: &[StageEntry] = &[
         backend: Some("stage::Bake"),
         parity: "tests/tests/parity/bake.rs",
         modes: &[],
-        params: &["texture_size", "angle_count"],
+        params: &["texture_size", "angle_count", "azimuth_count"],
     },
     StageEntry {
         id: StageId::Mips,
@@ -172,11 +172,18 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/draw.wgsl",
         backend: Some("stage::Draw"),
         parity: "tests/tests/parity/draw.rs",
-        modes: &["fade_mode", "angle_index_mode", "lod_metric", "subset_mode"],
+        modes: &[
+            "fade_mode",
+            "angle_index_mode",
+            "lod_metric",
+            "subset_mode",
+            "azimuth_mode",
+        ],
         params: &[
             "alpha_cutoff",
             "angle_count",
             "texture_size",
+            "azimuth_count",
             VIEW_PARAMS[0],
             VIEW_PARAMS[1],
             VIEW_PARAMS[2],

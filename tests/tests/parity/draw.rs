@@ -216,7 +216,10 @@ fn azimuth_scenarios() -> Vec<(String, Prepared, Camera, Params)> {
             angle_count: 5,
             ..billboard_params()
         };
-        for (side, eye) in [("south", [14.0, -48.0, 14.0]), ("north-west", [-41.0, 33.0, 9.0])] {
+        for (side, eye) in [
+            ("south", [14.0, -48.0, 14.0]),
+            ("north-west", [-41.0, 33.0, 9.0]),
+        ] {
             out.push((
                 format!("pair-billboards-j4-{}-{side}", mode.name()),
                 prepare(builtin::pair(), &pair).expect("prepare pair J=4"),
@@ -259,7 +262,10 @@ fn azimuth_alternatives(
     let turn = (2.0 * AZIMUTH_BIN_EPSILON) as f32 * step;
     let mut out = Vec::new();
     for sign in [-1.0f32, 1.0] {
-        let yaws: Vec<f32> = trees.iter().map(|&i| prepared.scene.instances[i].yaw).collect();
+        let yaws: Vec<f32> = trees
+            .iter()
+            .map(|&i| prepared.scene.instances[i].yaw)
+            .collect();
         for &i in trees {
             prepared.scene.instances[i].yaw += sign * turn;
         }
@@ -342,7 +348,10 @@ fn gpu_draw_matches_the_reference_with_azimuth_views() {
         100.0 * max_fraction,
         start.elapsed().as_secs_f64()
     );
-    assert!(billboard_trees > 500, "only {billboard_trees} billboard trees judged");
+    assert!(
+        billboard_trees > 500,
+        "only {billboard_trees} billboard trees judged"
+    );
     assert_no_failures("azimuth draw parity failed", &failures);
 }
 

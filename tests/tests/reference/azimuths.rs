@@ -25,9 +25,7 @@ use forestlod_shared::{
     AZIMUTH_WEIGHT_STEPS, AzimuthMode, BillboardViews, Camera, FadeMode, Params, azimuth_unpack,
     bake_azimuth, bake_elevation,
 };
-use forestlod_tests::azimuth::{
-    AZIMUTH_BIN_EPSILON, azimuth_near_boundary, to_half, true_view,
-};
+use forestlod_tests::azimuth::{AZIMUTH_BIN_EPSILON, azimuth_near_boundary, to_half, true_view};
 use forestlod_tests::differing_pixels;
 
 /// Largest fraction of the billboard decisions (or of the rotation poses) that may be ambiguous:
