@@ -316,8 +316,15 @@ mod tests {
             azimuth_to_view(p, s, c).map(f32::to_bits),
             p.map(f32::to_bits)
         );
-        let t = [0.25, 0.5, 0.75, 0.5];
-        assert_eq!(azimuth_mix(t, [1.0; 4], 0), t);
+        // Weight code 0 returns the first view's texel bit for bit (a premultiplied round trip,
+        // `c·a/a`, would not: 0.1·0.3/0.3 is not 0.1 in f32).
+        for i in 0..=20 {
+            for a in [0.0, 0.3, 0.7, 1.0] {
+                let t = [i as f32 * 0.05, 0.1, 1.0 - i as f32 * 0.05, a];
+                let m = azimuth_mix(t, [0.9, 0.2, 0.4, 0.6], 0);
+                assert_eq!(m.map(f32::to_bits), t.map(f32::to_bits), "{t:?}");
+            }
+        }
     }
 
     #[test]
