@@ -267,12 +267,17 @@ pub fn check_billboard_layers(meshes: usize, params: &Params) -> Result<(), Para
     } else {
         ("angle_count", params.angle_count)
     };
+    let meshes = if meshes == 1 {
+        "one mesh:".to_string()
+    } else {
+        format!("{meshes} meshes x")
+    };
     Err(ParamError {
         field,
         value: value.to_string(),
         reason: format!(
-            "{meshes} meshes x {} elevations x {} azimuths = {layers} billboard layers, over the \
-             limit of {MAX_BILLBOARD_LAYERS} array layers",
+            "{meshes} {} elevations x {} azimuths = {layers} billboard layers, over the limit of \
+             {MAX_BILLBOARD_LAYERS} array layers",
             params.angle_count, params.azimuth_count
         )
         .into(),
