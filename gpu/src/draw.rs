@@ -25,8 +25,9 @@
 //! metadata, and the per-command data of `select` (or of `cull`). The fragment stage
 //! samples one 2D array texture holding every mesh texture (one layer per mesh: binding arrays
 //! are not portable, so all mesh textures must share one size; [`upload_texture_array`] says so
-//! when they do not) or the billboard array (layer `mesh * K + k`, E Alg. 3.1), trilinear with
-//! the implicit LOD, alpha-tests, fades and writes the LOD id. Every formula is the reference's,
+//! when they do not) or the billboard array (layer `mesh * K + k`, E Alg. 3.1; `mesh·K·J + k·J +
+//! j` with `J` azimuth views, issue 30, whose blend samples a second layer and mixes the two before
+//! the alpha test), trilinear with the implicit LOD, alpha-tests, fades and writes the LOD id. Every formula is the reference's,
 //! operation for operation; see `draw.wgsl`.
 //!
 //! ## Where the GPU may differ (judged by `tests/src/image_compare.rs`, SPEC §8)
