@@ -648,6 +648,7 @@ pub fn selection_scene(scene: Scene, params: &Params) -> Result<Prepared> {
     };
     let billboards = BakedBillboards {
         angle_count: params.angle_count,
+        azimuth_count: params.azimuth_count,
         texture_size: 1,
         layers: Vec::new(),
         chains: Vec::new(),

@@ -153,8 +153,8 @@ fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
         stats.min_trees, stats.mean_trees, stats.max_trees, stats.mean_radius, stats.max_radius
     );
     println!(
-        "memory (a = {}, r = {}, l = {}): ours beside E Eq. 4.1",
-        memory.a, memory.r, memory.l
+        "memory (a = {}, J = {}, r = {}, l = {}): ours beside E Eq. 4.1 (extended by J azimuths)",
+        memory.a, memory.j, memory.r, memory.l
     );
     println!("  {:<22} {:>12} {:>12}", "term", "ours [B]", "Eq. 4.1 [B]");
     let rows = [
@@ -162,9 +162,9 @@ fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
         ("batch meta (64t)", memory.batch_meta, 64 * memory.t),
         ("mesh meta (24m)", memory.mesh_meta, 24 * memory.m),
         (
-            "billboards (16amr²)",
+            "billboards (16aJmr²)",
             memory.billboards,
-            16 * memory.a * memory.m * memory.r * memory.r,
+            16 * memory.a * memory.j * memory.m * memory.r * memory.r,
         ),
         ("commands (52lt)", memory.commands, 52 * memory.l * memory.t),
         ("counters (4lm)", memory.counters, 4 * memory.l * memory.m),

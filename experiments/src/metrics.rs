@@ -18,7 +18,9 @@
 //!   of alpha-tested foliage, which every variant shares (issue 12: FLIP 0.0510–0.0514 for every
 //!   K x r in `angles_texture`); against a frame with the same aliasing that part cancels and
 //!   what remains is what the LOD changed. Its mean, its 99th percentile (LOD artefacts are
-//!   sparse) and the fraction of pixels it changed at all ([`LOD_CHANGED_LEVELS`]).
+//!   sparse) and the fraction of pixels it changed at all ([`LOD_CHANGED_LEVELS`]); and its mean
+//!   over the pixels the frame shows as billboards (issue 30: the billboards' own error, which the
+//!   whole-frame mean dilutes by the sky, the ground and the meshes).
 
 use forestlod_reference::draw::{
     LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION,
@@ -84,6 +86,10 @@ pub struct Accuracy {
     /// both sides) differs from the truth's.
     #[serde(default = "not_measured", deserialize_with = "nan_if_null")]
     pub total_coverage_error: f64,
+    /// LOD error over the billboard region (issue 30): the mean of the LOD error's FLIP map over
+    /// the pixels whose LOD id is a billboard in this frame; `NaN` where the frame shows none.
+    #[serde(default = "not_measured", deserialize_with = "nan_if_null")]
+    pub lod_flip_billboard: f64,
 }
 
 fn not_measured() -> f64 {
@@ -102,16 +108,31 @@ fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> 
 /// order (the parity tests' colour tolerance), so only real changes count.
 pub const LOD_CHANGED_LEVELS: u8 = 2;
 
-/// Fills the LOD-error figures of `acc` for `color` against `full`, the same backend's
-/// full-detail frame (module docs), and returns the FLIP map.
+/// Fills the LOD-error figures of `acc` for `color` (LOD ids `aux`) against `full`, the same
+/// backend's full-detail frame (module docs), and returns the FLIP map.
 ///
 /// # Panics
 /// If the sizes differ.
-pub fn lod_error(acc: &mut Accuracy, full: &Rgba8Image, color: &Rgba8Image) -> Vec<f32> {
+pub fn lod_error(
+    acc: &mut Accuracy,
+    full: &Rgba8Image,
+    color: &Rgba8Image,
+    aux: &[u32],
+) -> Vec<f32> {
     let map = flip_map(full, color);
     let n = map.len().max(1) as f64;
     acc.lod_flip_mean = map.iter().map(|&e| e as f64).sum::<f64>() / n;
     acc.lod_flip_p99 = percentile(&map, 99.0);
+    let (sum, count) = map
+        .iter()
+        .zip(aux)
+        .filter(|&(_, &id)| id == LOD_ID_BILLBOARD)
+        .fold((0.0, 0u64), |(s, c), (&e, _)| (s + f64::from(e), c + 1));
+    acc.lod_flip_billboard = if count > 0 {
+        sum / count as f64
+    } else {
+        f64::NAN
+    };
     let changed = full
         .texels
         .iter()
@@ -247,6 +268,7 @@ pub fn accuracy(
             total_flip_mean: f64::NAN,
             total_flip_p99: f64::NAN,
             total_coverage_error: f64::NAN,
+            lod_flip_billboard: f64::NAN,
         },
         map,
     )

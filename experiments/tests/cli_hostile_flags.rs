@@ -61,6 +61,20 @@ const CASES: &[Case] = &[
         expect: &["--subset", "subset_mode", "thin", "hierarchy = grid"],
     },
     Case {
+        name: "azimuths out of range",
+        tool: RENDER,
+        args: &["--azimuths", "65"],
+        out: Out::Absent,
+        expect: &["--azimuths (field azimuth_count)", "\"65\"", "1..=64"],
+    },
+    Case {
+        name: "azimuth views over the layer limit",
+        tool: RENDER,
+        args: &["--azimuths", "64"],
+        out: Out::Absent,
+        expect: &["azimuth_count", "\"64\"", "3200 billboard layers", "2048"],
+    },
+    Case {
         name: "yaw inf",
         tool: RENDER,
         args: &["--yaw", "inf"],

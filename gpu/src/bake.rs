@@ -12,6 +12,10 @@
 //!   `bake_clip`, ported to WGSL operation for operation. `sin`/`cos` of the elevation and the
 //!   extent are computed here on the CPU with the reference's own calls ([`BakeLayer::new`]),
 //!   since WGSL's transcendental functions have implementation-defined precision.
+//! - With `J` azimuth views (issue 30, E§7; [`BillboardViews`]), layer `mesh·K·J + k·J + j`
+//!   ([`forestlod_shared::view_layer`]) holds the elevation `k` seen from the mesh-local azimuth
+//!   `bake_azimuth(j, J)` (the reference's `bake_clip_view`; its sine and cosine computed on the
+//!   CPU like the elevation's). `J = 1` renders today's layers, the same passes in the same order.
 //! - One render pass per layer into a single-layer view of level 0: colour cleared to
 //!   transparent black, `Rgba8UnormSrgb`, blend REPLACE; a `Depth32Float` attachment cleared to 1,
 //!   depth test LESS with writes; no culling. The fragment samples the mesh texture's level 0
@@ -45,7 +49,8 @@ use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{
-    BillboardExtent, MeshMeta, MipMode, Params, bake_elevation, billboard_extent,
+    BillboardExtent, BillboardViews, MeshMeta, MipMode, Params, bake_azimuth, bake_elevation,
+    billboard_extent, view_layer,
 };
 use wgpu::util::DeviceExt;
 
@@ -114,16 +119,31 @@ pub struct BakeLayer {
     pub bottom: f32,
     /// Extent height.
     pub height: f32,
+    /// `sin` of the view's azimuth ([`bake_azimuth`]; 0 for the `+X` view).
+    pub sin_a: f32,
+    /// `cos` of the view's azimuth (1 for the `+X` view).
+    pub cos_a: f32,
+    /// Explicit padding.
+    pub _pad0: f32,
+    /// Explicit padding.
+    pub _pad1: f32,
 }
-const _: () = assert!(size_of::<BakeLayer>() == 48);
+const _: () = assert!(size_of::<BakeLayer>() == 64);
 
 impl BakeLayer {
-    /// The constants of layer `k` of `angle_count` for a mesh, computed as reference
-    /// `bake_clip` computes them: `elevation.sin_cos()` in `f32` and `billboard_extent`.
+    /// The constants of layer `k` of `angle_count` for a mesh from the azimuth `+X`.
     pub fn new(meta: &MeshMeta, k: u32, angle_count: u32) -> Self {
-        let elevation = bake_elevation(k, angle_count);
+        Self::view(meta, BillboardViews::elevations(angle_count), k, 0)
+    }
+
+    /// The constants of view `(k, j)` of `views` for a mesh, computed as reference
+    /// `bake_clip_view` computes them: `elevation.sin_cos()` and `azimuth.sin_cos()` in `f32` and
+    /// `billboard_extent`.
+    pub fn view(meta: &MeshMeta, views: BillboardViews, k: u32, j: u32) -> Self {
+        let elevation = bake_elevation(k, views.angle_count);
         let e = billboard_extent(meta, elevation);
         let (sin_e, cos_e) = elevation.sin_cos();
+        let (sin_a, cos_a) = bake_azimuth(j, views.azimuth_count).sin_cos();
         Self {
             bbox_min: meta.bbox_min,
             sphere_radius: meta.sphere_radius,
@@ -133,17 +153,20 @@ impl BakeLayer {
             half_width: e.half_width,
             bottom: e.bottom,
             height: e.height,
+            sin_a,
+            cos_a,
+            _pad0: 0.0,
+            _pad1: 0.0,
         }
     }
 }
 
-/// The extent of every layer, `mesh * K + k` (the draw stage expands billboards with them).
-pub fn layer_extents(metas: &[MeshMeta], angle_count: u32) -> Vec<BillboardExtent> {
-    metas
-        .iter()
-        .flat_map(|m| {
-            (0..angle_count).map(move |k| billboard_extent(m, bake_elevation(k, angle_count)))
-        })
+/// The extent of every layer, `mesh·K·J + k·J + j` (the draw stage expands billboards with them;
+/// every azimuth of an elevation has the elevation's extent).
+pub fn layer_extents(metas: &[MeshMeta], views: BillboardViews) -> Vec<BillboardExtent> {
+    views
+        .views(metas.len())
+        .map(|(m, k, _)| billboard_extent(&metas[m], bake_elevation(k, views.angle_count)))
         .collect()
 }
 
@@ -153,6 +176,8 @@ pub fn layer_extents(metas: &[MeshMeta], angle_count: u32) -> Vec<BillboardExten
 pub struct GpuBaked {
     /// Angles per mesh, `K`.
     pub angle_count: u32,
+    /// Azimuths per angle, `J` (issue 30).
+    pub azimuth_count: u32,
     /// Layer side, `r`.
     pub texture_size: u32,
     /// The array texture with every layer's chain.
@@ -162,24 +187,25 @@ pub struct GpuBaked {
 }
 
 impl GpuBaked {
-    /// The CPU-input hook for the mips stage: the reference's level-0 layers (`layers[mesh * K +
-    /// k]`, `side²` texels each) uploaded, then the GPU mips on them.
+    /// The CPU-input hook for the mips stage: the reference's level-0 layers (`layers[mesh·K·J +
+    /// k·J + j]`, `side²` texels each) uploaded, then the GPU mips on them.
     pub fn from_cpu_level0(
         mips: &GpuMips<'_>,
         metas: &[MeshMeta],
-        angle_count: u32,
+        views: BillboardViews,
         side: u32,
         layers: &[&[[u8; 4]]],
         mode: MipMode,
         alpha_ref: f32,
     ) -> Result<Self, GpuError> {
-        Self::with_mips(metas, angle_count, side, layers.len(), || {
+        Self::with_mips(metas, views, side, layers.len(), || {
             mips.run_from_cpu(side, layers, mode, alpha_ref)
         })
     }
 
     /// The CPU-input hook for the draw stage: the reference's full chains
-    /// (`chains[mesh * K + k][level]`) uploaded as they are.
+    /// (`chains[layer][level]`, layers in [`forestlod_shared::view_layer`] order) uploaded as they
+    /// are.
     #[allow(
         clippy::too_many_arguments,
         reason = "mirrors from_cpu_level0 plus the chain's provenance"
@@ -187,44 +213,48 @@ impl GpuBaked {
     pub fn from_cpu_chains(
         ctx: &GpuContext,
         metas: &[MeshMeta],
-        angle_count: u32,
+        views: BillboardViews,
         side: u32,
         chains: &[Vec<&[[u8; 4]]>],
         mode: MipMode,
         alpha_ref: f32,
     ) -> Result<Self, GpuError> {
-        Self::with_mips(metas, angle_count, side, chains.len(), || {
+        Self::with_mips(metas, views, side, chains.len(), || {
             MipArray::from_cpu_chains(ctx, side, chains, mode, alpha_ref)
         })
     }
 
-    /// The baked billboards of `metas` at `angle_count` angles and side `side`, whose `layers`
-    /// layers `mips` makes once their count is checked (`metas.len() * angle_count`).
+    /// The baked billboards of `metas` with `views` and side `side`, whose `layers` layers
+    /// `mips` makes once their count is checked (`metas.len() · K · J`).
     fn with_mips(
         metas: &[MeshMeta],
-        angle_count: u32,
+        views: BillboardViews,
         side: u32,
         layers: usize,
         mips: impl FnOnce() -> Result<MipArray, GpuError>,
     ) -> Result<Self, GpuError> {
-        check_layer_count(metas.len(), angle_count, layers)?;
+        check_layer_count(metas.len(), views, layers)?;
         Ok(Self {
-            angle_count,
+            angle_count: views.angle_count,
+            azimuth_count: views.azimuth_count,
             texture_size: side,
             mips: mips()?,
-            extents: layer_extents(metas, angle_count),
+            extents: layer_extents(metas, views),
         })
     }
 }
 
-fn check_layer_count(meshes: usize, angle_count: u32, layers: usize) -> Result<(), GpuError> {
-    if angle_count >= 1 && meshes * angle_count as usize == layers {
+fn check_layer_count(meshes: usize, views: BillboardViews, layers: usize) -> Result<(), GpuError> {
+    if views.per_mesh() >= 1 && views.layers(meshes) == layers as u64 {
         Ok(())
     } else {
         Err(GpuError::Input {
             field: "billboard layers",
-            value: format!("{layers} layers for {meshes} meshes x {angle_count} angles"),
-            reason: "expected meshes * angle_count layers, angle_count >= 1",
+            value: format!(
+                "{layers} layers for {meshes} meshes x {} angles x {} azimuths",
+                views.angle_count, views.azimuth_count
+            ),
+            reason: "expected meshes * angle_count * azimuth_count layers, both counts >= 1",
         })
     }
 }
@@ -384,31 +414,32 @@ impl<'a> GpuBake<'a> {
         &self.mips
     }
 
-    /// E Alg. 3.1: renders level 0 of every layer `mesh * angle_count + k` at `side x side`
-    /// (a power of two); the other levels are left for [`GpuMips::run`]. Submits the work.
+    /// E Alg. 3.1 (and E§7's azimuths): renders level 0 of every layer
+    /// `mesh·K·J + k·J + j` of `views` at `side x side` (a power of two); the other levels are
+    /// left for [`GpuMips::run`]. Submits the work.
     pub fn bake_level0(
         &self,
         meshes: &[BakeMesh<'_>],
-        angle_count: u32,
+        views: BillboardViews,
         side: u32,
     ) -> Result<wgpu::Texture, GpuError> {
         let ctx = self.mips.context();
-        if meshes.is_empty() || angle_count == 0 {
+        let (angle_count, azimuth_count) = (views.angle_count, views.azimuth_count);
+        if meshes.is_empty() || angle_count == 0 || azimuth_count == 0 {
             return Err(GpuError::Input {
                 field: "bake",
-                value: format!("{} meshes x {angle_count} angles", meshes.len()),
-                reason: "expected at least one mesh and one angle",
+                value: format!(
+                    "{} meshes x {angle_count} angles x {azimuth_count} azimuths",
+                    meshes.len()
+                ),
+                reason: "expected at least one mesh, one angle and one azimuth",
             });
         }
         let max_dim = ctx.limits.max_texture_dimension_2d;
         for (i, m) in meshes.iter().enumerate() {
             validate_mesh(i, m, max_dim)?;
         }
-        let layer_count = meshes
-            .len()
-            .checked_mul(angle_count as usize)
-            .and_then(|n| u32::try_from(n).ok())
-            .unwrap_or(u32::MAX);
+        let layer_count = u32::try_from(views.layers(meshes.len())).unwrap_or(u32::MAX);
         let texture = create_billboard_texture(ctx, side, layer_count, "billboards (gpu bake)")?;
 
         // Shared geometry buffers; each mesh draws with its own base vertex and index range.
@@ -426,13 +457,12 @@ impl<'a> GpuBake<'a> {
         let align = u64::from(ctx.limits.min_uniform_buffer_offset_alignment.max(1));
         let stride = (size_of::<BakeLayer>() as u64).next_multiple_of(align);
         let mut layer_bytes = vec![0u8; (stride * u64::from(layer_count)) as usize];
-        for (mesh, m) in meshes.iter().enumerate() {
-            for k in 0..angle_count {
-                let at = (stride * (mesh as u64 * u64::from(angle_count) + u64::from(k))) as usize;
-                let layer = BakeLayer::new(&m.meta, k, angle_count);
-                layer_bytes[at..at + size_of::<BakeLayer>()]
-                    .copy_from_slice(bytemuck::bytes_of(&layer));
-            }
+        for (mesh, k, j) in views.views(meshes.len()) {
+            let index = view_layer(mesh as u32, k, angle_count, j, azimuth_count);
+            let at = (stride * u64::from(index)) as usize;
+            let layer = BakeLayer::view(&meshes[mesh].meta, views, k, j);
+            layer_bytes[at..at + size_of::<BakeLayer>()]
+                .copy_from_slice(bytemuck::bytes_of(&layer));
         }
 
         ctx.checked("bake", || {
@@ -512,8 +542,7 @@ impl<'a> GpuBake<'a> {
                 label: Some("bake"),
             });
             for (mesh, (range, base_vertex)) in ranges.iter().enumerate() {
-                for k in 0..angle_count {
-                    let layer = mesh as u32 * angle_count + k;
+                for layer in mesh as u32 * views.per_mesh()..(mesh as u32 + 1) * views.per_mesh() {
                     let view = texture.create_view(&wgpu::TextureViewDescriptor {
                         label: Some("bake layer"),
                         dimension: Some(wgpu::TextureViewDimension::D2),
@@ -551,22 +580,23 @@ impl<'a> GpuBake<'a> {
     }
 
     /// E Alg. 3.1 then E Alg. 3.2: every layer baked at `params.texture_size` from
-    /// `params.angle_count` angles, then mipmapped in `params.mips()` mode with
-    /// `params.alpha_cutoff` as the alpha-test reference.
+    /// `params.angle_count` angles and `params.azimuth_count` azimuths, then mipmapped in
+    /// `params.mips()` mode with `params.alpha_cutoff` as the alpha-test reference.
     pub fn bake(&self, meshes: &[BakeMesh<'_>], params: &Params) -> Result<GpuBaked, GpuError> {
         let mode = params.mips().map_err(|e| GpuError::Input {
             field: "params.mip_mode",
             value: e.to_string(),
             reason: "expected a MipMode id",
         })?;
-        let (k, r) = (params.angle_count, params.texture_size);
-        let texture = self.bake_level0(meshes, k, r)?;
+        let (views, r) = (BillboardViews::of(params), params.texture_size);
+        let texture = self.bake_level0(meshes, views, r)?;
         let metas: Vec<MeshMeta> = meshes.iter().map(|m| m.meta).collect();
         Ok(GpuBaked {
-            angle_count: k,
+            angle_count: views.angle_count,
+            azimuth_count: views.azimuth_count,
             texture_size: r,
             mips: self.mips.run(texture, mode, params.alpha_cutoff)?,
-            extents: layer_extents(&metas, k),
+            extents: layer_extents(&metas, views),
         })
     }
 }
@@ -589,7 +619,11 @@ mod tests {
                 cos_e,
                 half_width,
                 bottom,
-                height
+                height,
+                sin_a,
+                cos_a,
+                _pad0,
+                _pad1
             }),
         );
     }

@@ -25,8 +25,9 @@
 //! metadata, and the per-command data of `select` (or of `cull`). The fragment stage
 //! samples one 2D array texture holding every mesh texture (one layer per mesh: binding arrays
 //! are not portable, so all mesh textures must share one size; [`upload_texture_array`] says so
-//! when they do not) or the billboard array (layer `mesh * K + k`, E Alg. 3.1), trilinear with
-//! the implicit LOD, alpha-tests, fades and writes the LOD id. Every formula is the reference's,
+//! when they do not) or the billboard array (layer `mesh * K + k`, E Alg. 3.1; `mesh·K·J + k·J +
+//! j` with `J` azimuth views, issue 30, whose blend samples a second layer and mixes the two before
+//! the alpha test), trilinear with the implicit LOD, alpha-tests, fades and writes the LOD id. Every formula is the reference's,
 //! operation for operation; see `draw.wgsl`.
 //!
 //! ## Where the GPU may differ (judged by `tests/src/image_compare.rs`, SPEC §8)
@@ -160,8 +161,16 @@ pub struct DrawUniform {
     pub sun: [f32; 3],
     /// Explicit padding.
     pub _pad3: u32,
+    /// Billboard azimuth views `J` (issue 30, `Params::azimuth_count`).
+    pub azimuth_count: u32,
+    /// `AzimuthMode` as `u32`.
+    pub azimuth_mode: u32,
+    /// Explicit padding.
+    pub _pad4: u32,
+    /// Explicit padding.
+    pub _pad5: u32,
 }
-const _: () = assert!(size_of::<DrawUniform>() == 288);
+const _: () = assert!(size_of::<DrawUniform>() == 304);
 
 impl DrawUniform {
     /// The uniform of a validated camera and parameters, derived as the reference derives its
@@ -185,6 +194,10 @@ impl DrawUniform {
             ambient: params.ambient,
             sun: params.sun_dir(),
             _pad3: 0,
+            azimuth_count: params.azimuth_count,
+            azimuth_mode: params.azimuth_mode,
+            _pad4: 0,
+            _pad5: 0,
         }
     }
 }
@@ -1108,20 +1121,21 @@ impl GpuDraw {
             selection,
             indirection,
         } = *inputs;
+        let views = forestlod_shared::BillboardViews::of(params);
         if textures.mesh_layers < scene.mesh_count
-            || (textures.billboard_layers as u64)
-                < scene.mesh_count as u64 * params.angle_count as u64
+            || u64::from(textures.billboard_layers) < views.layers(scene.mesh_count as usize)
         {
             return Err(GpuError::Input {
                 field: "draw textures",
                 value: format!(
-                    "{} mesh layers, {} billboard layers for {} meshes x {} angles",
+                    "{} mesh layers, {} billboard layers for {} meshes x {} angles x {} azimuths",
                     textures.mesh_layers,
                     textures.billboard_layers,
                     scene.mesh_count,
-                    params.angle_count
+                    params.angle_count,
+                    params.azimuth_count
                 ),
-                reason: "expected a layer per mesh and K layers per mesh in the billboard array",
+                reason: "expected a layer per mesh and K·J layers per mesh in the billboard array",
             });
         }
         if selection.capacity > MAX_COMMANDS {
@@ -1259,7 +1273,11 @@ pub(crate) mod tests {
                 noise_size,
                 ambient,
                 sun,
-                _pad3
+                _pad3,
+                azimuth_count,
+                azimuth_mode,
+                _pad4,
+                _pad5
             }),
             rust_layout!(DrawVertex { position, uv }),
             draw_instance_layout(),

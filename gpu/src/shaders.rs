@@ -107,6 +107,13 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         // An f32 constant as its bits (`bitcast<f32>` in common.wgsl): the same value, exactly.
         ("SUBSET_FADE_BITS", s::SUBSET_FADE.to_bits()),
         ("MIN_CROWN_RADIUS_BITS", s::MIN_CROWN_RADIUS.to_bits()),
+        ("AZIMUTH_WEIGHT_STEPS", s::AZIMUTH_WEIGHT_STEPS),
+        ("AZIMUTH_LAYER_BITS", s::AZIMUTH_LAYER_BITS),
+        ("AZIMUTH_TURN_BITS", s::AZIMUTH_TURN.to_bits()),
+        (
+            "AZIMUTH_WEIGHT_SCALE_BITS",
+            s::AZIMUTH_WEIGHT_SCALE.to_bits(),
+        ),
     ]
     .into_iter()
     .map(|(n, v)| (n.to_string(), v))
@@ -126,6 +133,7 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("SHADING", s::Shading::choices()),
         ("DITHER_SPACE", s::DitherSpace::choices()),
         ("FADE_GRANULARITY", s::FadeGranularity::choices()),
+        ("AZIMUTH_MODE", s::AzimuthMode::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {

@@ -190,7 +190,7 @@ pub fn gpu_textures_with(
             GpuBaked::from_cpu_level0(
                 bake.mips(),
                 &metas,
-                params.angle_count,
+                forestlod_shared::BillboardViews::of(params),
                 params.texture_size,
                 &layers,
                 mode,

@@ -298,6 +298,7 @@ impl<'a> FrameStages<'a> {
                 let input = BakeInput {
                     meshes: &p.scene.meshes,
                     angle_count: params.angle_count,
+                    azimuth_count: params.azimuth_count,
                     side: params.texture_size,
                 };
                 compare::<Bake>(&Reference, &GpuBakeBackend { bake: gpu_bake()? }, input)

@@ -220,7 +220,8 @@ impl Stage for Mips {
     type Output = Vec<Vec<LevelOut>>;
 }
 
-/// `bake` (E Alg. 3.1, SPEC §5.1): level 0 of every billboard layer `mesh * K + k`.
+/// `bake` (E Alg. 3.1, SPEC §5.1): level 0 of every billboard layer `mesh * K + k`
+/// (`mesh·K·J + k·J + j` with `J` azimuth views, issue 30).
 pub struct Bake;
 
 /// The input of [`Bake`].
@@ -230,6 +231,8 @@ pub struct BakeInput<'a> {
     pub meshes: &'a [TreeMesh],
     /// K, the baked elevation angles.
     pub angle_count: u32,
+    /// J, the baked azimuth views per angle (issue 30; 1 is the thesis).
+    pub azimuth_count: u32,
     /// The layer side, texels.
     pub side: u32,
 }

@@ -71,7 +71,7 @@ pub const STAGES: &[StageEntry] = &[
         backend: Some("stage::Bake"),
         parity: "tests/tests/parity/bake.rs",
         modes: &[],
-        params: &["texture_size", "angle_count"],
+        params: &["texture_size", "angle_count", "azimuth_count"],
     },
     StageEntry {
         id: StageId::Mips,
@@ -182,6 +182,7 @@ pub const STAGES: &[StageEntry] = &[
             "shading",
             "dither_space",
             "fade_granularity",
+            "azimuth_mode",
         ],
         params: &[
             "alpha_cutoff",
@@ -190,6 +191,7 @@ pub const STAGES: &[StageEntry] = &[
             LIGHT_PARAMS[0],
             LIGHT_PARAMS[1],
             LIGHT_PARAMS[2],
+            "azimuth_count",
             VIEW_PARAMS[0],
             VIEW_PARAMS[1],
             VIEW_PARAMS[2],

@@ -21,12 +21,12 @@ use std::sync::OnceLock;
 use forestlod_gpu::bake::BakeMesh;
 use forestlod_gpu::mips::{ADJUST_CONSTANT, ADJUST_KEEP, ADJUST_REMAP, ADJUST_SCALE};
 use forestlod_gpu::{GpuBake, MipLevelStats};
-use forestlod_reference::bake::bake_layer;
+use forestlod_reference::bake::bake_view;
 use forestlod_reference::mips::{AlphaAdjust, build_mip_array};
 use forestlod_reference::sampler::Texture;
 use forestlod_reference::scene::TreeMesh;
 use forestlod_reference::texture::Rgba8Image;
-use forestlod_shared::MipMode;
+use forestlod_shared::{BillboardViews, MipMode};
 use rayon::prelude::*;
 
 use crate::stage::{Backend, Bake, BakeInput, Mips, MipsInput, Named, Reference};
@@ -251,26 +251,37 @@ impl Backend<Mips> for GpuMipsBackend {
 
 /// The CPU oracle's level 0 of every layer, `forestlod_reference::bake::bake_layer` per layer
 /// (the [`Reference`](crate::stage::Reference) backend of [`Bake`]; level 0 of the mesh texture is all the bake samples).
-pub fn reference_bake_level0(meshes: &[TreeMesh], angle_count: u32, side: u32) -> Vec<Rgba8Image> {
+pub fn reference_bake_level0(
+    meshes: &[TreeMesh],
+    views: BillboardViews,
+    side: u32,
+) -> Vec<Rgba8Image> {
     let textures: Vec<Texture> = meshes
         .iter()
         .map(|m| Texture::new(vec![m.texture.clone()]).expect("mesh texture"))
         .collect();
-    let jobs: Vec<(usize, u32)> = (0..meshes.len())
-        .flat_map(|m| (0..angle_count).map(move |k| (m, k)))
-        .collect();
+    let jobs: Vec<(usize, u32, u32)> = views.views(meshes.len()).collect();
     jobs.par_iter()
-        .map(|&(m, k)| {
-            bake_layer(
+        .map(|&(m, k, j)| {
+            bake_view(
                 &meshes[m],
                 &meshes[m].meta(),
                 &textures[m],
+                views,
                 k,
-                angle_count,
+                j,
                 side,
             )
         })
         .collect()
+}
+
+/// The views a bake input asks for.
+fn bake_views(i: &BakeInput<'_>) -> BillboardViews {
+    BillboardViews {
+        angle_count: i.angle_count,
+        azimuth_count: i.azimuth_count,
+    }
 }
 
 /// `bake.wgsl`, level 0 read back before the mips stage: a [`Backend<Bake>`].
@@ -300,12 +311,12 @@ impl Named for GpuBakeBackend {
 
 impl Backend<Bake> for GpuBakeBackend {
     fn run(&self, i: BakeInput<'_>) -> Vec<Rgba8Image> {
-        let (meshes, angle_count, side) = (i.meshes, i.angle_count, i.side);
+        let (meshes, views, side) = (i.meshes, bake_views(&i), i.side);
         let ctx = self.bake.mips().context();
         let inputs: Vec<BakeMesh<'_>> = meshes.iter().map(bake_mesh).collect();
         let texture = self
             .bake
-            .bake_level0(&inputs, angle_count, side)
+            .bake_level0(&inputs, views, side)
             .expect("GpuBake::bake_level0");
         let array = forestlod_gpu::MipArray::from_texture(ctx, texture, MipMode::Box, 0.5)
             .expect("wrap the baked texture");
@@ -338,7 +349,7 @@ impl Backend<Mips> for Reference {
 
 impl Backend<Bake> for Reference {
     fn run(&self, i: BakeInput<'_>) -> Vec<Rgba8Image> {
-        reference_bake_level0(i.meshes, i.angle_count, i.side)
+        reference_bake_level0(i.meshes, bake_views(&i), i.side)
     }
 }
 

@@ -1,10 +1,17 @@
 //! The billboard bake (E Alg. 3.1, §4.1; SPEC §5.1): every mesh rendered unlit from `K` elevation
-//! angles into the layers of an array texture, then mipmapped by the [`crate::mips`] stage.
+//! angles (and `J` azimuths, E§7) into the layers of an array texture, then mipmapped by the
+//! [`crate::mips`] stage.
 //!
 //! ## Contract
 //! - Layer `mesh * K + k` holds mesh `mesh` seen at elevation `e_k = 90° / (K - 1) · k`
 //!   ([`forestlod_shared::bake_elevation`]; `K = 1` bakes the level view only), from the fixed
 //!   azimuth `h = +X` (trees are radially symmetric, E§3.3.1, so one azimuth stands for all).
+//! - With `J > 1` azimuths (issue 30, E§7 "multiple azimuth angles ... in addition to the multiple
+//!   elevation angles"; `Params::azimuth_count`), layer `mesh·K·J + k·J + j`
+//!   ([`forestlod_shared::view_layer`]) holds the same elevation seen from the mesh-local
+//!   azimuth `φ_j = 2π·j/J` ([`forestlod_shared::bake_azimuth`]): every mesh point is first turned
+//!   into that view's frame ([`forestlod_shared::azimuth_to_view`], the identity for `j = 0`), then
+//!   projected as below. `J = 1` bakes today's layers bit for bit.
 //! - The projection is orthographic and fitted to the mesh's bounding box ("Calculate Orthogonal
 //!   Projection From BB", E Alg. 3.1): the layer spans `[-W, W]` along the billboard's right vector
 //!   and `[bottom, bottom + height]` along its tilted up vector, from
@@ -19,7 +26,8 @@
 //!   WGSL twin is `gpu/src/shaders/bake.wgsl` (render passes into array layers).
 
 use forestlod_shared::{
-    BillboardExtent, MeshMeta, MipMode, Params, bake_elevation, billboard_extent,
+    BillboardExtent, BillboardViews, MeshMeta, MipMode, Params, azimuth_to_view, bake_azimuth,
+    bake_elevation, billboard_extent,
 };
 use rayon::prelude::*;
 
@@ -35,9 +43,11 @@ use crate::texture::Rgba8Image;
 pub struct BakedBillboards {
     /// Angles per mesh, `K`.
     pub angle_count: u32,
+    /// Azimuths per angle, `J` (issue 30; 1 is the thesis).
+    pub azimuth_count: u32,
     /// Layer side, `r`.
     pub texture_size: u32,
-    /// Level 0 of every layer, `mesh * K + k`.
+    /// Level 0 of every layer, `mesh·K·J + k·J + j` (`mesh * K + k` at `J = 1`).
     pub layers: Vec<Rgba8Image>,
     /// Full mip chain of every layer, in layer order.
     pub chains: Vec<MipChain>,
@@ -47,8 +57,33 @@ pub struct BakedBillboards {
     pub extents: Vec<BillboardExtent>,
 }
 
-/// Orthographic clip-space position of mesh-local point `p` in layer `k`'s bake view (module docs).
+impl BakedBillboards {
+    /// The views baked per mesh.
+    pub fn views(&self) -> BillboardViews {
+        BillboardViews {
+            angle_count: self.angle_count,
+            azimuth_count: self.azimuth_count,
+        }
+    }
+}
+
+/// Orthographic clip-space position of mesh-local point `p` in layer `k`'s bake view (module docs)
+/// from the azimuth `+X`.
 pub fn bake_clip(p: [f32; 3], meta: &MeshMeta, elevation: f32) -> [f32; 4] {
+    let (sin_a, cos_a) = 0.0f32.sin_cos();
+    bake_clip_view(p, meta, elevation, sin_a, cos_a)
+}
+
+/// [`bake_clip`] from the mesh-local azimuth whose sine and cosine are `sin_a`, `cos_a` (module
+/// docs): `p` and the bounding box's centre turned into the view's frame first.
+pub fn bake_clip_view(
+    p: [f32; 3],
+    meta: &MeshMeta,
+    elevation: f32,
+    sin_a: f32,
+    cos_a: f32,
+) -> [f32; 4] {
+    let p = azimuth_to_view(p, sin_a, cos_a);
     let e = billboard_extent(meta, elevation);
     let (s, c) = elevation.sin_cos();
     // h = +X, R = Z × h = +Y, U = Z cos e - h sin e, V = h cos e + Z sin e (toward the viewer).
@@ -58,11 +93,15 @@ pub fn bake_clip(p: [f32; 3], meta: &MeshMeta, elevation: f32) -> [f32; 4] {
     let half_width = e.half_width.max(f32::MIN_POSITIVE);
     let height = e.height.max(f32::MIN_POSITIVE);
     // Depth 0 at the nearest point of the bounding sphere, 1 at the farthest.
-    let center = [
-        (meta.bbox_min[0] + meta.bbox_max[0]) * 0.5,
-        (meta.bbox_min[1] + meta.bbox_max[1]) * 0.5,
-        (meta.bbox_min[2] + meta.bbox_max[2]) * 0.5,
-    ];
+    let center = azimuth_to_view(
+        [
+            (meta.bbox_min[0] + meta.bbox_max[0]) * 0.5,
+            (meta.bbox_min[1] + meta.bbox_max[1]) * 0.5,
+            (meta.bbox_min[2] + meta.bbox_max[2]) * 0.5,
+        ],
+        sin_a,
+        cos_a,
+    );
     let center_toward = center[0] * c + center[2] * s;
     let radius = meta.sphere_radius.max(f32::MIN_POSITIVE);
     let depth = (center_toward + radius - toward_viewer) / (2.0 * radius);
@@ -74,7 +113,7 @@ pub fn bake_clip(p: [f32; 3], meta: &MeshMeta, elevation: f32) -> [f32; 4] {
     ]
 }
 
-/// Bakes layer `k` of `k_count` for one mesh at `r x r`: level 0 only.
+/// Bakes layer `k` of `k_count` for one mesh at `r x r`: level 0 only, from the azimuth `+X`.
 pub fn bake_layer(
     mesh: &TreeMesh,
     meta: &MeshMeta,
@@ -83,14 +122,30 @@ pub fn bake_layer(
     k_count: u32,
     r: u32,
 ) -> Rgba8Image {
-    let elevation = bake_elevation(k, k_count);
+    let views = BillboardViews::elevations(k_count);
+    bake_view(mesh, meta, mesh_texture, views, k, 0, r)
+}
+
+/// Bakes view `(k, j)` of `views` for one mesh at `r x r` (module docs): level 0 only.
+pub fn bake_view(
+    mesh: &TreeMesh,
+    meta: &MeshMeta,
+    mesh_texture: &Texture,
+    views: BillboardViews,
+    k: u32,
+    j: u32,
+    r: u32,
+) -> Rgba8Image {
+    let elevation = bake_elevation(k, views.angle_count);
+    let (sin_a, cos_a) = bake_azimuth(j, views.azimuth_count).sin_cos();
     let triangles: Vec<[Vertex<2>; 3]> = mesh
         .indices
         .chunks_exact(3)
         .map(|t| {
             core::array::from_fn(|i| {
                 let v = t[i] as usize;
-                Vertex::new(bake_clip(mesh.positions[v], meta, elevation), mesh.uvs[v])
+                let clip = bake_clip_view(mesh.positions[v], meta, elevation, sin_a, cos_a);
+                Vertex::new(clip, mesh.uvs[v])
             })
         })
         .collect();
@@ -145,7 +200,7 @@ pub fn mesh_textures(
 pub const MAX_BAKE_BYTES: u64 = 16 << 30;
 
 /// The memory [`bake`] holds for `meshes` meshes with `params`, bytes, counted from the structures
-/// it keeps per layer (`meshes × K` layers of side `r`): level 0 as RGBA8 (`layers`), every mip
+/// it keeps per layer (`meshes × K × J` layers of side `r`): level 0 as RGBA8 (`layers`), every mip
 /// level in linear `f32` RGBA and RGBA8 (`chains`), and the sampled array texture's levels, again
 /// RGBA8 and linear `f32` RGBA (`texture`, [`Texture::heap_bytes`]); plus one `r × r` render target (colour, depth, id: 12 bytes a texel) per layer in
 /// flight, counted once. Saturating, so absurd inputs cannot wrap. Exact to within the vectors'
@@ -162,7 +217,7 @@ pub fn bake_memory_bytes(meshes: usize, params: &Params) -> u64 {
         }
         side /= 2;
     }
-    let layers = (meshes as u64).saturating_mul(u64::from(params.angle_count));
+    let layers = BillboardViews::of(params).layers(meshes);
     layers.saturating_mul(per_layer).saturating_add(12 * r * r)
 }
 
@@ -175,46 +230,46 @@ pub fn check_bake_memory(meshes: usize, params: &Params) -> Result<(), InputErro
     }
     Err(InputError::new(
         "<params>",
-        "--texture-size x --angles",
+        "--texture-size x --angles x --azimuths",
         format!(
-            "{} x {} angles x {meshes} meshes",
-            params.texture_size, params.angle_count
+            "{} x {} angles x {} azimuths x {meshes} meshes",
+            params.texture_size, params.angle_count, params.azimuth_count
         ),
         format!(
-            "the billboard bake would need about {}, over the limit of {} (MAX_BAKE_BYTES): lower --texture-size or --angles",
+            "the billboard bake would need about {}, over the limit of {} (MAX_BAKE_BYTES): lower --texture-size, --angles or --azimuths",
             crate::files::size_text(need),
             crate::files::size_text(MAX_BAKE_BYTES)
         ),
     ))
 }
 
-/// E Alg. 3.1 for every mesh and angle, then the mips stage on every layer.
+/// E Alg. 3.1 for every mesh, angle and azimuth (E§7), then the mips stage on every layer.
 pub fn bake(
     scene: &Scene,
     metas: &[MeshMeta],
     mesh_textures: &[Texture],
     params: &Params,
 ) -> Result<BakedBillboards, InputError> {
-    let (k_count, r) = (params.angle_count, params.texture_size);
-    let jobs: Vec<(usize, u32)> = (0..scene.meshes.len())
-        .flat_map(|m| (0..k_count).map(move |k| (m, k)))
-        .collect();
+    let (views, r) = (BillboardViews::of(params), params.texture_size);
+    let k_count = views.angle_count;
+    let jobs: Vec<(usize, u32, u32)> = views.views(scene.meshes.len()).collect();
     let layers: Vec<Rgba8Image> = jobs
         .par_iter()
-        .map(|&(m, k)| {
-            bake_layer(
+        .map(|&(m, k, j)| {
+            bake_view(
                 &scene.meshes[m],
                 &metas[m],
                 &mesh_textures[m],
+                views,
                 k,
-                k_count,
+                j,
                 r,
             )
         })
         .collect();
     let extents = jobs
         .iter()
-        .map(|&(m, k)| billboard_extent(&metas[m], bake_elevation(k, k_count)))
+        .map(|&(m, k, _)| billboard_extent(&metas[m], bake_elevation(k, k_count)))
         .collect();
     let mode = params.mips().map_err(InputError::from)?;
     let chains = build_mip_array(&layers, mode, params.alpha_cutoff).map_err(|e| {
@@ -241,6 +296,7 @@ pub fn bake(
     })?;
     Ok(BakedBillboards {
         angle_count: k_count,
+        azimuth_count: views.azimuth_count,
         texture_size: r,
         layers,
         chains,
@@ -249,12 +305,13 @@ pub fn bake(
     })
 }
 
-/// A contact sheet of level 0 of every layer: one row per mesh, one column per angle, over a
+/// A contact sheet of level 0 of every layer: one row per mesh, one column per view (angle-major:
+/// the `J` azimuths of angle `k` in columns `k·J..(k + 1)·J`), over a
 /// checkerboard (grey 200 and 150 in 8-texel squares) so transparency shows. `meshes` rows
 /// (at least the bake's meshes); the pixels no layer covers (rows past the bake's meshes) are
 /// opaque black `[0, 0, 0, 255]`.
 pub fn contact_sheet(baked: &BakedBillboards, meshes: usize) -> Rgba8Image {
-    let (k, r) = (baked.angle_count, baked.texture_size);
+    let (k, r) = (baked.views().per_mesh(), baked.texture_size);
     let (w, h) = (k * r, meshes as u32 * r);
     let mut sheet = Rgba8Image::new(w, h, [0, 0, 0, 255]);
     for (layer, image) in baked.layers.iter().enumerate() {
@@ -299,6 +356,7 @@ mod tests {
         let half = Rgba8Image::new(r, r, [100, 100, 100, 128]);
         let baked = BakedBillboards {
             angle_count: 2,
+            azimuth_count: 1,
             texture_size: r,
             layers: vec![opaque.clone(), half],
             chains: Vec::new(),

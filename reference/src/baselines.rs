@@ -429,13 +429,27 @@ impl From<&Proxy> for ProxyRecord {
 
 /// Proxies of every mesh of a prepared scene.
 pub fn proxies(prepared: &Prepared, alpha_cutoff: f32) -> Vec<Proxy> {
-    let k = prepared.billboards.angle_count as usize;
+    // The level view from `+X` of mesh `m`: layer `m·K·J` (`forestlod_shared::view_layer`).
+    let views = prepared.billboards.views();
     prepared
         .geometry
         .meshes
         .iter()
         .enumerate()
-        .map(|(m, meta)| Proxy::of_mesh(meta, &prepared.billboards.layers[m * k], alpha_cutoff))
+        .map(|(m, meta)| {
+            let layer = forestlod_shared::view_layer(
+                m as u32,
+                0,
+                views.angle_count,
+                0,
+                views.azimuth_count,
+            );
+            Proxy::of_mesh(
+                meta,
+                &prepared.billboards.layers[layer as usize],
+                alpha_cutoff,
+            )
+        })
         .collect()
 }
 

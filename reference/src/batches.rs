@@ -223,7 +223,13 @@ impl Batches {
 
 /// E Eq. 4.1: the additional bytes of the approach, `4n + 64t + 24m + 16amr² + 52lt + 4lm`.
 pub fn eq41_bytes(n: u64, t: u64, m: u64, a: u64, r: u64, l: u64) -> u64 {
-    4 * n + 64 * t + 24 * m + 16 * a * m * r * r + 52 * l * t + 4 * l * m
+    eq41_azimuth_bytes(n, t, m, a, 1, r, l)
+}
+
+/// E Eq. 4.1 extended by `j` azimuth views per angle (issue 30, E§7): the billboard term
+/// `16amr²` becomes `16ajmr²`; `j = 1` is the thesis's equation.
+pub fn eq41_azimuth_bytes(n: u64, t: u64, m: u64, a: u64, j: u64, r: u64, l: u64) -> u64 {
+    4 * n + 64 * t + 24 * m + 16 * a * j * m * r * r + 52 * l * t + 4 * l * m
 }
 
 /// Bytes actually allocated by our pipeline, term by term beside E Eq. 4.1.
@@ -237,6 +243,8 @@ pub struct MemoryReport {
     pub m: u64,
     /// Angles.
     pub a: u64,
+    /// Azimuth views per angle `J` (issue 30; 1 is the thesis).
+    pub j: u64,
     /// Texture side.
     pub r: u64,
     /// LOD levels.
@@ -248,7 +256,8 @@ pub struct MemoryReport {
     /// Mesh metadata, `size_of::<MeshMeta>() m` = 48 m (thesis `24m`).
     pub mesh_meta: u64,
     /// Billboard array texture, RGBA8 with full mip chains (thesis `16amr²`, which is four
-    /// bytes per texel times four; ours is 4 bytes per texel times the 4/3 of a mip chain).
+    /// bytes per texel times four; ours is 4 bytes per texel times the 4/3 of a mip chain),
+    /// `J` times over with azimuth views (`16aJmr²`).
     pub billboards: u64,
     /// Command buffer plus per-command data, `(20 + 32) l t` (thesis `52lt`).
     pub commands: u64,
@@ -258,7 +267,7 @@ pub struct MemoryReport {
     pub hierarchy_nodes: u64,
     /// Sum of the above.
     pub total: u64,
-    /// E Eq. 4.1 for the same n, t, m, a, r, l.
+    /// E Eq. 4.1 for the same n, t, m, a, r, l, extended by `J` ([`eq41_azimuth_bytes`]).
     pub eq41: u64,
 }
 
@@ -278,8 +287,9 @@ pub fn mip_chain_bytes(r: u64) -> u64 {
 /// The memory our pipeline allocates for `trees` trees in `batches` with `params`.
 pub fn memory_report(trees: usize, batches: usize, meshes: usize, params: &Params) -> MemoryReport {
     let (n, t, m) = (trees as u64, batches as u64, meshes as u64);
-    let (a, r, l) = (
+    let (a, j, r, l) = (
         params.angle_count as u64,
+        params.azimuth_count as u64,
         params.texture_size as u64,
         params.lod_levels as u64,
     );
@@ -288,7 +298,7 @@ pub fn memory_report(trees: usize, batches: usize, meshes: usize, params: &Param
     let batch_meta = size(core::mem::size_of::<BatchMeta>()) * t;
     let mesh_meta = size(core::mem::size_of::<MeshMeta>()) * m;
     let billboards = if l >= 2 {
-        a * m * mip_chain_bytes(r)
+        a * j * m * mip_chain_bytes(r)
     } else {
         0
     };
@@ -300,6 +310,7 @@ pub fn memory_report(trees: usize, batches: usize, meshes: usize, params: &Param
         t,
         m,
         a,
+        j,
         r,
         l,
         indirection,
@@ -310,7 +321,7 @@ pub fn memory_report(trees: usize, batches: usize, meshes: usize, params: &Param
         counters,
         hierarchy_nodes: 0,
         total: indirection + batch_meta + mesh_meta + billboards + commands + counters,
-        eq41: eq41_bytes(n, t, m, a, r, l),
+        eq41: eq41_azimuth_bytes(n, t, m, a, j, r, l),
     }
 }
 
@@ -335,6 +346,30 @@ mod tests {
         // RGBA8 + mips is 4·4/3 bytes per texel against the thesis's 16.
         assert_eq!(ours.billboards, 10 * 5 * mip_chain_bytes(128));
         assert_eq!(mip_chain_bytes(128), 87_380);
+    }
+
+    /// Issue 30: azimuth views multiply the billboard term, in ours and in the equation, and
+    /// nothing else; `J = 1` is the thesis's figure.
+    #[test]
+    fn eq41_extended_by_azimuths_multiplies_the_billboard_term() {
+        let one = memory_report(920_000, 500, 5, &Params::default());
+        let four = memory_report(
+            920_000,
+            500,
+            5,
+            &Params {
+                azimuth_count: 4,
+                ..Params::default()
+            },
+        );
+        assert_eq!((one.j, four.j), (1, 4));
+        assert_eq!(four.billboards, 4 * one.billboards);
+        assert_eq!(four.total - one.total, 3 * one.billboards);
+        assert_eq!(four.eq41 - one.eq41, 3 * 16 * 10 * 5 * 128 * 128);
+        assert_eq!(
+            eq41_azimuth_bytes(920_000, 500, 5, 10, 1, 128, 2),
+            eq41_bytes(920_000, 500, 5, 10, 128, 2)
+        );
     }
 
     #[test]

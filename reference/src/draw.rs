@@ -16,6 +16,11 @@
 //!   extent from [`forestlod_shared::billboard_extent`], the frame of `shared::billboard`. When the
 //!   eye is straight above the base (no horizontal direction) the camera's horizontal back vector
 //!   stands in, and `+X` if that is degenerate too.
+//! - **Azimuth views** (issue 30, E§7; `forestlod_shared::azimuth`): with `J > 1` the billboard's
+//!   horizontal direction `h` to the eye, less the tree's yaw, picks the view
+//!   ([`forestlod_shared::azimuth_position`], [`forestlod_shared::azimuth_view`]): the nearest, or
+//!   the two nearest and the second's weight, packed with the layer into the layer varying
+//!   ([`forestlod_shared::azimuth_pack`]; `J = 1` leaves the word the layer, today's).
 //! - **Fade** (E§4.4; SPEC §6): every fragment carries its view depth `d = (p - eye) · forward`;
 //!   for billboards it is clamped per vertex to the tree's bounding-sphere interval, so a quad corner
 //!   poking out of the sphere never asks for a LOD its batch was not selected for. Weights come from
@@ -28,7 +33,10 @@
 //! - **Alpha test**: a texel with alpha below `params.alpha_cutoff` is discarded; kept texels count
 //!   as opaque (the fade weight alone sets the output alpha).
 //! - **Textures**: LOD0 samples its mesh's texture, LOD1 the billboard array layer
-//!   `mesh * K + k`, both trilinear with the implicit level of detail of the quad's derivatives.
+//!   `mesh * K + k` (`mesh·K·J + k·J + j` with azimuth views), both trilinear with the implicit
+//!   level of detail of the quad's derivatives. Under the azimuth blend the fragment samples the
+//!   second view's layer too and mixes the two ([`forestlod_shared::azimuth_mix`]) before the
+//!   alpha test.
 //! - **Outputs**: colour (RGBA8 sRGB), depth, and the LOD-id view of E Fig. 3.1 in the aux target:
 //!   [`LOD_ID_TERRAIN`], [`LOD_ID_MESH`], [`LOD_ID_BILLBOARD`], [`LOD_ID_TRANSITION`] (a fragment
 //!   of a fading command whose view depth lies strictly inside the band, in every fade mode).
@@ -40,9 +48,10 @@
 use forestlod_shared::coverage;
 use forestlod_shared::{
     COMMAND_SHIFT, Camera, CommandData, FadeGranularity, FadeMode, MAX_MESH_VERTICES, MeshMeta,
-    Params, Shading, angle_index_for, bake_elevation, billboard_extent, crown_radii, fade_progress,
-    subset_fragment_weight, subset_pack, subset_scale, subset_weight_code, vertex_lightness,
-    view_interval,
+    Params, Shading, angle_index_for, azimuth_mix, azimuth_pack, azimuth_position,
+    azimuth_second_layer, azimuth_unpack, azimuth_view, bake_elevation, billboard_extent,
+    crown_radii, fade_progress, subset_fragment_weight, subset_pack, subset_scale,
+    subset_weight_code, vertex_lightness, view_interval, view_layer,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -74,6 +83,10 @@ pub use forestlod_shared::{
 /// tree's progress `t` through its band instead of its scale: the fragment then needs no band,
 /// so no scale, and `t` is constant over the tree like the scale (the argument below holds for
 /// it too), so both LODs' fragments read it exactly.
+///
+/// The texture layer of a billboard is the azimuth word ([`forestlod_shared::azimuth_pack`],
+/// issue 30): the layer and the azimuth blend's weight code, 24 bits, exact in an `f32` and
+/// constant over the tree; with one azimuth (or the nearest view) the word is the layer.
 ///
 /// The subset word ([`forestlod_shared::subset_pack`], issue 29) is the tree's far-field subset
 /// weight code and its rank's dither shift, 24 bits, so exact in an `f32`, and constant over the
@@ -276,6 +289,17 @@ pub fn tree_stage(
             h = Vec3::X;
         }
         let h = h.normalize();
+        // Azimuth views (issue 30): the eye's mesh-local azimuth picks the view(s).
+        let j_count = params.azimuth_count;
+        let t_az = azimuth_position(h.x, h.y, tree.yaw, j_count);
+        if j_count > 1 {
+            coverage::hit(
+                coverage::Threshold::DrawAzimuthRound,
+                t_az - t_az.floor() >= 0.5,
+            );
+        }
+        let view = azimuth_view(params.azimuth_mode, t_az, j_count);
+        let layer = view_layer(tree.mesh, k, k_count, view.j, j_count);
         let right = Vec3::Z.cross(h);
         let (s, c) = elevation.sin_cos();
         let up = Vec3::Z * c - h * s;
@@ -293,7 +317,7 @@ pub fn tree_stage(
             half_width: e.half_width,
             bottom: e.bottom,
             height: e.height,
-            layer: (tree.mesh * k_count + k) as f32,
+            layer: azimuth_pack(layer, view.code) as f32,
             depth_lo: interval.lo,
             depth_hi: interval.hi,
         }
@@ -545,10 +569,18 @@ impl<'a> TreeShader<'a> {
         if data.billboard == 0 {
             self.res.mesh_textures[layer as usize].sample(&Sampler::TRILINEAR, 0, uv, ddx, ddy)
         } else {
-            self.res
-                .billboards
-                .texture
-                .sample(&Sampler::TRILINEAR, layer, uv, ddx, ddy)
+            // The azimuth word (issue 30): the view's layer, and the blend's second view.
+            let (layer, code) = azimuth_unpack(layer);
+            let array = &self.res.billboards.texture;
+            let first = array.sample(&Sampler::TRILINEAR, layer, uv, ddx, ddy);
+            if code == 0 {
+                first
+            } else {
+                let j_count = self.res.billboards.azimuth_count;
+                let second = azimuth_second_layer(layer, j_count);
+                let other = array.sample(&Sampler::TRILINEAR, second, uv, ddx, ddy);
+                azimuth_mix(first, other, code)
+            }
         }
     }
 }

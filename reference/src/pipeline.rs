@@ -112,6 +112,8 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
     params.validate()?;
     // Refused before anything is built (issue 28): a bake no machine of ours could hold.
     crate::bake::check_bake_memory(scene.meshes.len(), params)?;
+    // The billboard array's `m·K·J` layers (issue 30), refused naming `azimuth_count`.
+    forestlod_shared::check_billboard_layers(scene.meshes.len(), params)?;
     let mut timings = PrepareTimings::default();
     let t = Instant::now();
     let geometry = pack_geometry(&scene);

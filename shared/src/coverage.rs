@@ -95,10 +95,14 @@ pub enum Threshold {
     /// `draw`, `dither_space = texture` (issue 30, G§4): a dithered fading fragment's noise level
     /// is 0 (the finest) / coarser.
     DrawNoiseLevel,
+    /// `draw`, vertex stage, a billboard with azimuth views (issue 30): the eye's azimuth lies
+    /// nearer the lower / the upper of the two views around it (the nearest view rounds down / up;
+    /// a rule that truncated would be seen only on the second side).
+    DrawAzimuthRound,
 }
 
 /// Every threshold, in table order.
-pub const ALL: [Threshold; 35] = {
+pub const ALL: [Threshold; 36] = {
     use Threshold::*;
     [
         SelectDrawDistance,
@@ -136,6 +140,7 @@ pub const ALL: [Threshold; 35] = {
         DrawSubsetFade,
         DrawTreeProgress,
         DrawNoiseLevel,
+        DrawAzimuthRound,
     ]
 };
 
@@ -207,6 +212,11 @@ impl Threshold {
                 "inside",
             ),
             DrawNoiseLevel => ("draw: texture-space noise level", "0 (finest)", "coarser"),
+            DrawAzimuthRound => (
+                "draw: billboard azimuth between two views",
+                "nearer the lower",
+                "nearer the upper",
+            ),
         }
     }
 }

@@ -29,6 +29,7 @@
 )]
 
 pub mod angle;
+pub mod azimuth;
 pub mod billboard;
 pub mod camera;
 pub mod color;
@@ -53,6 +54,13 @@ pub mod view;
 
 pub use angle::{
     angle_index, angle_index_eq31, angle_index_eq31_clamped, angle_index_for, bake_elevation,
+};
+pub use azimuth::{
+    AZIMUTH_LAYER_BITS, AZIMUTH_TURN, AZIMUTH_WEIGHT_SCALE, AZIMUTH_WEIGHT_STEPS, AzimuthMode,
+    AzimuthView, BillboardViews, MAX_AZIMUTH_COUNT, MAX_BILLBOARD_LAYERS, azimuth_index,
+    azimuth_mix, azimuth_pack, azimuth_position, azimuth_second_layer, azimuth_to_view,
+    azimuth_unpack, azimuth_view, azimuth_weights, bake_azimuth, check_billboard_layers,
+    view_layer,
 };
 pub use billboard::{BillboardExtent, billboard_extent, dither_threshold};
 pub use camera::{Camera, CameraBasis, FrustumPlanes};

@@ -229,8 +229,14 @@ pub struct Params {
     /// billboard seen at its own texel size already gets one noise texel per pixel at level 1;
     /// closer (magnified), noise texels grow to `r_lod / r_n` texels of the tree's texture.
     pub noise_size: u32,
+    /// Billboard azimuth views `J` per elevation (issue 30, E§7; `shared/src/azimuth.rs`).
+    /// Default 1: the thesis's one azimuth (trees taken as radially symmetric, E§3.3.1).
+    pub azimuth_count: u32,
+    /// [`crate::AzimuthMode`] as `u32` (issue 30): the nearest azimuth view or a blend of the two
+    /// nearest. Default `Nearest`; with one azimuth both draw today's frame.
+    pub azimuth_mode: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 120);
+const _: () = assert!(core::mem::size_of::<Params>() == 128);
 
 impl Default for Params {
     fn default() -> Self {
@@ -265,6 +271,8 @@ impl Default for Params {
             dither_space: crate::DitherSpace::Screen as u32,
             fade_granularity: crate::FadeGranularity::Fragment as u32,
             noise_size: 256,
+            azimuth_count: 1,
+            azimuth_mode: crate::AzimuthMode::Nearest as u32,
         }
     }
 }

@@ -16,10 +16,11 @@
 
 use std::borrow::Cow;
 
+use crate::azimuth::MAX_AZIMUTH_COUNT;
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{
-    AngleIndexMode, Coalesce, CommandOrder, DitherSpace, FadeGranularity, FadeMode, Hierarchy,
-    LodMetric, MipMode, Params, Shading, SubsetMode, TreeCull,
+    AngleIndexMode, AzimuthMode, Coalesce, CommandOrder, DitherSpace, FadeGranularity, FadeMode,
+    Hierarchy, LodMetric, MipMode, Params, Shading, SubsetMode, TreeCull,
 };
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.
@@ -326,7 +327,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 30] = [
+pub const PARAMS: [ParamSpec; 32] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -378,6 +379,9 @@ pub const PARAMS: [ParamSpec; 30] = [
     choice!(fade_granularity, "fade-granularity", FadeGranularity, "What a fade's progress through the band is taken from (issue 30): ", ""),
     param!(noise_size, "noise-size", power_of_two(MAX_TEXTURE_SIZE), "expected a power of two in 1..=4096",
         "Side of the texture-space noise under dither-space texture, a power of two (G§4)"),
+    param!(azimuth_count, "azimuths", uint(1, MAX_AZIMUTH_COUNT), "expected 1..=64 azimuth views",
+        "Number of billboard azimuth views J per elevation (E§7)"),
+    choice!(azimuth_mode, "azimuth-mode", AzimuthMode, "Billboard azimuth view (issue 30): ", ""),
 ];
 
 /// Least `subset_min`: one tree in a thousand (a smaller floor leaves batches of a few hundred

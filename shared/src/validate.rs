@@ -76,6 +76,11 @@ impl Params {
             .ok_or_else(|| rejected("fade_granularity", self))
     }
 
+    /// The azimuth view rule (issue 30), validated.
+    pub fn azimuth(&self) -> Result<crate::AzimuthMode, ParamError> {
+        crate::AzimuthMode::from_id(self.azimuth_mode).ok_or_else(|| rejected("azimuth_mode", self))
+    }
+
     /// Checks every field against the parameter table ([`crate::registry::PARAMS`], in its
     /// order), returning the first impossible one. Nothing downstream runs on invalid parameters,
     /// so no stage needs to guard against NaN or zero divisors (SPEC §7).
@@ -95,6 +100,9 @@ impl Params {
                     .into(),
             });
         }
+        // One mesh's `K·J` views must fit the billboard array (issue 30); the scene's `m·K·J` is
+        // checked where the mesh count is known (`crate::check_billboard_layers`).
+        crate::check_billboard_layers(1, self)?;
         Ok(())
     }
 }

@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 30] = [
+const PINNED: [(&str, &str, &str); 32] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -156,6 +156,16 @@ const PINNED: [(&str, &str, &str); 30] = [
         "noise_size",
         "expected a power of two in 1..=4096",
         "Side of the texture-space noise under dither-space texture, a power of two (G§4)",
+    ),
+    (
+        "azimuth_count",
+        "expected 1..=64 azimuth views",
+        "Number of billboard azimuth views J per elevation (E§7)",
+    ),
+    (
+        "azimuth_mode",
+        "expected 0 (nearest) or 1 (blend)",
+        "Billboard azimuth view (issue 30): nearest, blend",
     ),
 ];
 

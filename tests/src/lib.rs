@@ -2,6 +2,7 @@
 //! parameters as proptest strategies, built without the procedural generators so the properties
 //! exercise the selection rules alone.
 
+pub mod azimuth;
 pub mod scenarios;
 pub mod stage_cases;
 

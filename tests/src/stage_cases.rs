@@ -116,12 +116,20 @@ pub const READ_ONLY_UNDER: &[(&str, &str, &str)] = &[
     ("noise_size", "dither_space", "texture"),
 ];
 
+/// Azimuth views a case gets when it picks an azimuth rule other than the nearest at one view
+/// ([`coherent`]): with one view there is nothing to blend, and the case would be its base.
+pub const AZIMUTH_RULE_VIEWS: u32 = 4;
+
 /// Makes a case's parameters coherent ([`Params::validate`]'s cross-field rule): far-field
 /// subsets rank trees within a grid batch, so a case that turns them on drops the flat base's
-/// per-tree refinement (`tree_cull = none`; refine is skipped there, as the plan says).
+/// per-tree refinement (`tree_cull = none`; refine is skipped there, as the plan says). A case
+/// that picks the azimuth blend (issue 30) at one azimuth view gets [`AZIMUTH_RULE_VIEWS`].
 pub fn coherent(p: &mut Params) {
     if p.subset_mode != forestlod_shared::SubsetMode::Off as u32 {
         p.tree_cull = TreeCull::None as u32;
+    }
+    if p.azimuth_mode != forestlod_shared::AzimuthMode::Nearest as u32 && p.azimuth_count == 1 {
+        p.azimuth_count = AZIMUTH_RULE_VIEWS;
     }
 }
 
@@ -160,10 +168,17 @@ pub fn extremes(kind: ParamKind) -> Option<(f64, f64)> {
 /// ([`SINGLE_SPECIES`]): `tiny`'s five species at ten angles would be 50 layers of 4096² texels
 /// (several GB on the reference), and five layers of 4096² exceed lavapipe's storage-buffer
 /// binding limit in the mips stage (measured: 335,544,320 bytes of level-1 texels refused).
+/// Likewise the greatest azimuth count (issue 30): `tiny`'s five species at ten angles and 64
+/// azimuths are 3200 layers, past the array-layer limit (`MAX_BILLBOARD_LAYERS`); one species'
+/// 640 fit.
 fn affordable(scene: &mut &'static str, p: &mut Params) {
     if p.texture_size >= 1024 {
         *scene = SINGLE_SPECIES;
         p.angle_count = 1;
+    }
+    let species = forestlod_reference::scene::builtin::Species::ALL.len();
+    if forestlod_shared::check_billboard_layers(species, p).is_err() {
+        *scene = SINGLE_SPECIES;
     }
 }
 

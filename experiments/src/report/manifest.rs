@@ -328,6 +328,7 @@ fn accuracy(key: &str, a: &Accuracy) -> Result<(), Bad> {
         ("total_flip_mean", a.total_flip_mean),
         ("total_flip_p99", a.total_flip_p99),
         ("total_coverage_error", a.total_coverage_error),
+        ("lod_flip_billboard", a.lod_flip_billboard),
     ];
     for (name, v) in required
         .iter()

@@ -411,6 +411,96 @@ pub fn write_plots(
             }
         }
     }
+    // 3. Issue 30: the billboards' own LOD error against billboard memory, where the sweep varies
+    // the billboard views (azimuths J or elevations K).
+    if let Some((name, caption, series)) = billboard_memory_series(rows) {
+        let axes = Axes {
+            title: format!("{}: billboard LOD error vs memory", spec.name),
+            x_label: "memory beside E Eq. 4.1 [MB] (billboards: K x J x r^2 x 5.3 B a mesh)".into(),
+            y_label: "LOD error in the billboard region".into(),
+            log_x: true,
+            log_y: false,
+        };
+        plot(name, caption, &|p| {
+            crate::plot::interval_plot(p, &axes, &series)
+        })?;
+    }
     out.extend(trade);
     Ok(out)
+}
+
+/// The series of the billboard-memory plot (issue 30), when the rows' parameter sets differ in
+/// their billboard views (`azimuth_count` or `angle_count`) and some frame shows billboards: one
+/// series per camera, backend, azimuth count and azimuth rule, its points the elevation counts,
+/// each at its mean memory and its mean LOD error over the billboard region
+/// (`lod_flip_billboard`) with a 95 % interval over the frames that have one.
+fn billboard_memory_series(
+    rows: &[Row],
+) -> Option<(&'static str, String, Vec<crate::plot::IntervalSeries>)> {
+    use crate::plot::{IntervalPoint, IntervalSeries, PALETTE};
+    let views = |r: &Row| (r.params.angle_count, r.params.azimuth_count);
+    let first = rows.first().map(views)?;
+    if rows.iter().all(|r| views(r) == first)
+        || !rows
+            .iter()
+            .any(|r| r.accuracy.lod_flip_billboard.is_finite())
+    {
+        return None;
+    }
+    let mut order: Vec<String> = Vec::new();
+    let mut points: BTreeMap<(String, u32), Vec<&Row>> = BTreeMap::new();
+    for r in rows {
+        let mode =
+            forestlod_shared::AzimuthMode::from_id(r.params.azimuth_mode).map_or("?", |m| m.name());
+        let label = format!(
+            "{} {} J{} {mode}",
+            r.camera, r.backend, r.params.azimuth_count
+        );
+        if !order.contains(&label) {
+            order.push(label.clone());
+        }
+        points
+            .entry((label, r.params.angle_count))
+            .or_default()
+            .push(r);
+    }
+    let series = order
+        .iter()
+        .enumerate()
+        .map(|(i, label)| IntervalSeries {
+            label: label.clone(),
+            points: points
+                .iter()
+                .filter(|((l, _), _)| l == label)
+                .map(|(_, rs)| {
+                    let errors: Vec<f64> = rs
+                        .iter()
+                        .map(|r| r.accuracy.lod_flip_billboard)
+                        .filter(|e| e.is_finite())
+                        .collect();
+                    let (y, y_half) = crate::report::mean_ci(&errors);
+                    IntervalPoint {
+                        x: mean(rs.iter().map(|r| r.memory_bytes as f64 / 1e6)),
+                        x_half: 0.0,
+                        y,
+                        y_half,
+                    }
+                })
+                .collect(),
+            line: true,
+            markers: true,
+            colour: PALETTE[i % PALETTE.len()],
+            shape: i / PALETTE.len(),
+            tag: String::new(),
+        })
+        .collect();
+    Some((
+        "billboard_memory.png",
+        "The billboards' own LOD error (mean FLIP against the full-detail frame over the pixels \
+         drawn as billboards, 95 % intervals over frames) against memory beside E Eq. 4.1, one \
+         line per camera, backend, azimuth count J and rule, its points the elevation counts K \
+         (issue 30)."
+            .into(),
+        series,
+    ))
 }

@@ -378,7 +378,7 @@ impl Runner {
                                 &truth_aux,
                                 layout.tile(),
                             );
-                            let lod_map = lod_error(&mut acc, &full, &vf.color);
+                            let lod_map = lod_error(&mut acc, &full, &vf.color, &vf.aux);
                             // The total error: this frame at the truth's sampling rate, untimed.
                             let total = if spec.total_error {
                                 let big = render(variant, &frame_ss, 1, false)?;

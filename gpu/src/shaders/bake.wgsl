@@ -3,7 +3,10 @@
 // prepended.
 //
 // Contract (the reference's module docs, repeated): layer `mesh * K + k` of the billboard array
-// texture holds mesh `mesh` seen from the fixed azimuth +X at elevation e_k = 90° / (K - 1) · k,
+// texture holds mesh `mesh` seen from the fixed azimuth +X at elevation e_k = 90° / (K - 1) · k
+// (with J azimuth views, issue 30/E§7: layer `mesh·K·J + k·J + j` holds it seen from the
+// mesh-local azimuth φ_j = 2π·j/J, the mesh first turned into that view's frame by common.wgsl
+// `azimuth_to_view`, the identity for j = 0),
 // through an orthographic projection fitted to the mesh's bounding box: `[-W, W]` along the
 // billboard's right vector R = +Y and `[bottom, bottom + height]` along its tilted up vector
 // U_k = Z cos e - X sin e (forestlod_shared::billboard_extent), depth 0 at the near side of the
@@ -13,8 +16,9 @@
 // Depth32Float attachment cleared to 1, colour REPLACE into an Rgba8UnormSrgb layer cleared to
 // transparent black, no culling), as the reference rasterizer does (reference/src/raster.rs).
 //
-// `bake_vs` is reference `bake_clip` operation for operation, in the same order. The per-layer
-// constants that need transcendental functions (sin and cos of the elevation) or come from the
+// `bake_vs` is reference `bake_clip_view` operation for operation, in the same order. The
+// per-layer constants that need transcendental functions (sin and cos of the elevation and the
+// azimuth) or come from the
 // shared extent formula are computed once on the CPU with the very calls the reference makes
 // (`bake_elevation(k, K).sin_cos()`, `billboard_extent`) and passed in `BakeLayer`: WGSL's sin
 // and cos have implementation-defined precision, so recomputing them here would move vertices.
@@ -38,6 +42,11 @@ struct BakeLayer {
     bottom: f32,
     // billboard_extent(meta, elevation).height.
     height: f32,
+    // sin and cos of the view's azimuth (f32 `sin_cos` of forestlod_shared::bake_azimuth).
+    sin_a: f32,
+    cos_a: f32,
+    _pad0: f32,
+    _pad1: f32,
 }
 
 // f32::MIN_POSITIVE, the floor of every divisor of bake_clip.
@@ -54,8 +63,9 @@ struct BakeVertex {
     @location(0) uv: vec2<f32>,
 }
 
-// reference `bake_clip`: orthographic clip-space position of mesh-local point `p`.
-fn bake_clip(p: vec3<f32>) -> vec4<f32> {
+// reference `bake_clip_view`: orthographic clip-space position of mesh-local point `p_mesh`.
+fn bake_clip(p_mesh: vec3<f32>) -> vec4<f32> {
+    let p = azimuth_to_view(p_mesh, layer.sin_a, layer.cos_a);
     let s = layer.sin_e;
     let c = layer.cos_e;
     // h = +X, R = Z × h = +Y, U = Z cos e - h sin e, V = h cos e + Z sin e (toward the viewer).
@@ -65,10 +75,14 @@ fn bake_clip(p: vec3<f32>) -> vec4<f32> {
     let half_width = max(layer.half_width, F32_MIN_POSITIVE);
     let height = max(layer.height, F32_MIN_POSITIVE);
     // Depth 0 at the nearest point of the bounding sphere, 1 at the farthest.
-    let center = vec3<f32>(
-        (layer.bbox_min.x + layer.bbox_max.x) * 0.5,
-        (layer.bbox_min.y + layer.bbox_max.y) * 0.5,
-        (layer.bbox_min.z + layer.bbox_max.z) * 0.5,
+    let center = azimuth_to_view(
+        vec3<f32>(
+            (layer.bbox_min.x + layer.bbox_max.x) * 0.5,
+            (layer.bbox_min.y + layer.bbox_max.y) * 0.5,
+            (layer.bbox_min.z + layer.bbox_max.z) * 0.5,
+        ),
+        layer.sin_a,
+        layer.cos_a,
     );
     let center_toward = center.x * c + center.z * s;
     let radius = max(layer.sphere_radius, F32_MIN_POSITIVE);

@@ -764,4 +764,96 @@ fn vertex_lightness(
     }
     let q = light_point(p, billboard, shading, toward_eye, centre, radii.x);
     return lightness(sun_depth(q, centre, radii, sun), ambient);
+// forestlod_shared::azimuth (shared/src/azimuth.rs): billboard azimuth views (issue 30, E§7).
+// The AZIMUTH_MODE_* ids, AZIMUTH_WEIGHT_STEPS, AZIMUTH_LAYER_BITS and the bits of AZIMUTH_TURN
+// and AZIMUTH_WEIGHT_SCALE are generated from Rust.
+
+// forestlod_shared::view_layer: layer `(mesh·K + k)·J + j`.
+fn view_layer(mesh: u32, k: u32, k_count: u32, j: u32, j_count: u32) -> u32 {
+    return (mesh * k_count + k) * j_count + j;
+}
+
+// forestlod_shared::azimuth_to_view: a mesh-local point in the frame of the view baked from the
+// azimuth whose sine and cosine are given; the identity for the azimuth 0.
+fn azimuth_to_view(p: vec3<f32>, sin_a: f32, cos_a: f32) -> vec3<f32> {
+    if sin_a == 0.0 && cos_a == 1.0 {
+        return p;
+    }
+    return vec3<f32>(cos_a * p.x + sin_a * p.y, cos_a * p.y - sin_a * p.x, p.z);
+}
+
+// forestlod_shared::azimuth_position: the eye's azimuth position `t` in [0, J), 0 for J <= 1 and
+// NaN.
+fn azimuth_position(h_x: f32, h_y: f32, yaw: f32, j_count: u32) -> f32 {
+    if j_count <= 1u {
+        return 0.0;
+    }
+    let turns = (atan2(h_y, h_x) - yaw) * bitcast<f32>(AZIMUTH_TURN_BITS);
+    let j = f32(j_count);
+    let t = (turns - floor(turns)) * j;
+    if t >= 0.0 && t < j {
+        return t;
+    }
+    return 0.0;
+}
+
+// forestlod_shared::azimuth_index: the nearest view, round(t) mod J, NaN-free.
+fn azimuth_index(t: f32, j_count: u32) -> u32 {
+    if j_count <= 1u {
+        return 0u;
+    }
+    let tc = clamp_nan_low(t, 0.0, f32(j_count));
+    return u32(floor(tc + 0.5)) % j_count;
+}
+
+// Keep in sync with forestlod_shared::AzimuthView.
+struct AzimuthView {
+    j: u32,
+    code: u32,
+}
+
+// forestlod_shared::azimuth_view.
+fn azimuth_view(mode: u32, t: f32, j_count: u32) -> AzimuthView {
+    if j_count <= 1u {
+        return AzimuthView(0u, 0u);
+    }
+    if mode != AZIMUTH_MODE_BLEND {
+        return AzimuthView(azimuth_index(t, j_count), 0u);
+    }
+    let tc = clamp_nan_low(t, 0.0, f32(j_count));
+    let lo = floor(tc);
+    let w = tc - lo;
+    return AzimuthView(u32(lo) % j_count, u32(w * f32(AZIMUTH_WEIGHT_STEPS) + 0.5));
+}
+
+// forestlod_shared::azimuth_pack: `layer | code << AZIMUTH_LAYER_BITS`.
+fn azimuth_pack(layer: u32, code: u32) -> u32 {
+    return (layer & ((1u << AZIMUTH_LAYER_BITS) - 1u))
+        | (min(code, AZIMUTH_WEIGHT_STEPS) << AZIMUTH_LAYER_BITS);
+}
+
+// forestlod_shared::azimuth_second_layer: the layer of view `j + 1 mod J`.
+fn azimuth_second_layer(layer: u32, j_count: u32) -> u32 {
+    if j_count <= 1u {
+        return layer;
+    }
+    let j = layer % j_count;
+    return layer - j + (j + 1u) % j_count;
+}
+
+// forestlod_shared::azimuth_mix: premultiplied mix of two straight-alpha texels; code 0 is the
+// first texel.
+fn azimuth_mix(first: vec4<f32>, second: vec4<f32>, code: u32) -> vec4<f32> {
+    if code == 0u {
+        return first;
+    }
+    let w = f32(min(code, AZIMUTH_WEIGHT_STEPS)) * bitcast<f32>(AZIMUTH_WEIGHT_SCALE_BITS);
+    let v = 1.0 - w;
+    let a0 = first.a * v;
+    let a1 = second.a * w;
+    let alpha = a0 + a1;
+    if alpha > 0.0 {
+        return vec4<f32>((first.rgb * a0 + second.rgb * a1) / alpha, alpha);
+    }
+    return vec4<f32>(first.rgb * v + second.rgb * w, alpha);
 }

@@ -44,6 +44,11 @@ struct DrawUniform {
     ambient: f32,
     sun: vec3<f32>,
     _pad3: u32,
+    // Billboard azimuth views J and the AzimuthMode id (issue 30, common.wgsl azimuth_*).
+    azimuth_count: u32,
+    azimuth_mode: u32,
+    _pad4: u32,
+    _pad5: u32,
 }
 
 // Keep in sync with gpu/src/draw.rs `DrawVertex` (= reference PackedVertex).
@@ -69,7 +74,7 @@ struct DrawInstance {
 @group(0) @binding(6) var<storage, read> counters: SelectCounters;
 // One layer per mesh (all mesh textures share one size).
 @group(0) @binding(7) var mesh_textures: texture_2d_array<f32>;
-// Layer `mesh * K + k` (E Alg. 3.1).
+// Layer `mesh * K + k` (E Alg. 3.1), `mesh·K·J + k·J + j` with J azimuth views (issue 30).
 @group(0) @binding(8) var billboard_textures: texture_2d_array<f32>;
 // Trilinear, clamp-to-edge (reference Sampler::TRILINEAR).
 @group(0) @binding(9) var tree_sampler: sampler;
@@ -86,10 +91,12 @@ struct TreeVaryings {
     // billboards) and the vertex's lightness (issue 30; 1 when unlit): one location, so the
     // lightness costs lavapipe no set-up memory.
     @location(0) uv_depth_light: vec4<f32>,
-    // Texture layer, command index, the tree's scale as bits (what a scaled LOD metric
-    // scales the command's band by, C§4.6; under `fade_granularity = tree`, issue 30, the
-    // tree's progress through that band instead: the fragment then needs no band), and its
-    // far-field subset word (common.wgsl `subset_pack`, issue 29).
+    // Texture layer (for a billboard, the azimuth word: common.wgsl `azimuth_pack`, issue 30;
+    // the layer itself with one azimuth or the nearest view), command index, the tree's scale as
+    // bits (what a scaled LOD metric scales the command's band by, C§4.6; under
+    // `fade_granularity = tree`, issue 30, the tree's progress through that band instead: the
+    // fragment then needs no band), and its far-field subset word (common.wgsl `subset_pack`,
+    // issue 29).
     @location(1) @interpolate(flat) layer_command_scale: vec4<u32>,
 }
 
@@ -200,6 +207,9 @@ fn tree_vertex(
         }
         h = h * (1.0 / length(h));
         toward_eye = h;
+        // Azimuth views (issue 30): the eye's mesh-local azimuth picks the view(s).
+        let t_az = azimuth_position(h.x, h.y, t.yaw, u.azimuth_count);
+        let view = azimuth_view(u.azimuth_mode, t_az, u.azimuth_count);
         // Z × h and Z cos e - h sin e, written out (h.z = 0).
         let right = vec3<f32>(-h.y, h.x, 0.0);
         let s = sin(elevation);
@@ -210,7 +220,7 @@ fn tree_vertex(
         let along_up = (e.bottom + (1.0 - corner.y) * e.height) * t.scale;
         world = base + right * along_right + up * along_up;
         uv = corner;
-        layer = t.mesh * k_count + k;
+        layer = azimuth_pack(view_layer(t.mesh, k, k_count, view.j, u.azimuth_count), view.code);
     }
     let rel = world - u.view.eye;
     var depth = rel.x * u.view.forward.x + rel.y * u.view.forward.y + rel.z * u.view.forward.z;
@@ -241,6 +251,9 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     let uv = in.uv_depth_light.xy;
     let depth = in.uv_depth_light.z;
     let layer = in.layer_command_scale.x;
+    // A billboard's azimuth word (issue 30): its view's layer and the blend's weight code.
+    let view_layer = layer & ((1u << AZIMUTH_LAYER_BITS) - 1u);
+    let azimuth_code = layer >> AZIMUTH_LAYER_BITS;
     let data = command_data[in.layer_command_scale.y];
     // The tree's scale, or its progress under the `tree` granularity (tree_vertex).
     let word = bitcast<f32>(in.layer_command_scale.z);
@@ -249,7 +262,14 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     // texture-space noise's explicit level reads the same derivatives, taken here for the same
     // reason (the reference's are the rasterizer's coarse ones).
     let mesh_texel = textureSample(mesh_textures, tree_sampler, uv, layer);
-    let billboard_texel = textureSample(billboard_textures, tree_sampler, uv, layer);
+    var billboard_texel = textureSample(billboard_textures, tree_sampler, uv, view_layer);
+    // The azimuth blend samples the second view too (a uniform branch: the derivatives stay
+    // defined) and mixes before the alpha test.
+    if u.azimuth_mode == AZIMUTH_MODE_BLEND && u.azimuth_count > 1u {
+        let second = azimuth_second_layer(view_layer, u.azimuth_count);
+        let other = textureSample(billboard_textures, tree_sampler, uv, second);
+        billboard_texel = azimuth_mix(billboard_texel, other, azimuth_code);
+    }
     let duv_dx = dpdxCoarse(uv);
     let duv_dy = dpdyCoarse(uv);
     let texel = select(mesh_texel, billboard_texel, data.billboard != 0u);

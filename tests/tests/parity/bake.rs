@@ -31,7 +31,8 @@
 //! count of differing pixels of every class are reported. Then the full GPU path
 //! (`GpuBake::bake`: bake, then the mips stage on the rendered texture) runs in every mode and is
 //! compared with the reference's mips of the GPU's own level 0. Also: K = 1, 2 and r = 1, 2, 4
-//! (SPEC §7), and the stage's input errors.
+//! (SPEC §7), azimuth views (issue 30, E§7: J = 4 at K = 2, every view's triangles projected by
+//! the reference's `bake_clip_view`, judged by the same classes), and the stage's input errors.
 //!
 //! Measured on lavapipe (K = 10): r = 128: 121718 of 819200 pixels differ by 1, 5 edge-, 1622
 //! depth-, 53 discard-ambiguous, 40 in the filter window (max difference 3); r = 64: 31153 by 1,
@@ -46,12 +47,12 @@ use forestlod_harness::stats::SignedHistogram;
 use forestlod_harness::texel_compare::{
     GpuBakeBackend, MIPS_BIAS_MAX, TEXEL_BIAS_MAX, TexelTally, bake_mesh, channel_diff, gpu_bake,
 };
-use forestlod_reference::bake::bake_clip;
+use forestlod_reference::bake::bake_clip_view;
 use forestlod_reference::sampler::Texture;
 use forestlod_reference::scene::TreeMesh;
 use forestlod_reference::scene::builtin::species_meshes;
 use forestlod_reference::texture::{Rgba8Image, linear_to_srgb, unorm8};
-use forestlod_shared::{MeshMeta, MipMode, Params, bake_elevation};
+use forestlod_shared::{BillboardViews, MeshMeta, MipMode, Params, bake_azimuth, bake_elevation};
 
 /// Per-channel tolerance for pixels in no ambiguity class.
 ///
@@ -108,14 +109,21 @@ struct Projected {
     uv: [[f64; 2]; 3],
 }
 
-fn project(mesh: &TreeMesh, meta: &MeshMeta, k: u32, angle_count: u32, r: u32) -> Vec<Projected> {
-    let e = bake_elevation(k, angle_count);
+fn project(
+    mesh: &TreeMesh,
+    meta: &MeshMeta,
+    views: BillboardViews,
+    (k, j): (u32, u32),
+    r: u32,
+) -> Vec<Projected> {
+    let e = bake_elevation(k, views.angle_count);
+    let (sin_a, cos_a) = bake_azimuth(j, views.azimuth_count).sin_cos();
     let r = f64::from(r);
     mesh.indices
         .chunks_exact(3)
         .map(|t| {
             let v = |i: usize| {
-                let c = bake_clip(mesh.positions[t[i] as usize], meta, e);
+                let c = bake_clip_view(mesh.positions[t[i] as usize], meta, e, sin_a, cos_a);
                 let x = (f64::from(c[0]) + 1.0) * 0.5 * r;
                 let y = (1.0 - f64::from(c[1])) * 0.5 * r;
                 (
@@ -356,22 +364,24 @@ struct BakeTally {
 fn check_bake(
     gpu: &dyn Backend<Bake>,
     meshes: &[TreeMesh],
-    angle_count: u32,
+    views: BillboardViews,
     r: u32,
 ) -> (BakeTally, Vec<Rgba8Image>) {
     let input = BakeInput {
         meshes,
-        angle_count,
+        angle_count: views.angle_count,
+        azimuth_count: views.azimuth_count,
         side: r,
     };
+    let order: Vec<(usize, u32, u32)> = views.views(meshes.len()).collect();
     let want = Backend::<Bake>::run(&Reference, input);
     let got = gpu.run(input);
     assert_eq!(got.len(), want.len());
     let mut tally = BakeTally::default();
     for (layer, (g, w)) in got.iter().zip(&want).enumerate() {
-        let (m, k) = (layer / angle_count as usize, layer as u32 % angle_count);
+        let (m, k, j) = order[layer];
         let mesh = &meshes[m];
-        let tris = project(mesh, &mesh.meta(), k, angle_count, r);
+        let tris = project(mesh, &mesh.meta(), views, (k, j), r);
         let texture = Texture::new(vec![mesh.texture.clone()]).unwrap();
         tally.layers += 1;
         for y in 0..r {
@@ -414,7 +424,7 @@ fn check_bake(
                     None => {
                         if tally.failures.len() < 20 {
                             tally.failures.push(format!(
-                                "layer {layer} (mesh {m}, k {k}) pixel ({x}, {y}): gpu {gt:?} reference {wt:?}"
+                                "layer {layer} (mesh {m}, k {k}, j {j}) pixel ({x}, {y}): gpu {gt:?} reference {wt:?}"
                             ));
                         } else {
                             tally.failures.push(String::new());
@@ -473,14 +483,20 @@ fn report(what: &str, tally: &BakeTally, started: Instant) {
 /// (`GpuBake::bake`: bake, then mips on the rendered texture) in every mode against the
 /// reference's mips of the GPU's own level 0.
 fn run(angle_count: u32, r: u32, full_path: bool) {
+    run_views(BillboardViews::elevations(angle_count), r, full_path);
+}
+
+/// [`run`] with `views` (azimuth views too, issue 30).
+fn run_views(views: BillboardViews, r: u32, full_path: bool) {
     let Some(bake) = gpu_bake() else {
         eprintln!("skipped, no GPU adapter");
         return;
     };
     let started = Instant::now();
     let meshes = species_meshes();
-    let what = format!("bake K={angle_count} r={r}");
-    let (tally, gpu_layers) = check_bake(&GpuBakeBackend { bake }, &meshes, angle_count, r);
+    let (angle_count, azimuth_count) = (views.angle_count, views.azimuth_count);
+    let what = format!("bake K={angle_count} J={azimuth_count} r={r}");
+    let (tally, gpu_layers) = check_bake(&GpuBakeBackend { bake }, &meshes, views, r);
     report(&what, &tally, started);
     if !full_path {
         return;
@@ -490,6 +506,7 @@ fn run(angle_count: u32, r: u32, full_path: bool) {
     for mode in MipMode::ALL {
         let params = Params {
             angle_count,
+            azimuth_count,
             texture_size: r,
             mip_mode: mode as u32,
             alpha_cutoff: 0.5,
@@ -543,6 +560,17 @@ fn gpu_bake_equals_the_reference_r128() {
     run(10, 128, true);
 }
 
+/// Issue 30 (E§7): four azimuth views of two elevations, every view judged by the classes above
+/// against the reference's projection of that view; then the full path (bake and mips).
+#[test]
+fn gpu_bake_equals_the_reference_with_azimuths() {
+    let views = BillboardViews {
+        angle_count: 2,
+        azimuth_count: 4,
+    };
+    run_views(views, 64, true);
+}
+
 #[test]
 fn gpu_bake_equals_the_reference_at_the_extremes() {
     // SPEC §7: r = 1, 2, 4 and K = 1 (the level view only), 2.
@@ -562,14 +590,25 @@ fn gpu_bake_rejects_bad_inputs() {
     let meshes = species_meshes();
     let inputs: Vec<_> = meshes.iter().map(bake_mesh).collect();
     for (k, r) in [(10, 100), (10, 0), (0, 64), (10, 8192)] {
-        let err = bake.bake_level0(&inputs, k, r).unwrap_err();
+        let err = bake
+            .bake_level0(&inputs, BillboardViews::elevations(k), r)
+            .unwrap_err();
         eprintln!("K={k} r={r}: {err}");
         assert!(matches!(err, GpuError::Input { .. }), "{err}");
     }
+    // No azimuth view (issue 30).
+    let none = BillboardViews {
+        angle_count: 10,
+        azimuth_count: 0,
+    };
+    let err = bake.bake_level0(&inputs, none, 64).unwrap_err();
+    assert!(err.to_string().contains("0 azimuths"), "{err}");
     let mut broken = inputs[0];
     let bad = [0u32, 1, 999];
     broken.indices = &bad;
-    let err = bake.bake_level0(&[broken], 1, 8).unwrap_err();
+    let err = bake
+        .bake_level0(&[broken], BillboardViews::elevations(1), 8)
+        .unwrap_err();
     assert!(err.to_string().contains("999"), "{err}");
     let err = bake
         .mips()

@@ -411,6 +411,7 @@ fn gpu_mips_equal_the_reference_on_baked_species() {
         BakeInput {
             meshes: &species_meshes(),
             angle_count: 10,
+            azimuth_count: 1,
             side: 128,
         },
     );

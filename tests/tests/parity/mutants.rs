@@ -181,6 +181,14 @@ const MUTANTS: &[Mutant] = &[
               across the near plane (issue 36's WGSL sample, survivor 581)",
     },
     Mutant {
+        file: "common.wgsl",
+        line: "let turns = (atan2(h_y, h_x) - yaw) * bitcast<f32>(AZIMUTH_TURN_BITS);",
+        before: "- yaw",
+        after: "+ yaw",
+        killer: "draw::gpu_draw_matches_the_reference_with_azimuth_views",
+        why: "the tree's yaw added to the eye's azimuth instead of subtracted (issue 30)",
+    },
+    Mutant {
         file: "cull.wgsl",
         line: "if count > 0u {",
         before: "count > 0u",

@@ -812,7 +812,7 @@ fn bad_values_in_every_params_field_are_rejected() {
         }
     }
     type SetU = fn(&mut Params);
-    let ints: [(&str, SetU); 7] = [
+    let ints: [(&str, SetU); 11] = [
         ("angle_count", |p| p.angle_count = 0),
         ("angle_count", |p| p.angle_count = 92),
         ("texture_size", |p| p.texture_size = 100),
@@ -820,6 +820,15 @@ fn bad_values_in_every_params_field_are_rejected() {
         ("fade_mode", |p| p.fade_mode = 4),
         ("mip_mode", |p| p.mip_mode = 3),
         ("angle_index_mode", |p| p.angle_index_mode = 2),
+        // Issue 30: no azimuth, too many, an unknown rule, and one mesh's K·J views over the
+        // billboard array's layer limit (91 x 64 = 5824 > 2048).
+        ("azimuth_count", |p| p.azimuth_count = 0),
+        ("azimuth_count", |p| p.azimuth_count = 65),
+        ("azimuth_mode", |p| p.azimuth_mode = 2),
+        ("azimuth_count", |p| {
+            p.angle_count = 91;
+            p.azimuth_count = 64;
+        }),
     ];
     for (field, set) in ints {
         let mut p = good;

@@ -1,6 +1,7 @@
 //! The reference against external ground: stored images and other implementations, one test
 //! binary (CPU only).
 //! - [`goldens`]: the reference against the golden images in `goldens/`;
+//! - [`azimuths`]: issue 30's azimuth views: the drawn layers, the rotation property, the limits;
 //! - [`baselines`]: the reference baselines (Vegetation, Primitive) see the same trees as ours;
 //! - [`embree_crosscheck`]: obvhs, behind the ground truth, agrees with Embree (embreex);
 //! - [`shading`]: sun-depth shading (G§5) on lone trees: the seed's defect and its fix.
@@ -10,6 +11,7 @@
 //! Run one module with `cargo test -p forestlod-tests --test reference <module>::`.
 
 mod alternatives;
+mod azimuths;
 mod baselines;
 mod blend;
 mod embree_crosscheck;
