@@ -45,7 +45,7 @@ use crate::raster::{
     ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, MaskCounts, PassSet, PassShader,
     RenderTarget, SETUP_CHUNK, Triangle, TriangleSource, Vertex, draw_passes_streamed, round_exact,
 };
-use crate::sampler::{Sampler, Texture};
+use crate::sampler::{LodRule, Sampler, Texture};
 use crate::scene::{Instance, Scene, tree_sphere};
 use crate::select::{SelectUniform, Selection, tree_within_draw_distance};
 use crate::texture::srgb_to_linear;
@@ -98,6 +98,10 @@ pub struct DrawResources<'a> {
     pub mesh_textures: &'a [Texture],
     /// Billboard array texture.
     pub billboards: &'a BakedBillboards,
+    /// How the tree shader's implicit level of detail computes `ρ`: [`LodRule::Exact`] (the
+    /// pipeline's); the others only for the reference frames that classify what a conforming
+    /// adapter's other `λ` explains (`forestlod-harness`'s alternatives).
+    pub lod_rule: LodRule,
 }
 
 /// The per-frame uniform of the draw stage (the `Camera` and `Params` bindings of `draw.wgsl`).
@@ -428,13 +432,17 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
         let layer = round_exact(layer) as u32;
         let uv = [u, v];
         let (ddx, ddy) = ([f.ddx[0], f.ddx[1]], [f.ddy[0], f.ddy[1]]);
+        let sampler = Sampler {
+            lod_rule: self.res.lod_rule,
+            ..Sampler::TRILINEAR
+        };
         let texel = if data.billboard == 0 {
-            self.res.mesh_textures[layer as usize].sample(&Sampler::TRILINEAR, 0, uv, ddx, ddy)
+            self.res.mesh_textures[layer as usize].sample(&sampler, 0, uv, ddx, ddy)
         } else {
             self.res
                 .billboards
                 .texture
-                .sample(&Sampler::TRILINEAR, layer, uv, ddx, ddy)
+                .sample(&sampler, layer, uv, ddx, ddy)
         };
         // The alpha test, per pass.
         let mut kept: PassSet = 0;
