@@ -629,9 +629,10 @@ fn gpu_bake_rejects_bad_inputs() {
 /// class. Mutation-checked: without the widening (`uv_reach` 0) the eight are unexplained.
 #[test]
 fn h200_bake_pixels_are_classified() {
+    /// A logged pixel: r, layer, x, y, GPU, reference, explained here.
+    type Logged = (u32, u32, u32, u32, [u8; 4], [u8; 4], bool);
     let meshes = species_meshes();
-    // (r, layer, x, y, GPU, reference, explained)
-    let logged: [(u32, u32, u32, u32, [u8; 4], [u8; 4], bool); 9] = [
+    let logged: [Logged; 9] = [
         (128, 30, 64, 73, [48, 44, 42, 255], [50, 47, 44, 255], true),
         (128, 32, 63, 82, [67, 64, 59, 255], [68, 65, 62, 255], true),
         (128, 32, 65, 88, [53, 49, 47, 255], [54, 51, 48, 255], true),
