@@ -1,7 +1,9 @@
 //! The reference frames that classify threshold-ambiguous pixels (`crate::image_compare` module
 //! docs): the frame with the alpha-test cutoff moved by each of
-//! `±image_compare::ALPHA_TEST_SHIFTS`, and the baselines' twins of it. They are reference
-//! frames, not GPU ones: every parity judge of a GPU frame draws them beside it.
+//! `±image_compare::ALPHA_TEST_SHIFTS`, the frame under each implicit-LOD model of
+//! `image_compare::LOD_RULES` (what a conforming adapter's other λ draws), and the baselines'
+//! twins of the former. They are reference frames, not GPU ones: every parity judge of a GPU
+//! frame draws them beside it.
 
 use forestlod_reference::baselines::{Proxy, render_primitive_shifted, render_vegetation};
 use forestlod_reference::pipeline::Prepared;
@@ -12,9 +14,11 @@ use crate::image_compare::Images;
 use crate::stage::images_of;
 
 /// The reference frames with the alpha-test cutoff moved by each of
-/// `±image_compare::ALPHA_TEST_SHIFTS`: the alternatives that classify threshold-ambiguous
-/// pixels (`image_compare` module docs). Drawn together (`Prepared::render_cutoffs`: one
-/// selection, one setup and one walk for all, each frame its own draw's bit for bit).
+/// `±image_compare::ALPHA_TEST_SHIFTS`, then the frames under each implicit-LOD model of
+/// `image_compare::LOD_RULES`: the alternatives that classify threshold-ambiguous pixels
+/// (`image_compare` module docs). The cutoffs are drawn together (`Prepared::render_cutoffs`:
+/// one selection, one setup and one walk for all, each frame its own draw's bit for bit), the
+/// models after them (`Prepared::render_lod_rules`).
 pub fn alpha_test_alternatives(
     prepared: &Prepared,
     camera: &Camera,
@@ -25,14 +29,19 @@ pub fn alpha_test_alternatives(
         .render_cutoffs(camera, params, &cutoffs, None)
         .expect("reference render")
         .into_iter()
+        .chain(
+            prepared
+                .render_lod_rules(camera, params, &crate::image_compare::LOD_RULES, None)
+                .expect("reference render"),
+        )
         .map(|drawn| moved_images(drawn.target))
         .collect()
 }
 
 /// [`alpha_test_alternatives`] drawn only at `pixels` (`image_compare::alternative_pixels` of
 /// the two frames to compare; the rest of each alternative is sky and never read), the six
-/// cutoffs sharing one selection and one setup (`Prepared::render_cutoffs`): the same comparison
-/// for a fraction of one frame's cost. None at all when no pixel needs one.
+/// cutoffs sharing one selection and one setup (`Prepared::render_cutoffs`), then the LOD models:
+/// the same comparison for a fraction of one frame's cost. None at all when no pixel needs one.
 pub fn alpha_test_alternatives_at(
     prepared: &Prepared,
     camera: &Camera,
@@ -47,6 +56,16 @@ pub fn alpha_test_alternatives_at(
         .render_cutoffs(camera, params, &cutoffs, Some(pixels.to_vec()))
         .expect("reference render")
         .into_iter()
+        .chain(
+            prepared
+                .render_lod_rules(
+                    camera,
+                    params,
+                    &crate::image_compare::LOD_RULES,
+                    Some(pixels.to_vec()),
+                )
+                .expect("reference render"),
+        )
         .map(|drawn| moved_images(drawn.target))
         .collect()
 }

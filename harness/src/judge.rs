@@ -7,9 +7,9 @@
 //! The integer stages (`coalesce`, the cut's resolution and compaction, the sort's gather) are
 //! judged exactly. The stages that decide with floats (`hier_select`'s per-node codes, `refine`'s
 //! and `cull`'s per-tree decisions, `command_order`'s keys) may differ from the reference where a
-//! value lies within [`AMBIGUITY_REL`] (or [`KEY_ULPS`]) of a threshold: the GPU compiler may
-//! contract `a * b + c` into a fused multiply-add. Such a decision is classified *ambiguous*,
-//! counted and reported; the rest of the output must then equal the reference's treatment of the
+//! value lies within [`AMBIGUITY_REL`] of a threshold (or a key within [`near_depth_bound`] of the
+//! reference's): the GPU compiler may contract `a * b + c` into a fused multiply-add
+//! ([`crate::contraction`]). Such a decision is classified *ambiguous*, counted and reported; the rest of the output must then equal the reference's treatment of the
 //! GPU's own decisions exactly, and equal the reference's output where nothing is ambiguous.
 
 use std::collections::BTreeSet;
@@ -37,13 +37,42 @@ use forestlod_shared::{
 /// `parity::select`'s.
 pub const AMBIGUITY_REL: f32 = 1e-5;
 
-/// Largest difference, in `u32` steps of the `f32` bits, between a GPU run key and the
-/// reference's for the same run that is classified ambiguous rather than a bug.
+/// How far a backend's run key may lie from the reference's: [`crate::contraction::near_depth_bound`]
+/// of the run's nodes (the largest), in metres of view depth.
 ///
-/// Why 1: one ulp of the near view depth is what a fused multiply-add in its dot product can move
-/// it by (the key is the depth's bits, so one ulp is one step). A wrong key (another node, the
-/// maximum instead of the minimum, a sphere-only interval) moves it by far more.
-pub const KEY_ULPS: u32 = 1;
+/// Why derived, not a count of ulps: a key is the `f32` bits of a node's near view depth, a
+/// three-term dot product `(c - e) · f` minus the volume's reach; an adapter may contract its
+/// multiply-adds (Vulkan permits it; lavapipe does not, the H200 does), which moves the depth by
+/// up to the dot product's error bound **in the magnitudes of its terms** (`γ_3 Σ|(c - e)_k
+/// f_k|`), not of the result: where the terms cancel (a node beside the eye, a view at an
+/// angle) a handful of ulps of the result is within it (the H200 moved keys by 2 ulp, e.g.
+/// `254.32062` vs `254.32065`, past the former 1-ulp class). A wrong key (another node, the
+/// maximum instead of the minimum, a sphere-only interval) moves it by metres, thousands of times
+/// the bound.
+pub use crate::contraction::near_depth_bound;
+
+/// The bound of every coalesced run's key ([`near_depth_bound`] of the nodes it merged, the
+/// largest), for the runs of `coalesced`, the coalescing of `raw` under `coalesce` (the same walk
+/// as `forestlod_reference::command_order::run_keys`).
+pub fn run_key_bounds(
+    nodes: &[NodeMeta],
+    raw: &Selection,
+    runs: usize,
+    u: &ViewUniform,
+    coalesce: forestlod_shared::Coalesce,
+) -> Vec<f64> {
+    let mut bounds = vec![0.0f64; runs];
+    let mut run = 0usize;
+    for (j, d) in raw.data.iter().enumerate() {
+        if j > 0 && forestlod_reference::coalesce::is_head(raw, j, coalesce) {
+            run += 1;
+        }
+        if let Some(b) = bounds.get_mut(run) {
+            *b = b.max(near_depth_bound(u, &nodes[d.batch as usize]));
+        }
+    }
+    bounds
+}
 
 /// Which thresholds [`threshold_ambiguity`] checks besides the interval's near end against the
 /// draw distance and the six plane distances.
@@ -266,42 +295,59 @@ pub fn keys_per_run(pairs: &[(u32, u32)], runs: usize) -> Result<Vec<u32>, Strin
     Ok(keys)
 }
 
+/// What [`check_order`] found.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OrderJudgement {
+    /// Run keys not equal to the reference's (each within its bound).
+    pub ambiguous: u64,
+    /// Largest key difference in `u32` steps of the `f32` bits (for the record).
+    pub max_steps: u32,
+    /// Largest key difference as a fraction of its run's bound (at most 1 when it passes).
+    pub max_of_bound: f64,
+}
+
 /// Checks a front-to-back order `got` (with the sort's `(key, run)` pairs `pairs`, output order)
 /// against the reference's order of `merged` (the coalesced list, unsorted) with keys `ref_keys`
-/// (per run): every key within [`KEY_ULPS`] of the reference's (those not equal counted
-/// ambiguous), and `got` exactly the reference's sort under the backend's keys. Returns the
-/// ambiguous keys and the largest key difference.
+/// and key bounds `bounds` (per run, [`run_key_bounds`]): every key's depth within its run's
+/// bound of the reference's (those not equal counted ambiguous), and `got` exactly the
+/// reference's sort under the backend's keys.
 pub fn check_order(
     got: &Selection,
     pairs: &[(u32, u32)],
     merged: &Selection,
     ref_keys: &[u32],
-) -> Result<(u64, u32), String> {
-    if pairs.len() != merged.commands.len() {
+    bounds: &[f64],
+) -> Result<OrderJudgement, String> {
+    if pairs.len() != merged.commands.len() || bounds.len() != ref_keys.len() {
         return Err(format!(
-            "{} pairs for {} runs",
+            "{} pairs and {} key bounds for {} runs",
             pairs.len(),
+            bounds.len(),
             merged.commands.len()
         ));
     }
     let gpu_keys = keys_per_run(pairs, ref_keys.len())?;
-    let (mut ambiguous, mut max) = (0, 0);
-    for (r, (&g, &w)) in gpu_keys.iter().zip(ref_keys).enumerate() {
-        max = max.max(g.abs_diff(w));
-        if g != w {
-            if g.abs_diff(w) > KEY_ULPS {
-                return Err(format!(
-                    "run {r}: key {g:#x} ({}) vs the reference's {w:#x} ({})",
-                    f32::from_bits(g),
-                    f32::from_bits(w)
-                ));
-            }
-            ambiguous += 1;
+    let mut out = OrderJudgement::default();
+    for (r, ((&g, &w), &bound)) in gpu_keys.iter().zip(ref_keys).zip(bounds).enumerate() {
+        if g == w {
+            continue;
         }
+        let diff = (crate::contraction::key_depth(g) - crate::contraction::key_depth(w)).abs();
+        if g == u32::MAX || diff > bound {
+            return Err(format!(
+                "run {r}: key {g:#x} ({}) vs the reference's {w:#x} ({}): {diff:e} m apart, past \
+                 the bound {bound:e} m of a contracted dot product",
+                f32::from_bits(g),
+                f32::from_bits(w)
+            ));
+        }
+        out.ambiguous += 1;
+        out.max_steps = out.max_steps.max(g.abs_diff(w));
+        out.max_of_bound = out.max_of_bound.max(diff / bound);
     }
     let (want, _) = order(merged.clone(), gpu_keys, CommandOrder::FrontToBack);
     compare_selections("sorted commands (the reference's sort)", &want, got)?;
-    Ok((ambiguous, max))
+    Ok(out)
 }
 
 /// A refinement as both backends report it: the rewritten commands and `refine`'s output.
@@ -797,10 +843,11 @@ mod tests {
         }
     }
 
-    /// Sensitivity of [`KEY_ULPS`]: a run key one step from the reference's is ambiguous (and the
-    /// order is then checked under the backend's keys), two steps fail naming the run.
+    /// Sensitivity of the key bound ([`check_order`]'s `bounds`): a run key whose depth lies
+    /// exactly at its bound from the reference's is ambiguous (and the order is then checked
+    /// under the backend's keys), one step further fails naming the run.
     #[test]
-    fn gate_key_ulps_one_step_ambiguous_two_fail() {
+    fn gate_key_bound_at_bound_ambiguous_one_step_past_fails() {
         let command = |first_instance| DrawCommand {
             index_count: 6,
             instance_count: 1,
@@ -819,13 +866,18 @@ mod tests {
             ..Selection::default()
         };
         let ref_keys = [100.0f32.to_bits(), 200.0f32.to_bits()];
-        for (step, ok) in [(1, true), (2, false)] {
+        // The bound: exactly three steps of the first key's depth.
+        let bound = f64::from(f32::from_bits(ref_keys[0] + 3)) - 100.0;
+        for (step, ok) in [(3, true), (4, false)] {
             let keys = vec![ref_keys[0] + step, ref_keys[1]];
             let (got, sorted) = order(merged.clone(), keys.clone(), CommandOrder::FrontToBack);
             let pairs: Vec<(u32, u32)> = sorted.iter().zip(0..).map(|(&k, r)| (k, r)).collect();
-            let result = check_order(&got, &pairs, &merged, &ref_keys);
+            let result = check_order(&got, &pairs, &merged, &ref_keys, &[bound, bound]);
             match (ok, result) {
-                (true, Ok(found)) => assert_eq!(found, (1, 1)),
+                (true, Ok(found)) => {
+                    assert_eq!((found.ambiguous, found.max_steps), (1, 3));
+                    assert_eq!(found.max_of_bound, 1.0);
+                }
                 (false, Err(why)) => assert!(why.starts_with("run 0: key"), "{why}"),
                 (_, result) => panic!("key {step} steps off: {result:?}"),
             }

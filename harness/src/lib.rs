@@ -22,6 +22,9 @@
 //!   ([`stage::Judged`]);
 //! - [`judge`]: how the list stages' outputs are compared, the near-threshold (fused
 //!   multiply-add) classification and its tolerances, shared by the parity tests and [`diagnose`];
+//! - [`contraction`]: what a conforming adapter may compute for the shared selection formulas
+//!   (every fused multiply-add the Vulkan specification allows), the derived bound of the
+//!   front-to-back keys and the decisions reachable at a knife edge;
 //! - [`gpu_stages`]: the GPU twin of each stage run alone on the reference's input of it, and
 //!   `FrameStages`, every stage of one frame judged (issue 27);
 //! - [`diagnose`]: each GPU stage before the draw compared with the reference's in the frame
@@ -43,6 +46,7 @@ pub mod alternatives;
 pub mod backend;
 pub mod bridge;
 pub mod context;
+pub mod contraction;
 pub mod diagnose;
 pub mod flip;
 pub mod gpu_frame;

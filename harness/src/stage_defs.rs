@@ -29,7 +29,7 @@ use crate::image_compare::{Images, MaxDiffs, judge_image};
 use crate::judge::{
     AMBIGUITY_REL, CullCase, Culled, RefineCase, Refinement, Thresholds, check_order,
     compare_selections, judge_cull, judge_cut, judge_refine, keys_per_run, primitive_args,
-    threshold_ambiguity,
+    run_key_bounds, threshold_ambiguity,
 };
 use crate::stage::{
     Backend, BackendSelection, Bake, BakeInput, Draw, FrameInput, Judged, LevelOut, Mips,
@@ -211,8 +211,9 @@ impl Backend<CommandOrder> for Reference {
 }
 
 impl Judged for CommandOrder {
-    /// `node`: exact. `front-to-back`: every key within [`crate::judge::KEY_ULPS`] of the
-    /// reference's, and the order the reference's sort under the backend's keys.
+    /// `node`: exact. `front-to-back`: every key within its run's
+    /// [`crate::judge::near_depth_bound`] of the reference's, and the order the reference's sort
+    /// under the backend's keys.
     fn judge(i: CommandOrderInput<'_>, want: &Ordered, got: &Ordered) -> StageCheck {
         let mode = i.params.command_ordering().expect("valid parameters");
         let n = i.coalesced.commands.len();
@@ -220,17 +221,20 @@ impl Judged for CommandOrder {
             compare_selections("commands (node order)", &want.selection, &got.selection)
                 .map(|()| (format!("{n} commands in node order, exact"), 0.0))
         } else {
+            let u = ViewUniform::new(i.camera, i.params);
+            let bounds = run_key_bounds(i.nodes, i.raw, n, &u, i.coalesce);
             keys_per_run(&want.pairs, n)
                 .and_then(|ref_keys| {
-                    check_order(&got.selection, &got.pairs, i.coalesced, &ref_keys)
+                    check_order(&got.selection, &got.pairs, i.coalesced, &ref_keys, &bounds)
                 })
-                .map(|(ambiguous, max)| {
+                .map(|o| {
                     (
                         format!(
-                            "{n} runs sorted front to back, {ambiguous} keys within one ulp, max \
-                             key difference {max} ulp"
+                            "{n} runs sorted front to back, {} keys within their contraction \
+                             bound, max key difference {} ulp ({:.3} of its bound)",
+                            o.ambiguous, o.max_steps, o.max_of_bound
                         ),
-                        f64::from(max),
+                        f64::from(o.max_steps),
                     )
                 })
         };

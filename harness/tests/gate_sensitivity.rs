@@ -17,7 +17,7 @@
 //! | `TEXEL_BIAS_MAX`, `MIPS_BIAS_MAX` | 0.05, 1e-3 per value | `texel_compare::tests::gate_texel_and_mips_bias_at_limit_pass_one_past_fail` |
 //! | `TexelTally` tolerance | ±1 | `texel_compare::tests::gate_texel_tolerance_at_tolerance_passes_one_more_fails` |
 //! | `judge::AMBIGUITY_REL` | `\|x-t\| <= rel (\|c-e\|₁ + r + \|t\|)` | `judge::tests::gate_ambiguity_rel_flips_at_its_boundary` |
-//! | `judge::KEY_ULPS` | 1 step | `judge::tests::gate_key_ulps_one_step_ambiguous_two_fail` |
+//! | `judge::check_order` key bound (`contraction::near_depth_bound`) | `\|key - key_ref\| <= bound` | `judge::tests::gate_key_bound_at_bound_ambiguous_one_step_past_fails`, `contraction::tests::near_depth_bound_covers_every_contraction` |
 //! | `diagnose::STAGE_TEXEL_MAX_FRACTION`, `BAKE_BIAS_MAX` | 6e-3, 0.5 per value | this file: `texel_check_fraction_and_bias_at_limit_pass_one_past_fail` |
 
 use forestlod_harness::diagnose::{BAKE_BIAS_MAX, STAGE_TEXEL_MAX_FRACTION, texel_check};

@@ -258,6 +258,7 @@ pub fn render_vegetation(
         indirection: &indirection,
         mesh_textures: &prepared.mesh_textures,
         billboards: &prepared.billboards,
+        lod_rule: crate::sampler::LodRule::Exact,
     };
     let drawn = draw_frame(&res, &selection, camera, params);
     let draw_seconds = t.elapsed().as_secs_f64();

@@ -62,7 +62,7 @@ use crate::raster::{
     ClearValues, DrawState, DrawStats, Fragment, FragmentOutput, MaskCounts, PassSet, PassShader,
     RenderTarget, SETUP_CHUNK, Triangle, TriangleSource, Vertex, draw_passes_streamed, round_exact,
 };
-use crate::sampler::{Sampler, Texture};
+use crate::sampler::{LodRule, Sampler, Texture};
 use crate::scene::{Instance, Scene, tree_sphere};
 use crate::select::{SelectUniform, Selection, tree_within_draw_distance};
 use crate::texture::srgb_to_linear;
@@ -126,6 +126,10 @@ pub struct DrawResources<'a> {
     pub mesh_textures: &'a [Texture],
     /// Billboard array texture.
     pub billboards: &'a BakedBillboards,
+    /// How the tree shader's implicit level of detail computes `ρ`: [`LodRule::Exact`] (the
+    /// pipeline's); the others only for the reference frames that classify what a conforming
+    /// adapter's other `λ` explains (`forestlod-harness`'s alternatives).
+    pub lod_rule: LodRule,
 }
 
 /// The per-frame uniform of the draw stage (the `Camera` and `Params` bindings of `draw.wgsl`).
@@ -566,19 +570,25 @@ impl<'a> TreeShader<'a> {
         let layer = round_exact(layer) as u32;
         let uv = [u, v];
         let (ddx, ddy) = ([f.ddx[0], f.ddx[1]], [f.ddy[0], f.ddy[1]]);
+        // The implicit level of detail's rule (`LodRule::Exact` but in the parity's alternative
+        // frames of the Vulkan specification's other scale-factor models).
+        let sampler = Sampler {
+            lod_rule: self.res.lod_rule,
+            ..Sampler::TRILINEAR
+        };
         if data.billboard == 0 {
-            self.res.mesh_textures[layer as usize].sample(&Sampler::TRILINEAR, 0, uv, ddx, ddy)
+            self.res.mesh_textures[layer as usize].sample(&sampler, 0, uv, ddx, ddy)
         } else {
             // The azimuth word (issue 30): the view's layer, and the blend's second view.
             let (layer, code) = azimuth_unpack(layer);
             let array = &self.res.billboards.texture;
-            let first = array.sample(&Sampler::TRILINEAR, layer, uv, ddx, ddy);
+            let first = array.sample(&sampler, layer, uv, ddx, ddy);
             if code == 0 {
                 first
             } else {
                 let j_count = self.res.billboards.azimuth_count;
                 let second = azimuth_second_layer(layer, j_count);
-                let other = array.sample(&Sampler::TRILINEAR, second, uv, ddx, ddy);
+                let other = array.sample(&sampler, second, uv, ddx, ddy);
                 azimuth_mix(first, other, code)
             }
         }

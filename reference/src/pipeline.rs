@@ -196,6 +196,7 @@ impl Prepared {
             indirection: &self.batches.indirection,
             mesh_textures: &self.mesh_textures,
             billboards: &self.billboards,
+            lod_rule: crate::sampler::LodRule::Exact,
         }
     }
 
@@ -298,5 +299,40 @@ impl Prepared {
         Ok(draw_frame_cutoffs(
             &res, &selection, camera, params, cutoffs, mask,
         ))
+    }
+
+    /// The frame's draw once per scale-factor model of `rules` (the tree shader's sampler under
+    /// [`crate::sampler::LodRule`]), restricted to `mask` when given: selection and refine run
+    /// once. With [`crate::sampler::LodRule::Exact`] a frame equals [`Prepared::render`]'s (at
+    /// the masked pixels when masked). The camera and parameters are validated first.
+    pub fn render_lod_rules(
+        &self,
+        camera: &Camera,
+        params: &Params,
+        rules: &[crate::sampler::LodRule],
+        mask: Option<Vec<bool>>,
+    ) -> Result<Vec<DrawnFrame>, InputError> {
+        camera.validate()?;
+        params.validate()?;
+        let (selection, refined) = self.select_refined(camera, params);
+        let indirection = refined.as_ref().map(|r| r.indirection.as_slice());
+        Ok(rules
+            .iter()
+            .flat_map(|&lod_rule| {
+                let res = DrawResources {
+                    indirection: indirection.unwrap_or(&self.batches.indirection),
+                    lod_rule,
+                    ..self.resources()
+                };
+                draw_frame_cutoffs(
+                    &res,
+                    &selection,
+                    camera,
+                    params,
+                    &[params.alpha_cutoff],
+                    mask.clone(),
+                )
+            })
+            .collect())
     }
 }

@@ -26,7 +26,11 @@
 //!   - isotropic filtering: `ρ = max(ρx, ρy)` ("max of lengths"), `η = 1`, `λ_base = log2(ρ)`.
 //!     Vulkan allows implementations to approximate `ρx`, `ρy` (for instance by the largest
 //!     absolute component, lavapipe's opt-in `GALLIVM_PERF=rho_approx`); we use the exact lengths,
-//!     which is lavapipe's default;
+//!     which is lavapipe's default. [`LodRule`] names the alternatives the specification allows
+//!     (its recommended ellipse major axis, which the NVIDIA H200 uses, and its two bounds):
+//!     `forestlod-harness` draws reference frames under them to classify the GPU pixels a
+//!     conforming adapter's other λ explains; [`Sampler::lod_rule`] is [`LodRule::Exact`]
+//!     everywhere else;
 //!   - no bias, `minLod = 0`, `maxLod` large (wgpu's sampler defaults): `λ = λ_base`;
 //!     **magnification** when `λ <= 0` (the mag filter is used, on level 0), minification otherwise;
 //!   - `d' = clamp(λ, 0, q)` with `q = levels - 1` ([`SamplerLod::lambda`]). Mipmap mode nearest:
@@ -213,6 +217,26 @@ pub enum FilterMode {
     Linear,
 }
 
+/// How the implicit level of detail's scale factor `ρ` is computed from the derivatives in
+/// level-0 texels per pixel, `m_ux = |∂u/∂x|·w0`, `m_vx = |∂v/∂x|·h0` and likewise along y
+/// (Vulkan, "Scale Factor Operation"): the exact lengths, or a model the specification allows.
+/// Measured on real adapters by `tests/tests/parity/sampler_lod.rs`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum LodRule {
+    /// `ρ = max(ρx, ρy)` with the Euclidean lengths (module docs): the reference's, lavapipe's.
+    #[default]
+    Exact,
+    /// `ρ` the major axis of the footprint's ellipse, the larger singular value of the 2x2
+    /// Jacobian (the specification: `ρ_max` "should be" the ellipse's major axis). The NVIDIA
+    /// H200 (driver 580.159.04) computes this: up to 0.5 of a level above [`LodRule::Exact`]
+    /// where the two derivatives are sheared, equal where they are orthogonal.
+    Ellipse,
+    /// The specification's lower bound: `ρx >= max(m_ux, m_vx)` (and likewise `ρy`).
+    SpecLower,
+    /// The specification's upper bound: `ρx <= sqrt(2) (m_ux + m_vx)` (and likewise `ρy`).
+    SpecUpper,
+}
+
 /// Filter state of a sampler (wgpu's `SamplerDescriptor` filters; addressing is always
 /// clamp-to-edge, LOD clamps are wgpu's defaults).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -223,6 +247,9 @@ pub struct Sampler {
     pub min_filter: FilterMode,
     /// Filter between mip levels.
     pub mipmap_filter: FilterMode,
+    /// How the implicit level of detail's `ρ` is computed ([`LodRule::Exact`] in every sampler
+    /// of the pipeline).
+    pub lod_rule: LodRule,
 }
 
 impl Sampler {
@@ -231,18 +258,21 @@ impl Sampler {
         mag_filter: FilterMode::Nearest,
         min_filter: FilterMode::Nearest,
         mipmap_filter: FilterMode::Nearest,
+        lod_rule: LodRule::Exact,
     };
     /// Bilinear within the nearest level.
     pub const BILINEAR: Self = Self {
         mag_filter: FilterMode::Linear,
         min_filter: FilterMode::Linear,
         mipmap_filter: FilterMode::Nearest,
+        lod_rule: LodRule::Exact,
     };
     /// Bilinear within two levels, blended linearly.
     pub const TRILINEAR: Self = Self {
         mag_filter: FilterMode::Linear,
         min_filter: FilterMode::Linear,
         mipmap_filter: FilterMode::Linear,
+        lod_rule: LodRule::Exact,
     };
 }
 
@@ -402,6 +432,13 @@ impl Texture {
     /// The level of detail for `uv` derivatives along framebuffer x (`ddx`) and y (`ddy`).
     #[inline]
     pub fn lod(&self, ddx: [f32; 2], ddy: [f32; 2]) -> SamplerLod {
+        self.lod_by(LodRule::Exact, ddx, ddy)
+    }
+
+    /// [`Texture::lod`] with `ρ` computed by `rule` ([`LodRule`]; `rho_x`, `rho_y` stay the
+    /// exact lengths).
+    #[inline]
+    pub fn lod_by(&self, rule: LodRule, ddx: [f32; 2], ddy: [f32; 2]) -> SamplerLod {
         let (w0, h0) = (self.width() as f32, self.height() as f32);
         let length = |d: [f32; 2]| {
             let (du, dv) = (d[0] * w0, d[1] * h0);
@@ -411,7 +448,24 @@ impl Texture {
         let rho = if rho_x.is_nan() || rho_y.is_nan() {
             f32::NAN
         } else {
-            rho_x.max(rho_y)
+            match rule {
+                LodRule::Exact => rho_x.max(rho_y),
+                LodRule::Ellipse => {
+                    let m = [ddx[0] * w0, ddx[1] * h0, ddy[0] * w0, ddy[1] * h0].map(f64::from);
+                    let s = m.iter().map(|x| x * x).sum::<f64>();
+                    let det = m[0] * m[3] - m[1] * m[2];
+                    ((s + (s * s - 4.0 * det * det).max(0.0).sqrt()) / 2.0).sqrt() as f32
+                }
+                LodRule::SpecLower => (ddx[0] * w0)
+                    .abs()
+                    .max((ddx[1] * h0).abs())
+                    .max((ddy[0] * w0).abs().max((ddy[1] * h0).abs())),
+                LodRule::SpecUpper => {
+                    std::f32::consts::SQRT_2
+                        * ((ddx[0] * w0).abs() + (ddx[1] * h0).abs())
+                            .max((ddy[0] * w0).abs() + (ddy[1] * h0).abs())
+                }
+            }
         };
         let lambda_base = rho.log2();
         SamplerLod {
@@ -434,7 +488,12 @@ impl Texture {
         ddx: [f32; 2],
         ddy: [f32; 2],
     ) -> [f32; 4] {
-        self.sample_level(sampler, layer, uv, self.lambda_base(ddx, ddy))
+        self.sample_level(
+            sampler,
+            layer,
+            uv,
+            self.lambda_base(sampler.lod_rule, ddx, ddy),
+        )
     }
 
     /// [`SamplerLod::lambda_base`] of [`Texture::lod`], remembered per thread for the last
@@ -448,7 +507,8 @@ impl Texture {
     /// the key's narrower stores and stalled; that one instruction held a fifth of the tree
     /// shader's samples (`perf annotate`).
     #[inline]
-    fn lambda_base(&self, ddx: [f32; 2], ddy: [f32; 2]) -> f32 {
+    /// The rule is part of the key (in the top bits of the height, far above any texture size).
+    fn lambda_base(&self, rule: LodRule, ddx: [f32; 2], ddy: [f32; 2]) -> f32 {
         type Key = (u64, u64, u64);
         thread_local! {
             static LAST: std::cell::Cell<(Key, f32)> = const {
@@ -458,7 +518,7 @@ impl Texture {
         }
         let pair = |a: u32, b: u32| (u64::from(a) << 32) | u64::from(b);
         let key = (
-            pair(self.width(), self.height()),
+            pair(self.width(), self.height() | ((rule as u32) << 30)),
             pair(ddx[0].to_bits(), ddx[1].to_bits()),
             pair(ddy[0].to_bits(), ddy[1].to_bits()),
         );
@@ -467,7 +527,7 @@ impl Texture {
             if k == key {
                 return lambda;
             }
-            let lambda = self.lod(ddx, ddy).lambda_base;
+            let lambda = self.lod_by(rule, ddx, ddy).lambda_base;
             last.set((key, lambda));
             lambda
         })
@@ -762,19 +822,26 @@ mod tests {
                 (seed % n as u64) as usize
             }
         };
-        let (mut ddx, mut ddy, mut t) = ([0.0f32; 2], [0.0f32; 2], 0);
+        let rules = [
+            LodRule::Exact,
+            LodRule::Ellipse,
+            LodRule::SpecLower,
+            LodRule::SpecUpper,
+        ];
+        let (mut ddx, mut ddy, mut t, mut rule) = ([0.0f32; 2], [0.0f32; 2], 0, LodRule::Exact);
         let mut checked = 0;
         for _ in 0..20_000 {
             // Mostly repeat (the quad's case), sometimes change one input.
-            match next(8) {
+            match next(9) {
                 0 => ddx[next(2)] = values[next(values.len())],
                 1 => ddy[next(2)] = values[next(values.len())],
                 2 => t = next(textures.len()),
+                3 => rule = rules[next(rules.len())],
                 _ => {}
             }
             let tex = &textures[t];
-            let want = tex.lod(ddx, ddy).lambda_base;
-            let got = tex.lambda_base(ddx, ddy);
+            let want = tex.lod_by(rule, ddx, ddy).lambda_base;
+            let got = tex.lambda_base(rule, ddx, ddy);
             assert_eq!(got.to_bits(), want.to_bits(), "{ddx:?} {ddy:?}");
             checked += 1;
         }
@@ -841,6 +908,42 @@ mod tests {
         assert_eq!(tex.lod([f32::INFINITY, 0.0], [0.0; 2]).lambda, 6.0);
     }
 
+    /// The specification's scale-factor models ([`LodRule`]) on the sheared footprint the H200
+    /// measured (`parity::sampler_lod`: `∂uv/∂x = (29.34, 0)`, `∂uv/∂y = (29.34, 12.45)` texels):
+    /// the exact `ρ` is the longer derivative, the ellipse's major axis the larger singular value
+    /// (`λ` 0.41 higher, the H200's), the bounds the largest component and `sqrt(2)` times the
+    /// larger sum; on an orthogonal footprint the ellipse equals the exact `ρ`.
+    #[test]
+    fn lod_rules_follow_the_specification_models() {
+        let tex = Texture::new(chain(256, 256)).unwrap();
+        let (ddx, ddy) = ([29.34 / 256.0, 0.0], [29.34 / 256.0, 12.45 / 256.0]);
+        let rho = |rule| f64::from(tex.lod_by(rule, ddx, ddy).rho);
+        let exact = (29.34f64 * 29.34 + 12.45 * 12.45).sqrt();
+        assert!((rho(LodRule::Exact) - exact).abs() < 1e-4);
+        let (a, b, d) = (29.34f64, 29.34, 12.45);
+        let s = a * a + b * b + d * d;
+        let major = ((s + (s * s - 4.0 * a * a * d * d).sqrt()) / 2.0).sqrt();
+        assert!(
+            (rho(LodRule::Ellipse) - major).abs() < 1e-3,
+            "{}",
+            rho(LodRule::Ellipse)
+        );
+        assert!((rho(LodRule::SpecLower) - 29.34).abs() < 1e-4);
+        assert!((rho(LodRule::SpecUpper) - 2f64.sqrt() * (29.34 + 12.45)).abs() < 1e-3);
+        assert!(rho(LodRule::SpecLower) <= rho(LodRule::Exact));
+        assert!(rho(LodRule::Exact) < rho(LodRule::Ellipse));
+        assert!(rho(LodRule::Ellipse) <= rho(LodRule::SpecUpper));
+        let (ddx, ddy) = (
+            [0.6 * 8.0 / 256.0, -0.8 * 8.0 / 256.0],
+            [0.8 * 8.0 / 256.0, 0.6 * 8.0 / 256.0],
+        );
+        let (e, x) = (
+            tex.lod_by(LodRule::Ellipse, ddx, ddy).rho,
+            tex.lod(ddx, ddy).rho,
+        );
+        assert!((e - x).abs() < 1e-5, "orthogonal: ellipse {e}, exact {x}");
+    }
+
     #[test]
     fn level_selection_follows_the_mipmap_mode() {
         let tex = Texture::new(chain(64, 64)).unwrap();
@@ -861,6 +964,7 @@ mod tests {
             mag_filter: FilterMode::Nearest,
             min_filter: FilterMode::Linear,
             mipmap_filter: FilterMode::Nearest,
+            lod_rule: LodRule::Exact,
         };
         assert_eq!(tex.sample_level(&mixed, 0, uv, 0.0), tex.nearest(0, 0, uv));
         assert_eq!(

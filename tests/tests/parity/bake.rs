@@ -21,11 +21,18 @@
 //!   (measured below: pixels behind a fragment on the border of a transparent region, where the
 //!   reference keeps an almost transparent fragment, writes its depth and hides what is behind);
 //! - **filter-window**: the winning fragment is the same and both texels lie within ±1 of the
-//!   range its bilinear sample spans at the uv from the snapped and from the unsnapped vertices,
-//!   each with the filter fractions exact or moved to the neighbouring 1/[`FILTER_WEIGHT_STEPS`]
-//!   (lavapipe quantizes bilinear weights to 8 bits; the reference does not). Measured, not
-//!   assumed: the test reports how many pixels needed the window, their largest difference and
-//!   the widest window (3 bytes at r = 128, 6 at r = 64).
+//!   range its bilinear sample spans over the uvs the fragment may be given: from the snapped
+//!   and from the unsnapped vertices, each widened by the attribute's gradient times
+//!   [`EDGE_AMBIGUITY_PX`] (the same subpixel ambiguity that moves a covered edge moves the point
+//!   a vertex-interpolated uv is evaluated at, by at most `|∇uv| · δ`), with the filter fractions
+//!   exact or moved to the neighbouring 1/[`FILTER_WEIGHT_STEPS`] (lavapipe quantizes bilinear
+//!   weights to 8 bits; the reference does not). The widening matters where a quad is seen
+//!   edge-on: the built-in trunks' crossed quads at the axis column map 16 (r = 128) to 80
+//!   (r = 64) texels to a pixel, so `δ` moves the sample by 0.08 to 0.4 texels across the dark
+//!   bark marks; the H200 showed 8 such pixels 2-4 bytes off the unwidened window (all explained
+//!   by `|∇uv| · δ`, `tests::h200_bake_pixels_are_classified`). Measured, not assumed: the test
+//!   reports how many pixels needed the window, their largest difference and the widest window
+//!   (3 bytes at r = 128, 6 at r = 64 before the widening).
 //!
 //! Everything else must be within [`COLOR_TOLERANCE`] per channel; the largest difference and the
 //! count of differing pixels of every class are reported. Then the full GPU path
@@ -198,6 +205,9 @@ struct Candidate {
     alpha: f32,
     /// Bilinear alpha at `uv_snapped`.
     alpha_snapped: f32,
+    /// How far the uv may move with the point it is evaluated at: `|∇u| δ`, `|∇v| δ` with
+    /// `δ` = [`EDGE_AMBIGUITY_PX`] (module docs, filter-window).
+    uv_reach: [f64; 2],
 }
 
 fn candidates(tris: &[Projected], texture: &Texture, p: [f64; 2]) -> Vec<Candidate> {
@@ -218,6 +228,8 @@ fn candidates(tris: &[Projected], texture: &Texture, p: [f64; 2]) -> Vec<Candida
             let uv =
                 [0, 1].map(|c| (l[0] * t.uv[0][c] + l[1] * t.uv[1][c] + l[2] * t.uv[2][c]) as f32);
             let uv_snapped = uv_snapped.unwrap_or(uv);
+            let uv_reach = [0, 1]
+                .map(|c| gradient(t, [t.uv[0][c], t.uv[1][c], t.uv[2][c]]) * EDGE_AMBIGUITY_PX);
             Some(Candidate {
                 depth,
                 slope,
@@ -225,16 +237,19 @@ fn candidates(tris: &[Projected], texture: &Texture, p: [f64; 2]) -> Vec<Candida
                 uv_snapped,
                 alpha: texture.bilinear(0, 0, uv)[3],
                 alpha_snapped: texture.bilinear(0, 0, uv_snapped)[3],
+                uv_reach,
             })
         })
         .collect()
 }
 
 /// The range of bytes the reference's bilinear sample can take within the filter's and the
-/// interpolation's ambiguity: at each of the sample positions `uvs` (the uv interpolated from the
-/// snapped and from the unsnapped vertices), each filter fraction either exact or moved to the
-/// neighbouring multiple of `1 / FILTER_WEIGHT_STEPS`.
-fn filter_window(texture: &Texture, uvs: [[f32; 2]; 2]) -> ([u8; 4], [u8; 4]) {
+/// interpolation's ambiguity: over the uv box `[lo, hi]` (the uvs interpolated from the snapped
+/// and from the unsnapped vertices, widened by [`Candidate::uv_reach`]), each filter fraction
+/// either exact or moved to the neighbouring multiple of `1 / FILTER_WEIGHT_STEPS`. The bilinear
+/// sample is bilinear inside each texel cell, so its extremes over the box lie where the box's
+/// edges and the texel-centre lines inside it cross: those are the points evaluated.
+fn filter_window(texture: &Texture, lo: [f32; 2], hi: [f32; 2]) -> ([u8; 4], [u8; 4]) {
     let img = texture.level(0, 0);
     let steps = |f: f32| {
         let s = f * FILTER_WEIGHT_STEPS;
@@ -244,31 +259,42 @@ fn filter_window(texture: &Texture, uvs: [[f32; 2]; 2]) -> ([u8; 4], [u8; 4]) {
             s.ceil() / FILTER_WEIGHT_STEPS,
         ]
     };
-    let (mut lo, mut hi) = ([255u8; 4], [0u8; 4]);
-    for uv in uvs {
-        let u = uv[0] * img.width as f32 - 0.5;
-        let v = uv[1] * img.height as f32 - 0.5;
-        let (fu, fv) = (u.floor(), v.floor());
-        let (i0, j0) = (fu as i64, fv as i64);
-        let t = [
-            texture.texel(0, 0, i0, j0),
-            texture.texel(0, 0, i0 + 1, j0),
-            texture.texel(0, 0, i0, j0 + 1),
-            texture.texel(0, 0, i0 + 1, j0 + 1),
-        ];
-        for a in steps(u - fu) {
-            for b in steps(v - fv) {
-                let w = [(1.0 - a) * (1.0 - b), a * (1.0 - b), (1.0 - a) * b, a * b];
-                for c in 0..4 {
-                    let x = w[0] * t[0][c] + w[1] * t[1][c] + w[2] * t[2][c] + w[3] * t[3][c];
-                    let byte = if c == 3 { unorm8(x) } else { linear_to_srgb(x) };
-                    lo[c] = lo[c].min(byte);
-                    hi[c] = hi[c].max(byte);
+    // Texel-space coordinates of the box's edges and of the texel-centre lines between them.
+    let coords = |a: f32, b: f32, size: u32| -> Vec<f32> {
+        let (a, b) = (a * size as f32 - 0.5, b * size as f32 - 0.5);
+        let mut c = vec![a, b];
+        let mut k = a.floor() + 1.0;
+        while k < b {
+            c.push(k);
+            k += 1.0;
+        }
+        c
+    };
+    let (mut out_lo, mut out_hi) = ([255u8; 4], [0u8; 4]);
+    for u in coords(lo[0], hi[0], img.width) {
+        for v in coords(lo[1], hi[1], img.height) {
+            let (fu, fv) = (u.floor(), v.floor());
+            let (i0, j0) = (fu as i64, fv as i64);
+            let t = [
+                texture.texel(0, 0, i0, j0),
+                texture.texel(0, 0, i0 + 1, j0),
+                texture.texel(0, 0, i0, j0 + 1),
+                texture.texel(0, 0, i0 + 1, j0 + 1),
+            ];
+            for a in steps(u - fu) {
+                for b in steps(v - fv) {
+                    let w = [(1.0 - a) * (1.0 - b), a * (1.0 - b), (1.0 - a) * b, a * b];
+                    for c in 0..4 {
+                        let x = w[0] * t[0][c] + w[1] * t[1][c] + w[2] * t[2][c] + w[3] * t[3][c];
+                        let byte = if c == 3 { unorm8(x) } else { linear_to_srgb(x) };
+                        out_lo[c] = out_lo[c].min(byte);
+                        out_hi[c] = out_hi[c].max(byte);
+                    }
                 }
             }
         }
     }
-    (lo, hi)
+    (out_lo, out_hi)
 }
 
 /// Why a differing pixel may differ, or `None`.
@@ -320,7 +346,15 @@ fn classify(
     {
         return Some(Class::Depth(gap));
     }
-    let (lo, hi) = filter_window(texture, [winner.uv, winner.uv_snapped]);
+    let (box_lo, box_hi): ([f32; 2], [f32; 2]) = (
+        [0, 1].map(|c| {
+            (f64::from(winner.uv[c].min(winner.uv_snapped[c])) - winner.uv_reach[c]) as f32
+        }),
+        [0, 1].map(|c| {
+            (f64::from(winner.uv[c].max(winner.uv_snapped[c])) + winner.uv_reach[c]) as f32
+        }),
+    );
+    let (lo, hi) = filter_window(texture, box_lo, box_hi);
     // Both twins must show the same fragment: each texel within ±1 of its window.
     let inside = |t: [u8; 4]| {
         (0..4).all(|c| {
@@ -620,4 +654,60 @@ fn gpu_bake_rejects_bad_inputs() {
         .run_from_cpu(4, &[&[[0u8; 4]; 16][..]], MipMode::AlphaAware, f32::NAN)
         .unwrap_err();
     assert!(err.to_string().contains("alpha_ref"), "{err}");
+}
+
+/// The H200's unexplained bake pixels (`experiments/results/gpu_check_h200/`, driver
+/// 580.159.04, K = 10), classified here from the logged values on the reference's own
+/// triangles (no adapter needed): the eight at the trunk's axis column, where an edge-on quad
+/// maps 16 to 80 texels to a pixel, lie within the filter window once the uv is allowed to move
+/// with the subpixel ambiguity (module docs, filter-window); the ninth (r = 64, layer 30, pixel
+/// (31, 38): GPU `[45, 40, 36]`, reference `[46, 43, 40]`) does not: its blue lies 2 below every
+/// texel the footprint can reach (the dark bark mark is `[44, 40, 38]`, the light bark around it
+/// bluer still), which no filter position or weight rounding explains. It is left unexplained
+/// (the r = 64 test still fails on the H200 with this one pixel) rather than forgiven by a wider
+/// class. Mutation-checked: without the widening (`uv_reach` 0) the eight are unexplained.
+#[test]
+fn h200_bake_pixels_are_classified() {
+    /// A logged pixel: r, layer, x, y, GPU, reference, explained here.
+    type Logged = (u32, u32, u32, u32, [u8; 4], [u8; 4], bool);
+    let meshes = species_meshes();
+    let logged: [Logged; 9] = [
+        (128, 30, 64, 73, [48, 44, 42, 255], [50, 47, 44, 255], true),
+        (128, 32, 63, 82, [67, 64, 59, 255], [68, 65, 62, 255], true),
+        (128, 32, 65, 88, [53, 49, 47, 255], [54, 51, 48, 255], true),
+        (128, 34, 63, 96, [65, 62, 57, 255], [66, 63, 59, 255], true),
+        (128, 35, 63, 91, [92, 89, 83, 255], [93, 90, 85, 255], true),
+        (128, 36, 63, 87, [64, 60, 56, 255], [65, 62, 58, 255], true),
+        (64, 30, 31, 38, [45, 40, 36, 255], [46, 43, 40, 255], false),
+        (64, 32, 31, 37, [50, 47, 42, 255], [52, 49, 46, 255], true),
+        (
+            64,
+            34,
+            31,
+            36,
+            [103, 101, 94, 255],
+            [104, 101, 96, 255],
+            true,
+        ),
+    ];
+    for (r, layer, x, y, got, want, explained) in logged {
+        let (m, k) = (layer as usize / 10, layer % 10);
+        let mesh = &meshes[m];
+        let views = BillboardViews {
+            angle_count: 10,
+            azimuth_count: 1,
+        };
+        let tris = project(mesh, &mesh.meta(), views, (k, 0), r);
+        let texture = Texture::new(vec![mesh.texture.clone()]).unwrap();
+        let class = classify(&tris, &texture, x, y, got, want);
+        eprintln!("r {r} layer {layer} ({x}, {y}): GPU {got:?}, reference {want:?}: {class:?}");
+        if explained {
+            assert!(
+                matches!(class, Some(Class::FilterWindow(_))),
+                "r {r} layer {layer} ({x}, {y}): {class:?}"
+            );
+        } else {
+            assert_eq!(class, None, "r {r} layer {layer} ({x}, {y})");
+        }
+    }
 }

@@ -14,7 +14,8 @@
 //! - [`mutants`]: the CI-sized mutation subset (issue 36): WGSL mutants that must stay killed,
 //!   each run through the mutation hook in a child of this binary;
 //! - [`sampler_lod`]: the adapter's implicit level of detail, measured (the data behind the
-//!   tolerances of `forestlod_harness::image_compare`).
+//!   tolerances of `forestlod_harness::image_compare`), and held to the specification's interval;
+//! - [`h200`]: the first real GPU's logged single-pixel failures, classified on the reference.
 //!
 //! Run one module with `cargo test -p forestlod-tests --test parity <module>::`. Statics that
 //! each file once had to itself (GPU contexts and objects) are now shared by the modules; the GPU
@@ -27,6 +28,7 @@ mod counters;
 mod draw;
 mod every_stage;
 mod from_cpu;
+mod h200;
 mod hier_select;
 mod metamorphic;
 mod mips;

@@ -1,23 +1,72 @@
 //! How the adapter computes the implicit level of detail (SPEC §8): the reference samples with
 //! the exact `λ = log2(max(|∂uv/∂x|, |∂uv/∂y|))` (`reference/src/sampler.rs`); the GPU's λ is
-//! measured here, so the tolerances of `forestlod_harness::image_compare` that depend on it rest
-//! on data, not on a guess.
+//! measured here and must lie in the interval the Vulkan specification allows around it, so the
+//! tolerances of `forestlod_harness::image_compare` that depend on it rest on data and on the
+//! specification, not on a guess.
 //!
 //! A full-screen triangle samples a 256² texture whose level `k` has red `255 · (k mod 2)` and
 //! green `28k`, with texture coordinates `uv = M · pixel / 256` for a 2x2 matrix `M`; trilinear
 //! filtering then returns the level to ±0.5 in green and the blend fraction in red, so
 //! `λ = clamp(log2 ρ)` is read back (from an `Rg32Float` target) to 1/255.
+//!
+//! ## What the specification allows (Vulkan, "Scale Factor Operation, LOD Operation")
+//! With `m_ux = |∂u/∂x|`, `m_vx = |∂v/∂x|` (texels per pixel, the columns of `M`), and likewise
+//! along y, the scale factors `ρ_x`, `ρ_y` (exactly `sqrt(m_ux² + m_vx²)`) "may be approximated
+//! with functions `f_x`, `f_y`" subject to
+//! `max(m_ux, m_vx) <= f_x <= sqrt(2) (m_ux + m_vx)` (and likewise `f_y`), and `ρ_max` "should"
+//! be the major axis of the footprint's ellipse; `λ = log2(ρ_max)` with anisotropy off, "computed
+//! with `mipmapPrecisionBits` of accuracy", and the blend fraction between two levels
+//! "quantized to the number of mipmap precision bits". So the GPU's λ must lie in
+//! `[log2 max(m_ux, m_vx, m_uy, m_vy), log2(sqrt(2) max(m_ux + m_vx, m_uy + m_vy))]`, clamped
+//! to the levels, widened by [`LOD_ACCURACY`]. A wrong level selection (λ off by a level, the
+//! smaller scale factor, a level not scaled by the texture size) leaves it on every footprint
+//! whose interval is narrower than a level: the axis-aligned ones, where the lower end is the
+//! exact λ.
+//!
+//! Measured: lavapipe (Mesa 22.3.6) computes the exact ρ, its λ within 0.047 of the exact one
+//! (mean 0.031: as if λ kept 4 fractional bits); the NVIDIA H200 (driver 580.159.04) takes
+//! `ρ_max` as the ellipse's major axis (the specification's "should"): equal to the exact ρ on
+//! orthogonal footprints, up to 0.44 above it on the sheared ones (mean 0.15 over the 195
+//! cases), inside the interval. The test prints the largest deviation from the exact λ and from
+//! the ellipse model.
 
-use std::f32::consts::FRAC_1_SQRT_2;
+use std::f32::consts::{FRAC_1_SQRT_2, SQRT_2};
 
 use forestlod_gpu::context::bind_group;
 use forestlod_harness::context::gpu_context;
 
-/// Largest |λ_GPU − λ_exact| accepted: 1/16. Measured on lavapipe (Mesa 22.3.6, LLVM 15): max
-/// 0.047, mean 0.031 over 195 derivative matrices (as if λ kept 4 fractional bits). The image
-/// comparison's `ALPHA_TEST_EPSILON` and `EDGE_COLOR_MARGIN` are derived from this bound, so an
-/// adapter that approximates worse fails here first, with the number.
-pub const MAX_LAMBDA_ERROR: f32 = 0.0625;
+/// Accuracy of the GPU's λ beyond the specification's interval: `2 · 2^-4`.
+///
+/// Why: the specification requires λ "computed with `mipmapPrecisionBits` of accuracy" and the
+/// blend fraction "quantized to the number of mipmap precision bits", and requires at least 4
+/// such bits (the limit's minimum in "Required Limits"); wgpu does not report the adapter's
+/// value, so the minimum is taken: one step of `2^-4` for the computation and one for the
+/// quantization the test reads back. A wrong level selection moves λ by a whole level.
+pub const LOD_ACCURACY: f32 = 2.0 / 16.0;
+
+/// The interval of λ the specification allows for the texel derivatives `m = [∂u/∂x, ∂u/∂y,
+/// ∂v/∂x, ∂v/∂y]` (module docs), clamped to `[0, max_level]`, before [`LOD_ACCURACY`].
+fn allowed_lambda(m: [f32; 4], max_level: f32) -> (f32, f32) {
+    let (ux, uy, vx, vy) = (m[0].abs(), m[1].abs(), m[2].abs(), m[3].abs());
+    let lower = ux.max(vx).max(uy.max(vy)).log2();
+    let upper = (SQRT_2 * (ux + vx).max(uy + vy)).log2();
+    (lower.clamp(0.0, max_level), upper.clamp(0.0, max_level))
+}
+
+/// λ with `ρ_max` the major axis of the footprint's ellipse (the specification's "should"):
+/// the larger singular value of the 2x2 Jacobian `M`.
+fn ellipse_lambda(m: [f32; 4], max_level: f32) -> f32 {
+    let (a, b, c, d) = (
+        f64::from(m[0]),
+        f64::from(m[1]),
+        f64::from(m[2]),
+        f64::from(m[3]),
+    );
+    let s = a * a + b * b + c * c + d * d;
+    let det = a * d - b * c;
+    let major = ((s + (s * s - 4.0 * det * det).max(0.0).sqrt()) / 2.0).sqrt();
+    (major.log2() as f32).clamp(0.0, max_level)
+}
 
 const SOURCE: &str = "
 struct U { m: vec4<f32> }
@@ -146,7 +195,11 @@ fn implicit_lod_matches_log2_of_the_derivatives() {
         ],
     );
     let target_view = target.create_view(&Default::default());
+    let max_level = (levels - 1) as f32;
     let mut worst = (0.0f32, [0.0f32; 4], 0.0f32, 0.0f32);
+    let mut worst_ellipse = 0.0f32;
+    // How far past the allowed interval (negative: inside it by that much) the GPU's λ came.
+    let mut worst_outside = (f32::NEG_INFINITY, [0.0f32; 4], 0.0f32, (0.0f32, 0.0f32));
     let mut sum = 0.0f64;
     let mut count = 0;
     for shape in 0..3 {
@@ -186,7 +239,7 @@ fn implicit_lod_matches_log2_of_the_derivatives() {
                 .cast();
             let rho_x = (m[0] * m[0] + m[2] * m[2]).sqrt();
             let rho_y = (m[1] * m[1] + m[3] * m[3]).sqrt();
-            let exact = rho_x.max(rho_y).log2().clamp(0.0, (levels - 1) as f32);
+            let exact = rho_x.max(rho_y).log2().clamp(0.0, max_level);
             // G gives the level to ±0.5 (28 units per level), R its fraction exactly: between
             // an even level (R = 0) and the next odd one (R = 1) the blend is R, else 1 - R.
             let (r_frac, g) = (out[2 * (8 * 16 + 8)], out[2 * (8 * 16 + 8) + 1]);
@@ -215,19 +268,31 @@ fn implicit_lod_matches_log2_of_the_derivatives() {
             if err.abs() > worst.0.abs() {
                 worst = (err, m, exact, gpu);
             }
+            worst_ellipse = worst_ellipse.max((gpu - ellipse_lambda(m, max_level)).abs());
+            let (lo, hi) = allowed_lambda(m, max_level);
+            let outside = (lo - gpu).max(gpu - hi);
+            if outside > worst_outside.0 {
+                worst_outside = (outside, m, gpu, (lo, hi));
+            }
         }
     }
     eprintln!(
-        "implicit LOD: max |λ_gpu − λ_exact| = {:.4} (λ exact {:.4}, GPU {:.4}, M {:?}); mean {:.4} over {count} cases",
+        "implicit LOD: max |λ_gpu − λ_exact| = {:.4} (λ exact {:.4}, GPU {:.4}, M {:?}); mean {:.4} over {count} cases; max |λ_gpu − λ_ellipse| = {:.4} (the major axis, the specification's \"should\")",
         worst.0.abs(),
         worst.2,
         worst.3,
         worst.1,
-        sum / count as f64
+        sum / count as f64,
+        worst_ellipse
+    );
+    let (outside, m, gpu, (lo, hi)) = worst_outside;
+    eprintln!(
+        "implicit LOD: closest to the allowed interval's ends: λ_GPU {gpu:.4} in [{lo:.4}, {hi:.4}] (M {m:?}), {:.4} {} (accuracy {LOD_ACCURACY})",
+        outside.abs(),
+        if outside > 0.0 { "outside" } else { "inside" }
     );
     assert!(
-        worst.0.abs() <= MAX_LAMBDA_ERROR,
-        "λ error {} exceeds {MAX_LAMBDA_ERROR}",
-        worst.0
+        outside <= LOD_ACCURACY,
+        "λ_GPU {gpu} lies {outside} outside the interval [{lo}, {hi}] the specification allows for M {m:?} (accuracy {LOD_ACCURACY})"
     );
 }
