@@ -764,6 +764,8 @@ fn vertex_lightness(
     }
     let q = light_point(p, billboard, shading, toward_eye, centre, radii.x);
     return lightness(sun_depth(q, centre, radii, sun), ambient);
+}
+
 // forestlod_shared::azimuth (shared/src/azimuth.rs): billboard azimuth views (issue 30, E§7).
 // The AZIMUTH_MODE_* ids, AZIMUTH_WEIGHT_STEPS, AZIMUTH_LAYER_BITS and the bits of AZIMUTH_TURN
 // and AZIMUTH_WEIGHT_SCALE are generated from Rust.
