@@ -25,7 +25,11 @@ const EVENNESS_BOUND: f64 = 2.5;
 /// The least distance between two trees of a prefix, in units of `√(A / k)` (no clumps). The
 /// progressive order's picks sit near the centres of distinct cells; the index order's trees
 /// fall anywhere. Measured on 2,000 uniform trees, worst over the prefixes: 0.086 for the
-/// progressive order, 0.011 for the index order; 0.075 the least seen over random batches.
+/// progressive order, 0.011 for the index order. Asserted on that fixed batch only, not over
+/// random batches: the quadtree order has no worst-case packing bound (two adjacent cells whose
+/// trees nearest their centres both lie by their shared edge give two close picks), and a random
+/// batch found one (n = 264, seed 6095658168087494874, side 10: 0.024 at prefix 66; session 20),
+/// so a bound over random batches was a flaky test. The covering ratio is the guarantee.
 const PACKING_BOUND: f64 = 0.035;
 
 /// Least distance between two of the first `k` of `order`, over `√(area / k)`.
@@ -131,8 +135,6 @@ proptest! {
         for k in prefixes(n) {
             let r = covering_ratio(&points, &order, k, area);
             prop_assert!(r <= EVENNESS_BOUND, "prefix {} of {}: covering ratio {:.2}", k, n, r);
-            let pk = packing_ratio(&points, &order, k, area);
-            prop_assert!(pk >= PACKING_BOUND, "prefix {} of {}: packing ratio {:.3}", k, n, pk);
         }
     }
 
