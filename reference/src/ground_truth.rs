@@ -115,6 +115,9 @@ pub enum PixelClass {
     Tree = 2,
 }
 
+/// One traced pixel: box-filtered linear RGB, class, tree fraction and the shadow rays traced.
+type TracedPixel = ([f32; 3], PixelClass, f32, u64);
+
 /// How a truth lights its tree hits (module docs); `None` in the render calls is unlit.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TruthLighting {
@@ -841,7 +844,7 @@ impl GroundTruthScene {
         let s = samples_per_axis.max(1);
         let offsets = sample_offsets(s);
         let sky = SKY_SRGB.map(srgb_to_linear);
-        let rows: Vec<Vec<([f32; 3], PixelClass, f32, u64)>> = (y0..y0 + h)
+        let rows: Vec<Vec<TracedPixel>> = (y0..y0 + h)
             .into_par_iter()
             .with_max_len(1)
             .map(|y| {
