@@ -43,6 +43,7 @@ pub mod light;
 pub mod metric;
 pub mod modes;
 pub mod noise;
+pub mod occlusion;
 pub mod params;
 pub mod presets;
 pub mod registry;
@@ -90,6 +91,12 @@ pub use metric::{LodMetric, band_ratio, focal_px, mesh_size, metric_factor};
 pub use noise::{
     noise_at, noise_index, noise_level, noise_level_of, noise_level_scaled, noise_level_texels,
     noise_texel, texture_noise,
+};
+pub use occlusion::{
+    MAX_PYRAMID_LEVELS, OCCLUSION_SLACK_PX, OCCLUSION_SLACK_REL, OCCLUSION_Z_SLACK, Occlusion,
+    OcclusionBound, OcclusionCounters, OcclusionRect, PyramidLevel, is_early, may_occlude,
+    occluded, occlusion_bounds, occlusion_slot, pyramid_len, pyramid_level_floor,
+    pyramid_level_for, pyramid_levels, pyramid_reduce, pyramid_texels_max,
 };
 pub use params::{
     AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,

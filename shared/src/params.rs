@@ -235,8 +235,15 @@ pub struct Params {
     /// [`crate::AzimuthMode`] as `u32` (issue 30): the nearest azimuth view or a blend of the two
     /// nearest. Default `Nearest`; with one azimuth both draw today's frame.
     pub azimuth_mode: u32,
+    /// [`crate::Occlusion`] as `u32` (issue 31, `shared/src/occlusion.rs`): occlusion culling
+    /// against a depth pyramid of an early pass. Default `Off`: one pass, today's frame.
+    pub occlusion: u32,
+    /// View depth within which a mesh tree's footprint must start to be an occluder under
+    /// `occlusion = single`, metres. Default 100 m: the nearest rows of a forest, a few percent of
+    /// `stress`' close trees.
+    pub occluder_depth: f32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 128);
+const _: () = assert!(core::mem::size_of::<Params>() == 136);
 
 impl Default for Params {
     fn default() -> Self {
@@ -273,6 +280,8 @@ impl Default for Params {
             noise_size: 256,
             azimuth_count: 1,
             azimuth_mode: crate::AzimuthMode::Nearest as u32,
+            occlusion: crate::Occlusion::Off as u32,
+            occluder_depth: 100.0,
         }
     }
 }

@@ -76,6 +76,11 @@ impl Params {
             .ok_or_else(|| rejected("fade_granularity", self))
     }
 
+    /// The occlusion culling mode (issue 31), validated.
+    pub fn occlusion_mode(&self) -> Result<crate::Occlusion, ParamError> {
+        crate::Occlusion::from_id(self.occlusion).ok_or_else(|| rejected("occlusion", self))
+    }
+
     /// The azimuth view rule (issue 30), validated.
     pub fn azimuth(&self) -> Result<crate::AzimuthMode, ParamError> {
         crate::AzimuthMode::from_id(self.azimuth_mode).ok_or_else(|| rejected("azimuth_mode", self))

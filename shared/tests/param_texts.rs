@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 32] = [
+const PINNED: [(&str, &str, &str); 34] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -166,6 +166,16 @@ const PINNED: [(&str, &str, &str); 32] = [
         "azimuth_mode",
         "expected 0 (nearest) or 1 (blend)",
         "Billboard azimuth view (issue 30): nearest, blend",
+    ),
+    (
+        "occlusion",
+        "expected 0 (off), 1 (single) or 2 (two-phase)",
+        "Occlusion culling against a depth pyramid (issue 31): off, single, two-phase",
+    ),
+    (
+        "occluder_depth",
+        "expected a finite distance in 0..=1e7 m",
+        "View depth within which mesh trees are occluders under occlusion single, metres",
     ),
 ];
 
