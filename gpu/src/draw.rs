@@ -480,6 +480,12 @@ impl DrawScene {
         })
     }
 
+    /// The batch-by-batch tree indirection ([`DrawSceneDesc::indirection`]) the commands of a
+    /// frame without `refine` index (the occlusion stage's input, issue 31).
+    pub fn indirection(&self) -> &wgpu::Buffer {
+        &self.indirection
+    }
+
     /// Number of meshes.
     pub fn mesh_count(&self) -> u32 {
         self.mesh_count
@@ -620,6 +626,11 @@ impl DrawTarget {
     /// The colour target (for callers that keep drawing into it).
     pub fn color_texture(&self) -> &wgpu::Texture {
         &self.color
+    }
+
+    /// The depth target (`Depth32Float`; the occlusion pyramid's input, issue 31).
+    pub fn depth_texture(&self) -> &wgpu::Texture {
+        &self.depth
     }
 
     /// Reads all three buffers back. Blocks. Depth is copied directly where the device can copy
@@ -923,6 +934,47 @@ pub(crate) fn begin_target_pass<'e>(
     )
 }
 
+/// Begins a render pass labelled `label` that loads and stores every attachment: colour targets
+/// `colors` and depth `depth` keep what an earlier pass of the frame drew (the late pass of
+/// occlusion culling, [`GpuDraw::encode_late`]).
+pub(crate) fn loaded_render_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    colors: &[&wgpu::TextureView],
+    depth: &wgpu::TextureView,
+) -> wgpu::RenderPass<'e> {
+    let load = wgpu::Operations {
+        load: wgpu::LoadOp::Load,
+        store: wgpu::StoreOp::Store,
+    };
+    let color_attachments: Vec<_> = colors
+        .iter()
+        .map(|&view| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: load,
+            })
+        })
+        .collect();
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &color_attachments,
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Load,
+                store: wgpu::StoreOp::Store,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
 /// The compiled `draw.wgsl` pipelines, one set per [`GpuContext`] (cached there).
 #[derive(Debug)]
 pub struct DrawPipelines {
@@ -1115,6 +1167,46 @@ impl GpuDraw {
         target: &DrawTarget,
         probe: DrawProbe,
     ) -> Result<DrawCalls, GpuError> {
+        let bind_group = self.tree_bind_group(ctx, inputs, camera, params)?;
+        let DrawInputs {
+            scene, selection, ..
+        } = *inputs;
+        let mut pass = begin_target_pass(encoder, target, "draw");
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.set_pipeline(&self.pipelines.terrain);
+        pass.set_vertex_buffer(0, scene.terrain.slice(..));
+        pass.draw(0..scene.terrain_vertex_count, 0..1);
+        match probe {
+            DrawProbe::Full => {}
+            DrawProbe::NoTrees => {
+                return Ok(DrawCalls {
+                    terrain: 1,
+                    trees: 0,
+                    mode: self.mode,
+                    max_commands: selection.capacity,
+                });
+            }
+            DrawProbe::NoTreeFragments => pass.set_scissor_rect(0, 0, 1, 1),
+        }
+        self.draw_trees(&mut pass, inputs);
+        Ok(DrawCalls {
+            terrain: 1,
+            trees: 1,
+            mode: self.mode,
+            max_commands: selection.capacity,
+        })
+    }
+
+    /// The tree draw's bind group of one frame (a fresh uniform of `camera` and `params`), after
+    /// checking the textures' layers and the selection's capacity (the errors of
+    /// [`GpuDraw::encode`]).
+    fn tree_bind_group(
+        &self,
+        ctx: &GpuContext,
+        inputs: &DrawInputs,
+        camera: &Camera,
+        params: &Params,
+    ) -> Result<wgpu::BindGroup, GpuError> {
         let DrawInputs {
             scene,
             textures,
@@ -1165,23 +1257,14 @@ impl GpuDraw {
                 wgpu::BindingResource::Sampler(&self.pipelines.sampler),
             ],
         );
-        let mut pass = begin_target_pass(encoder, target, "draw");
-        pass.set_bind_group(0, &bind_group, &[]);
-        pass.set_pipeline(&self.pipelines.terrain);
-        pass.set_vertex_buffer(0, scene.terrain.slice(..));
-        pass.draw(0..scene.terrain_vertex_count, 0..1);
-        match probe {
-            DrawProbe::Full => {}
-            DrawProbe::NoTrees => {
-                return Ok(DrawCalls {
-                    terrain: 1,
-                    trees: 0,
-                    mode: self.mode,
-                    max_commands: selection.capacity,
-                });
-            }
-            DrawProbe::NoTreeFragments => pass.set_scissor_rect(0, 0, 1, 1),
-        }
+        Ok(bind_group)
+    }
+
+    /// Records the one multi-draw of `inputs`' tree commands into `pass` (its bind group set).
+    fn draw_trees(&self, pass: &mut wgpu::RenderPass<'_>, inputs: &DrawInputs) {
+        let DrawInputs {
+            scene, selection, ..
+        } = *inputs;
         pass.set_pipeline(&self.pipelines.trees);
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
         match self.mode {
@@ -1196,11 +1279,37 @@ impl GpuDraw {
                 pass.multi_draw_indexed_indirect(&selection.commands, 0, selection.capacity)
             }
         }
+    }
+
+    /// Records the late pass of a frame with occlusion culling (issue 31,
+    /// `forestlod_shared::occlusion`, step 4): `inputs`' tree commands drawn into `target` as
+    /// [`GpuDraw::encode`] draws them, but **loading** what the target holds (the early pass:
+    /// sky, ground and occluders) instead of clearing it, and without the ground. The errors of
+    /// [`GpuDraw::encode`].
+    pub fn encode_late(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &DrawInputs,
+        camera: &Camera,
+        params: &Params,
+        target: &DrawTarget,
+    ) -> Result<DrawCalls, GpuError> {
+        let bind_group = self.tree_bind_group(ctx, inputs, camera, params)?;
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let (color, depth, lod_id) = (
+            view(&target.color),
+            view(&target.depth),
+            view(&target.lod_id),
+        );
+        let mut pass = loaded_render_pass(encoder, "draw late", &[&color, &lod_id], &depth);
+        pass.set_bind_group(0, &bind_group, &[]);
+        self.draw_trees(&mut pass, inputs);
         Ok(DrawCalls {
-            terrain: 1,
+            terrain: 0,
             trees: 1,
             mode: self.mode,
-            max_commands: selection.capacity,
+            max_commands: inputs.selection.capacity,
         })
     }
 

@@ -18,6 +18,8 @@
 //! | the cut's runs merged | [`coalesce`] | `shaders/coalesce.wgsl` | G§3 |
 //! | the cut's commands front to back | [`command_order`] | `shaders/command_order.wgsl` | E§7 |
 //! | per-tree refinement of the selected commands (beyond the thesis) | [`refine`] | `shaders/refine.wgsl` | E§3.5, §7 |
+//! | occlusion culling's depth pyramid (issue 31) | [`pyramid`] | `shaders/pyramid.wgsl` | beyond the seeds (E§7) |
+//! | occlusion culling of the commands (issue 31) | [`occlude`] | `shaders/occlude.wgsl` | beyond the seeds (E§7) |
 //!
 //! Every stage is a `forestlod_shared::StageId`; the frame's order of them is
 //! `forestlod_shared::FramePlan`, and the harness's stage table (`harness/src/stages.rs`) names
@@ -75,7 +77,9 @@ pub mod cull;
 pub mod draw;
 pub mod hier_select;
 pub mod mips;
+pub mod occlude;
 pub mod primitive;
+pub mod pyramid;
 pub mod readback;
 pub mod refine;
 pub mod select;
@@ -98,14 +102,16 @@ pub use draw::{
 };
 pub use hier_select::{GpuHierSelect, HierUniform};
 pub use mips::{GpuMips, MipArray, MipLevelStats, MipTexels};
+pub use occlude::{GpuOcclude, GpuOccluded, OccludeUniform};
 pub use primitive::{GpuPrimitive, GpuProxies, PrimitiveInputs};
+pub use pyramid::GpuPyramid;
 pub use refine::{GpuRefine, GpuRefined, RefineCounters, RefineDispatch};
 pub use select::{Compaction, GpuSelect, GpuSelection, SelectBuffers, SelectUniform};
 pub use shaders::{StageSource, WgslFile};
 
 /// Every stage's WGSL module as its driver declares it, in the order of the table above. The
 /// crate's tests compile each and check their constants against each other.
-pub const STAGE_SOURCES: [&StageSource; 10] = [
+pub const STAGE_SOURCES: [&StageSource; 12] = [
     &select::SOURCE,
     &bake::SOURCE,
     &mips::SOURCE,
@@ -116,6 +122,8 @@ pub const STAGE_SOURCES: [&StageSource; 10] = [
     &coalesce::SOURCE,
     &command_order::SOURCE,
     &refine::SOURCE,
+    &pyramid::SOURCE,
+    &occlude::SOURCE,
 ];
 
 #[cfg(test)]

@@ -114,6 +114,11 @@ pub fn shared_constants() -> Vec<(String, u32)> {
             "AZIMUTH_WEIGHT_SCALE_BITS",
             s::AZIMUTH_WEIGHT_SCALE.to_bits(),
         ),
+        // Occlusion culling (issue 31, shared/src/occlusion.rs).
+        ("MAX_PYRAMID_LEVELS", s::MAX_PYRAMID_LEVELS),
+        ("OCCLUSION_SLACK_PX_BITS", s::OCCLUSION_SLACK_PX.to_bits()),
+        ("OCCLUSION_SLACK_REL_BITS", s::OCCLUSION_SLACK_REL.to_bits()),
+        ("OCCLUSION_Z_SLACK_BITS", s::OCCLUSION_Z_SLACK.to_bits()),
     ]
     .into_iter()
     .map(|(n, v)| (n.to_string(), v))
@@ -134,6 +139,7 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("DITHER_SPACE", s::DitherSpace::choices()),
         ("FADE_GRANULARITY", s::FadeGranularity::choices()),
         ("AZIMUTH_MODE", s::AzimuthMode::choices()),
+        ("OCCLUSION", s::Occlusion::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {

@@ -23,7 +23,7 @@
 //! Rejected design: each consumer asking `params.hierarchy != grid` itself (six places before
 //! issue 27, three of which then forgot the cut's coalesce or order, or the hierarchy).
 
-use crate::{Coalesce, CommandOrder, Hierarchy, ParamError, Params, TreeCull};
+use crate::{Coalesce, CommandOrder, Hierarchy, Occlusion, ParamError, Params, TreeCull};
 
 /// The parts of a frame a stage belongs to (module docs): two chains that meet at the draw, and
 /// the baselines' own stages.
@@ -129,6 +129,9 @@ pub struct FramePlan {
     pub selection: SelectionPlan,
     /// The `refine` stage's mode; `None` when it does not run.
     pub refine: Option<TreeCull>,
+    /// Occlusion culling (issue 31): `off`, or the draw split in two around `pyramid` and
+    /// `occlude` (`crate::occlusion`).
+    pub occlusion: Occlusion,
 }
 
 impl FramePlan {
@@ -147,7 +150,12 @@ impl FramePlan {
             TreeCull::None => None,
             mode => Some(mode),
         };
-        Ok(Self { selection, refine })
+        let occlusion = params.occlusion_mode()?;
+        Ok(Self {
+            selection,
+            refine,
+            occlusion,
+        })
     }
 
     /// Whether the frame selects by a hierarchy's cut.

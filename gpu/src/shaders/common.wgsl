@@ -859,3 +859,170 @@ fn azimuth_mix(first: vec4<f32>, second: vec4<f32>, code: u32) -> vec4<f32> {
     }
     return vec4<f32>(first.rgb * v + second.rgb * w, alpha);
 }
+
+// ---- Occlusion culling (issue 31): twins of shared/src/occlusion.rs, read by pyramid.wgsl and
+// occlude.wgsl. The OCCLUSION_*_BITS slacks and MAX_PYRAMID_LEVELS are generated from Rust.
+
+// Keep in sync with forestlod_shared::OcclusionCounters (shared/src/occlusion.rs), with atomic
+// members (the same layout, 8 x u32; `gpu/tests/layout.rs` checks it against the Rust struct).
+struct OcclusionCountersAtomic {
+    early: atomic<u32>,
+    tested: atomic<u32>,
+    occluded: atomic<u32>,
+    offscreen: atomic<u32>,
+    late: atomic<u32>,
+    unbounded: atomic<u32>,
+    _pad0: array<u32, 2>,
+}
+
+// forestlod_shared::pyramid_reduce: the largest of texels (x0, y0), (x1, y0), (x0, y1), (x1, y1)
+// of the level below, read in that order (`max` is exact: the order changes no bit).
+fn pyramid_reduce_max(t00: f32, t10: f32, t01: f32, t11: f32) -> f32 {
+    return max(max(max(t00, t10), t01), t11);
+}
+
+// forestlod_shared::pyramid_reduce's source texels of texel (i, j) of the level above a level of
+// `below_size`: (x0, y0, x1, y1), the second column and row clamped to the level.
+fn pyramid_reduce_texels(below_size: vec2<u32>, i: u32, j: u32) -> vec4<u32> {
+    let x0 = 2u * i;
+    let y0 = 2u * j;
+    let x1 = min(x0 + 1u, below_size.x - 1u);
+    let y1 = min(y0 + 1u, below_size.y - 1u);
+    return vec4<u32>(x0, y0, x1, y1);
+}
+
+// forestlod_shared::OcclusionBound as a kind code (shader-private), with its rectangle.
+const BOUND_UNBOUNDED: u32 = 0u;
+const BOUND_OFFSCREEN: u32 = 1u;
+const BOUND_RECT: u32 = 2u;
+
+// forestlod_shared::OcclusionBound: `kind`, and for BOUND_RECT the inclusive pixel rectangle
+// (x0, y0, x1, y1) and the nearest depth (forestlod_shared::OcclusionRect).
+struct OcclusionBound {
+    kind: u32,
+    rect: vec4<u32>,
+    z_min: f32,
+}
+
+// Whether `x` is neither infinite nor NaN (Rust `f32::is_finite`).
+fn f32_is_finite(x: f32) -> bool {
+    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
+}
+
+// forestlod_shared::occlusion_bounds: the eight corners of the cube around the widened footprint
+// sphere, projected as `raster` projects (`view_proj * p` as glam sums it: column 0 first), their
+// screen box widened by OCCLUSION_SLACK_PX and their least NDC depth less OCCLUSION_Z_SLACK.
+fn occlusion_bounds(
+    view_proj: mat4x4<f32>,
+    near: f32,
+    center: vec3<f32>,
+    radius: f32,
+    width: u32,
+    height: u32,
+) -> OcclusionBound {
+    var out = OcclusionBound(BOUND_UNBOUNDED, vec4<u32>(0u, 0u, 0u, 0u), 0.0);
+    let slack_rel = bitcast<f32>(OCCLUSION_SLACK_REL_BITS);
+    let slack_px = bitcast<f32>(OCCLUSION_SLACK_PX_BITS);
+    let c = center;
+    let r = radius * (1.0 + slack_rel) + max(abs(c.x), max(abs(c.y), abs(c.z))) * slack_rel;
+    if !(f32_is_finite(r) && f32_is_finite(c.x) && f32_is_finite(c.y) && f32_is_finite(c.z)) {
+        return out;
+    }
+    let half_w = f32(width) * 0.5;
+    let half_h = f32(height) * 0.5;
+    let f32_max = bitcast<f32>(0x7f7fffffu);
+    var x_lo = f32_max;
+    var x_hi = -f32_max;
+    var y_lo = f32_max;
+    var y_hi = -f32_max;
+    var z_lo = f32_max;
+    for (var corner = 0u; corner < 8u; corner++) {
+        let p = vec3<f32>(
+            c.x + select(-r, r, (corner & 1u) != 0u),
+            c.y + select(-r, r, (corner & 2u) != 0u),
+            c.z + select(-r, r, (corner & 4u) != 0u),
+        );
+        let clip = ((view_proj[0] * p.x + view_proj[1] * p.y) + view_proj[2] * p.z) + view_proj[3];
+        let finite = f32_is_finite(clip.x) && f32_is_finite(clip.y) && f32_is_finite(clip.z)
+            && f32_is_finite(clip.w);
+        if !finite || clip.w <= 0.5 * near {
+            return out;
+        }
+        let x = (clip.x / clip.w) * half_w + half_w;
+        let y = half_h - (clip.y / clip.w) * half_h;
+        x_lo = min(x_lo, x);
+        x_hi = max(x_hi, x);
+        y_lo = min(y_lo, y);
+        y_hi = max(y_hi, y);
+        z_lo = min(z_lo, clip.z / clip.w);
+    }
+    x_lo = x_lo - slack_px;
+    x_hi = x_hi + slack_px;
+    y_lo = y_lo - slack_px;
+    y_hi = y_hi + slack_px;
+    if x_hi < 0.0 || y_hi < 0.0 || x_lo >= f32(width) || y_lo >= f32(height) {
+        out.kind = BOUND_OFFSCREEN;
+        return out;
+    }
+    let w_max = f32(width - 1u);
+    let h_max = f32(height - 1u);
+    out.kind = BOUND_RECT;
+    out.rect = vec4<u32>(
+        u32(clamp(floor(x_lo), 0.0, w_max)),
+        u32(clamp(floor(y_lo), 0.0, h_max)),
+        u32(clamp(floor(x_hi), 0.0, w_max)),
+        u32(clamp(floor(y_hi), 0.0, h_max)),
+    );
+    out.z_min = z_lo - bitcast<f32>(OCCLUSION_Z_SLACK_BITS);
+    return out;
+}
+
+// forestlod_shared::pyramid_level_for: the smallest level at which `rect` (x0, y0, x1, y1) spans
+// at most 2x2 texels, among `levels` levels (at most MAX_PYRAMID_LEVELS iterations).
+fn pyramid_level_for(rect: vec4<u32>, levels: u32) -> u32 {
+    var level = 0u;
+    while level + 1u < levels
+        && ((rect.z >> level) - (rect.x >> level) > 1u
+            || (rect.w >> level) - (rect.y >> level) > 1u) {
+        level++;
+    }
+    return level;
+}
+
+// forestlod_shared::occluded: the nearest depth lies strictly behind the pyramid's maximum.
+fn occluded(z_min: f32, pyramid_max: f32) -> bool {
+    return z_min > pyramid_max;
+}
+
+// forestlod_shared::may_occlude: every command in a dithered fade mode; under alpha only commands
+// that never blend.
+fn may_occlude(data: CommandData, fade_mode: u32, subset_mode: u32) -> bool {
+    return fade_mode != FADE_ALPHA
+        || (data.fading == 0u && (data.billboard == 0u || subset_mode == SUBSET_MODE_OFF));
+}
+
+// forestlod_shared::is_early: whether a tree of a command with `data` is drawn in the early pass.
+fn is_early(
+    mode: u32,
+    data: CommandData,
+    fade_mode: u32,
+    subset_mode: u32,
+    occluder_depth: f32,
+    depth_near: f32,
+    visible_before: bool,
+) -> bool {
+    if !may_occlude(data, fade_mode, subset_mode) {
+        return false;
+    }
+    if mode == OCCLUSION_SINGLE {
+        return data.lod == LOD_MESH && depth_near <= occluder_depth;
+    } else if mode == OCCLUSION_TWO_PHASE {
+        return visible_before;
+    }
+    return false;
+}
+
+// forestlod_shared::occlusion_slot: where a command's kept trees go in the 4m indirection.
+fn occlusion_slot(phase: u32, lod: u32, m: u32, first_instance: u32) -> u32 {
+    return (2u * phase + min(lod, 1u)) * m + first_instance;
+}

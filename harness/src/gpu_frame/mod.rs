@@ -37,17 +37,19 @@ use forestlod_gpu::draw::{DrawCalls, DrawTarget};
 use forestlod_gpu::readback::{read_buffer, upload_storage};
 use forestlod_gpu::{
     Compaction, DrawInputs, DrawScene, DrawTextures, GpuContext, GpuCull, GpuDraw, GpuError,
-    GpuPrimitive, GpuProxies, GpuRefine, PrimitiveInputs,
+    GpuOcclude, GpuPrimitive, GpuProxies, GpuPyramid, GpuRefine, PrimitiveInputs,
 };
 use forestlod_reference::pipeline::Prepared;
-use forestlod_shared::{Camera, FramePlan, Params, SelectCounters, StageId};
+use forestlod_shared::{
+    Camera, FramePlan, Occlusion, OcclusionCounters, Params, SelectCounters, StageId,
+};
 
 pub use from_cpu::StagesFromCpu;
 pub use selection::SelectionChain;
 
 use crate::bridge::{
-    BillboardLevel0, DrawSceneData, cull_trees, gpu_textures, gpu_textures_with, proxy_records,
-    upload_reference_textures,
+    BillboardLevel0, DrawSceneData, cull_trees, gpu_textures, gpu_textures_with,
+    occlusion_footprints, proxy_records, upload_reference_textures,
 };
 use crate::image_compare::Images;
 use timing::Timestamps;
@@ -111,6 +113,8 @@ pub struct GpuTimedFrame {
     /// Baselines: the visible trees (`counters.instances`, the Primitive's instance count);
     /// ours: `None`.
     pub trees_drawn: Option<u64>,
+    /// Ours with occlusion culling (issue 31): the `occlude` stage's counters, read back.
+    pub occlusion: Option<OcclusionCounters>,
 }
 
 /// What [`render_gpu`] used and produced.
@@ -139,6 +143,11 @@ pub struct GpuScene<'a> {
     /// of ours was one.
     fed: Option<SelectionChain<'a>>,
     refine: Option<GpuRefine<'a>>,
+    /// Occlusion culling's footprints and history (issue 31; built by the first frame with
+    /// occlusion culling; the history lives as long as the scene, [`GpuScene::reset_history`]).
+    occlude: Option<GpuOcclude<'a>>,
+    /// One depth pyramid per target size.
+    pyramids: HashMap<(u32, u32), GpuPyramid>,
     cull: Option<GpuCull<'a>>,
     proxies: Option<GpuProxies>,
     draw: &'a GpuDraw,
@@ -206,6 +215,8 @@ impl<'a> GpuScene<'a> {
             chain: None,
             fed: None,
             refine: None,
+            occlude: None,
+            pyramids: HashMap::new(),
             cull: None,
             proxies: None,
             draw,
@@ -241,6 +252,19 @@ impl<'a> GpuScene<'a> {
     /// `GpuRefine::read`).
     pub fn refine(&self) -> Option<&GpuRefine<'a>> {
         self.refine.as_ref()
+    }
+
+    /// The occlusion culling of the last frame that ran it (for tests: `GpuOcclude::read`).
+    pub fn occlude(&self) -> Option<&GpuOcclude<'a>> {
+        self.occlude.as_ref()
+    }
+
+    /// Starts a camera path: the next frame with occlusion culling `two-phase` has no history
+    /// (its early pass is empty, the reference's `render` of a path's first frame).
+    pub fn reset_history(&mut self) {
+        if let Some(o) = &mut self.occlude {
+            o.reset_history();
+        }
     }
 
     /// The baselines' culling of the last baseline frame (for tests: `GpuCull::read`).
@@ -326,6 +350,10 @@ impl<'a> GpuScene<'a> {
         }
         let ctx = self.ctx;
         let key = (camera.width, camera.height);
+        let occlusion = match pipeline {
+            GpuPipeline::Ours(_) => plan.occlusion,
+            _ => Occlusion::Off,
+        };
         if let std::collections::hash_map::Entry::Vacant(slot) = self.targets.entry(key) {
             slot.insert(DrawTarget::new(ctx, camera.width, camera.height)?);
         }
@@ -368,6 +396,17 @@ impl<'a> GpuScene<'a> {
                         &cull_trees(prepared),
                         &prepared.batches.indirection,
                     )?);
+                }
+                if occlusion != Occlusion::Off {
+                    if self.occlude.is_none() {
+                        self.occlude =
+                            Some(GpuOcclude::new(ctx, &occlusion_footprints(prepared))?);
+                    }
+                    if let std::collections::hash_map::Entry::Vacant(slot) =
+                        self.pyramids.entry(key)
+                    {
+                        slot.insert(GpuPyramid::new(ctx, camera.width, camera.height)?);
+                    }
                 }
                 stages.push((StageId::Draw, RanOn::Gpu));
             }
@@ -425,24 +464,47 @@ impl<'a> GpuScene<'a> {
             Ok(t.elapsed().as_secs_f64())
         };
 
-        // Stage 1: selection (and refine) or culling.
+        // Stage 1: selection (and refine) or culling; with occlusion culling the early split.
         let refine = self.refine.as_mut();
         let cull = self.cull.as_mut();
-        let (encoder, chain, cull) = ctx.checked("frame select/cull", || {
+        let occlude = self.occlude.as_mut();
+        let scene_indirection = self.scene.indirection();
+        // The indirection the frame's commands index, and its length `m`.
+        let refined = gpu_refine || cpu_indirection.is_some();
+        let m = if refined {
+            3 * prepared.batches.indirection.len() as u32
+        } else {
+            prepared.batches.indirection.len() as u32
+        };
+        let (encoder, chain, cull, mut occlude) = ctx.checked("frame select/cull", || {
             let mut encoder = begin("frame select", 0);
             let mut chain = chain;
             let mut cull = cull;
+            let mut occlude = occlude;
             match pipeline {
                 GpuPipeline::Ours(compaction) => {
                     let chain = chain.as_deref_mut().expect("ours has a chain");
                     chain.encode(&mut encoder, camera, params, compaction);
-                    if gpu_refine {
-                        refine.expect("created above").encode(
+                    let refine_indirection = if gpu_refine {
+                        let refine = refine.expect("created above");
+                        refine.encode(&mut encoder, chain.buffers_mut(), camera, params);
+                        Some(refine.indirection())
+                    } else {
+                        None
+                    };
+                    if occlusion != Occlusion::Off {
+                        let input = cpu_indirection
+                            .as_ref()
+                            .or(refine_indirection)
+                            .unwrap_or(scene_indirection);
+                        occlude.as_deref_mut().expect("created above").encode_early(
                             &mut encoder,
-                            chain.buffers_mut(),
+                            chain.buffers(),
+                            input,
+                            m,
                             camera,
                             params,
-                        );
+                        )?;
                     }
                 }
                 GpuPipeline::Vegetation | GpuPipeline::Primitive => cull
@@ -453,8 +515,8 @@ impl<'a> GpuScene<'a> {
             if let Some(s) = stamps {
                 s.mark(&mut encoder, 1);
             }
-            (encoder, chain, cull)
-        })?;
+            Ok((encoder, chain, cull, occlude))
+        })??;
         let select_s = submit_timed(encoder)?;
 
         // Stage 2: the draw pass.
@@ -467,11 +529,44 @@ impl<'a> GpuScene<'a> {
             (None, false) => None,
         };
         let (scene, textures, draw) = (&self.scene, &self.textures, self.draw);
+        let pyramid = self.pyramids.get(&key);
         let (primitive, proxies) = (self.primitive, self.proxies.as_ref());
         let (encoder, calls) = ctx.checked("frame draw", || -> Result<_, GpuError> {
             let mut encoder = begin("frame draw", 2);
             let calls = match pipeline {
                 GpuPipeline::Ours(_) | GpuPipeline::Vegetation => {
+                    if let (GpuPipeline::Ours(_), Some(occlude)) =
+                        (pipeline, occlude.as_deref_mut().filter(|_| occlusion != Occlusion::Off))
+                    {
+                        // Issue 31: early pass (cleared, ground first), the pyramid of its
+                        // depth, the late test, the late pass loading the same targets.
+                        let selection = chain.expect("ours has a chain").buffers();
+                        let (early, late) =
+                            (occlude.early_buffers(selection), occlude.late_buffers(selection));
+                        let inputs = |selection| DrawInputs {
+                            scene,
+                            textures,
+                            selection,
+                            indirection: Some(occlude.indirection()),
+                        };
+                        let calls =
+                            draw.encode(ctx, &mut encoder, &inputs(&early), camera, params, target)?;
+                        let pyramid = pyramid.expect("created above");
+                        pyramid.encode_from_depth(ctx, &mut encoder, target.depth_texture());
+                        occlude.encode_late(&mut encoder, selection, pyramid, camera, params)?;
+                        let late_inputs = DrawInputs {
+                            scene,
+                            textures,
+                            selection: &late,
+                            indirection: Some(occlude.indirection()),
+                        };
+                        draw.encode_late(ctx, &mut encoder, &late_inputs, camera, params, target)?;
+                        if let Some(s) = stamps {
+                            s.mark(&mut encoder, 3);
+                            s.resolve(&mut encoder);
+                        }
+                        return Ok((encoder, Some(calls)));
+                    }
                     let inputs = match pipeline {
                         GpuPipeline::Ours(_) => DrawInputs {
                             scene,
@@ -539,6 +634,10 @@ impl<'a> GpuScene<'a> {
                 Some(counters.instances as u64),
             ),
         };
+        let occlusion_counters = match (&occlude, occlusion) {
+            (Some(o), o_mode) if o_mode != Occlusion::Off => Some(o.read_counters()?),
+            _ => None,
+        };
         let out = target.read(ctx)?;
         Ok(GpuTimedFrame {
             images: Images::from(out),
@@ -550,6 +649,7 @@ impl<'a> GpuScene<'a> {
             gpu_draw_s,
             commands,
             trees_drawn,
+            occlusion: occlusion_counters,
         })
     }
 
