@@ -278,6 +278,7 @@ pub fn render_vegetation(
             select: select_seconds,
             refine: 0.0,
             draw: draw_seconds,
+            occlusion: 0.0,
         },
     }
 }
@@ -580,6 +581,7 @@ pub fn render_primitive_shifted(
             select: select_seconds,
             refine: 0.0,
             draw: draw_seconds,
+            occlusion: 0.0,
         },
     }
 }

@@ -1147,6 +1147,28 @@ fn draw_frame_with(
         .collect()
 }
 
+/// Draws every command of `selection` into `target`, which already holds what was drawn before
+/// (no sky or ground; one cutoff, no mask): the two passes of a frame with occlusion culling
+/// (issue 31, `forestlod_shared::occlusion`), whose tree draws are [`draw_frame`]'s split in two.
+/// Returns the tree counters and the trees the draw distance discarded. `params` must be valid.
+pub fn draw_trees_into(
+    res: &DrawResources,
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+    target: &mut RenderTarget,
+) -> (DrawStats, u64) {
+    let mut source = TreeTriangles::new(res, selection, camera, params, None);
+    let cutoffs = [params.alpha_cutoff];
+    let shader = TreeShader::new(res, selection, camera, params, &cutoffs, 1.0);
+    let state = DrawState {
+        depth_write: true,
+        ..DrawState::TRANSPARENT
+    };
+    let stats = draw_passes_streamed(&mut [target], &shader, &mut source, &state);
+    (stats[0], source.discarded)
+}
+
 /// A `camera`-sized target cleared to the sky (colour [`SKY_SRGB`], depth 1, id
 /// [`LOD_ID_BACKGROUND`]) with `scene`'s ground drawn (id [`LOD_ID_TERRAIN`]), and the ground's
 /// work counters: how every rasterized frame starts.

@@ -13,11 +13,17 @@ use serde::Serialize;
 use crate::InputError;
 use crate::bake::{BakedBillboards, bake, mesh_textures};
 use crate::batches::{Batches, MemoryReport, build_batches, memory_report};
-use crate::draw::{DrawResources, DrawnFrame, draw_frame, draw_frame_cutoffs};
+use crate::draw::{
+    DrawResources, DrawnFrame, draw_frame, draw_frame_cutoffs, draw_trees_into, sky_and_ground,
+    tree_footprint_radius,
+};
 use crate::frame::{SelectScene, SelectionTrace, select_stages};
 use crate::geometry::{PackedGeometry, pack_geometry};
 use crate::hier_select::{HierSelection, hier_select};
 use crate::hierarchy::Hierarchy;
+use crate::occlude::{Footprint, occlude_early, occlude_late};
+use crate::pyramid::Pyramid;
+use crate::raster::DrawStats;
 use crate::refine::Refined;
 use crate::sampler::Texture;
 use crate::scene::{Scene, tree_sphere};
@@ -58,6 +64,9 @@ pub struct Prepared {
     pub tree_spheres: Vec<([f32; 3], f32)>,
     /// Every tree's scale: `refine`'s per-tree band under a scaled LOD metric (issue 29).
     pub tree_scales: Vec<f32>,
+    /// Every tree's footprint sphere (its base and [`tree_footprint_radius`]): what occlusion
+    /// culling bounds a tree by (issue 31, [`crate::occlude`]).
+    pub footprints: Vec<Footprint>,
     /// Slow-path timings.
     pub timings: PrepareTimings,
 }
@@ -138,8 +147,19 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
             .collect()
     };
     let tree_scales = scene.instances.iter().map(|t| t.scale).collect();
+    let footprints = scene
+        .instances
+        .iter()
+        .map(|t| {
+            (
+                t.position,
+                tree_footprint_radius(t, &geometry.meshes[t.mesh as usize]),
+            )
+        })
+        .collect();
     Ok(Prepared {
         tree_scales,
+        footprints,
         scene,
         geometry,
         batches,
@@ -159,8 +179,32 @@ pub struct FrameTimings {
     pub select: f64,
     /// Per-tree refinement of the commands (`refine`, [`Params::tree_cull`]); 0 when off.
     pub refine: f64,
-    /// Draw execution (E§4.4), ground included.
+    /// Draw execution (E§4.4), ground included (both passes under occlusion culling).
     pub draw: f64,
+    /// Occlusion culling (issue 31) outside the draws: the early split, the pyramid and the late
+    /// test; 0 when off.
+    pub occlusion: f64,
+}
+
+/// What occlusion culling did in one frame (issue 31, [`crate::occlude`]).
+#[derive(Clone, Debug)]
+pub struct OcclusionFrame {
+    /// The stage's counters.
+    pub counters: forestlod_shared::OcclusionCounters,
+    /// The early pass's commands, over [`OcclusionFrame::indirection`].
+    pub early: Selection,
+    /// The late pass's commands, over [`OcclusionFrame::indirection`].
+    pub late: Selection,
+    /// The `4m` indirection both index ([`forestlod_shared::occlusion_slot`]).
+    pub indirection: Vec<u32>,
+    /// The early pass's tree counters.
+    pub early_stats: DrawStats,
+    /// The late pass's tree counters.
+    pub late_stats: DrawStats,
+    /// The pyramid of the early pass's depth.
+    pub pyramid: Pyramid,
+    /// Per tree, 1 when it passed this frame's test: the next frame's history under two-phase.
+    pub visible: Vec<u32>,
 }
 
 /// One rendered frame.
@@ -170,8 +214,10 @@ pub struct Frame {
     pub selection: Selection,
     /// The `refine` stage's output, when it ran.
     pub refined: Option<Refined>,
-    /// The drawn buffers and counters.
+    /// The drawn buffers and counters (both passes' under occlusion culling).
     pub drawn: DrawnFrame,
+    /// What occlusion culling did, when `params.occlusion` is not `off`.
+    pub occlusion: Option<OcclusionFrame>,
     /// Stage timings.
     pub timings: FrameTimings,
 }
@@ -247,34 +293,161 @@ impl Prepared {
         (trace.selection, trace.refined)
     }
 
-    /// The per-frame path: selection, then draw. The camera is validated first.
+    /// The per-frame path: selection, then draw (a frame with no history: under occlusion
+    /// `two-phase`, a path's first frame). The camera is validated first.
     pub fn render(&self, camera: &Camera, params: &Params) -> Result<Frame, InputError> {
+        self.render_with_history(camera, params, &[])
+    }
+
+    /// The per-frame path of one frame of a camera path: selection, then draw; under occlusion
+    /// culling (issue 31, `forestlod_shared::occlusion`) the early pass, the pyramid, the late
+    /// test and the late pass, `history` being the previous frame's
+    /// [`OcclusionFrame::visible`] (empty for none). The camera is validated first.
+    pub fn render_with_history(
+        &self,
+        camera: &Camera,
+        params: &Params,
+        history: &[u32],
+    ) -> Result<Frame, InputError> {
         camera.validate()?;
         params.validate()?;
         let trace = self.select_stages(camera, params, false);
         let (selection, refined) = (trace.selection, trace.refined);
+        let indirection = refined
+            .as_ref()
+            .map_or(&self.batches.indirection, |r| &r.indirection);
         let t = Instant::now();
-        let drawn = match &refined {
-            None => draw_frame(&self.resources(), &selection, camera, params),
-            Some(r) => {
+        let (drawn, occlusion, occlusion_seconds) =
+            if params.occlusion == forestlod_shared::Occlusion::Off as u32 {
                 let res = DrawResources {
-                    indirection: &r.indirection,
+                    indirection,
                     ..self.resources()
                 };
-                draw_frame(&res, &selection, camera, params)
-            }
-        };
-        let draw_seconds = t.elapsed().as_secs_f64();
+                (draw_frame(&res, &selection, camera, params), None, 0.0)
+            } else {
+                let (drawn, occ, seconds) =
+                    self.draw_occluded(&selection, indirection, camera, params, history);
+                (drawn, Some(occ), seconds)
+            };
+        let draw_seconds = t.elapsed().as_secs_f64() - occlusion_seconds;
         Ok(Frame {
             selection,
             refined,
             drawn,
+            occlusion,
             timings: FrameTimings {
                 select: trace.seconds.selection(),
                 refine: trace.seconds.get(StageId::Refine),
                 draw: draw_seconds,
+                occlusion: occlusion_seconds,
             },
         })
+    }
+
+    /// The draw of a frame with occlusion culling (module docs of `forestlod_shared::occlusion`):
+    /// the drawn frame, what the stage did, and the seconds of its non-draw steps.
+    fn draw_occluded(
+        &self,
+        selection: &Selection,
+        indirection: &[u32],
+        camera: &Camera,
+        params: &Params,
+        history: &[u32],
+    ) -> (DrawnFrame, OcclusionFrame, f64) {
+        let fp = &self.footprints;
+        let t = Instant::now();
+        let (early, mut occ_indirection) =
+            occlude_early(selection, indirection, fp, camera, params, history);
+        let mut seconds = t.elapsed().as_secs_f64();
+        let (mut target, terrain_stats) = sky_and_ground(&self.scene, camera);
+        let (early_stats, early_discarded) = {
+            let res = DrawResources {
+                indirection: &occ_indirection,
+                ..self.resources()
+            };
+            draw_trees_into(&res, &early, camera, params, &mut target)
+        };
+        let t = Instant::now();
+        let pyramid = Pyramid::build(target.depth(), camera.width, camera.height);
+        let late = occlude_late(
+            selection,
+            indirection,
+            fp,
+            camera,
+            params,
+            history,
+            &pyramid,
+            &mut occ_indirection,
+        );
+        seconds += t.elapsed().as_secs_f64();
+        let (late_stats, late_discarded) = {
+            let res = DrawResources {
+                indirection: &occ_indirection,
+                ..self.resources()
+            };
+            draw_trees_into(&res, &late.selection, camera, params, &mut target)
+        };
+        let drawn = DrawnFrame {
+            target,
+            terrain_stats,
+            tree_stats: early_stats + late_stats,
+            trees_discarded: early_discarded + late_discarded,
+        };
+        let occ = OcclusionFrame {
+            counters: late.counters,
+            early,
+            late: late.selection,
+            indirection: occ_indirection,
+            early_stats,
+            late_stats,
+            pyramid,
+            visible: late.visible,
+        };
+        (drawn, occ, seconds)
+    }
+
+    /// The zero-false-cull oracle of a frame drawn with occlusion culling (issue 31): the pixels
+    /// where a tree the frame culled has a fragment at or in front of the frame's depth. The
+    /// culled trees are drawn alone ([`crate::occlude::culled_selection`]) into a cleared
+    /// target; a tree with no fragment there has none in the frame without culling either, and
+    /// any tree visible without culling has one (its nearest fragment is at the frame's depth,
+    /// or in front of it where culling took away what covered it). A tree culled rightly lies
+    /// strictly behind an early fragment at every pixel of its rectangle, so it never ties.
+    /// 0 for a frame without occlusion culling.
+    pub fn false_cull_pixels(&self, camera: &Camera, params: &Params, frame: &Frame) -> u64 {
+        let Some(occ) = &frame.occlusion else {
+            return 0;
+        };
+        let indirection = frame.indirection(self);
+        let (culled, culled_indirection) = crate::occlude::culled_selection(
+            &frame.selection,
+            indirection,
+            &occ.early,
+            &occ.late,
+            &occ.indirection,
+        );
+        let mut target = crate::raster::RenderTarget::new(
+            camera.width,
+            camera.height,
+            crate::raster::ClearValues {
+                color: [0.0; 4],
+                depth: 1.0,
+                aux: forestlod_shared::LOD_ID_BACKGROUND,
+            },
+        );
+        let res = DrawResources {
+            indirection: &culled_indirection,
+            ..self.resources()
+        };
+        draw_trees_into(&res, &culled, camera, params, &mut target);
+        let frame_depth = frame.drawn.target.depth();
+        target
+            .aux()
+            .iter()
+            .zip(target.depth())
+            .zip(frame_depth)
+            .filter(|((id, d), f)| **id != forestlod_shared::LOD_ID_BACKGROUND && **d <= **f)
+            .count() as u64
     }
 
     /// The frame's draw once per alpha-test cutoff of `cutoffs`, restricted to `mask` when given:

@@ -99,10 +99,14 @@ pub enum Threshold {
     /// nearer the lower / the upper of the two views around it (the nearest view rounds down / up;
     /// a rule that truncated would be seen only on the second side).
     DrawAzimuthRound,
+    /// Occlusion (issue 31): a tree of the frame is not / is an occluder, drawn in the early pass.
+    OccludeEarly,
+    /// Occlusion: a tested tree is culled (behind the pyramid or off screen) / passes.
+    OccludeLate,
 }
 
 /// Every threshold, in table order.
-pub const ALL: [Threshold; 36] = {
+pub const ALL: [Threshold; 38] = {
     use Threshold::*;
     [
         SelectDrawDistance,
@@ -141,6 +145,8 @@ pub const ALL: [Threshold; 36] = {
         DrawTreeProgress,
         DrawNoiseLevel,
         DrawAzimuthRound,
+        OccludeEarly,
+        OccludeLate,
     ]
 };
 
@@ -217,6 +223,8 @@ impl Threshold {
                 "nearer the lower",
                 "nearer the upper",
             ),
+            OccludeEarly => ("occlude: tree vs occluder rule", "late", "early"),
+            OccludeLate => ("occlude: tested tree vs pyramid", "culled", "passes"),
         }
     }
 }

@@ -105,6 +105,17 @@ impl Params {
                     .into(),
             });
         }
+        // Occlusion culling (issue 31) rewrites instance lists, which then carry no subset rank.
+        let occlusion = self.occlusion_mode()?;
+        if subset != crate::SubsetMode::Off && occlusion != crate::Occlusion::Off {
+            return Err(ParamError {
+                field: "occlusion",
+                value: occlusion.name().to_string(),
+                reason: "occlusion culling needs subset_mode = off (it compacts the instance \
+                         lists, which then carry no subset rank)"
+                    .into(),
+            });
+        }
         // One mesh's `K·J` views must fit the billboard array (issue 30); the scene's `m·K·J` is
         // checked where the mesh count is known (`crate::check_billboard_layers`).
         crate::check_billboard_layers(1, self)?;

@@ -12,6 +12,8 @@
 //! - [`tree_assembly_properties`]: the tree draw's input assembly in pieces (issue 14) against
 //!   the plain multi-draw;
 //! - [`subset_properties`]: far-field subsets (issue 29): even prefixes, counts against weights;
+//! - [`occlusion_properties`]: occlusion culling (issue 31) against the false-cull oracle and
+//!   the frame without culling; the pyramid against brute force;
 //! - [`extremes`]: the numerical-extremes catalogue of SPEC §7.
 //!
 //! Run one module with `cargo test -p forestlod-tests --test properties <module>::`. proptest
@@ -22,6 +24,7 @@ mod coalesce_properties;
 mod command_order_properties;
 mod extremes;
 mod hierarchy_properties;
+mod occlusion_properties;
 mod refine_properties;
 mod select_properties;
 mod subset_properties;
