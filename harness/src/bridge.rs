@@ -225,21 +225,14 @@ pub fn cull_trees_of(scene: &Scene, spheres: &[([f32; 3], f32)]) -> Vec<CullTree
         .collect()
 }
 
-/// Every tree's footprint sphere `[x, y, z, radius]` (its base and
+/// Every tree's footprint sphere `[x, y, z, radius]` (`Prepared::footprints`: its base and
 /// `reference::draw::tree_footprint_radius`, computed on the CPU so both twins bound a tree by the
 /// same `f32`s): the input of `GpuOcclude` (issue 31).
 pub fn occlusion_footprints(prepared: &Prepared) -> Vec<[f32; 4]> {
     prepared
-        .scene
-        .instances
+        .footprints
         .iter()
-        .map(|t| {
-            let r = forestlod_reference::draw::tree_footprint_radius(
-                t,
-                &prepared.geometry.meshes[t.mesh as usize],
-            );
-            [t.position[0], t.position[1], t.position[2], r]
-        })
+        .map(|&(p, r)| [p[0], p[1], p[2], r])
         .collect()
 }
 

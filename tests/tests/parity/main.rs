@@ -33,6 +33,7 @@ mod hier_select;
 mod metamorphic;
 mod mips;
 mod mutants;
+mod occlusion;
 mod refine;
 mod sampler_lod;
 mod select;

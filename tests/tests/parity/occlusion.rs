@@ -1,0 +1,569 @@
+//! Parity of occlusion culling on the GPU (issue 31: `gpu/src/shaders/pyramid.wgsl`,
+//! `gpu/src/shaders/occlude.wgsl`, the two-pass frame of `GpuScene`) with the reference
+//! (`reference/src/pyramid.rs`, `reference/src/occlude.rs`, `Prepared::render_with_history`); the
+//! contract is `forestlod_shared::occlusion`'s.
+//! - **pyramid**: from the same depth buffer, the GPU's pyramid equals the reference's bit for
+//!   bit (`max` rounds nothing) at 1x1, 1x7, 5x3, 320x180, 333x187 and 1280x720, and the pyramid
+//!   the GPU builds from a depth target it drew equals the reference's of that target read back.
+//! - **occlude**: from the reference's selection, indirection and early depth (level 0 of its
+//!   pyramid), the GPU's early and late commands, their lists (in order), the counters and the
+//!   history equal the reference's, along two-frame paths under `two-phase`; decisions that
+//!   differ are counted under [`DECISION_BUDGET_PER_MILLE`].
+//! - **frames**: the GPU frame with occlusion culling (`single`, and `two-phase` along a path)
+//!   equals the GPU frame without it in the dithered fade modes (and `none`) except counted depth
+//!   ties ([`DEPTH_TIE_BUDGET`]); under `alpha` the differing pixels are counted; and it is judged
+//!   against the reference's frame with occlusion culling by `forestlod_harness::image_compare`.
+//!   Grid, `refine` (`lod0`, `all`) and octree with front-to-back commands.
+//!
+//! Without an adapter the tests fail with an install hint unless `FORESTLOD_ALLOW_NO_GPU=1`.
+
+use forestlod_gpu::draw::DrawTarget;
+use forestlod_gpu::readback::upload_storage;
+use forestlod_gpu::{
+    Compaction, DrawInputs, DrawScene, DrawTextures, GpuContext, GpuOcclude, GpuOccluded,
+    GpuPyramid, SelectBuffers,
+};
+use forestlod_harness::bridge::{DrawSceneData, occlusion_footprints, upload_reference_textures};
+use forestlod_harness::context::gpu_context;
+use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, StagesFromCpu, gpu_draw};
+use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
+use forestlod_harness::stage::images_of;
+use forestlod_reference::cameras::named_camera;
+use forestlod_reference::pipeline::{Frame, Prepared, prepare};
+use forestlod_reference::pyramid::Pyramid;
+use forestlod_reference::select::Selection;
+use forestlod_shared::{
+    Camera, CommandOrder, FadeMode, Hierarchy, Occlusion, OcclusionCounters, Params, TreeCull,
+};
+use forestlod_tests::assert_no_failures;
+use forestlod_tests::scenarios::{crop_params, cropped_synthetic};
+
+/// The sizes the pyramid is checked at: one pixel, one column, odd both ways, the sweeps' small
+/// frame, odd and non-power-of-two, and the sweeps' large frame.
+const PYRAMID_SIZES: [(u32, u32); 6] = [
+    (1, 1),
+    (1, 7),
+    (5, 3),
+    (320, 180),
+    (333, 187),
+    (1280, 720),
+];
+
+/// Late decisions of the GPU that may differ from the reference's, per thousand trees tested,
+/// over the whole run. A tree's decision compares its nearest corner depth (a perspective
+/// division) with the pyramid, and its rectangle (another division, a floor) with texel
+/// boundaries: a GPU may divide within 2.5 ulp (Vulkan's precision rule) and fuse the
+/// projection's multiply-adds, so a tree whose nearest depth lies within a few ulps of an
+/// occluder's, or whose rectangle edge lies within a few ulps of a pixel boundary, may go either
+/// way. Such trees are rare (a corner exactly as deep as an occluder's fragment); one per
+/// thousand leaves room for them and still catches a wrong rule, which flips whole groups of
+/// trees.
+const DECISION_BUDGET_PER_MILLE: u64 = 1;
+
+/// Pixels per frame that may differ between the GPU frame with occlusion culling and without it
+/// in a dithered fade mode: the late pass draws after the early one, so a pixel where an early
+/// and a late fragment have exactly the same depth keeps the early one under LESS where the
+/// frame without culling kept whichever came first in command order (module docs of
+/// `forestlod_shared::occlusion`, "Images"). Exact depth ties between two trees' triangles are
+/// rare (crossing crowns); a wrong pass (a cleared target, a culled visible tree) changes
+/// hundreds of pixels.
+const DEPTH_TIE_BUDGET: usize = 8;
+
+/// A deterministic depth buffer of `w x h`: sky (1.0) in a band of rows and columns, random
+/// depths in `[0, 1)` elsewhere, a pattern that gives every block of every level both.
+fn depth_buffer(w: u32, h: u32, seed: u64) -> Vec<f32> {
+    let mut state = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    (0..w * h)
+        .map(|i| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let (x, y) = (i % w, i / w);
+            if (x + 3 * y) % 11 == 0 {
+                1.0
+            } else {
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            }
+        })
+        .collect()
+}
+
+/// The first texel where `got` and `want` differ in bits, with both values.
+fn first_bit_difference(got: &[f32], want: &[f32]) -> Option<(usize, f32, f32)> {
+    got.iter()
+        .zip(want)
+        .enumerate()
+        .find(|(_, (g, w))| g.to_bits() != w.to_bits())
+        .map(|(i, (g, w))| (i, *g, *w))
+}
+
+/// The largest absolute difference of two pyramids' texels.
+fn max_abs_diff(got: &[f32], want: &[f32]) -> f32 {
+    got.iter()
+        .zip(want)
+        .map(|(g, w)| (g - w).abs())
+        .fold(0.0, f32::max)
+}
+
+/// From the same depth buffer the GPU's pyramid equals the reference's bit for bit, at every
+/// size of [`PYRAMID_SIZES`].
+#[test]
+fn pyramid_equals_the_reference_bit_for_bit() {
+    let Some(ctx) = gpu_context() else { return };
+    let mut failures = Vec::new();
+    let mut max_diff = 0.0f32;
+    for (w, h) in PYRAMID_SIZES {
+        for seed in 0..2 {
+            let depth = depth_buffer(w, h, seed);
+            let want = Pyramid::build(&depth, w, h);
+            let got = GpuPyramid::of_depth(ctx, &depth, w, h).expect("GPU pyramid");
+            assert_eq!(got.len(), want.texels.len(), "{w}x{h}: texel count");
+            max_diff = max_diff.max(max_abs_diff(&got, &want.texels));
+            if let Some((i, g, r)) = first_bit_difference(&got, &want.texels) {
+                failures.push(format!(
+                    "{w}x{h} seed {seed}: texel {i} is {g} on the GPU, {r} on the reference"
+                ));
+            }
+        }
+    }
+    println!(
+        "pyramid parity: {} sizes x 2 buffers, max |GPU - reference| = {max_diff}",
+        PYRAMID_SIZES.len()
+    );
+    assert_no_failures("pyramid parity", &failures);
+}
+
+/// A scene's draw buffers and the reference's textures on the GPU.
+struct Uploaded {
+    scene: DrawScene,
+    textures: DrawTextures,
+}
+
+fn upload(ctx: &GpuContext, prepared: &Prepared) -> Uploaded {
+    let data = DrawSceneData::new(prepared);
+    let scene = DrawScene::new(ctx, &data.desc(prepared)).expect("draw scene");
+    let (mesh, billboards) = upload_reference_textures(ctx, prepared).expect("textures");
+    Uploaded {
+        textures: DrawTextures::new(&mesh, &billboards).expect("draw textures"),
+        scene,
+    }
+}
+
+/// The pyramid `pyramid.wgsl` builds from a depth target the GPU drew (level 0 read from the
+/// `Depth32Float` texture, not from values given) equals the reference's pyramid of that target
+/// read back, bit for bit.
+#[test]
+fn pyramid_of_a_drawn_depth_target_equals_the_reference() {
+    let Some(ctx) = gpu_context() else { return };
+    let scene = cropped_synthetic(300.0);
+    let params = crop_params(FadeMode::DitherSequential);
+    let prepared = prepare(scene.clone(), &params).expect("prepare");
+    let up = upload(ctx, &prepared);
+    let draw = gpu_draw(ctx);
+    let mut failures = Vec::new();
+    for (w, h) in [(333, 187), (64, 48), (1, 7)] {
+        let camera = named_camera("close", &scene, 0.0, w, h).expect("camera");
+        let frame = prepared.render(&camera, &params).expect("reference frame");
+        let selection = SelectBuffers::from_cpu(
+            ctx,
+            &frame.selection.commands,
+            &frame.selection.data,
+            &frame.selection.counters,
+        )
+        .expect("selection");
+        let target = DrawTarget::new(ctx, w, h).expect("target");
+        let inputs = DrawInputs {
+            scene: &up.scene,
+            textures: &up.textures,
+            selection: &selection,
+            indirection: None,
+        };
+        draw.render(ctx, &inputs, &camera, &params, &target)
+            .expect("draw");
+        let pyramid = GpuPyramid::new(ctx, w, h).expect("pyramid");
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        pyramid.encode_from_depth(ctx, &mut encoder, target.depth_texture());
+        ctx.queue.submit([encoder.finish()]);
+        let got = pyramid.read(ctx).expect("read pyramid");
+        let depth = target.read(ctx).expect("read target").depth;
+        let want = Pyramid::build(&depth, w, h);
+        let sky = depth.iter().filter(|&&d| d == 1.0).count();
+        println!(
+            "drawn {w}x{h}: {} of {} pixels sky, max |GPU - reference| = {}",
+            sky,
+            depth.len(),
+            max_abs_diff(&got, &want.texels)
+        );
+        if let Some((i, g, r)) = first_bit_difference(&got, &want.texels) {
+            failures.push(format!("{w}x{h}: texel {i} is {g} on the GPU, {r} on the reference"));
+        }
+    }
+    assert_no_failures("pyramid of a drawn target", &failures);
+}
+
+/// One configuration of the frame: its name and parameters (on top of the scene's), and whether
+/// the scene is prepared with a hierarchy.
+struct Config {
+    name: &'static str,
+    apply: fn(&mut Params),
+}
+
+/// Grid, `refine` `lod0` and `all`, and octree with front-to-back commands (module docs).
+const CONFIGS: [Config; 4] = [
+    Config {
+        name: "grid",
+        apply: |_| {},
+    },
+    Config {
+        name: "refine-lod0",
+        apply: |p| p.tree_cull = TreeCull::Lod0 as u32,
+    },
+    Config {
+        name: "refine-all",
+        apply: |p| p.tree_cull = TreeCull::All as u32,
+    },
+    Config {
+        name: "octree-front-to-back",
+        apply: |p| {
+            p.hierarchy = Hierarchy::Octree as u32;
+            p.command_order = CommandOrder::FrontToBack as u32;
+        },
+    },
+];
+
+/// A camera path: `frames` cameras of `size`, from the crop's named camera `name`, each 3 m
+/// further along its view and 1.5 m to the side (the motion a path's frames have).
+fn path(scene: &forestlod_reference::scene::Scene, name: &str, size: (u32, u32), frames: usize) -> Vec<Camera> {
+    let first = named_camera(name, scene, 0.0, size.0, size.1).expect("camera");
+    (0..frames)
+        .map(|k| {
+            let mut c = first;
+            let f = c.basis().forward;
+            let r = c.basis().right;
+            for a in 0..3 {
+                c.eye[a] += k as f32 * (3.0 * f[a] + 1.5 * r[a]);
+            }
+            c
+        })
+        .collect()
+}
+
+/// The multiset difference size of two tree lists (trees in one and not the other, counted with
+/// multiplicity): how many decisions made them differ.
+fn list_difference(a: &[u32], b: &[u32]) -> u64 {
+    let (mut a, mut b) = (a.to_vec(), b.to_vec());
+    a.sort_unstable();
+    b.sort_unstable();
+    let (mut i, mut j, mut d) = (0, 0, 0u64);
+    while i < a.len() && j < b.len() {
+        match a[i].cmp(&b[j]) {
+            std::cmp::Ordering::Equal => {
+                i += 1;
+                j += 1;
+            }
+            std::cmp::Ordering::Less => {
+                d += 1;
+                i += 1;
+            }
+            std::cmp::Ordering::Greater => {
+                d += 1;
+                j += 1;
+            }
+        }
+    }
+    d + (a.len() - i + b.len() - j) as u64
+}
+
+/// Per command of a phase, the reference's and the GPU's lists: `(differing decisions, whether
+/// any list or command differs)`.
+fn compare_phase(
+    what: &str,
+    got: &GpuOccluded,
+    got_sel: &[forestlod_shared::DrawCommand],
+    want_sel: &Selection,
+    want_ind: &[u32],
+    notes: &mut Vec<String>,
+) -> u64 {
+    let mut differing = 0;
+    assert_eq!(got_sel.len(), want_sel.commands.len(), "{what}: command count");
+    for (i, (g, w)) in got_sel.iter().zip(&want_sel.commands).enumerate() {
+        let range = |c: &forestlod_shared::DrawCommand, ind: &[u32]| {
+            ind[c.first_instance as usize..(c.first_instance + c.instance_count) as usize].to_vec()
+        };
+        assert_eq!(g.first_instance, w.first_instance, "{what}: command {i}'s slot");
+        let (gl, wl) = (range(g, &got.indirection), range(w, want_ind));
+        if gl != wl || (g.index_count, g.base_vertex) != (w.index_count, w.base_vertex) {
+            let d = list_difference(&gl, &wl);
+            if d == 0 && notes.len() < 8 {
+                notes.push(format!("{what}: command {i}: same trees, another order"));
+            }
+            differing += d.max(1);
+        }
+    }
+    differing
+}
+
+/// Tallies of the stage parity.
+#[derive(Default)]
+struct Tally {
+    frames: u32,
+    exact_frames: u32,
+    counters: OcclusionCounters,
+    differing: u64,
+}
+
+/// The GPU `occlude` stage, fed the reference's selection, indirection and early depth, equals
+/// the reference's `occlude_early` / `occlude_late` (module docs): for both modes, every
+/// configuration, two fade modes (a dithered one: every command may occlude; `alpha`: the fading
+/// commands may not), two-frame paths (the second frame's `two-phase` early pass reads the
+/// history the first wrote, on each side its own).
+#[test]
+fn occlude_equals_the_reference() {
+    let Some(ctx) = gpu_context() else { return };
+    let scene = cropped_synthetic(300.0);
+    let mut failures = Vec::new();
+    let mut notes = Vec::new();
+    let mut tally = Tally::default();
+    for config in &CONFIGS {
+        let mut base = crop_params(FadeMode::DitherSequential);
+        base.occluder_depth = 150.0;
+        (config.apply)(&mut base);
+        let prepared = prepare(scene.clone(), &base).expect("prepare");
+        let footprints = occlusion_footprints(&prepared);
+        for fade in [FadeMode::DitherSequential, FadeMode::Alpha] {
+            for mode in [Occlusion::Single, Occlusion::TwoPhase] {
+                for (camera_name, size) in [("close", (96, 64)), ("medium", (75, 61))] {
+                    let params = Params {
+                        fade_mode: fade as u32,
+                        occlusion: mode as u32,
+                        ..base
+                    };
+                    let mut occlude = GpuOcclude::new(ctx, &footprints).expect("occlude");
+                    let pyramid = GpuPyramid::new(ctx, size.0, size.1).expect("pyramid");
+                    let mut history: Vec<u32> = Vec::new();
+                    for (k, camera) in path(&scene, camera_name, size, 2).iter().enumerate() {
+                        let name = format!(
+                            "{}/{}/{}/{camera_name}/frame {k}",
+                            config.name,
+                            fade.name(),
+                            mode.name()
+                        );
+                        let frame = prepared
+                            .render_with_history(camera, &params, &history)
+                            .expect("reference frame");
+                        let got = gpu_occlude(ctx, &prepared, &frame, &mut occlude, &pyramid, camera, &params);
+                        let occ = frame.occlusion.as_ref().expect("occlusion ran");
+                        let mut differing = compare_phase(
+                            &format!("{name} early"),
+                            &got,
+                            &got.early.commands,
+                            &occ.early,
+                            &occ.indirection,
+                            &mut notes,
+                        );
+                        differing += compare_phase(
+                            &format!("{name} late"),
+                            &got,
+                            &got.late.commands,
+                            &occ.late,
+                            &occ.indirection,
+                            &mut notes,
+                        );
+                        let visible_differ = got
+                            .visible
+                            .iter()
+                            .zip(&occ.visible)
+                            .filter(|(g, w)| g != w)
+                            .count() as u64;
+                        tally.frames += 1;
+                        let c = occ.counters;
+                        tally.counters.tested += c.tested;
+                        tally.counters.occluded += c.occluded;
+                        tally.counters.early += c.early;
+                        tally.counters.late += c.late;
+                        tally.counters.offscreen += c.offscreen;
+                        tally.counters.unbounded += c.unbounded;
+                        if differing == 0 && visible_differ == 0 {
+                            tally.exact_frames += 1;
+                            if got.counters != c {
+                                failures.push(format!(
+                                    "{name}: same lists, counters differ: GPU {:?}, reference {c:?}",
+                                    got.counters
+                                ));
+                            }
+                        } else {
+                            notes.push(format!(
+                                "{name}: {differing} list decisions and {visible_differ} history \
+                                 entries differ (counters GPU {:?}, reference {c:?})",
+                                got.counters
+                            ));
+                            tally.differing += differing + visible_differ;
+                        }
+                        history = occ.visible.clone();
+                    }
+                }
+            }
+        }
+    }
+    for n in &notes {
+        println!("  {n}");
+    }
+    let budget = (u64::from(tally.counters.tested) * DECISION_BUDGET_PER_MILLE).div_ceil(1000);
+    println!(
+        "occlude parity: {} frames ({} exact), {} trees tested, {} occluded, {} early, {} late, \
+         {} offscreen, {} unbounded; {} differing decisions (budget {budget})",
+        tally.frames,
+        tally.exact_frames,
+        tally.counters.tested,
+        tally.counters.occluded,
+        tally.counters.early,
+        tally.counters.late,
+        tally.counters.offscreen,
+        tally.counters.unbounded,
+        tally.differing,
+    );
+    assert!(tally.counters.occluded > 0, "no tree was occluded: the cases test nothing");
+    assert!(tally.counters.early > 0, "no early tree: the cases test nothing");
+    if tally.differing > budget {
+        failures.push(format!(
+            "{} differing decisions over a budget of {budget} ({} per mille of {} tested)",
+            tally.differing, DECISION_BUDGET_PER_MILLE, tally.counters.tested
+        ));
+    }
+    assert_no_failures("occlude parity", &failures);
+}
+
+/// Runs the GPU's early split, the pyramid of the reference's early depth and the late test on
+/// the reference's selection of `frame`; reads the result back.
+fn gpu_occlude(
+    ctx: &GpuContext,
+    prepared: &Prepared,
+    frame: &Frame,
+    occlude: &mut GpuOcclude,
+    pyramid: &GpuPyramid,
+    camera: &Camera,
+    params: &Params,
+) -> GpuOccluded {
+    let sel = &frame.selection;
+    let selection = SelectBuffers::from_cpu(ctx, &sel.commands, &sel.data, &sel.counters)
+        .expect("selection");
+    let indirection = frame.indirection(prepared);
+    let input = upload_storage(ctx, "occlude input", indirection, wgpu::BufferUsages::empty());
+    let occ = frame.occlusion.as_ref().expect("occlusion ran");
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    occlude
+        .encode_early(
+            &mut encoder,
+            &selection,
+            &input,
+            indirection.len() as u32,
+            camera,
+            params,
+        )
+        .expect("early");
+    pyramid
+        .encode_from_values(ctx, &mut encoder, &occ.pyramid.texels[..w * h])
+        .expect("pyramid");
+    occlude
+        .encode_late(&mut encoder, &selection, pyramid, camera, params)
+        .expect("late");
+    ctx.queue.submit([encoder.finish()]);
+    occlude.read(&selection).expect("read occlude")
+}
+
+/// Pixels where two frames differ in colour, depth bits or LOD id.
+fn differing_pixels(a: &Images, b: &Images) -> usize {
+    (0..a.color.len())
+        .filter(|&i| {
+            a.color[i] != b.color[i]
+                || a.depth[i].to_bits() != b.depth[i].to_bits()
+                || a.lod_id[i] != b.lod_id[i]
+        })
+        .count()
+}
+
+/// The GPU frame with occlusion culling (module docs): against the GPU frame without it
+/// (bit-identical in the dithered modes and `none` but for [`DEPTH_TIE_BUDGET`] depth ties per
+/// frame; counted under `alpha`), and against the reference's frame with occlusion culling
+/// (`image_compare`'s tolerances), for `single` and a three-frame `two-phase` path, every
+/// configuration.
+#[test]
+fn frames_with_occlusion_culling_equal_frames_without() {
+    let Some(ctx) = gpu_context() else { return };
+    let scene = cropped_synthetic(300.0);
+    let mut failures = Vec::new();
+    let mut max: MaxDiffs = Default::default();
+    let (mut max_dithered, mut alpha_pixels, mut frames) = (0usize, 0usize, 0u32);
+    let mut counters = OcclusionCounters::default();
+    for config in &CONFIGS {
+        let mut base = crop_params(FadeMode::DitherSequential);
+        base.occluder_depth = 150.0;
+        (config.apply)(&mut base);
+        let prepared = prepare(scene.clone(), &base).expect("prepare");
+        let mut gpu = GpuScene::new(ctx, &prepared, &base, StagesFromCpu::parse("textures").unwrap())
+            .expect("GPU scene");
+        for fade in [FadeMode::DitherSequential, FadeMode::None, FadeMode::Alpha] {
+            for mode in [Occlusion::Single, Occlusion::TwoPhase] {
+                let frames_of_path = if mode == Occlusion::TwoPhase { 3 } else { 1 };
+                let off = Params {
+                    fade_mode: fade as u32,
+                    ..base
+                };
+                let on = Params {
+                    occlusion: mode as u32,
+                    ..off
+                };
+                gpu.reset_history();
+                let mut history: Vec<u32> = Vec::new();
+                for (k, camera) in path(&scene, "close", (96, 72), frames_of_path).iter().enumerate() {
+                    let name = format!("{}/{}/{}/frame {k}", config.name, fade.name(), mode.name());
+                    let pipeline = GpuPipeline::Ours(Compaction::Stable);
+                    let without = gpu.render(&prepared, pipeline, camera, &off).expect("off").images;
+                    let with = gpu.render(&prepared, pipeline, camera, &on).expect("on");
+                    let c = with.occlusion.expect("counters");
+                    counters.tested += c.tested;
+                    counters.occluded += c.occluded;
+                    counters.early += c.early;
+                    counters.late += c.late;
+                    frames += 1;
+                    let d = differing_pixels(&with.images, &without);
+                    if fade == FadeMode::Alpha {
+                        alpha_pixels += d;
+                    } else {
+                        max_dithered = max_dithered.max(d);
+                        if d > DEPTH_TIE_BUDGET {
+                            failures.push(format!(
+                                "{name}: {d} pixels differ from the frame without occlusion \
+                                 culling (budget {DEPTH_TIE_BUDGET})"
+                            ));
+                        }
+                    }
+                    let reference = prepared
+                        .render_with_history(camera, &on, &history)
+                        .expect("reference frame");
+                    if let Some(f) = judge_image(
+                        &name,
+                        &with.images,
+                        &images_of(&reference.drawn.target),
+                        &[],
+                        camera,
+                        &mut max,
+                    ) {
+                        failures.push(f);
+                    }
+                    history = reference.occlusion.as_ref().expect("occlusion").visible.clone();
+                }
+            }
+        }
+    }
+    print_max_diffs("GPU occlusion frames against the reference's", &max);
+    println!(
+        "{frames} frames: {} trees tested, {} occluded, {} early, {} late; at most {max_dithered} \
+         pixels differ from the frame without culling in a dithered mode (budget \
+         {DEPTH_TIE_BUDGET}), {alpha_pixels} pixels under alpha in all",
+        counters.tested, counters.occluded, counters.early, counters.late
+    );
+    assert!(counters.occluded > 0, "no tree was occluded: the frames test nothing");
+    assert_no_failures("occlusion frames", &failures);
+}
