@@ -43,7 +43,9 @@ use forestlod_shared::{
     Camera, DrawCommand, MAX_PYRAMID_LEVELS, OcclusionCounters, Params, SelectCounters,
 };
 
-use crate::context::{Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines};
+use crate::context::{
+    Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines,
+};
 use crate::pyramid::{GpuPyramid, level_vec};
 use crate::readback::{read_buffer, stage_uniform, upload_storage, zeroed_buffer};
 use crate::shaders::{StageSource, WgslFile, wgsl_constants};
@@ -342,7 +344,9 @@ impl<'a> GpuOcclude<'a> {
         self.ctx.check_storage_binding(
             bytes,
             "indirection length",
-            |max| format!("{m} entries: a 5m list buffer of {bytes} bytes, over the device's {max}"),
+            |max| {
+                format!("{m} entries: a 5m list buffer of {bytes} bytes, over the device's {max}")
+            },
             "occlude.wgsl's lists must fit one storage binding",
         )?;
         use wgpu::BufferUsages as U;
@@ -363,8 +367,16 @@ impl<'a> GpuOcclude<'a> {
                 bytes,
                 U::STORAGE | U::COPY_SRC | U::COPY_DST,
             ),
-            chunk_counts: zeroed_buffer(self.ctx, "occlude chunk counts", 4 * 4 * u64::from(m), U::STORAGE),
-            commands: [commands("occlude early commands"), commands("occlude late commands")],
+            chunk_counts: zeroed_buffer(
+                self.ctx,
+                "occlude chunk counts",
+                4 * 4 * u64::from(m),
+                U::STORAGE,
+            ),
+            commands: [
+                commands("occlude early commands"),
+                commands("occlude late commands"),
+            ],
         });
         Ok(())
     }
@@ -380,11 +392,9 @@ impl<'a> GpuOcclude<'a> {
     ) {
         let phase = uniform.phase as usize;
         let lists = self.lists.as_ref().expect("ensure_lists ran");
-        self.ctx.queue.write_buffer(
-            &self.uniforms[phase],
-            0,
-            bytemuck::bytes_of(uniform),
-        );
+        self.ctx
+            .queue
+            .write_buffer(&self.uniforms[phase], 0, bytemuck::bytes_of(uniform));
         encoder.copy_buffer_to_buffer(
             &selection.commands,
             0,
@@ -434,7 +444,11 @@ impl<'a> GpuOcclude<'a> {
         let indirect = Dispatch::Indirect(&self.dispatch_args);
         compute_pass(
             encoder,
-            if phase == 0 { "occlude early" } else { "occlude late" },
+            if phase == 0 {
+                "occlude early"
+            } else {
+                "occlude late"
+            },
             &bind_group,
             &[
                 (&pipelines.count, indirect),
@@ -512,7 +526,12 @@ impl<'a> GpuOcclude<'a> {
         if pyramid.size() != (camera.width, camera.height) {
             return Err(GpuError::Input {
                 field: "pyramid size",
-                value: format!("{:?} for a {}x{} camera", pyramid.size(), camera.width, camera.height),
+                value: format!(
+                    "{:?} for a {}x{} camera",
+                    pyramid.size(),
+                    camera.width,
+                    camera.height
+                ),
                 reason: "expected the pyramid of the camera's target",
             });
         }

@@ -399,8 +399,7 @@ impl<'a> GpuScene<'a> {
                 }
                 if occlusion != Occlusion::Off {
                     if self.occlude.is_none() {
-                        self.occlude =
-                            Some(GpuOcclude::new(ctx, &occlusion_footprints(prepared))?);
+                        self.occlude = Some(GpuOcclude::new(ctx, &occlusion_footprints(prepared))?);
                     }
                     if let std::collections::hash_map::Entry::Vacant(slot) =
                         self.pyramids.entry(key)
@@ -497,14 +496,17 @@ impl<'a> GpuScene<'a> {
                             .as_ref()
                             .or(refine_indirection)
                             .unwrap_or(scene_indirection);
-                        occlude.as_deref_mut().expect("created above").encode_early(
-                            &mut encoder,
-                            chain.buffers(),
-                            input,
-                            m,
-                            camera,
-                            params,
-                        )?;
+                        occlude
+                            .as_deref_mut()
+                            .expect("created above")
+                            .encode_early(
+                                &mut encoder,
+                                chain.buffers(),
+                                input,
+                                m,
+                                camera,
+                                params,
+                            )?;
                     }
                 }
                 GpuPipeline::Vegetation | GpuPipeline::Primitive => cull
@@ -535,22 +537,33 @@ impl<'a> GpuScene<'a> {
             let mut encoder = begin("frame draw", 2);
             let calls = match pipeline {
                 GpuPipeline::Ours(_) | GpuPipeline::Vegetation => {
-                    if let (GpuPipeline::Ours(_), Some(occlude)) =
-                        (pipeline, occlude.as_deref_mut().filter(|_| occlusion != Occlusion::Off))
-                    {
+                    if let (GpuPipeline::Ours(_), Some(occlude)) = (
+                        pipeline,
+                        occlude
+                            .as_deref_mut()
+                            .filter(|_| occlusion != Occlusion::Off),
+                    ) {
                         // Issue 31: early pass (cleared, ground first), the pyramid of its
                         // depth, the late test, the late pass loading the same targets.
                         let selection = chain.expect("ours has a chain").buffers();
-                        let (early, late) =
-                            (occlude.early_buffers(selection), occlude.late_buffers(selection));
+                        let (early, late) = (
+                            occlude.early_buffers(selection),
+                            occlude.late_buffers(selection),
+                        );
                         let inputs = |selection| DrawInputs {
                             scene,
                             textures,
                             selection,
                             indirection: Some(occlude.indirection()),
                         };
-                        let calls =
-                            draw.encode(ctx, &mut encoder, &inputs(&early), camera, params, target)?;
+                        let calls = draw.encode(
+                            ctx,
+                            &mut encoder,
+                            &inputs(&early),
+                            camera,
+                            params,
+                            target,
+                        )?;
                         let pyramid = pyramid.expect("created above");
                         pyramid.encode_from_depth(ctx, &mut encoder, target.depth_texture());
                         occlude.encode_late(&mut encoder, selection, pyramid, camera, params)?;

@@ -23,6 +23,7 @@ use forestlod_gpu::{
     Compaction, DrawInputs, DrawScene, DrawTextures, GpuContext, GpuOcclude, GpuOccluded,
     GpuPyramid, SelectBuffers,
 };
+use forestlod_harness::alternatives::alpha_test_alternatives;
 use forestlod_harness::bridge::{DrawSceneData, occlusion_footprints, upload_reference_textures};
 use forestlod_harness::context::gpu_context;
 use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, StagesFromCpu, gpu_draw};
@@ -40,14 +41,8 @@ use forestlod_tests::scenarios::{crop_params, cropped_synthetic};
 
 /// The sizes the pyramid is checked at: one pixel, one column, odd both ways, the sweeps' small
 /// frame, odd and non-power-of-two, and the sweeps' large frame.
-const PYRAMID_SIZES: [(u32, u32); 6] = [
-    (1, 1),
-    (1, 7),
-    (5, 3),
-    (320, 180),
-    (333, 187),
-    (1280, 720),
-];
+const PYRAMID_SIZES: [(u32, u32); 6] =
+    [(1, 1), (1, 7), (5, 3), (320, 180), (333, 187), (1280, 720)];
 
 /// Late decisions of the GPU that may differ from the reference's, per thousand trees tested,
 /// over the whole run. A tree's decision compares its nearest corner depth (a perspective
@@ -72,7 +67,9 @@ const DEPTH_TIE_BUDGET: usize = 8;
 /// A deterministic depth buffer of `w x h`: sky (1.0) in a band of rows and columns, random
 /// depths in `[0, 1)` elsewhere, a pattern that gives every block of every level both.
 fn depth_buffer(w: u32, h: u32, seed: u64) -> Vec<f32> {
-    let mut state = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let mut state = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
     (0..w * h)
         .map(|i| {
             state = state
@@ -195,7 +192,9 @@ fn pyramid_of_a_drawn_depth_target_equals_the_reference() {
             max_abs_diff(&got, &want.texels)
         );
         if let Some((i, g, r)) = first_bit_difference(&got, &want.texels) {
-            failures.push(format!("{w}x{h}: texel {i} is {g} on the GPU, {r} on the reference"));
+            failures.push(format!(
+                "{w}x{h}: texel {i} is {g} on the GPU, {r} on the reference"
+            ));
         }
     }
     assert_no_failures("pyramid of a drawn target", &failures);
@@ -231,15 +230,33 @@ const CONFIGS: [Config; 4] = [
     },
 ];
 
-/// A camera path: `frames` cameras of `size`, from the crop's named camera `name`, each 3 m
-/// further along its view and 1.5 m to the side (the motion a path's frames have).
-fn path(scene: &forestlod_reference::scene::Scene, name: &str, size: (u32, u32), frames: usize) -> Vec<Camera> {
-    let first = named_camera(name, scene, 0.0, size.0, size.1).expect("camera");
+/// A camera path through the crop at tree height, where trees hide each other: `frames` cameras
+/// of `size`, the first `back` metres west of the crop's centre, 4 m above the trees' mean base,
+/// looking east (yawed by `yaw` degrees), each next one 3 m further along its view and 1.5 m to
+/// its side (the motion a path's frames have).
+fn path(
+    scene: &forestlod_reference::scene::Scene,
+    (back, yaw): (f32, f32),
+    size: (u32, u32),
+    frames: usize,
+) -> Vec<Camera> {
+    let [x0, y0, x1, y1] = scene.bounds;
+    let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
+    let n = scene.instances.len().max(1) as f32;
+    let z = scene.instances.iter().map(|t| t.position[2]).sum::<f32>() / n + 4.0;
+    let eye = [cx - back, cy, z];
+    let yaw = yaw.to_radians();
+    let first = Camera::look_at(
+        eye,
+        [eye[0] + yaw.cos(), eye[1] + yaw.sin(), z],
+        60.0,
+        size.0,
+        size.1,
+    );
     (0..frames)
         .map(|k| {
             let mut c = first;
-            let f = c.basis().forward;
-            let r = c.basis().right;
+            let (f, r) = (c.basis().forward, c.basis().right);
             for a in 0..3 {
                 c.eye[a] += k as f32 * (3.0 * f[a] + 1.5 * r[a]);
             }
@@ -285,12 +302,19 @@ fn compare_phase(
     notes: &mut Vec<String>,
 ) -> u64 {
     let mut differing = 0;
-    assert_eq!(got_sel.len(), want_sel.commands.len(), "{what}: command count");
+    assert_eq!(
+        got_sel.len(),
+        want_sel.commands.len(),
+        "{what}: command count"
+    );
     for (i, (g, w)) in got_sel.iter().zip(&want_sel.commands).enumerate() {
         let range = |c: &forestlod_shared::DrawCommand, ind: &[u32]| {
             ind[c.first_instance as usize..(c.first_instance + c.instance_count) as usize].to_vec()
         };
-        assert_eq!(g.first_instance, w.first_instance, "{what}: command {i}'s slot");
+        assert_eq!(
+            g.first_instance, w.first_instance,
+            "{what}: command {i}'s slot"
+        );
         let (gl, wl) = (range(g, &got.indirection), range(w, want_ind));
         if gl != wl || (g.index_count, g.base_vertex) != (w.index_count, w.base_vertex) {
             let d = list_difference(&gl, &wl);
@@ -332,7 +356,7 @@ fn occlude_equals_the_reference() {
         let footprints = occlusion_footprints(&prepared);
         for fade in [FadeMode::DitherSequential, FadeMode::Alpha] {
             for mode in [Occlusion::Single, Occlusion::TwoPhase] {
-                for (camera_name, size) in [("close", (96, 64)), ("medium", (75, 61))] {
+                for (view, size) in [((250.0, 0.0), (96, 64)), ((120.0, 25.0), (75, 61))] {
                     let params = Params {
                         fade_mode: fade as u32,
                         occlusion: mode as u32,
@@ -341,9 +365,9 @@ fn occlude_equals_the_reference() {
                     let mut occlude = GpuOcclude::new(ctx, &footprints).expect("occlude");
                     let pyramid = GpuPyramid::new(ctx, size.0, size.1).expect("pyramid");
                     let mut history: Vec<u32> = Vec::new();
-                    for (k, camera) in path(&scene, camera_name, size, 2).iter().enumerate() {
+                    for (k, camera) in path(&scene, view, size, 2).iter().enumerate() {
                         let name = format!(
-                            "{}/{}/{}/{camera_name}/frame {k}",
+                            "{}/{}/{}/{view:?}/frame {k}",
                             config.name,
                             fade.name(),
                             mode.name()
@@ -351,7 +375,15 @@ fn occlude_equals_the_reference() {
                         let frame = prepared
                             .render_with_history(camera, &params, &history)
                             .expect("reference frame");
-                        let got = gpu_occlude(ctx, &prepared, &frame, &mut occlude, &pyramid, camera, &params);
+                        let got = gpu_occlude(
+                            ctx,
+                            &prepared,
+                            &frame,
+                            &mut occlude,
+                            &pyramid,
+                            camera,
+                            &params,
+                        );
                         let occ = frame.occlusion.as_ref().expect("occlusion ran");
                         let mut differing = compare_phase(
                             &format!("{name} early"),
@@ -422,8 +454,14 @@ fn occlude_equals_the_reference() {
         tally.counters.unbounded,
         tally.differing,
     );
-    assert!(tally.counters.occluded > 0, "no tree was occluded: the cases test nothing");
-    assert!(tally.counters.early > 0, "no early tree: the cases test nothing");
+    assert!(
+        tally.counters.occluded > 0,
+        "no tree was occluded: the cases test nothing"
+    );
+    assert!(
+        tally.counters.early > 0,
+        "no early tree: the cases test nothing"
+    );
     if tally.differing > budget {
         failures.push(format!(
             "{} differing decisions over a budget of {budget} ({} per mille of {} tested)",
@@ -445,10 +483,15 @@ fn gpu_occlude(
     params: &Params,
 ) -> GpuOccluded {
     let sel = &frame.selection;
-    let selection = SelectBuffers::from_cpu(ctx, &sel.commands, &sel.data, &sel.counters)
-        .expect("selection");
+    let selection =
+        SelectBuffers::from_cpu(ctx, &sel.commands, &sel.data, &sel.counters).expect("selection");
     let indirection = frame.indirection(prepared);
-    let input = upload_storage(ctx, "occlude input", indirection, wgpu::BufferUsages::empty());
+    let input = upload_storage(
+        ctx,
+        "occlude input",
+        indirection,
+        wgpu::BufferUsages::empty(),
+    );
     let occ = frame.occlusion.as_ref().expect("occlusion ran");
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
@@ -496,13 +539,20 @@ fn frames_with_occlusion_culling_equal_frames_without() {
     let mut max: MaxDiffs = Default::default();
     let (mut max_dithered, mut alpha_pixels, mut frames) = (0usize, 0usize, 0u32);
     let mut counters = OcclusionCounters::default();
+    // Frames whose judge against the reference fails as the same frame without culling does.
+    let mut draw_failures = Vec::new();
     for config in &CONFIGS {
         let mut base = crop_params(FadeMode::DitherSequential);
         base.occluder_depth = 150.0;
         (config.apply)(&mut base);
         let prepared = prepare(scene.clone(), &base).expect("prepare");
-        let mut gpu = GpuScene::new(ctx, &prepared, &base, StagesFromCpu::parse("textures").unwrap())
-            .expect("GPU scene");
+        let mut gpu = GpuScene::new(
+            ctx,
+            &prepared,
+            &base,
+            StagesFromCpu::parse("textures").unwrap(),
+        )
+        .expect("GPU scene");
         for fade in [FadeMode::DitherSequential, FadeMode::None, FadeMode::Alpha] {
             for mode in [Occlusion::Single, Occlusion::TwoPhase] {
                 let frames_of_path = if mode == Occlusion::TwoPhase { 3 } else { 1 };
@@ -514,56 +564,109 @@ fn frames_with_occlusion_culling_equal_frames_without() {
                     occlusion: mode as u32,
                     ..off
                 };
-                gpu.reset_history();
-                let mut history: Vec<u32> = Vec::new();
-                for (k, camera) in path(&scene, "close", (96, 72), frames_of_path).iter().enumerate() {
-                    let name = format!("{}/{}/{}/frame {k}", config.name, fade.name(), mode.name());
-                    let pipeline = GpuPipeline::Ours(Compaction::Stable);
-                    let without = gpu.render(&prepared, pipeline, camera, &off).expect("off").images;
-                    let with = gpu.render(&prepared, pipeline, camera, &on).expect("on");
-                    let c = with.occlusion.expect("counters");
-                    counters.tested += c.tested;
-                    counters.occluded += c.occluded;
-                    counters.early += c.early;
-                    counters.late += c.late;
-                    frames += 1;
-                    let d = differing_pixels(&with.images, &without);
-                    if fade == FadeMode::Alpha {
-                        alpha_pixels += d;
-                    } else {
-                        max_dithered = max_dithered.max(d);
-                        if d > DEPTH_TIE_BUDGET {
-                            failures.push(format!(
-                                "{name}: {d} pixels differ from the frame without occlusion \
+                // The dense view at tree height (heavy occlusion), and `parity::draw`'s close
+                // view of the crop (where the draw's judge passes without culling).
+                let named = named_camera("close", &scene, 0.0, 96, 72).expect("camera");
+                let views = [
+                    (
+                        "ground",
+                        path(&scene, (120.0, 25.0), (96, 72), frames_of_path),
+                    ),
+                    ("close", vec![named; frames_of_path]),
+                ];
+                for (view, cameras) in &views {
+                    gpu.reset_history();
+                    let mut history: Vec<u32> = Vec::new();
+                    for (k, camera) in cameras.iter().enumerate() {
+                        let name = format!(
+                            "{}/{}/{}/{view}/frame {k}",
+                            config.name,
+                            fade.name(),
+                            mode.name()
+                        );
+                        let pipeline = GpuPipeline::Ours(Compaction::Stable);
+                        let without = gpu
+                            .render(&prepared, pipeline, camera, &off)
+                            .expect("off")
+                            .images;
+                        let with = gpu.render(&prepared, pipeline, camera, &on).expect("on");
+                        let c = with.occlusion.expect("counters");
+                        counters.tested += c.tested;
+                        counters.occluded += c.occluded;
+                        counters.early += c.early;
+                        counters.late += c.late;
+                        frames += 1;
+                        let d = differing_pixels(&with.images, &without);
+                        if fade == FadeMode::Alpha {
+                            alpha_pixels += d;
+                        } else {
+                            max_dithered = max_dithered.max(d);
+                            if d > DEPTH_TIE_BUDGET {
+                                failures.push(format!(
+                                    "{name}: {d} pixels differ from the frame without occlusion \
                                  culling (budget {DEPTH_TIE_BUDGET})"
+                                ));
+                            }
+                        }
+                        let reference = prepared
+                            .render_with_history(camera, &on, &history)
+                            .expect("reference frame");
+                        let ref_occ = reference.occlusion.as_ref().expect("occlusion");
+                        if c != ref_occ.counters {
+                            failures.push(format!(
+                                "{name}: GPU counters {c:?}, reference {:?}",
+                                ref_occ.counters
                             ));
                         }
+                        // The reference's frame with culling equals its frame without
+                        // (`properties/occlusion_properties.rs`), so the alternatives of the latter
+                        // classify the GPU's near-threshold pixels as for any frame.
+                        let alternatives = alpha_test_alternatives(&prepared, camera, &off);
+                        let want = images_of(&reference.drawn.target);
+                        if let Some(f) =
+                            judge_image(&name, &with.images, &want, &alternatives, camera, &mut max)
+                        {
+                            // The same judge of the frames without culling: a failure there too is
+                            // the draw's (this view is denser than `parity::draw`'s), not culling's.
+                            let plain = prepared.render(camera, &off).expect("reference frame");
+                            let mut ignored = MaxDiffs::default();
+                            let plain_judged = judge_image(
+                                &format!("{name} without culling"),
+                                &without,
+                                &images_of(&plain.drawn.target),
+                                &alternatives,
+                                camera,
+                                &mut ignored,
+                            );
+                            match plain_judged {
+                                Some(_) => draw_failures.push(f),
+                                None => failures.push(f),
+                            }
+                        }
+                        history = ref_occ.visible.clone();
                     }
-                    let reference = prepared
-                        .render_with_history(camera, &on, &history)
-                        .expect("reference frame");
-                    if let Some(f) = judge_image(
-                        &name,
-                        &with.images,
-                        &images_of(&reference.drawn.target),
-                        &[],
-                        camera,
-                        &mut max,
-                    ) {
-                        failures.push(f);
-                    }
-                    history = reference.occlusion.as_ref().expect("occlusion").visible.clone();
                 }
             }
         }
     }
     print_max_diffs("GPU occlusion frames against the reference's", &max);
     println!(
+        "{} frames fail the judge against the reference as their frames without culling do (the \
+         draw stage's, not culling's):",
+        draw_failures.len()
+    );
+    for f in &draw_failures {
+        println!("  {f}");
+    }
+    println!(
         "{frames} frames: {} trees tested, {} occluded, {} early, {} late; at most {max_dithered} \
          pixels differ from the frame without culling in a dithered mode (budget \
          {DEPTH_TIE_BUDGET}), {alpha_pixels} pixels under alpha in all",
         counters.tested, counters.occluded, counters.early, counters.late
     );
-    assert!(counters.occluded > 0, "no tree was occluded: the frames test nothing");
+    assert!(
+        counters.occluded > 0,
+        "no tree was occluded: the frames test nothing"
+    );
     assert_no_failures("occlusion frames", &failures);
 }
