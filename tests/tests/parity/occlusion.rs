@@ -515,6 +515,116 @@ fn gpu_occlude(
     occlude.read(&selection).expect("read occlude")
 }
 
+/// Steps between a tree's nearest depth and the constant pyramid of a knife-edge probe, in
+/// ulps: the GPU's nearest depth is a perspective division of fused or unfused sums, within a few
+/// ulps of the reference's (Vulkan allows 2.5 ulp for the division alone); 4 ulps keeps both
+/// probes on their side of it, and lies well inside `OCCLUSION_Z_SLACK` (16 ulps at depth 1),
+/// so a late test that dropped or doubled the slack falls on the wrong side.
+const KNIFE_EDGE_ULPS: u32 = 4;
+
+/// Knife-edge probes the GPU may decide otherwise than the reference: none. A probe sits
+/// [`KNIFE_EDGE_ULPS`] from the threshold, beyond the GPU's rounding of the nearest depth.
+const KNIFE_EDGE_BUDGET: usize = 0;
+
+/// `x` moved by `steps` ulps (up for positive `steps`), for positive finite `x`.
+fn ulps_from(x: f32, steps: i32) -> f32 {
+    f32::from_bits((x.to_bits() as i64 + i64::from(steps)) as u32)
+}
+
+/// The late test at the knife edge of its depth rule (`forestlod_shared::occluded`): per tree of
+/// a dense view, the pyramid is one constant [`KNIFE_EDGE_ULPS`] behind or in front of the tree's
+/// nearest depth as the reference bounds it (`occlusion_bounds`, with `OCCLUSION_Z_SLACK`); the
+/// GPU keeps the tree exactly when the reference does (the tree passes when the constant is
+/// behind its nearest depth). Mutation-checked: `occlusion_bounds` without the z slack in
+/// `common.wgsl` culls every "behind" probe.
+#[test]
+fn late_decisions_at_the_knife_edge_follow_the_reference() {
+    let Some(ctx) = gpu_context() else { return };
+    let scene = cropped_synthetic(300.0);
+    let params = Params {
+        occlusion: Occlusion::Single as u32,
+        // No occluders: every tree is tested.
+        occluder_depth: 0.0,
+        ..crop_params(FadeMode::DitherSequential)
+    };
+    let prepared = prepare(scene.clone(), &params).expect("prepare");
+    let footprints = occlusion_footprints(&prepared);
+    let camera = path(&scene, (120.0, 25.0), (64, 48), 1)[0];
+    let (w, h) = (camera.width, camera.height);
+    let view_proj = camera.view_projection();
+    let command = forestlod_shared::DrawCommand {
+        index_count: 3,
+        instance_count: 1,
+        first_index: 0,
+        base_vertex: 0,
+        first_instance: 0,
+    };
+    let data: forestlod_shared::CommandData = bytemuck::Zeroable::zeroed();
+    let counters = forestlod_shared::SelectCounters {
+        commands: 1,
+        ..Default::default()
+    };
+    let selection = SelectBuffers::from_cpu(ctx, &[command], &[data], &counters).expect("sel");
+    let mut occlude = GpuOcclude::new(ctx, &footprints).expect("occlude");
+    let pyramid = GpuPyramid::new(ctx, w, h).expect("pyramid");
+    let (mut probes, mut failures) = (0usize, Vec::new());
+    let trees =
+        footprints.iter().enumerate().filter_map(
+            |(t, f)| match forestlod_shared::occlusion_bounds(
+                &view_proj,
+                camera.near,
+                [f[0], f[1], f[2]],
+                f[3],
+                w,
+                h,
+            ) {
+                forestlod_shared::OcclusionBound::Rect(r) if r.z_min > 0.0 && r.z_min < 1.0 => {
+                    Some((t as u32, r))
+                }
+                _ => None,
+            },
+        );
+    for (t, rect) in trees.take(48) {
+        let input = upload_storage(ctx, "knife-edge input", &[t], wgpu::BufferUsages::empty());
+        for steps in [KNIFE_EDGE_ULPS as i32, -(KNIFE_EDGE_ULPS as i32)] {
+            let p = ulps_from(rect.z_min, steps);
+            let want_kept = !forestlod_shared::occluded(&rect, p);
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            occlude
+                .encode_early(&mut encoder, &selection, &input, 1, &camera, &params)
+                .expect("early");
+            pyramid
+                .encode_from_values(ctx, &mut encoder, &vec![p; (w * h) as usize])
+                .expect("pyramid");
+            occlude
+                .encode_late(&mut encoder, &selection, &pyramid, &camera, &params)
+                .expect("late");
+            ctx.queue.submit([encoder.finish()]);
+            let got = occlude.read(&selection).expect("read");
+            let got_kept = got.late.commands[0].instance_count == 1;
+            probes += 1;
+            if got_kept != want_kept {
+                failures.push(format!(
+                    "tree {t}: nearest depth {} (reference), pyramid {p} ({steps:+} ulps): GPU \
+                     {}, reference {}",
+                    rect.z_min,
+                    if got_kept { "keeps" } else { "culls" },
+                    if want_kept { "keeps" } else { "culls" }
+                ));
+            }
+        }
+    }
+    println!(
+        "{probes} knife-edge probes at ±{KNIFE_EDGE_ULPS} ulps: {} decided otherwise than the \
+         reference (budget {KNIFE_EDGE_BUDGET})",
+        failures.len()
+    );
+    assert!(probes >= 32, "too few bounded trees: {probes} probes");
+    if failures.len() > KNIFE_EDGE_BUDGET {
+        assert_no_failures("knife-edge probes", &failures);
+    }
+}
+
 /// Pixels where two frames differ in colour, depth bits or LOD id.
 fn differing_pixels(a: &Images, b: &Images) -> usize {
     (0..a.color.len())
