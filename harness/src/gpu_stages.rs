@@ -18,8 +18,8 @@
 use forestlod_gpu::draw::DrawTarget;
 use forestlod_gpu::readback::{read_buffer, upload_storage};
 use forestlod_gpu::{
-    Compaction, DrawScene, GpuCoalesce, GpuContext, GpuCull, GpuError, GpuHierSelect, GpuProxies,
-    GpuRefine, GpuSelection, PrimitiveInputs, SelectBuffers,
+    Compaction, DrawScene, GpuCoalesce, GpuContext, GpuCull, GpuError, GpuHierSelect, GpuOcclude,
+    GpuProxies, GpuPyramid, GpuRefine, GpuSelection, PrimitiveInputs, SelectBuffers,
 };
 use forestlod_reference::baselines::{tree_spheres, visible_trees};
 use forestlod_reference::frame::SelectionTrace;
@@ -40,8 +40,9 @@ use crate::image_compare::Images;
 use crate::judge::{CullCase, Culled, RefineCase, Refinement, primitive_args};
 use crate::stage::{
     Backend, Bake, BakeInput, Coalesce, CoalesceInput, Coalesced, CommandOrder, CommandOrderInput,
-    Cull, Draw, FrameInput, HierSelect, HierSelectInput, Mips, MipsInput, Named, Ordered,
-    Primitive, Reference, Refine, RefineInput, Select, SelectInput, StageCheck, compare,
+    Cull, Draw, FrameInput, HierSelect, HierSelectInput, Mips, MipsInput, Named, Occlude,
+    OccludeInput, Occluded, Ordered, Primitive, Pyramid, PyramidInput, Reference, Refine,
+    RefineInput, Select, SelectInput, StageCheck, compare,
 };
 use crate::texel_compare::{GpuBakeBackend, GpuMipsBackend, gpu_bake};
 
@@ -62,6 +63,11 @@ impl Named for GpuStage {
 /// Panics naming the backend and what failed (the [`Backend::run`] contract).
 fn ok<T>(what: &str, r: Result<T, GpuError>) -> T {
     r.unwrap_or_else(|e| panic!("gpu(stage alone): {what}: {e}"))
+}
+
+/// The reference's frame, or a panic naming the input error (inputs are valid).
+fn ok_input<T>(r: Result<T, forestlod_reference::InputError>) -> T {
+    r.unwrap_or_else(|e| panic!("gpu(stage alone): the reference's frame: {e}"))
 }
 
 /// A GPU selection read back, as the reference's.
@@ -182,6 +188,58 @@ impl Backend<Refine> for GpuStage {
                 trees_tested: u64::from(got.counters.trees_tested),
                 trees_kept: u64::from(got.counters.trees_kept),
             },
+        }
+    }
+}
+
+impl Backend<Pyramid> for GpuStage {
+    fn run(&self, i: PyramidInput<'_>) -> Vec<f32> {
+        ok(
+            "the pyramid of a depth buffer",
+            GpuPyramid::of_depth(self.ctx, i.depth, i.width, i.height),
+        )
+    }
+}
+
+impl Backend<Occlude> for GpuStage {
+    fn run(&self, i: OccludeInput<'_>) -> Occluded {
+        let ctx = self.ctx;
+        let footprints: Vec<[f32; 4]> = i
+            .footprints
+            .iter()
+            .map(|&(p, r)| [p[0], p[1], p[2], r])
+            .collect();
+        let mut gpu = ok("GpuOcclude::new", GpuOcclude::new(ctx, &footprints));
+        let pyramid = ok(
+            "GpuPyramid::new",
+            GpuPyramid::new(ctx, i.camera.width, i.camera.height),
+        );
+        let buffers = upload(ctx, i.selection);
+        let input = upload_storage(
+            ctx,
+            "occlude input",
+            i.indirection,
+            wgpu::BufferUsages::empty(),
+        );
+        let m = i.indirection.len() as u32;
+        submit(ctx, "occlude", |e| {
+            ok(
+                "early split",
+                gpu.encode_early(e, &buffers, &input, m, i.camera, i.params),
+            );
+            ok("pyramid", pyramid.encode_from_values(ctx, e, i.early_depth));
+            ok(
+                "late test",
+                gpu.encode_late(e, &buffers, &pyramid, i.camera, i.params),
+            );
+        });
+        let got = ok("read the occlusion", gpu.read(&buffers));
+        Occluded {
+            early: selection_of(got.early),
+            late: selection_of(got.late),
+            indirection: got.indirection,
+            counters: got.counters,
+            visible: got.visible,
         }
     }
 }
@@ -376,6 +434,35 @@ impl<'a> FrameStages<'a> {
                     trees: &trees,
                 };
                 compare::<Refine>(&Reference, &gpu, input)
+            }
+            StageId::Pyramid | StageId::Occlude => {
+                if self.trace.plan.occlusion == forestlod_shared::Occlusion::Off {
+                    return None;
+                }
+                // The reference's frame with occlusion culling: its selection, indirection and
+                // early depth (level 0 of its pyramid) are the stages' inputs.
+                let f = ok_input(p.render(camera, params));
+                let occ = f.occlusion.as_ref()?;
+                let (w, h) = (camera.width, camera.height);
+                let early_depth = &occ.pyramid.texels[..(w * h) as usize];
+                if stage == StageId::Pyramid {
+                    let input = PyramidInput {
+                        depth: early_depth,
+                        width: w,
+                        height: h,
+                    };
+                    compare::<Pyramid>(&Reference, &gpu, input)
+                } else {
+                    let input = OccludeInput {
+                        selection: &f.selection,
+                        indirection: f.indirection(p),
+                        footprints: &p.footprints,
+                        camera,
+                        params,
+                        early_depth,
+                    };
+                    compare::<Occlude>(&Reference, &gpu, input)
+                }
             }
             StageId::Draw => {
                 let renderer = GpuRenderer {

@@ -35,6 +35,9 @@ pub enum FramePart {
     Selection,
     /// The draw, which reads both chains.
     Draw,
+    /// Occlusion culling around the draw (issue 31, `crate::occlusion`): the early split, the
+    /// depth pyramid of the early pass and the late test; off unless `params.occlusion` says.
+    Occlusion,
     /// The E§5 baselines' stages, in no frame of ours.
     Baseline,
 }
@@ -85,6 +88,10 @@ stages! {
     CommandOrder => "command_order", Selection,
     /// Per-tree culling of the selected commands (beyond the thesis).
     Refine => "refine", Selection,
+    /// Occlusion culling's depth pyramid of the early pass (issue 31, beyond the seeds).
+    Pyramid => "pyramid", Occlusion,
+    /// Occlusion culling's early split and late test of the commands (issue 31).
+    Occlude => "occlude", Occlusion,
     /// Draw execution (E§4.4).
     Draw => "draw", Draw,
     /// The baselines' per-tree culling (E§5).
@@ -183,10 +190,14 @@ impl FramePlan {
     }
 
     /// Every stage of the frame, in order: the slow path (`bake`, `mips`), the selection stages,
-    /// `draw`.
+    /// under occlusion culling `pyramid` and `occlude` (which run interleaved with the draw's two
+    /// passes: early split, early draw, pyramid, late test, late draw), then `draw`.
     pub fn stages(&self) -> Vec<StageId> {
         let mut out = vec![StageId::Bake, StageId::Mips];
         out.extend(self.selection_stages());
+        if self.occlusion != Occlusion::Off {
+            out.extend([StageId::Pyramid, StageId::Occlude]);
+        }
         out.push(StageId::Draw);
         out
     }
@@ -235,5 +246,22 @@ mod tests {
             ..Params::default()
         };
         assert!(FramePlan::new(&bad).is_err());
+        let occluded = FramePlan::new(&Params {
+            occlusion: Occlusion::TwoPhase as u32,
+            ..Params::default()
+        })
+        .unwrap();
+        assert_eq!(occluded.occlusion, Occlusion::TwoPhase);
+        assert_eq!(
+            occluded.stages(),
+            [
+                StageId::Bake,
+                StageId::Mips,
+                StageId::Select,
+                StageId::Pyramid,
+                StageId::Occlude,
+                StageId::Draw
+            ]
+        );
     }
 }

@@ -10,9 +10,10 @@
 //! `tests/tests/coverage.rs` runs the same cases on the reference as one column of the threshold
 //! table. The list is built here once, so the two cannot drift apart.
 //!
-//! Each case starts from one of two small bases on `tiny` ([`base`]): a **flat** frame (the
-//! thesis grid, `tree_cull = all`: bake, mips, select, refine, draw and the baselines run) and a
-//! **cut** frame (the octree with coalescing and front-to-back order: the cut's stages run). A
+//! Each case starts from one of three small bases on `tiny` ([`base`]): a **flat** frame (the
+//! thesis grid, `tree_cull = all`: bake, mips, select, refine, draw and the baselines run), a
+//! **cut** frame (the octree with coalescing and front-to-back order: the cut's stages run) and
+//! an **occluded** frame (the flat one with occlusion culling `single`: its stages run). A
 //! case changes one parameter; cases that come out equal are merged (their targets joined).
 
 use forestlod_harness::stages::STAGES;
@@ -71,6 +72,18 @@ pub const CHOICES_THAT_SKIP_THE_STAGE: &[(StageId, &str, &str, &str)] = &[
         "tree_cull",
         "none",
         "no per-tree refinement: every command draws its whole batch",
+    ),
+    (
+        StageId::Pyramid,
+        "occlusion",
+        "off",
+        "no occlusion culling: one pass, no pyramid",
+    ),
+    (
+        StageId::Occlude,
+        "occlusion",
+        "off",
+        "no occlusion culling: the commands are drawn as selected",
     ),
 ];
 
@@ -143,6 +156,16 @@ pub fn base(stage: StageId) -> (&'static str, Params) {
                 command_order: CommandOrder::FrontToBack as u32,
                 tree_cull: TreeCull::Lod0 as u32,
                 ..tiny_hierarchy_params(Hierarchy::Octree)
+            },
+        ),
+        // Occlusion culling's stages run only with it on (issue 31): `single`, so that its
+        // other modes (the fade mode's occluder rule) are walked with the stages running.
+        StageId::Pyramid | StageId::Occlude => (
+            "occluded",
+            Params {
+                tree_cull: TreeCull::All as u32,
+                occlusion: forestlod_shared::Occlusion::Single as u32,
+                ..tiny_hierarchy_params(Hierarchy::Grid)
             },
         ),
         _ => (

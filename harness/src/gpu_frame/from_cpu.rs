@@ -83,6 +83,8 @@ impl StagesFromCpu {
                             s.name(),
                             if s == StageId::Draw {
                                 "the draw is the stage a GPU frame judges, it always runs on the GPU"
+                            } else if s.part() == FramePart::Occlusion {
+                                "occlusion culling runs between the draw's two passes, on the GPU"
                             } else {
                                 "it belongs to a baseline's frame, not to ours"
                             }

@@ -398,6 +398,10 @@ impl<'a> GpuScene<'a> {
                     )?);
                 }
                 if occlusion != Occlusion::Off {
+                    stages.extend([
+                        (StageId::Pyramid, RanOn::Gpu),
+                        (StageId::Occlude, RanOn::Gpu),
+                    ]);
                     if self.occlude.is_none() {
                         self.occlude = Some(GpuOcclude::new(ctx, &occlusion_footprints(prepared))?);
                     }

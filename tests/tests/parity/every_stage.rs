@@ -286,6 +286,8 @@ walks! {
     walk_coalesce => Coalesce,
     walk_command_order => CommandOrder,
     walk_refine => Refine,
+    walk_pyramid => Pyramid,
+    walk_occlude => Occlude,
     walk_draw => Draw,
     walk_cull => Cull,
     walk_primitive => Primitive,
