@@ -234,3 +234,29 @@ fn atomic_counters_have_the_counters_layout() {
     assert_eq!(plain, atomic);
     assert_eq!(plain_span, atomic_span);
 }
+
+/// The occlusion stage's atomic counters (`common.wgsl`, written by `occlude.wgsl`) have the
+/// layout of `forestlod_shared::OcclusionCounters` (issue 31), which the driver reads back from
+/// the same bytes.
+#[test]
+fn occlusion_counters_have_the_shared_layout() {
+    use forestlod_shared::OcclusionCounters;
+    let module = validate(&forestlod_gpu::occlude::SOURCE.module());
+    let want = rust_layout!(OcclusionCounters {
+        early,
+        tested,
+        occluded,
+        offscreen,
+        late,
+        unbounded,
+        _pad0
+    });
+    let (fields, span) = wgsl_layout(&module, "OcclusionCountersAtomic").unwrap();
+    let names: Vec<_> = want
+        .fields
+        .iter()
+        .map(|(n, o)| (n.to_string(), *o as u32))
+        .collect();
+    assert_eq!(fields, names, "member offsets");
+    assert_eq!(span as usize, want.size, "size");
+}

@@ -361,3 +361,47 @@ pub fn blend_scenarios() -> Vec<BlendScenario> {
     });
     out
 }
+
+/// `parity::occlusion`'s views (issue 31): a camera path through the crop at tree height, where
+/// trees hide each other: `frames` cameras
+/// of `size`, the first `back` metres west of the crop's centre, 4 m above the trees' mean base,
+/// looking east (yawed by `yaw` degrees), each next one 3 m further along its view and 1.5 m to
+/// its side (the motion a path's frames have).
+pub fn occlusion_path(
+    scene: &Scene,
+    (back, yaw): (f32, f32),
+    size: (u32, u32),
+    frames: usize,
+) -> Vec<Camera> {
+    let [x0, y0, x1, y1] = scene.bounds;
+    let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
+    let n = scene.instances.len().max(1) as f32;
+    let z = scene.instances.iter().map(|t| t.position[2]).sum::<f32>() / n + 4.0;
+    let eye = [cx - back, cy, z];
+    let yaw = yaw.to_radians();
+    let first = Camera::look_at(
+        eye,
+        [eye[0] + yaw.cos(), eye[1] + yaw.sin(), z],
+        60.0,
+        size.0,
+        size.1,
+    );
+    (0..frames)
+        .map(|k| {
+            let mut c = first;
+            let (f, r) = (c.basis().forward, c.basis().right);
+            for a in 0..3 {
+                c.eye[a] += k as f32 * (3.0 * f[a] + 1.5 * r[a]);
+            }
+            c
+        })
+        .collect()
+}
+
+/// The parameters of `parity::occlusion`'s frames (issue 31): the crop's, occluders within 150 m.
+pub fn occlusion_params(fade: FadeMode) -> Params {
+    Params {
+        occluder_depth: 150.0,
+        ..crop_params(fade)
+    }
+}

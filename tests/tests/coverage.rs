@@ -348,6 +348,34 @@ fn table(columns: &[Column]) -> String {
     out
 }
 
+/// `parity::occlusion`'s frames (issue 31): the crop at tree height, `single` and a three-frame
+/// `two-phase` path, a dithered fade mode and `alpha` (the grid configuration; the parity test
+/// runs `refine` and the octree on the same views too).
+fn occlusion_frames() {
+    use forestlod_shared::Occlusion;
+    let scene = forestlod_tests::scenarios::cropped_synthetic(300.0);
+    let base = forestlod_tests::scenarios::occlusion_params(FadeMode::DitherSequential);
+    let p = prepare(scene.clone(), &base).expect("prepare");
+    for fade in [FadeMode::DitherSequential, FadeMode::Alpha] {
+        for mode in [Occlusion::Single, Occlusion::TwoPhase] {
+            let params = Params {
+                fade_mode: fade as u32,
+                occlusion: mode as u32,
+                ..base
+            };
+            let mut history = Vec::new();
+            for camera in
+                forestlod_tests::scenarios::occlusion_path(&scene, (120.0, 25.0), (96, 72), 3)
+            {
+                let f = p
+                    .render_with_history(&camera, &params, &history)
+                    .expect("render");
+                history = f.occlusion.expect("occlusion ran").visible;
+            }
+        }
+    }
+}
+
 /// `parity::blend`'s frames (issue 30, G§4: texture-space noise, per-tree progress).
 fn blend_frames() {
     for s in forestlod_tests::scenarios::blend_scenarios() {
@@ -376,6 +404,7 @@ fn every_threshold_is_straddled_by_a_parity_case() {
         record("parity::every_stage walk", walk_frames),
         record("parity::draw unrefined straddling", unrefined_straddling),
         record("parity::blend frames", blend_frames),
+        record("parity::occlusion frames", occlusion_frames),
     ];
     let mut columns = columns;
     for mode in HIER_MODES {

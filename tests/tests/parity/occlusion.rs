@@ -37,7 +37,9 @@ use forestlod_shared::{
     Camera, CommandOrder, FadeMode, Hierarchy, Occlusion, OcclusionCounters, Params, TreeCull,
 };
 use forestlod_tests::assert_no_failures;
-use forestlod_tests::scenarios::{crop_params, cropped_synthetic};
+use forestlod_tests::scenarios::{
+    crop_params, cropped_synthetic, occlusion_params, occlusion_path as path,
+};
 
 /// The sizes the pyramid is checked at: one pixel, one column, odd both ways, the sweeps' small
 /// frame, odd and non-power-of-two, and the sweeps' large frame.
@@ -230,41 +232,6 @@ const CONFIGS: [Config; 4] = [
     },
 ];
 
-/// A camera path through the crop at tree height, where trees hide each other: `frames` cameras
-/// of `size`, the first `back` metres west of the crop's centre, 4 m above the trees' mean base,
-/// looking east (yawed by `yaw` degrees), each next one 3 m further along its view and 1.5 m to
-/// its side (the motion a path's frames have).
-fn path(
-    scene: &forestlod_reference::scene::Scene,
-    (back, yaw): (f32, f32),
-    size: (u32, u32),
-    frames: usize,
-) -> Vec<Camera> {
-    let [x0, y0, x1, y1] = scene.bounds;
-    let (cx, cy) = ((x0 + x1) * 0.5, (y0 + y1) * 0.5);
-    let n = scene.instances.len().max(1) as f32;
-    let z = scene.instances.iter().map(|t| t.position[2]).sum::<f32>() / n + 4.0;
-    let eye = [cx - back, cy, z];
-    let yaw = yaw.to_radians();
-    let first = Camera::look_at(
-        eye,
-        [eye[0] + yaw.cos(), eye[1] + yaw.sin(), z],
-        60.0,
-        size.0,
-        size.1,
-    );
-    (0..frames)
-        .map(|k| {
-            let mut c = first;
-            let (f, r) = (c.basis().forward, c.basis().right);
-            for a in 0..3 {
-                c.eye[a] += k as f32 * (3.0 * f[a] + 1.5 * r[a]);
-            }
-            c
-        })
-        .collect()
-}
-
 /// The multiset difference size of two tree lists (trees in one and not the other, counted with
 /// multiplicity): how many decisions made them differ.
 fn list_difference(a: &[u32], b: &[u32]) -> u64 {
@@ -349,8 +316,7 @@ fn occlude_equals_the_reference() {
     let mut notes = Vec::new();
     let mut tally = Tally::default();
     for config in &CONFIGS {
-        let mut base = crop_params(FadeMode::DitherSequential);
-        base.occluder_depth = 150.0;
+        let mut base = occlusion_params(FadeMode::DitherSequential);
         (config.apply)(&mut base);
         let prepared = prepare(scene.clone(), &base).expect("prepare");
         let footprints = occlusion_footprints(&prepared);
@@ -652,8 +618,7 @@ fn frames_with_occlusion_culling_equal_frames_without() {
     // Frames whose judge against the reference fails as the same frame without culling does.
     let mut draw_failures = Vec::new();
     for config in &CONFIGS {
-        let mut base = crop_params(FadeMode::DitherSequential);
-        base.occluder_depth = 150.0;
+        let mut base = occlusion_params(FadeMode::DitherSequential);
         (config.apply)(&mut base);
         let prepared = prepare(scene.clone(), &base).expect("prepare");
         let mut gpu = GpuScene::new(
