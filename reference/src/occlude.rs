@@ -10,7 +10,7 @@
 //! [`crate::draw::tree_footprint_radius`]), the camera, valid parameters, and per tree whether it
 //! passed the previous frame's test (`visible_before`, empty for none: a path's first frame).
 //! - [`occlude_early`] writes, per command, its trees that are occluders
-//!   ([`forestlod_shared::is_early`]), **in list order**, at
+//!   ([`forestlod_shared::is_occluder`]), **in list order**, at
 //!   [`forestlod_shared::occlusion_slot`]`(0, lod, m, first_instance)` of a `4m` indirection, and
 //!   returns the early selection: the same commands, `first_instance` at the slot,
 //!   `instance_count` the kept count.
@@ -29,7 +29,7 @@
 //! - **Deterministic** for any thread count.
 
 use forestlod_shared::{
-    Camera, Occlusion, OcclusionBound, OcclusionCounters, Params, coverage, is_early, occluded,
+    Camera, Occlusion, OcclusionBound, OcclusionCounters, Params, coverage, is_occluder, occluded,
     occlusion_bounds, occlusion_slot, view_interval,
 };
 use rayon::prelude::*;
@@ -41,22 +41,33 @@ use crate::select::Selection;
 /// give it ([`crate::draw::tree_footprint_radius`]).
 pub type Footprint = ([f32; 3], f32);
 
-/// Whether tree `tree` of a command with data `data` is an occluder (the early rule, read the same
-/// way by both phases).
+/// Whether tree `tree` of a command with data `data` is an occluder
+/// ([`forestlod_shared::is_occluder`], read the same way by both phases), with its bound.
+#[allow(clippy::too_many_arguments)]
 fn early_tree(
     mode: u32,
     data: &forestlod_shared::CommandData,
     params: &Params,
     camera: &Camera,
+    view_proj: &glam::Mat4,
     footprint: Footprint,
     visible_before: &[u32],
     tree: u32,
-) -> bool {
+) -> (bool, OcclusionBound) {
     let (base, radius) = footprint;
     let forward = camera.basis().forward.to_array();
     let near = view_interval(base, radius, camera.eye, forward).lo;
     let before = visible_before.get(tree as usize).is_some_and(|&v| v != 0);
-    is_early(mode, data, params, near, before)
+    let bound = occlusion_bounds(
+        view_proj,
+        camera.near,
+        base,
+        radius,
+        camera.width,
+        camera.height,
+    );
+    let early = is_occluder(mode, data, params, near, before, &bound);
+    (early, bound)
 }
 
 /// The early selection and the `4m` indirection with its early ranges written (module docs).
@@ -70,6 +81,7 @@ pub fn occlude_early(
 ) -> (Selection, Vec<u32>) {
     let m = indirection.len() as u32;
     let mode = params.occlusion;
+    let view_proj = camera.view_projection();
     let lists: Vec<Vec<u32>> = selection
         .commands
         .par_iter()
@@ -80,11 +92,12 @@ pub fn occlude_early(
                 .iter()
                 .copied()
                 .filter(|&t| {
-                    let e = early_tree(
+                    let (e, _) = early_tree(
                         mode,
                         data,
                         params,
                         camera,
+                        &view_proj,
                         footprints[t as usize],
                         visible_before,
                         t,
@@ -135,7 +148,6 @@ pub fn occlude_late(
     assert_eq!(out.len(), 4 * m as usize, "the 4m indirection");
     let mode = params.occlusion;
     let view_proj = camera.view_projection();
-    let (w, h) = (camera.width, camera.height);
     // One workgroup per command: (late list, passed trees, counters).
     let per_command: Vec<(Vec<u32>, Vec<u32>, OcclusionCounters)> = selection
         .commands
@@ -147,14 +159,23 @@ pub fn occlude_late(
             let (mut late, mut passed) = (Vec::new(), Vec::new());
             for &t in &indirection[off..off + cmd.instance_count as usize] {
                 let fp = footprints[t as usize];
-                let early = early_tree(mode, data, params, camera, fp, visible_before, t);
+                let (early, bound) = early_tree(
+                    mode,
+                    data,
+                    params,
+                    camera,
+                    &view_proj,
+                    fp,
+                    visible_before,
+                    t,
+                );
                 c.early += early as u32;
                 if early && mode == Occlusion::Single as u32 {
                     passed.push(t);
                     continue;
                 }
                 c.tested += 1;
-                let pass = match occlusion_bounds(&view_proj, camera.near, fp.0, fp.1, w, h) {
+                let pass = match bound {
                     OcclusionBound::Unbounded => {
                         c.unbounded += 1;
                         true

@@ -94,8 +94,8 @@ pub use noise::{
 };
 pub use occlusion::{
     MAX_PYRAMID_LEVELS, OCCLUSION_SLACK_PX, OCCLUSION_SLACK_REL, OCCLUSION_Z_SLACK, Occlusion,
-    OcclusionBound, OcclusionCounters, OcclusionRect, PyramidLevel, is_early, may_occlude,
-    occluded, occlusion_bounds, occlusion_slot, pyramid_len, pyramid_level_floor,
+    OcclusionBound, OcclusionCounters, OcclusionRect, PyramidLevel, is_early, is_occluder,
+    may_occlude, occluded, occlusion_bounds, occlusion_slot, pyramid_len, pyramid_level_floor,
     pyramid_level_for, pyramid_levels, pyramid_reduce, pyramid_texels_max,
 };
 pub use params::{

@@ -6,7 +6,7 @@
 //! `reference/src/occlude.rs`; the WGSL twins `pyramid.wgsl` and `occlude.wgsl`.
 //!
 //! ## The frame with occlusion culling
-//! 1. **Early pass**: the frame's commands restricted to the *occluders* ([`is_early`]) are drawn,
+//! 1. **Early pass**: the frame's commands restricted to the *occluders* ([`is_occluder`]) are drawn,
 //!    ground first, into the colour, depth and id targets, exactly as the frame would draw them.
 //!    `single` takes the trees of mesh commands whose footprint starts within `occluder_depth` of
 //!    the eye (niagara's and Bevy's first phase without a history); `two-phase` takes the trees
@@ -170,9 +170,11 @@ pub struct OcclusionRect {
 /// What bounds a tree on screen ([`occlusion_bounds`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum OcclusionBound {
-    /// A corner at or behind half the near distance, or a non-finite value: never culled.
+    /// A corner at or behind half the near distance (not all), or a non-finite value: never
+    /// culled.
     Unbounded,
-    /// The rectangle lies wholly outside the frame: the tree covers no pixel.
+    /// The rectangle lies wholly outside the frame, or every corner is nearer than half the near
+    /// distance (the near plane clips it all): the tree covers no pixel.
     Offscreen,
     /// The rectangle, clamped to the frame, and the nearest depth.
     Rect(OcclusionRect),
@@ -196,10 +198,17 @@ pub fn occlusion_bounds(
     let (half_w, half_h) = (width as f32 * 0.5, height as f32 * 0.5);
     let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
     let mut z_lo = f32::MAX;
-    for corner in 0..8u32 {
+    let corners: [Vec4; 8] = core::array::from_fn(|k| {
+        let corner = k as u32;
         let sign = |bit: u32| if corner & bit != 0 { r } else { -r };
         let p = c + Vec3::new(sign(1), sign(2), sign(4));
-        let clip = *view_proj * Vec4::new(p.x, p.y, p.z, 1.0);
+        *view_proj * Vec4::new(p.x, p.y, p.z, 1.0)
+    });
+    // Wholly nearer than half the near distance (behind the eye included): clipped away.
+    if corners.iter().all(|clip| clip.w < 0.5 * near) {
+        return OcclusionBound::Offscreen;
+    }
+    for clip in corners {
         if !clip.is_finite() || clip.w <= 0.5 * near {
             return OcclusionBound::Unbounded;
         }
@@ -300,6 +309,22 @@ pub fn is_early(
     } else {
         false
     }
+}
+
+/// The early pass's whole rule: [`is_early`], for a tree whose rectangle is not wholly off screen
+/// (`bound`, [`occlusion_bounds`] of its footprint). Without the second test every tree behind
+/// the eye or beside the view within `occluder_depth` was drawn early for no pixel: on `stress`'
+/// close camera 271,739 early trees against 7,293 in view (grid batches straddle the frustum).
+pub fn is_occluder(
+    mode: u32,
+    data: &CommandData,
+    params: &Params,
+    depth_near: f32,
+    visible_before: bool,
+    bound: &OcclusionBound,
+) -> bool {
+    is_early(mode, data, params, depth_near, visible_before)
+        && !matches!(bound, OcclusionBound::Offscreen)
 }
 
 /// Where a command's kept trees go in the `4m`-entry indirection the occlusion stage writes over
