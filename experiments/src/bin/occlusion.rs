@@ -1,9 +1,9 @@
 //! Issue 31's question: what occlusion culling against a depth pyramid saves, for ours and for
 //! Vegetation (per-tree frustum culling, the thesis's baseline) and for Vegetation with the same
 //! occlusion culling (the modern per-tree peer: niagara's and Bevy's per-object cull), at close and
-//! medium range on `stress` and `patchy`, along two paths: the `camera360` yaw steps and a
-//! close-range walk (the close camera moving forward `--walk-step` metres a frame), the second
-//! being the one two-phase's history is made for.
+//! medium range on `stress` and `patchy`, along two kinds of path: the `camera360` yaw steps
+//! (90° apart at 4 steps: no frame-to-frame coherence) and walks (the close and medium cameras
+//! moving forward `--walk-step` metres a frame), the ones two-phase's history is made for.
 //!
 //! Every frame of every variant with occlusion culling is checked against the false-cull oracle
 //! (`Prepared::false_cull_pixels`); a frame with a false cull makes the run exit non-zero. The
@@ -39,9 +39,12 @@ struct Args {
     /// Yaw steps of the camera360 path (0 for none).
     #[arg(long, default_value_t = 4)]
     yaw_steps: u32,
-    /// Frames of the close-range walk (0 for none).
-    #[arg(long, default_value_t = 4)]
+    /// Frames of each walk (0 for none).
+    #[arg(long, default_value_t = 6)]
     walk_frames: u32,
+    /// Named cameras walked forward (`walk-<camera>` paths).
+    #[arg(long, value_delimiter = ',', default_value = "close,medium")]
+    walks: Vec<String>,
     /// Metres the walk advances a frame.
     #[arg(long, default_value_t = 3.0)]
     walk_step: f32,
@@ -110,8 +113,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     paths.push((format!("camera360-{cam}"), frames));
                 }
             }
-            if args.walk_frames > 0 {
-                let c0 = named_camera("close", &prepared.scene, 0.0, w, h)?;
+            for cam in &args.walks {
+                if args.walk_frames == 0 {
+                    break;
+                }
+                let c0 = named_camera(cam, &prepared.scene, 0.0, w, h)?;
                 let frames = (0..args.walk_frames)
                     .map(|k| {
                         let mut c = c0;
@@ -123,7 +129,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         c
                     })
                     .collect();
-                paths.push(("walk-close".into(), frames));
+                paths.push((format!("walk-{cam}"), frames));
             }
             for (path, cameras) in &paths {
                 for variant in ["ours", "vegetation"] {
