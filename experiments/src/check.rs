@@ -657,6 +657,7 @@ pub fn selection_scene(scene: Scene, params: &Params) -> Result<Prepared> {
     };
     Ok(Prepared {
         tree_scales: scene.instances.iter().map(|t| t.scale).collect(),
+        footprints: forestlod_reference::pipeline::tree_footprints(&scene, &geometry.meshes),
         scene,
         geometry,
         batches,

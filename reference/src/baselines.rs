@@ -125,6 +125,9 @@ pub struct BaselineFrame {
     /// Bytes the method adds to the scene data: the compacted instance list plus its commands
     /// (Vegetation) or proxy records (Primitive).
     pub memory_bytes: u64,
+    /// What occlusion culling did (issue 31): Vegetation with `params.occlusion` not `off`, the
+    /// modern per-tree peer (niagara's and Bevy's per-object cull against a depth pyramid).
+    pub occlusion: Option<crate::pipeline::OcclusionFrame>,
 }
 
 /// Bounding spheres of every tree ([`tree_sphere`]), the input of per-tree culling.
@@ -252,16 +255,25 @@ pub fn render_vegetation(
     );
     let select_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let res = DrawResources {
-        scene: &prepared.scene,
-        geometry: &prepared.geometry,
-        indirection: &indirection,
-        mesh_textures: &prepared.mesh_textures,
-        billboards: &prepared.billboards,
-        lod_rule: crate::sampler::LodRule::Exact,
-    };
-    let drawn = draw_frame(&res, &selection, camera, params);
-    let draw_seconds = t.elapsed().as_secs_f64();
+    let (drawn, occlusion, occlusion_seconds) =
+        if params.occlusion == forestlod_shared::Occlusion::Off as u32 {
+            let res = DrawResources {
+                scene: &prepared.scene,
+                geometry: &prepared.geometry,
+                indirection: &indirection,
+                mesh_textures: &prepared.mesh_textures,
+                billboards: &prepared.billboards,
+                lod_rule: crate::sampler::LodRule::Exact,
+            };
+            (draw_frame(&res, &selection, camera, params), None, 0.0)
+        } else {
+            // The same stage as ours (issue 31) over Vegetation's commands: every tree a mesh,
+            // none fading, so the occluders are the trees within `occluder_depth`.
+            let (drawn, occ, seconds) =
+                prepared.draw_occluded(&selection, &indirection, camera, params, &[]);
+            (drawn, Some(occ), seconds)
+        };
+    let draw_seconds = t.elapsed().as_secs_f64() - occlusion_seconds;
     let commands = selection.commands.len() as u64;
     BaselineFrame {
         target: drawn.target,
@@ -278,8 +290,9 @@ pub fn render_vegetation(
             select: select_seconds,
             refine: 0.0,
             draw: draw_seconds,
-            occlusion: 0.0,
+            occlusion: occlusion_seconds,
         },
+        occlusion,
     }
 }
 
@@ -583,6 +596,7 @@ pub fn render_primitive_shifted(
             draw: draw_seconds,
             occlusion: 0.0,
         },
+        occlusion: None,
     }
 }
 

@@ -10,7 +10,7 @@
 //! [`crate::draw::tree_footprint_radius`]), the camera, valid parameters, and per tree whether it
 //! passed the previous frame's test (`visible_before`, empty for none: a path's first frame).
 //! - [`occlude_early`] writes, per command, its trees that are occluders
-//!   ([`forestlod_shared::is_early`]), **in list order**, at
+//!   ([`forestlod_shared::is_occluder`]), **in list order**, at
 //!   [`forestlod_shared::occlusion_slot`]`(0, lod, m, first_instance)` of a `4m` indirection, and
 //!   returns the early selection: the same commands, `first_instance` at the slot,
 //!   `instance_count` the kept count.
@@ -29,8 +29,9 @@
 //! - **Deterministic** for any thread count.
 
 use forestlod_shared::{
-    Camera, Occlusion, OcclusionBound, OcclusionCounters, Params, coverage, is_early, occluded,
-    occlusion_bounds, occlusion_slot, view_interval,
+    Camera, Occlusion, OcclusionBound, OcclusionCounters, Params, coverage, effective_mode,
+    is_occluder, may_occlude, nearest_occluder_depth, occluded, occlusion_bounds, occlusion_slot,
+    view_interval,
 };
 use rayon::prelude::*;
 
@@ -41,22 +42,92 @@ use crate::select::Selection;
 /// give it ([`crate::draw::tree_footprint_radius`]).
 pub type Footprint = ([f32; 3], f32);
 
-/// Whether tree `tree` of a command with data `data` is an occluder (the early rule, read the same
-/// way by both phases).
-fn early_tree(
+/// What the early rule reads besides the tree (module docs): the camera's projection, the
+/// [`forestlod_shared::effective_mode`] and `single`'s [`nearest_occluder_depth`].
+struct EarlyRule<'a> {
     mode: u32,
-    data: &forestlod_shared::CommandData,
-    params: &Params,
-    camera: &Camera,
-    footprint: Footprint,
-    visible_before: &[u32],
-    tree: u32,
-) -> bool {
-    let (base, radius) = footprint;
-    let forward = camera.basis().forward.to_array();
-    let near = view_interval(base, radius, camera.eye, forward).lo;
-    let before = visible_before.get(tree as usize).is_some_and(|&v| v != 0);
-    is_early(mode, data, params, near, before)
+    nearest: f32,
+    params: &'a Params,
+    camera: &'a Camera,
+    view_proj: glam::Mat4,
+    forward: [f32; 3],
+    visible_before: &'a [u32],
+}
+
+impl<'a> EarlyRule<'a> {
+    fn new(
+        selection: &Selection,
+        indirection: &[u32],
+        footprints: &[Footprint],
+        camera: &'a Camera,
+        params: &'a Params,
+        visible_before: &'a [u32],
+    ) -> Self {
+        let mut rule = EarlyRule {
+            mode: effective_mode(params.occlusion, !visible_before.is_empty()),
+            nearest: 0.0,
+            params,
+            camera,
+            view_proj: camera.view_projection(),
+            forward: camera.basis().forward.to_array(),
+            visible_before,
+        };
+        if rule.mode == Occlusion::Single as u32 {
+            // The min-reduction over the in-view mesh trees that may occlude.
+            rule.nearest = nearest_occluder_depth(
+                selection
+                    .commands
+                    .par_iter()
+                    .zip(&selection.data)
+                    .filter(|(_, d)| {
+                        d.lod == forestlod_shared::LOD_MESH
+                            && may_occlude(d, params.fade_mode, params.subset_mode)
+                    })
+                    .flat_map_iter(|(cmd, _)| {
+                        let off = cmd.first_instance as usize;
+                        indirection[off..off + cmd.instance_count as usize].iter()
+                    })
+                    .filter_map(|&t| {
+                        let (near, bound) = rule.depth_and_bound(footprints[t as usize]);
+                        (!matches!(bound, OcclusionBound::Offscreen)).then_some(near)
+                    })
+                    .collect::<Vec<f32>>(),
+            );
+        }
+        rule
+    }
+
+    /// A footprint's nearest view depth and its bound.
+    fn depth_and_bound(&self, (base, radius): Footprint) -> (f32, OcclusionBound) {
+        let c = self.camera;
+        let near = view_interval(base, radius, c.eye, self.forward).lo;
+        let bound = occlusion_bounds(&self.view_proj, c.near, base, radius, c.width, c.height);
+        (near, bound)
+    }
+
+    /// Whether tree `tree` of a command with data `data` is an occluder
+    /// ([`forestlod_shared::is_occluder`], read the same way by both phases), with its bound.
+    fn early(
+        &self,
+        data: &forestlod_shared::CommandData,
+        footprint: Footprint,
+        tree: u32,
+    ) -> (bool, OcclusionBound) {
+        let (near, bound) = self.depth_and_bound(footprint);
+        let before = self
+            .visible_before
+            .get(tree as usize)
+            .is_some_and(|&v| v != 0);
+        let early = is_occluder(
+            self.mode,
+            data,
+            self.params,
+            near - self.nearest,
+            before,
+            &bound,
+        );
+        (early, bound)
+    }
 }
 
 /// The early selection and the `4m` indirection with its early ranges written (module docs).
@@ -69,7 +140,14 @@ pub fn occlude_early(
     visible_before: &[u32],
 ) -> (Selection, Vec<u32>) {
     let m = indirection.len() as u32;
-    let mode = params.occlusion;
+    let rule = EarlyRule::new(
+        selection,
+        indirection,
+        footprints,
+        camera,
+        params,
+        visible_before,
+    );
     let lists: Vec<Vec<u32>> = selection
         .commands
         .par_iter()
@@ -80,15 +158,7 @@ pub fn occlude_early(
                 .iter()
                 .copied()
                 .filter(|&t| {
-                    let e = early_tree(
-                        mode,
-                        data,
-                        params,
-                        camera,
-                        footprints[t as usize],
-                        visible_before,
-                        t,
-                    );
+                    let (e, _) = rule.early(data, footprints[t as usize], t);
                     coverage::hit(coverage::Threshold::OccludeEarly, e);
                     e
                 })
@@ -133,9 +203,15 @@ pub fn occlude_late(
 ) -> LateTest {
     let m = indirection.len() as u32;
     assert_eq!(out.len(), 4 * m as usize, "the 4m indirection");
-    let mode = params.occlusion;
-    let view_proj = camera.view_projection();
-    let (w, h) = (camera.width, camera.height);
+    let rule = EarlyRule::new(
+        selection,
+        indirection,
+        footprints,
+        camera,
+        params,
+        visible_before,
+    );
+    let mode = rule.mode;
     // One workgroup per command: (late list, passed trees, counters).
     let per_command: Vec<(Vec<u32>, Vec<u32>, OcclusionCounters)> = selection
         .commands
@@ -147,14 +223,14 @@ pub fn occlude_late(
             let (mut late, mut passed) = (Vec::new(), Vec::new());
             for &t in &indirection[off..off + cmd.instance_count as usize] {
                 let fp = footprints[t as usize];
-                let early = early_tree(mode, data, params, camera, fp, visible_before, t);
+                let (early, bound) = rule.early(data, fp, t);
                 c.early += early as u32;
                 if early && mode == Occlusion::Single as u32 {
                     passed.push(t);
                     continue;
                 }
                 c.tested += 1;
-                let pass = match occlusion_bounds(&view_proj, camera.near, fp.0, fp.1, w, h) {
+                let pass = match bound {
                     OcclusionBound::Unbounded => {
                         c.unbounded += 1;
                         true

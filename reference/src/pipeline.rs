@@ -116,6 +116,20 @@ pub fn scene_memory(
     memory
 }
 
+/// Every tree's footprint sphere ([`Prepared::footprints`]).
+pub fn tree_footprints(scene: &Scene, meshes: &[forestlod_shared::MeshMeta]) -> Vec<Footprint> {
+    scene
+        .instances
+        .iter()
+        .map(|t| {
+            (
+                t.position,
+                tree_footprint_radius(t, &meshes[t.mesh as usize]),
+            )
+        })
+        .collect()
+}
+
 /// Runs the slow path. `params` must be valid (it is validated again here).
 pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
     params.validate()?;
@@ -205,6 +219,29 @@ pub struct OcclusionFrame {
     pub pyramid: Pyramid,
     /// Per tree, 1 when it passed this frame's test: the next frame's history under two-phase.
     pub visible: Vec<u32>,
+}
+
+impl OcclusionFrame {
+    /// The trees either pass drew (within the draw distance), ascending, each once.
+    pub fn trees_drawn(&self, prepared: &Prepared, camera: &Camera, params: &Params) -> Vec<u32> {
+        let mut trees = crate::baselines::trees_drawn_by_selection(
+            prepared,
+            &self.early,
+            &self.indirection,
+            camera,
+            params,
+        );
+        trees.extend(crate::baselines::trees_drawn_by_selection(
+            prepared,
+            &self.late,
+            &self.indirection,
+            camera,
+            params,
+        ));
+        trees.sort_unstable();
+        trees.dedup();
+        trees
+    }
 }
 
 /// One rendered frame.
@@ -344,9 +381,12 @@ impl Prepared {
         })
     }
 
-    /// The draw of a frame with occlusion culling (module docs of `forestlod_shared::occlusion`):
-    /// the drawn frame, what the stage did, and the seconds of its non-draw steps.
-    fn draw_occluded(
+    /// The draw of a frame with occlusion culling (module docs of `forestlod_shared::occlusion`)
+    /// of `selection` over `indirection` (ours, or a baseline's commands over its own): the drawn
+    /// frame, what the stage did, and the seconds of its non-draw steps. `params` must be valid
+    /// with `occlusion` not `off`; `history` is the previous frame's
+    /// [`OcclusionFrame::visible`] (empty for none).
+    pub fn draw_occluded(
         &self,
         selection: &Selection,
         indirection: &[u32],

@@ -6,12 +6,16 @@
 //! `reference/src/occlude.rs`; the WGSL twins `pyramid.wgsl` and `occlude.wgsl`.
 //!
 //! ## The frame with occlusion culling
-//! 1. **Early pass**: the frame's commands restricted to the *occluders* ([`is_early`]) are drawn,
+//! 1. **Early pass**: the frame's commands restricted to the *occluders* ([`is_occluder`]) are drawn,
 //!    ground first, into the colour, depth and id targets, exactly as the frame would draw them.
-//!    `single` takes the trees of mesh commands whose footprint starts within `occluder_depth` of
-//!    the eye (niagara's and Bevy's first phase without a history); `two-phase` takes the trees
-//!    that passed the test in the previous frame of a camera path (niagara's `drawculllate`
-//!    history), none on a path's first frame.
+//!    `single` takes the trees of mesh commands whose footprint starts within `occluder_depth`
+//!    behind the nearest such footprint in view ([`nearest_occluder_depth`]: a min-reduction
+//!    over the frame's mesh trees before the split); `two-phase` takes the trees that passed the
+//!    test in the previous frame of a camera path (niagara's `drawculllate` history), and on a
+//!    path's first frame, with no history, `single`'s ([`effective_mode`]; niagara draws nothing
+//!    early there). The depth is relative to the nearest tree, not to the eye, so that one
+//!    `occluder_depth` serves a camera in the canopy and one 300 m above it: from `stress`'
+//!    medium camera no tree starts within 100 m of the eye.
 //! 2. **Pyramid** ([`pyramid_levels`], [`pyramid_reduce`]): level 0 is the depth buffer; texel
 //!    `(i, j)` of level `L + 1` is the **largest** (farthest, depth test LESS) of texels
 //!    `(2i..2i+1, 2j..2j+1)` of level `L` that exist. Level `L` is
@@ -91,7 +95,7 @@ pub const OCCLUSION_SLACK_PX: f32 = 2.0;
 
 /// Relative slack on the footprint radius, and on the centre's coordinates: the vertex stage's
 /// world positions are rounded `f32` sums, a few ulps of the coordinates' size.
-pub const OCCLUSION_SLACK_REL: f32 = 1.0e-3;
+pub const OCCLUSION_SLACK_REL: f32 = 1.0e-5;
 
 /// Slack taken off a tree's nearest NDC depth: 16 ulps at depth 1 (`2^-20`). The reference's
 /// interpolated depth is at least its smallest vertex depth less one ulp
@@ -170,9 +174,11 @@ pub struct OcclusionRect {
 /// What bounds a tree on screen ([`occlusion_bounds`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum OcclusionBound {
-    /// A corner at or behind half the near distance, or a non-finite value: never culled.
+    /// A corner at or behind half the near distance (not all), or a non-finite value: never
+    /// culled.
     Unbounded,
-    /// The rectangle lies wholly outside the frame: the tree covers no pixel.
+    /// The rectangle lies wholly outside the frame, or every corner is nearer than half the near
+    /// distance (the near plane clips it all): the tree covers no pixel.
     Offscreen,
     /// The rectangle, clamped to the frame, and the nearest depth.
     Rect(OcclusionRect),
@@ -196,10 +202,17 @@ pub fn occlusion_bounds(
     let (half_w, half_h) = (width as f32 * 0.5, height as f32 * 0.5);
     let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
     let mut z_lo = f32::MAX;
-    for corner in 0..8u32 {
+    let corners: [Vec4; 8] = core::array::from_fn(|k| {
+        let corner = k as u32;
         let sign = |bit: u32| if corner & bit != 0 { r } else { -r };
         let p = c + Vec3::new(sign(1), sign(2), sign(4));
-        let clip = *view_proj * Vec4::new(p.x, p.y, p.z, 1.0);
+        *view_proj * Vec4::new(p.x, p.y, p.z, 1.0)
+    });
+    // Wholly nearer than half the near distance (behind the eye included): clipped away.
+    if corners.iter().all(|clip| clip.w < 0.5 * near) {
+        return OcclusionBound::Offscreen;
+    }
+    for clip in corners {
         if !clip.is_finite() || clip.w <= 0.5 * near {
             return OcclusionBound::Unbounded;
         }
@@ -278,9 +291,28 @@ pub fn may_occlude(data: &CommandData, fade_mode: u32, subset_mode: u32) -> bool
         || (data.fading == 0 && (data.billboard == 0 || subset_mode == SubsetMode::Off as u32))
 }
 
-/// Whether one tree of a command is drawn in the early pass (module docs, step 1): under `single`
-/// a mesh command's tree whose footprint's nearest view depth `depth_near` is within
-/// `occluder_depth`; under `two-phase` a tree that passed the previous frame's test
+/// The mode the early rule follows: `two-phase` without a history (a path's first frame) is
+/// `single` (module docs, step 1).
+pub fn effective_mode(mode: u32, has_history: bool) -> u32 {
+    if mode == Occlusion::TwoPhase as u32 && !has_history {
+        Occlusion::Single as u32
+    } else {
+        mode
+    }
+}
+
+/// The view depth `single`'s occluder depth counts from: the least `depth_near` (the
+/// footprint's nearest view depth, `view_interval(..).lo`) over the trees of mesh commands that
+/// [`may_occlude`] and whose bound is not off screen, clamped to at least 0; 0 when there is none.
+/// `depths` yields those trees' `depth_near`.
+pub fn nearest_occluder_depth(depths: impl IntoIterator<Item = f32>) -> f32 {
+    let m = depths.into_iter().fold(f32::INFINITY, f32::min);
+    if m.is_finite() { m.max(0.0) } else { 0.0 }
+}
+
+/// Whether one tree of a command is drawn in the early pass (module docs, step 1), under the
+/// [`effective_mode`] `mode`: under `single` a mesh command's tree whose footprint's nearest view
+/// depth less [`nearest_occluder_depth`] (`depth_near`) is within `occluder_depth`; under `two-phase` a tree that passed the previous frame's test
 /// (`visible_before`); never under `off`. Either way only trees of commands that
 /// [`may_occlude`].
 pub fn is_early(
@@ -300,6 +332,22 @@ pub fn is_early(
     } else {
         false
     }
+}
+
+/// The early pass's whole rule: [`is_early`], for a tree whose rectangle is not wholly off screen
+/// (`bound`, [`occlusion_bounds`] of its footprint). Without the second test every tree behind
+/// the eye or beside the view within `occluder_depth` was drawn early for no pixel: on `stress`'
+/// close camera 271,739 early trees against 7,293 in view (grid batches straddle the frustum).
+pub fn is_occluder(
+    mode: u32,
+    data: &CommandData,
+    params: &Params,
+    depth_near: f32,
+    visible_before: bool,
+    bound: &OcclusionBound,
+) -> bool {
+    is_early(mode, data, params, depth_near, visible_before)
+        && !matches!(bound, OcclusionBound::Offscreen)
 }
 
 /// Where a command's kept trees go in the `4m`-entry indirection the occlusion stage writes over

@@ -618,13 +618,17 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
                 let frame = prepared.render(camera, params)?;
                 let c = frame.selection.counters;
                 let indirection = frame.indirection(prepared);
-                let trees = trees_drawn_by_selection(
-                    prepared,
-                    &frame.selection,
-                    indirection,
-                    camera,
-                    params,
-                );
+                // Under occlusion culling (issue 31) the trees of its two passes.
+                let trees = match &frame.occlusion {
+                    Some(occ) => occ.trees_drawn(prepared, camera, params),
+                    None => trees_drawn_by_selection(
+                        prepared,
+                        &frame.selection,
+                        indirection,
+                        camera,
+                        params,
+                    ),
+                };
                 let bands = tree_bands(&prepared.scene, &prepared.geometry.meshes, camera, params);
                 let batching = batching_counts_banded(
                     spheres,
@@ -638,7 +642,8 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
                 let target = frame.drawn.target;
                 VariantFrame {
                     select_s: frame.timings.select + frame.timings.refine,
-                    draw_s: frame.timings.draw,
+                    // The occlusion stage's pyramid and tests run between the two draws.
+                    draw_s: frame.timings.draw + frame.timings.occlusion,
                     gpu_select_s: None,
                     gpu_draw_s: None,
                     batches_tested: c.batches_tested as u64,
@@ -660,14 +665,18 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
                     render_primitive(prepared, spheres, proxy_list, camera, params)
                 };
                 let s = f.tree_stats;
+                let trees_drawn = match &f.occlusion {
+                    Some(occ) => occ.trees_drawn(prepared, camera, params).len(),
+                    None => f.visible.len(),
+                } as u64;
                 VariantFrame {
                     select_s: f.timings.select,
-                    draw_s: f.timings.draw,
+                    draw_s: f.timings.draw + f.timings.occlusion,
                     gpu_select_s: None,
                     gpu_draw_s: None,
                     batches_tested: f.trees_tested,
                     commands: f.commands,
-                    trees_drawn: f.visible.len() as u64,
+                    trees_drawn,
                     batching: BatchingCounts::default(),
                     triangles: Some(s.triangles_in),
                     fragments: Some(s.fragments_shaded),
