@@ -11,7 +11,8 @@
 //! indirection of `m` entries:
 //! - [`GpuOcclude::encode_early`] copies the indirection to `[4m, 5m)` of a `5m` buffer and the
 //!   commands into the early command buffer, then writes, per command, its occluders
-//!   (`is_early`) in list order at `occlusion_slot(0, lod, m, first_instance)` and rewrites the
+//!   (`is_occluder` under `effective_mode`, `single` counting from `nearest_occluder_depth`) in
+//!   list order at `occlusion_slot(0, lod, m, first_instance)` and rewrites the
 //!   early commands to point there;
 //! - [`GpuOcclude::encode_late`], after the early draw and the [`GpuPyramid`] of its depth, tests
 //!   the trees against the pyramid (under `single` the early ones are drawn, not tested), writes
@@ -20,7 +21,8 @@
 //!   frame's history half; the halves then swap, so the next frame's `two-phase` early pass
 //!   reads it.
 //!
-//! Six dispatches a phase, as `refine` (count, scan, write over chunks of
+//! Six dispatches a phase (seven in the early one: `single`'s nearest occluder depth, a
+//! min-reduction both phases read), as `refine` (count, scan, write over chunks of
 //! [`OCCLUDE_WORKGROUP_SIZE`] trees: a few large commands do not serialize, and no loop runs past
 //! llvmpipe's 65,535 iterations for up to [`MAX_OCCLUDE_TREES`] trees in a command). The early and
 //! late selections are [`SelectBuffers`] sharing the frame's data and counters
@@ -41,6 +43,7 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{
     Camera, DrawCommand, MAX_PYRAMID_LEVELS, OcclusionCounters, Params, SelectCounters,
+    effective_mode,
 };
 
 use crate::context::{
@@ -85,7 +88,8 @@ pub struct OccludeUniform {
     pub forward: [f32; 3],
     /// `params.occluder_depth`.
     pub occluder_depth: f32,
-    /// `params.occlusion`.
+    /// `forestlod_shared::effective_mode` of `params.occlusion` (the driver sets it: it knows
+    /// whether a history exists).
     pub mode: u32,
     /// 0 early, 1 late.
     pub phase: u32,
@@ -159,8 +163,8 @@ pub struct OccludeDispatch {
     pub max_chunks: u32,
 }
 
-/// The stage's state buffer: the frame's counters, then the phase's grid. Keep in sync with
-/// `struct OccludeState` in `occlude.wgsl`.
+/// The stage's state buffer: the frame's counters, the phase's grid and `single`'s nearest
+/// occluder depth. Keep in sync with `struct OccludeState` in `occlude.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct OccludeState {
@@ -168,8 +172,17 @@ pub struct OccludeState {
     pub counters: OcclusionCounters,
     /// The current phase's grid.
     pub dispatch: OccludeDispatch,
+    /// `forestlod_shared::nearest_occluder_depth` of the frame, as `0x7f800000 - bits` (0: none;
+    /// the shader's encoding, so that an atomic maximum is the minimum depth).
+    pub nearest: u32,
+    /// Explicit padding.
+    pub _pad0: u32,
+    /// Explicit padding.
+    pub _pad1: u32,
+    /// Explicit padding.
+    pub _pad2: u32,
 }
-const _: () = assert!(size_of::<OccludeState>() == 48);
+const _: () = assert!(size_of::<OccludeState>() == 64);
 
 /// One frame's occlusion culling, read back.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -198,6 +211,7 @@ compute_pipelines! {
     {
         prepare: "occlude_prepare",
         args: "occlude_args",
+        nearest: "occlude_nearest",
         count: "occlude_count",
         scan: "occlude_scan",
         write: "occlude_write",
@@ -228,6 +242,9 @@ pub struct GpuOcclude<'a> {
     history_half: u32,
     /// Clear both halves at the next early phase (a new path).
     clear_history: bool,
+    /// Whether the half the next frame reads was written by a frame of this path (the
+    /// reference's non-empty `visible_before`).
+    has_history: bool,
     state: wgpu::Buffer,
     dispatch_args: wgpu::Buffer,
     lists: Option<Lists>,
@@ -272,6 +289,7 @@ impl<'a> GpuOcclude<'a> {
             ),
             history_half: 0,
             clear_history: true,
+            has_history: false,
             state: zeroed_buffer(
                 ctx,
                 "occlude state",
@@ -297,6 +315,7 @@ impl<'a> GpuOcclude<'a> {
     /// Forgets the history: the next frame starts a path (its `two-phase` early pass is empty).
     pub fn reset_history(&mut self) {
         self.clear_history = true;
+        self.has_history = false;
     }
 
     /// The `5m` buffer the early and late commands index (`DrawInputs::indirection`). Panics
@@ -403,7 +422,8 @@ impl<'a> GpuOcclude<'a> {
             u64::from(selection.capacity) * size_of::<DrawCommand>() as u64,
         );
         let grid_at = size_of::<OcclusionCounters>() as u64;
-        encoder.clear_buffer(&self.state, grid_at, None);
+        let grid_size = size_of::<OccludeDispatch>() as u64;
+        encoder.clear_buffer(&self.state, grid_at, Some(grid_size));
         let pipelines = &self.pipelines;
         let bind_group = buffer_bind_group(
             &self.ctx.device,
@@ -442,6 +462,15 @@ impl<'a> GpuOcclude<'a> {
             size_of::<OccludeDispatch>() as u64,
         );
         let indirect = Dispatch::Indirect(&self.dispatch_args);
+        if phase == 0 {
+            // `single`'s nearest occluder depth, read by both phases' early rule.
+            compute_pass(
+                encoder,
+                "occlude nearest",
+                &bind_group,
+                &[(&pipelines.nearest, indirect)],
+            );
+        }
         compute_pass(
             encoder,
             if phase == 0 {
@@ -464,6 +493,7 @@ impl<'a> GpuOcclude<'a> {
         let n = self.tree_count;
         let read = self.history_half * n;
         OccludeUniform {
+            mode: effective_mode(params.occlusion, self.has_history),
             history_read: read,
             history_write: n - read,
             max_workgroups: self.ctx.limits.max_compute_workgroups_per_dimension,
@@ -543,6 +573,7 @@ impl<'a> GpuOcclude<'a> {
         }
         self.encode_phase(encoder, selection, &uniform, pyramid.texels());
         self.history_half = 1 - self.history_half;
+        self.has_history = true;
         Ok(())
     }
 
@@ -611,7 +642,17 @@ mod tests {
                 max_chunks
             }),
         );
-        assert_layout(&module, &rust_layout!(OccludeState { counters, dispatch }));
+        assert_layout(
+            &module,
+            &rust_layout!(OccludeState {
+                counters,
+                dispatch,
+                nearest,
+                _pad0,
+                _pad1,
+                _pad2
+            }),
+        );
     }
 
     /// The uniform carries the camera's projection, eye and unit forward, the pyramid's levels of

@@ -909,9 +909,21 @@ fn f32_is_finite(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
 }
 
+// Corner `corner` (bit 0: +x, bit 1: +y, bit 2: +z) of the cube of half-side `r` about `c`, in
+// clip space, projected as `raster` projects (`view_proj * p` as glam sums it: column 0 first).
+fn occlusion_corner(view_proj: mat4x4<f32>, c: vec3<f32>, r: f32, corner: u32) -> vec4<f32> {
+    let p = vec3<f32>(
+        c.x + select(-r, r, (corner & 1u) != 0u),
+        c.y + select(-r, r, (corner & 2u) != 0u),
+        c.z + select(-r, r, (corner & 4u) != 0u),
+    );
+    return ((view_proj[0] * p.x + view_proj[1] * p.y) + view_proj[2] * p.z) + view_proj[3];
+}
+
 // forestlod_shared::occlusion_bounds: the eight corners of the cube around the widened footprint
-// sphere, projected as `raster` projects (`view_proj * p` as glam sums it: column 0 first), their
-// screen box widened by OCCLUSION_SLACK_PX and their least NDC depth less OCCLUSION_Z_SLACK.
+// sphere (`occlusion_corner`); off screen when all lie nearer than half the near distance, else
+// unbounded when one does; their screen box widened by OCCLUSION_SLACK_PX and their least NDC
+// depth less OCCLUSION_Z_SLACK.
 fn occlusion_bounds(
     view_proj: mat4x4<f32>,
     near: f32,
@@ -936,13 +948,17 @@ fn occlusion_bounds(
     var y_lo = f32_max;
     var y_hi = -f32_max;
     var z_lo = f32_max;
+    // Wholly nearer than half the near distance (behind the eye included): clipped away.
+    var all_near = true;
     for (var corner = 0u; corner < 8u; corner++) {
-        let p = vec3<f32>(
-            c.x + select(-r, r, (corner & 1u) != 0u),
-            c.y + select(-r, r, (corner & 2u) != 0u),
-            c.z + select(-r, r, (corner & 4u) != 0u),
-        );
-        let clip = ((view_proj[0] * p.x + view_proj[1] * p.y) + view_proj[2] * p.z) + view_proj[3];
+        all_near = all_near && occlusion_corner(view_proj, c, r, corner).w < 0.5 * near;
+    }
+    if all_near {
+        out.kind = BOUND_OFFSCREEN;
+        return out;
+    }
+    for (var corner = 0u; corner < 8u; corner++) {
+        let clip = occlusion_corner(view_proj, c, r, corner);
         let finite = f32_is_finite(clip.x) && f32_is_finite(clip.y) && f32_is_finite(clip.z)
             && f32_is_finite(clip.w);
         if !finite || clip.w <= 0.5 * near {
@@ -1020,6 +1036,30 @@ fn is_early(
         return visible_before;
     }
     return false;
+}
+
+// forestlod_shared::effective_mode: `two-phase` without a history (a path's first frame) is
+// `single`.
+fn effective_mode(mode: u32, has_history: bool) -> u32 {
+    if mode == OCCLUSION_TWO_PHASE && !has_history {
+        return OCCLUSION_SINGLE;
+    }
+    return mode;
+}
+
+// forestlod_shared::is_occluder: `is_early`, for a tree whose rectangle is not wholly off screen.
+fn is_occluder(
+    mode: u32,
+    data: CommandData,
+    fade_mode: u32,
+    subset_mode: u32,
+    occluder_depth: f32,
+    depth_near: f32,
+    visible_before: bool,
+    bound_kind: u32,
+) -> bool {
+    return is_early(mode, data, fade_mode, subset_mode, occluder_depth, depth_near, visible_before)
+        && bound_kind != BOUND_OFFSCREEN;
 }
 
 // forestlod_shared::occlusion_slot: where a command's kept trees go in the 4m indirection.

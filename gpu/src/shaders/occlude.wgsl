@@ -7,9 +7,11 @@
 // Input: the frame's commands (after every selection stage) over an indirection of `m` entries,
 // copied by the driver into `indirection[4m, 5m)`; the commands of this phase's buffer are a
 // copy of the frame's (`first_instance` = `off`, `instance_count` = `len`). Phase `u.phase`:
-// - 0 (early): keeps, IN LIST ORDER, the trees of each command that are occluders (`is_early`,
-//   their footprint's nearest view depth and whether they passed the previous frame's test,
-//   `history[u.history_read + tree]`), at `occlusion_slot(0, lod, m, off) + k`;
+// - 0 (early): keeps, IN LIST ORDER, the trees of each command that are occluders (`is_occluder`
+//   under the effective mode `u.mode`: their footprint's nearest view depth less `single`'s
+//   nearest occluder depth, whether they passed the previous frame's test,
+//   `history[u.history_read + tree]`, and a bound not off screen), at
+//   `occlusion_slot(0, lod, m, off) + k`;
 // - 1 (late): tests the trees against the pyramid (`occlusion_bounds`, `pyramid_level_for`, the
 //   at most 2x2 texels, `occluded`; under `single` the early trees are not tested: drawn), keeps
 //   those that pass and were not drawn early at `occlusion_slot(1, lod, m, off) + k`, counts, and
@@ -23,6 +25,9 @@
 // 1. `occlude_prepare`, one invocation per slot: the largest chunk count ceil(len / 64).
 // 2. `occlude_args`, one invocation: the indirect grid of passes 3 and 5, (ceil(max_chunks / 64),
 //    y, z) with y·z >= counters.commands slots.
+// 2b. `occlude_nearest` (early phase only), the grid of pass 3: under `single` the min-reduction
+//    of forestlod_shared::nearest_occluder_depth (an atomicMax of an order-reversing encoding of
+//    non-negative depths, `state.nearest`), which both phases' early rule reads.
 // 3. `occlude_count`, one invocation per (chunk, slot): the chunk's kept count (a loop of at most
 //    64 trees) at `chunk_counts[min(lod, 1)·2m + 2·off + chunk]` (the command's own entries: the
 //    commands of one LOD never overlap).
@@ -70,7 +75,17 @@ struct OccludeDispatch {
 struct OccludeState {
     counters: OcclusionCountersAtomic,
     dispatch: OccludeDispatch,
+    // `single`'s nearest occluder depth (forestlod_shared::nearest_occluder_depth) as
+    // `NEAREST_NONE_BITS - bits`: 0 (cleared) is none, a larger value a nearer depth, so that an
+    // atomicMax of non-negative depths is their minimum.
+    nearest: atomic<u32>,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
+
+// The bits of +infinity: `nearest`'s encoding (above) and no depth.
+const NEAREST_NONE_BITS: u32 = 0x7f800000u;
 
 // OCCLUDE_WORKGROUP_SIZE (also the trees per chunk; gpu/src/occlude.rs, SOURCE), the OCCLUSION_*
 // mode ids and the slacks: generated from Rust.
@@ -91,12 +106,44 @@ struct OccludeState {
 // 2n entries: two halves, read (the previous frame's) and written (this frame's).
 @group(0) @binding(9) var<storage, read_write> history: array<u32>;
 
-// reference occlude.rs `early_tree`: whether the tree is an occluder of a command with `data`.
-fn early_tree(data: CommandData, tree: u32) -> bool {
+// A tree's footprint's nearest view depth and bound (reference occlude.rs
+// `EarlyRule::depth_and_bound`).
+struct DepthAndBound {
+    near: f32,
+    bound: OcclusionBound,
+}
+
+fn depth_and_bound(tree: u32) -> DepthAndBound {
     let fp = footprints[tree];
     let near = view_interval(fp.xyz, fp.w, u.eye, u.forward).lo;
+    let bound = occlusion_bounds(u.view_proj, u.near, fp.xyz, fp.w, u.width, u.height);
+    return DepthAndBound(near, bound);
+}
+
+// `single`'s nearest occluder depth of this frame (pass 0), 0 when none.
+fn nearest_depth() -> f32 {
+    let s = atomicLoad(&state.nearest);
+    if s == 0u {
+        return 0.0;
+    }
+    return bitcast<f32>(NEAREST_NONE_BITS - s);
+}
+
+// reference occlude.rs `EarlyRule::early`: whether the tree is an occluder of a command with
+// `data` (forestlod_shared::is_occluder, under the effective mode `u.mode`), with its bound.
+struct Early {
+    early: bool,
+    bound: OcclusionBound,
+}
+
+fn early_tree(data: CommandData, tree: u32) -> Early {
+    let d = depth_and_bound(tree);
     let before = history[u.history_read + tree] != 0u;
-    return is_early(u.mode, data, u.fade_mode, u.subset_mode, u.occluder_depth, near, before);
+    let early = is_occluder(
+        u.mode, data, u.fade_mode, u.subset_mode, u.occluder_depth, d.near - nearest_depth(), before,
+        d.bound.kind,
+    );
+    return Early(early, d.bound);
 }
 
 // reference pyramid.rs `Pyramid::max_under`: the largest texel at pyramid_level_for's level under
@@ -133,15 +180,15 @@ struct TreeOutcome {
 }
 
 fn tree_outcome(data: CommandData, tree: u32) -> TreeOutcome {
-    let early = early_tree(data, tree);
+    let e = early_tree(data, tree);
+    let early = e.early;
     if u.phase == 0u {
         return TreeOutcome(early, false, LATE_EARLY_UNTESTED);
     }
     if early && u.mode == OCCLUSION_SINGLE {
         return TreeOutcome(false, true, LATE_EARLY_UNTESTED);
     }
-    let fp = footprints[tree];
-    let b = occlusion_bounds(u.view_proj, u.near, fp.xyz, fp.w, u.width, u.height);
+    let b = e.bound;
     var outcome = LATE_UNBOUNDED;
     if b.kind == BOUND_OFFSCREEN {
         outcome = LATE_OFFSCREEN;
@@ -227,6 +274,30 @@ fn invocation_chunk(inv: Invocation) -> Chunk {
     c.first = c.chunk * OCCLUDE_WORKGROUP_SIZE;
     c.end = min(c.first + OCCLUDE_WORKGROUP_SIZE, len);
     return c;
+}
+
+// Pass 0 (early phase, effective mode `single`): the min-reduction of
+// forestlod_shared::nearest_occluder_depth over the chunk's trees of mesh commands that may
+// occlude, whose bound is not off screen (a loop of at most 64 iterations).
+@compute @workgroup_size(OCCLUDE_WORKGROUP_SIZE)
+fn occlude_nearest(inv: Invocation) {
+    let c = invocation_chunk(inv);
+    if !c.ok || u.mode != OCCLUSION_SINGLE || c.data.lod != LOD_MESH
+        || !may_occlude(c.data, u.fade_mode, u.subset_mode) {
+        return;
+    }
+    var best = 0u;
+    for (var j = c.first; j < c.end; j++) {
+        let d = depth_and_bound(indirection[c.src + j]);
+        if d.bound.kind != BOUND_OFFSCREEN {
+            // max(near, 0), without a negative zero.
+            let bits = select(bitcast<u32>(d.near), 0u, d.near <= 0.0);
+            best = max(best, NEAREST_NONE_BITS - bits);
+        }
+    }
+    if best != 0u {
+        atomicMax(&state.nearest, best);
+    }
 }
 
 // Pass 3: each chunk's kept count (a loop of at most 64 iterations).

@@ -509,7 +509,6 @@ fn late_decisions_at_the_knife_edge_follow_the_reference() {
     let scene = cropped_synthetic(300.0);
     let params = Params {
         occlusion: Occlusion::Single as u32,
-        // No occluders: every tree is tested.
         occluder_depth: 0.0,
         ..crop_params(FadeMode::DitherSequential)
     };
@@ -525,7 +524,13 @@ fn late_decisions_at_the_knife_edge_follow_the_reference() {
         base_vertex: 0,
         first_instance: 0,
     };
-    let data: forestlod_shared::CommandData = bytemuck::Zeroable::zeroed();
+    // A billboard command: never an occluder under `single` (whose nearest occluder depth would
+    // make the one tree early), so every probe is tested.
+    let data = forestlod_shared::CommandData {
+        lod: forestlod_shared::LOD_BILLBOARD,
+        billboard: 1,
+        ..bytemuck::Zeroable::zeroed()
+    };
     let counters = forestlod_shared::SelectCounters {
         commands: 1,
         ..Default::default()
