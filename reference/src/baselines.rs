@@ -244,6 +244,18 @@ pub fn render_vegetation(
     camera: &Camera,
     params: &Params,
 ) -> BaselineFrame {
+    render_vegetation_with_history(prepared, spheres, camera, params, &[])
+}
+
+/// [`render_vegetation`] as one frame of a camera path: under occlusion culling `two-phase`,
+/// `history` is the previous frame's `OcclusionFrame::visible` (empty for none).
+pub fn render_vegetation_with_history(
+    prepared: &Prepared,
+    spheres: &[([f32; 3], f32)],
+    camera: &Camera,
+    params: &Params,
+    history: &[u32],
+) -> BaselineFrame {
     let t = Instant::now();
     let visible = visible_trees(spheres, camera, params);
     let (selection, indirection) = vegetation_commands(
@@ -270,7 +282,7 @@ pub fn render_vegetation(
             // The same stage as ours (issue 31) over Vegetation's commands: every tree a mesh,
             // none fading, so the occluders are the trees within `occluder_depth`.
             let (drawn, occ, seconds) =
-                prepared.draw_occluded(&selection, &indirection, camera, params, &[]);
+                prepared.draw_occluded(&selection, &indirection, camera, params, history);
             (drawn, Some(occ), seconds)
         };
     let draw_seconds = t.elapsed().as_secs_f64() - occlusion_seconds;

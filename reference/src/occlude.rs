@@ -15,10 +15,11 @@
 //!   returns the early selection: the same commands, `first_instance` at the slot,
 //!   `instance_count` the kept count.
 //! - [`occlude_late`] tests the command's trees against the pyramid (under `single` the early
-//!   ones are not tested: they are drawn) and writes the trees that pass and were not drawn early
-//!   at slot `(1, lod, m, first_instance)`; it returns the late selection, the counters, and per
-//!   tree whether it passed (the next frame's `visible_before`; a tree of two commands passes when
-//!   either passes).
+//!   ones are not tested: they pass) and writes the trees that pass, **in list order**, at slot
+//!   `(1, lod, m, first_instance)`: the final pass's lists (early trees included under `exact`,
+//!   left out under `reorder`, [`forestlod_shared::OcclusionOrder`]); it returns the
+//!   final selection, the counters, and per tree whether it passed (the next frame's
+//!   `visible_before`; a tree of two commands passes when either passes).
 //!
 //! Commands are never removed, reordered or given new data: the draw stage needs no change.
 //!
@@ -30,8 +31,8 @@
 
 use forestlod_shared::{
     Camera, Occlusion, OcclusionBound, OcclusionCounters, Params, coverage, effective_mode,
-    is_occluder, may_occlude, nearest_occluder_depth, occluded, occlusion_bounds, occlusion_slot,
-    view_interval,
+    final_includes_early, is_occluder, may_occlude, nearest_occluder_depth, occluded,
+    occlusion_bounds, occlusion_slot, view_interval,
 };
 use rayon::prelude::*;
 
@@ -212,6 +213,7 @@ pub fn occlude_late(
         visible_before,
     );
     let mode = rule.mode;
+    let with_early = final_includes_early(params.occlusion_order);
     // One workgroup per command: (late list, passed trees, counters).
     let per_command: Vec<(Vec<u32>, Vec<u32>, OcclusionCounters)> = selection
         .commands
@@ -227,6 +229,9 @@ pub fn occlude_late(
                 c.early += early as u32;
                 if early && mode == Occlusion::Single as u32 {
                     passed.push(t);
+                    if with_early {
+                        late.push(t);
+                    }
                     continue;
                 }
                 c.tested += 1;
@@ -248,7 +253,7 @@ pub fn occlude_late(
                 coverage::hit(coverage::Threshold::OccludeLate, pass);
                 if pass {
                     passed.push(t);
-                    if !early {
+                    if with_early || !early {
                         late.push(t);
                     }
                 }
@@ -287,49 +292,41 @@ pub fn occlude_late(
     }
 }
 
-/// The trees of `selection` that neither pass of a frame drew (`early` and `late`, over
-/// `occ_indirection`): a selection of the same commands over a `2m` indirection at
-/// `lod·m + first_instance`. The zero-false-cull oracle draws them alone
-/// ([`crate::pipeline::Prepared::false_cull_pixels`]).
+/// The trees of `selection` that neither pass of a frame drew for good (`early` under
+/// `reorder`, and `late`, over `occ_indirection`; `exact`'s final lists hold its early trees): a
+/// selection of the same commands over a `2m` indirection at `lod·m + first_instance`. The
+/// zero-false-cull oracle draws them alone ([`crate::pipeline::Prepared::false_cull_pixels`]).
 pub fn culled_selection(
     selection: &Selection,
     indirection: &[u32],
-    early: &Selection,
-    late: &Selection,
+    (early, late): (&Selection, &Selection),
     occ_indirection: &[u32],
+    order: u32,
 ) -> (Selection, Vec<u32>) {
     let m = indirection.len() as u32;
     let mut out = vec![0u32; 2 * m as usize];
     let mut culled = selection.clone();
-    let range = |c: &forestlod_shared::DrawCommand| {
+    let list = |c: &forestlod_shared::DrawCommand| {
         &occ_indirection[c.first_instance as usize..(c.first_instance + c.instance_count) as usize]
     };
     for (i, cmd) in culled.commands.iter_mut().enumerate() {
         let off = cmd.first_instance as usize;
         let all = &indirection[off..off + cmd.instance_count as usize];
-        let (mut e, mut l) = (
-            range(&early.commands[i]).iter(),
-            range(&late.commands[i]).iter(),
-        );
-        let (mut next_e, mut next_l) = (e.next(), l.next());
+        let mut drawn: Vec<u32> = list(&late.commands[i]).to_vec();
+        if !final_includes_early(order) {
+            drawn.extend_from_slice(list(&early.commands[i]));
+        }
+        drawn.sort_unstable();
         let slot = (selection.data[i].lod.min(1) * m + cmd.first_instance) as usize;
-        let mut kept = 0usize;
-        for t in all {
-            if next_e == Some(t) {
-                next_e = e.next();
-            } else if next_l == Some(t) {
-                next_l = l.next();
-            } else {
-                out[slot + kept] = *t;
-                kept += 1;
+        let mut n = 0usize;
+        for &t in all {
+            if drawn.binary_search(&t).is_err() {
+                out[slot + n] = t;
+                n += 1;
             }
         }
-        assert!(
-            next_e.is_none() && next_l.is_none(),
-            "the passes' lists are subsequences of the command's"
-        );
         cmd.first_instance = slot as u32;
-        cmd.instance_count = kept as u32;
+        cmd.instance_count = n as u32;
     }
     (culled, out)
 }

@@ -205,15 +205,15 @@ pub struct FrameTimings {
 pub struct OcclusionFrame {
     /// The stage's counters.
     pub counters: forestlod_shared::OcclusionCounters,
-    /// The early pass's commands, over [`OcclusionFrame::indirection`].
+    /// The early pass's commands (the depth pre-pass), over [`OcclusionFrame::indirection`].
     pub early: Selection,
-    /// The late pass's commands, over [`OcclusionFrame::indirection`].
+    /// The final pass's commands (every tree not culled), over [`OcclusionFrame::indirection`].
     pub late: Selection,
     /// The `4m` indirection both index ([`forestlod_shared::occlusion_slot`]).
     pub indirection: Vec<u32>,
     /// The early pass's tree counters.
     pub early_stats: DrawStats,
-    /// The late pass's tree counters.
+    /// The final pass's tree counters.
     pub late_stats: DrawStats,
     /// The pyramid of the early pass's depth.
     pub pyramid: Pyramid,
@@ -222,24 +222,27 @@ pub struct OcclusionFrame {
 }
 
 impl OcclusionFrame {
-    /// The trees either pass drew (within the draw distance), ascending, each once.
+    /// The trees the frame drew for good (within the draw distance), ascending, each once: the
+    /// final pass's, and under `reorder` the early pass's too.
     pub fn trees_drawn(&self, prepared: &Prepared, camera: &Camera, params: &Params) -> Vec<u32> {
         let mut trees = crate::baselines::trees_drawn_by_selection(
-            prepared,
-            &self.early,
-            &self.indirection,
-            camera,
-            params,
-        );
-        trees.extend(crate::baselines::trees_drawn_by_selection(
             prepared,
             &self.late,
             &self.indirection,
             camera,
             params,
-        ));
-        trees.sort_unstable();
-        trees.dedup();
+        );
+        if !forestlod_shared::final_includes_early(params.occlusion_order) {
+            trees.extend(crate::baselines::trees_drawn_by_selection(
+                prepared,
+                &self.early,
+                &self.indirection,
+                camera,
+                params,
+            ));
+            trees.sort_unstable();
+            trees.dedup();
+        }
         trees
     }
 }
@@ -399,16 +402,21 @@ impl Prepared {
         let (early, mut occ_indirection) =
             occlude_early(selection, indirection, fp, camera, params, history);
         let mut seconds = t.elapsed().as_secs_f64();
-        let (mut target, terrain_stats) = sky_and_ground(&self.scene, camera);
+        // Under `exact` the early pass is a depth pre-pass (its colour is not kept) and the final
+        // pass starts again from the sky and ground; under `reorder` the late trees are drawn
+        // onto the early pass.
+        let exact = forestlod_shared::final_includes_early(params.occlusion_order);
+        let (ground, terrain_stats) = sky_and_ground(&self.scene, camera);
+        let mut early_target = if exact { ground.clone() } else { ground };
         let (early_stats, early_discarded) = {
             let res = DrawResources {
                 indirection: &occ_indirection,
                 ..self.resources()
             };
-            draw_trees_into(&res, &early, camera, params, &mut target)
+            draw_trees_into(&res, &early, camera, params, &mut early_target)
         };
         let t = Instant::now();
-        let pyramid = Pyramid::build(target.depth(), camera.width, camera.height);
+        let pyramid = Pyramid::build(early_target.depth(), camera.width, camera.height);
         let late = occlude_late(
             selection,
             indirection,
@@ -420,6 +428,12 @@ impl Prepared {
             &mut occ_indirection,
         );
         seconds += t.elapsed().as_secs_f64();
+        let mut target = if exact {
+            let (ground, _) = sky_and_ground(&self.scene, camera);
+            ground
+        } else {
+            early_target
+        };
         let (late_stats, late_discarded) = {
             let res = DrawResources {
                 indirection: &occ_indirection,
@@ -431,7 +445,11 @@ impl Prepared {
             target,
             terrain_stats,
             tree_stats: early_stats + late_stats,
-            trees_discarded: early_discarded + late_discarded,
+            trees_discarded: if exact {
+                late_discarded
+            } else {
+                early_discarded + late_discarded
+            },
         };
         let occ = OcclusionFrame {
             counters: late.counters,
@@ -462,9 +480,9 @@ impl Prepared {
         let (culled, culled_indirection) = crate::occlude::culled_selection(
             &frame.selection,
             indirection,
-            &occ.early,
-            &occ.late,
+            (&occ.early, &occ.late),
             &occ.indirection,
+            params.occlusion_order,
         );
         let mut target = crate::raster::RenderTarget::new(
             camera.width,

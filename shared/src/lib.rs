@@ -94,10 +94,10 @@ pub use noise::{
 };
 pub use occlusion::{
     MAX_PYRAMID_LEVELS, OCCLUSION_SLACK_PX, OCCLUSION_SLACK_REL, OCCLUSION_Z_SLACK, Occlusion,
-    OcclusionBound, OcclusionCounters, OcclusionRect, PyramidLevel, effective_mode, is_early,
-    is_occluder, may_occlude, nearest_occluder_depth, occluded, occlusion_bounds, occlusion_slot,
-    pyramid_len, pyramid_level_floor, pyramid_level_for, pyramid_levels, pyramid_reduce,
-    pyramid_texels_max,
+    OcclusionBound, OcclusionCounters, OcclusionOrder, OcclusionRect, PyramidLevel, effective_mode,
+    final_includes_early, is_early, is_occluder, may_occlude, nearest_occluder_depth, occluded,
+    occlusion_bounds, occlusion_slot, pyramid_len, pyramid_level_floor, pyramid_level_for,
+    pyramid_levels, pyramid_reduce, pyramid_texels_max,
 };
 pub use params::{
     AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,

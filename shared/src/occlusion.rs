@@ -31,12 +31,25 @@
 //!    nearest depth. The level is the **smallest** whose texels cover the rectangle with at most
 //!    2x2 texels; all of them are read. The tree is culled when its nearest depth is **greater**
 //!    than their maximum ([`occluded`]).
-//! 4. **Late pass**: the commands restricted to the trees not drawn early and not culled.
+//! 4. **Final pass** ([`OcclusionOrder`]): under `exact` the targets are cleared again and the
+//!    commands restricted to every tree not culled, the early ones included, are drawn in the
+//!    commands' own order, ground first; under `reorder` (niagara's and Bevy's late pass) the
+//!    commands restricted to the trees neither drawn early nor culled are drawn onto the early
+//!    pass's targets.
 //!
-//! Commands are never removed or reordered (as in `refine`): the early and late selections are
+//! Commands are never removed or reordered (as in `refine`): the early and final selections are
 //! the frame's commands with shorter instance lists over a `4m`-entry indirection
 //! ([`occlusion_slot`]), so `base_vertex`, the command data and the draw stage are unchanged.
 //!
+//! Why two orders: `reorder` draws each tree once, but every early tree before every late one,
+//! and a depth test LESS keeps the first of two equal depths: where an early and a late fragment
+//! tie, the frame changes. Ties are not rare at distance: depth near 1 has a step of 6e-8, about
+//! 0.1 m at 1 km with our 0.5 m near plane, and `stress` puts twenty trees in a 320x180 pixel;
+//! the first sweep found such a pixel in 5 of 40 medium frames. `exact` makes the frame the
+//! frame without culling, less trees that had no pixel, bit for bit, and pays for it by drawing
+//! the early trees twice: at `stress`' close camera, where the nearest trees fill most of the
+//! frame, that is more fragments than culling saves (`experiments/results/occlusion/`).
+
 //! ## Why the test is conservative (no false cull), by construction
 //! - Every fragment a tree can write lies in its footprint sphere, so in the cube; the cube's
 //!   projection lies in the convex hull of its corners' projections when every corner is in front
@@ -65,11 +78,12 @@
 //!   a tree any of whose corners is at or behind half the near distance.
 //!
 //! ## Images
-//! In every dithered fade mode the frame is bit-identical to the frame without occlusion culling
-//! wherever the nearest fragment of a pixel is unique: the late pass draws after the early one, so
-//! the one way a pixel can differ is a tie in depth between an early and a late fragment (the
-//! first drawn wins a LESS test). Under `alpha` the blending order of fade-band fragments changes
-//! too; the tests count and classify both.
+//! Under `exact`, in every dithered fade mode (and `none`), the frame is bit-identical to the
+//! frame without occlusion culling: the final pass is that frame's draw less culled trees, each of
+//! which lost every depth test it took part in, strictly (no tie: it lies behind an early fragment
+//! that the final pass draws too). Under `reorder` a pixel can differ only where two fragments tie
+//! in depth. Under `alpha` a culled tree can still show through a blended fade-band fragment drawn
+//! after it and before its occluder. The tests count and classify both.
 
 use glam::{Mat4, Vec3, Vec4};
 
@@ -87,11 +101,30 @@ crate::modes::modes! {
     }
 }
 
+crate::modes::modes! {
+    /// How the passes of a frame with occlusion culling are ordered (module docs, step 4).
+    pub enum OcclusionOrder {
+        /// The early pass is a depth pre-pass; the final pass clears and draws every tree not
+        /// culled in the frame's own order: bit-identical frames, early trees drawn twice.
+        Exact = 0 => "exact",
+        /// niagara's and Bevy's: the late pass draws the trees not drawn early onto the early
+        /// pass's targets: each tree drawn once, and a depth tie between an early and a late
+        /// fragment can go the other way.
+        Reorder = 1 => "reorder",
+    }
+}
+
+/// Whether the final pass's lists hold the early trees too (`exact`: it clears and draws the
+/// frame again) or only the trees not drawn early (`reorder`: it draws onto the early pass).
+pub fn final_includes_early(order: u32) -> bool {
+    order != OcclusionOrder::Reorder as u32
+}
+
 /// Pixels of slack around a tree's projected rectangle: pixel centres lie half a pixel inside a
 /// pixel, and the projection's rounding and the rasterizer's sub-pixel snapping (1/256 px on
 /// lavapipe) are far below a pixel; two pixels cover both with room (as the draw's mask test,
 /// `reference::draw::tree_footprint_meets_mask`).
-pub const OCCLUSION_SLACK_PX: f32 = 2.0;
+pub const OCCLUSION_SLACK_PX: f32 = 1.0;
 
 /// Relative slack on the footprint radius, and on the centre's coordinates: the vertex stage's
 /// world positions are rounded `f32` sums, a few ulps of the coordinates' size.
@@ -352,7 +385,7 @@ pub fn is_occluder(
 
 /// Where a command's kept trees go in the `4m`-entry indirection the occlusion stage writes over
 /// an input indirection of `m` entries: `(2·phase + lod)·m + first_instance`, phase 0 early and
-/// 1 late. A command's range is its own: the two LODs of one group share their input range, and
+/// 1 final. A command's range is its own: the two LODs of one group share their input range, and
 /// the commands of one LOD never overlap.
 pub fn occlusion_slot(phase: u32, lod: u32, m: u32, first_instance: u32) -> u32 {
     (2 * phase + lod.min(1)) * m + first_instance
@@ -370,7 +403,7 @@ pub struct OcclusionCounters {
     pub occluded: u32,
     /// Trees culled: their rectangle lies outside the frame.
     pub offscreen: u32,
-    /// Trees drawn in the late pass.
+    /// Trees drawn in the final pass (every tree not culled, the early ones included).
     pub late: u32,
     /// Trees that were never bounded (a corner near or behind the eye).
     pub unbounded: u32,

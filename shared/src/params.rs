@@ -238,12 +238,16 @@ pub struct Params {
     /// [`crate::Occlusion`] as `u32` (issue 31, `shared/src/occlusion.rs`): occlusion culling
     /// against a depth pyramid of an early pass. Default `Off`: one pass, today's frame.
     pub occlusion: u32,
-    /// View depth within which a mesh tree's footprint must start to be an occluder under
-    /// `occlusion = single`, metres. Default 100 m: the nearest rows of a forest, a few percent of
-    /// `stress`' close trees.
+    /// View depth behind the nearest in-view mesh tree within which a mesh tree's footprint must
+    /// start to be an occluder under `occlusion = single`, metres. Default 100 m: the nearest rows
+    /// of a forest, a few per cent of `stress`' close trees.
     pub occluder_depth: f32,
+    /// [`crate::OcclusionOrder`] as `u32` (issue 31): the final pass clears and draws every tree
+    /// not culled in order (`exact`, default: bit-identical frames) or draws the late trees onto
+    /// the early pass (`reorder`, niagara's: each tree once).
+    pub occlusion_order: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 136);
+const _: () = assert!(core::mem::size_of::<Params>() == 140);
 
 impl Default for Params {
     fn default() -> Self {
@@ -282,6 +286,7 @@ impl Default for Params {
             azimuth_mode: crate::AzimuthMode::Nearest as u32,
             occlusion: crate::Occlusion::Off as u32,
             occluder_depth: 100.0,
+            occlusion_order: crate::OcclusionOrder::Exact as u32,
         }
     }
 }

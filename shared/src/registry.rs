@@ -20,7 +20,8 @@ use crate::azimuth::MAX_AZIMUTH_COUNT;
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{
     AngleIndexMode, AzimuthMode, Coalesce, CommandOrder, DitherSpace, FadeGranularity, FadeMode,
-    Hierarchy, LodMetric, MipMode, Occlusion, Params, Shading, SubsetMode, TreeCull,
+    Hierarchy, LodMetric, MipMode, Occlusion, OcclusionOrder, Params, Shading, SubsetMode,
+    TreeCull,
 };
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.
@@ -327,7 +328,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 34] = [
+pub const PARAMS: [ParamSpec; 35] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -384,7 +385,8 @@ pub const PARAMS: [ParamSpec; 34] = [
     choice!(azimuth_mode, "azimuth-mode", AzimuthMode, "Billboard azimuth view (issue 30): ", ""),
     choice!(occlusion, "occlusion", Occlusion, "Occlusion culling against a depth pyramid (issue 31): ", ""),
     param!(occluder_depth, "occluder-depth", distance(0.0), "expected a finite distance in 0..=1e7 m",
-        "View depth within which mesh trees are occluders under occlusion single, metres"),
+        "Depth behind the nearest mesh tree within which mesh trees are occluders under occlusion single, metres"),
+    choice!(occlusion_order, "occlusion-order", OcclusionOrder, "Pass order of occlusion culling (issue 31): ", ""),
 ];
 
 /// Least `subset_min`: one tree in a thousand (a smaller floor leaves batches of a few hundred

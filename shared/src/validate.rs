@@ -81,6 +81,12 @@ impl Params {
         crate::Occlusion::from_id(self.occlusion).ok_or_else(|| rejected("occlusion", self))
     }
 
+    /// The occlusion pass order (issue 31), validated.
+    pub fn occlusion_ordering(&self) -> Result<crate::OcclusionOrder, ParamError> {
+        crate::OcclusionOrder::from_id(self.occlusion_order)
+            .ok_or_else(|| rejected("occlusion_order", self))
+    }
+
     /// The azimuth view rule (issue 30), validated.
     pub fn azimuth(&self) -> Result<crate::AzimuthMode, ParamError> {
         crate::AzimuthMode::from_id(self.azimuth_mode).ok_or_else(|| rejected("azimuth_mode", self))

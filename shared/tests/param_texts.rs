@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 34] = [
+const PINNED: [(&str, &str, &str); 35] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -175,7 +175,12 @@ const PINNED: [(&str, &str, &str); 34] = [
     (
         "occluder_depth",
         "expected a finite distance in 0..=1e7 m",
-        "View depth within which mesh trees are occluders under occlusion single, metres",
+        "Depth behind the nearest mesh tree within which mesh trees are occluders under occlusion single, metres",
+    ),
+    (
+        "occlusion_order",
+        "expected 0 (exact) or 1 (reorder)",
+        "Pass order of occlusion culling (issue 31): exact, reorder",
     ),
 ];
 

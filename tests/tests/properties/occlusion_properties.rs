@@ -16,8 +16,8 @@ use forestlod_reference::pipeline::{Frame, Prepared, prepare};
 use forestlod_reference::pyramid::Pyramid;
 use forestlod_reference::scene::{Instance, Scene};
 use forestlod_shared::{
-    Camera, CommandOrder, FadeMode, Hierarchy, LOD_ID_TRANSITION, Occlusion, OcclusionRect, Params,
-    TreeCull, pyramid_level_floor, pyramid_level_for,
+    Camera, CommandOrder, FadeMode, Hierarchy, LOD_ID_TRANSITION, Occlusion, OcclusionOrder,
+    OcclusionRect, Params, TreeCull, pyramid_level_floor, pyramid_level_for,
 };
 use forestlod_tests::{property_config, scene_of, with_threads};
 use proptest::prelude::*;
@@ -104,41 +104,43 @@ fn prepared(trees: Vec<Instance>, p: &Params) -> Prepared {
     prepare(scene, p).expect("valid case")
 }
 
-/// Pixels where two frames differ (colour, depth bits or id), and of those the ones that are not
-/// fade-band pixels in either frame.
-fn differences(a: &Frame, b: &Frame) -> (usize, usize) {
+/// Pixels where two frames differ (colour, depth bits or id), those of them where the depths are
+/// equal (a tie between two fragments that the draw order settles), and those that are neither a
+/// tie nor a fade-band pixel in either frame.
+fn differences(a: &Frame, b: &Frame) -> (usize, usize, usize) {
     let (a, b) = (&a.drawn.target, &b.drawn.target);
-    let mut diff = 0;
-    let mut unclassified = 0;
+    let (mut diff, mut ties, mut unclassified) = (0, 0, 0);
     for i in 0..a.color().len() {
-        let same = a.color()[i] == b.color()[i]
-            && a.depth()[i].to_bits() == b.depth()[i].to_bits()
-            && a.aux()[i] == b.aux()[i];
+        let same_depth = a.depth()[i].to_bits() == b.depth()[i].to_bits();
+        let same = a.color()[i] == b.color()[i] && same_depth && a.aux()[i] == b.aux()[i];
         if !same {
             diff += 1;
-            if a.aux()[i] != LOD_ID_TRANSITION && b.aux()[i] != LOD_ID_TRANSITION {
+            if same_depth {
+                ties += 1;
+            } else if a.aux()[i] != LOD_ID_TRANSITION && b.aux()[i] != LOD_ID_TRANSITION {
                 unclassified += 1;
             }
         }
     }
-    (diff, unclassified)
+    (diff, ties, unclassified)
 }
 
 proptest! {
     #![proptest_config(property_config())]
 
-    /// Zero false culls, and frames equal to the frame without occlusion culling: bit-identical
-    /// outside `alpha`, differing only at fade-band pixels under it. Mutation-checked: dropping
-    /// the depth slack (`OCCLUSION_Z_SLACK = 0`) is not caught (the rasterizer's depth is at
-    /// least its vertices'), but reading only the rectangle's top-left texel, or culling at
-    /// `z_min >= max`, or letting a fading command occlude under `alpha`, is.
+    /// Zero false culls, and frames equal to the frame without occlusion culling: under `exact`
+    /// bit-identical outside `alpha`; under `reorder` differing only where two fragments tie in
+    /// depth; under `alpha` differing only at fade-band pixels (and ties). Mutation-checked (see
+    /// the issue 31 note): reading only the rectangle's top-left texel, culling at
+    /// `z_min >= max`, and letting a fading command occlude under `alpha` each fail it.
     #[test]
-    fn no_false_culls_and_frames_unchanged(trees in forest(), camera in ground_cameras(), p in occlusion_params(), two in any::<bool>()) {
+    fn no_false_culls_and_frames_unchanged(trees in forest(), camera in ground_cameras(), p in occlusion_params(), two in any::<bool>(), reorder in any::<bool>()) {
         let prepared = prepared(trees, &p);
         let off = prepared.render(&camera, &p).unwrap();
         let mode = if two { Occlusion::TwoPhase } else { Occlusion::Single };
-        let q = Params { occlusion: mode as u32, ..p };
-        // Two-phase's history: the frame without culling's trees (every selected tree).
+        let order = if reorder { OcclusionOrder::Reorder } else { OcclusionOrder::Exact };
+        let q = Params { occlusion: mode as u32, occlusion_order: order as u32, ..p };
+        // Two-phase's history: two trees in three of the frame without culling's.
         let history: Vec<u32> = if two {
             let mut h = vec![0u32; prepared.footprints.len()];
             let ind = off.indirection(&prepared);
@@ -154,9 +156,11 @@ proptest! {
         let on = prepared.render_with_history(&camera, &q, &history).unwrap();
         let false_culls = prepared.false_cull_pixels(&camera, &q, &on);
         prop_assert_eq!(false_culls, 0, "pixels of culled trees at or in front of the frame");
-        let (diff, unclassified) = differences(&off, &on);
+        let (diff, ties, unclassified) = differences(&off, &on);
         if p.fade_mode == FadeMode::Alpha as u32 {
-            prop_assert_eq!(unclassified, 0, "alpha: {} differing pixels, {} outside the fade band", diff, unclassified);
+            prop_assert_eq!(unclassified, 0, "alpha: {} differing pixels, {} neither ties nor fade band", diff, unclassified);
+        } else if reorder {
+            prop_assert_eq!(diff, ties, "reorder: {} differing pixels, {} of them ties", diff, ties);
         } else {
             prop_assert_eq!(diff, 0, "the frame changed at {} pixels", diff);
         }
