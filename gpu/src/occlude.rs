@@ -113,8 +113,17 @@ pub struct OccludeUniform {
     pub history_write: u32,
     /// The device's `max_compute_workgroups_per_dimension`.
     pub max_workgroups: u32,
+    /// 1 when the final pass's lists hold the early trees too
+    /// (`forestlod_shared::final_includes_early` of `params.occlusion_order`), else 0.
+    pub final_with_early: u32,
+    /// Explicit padding.
+    pub _pad0: u32,
+    /// Explicit padding.
+    pub _pad1: u32,
+    /// Explicit padding.
+    pub _pad2: u32,
 }
-const _: () = assert!(size_of::<OccludeUniform>() == 400);
+const _: () = assert!(size_of::<OccludeUniform>() == 416);
 
 impl OccludeUniform {
     /// The uniform of one phase (`history_read` 0, `max_workgroups` 65,535: the driver sets
@@ -144,6 +153,10 @@ impl OccludeUniform {
             history_read: 0,
             history_write: tree_count,
             max_workgroups: 65_535,
+            final_with_early: forestlod_shared::final_includes_early(params.occlusion_order) as u32,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         }
     }
 }
@@ -630,7 +643,11 @@ mod tests {
                 level_count,
                 history_read,
                 history_write,
-                max_workgroups
+                max_workgroups,
+                final_with_early,
+                _pad0,
+                _pad1,
+                _pad2
             }),
         );
         assert_layout(

@@ -185,7 +185,7 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/occlude.wgsl",
         backend: Some("stage::Occlude"),
         parity: "tests/tests/parity/occlusion.rs",
-        modes: &["occlusion", "fade_mode"],
+        modes: &["occlusion", "fade_mode", "occlusion_order"],
         params: &["occluder_depth"],
     },
     StageEntry {

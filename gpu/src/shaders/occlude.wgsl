@@ -13,8 +13,9 @@
 //   `history[u.history_read + tree]`, and a bound not off screen), at
 //   `occlusion_slot(0, lod, m, off) + k`;
 // - 1 (late): tests the trees against the pyramid (`occlusion_bounds`, `pyramid_level_for`, the
-//   at most 2x2 texels, `occluded`; under `single` the early trees are not tested: drawn), keeps
-//   those that pass and were not drawn early at `occlusion_slot(1, lod, m, off) + k`, counts, and
+//   at most 2x2 texels, `occluded`; under `single` the early trees are not tested: they pass),
+//   keeps those that pass (under `reorder` only those not drawn early: the final pass's lists,
+//   forestlod_shared::final_includes_early) at `occlusion_slot(1, lod, m, off) + k`, counts, and
 //   marks every tree that passed (early trees under `single` included) in
 //   `history[u.history_write + tree]` (cleared by the driver first: a tree of two commands passes
 //   when either passes).
@@ -59,6 +60,12 @@ struct OccludeUniform {
     history_read: u32,
     history_write: u32,
     max_workgroups: u32,
+    // 1 when the final pass's lists hold the early trees too (forestlod_shared::
+    // final_includes_early of `params.occlusion_order`: `exact`), 0 under `reorder`.
+    final_with_early: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // The grid of the count and write passes and the largest chunk count. Keep in sync with
@@ -185,8 +192,9 @@ fn tree_outcome(data: CommandData, tree: u32) -> TreeOutcome {
     if u.phase == 0u {
         return TreeOutcome(early, false, LATE_EARLY_UNTESTED);
     }
+    let with_early = u.final_with_early != 0u;
     if early && u.mode == OCCLUSION_SINGLE {
-        return TreeOutcome(false, true, LATE_EARLY_UNTESTED);
+        return TreeOutcome(with_early, true, LATE_EARLY_UNTESTED);
     }
     let b = e.bound;
     var outcome = LATE_UNBOUNDED;
@@ -196,7 +204,7 @@ fn tree_outcome(data: CommandData, tree: u32) -> TreeOutcome {
         outcome = select(LATE_VISIBLE, LATE_OCCLUDED, occluded(b.z_min, pyramid_max_under(b.rect)));
     }
     let passed = outcome == LATE_UNBOUNDED || outcome == LATE_VISIBLE;
-    return TreeOutcome(passed && !early, passed, outcome);
+    return TreeOutcome(passed && (with_early || !early), passed, outcome);
 }
 
 fn chunk_count(len: u32) -> u32 {

@@ -548,7 +548,8 @@ impl<'a> GpuScene<'a> {
                             .filter(|_| occlusion != Occlusion::Off),
                     ) {
                         // Issue 31: early pass (cleared, ground first), the pyramid of its
-                        // depth, the late test, the late pass loading the same targets.
+                        // depth, the late test, the final pass (`exact`: cleared again, every
+                        // tree not culled; `reorder`: the late trees loading the same targets).
                         let selection = chain.expect("ours has a chain").buffers();
                         let (early, late) = (
                             occlude.early_buffers(selection),
@@ -577,7 +578,21 @@ impl<'a> GpuScene<'a> {
                             selection: &late,
                             indirection: Some(occlude.indirection()),
                         };
-                        draw.encode_late(ctx, &mut encoder, &late_inputs, camera, params, target)?;
+                        if forestlod_shared::final_includes_early(params.occlusion_order) {
+                            // `exact`: the early pass was a depth pre-pass; the final pass
+                            // clears and draws every tree not culled in the frame's order.
+                            draw.encode(ctx, &mut encoder, &late_inputs, camera, params, target)?;
+                        } else {
+                            // `reorder`: the late trees onto the early pass's targets.
+                            draw.encode_late(
+                                ctx,
+                                &mut encoder,
+                                &late_inputs,
+                                camera,
+                                params,
+                                target,
+                            )?;
+                        }
                         if let Some(s) = stamps {
                             s.mark(&mut encoder, 3);
                             s.resolve(&mut encoder);

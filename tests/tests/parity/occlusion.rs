@@ -34,7 +34,8 @@ use forestlod_reference::pipeline::{Frame, Prepared, prepare};
 use forestlod_reference::pyramid::Pyramid;
 use forestlod_reference::select::Selection;
 use forestlod_shared::{
-    Camera, CommandOrder, FadeMode, Hierarchy, Occlusion, OcclusionCounters, Params, TreeCull,
+    Camera, CommandOrder, FadeMode, Hierarchy, Occlusion, OcclusionCounters, OcclusionOrder,
+    Params, TreeCull,
 };
 use forestlod_tests::assert_no_failures;
 use forestlod_tests::scenarios::{
@@ -57,8 +58,9 @@ const PYRAMID_SIZES: [(u32, u32); 6] =
 /// trees.
 const DECISION_BUDGET_PER_MILLE: u64 = 1;
 
-/// Pixels per frame that may differ between the GPU frame with occlusion culling and without it
-/// in a dithered fade mode: the late pass draws after the early one, so a pixel where an early
+/// Pixels per frame that may differ between the GPU frame with occlusion culling `reorder` and
+/// without it in a dithered fade mode (`exact` may differ in none): the late pass draws after
+/// the early one, so a pixel where an early
 /// and a late fragment have exactly the same depth keeps the early one under LESS where the
 /// frame without culling kept whichever came first in command order (module docs of
 /// `forestlod_shared::occlusion`, "Images"). Exact depth ties between two trees' triangles are
@@ -320,12 +322,17 @@ fn occlude_equals_the_reference() {
         (config.apply)(&mut base);
         let prepared = prepare(scene.clone(), &base).expect("prepare");
         let footprints = occlusion_footprints(&prepared);
-        for fade in [FadeMode::DitherSequential, FadeMode::Alpha] {
+        for (fade, order) in [
+            (FadeMode::DitherSequential, OcclusionOrder::Exact),
+            (FadeMode::Alpha, OcclusionOrder::Exact),
+            (FadeMode::DitherSequential, OcclusionOrder::Reorder),
+        ] {
             for mode in [Occlusion::Single, Occlusion::TwoPhase] {
                 for (view, size) in [((250.0, 0.0), (96, 64)), ((120.0, 25.0), (75, 61))] {
                     let params = Params {
                         fade_mode: fade as u32,
                         occlusion: mode as u32,
+                        occlusion_order: order as u32,
                         ..base
                     };
                     let mut occlude = GpuOcclude::new(ctx, &footprints).expect("occlude");
@@ -333,10 +340,11 @@ fn occlude_equals_the_reference() {
                     let mut history: Vec<u32> = Vec::new();
                     for (k, camera) in path(&scene, view, size, 2).iter().enumerate() {
                         let name = format!(
-                            "{}/{}/{}/{view:?}/frame {k}",
+                            "{}/{}/{}/{}/{view:?}/frame {k}",
                             config.name,
                             fade.name(),
-                            mode.name()
+                            mode.name(),
+                            order.name()
                         );
                         let frame = prepared
                             .render_with_history(camera, &params, &history)
@@ -633,7 +641,17 @@ fn frames_with_occlusion_culling_equal_frames_without() {
             StagesFromCpu::parse("textures").unwrap(),
         )
         .expect("GPU scene");
-        for fade in [FadeMode::DitherSequential, FadeMode::None, FadeMode::Alpha] {
+        for (fade, order) in [
+            (FadeMode::DitherSequential, OcclusionOrder::Exact),
+            (FadeMode::None, OcclusionOrder::Exact),
+            (FadeMode::Alpha, OcclusionOrder::Exact),
+            (FadeMode::DitherSequential, OcclusionOrder::Reorder),
+        ] {
+            // `exact` is the frame without culling bit for bit; `reorder` but for depth ties.
+            let budget = match order {
+                OcclusionOrder::Exact => 0,
+                OcclusionOrder::Reorder => DEPTH_TIE_BUDGET,
+            };
             for mode in [Occlusion::Single, Occlusion::TwoPhase] {
                 let frames_of_path = if mode == Occlusion::TwoPhase { 3 } else { 1 };
                 let off = Params {
@@ -642,6 +660,7 @@ fn frames_with_occlusion_culling_equal_frames_without() {
                 };
                 let on = Params {
                     occlusion: mode as u32,
+                    occlusion_order: order as u32,
                     ..off
                 };
                 // The dense view at tree height (heavy occlusion), and `parity::draw`'s close
@@ -659,10 +678,11 @@ fn frames_with_occlusion_culling_equal_frames_without() {
                     let mut history: Vec<u32> = Vec::new();
                     for (k, camera) in cameras.iter().enumerate() {
                         let name = format!(
-                            "{}/{}/{}/{view}/frame {k}",
+                            "{}/{}/{}/{}/{view}/frame {k}",
                             config.name,
                             fade.name(),
-                            mode.name()
+                            mode.name(),
+                            order.name()
                         );
                         let pipeline = GpuPipeline::Ours(Compaction::Stable);
                         let without = gpu
@@ -681,10 +701,10 @@ fn frames_with_occlusion_culling_equal_frames_without() {
                             alpha_pixels += d;
                         } else {
                             max_dithered = max_dithered.max(d);
-                            if d > DEPTH_TIE_BUDGET {
+                            if d > budget {
                                 failures.push(format!(
                                     "{name}: {d} pixels differ from the frame without occlusion \
-                                 culling (budget {DEPTH_TIE_BUDGET})"
+                                 culling (budget {budget})"
                                 ));
                             }
                         }
