@@ -143,6 +143,8 @@ pub struct GpuScene<'a> {
     /// of ours was one.
     fed: Option<SelectionChain<'a>>,
     refine: Option<GpuRefine<'a>>,
+    /// Vegetation's occlusion culling (issue 31), with its own history.
+    occlude_vegetation: Option<GpuOcclude<'a>>,
     /// Occlusion culling's footprints and history (issue 31; built by the first frame with
     /// occlusion culling; the history lives as long as the scene, [`GpuScene::reset_history`]).
     occlude: Option<GpuOcclude<'a>>,
@@ -216,6 +218,7 @@ impl<'a> GpuScene<'a> {
             fed: None,
             refine: None,
             occlude: None,
+            occlude_vegetation: None,
             pyramids: HashMap::new(),
             cull: None,
             proxies: None,
@@ -262,7 +265,10 @@ impl<'a> GpuScene<'a> {
     /// Starts a camera path: the next frame with occlusion culling `two-phase` has no history
     /// (its early pass is empty, the reference's `render` of a path's first frame).
     pub fn reset_history(&mut self) {
-        if let Some(o) = &mut self.occlude {
+        for o in [&mut self.occlude, &mut self.occlude_vegetation]
+            .into_iter()
+            .flatten()
+        {
             o.reset_history();
         }
     }
@@ -351,9 +357,14 @@ impl<'a> GpuScene<'a> {
         let ctx = self.ctx;
         let key = (camera.width, camera.height);
         let occlusion = match pipeline {
-            GpuPipeline::Ours(_) => plan.occlusion,
-            _ => Occlusion::Off,
+            GpuPipeline::Ours(_) | GpuPipeline::Vegetation => plan.occlusion,
+            GpuPipeline::Primitive => Occlusion::Off,
         };
+        if occlusion != Occlusion::Off
+            && let std::collections::hash_map::Entry::Vacant(slot) = self.pyramids.entry(key)
+        {
+            slot.insert(GpuPyramid::new(ctx, camera.width, camera.height)?);
+        }
         if let std::collections::hash_map::Entry::Vacant(slot) = self.targets.entry(key) {
             slot.insert(DrawTarget::new(ctx, camera.width, camera.height)?);
         }
@@ -405,11 +416,6 @@ impl<'a> GpuScene<'a> {
                     if self.occlude.is_none() {
                         self.occlude = Some(GpuOcclude::new(ctx, &occlusion_footprints(prepared))?);
                     }
-                    if let std::collections::hash_map::Entry::Vacant(slot) =
-                        self.pyramids.entry(key)
-                    {
-                        slot.insert(GpuPyramid::new(ctx, camera.width, camera.height)?);
-                    }
                 }
                 stages.push((StageId::Draw, RanOn::Gpu));
             }
@@ -435,6 +441,18 @@ impl<'a> GpuScene<'a> {
                     }
                     stages.push((StageId::Primitive, RanOn::Gpu));
                 } else {
+                    // Vegetation with occlusion culling (issue 31: the modern per-tree peer):
+                    // the same stage over `cull.wgsl`'s commands, its own history.
+                    if occlusion != Occlusion::Off {
+                        stages.extend([
+                            (StageId::Pyramid, RanOn::Gpu),
+                            (StageId::Occlude, RanOn::Gpu),
+                        ]);
+                        if self.occlude_vegetation.is_none() {
+                            self.occlude_vegetation =
+                                Some(GpuOcclude::new(ctx, &occlusion_footprints(prepared))?);
+                        }
+                    }
                     stages.push((StageId::Draw, RanOn::Gpu));
                 }
             }
@@ -470,7 +488,12 @@ impl<'a> GpuScene<'a> {
         // Stage 1: selection (and refine) or culling; with occlusion culling the early split.
         let refine = self.refine.as_mut();
         let cull = self.cull.as_mut();
-        let occlude = self.occlude.as_mut();
+        let occlude = match pipeline {
+            GpuPipeline::Ours(_) => self.occlude.as_mut(),
+            GpuPipeline::Vegetation => self.occlude_vegetation.as_mut(),
+            GpuPipeline::Primitive => None,
+        };
+        let tree_count = prepared.scene.instances.len() as u32;
         let scene_indirection = self.scene.indirection();
         // The indirection the frame's commands index, and its length `m`.
         let refined = gpu_refine || cpu_indirection.is_some();
@@ -513,10 +536,24 @@ impl<'a> GpuScene<'a> {
                             )?;
                     }
                 }
-                GpuPipeline::Vegetation | GpuPipeline::Primitive => cull
-                    .as_deref_mut()
-                    .expect("created above")
-                    .encode(&mut encoder, camera, params),
+                GpuPipeline::Vegetation | GpuPipeline::Primitive => {
+                    let cull = cull.as_deref_mut().expect("created above");
+                    cull.encode(&mut encoder, camera, params);
+                    if occlusion != Occlusion::Off {
+                        // Its commands index the compacted list of one entry per tree.
+                        occlude
+                            .as_deref_mut()
+                            .expect("created above")
+                            .encode_early(
+                                &mut encoder,
+                                cull.buffers(),
+                                cull.indirection(),
+                                tree_count,
+                                camera,
+                                params,
+                            )?;
+                    }
+                }
             }
             if let Some(s) = stamps {
                 s.mark(&mut encoder, 1);
@@ -541,7 +578,7 @@ impl<'a> GpuScene<'a> {
             let mut encoder = begin("frame draw", 2);
             let calls = match pipeline {
                 GpuPipeline::Ours(_) | GpuPipeline::Vegetation => {
-                    if let (GpuPipeline::Ours(_), Some(occlude)) = (
+                    if let (GpuPipeline::Ours(_) | GpuPipeline::Vegetation, Some(occlude)) = (
                         pipeline,
                         occlude
                             .as_deref_mut()
@@ -550,7 +587,10 @@ impl<'a> GpuScene<'a> {
                         // Issue 31: early pass (cleared, ground first), the pyramid of its
                         // depth, the late test, the final pass (`exact`: cleared again, every
                         // tree not culled; `reorder`: the late trees loading the same targets).
-                        let selection = chain.expect("ours has a chain").buffers();
+                        let selection = match pipeline {
+                            GpuPipeline::Ours(_) => chain.expect("ours has a chain").buffers(),
+                            _ => cull.expect("created above").buffers(),
+                        };
                         let (early, late) = (
                             occlude.early_buffers(selection),
                             occlude.late_buffers(selection),

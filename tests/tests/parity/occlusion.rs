@@ -770,3 +770,84 @@ fn frames_with_occlusion_culling_equal_frames_without() {
     );
     assert_no_failures("occlusion frames", &failures);
 }
+
+/// Vegetation with occlusion culling on the GPU (issue 31: the modern per-tree peer, the same
+/// stage over `cull.wgsl`'s commands with its own history): its frames equal Vegetation's
+/// without culling (`exact`: no pixel; `reorder`: [`DEPTH_TIE_BUDGET`]), and its counters equal
+/// the reference's `render_vegetation_with_history`, along a three-frame `two-phase` path and
+/// under `single`.
+#[test]
+fn vegetation_with_occlusion_culling_equals_vegetation_without() {
+    use forestlod_reference::baselines::{render_vegetation_with_history, tree_spheres};
+    let Some(ctx) = gpu_context() else { return };
+    let scene = cropped_synthetic(300.0);
+    let base = occlusion_params(FadeMode::DitherSequential);
+    let prepared = prepare(scene.clone(), &base).expect("prepare");
+    let spheres = tree_spheres(&prepared.scene, &prepared.geometry.meshes);
+    let mut gpu = GpuScene::new(
+        ctx,
+        &prepared,
+        &base,
+        StagesFromCpu::parse("textures").unwrap(),
+    )
+    .expect("GPU scene");
+    let (mut failures, mut counters, mut max_pixels) =
+        (Vec::new(), OcclusionCounters::default(), 0usize);
+    for order in [OcclusionOrder::Exact, OcclusionOrder::Reorder] {
+        let budget = match order {
+            OcclusionOrder::Exact => 0,
+            OcclusionOrder::Reorder => DEPTH_TIE_BUDGET,
+        };
+        for mode in [Occlusion::Single, Occlusion::TwoPhase] {
+            let on = Params {
+                occlusion: mode as u32,
+                occlusion_order: order as u32,
+                ..base
+            };
+            gpu.reset_history();
+            let mut history: Vec<u32> = Vec::new();
+            for (k, camera) in path(&scene, (120.0, 25.0), (96, 72), 3).iter().enumerate() {
+                let name = format!("vegetation/{}/{}/frame {k}", mode.name(), order.name());
+                let without = gpu
+                    .render(&prepared, GpuPipeline::Vegetation, camera, &base)
+                    .expect("off")
+                    .images;
+                let with = gpu
+                    .render(&prepared, GpuPipeline::Vegetation, camera, &on)
+                    .expect("on");
+                let c = with.occlusion.expect("counters");
+                let d = differing_pixels(&with.images, &without);
+                max_pixels = max_pixels.max(d);
+                if d > budget {
+                    failures.push(format!(
+                        "{name}: {d} pixels differ from Vegetation without culling (budget {budget})"
+                    ));
+                }
+                let reference =
+                    render_vegetation_with_history(&prepared, &spheres, camera, &on, &history);
+                let occ = reference.occlusion.as_ref().expect("occlusion ran");
+                if c != occ.counters {
+                    failures.push(format!(
+                        "{name}: GPU counters {c:?}, reference {:?}",
+                        occ.counters
+                    ));
+                }
+                counters.tested += c.tested;
+                counters.occluded += c.occluded;
+                counters.early += c.early;
+                counters.late += c.late;
+                history = occ.visible.clone();
+            }
+        }
+    }
+    println!(
+        "vegetation: {} tested, {} occluded, {} early, {} late; at most {max_pixels} pixels differ \
+         from Vegetation without culling",
+        counters.tested, counters.occluded, counters.early, counters.late
+    );
+    assert!(
+        counters.occluded > 0,
+        "no tree was occluded: the frames test nothing"
+    );
+    assert_no_failures("Vegetation with occlusion culling", &failures);
+}
