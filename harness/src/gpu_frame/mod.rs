@@ -19,6 +19,12 @@
 //! - A frame is two submits, each waited for and timed from submit to completion: stage 1
 //!   (selection and `refine`, or the baselines' culling) and stage 2 (the draw pass); then the
 //!   counters and the target are read back (not timed).
+//! - With occlusion culling (issue 31, `FramePlan::occlusion`; ours and Vegetation), stage 1 ends
+//!   with `occlude`'s early split and stage 2 is the early pass, the `pyramid` of its depth, the
+//!   late test and the final pass (`exact`: cleared and drawn again in the frame's order;
+//!   `reorder`: the late trees onto the early targets). Two-phase's history lives in the scene
+//!   (one for ours, one for Vegetation) from frame to frame: [`GpuScene::reset_history`] starts a
+//!   camera path.
 //! - Everything a scene needs is uploaded once, the first time a frame needs it: the GPU
 //!   selection chain, `refine`'s trees, the baselines' culling and proxies. A frame fed from the
 //!   reference's selection builds its chain for that frame (its buffers are bound at creation).
