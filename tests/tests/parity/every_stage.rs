@@ -32,7 +32,8 @@ use forestlod_tests::stage_cases::{judged_elsewhere, skips, stage_cases};
 use forestlod_tests::{small_poses, tiny_hierarchy_params};
 
 /// The frames' parameters (module docs): one flat selection and two cuts covering both coalesce
-/// modes, both command orders and both refining tree-cull modes.
+/// modes, both command orders and both refining tree-cull modes, and a flat selection with
+/// occlusion culling.
 fn frame_params() -> Vec<(&'static str, Params)> {
     let cut = |mode, coalesce: Coalesce, order: CommandOrder, cull: TreeCull| Params {
         coalesce: coalesce as u32,
@@ -67,6 +68,19 @@ fn frame_params() -> Vec<(&'static str, Params)> {
                 CommandOrder::Node,
                 TreeCull::None,
             ),
+        ),
+        // Occlusion culling's stages (issue 31): `pyramid` and `occlude` run only with it on.
+        (
+            "grid-none-occlusion-single",
+            Params {
+                occlusion: forestlod_shared::Occlusion::Single as u32,
+                ..cut(
+                    Hierarchy::Grid,
+                    Coalesce::Off,
+                    CommandOrder::Node,
+                    TreeCull::None,
+                )
+            },
         ),
     ]
 }
