@@ -93,7 +93,7 @@ pub use context::{
 pub use cull::{CullTree, DrawIndirectArgs, GpuCull, GpuCulled};
 pub use draw::{
     DrawCalls, DrawInputs, DrawInstance, DrawScene, DrawSceneDesc, DrawTarget, DrawTextures,
-    DrawVertex, DrawnImages, GpuDraw, IndirectMode, MipLevel, TerrainVertex, terrain_vertices,
+    DrawVertex, DrawnImages, GpuDraw, IndirectMode, MipLevel, TerrainVertex, terrain_vertices, terrain_vertices_of,
     upload_texture_array,
 };
 pub use hier_select::{GpuHierSelect, HierUniform};

@@ -16,7 +16,7 @@ use crate::scene::builtin::{Species, species_meshes};
 use crate::scene::{Instance, Scene, Terrain, TreeMesh, footprint};
 
 /// Terrain as declared, before the origin is known.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub(super) enum TerrainSpec {
     /// Flat at a world height.
     FlatWorld(f64),
