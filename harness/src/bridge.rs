@@ -8,7 +8,8 @@ use forestlod_gpu::draw::MipLevel;
 use forestlod_gpu::readback::upload_storage;
 use forestlod_gpu::{
     BakeMesh, CullTree, DrawInstance, DrawSceneDesc, DrawVertex, GpuBake, GpuBaked,
-    GpuCommandOrder, GpuContext, GpuError, SelectBuffers, terrain_vertices_of, upload_texture_array,
+    GpuCommandOrder, GpuContext, GpuError, SelectBuffers, terrain_vertices_of,
+    upload_texture_array,
 };
 use forestlod_reference::baselines::{proxies, tree_spheres};
 use forestlod_reference::coalesce::run_offsets;

@@ -699,7 +699,12 @@ fn ground_grid(scene: &Scene) -> std::sync::Arc<Vec<([f32; 3], [f32; 3])>> {
     use std::sync::{Arc, Mutex};
     // A grid terrain is keyed by its `Arc`, which the memo holds: while it is remembered its
     // address cannot be reused by another grid, so equal pointers mean the same heights.
-    type Key = ([u32; 4], u32, [u32; 2], Option<Arc<crate::scene::HeightGrid>>);
+    type Key = (
+        [u32; 4],
+        u32,
+        [u32; 2],
+        Option<Arc<crate::scene::HeightGrid>>,
+    );
     type Grid = Arc<Vec<([f32; 3], [f32; 3])>>;
     static LAST: Mutex<Option<(Key, Grid)>> = Mutex::new(None);
     let terrain = match &scene.terrain {
@@ -718,7 +723,12 @@ fn ground_grid(scene: &Scene) -> std::sync::Arc<Vec<([f32; 3], [f32; 3])>> {
                 _ => false,
             }
     };
-    let key = (scene.bounds.map(f32::to_bits), terrain.0, terrain.1, terrain.2);
+    let key = (
+        scene.bounds.map(f32::to_bits),
+        terrain.0,
+        terrain.1,
+        terrain.2,
+    );
     let mut last = LAST.lock().unwrap_or_else(|e| e.into_inner());
     if let Some((k, grid)) = last.as_ref()
         && same(k, &key)

@@ -102,7 +102,11 @@ fn lzw(b: &[u8]) -> Vec<u8> {
 }
 
 fn compressions() -> [(&'static str, u16, fn(&[u8]) -> Vec<u8>); 3] {
-    [("none", 1, identity), ("deflate", 8, deflate), ("lzw", 5, lzw)]
+    [
+        ("none", 1, identity),
+        ("deflate", 8, deflate),
+        ("lzw", 5, lzw),
+    ]
 }
 
 fn expect_field(r: &Raster, offset: f64, what: &str) {
@@ -161,7 +165,8 @@ fn every_geotiff_variant_reads_the_same_heights() {
                     }
                     let bytes = write_geotiff(&spec, code, &f);
                     let what = format!("{kind:?} {chunks:?} {cname} variant {variant}");
-                    let r = parse_geotiff(&bytes, "dem.tif").unwrap_or_else(|e| panic!("{what}: {e}"));
+                    let r =
+                        parse_geotiff(&bytes, "dem.tif").unwrap_or_else(|e| panic!("{what}: {e}"));
                     expect_field(&r, offset, &what);
                     assert_eq!(r.crs.as_deref(), Some("EPSG:32633"), "{what}");
                     n += 1;
@@ -178,7 +183,10 @@ fn every_geotiff_variant_reads_the_same_heights() {
     let mut spec = GeoTiffSpec::new(32, 32, aligned.clone(), SampleKind::U16, CORNER, D);
     spec.chunks = Chunks::Tiles(16, 16);
     let r = parse_geotiff(&write_geotiff(&spec, 5, &lzw), "tiles.tif").unwrap();
-    assert_eq!(r.samples, aligned.iter().map(|&v| v as f32).collect::<Vec<_>>());
+    assert_eq!(
+        r.samples,
+        aligned.iter().map(|&v| v as f32).collect::<Vec<_>>()
+    );
     let mut padded = GeoTiffSpec::new(W, H, samples(0.0), SampleKind::U16, CORNER, D);
     padded.chunks = Chunks::Tiles(16, 16);
     let e = parse_geotiff(&write_geotiff(&padded, 5, &lzw), "padded.tif").unwrap_err();
@@ -194,7 +202,11 @@ fn ascii_grid(center: bool, nodata: Option<&str>) -> String {
             CORNER[1] - D * H as f64 + D / 2.0
         );
     } else {
-        s += &format!("xllcorner {}\nyllcorner {}\n", CORNER[0], CORNER[1] - D * H as f64);
+        s += &format!(
+            "xllcorner {}\nyllcorner {}\n",
+            CORNER[0],
+            CORNER[1] - D * H as f64
+        );
     }
     s += &format!("cellsize {D}\n");
     if let Some(n) = nodata {
@@ -243,22 +255,34 @@ fn bad_geotiffs_are_refused_naming_the_file() {
 
     let mut u8s = good.clone();
     u8s.kind = SampleKind::U8;
-    refused(&write_geotiff(&u8s, 1, &identity), &["BitsPerSample", "8 bits"]);
+    refused(
+        &write_geotiff(&u8s, 1, &identity),
+        &["BitsPerSample", "8 bits"],
+    );
 
     let mut rotated = good.clone();
     rotated.placement = Placement::Matrix([
         D, 0.5, 0.0, CORNER[0], 0.5, -D, 0.0, CORNER[1], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
     ]);
-    refused(&write_geotiff(&rotated, 1, &identity), &["ModelTransformation", "rotated"]);
+    refused(
+        &write_geotiff(&rotated, 1, &identity),
+        &["ModelTransformation", "rotated"],
+    );
 
     let mut nodata = good.clone();
     nodata.samples = vec![-9999.0; (W * H) as usize];
     nodata.nodata = Some("-9999".into());
-    refused(&write_geotiff(&nodata, 1, &identity), &["every sample is nodata"]);
+    refused(
+        &write_geotiff(&nodata, 1, &identity),
+        &["every sample is nodata"],
+    );
 
     let mut nan = good.clone();
     nan.samples[5 * W as usize + 3] = f64::NAN;
-    refused(&write_geotiff(&nan, 1, &identity), &["column 3, row 5", "NaN"]);
+    refused(
+        &write_geotiff(&nan, 1, &identity),
+        &["column 3, row 5", "NaN"],
+    );
     // NaN declared as nodata is missing data, not an error.
     nan.nodata = Some("nan".into());
     let r = parse_geotiff(&write_geotiff(&nan, 1, &identity), "nan.tif").unwrap();
@@ -308,12 +332,17 @@ fn bad_geotiffs_are_refused_naming_the_file() {
 #[test]
 fn bad_ascii_grids_are_refused_naming_the_file() {
     let good = ascii_grid(false, Some("-9999"));
-    let e = |t: &str| parse_ascii_grid(t.as_bytes(), "bad.asc").unwrap_err().to_string();
+    let e = |t: &str| {
+        parse_ascii_grid(t.as_bytes(), "bad.asc")
+            .unwrap_err()
+            .to_string()
+    };
     let t = e(&good[..good.len() - 40]);
     assert!(t.contains("bad.asc") && t.contains("truncated"), "{t}");
     let t = e(&good.replacen(" 304 ", " nan ", 1));
     assert!(t.contains("bad.asc") && t.contains("NaN"), "{t}");
-    let mut all = format!("ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value -1\n");
+    let mut all =
+        format!("ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value -1\n");
     all += "-1 -1\n-1 -1\n";
     let t = e(&all);
     assert!(t.contains("every sample is nodata"), "{t}");
@@ -355,19 +384,32 @@ Kiefer = "pine"
     let path = common::write(&dir, "forest.toml", toml);
     let (scene, report) = load_scene_file_reported(&path, &LoadOptions::default()).unwrap();
     let report = report.expect("a DEM report");
-    assert_eq!((report.trees_given_z, report.trees_placed, report.mismatches), (1, 2, 1));
+    assert_eq!(
+        (report.trees_given_z, report.trees_placed, report.mismatches),
+        (1, 2, 1)
+    );
     let (at, z, _) = report.worst.clone().unwrap();
     assert_eq!((at.as_str(), z), ("line 3", 400.0));
-    assert!(report.to_string().contains("1 differ from the DEM"), "{report}");
+    assert!(
+        report.to_string().contains("1 differ from the DEM"),
+        "{report}"
+    );
     let Terrain::Grid(grid) = &scene.terrain else {
         panic!("expected a grid terrain")
     };
     assert_eq!((grid.nx, grid.ny), (W as usize, H as usize));
     for t in [0usize, 2] {
         let p = scene.instances[t].position;
-        assert_eq!(p[2], scene.terrain.height(p[0], p[1]), "tree {t} stands on the terrain");
+        assert_eq!(
+            p[2],
+            scene.terrain.height(p[0], p[1]),
+            "tree {t} stands on the terrain"
+        );
     }
-    assert_eq!(scene.instances[1].position[2] as f64 + scene.origin[2], 400.0);
+    assert_eq!(
+        scene.instances[1].position[2] as f64 + scene.origin[2],
+        400.0
+    );
     // Outside the DEM.
     common::write(
         &dir,
@@ -375,16 +417,30 @@ Kiefer = "pine"
         "TreeID,E,N,Elev,H_m,Art\n1,500010.5,5300080.25,,21.5,Fichte\n2,499000,5300060,,30,Kiefer\n",
     );
     let e = load_scene_file(&path).unwrap_err().to_string();
-    for w in ["plot.csv", "line 3", "499000", "outside the elevation model", "dem.tif"] {
+    for w in [
+        "plot.csv",
+        "line 3",
+        "499000",
+        "outside the elevation model",
+        "dem.tif",
+    ] {
         assert!(e.contains(w), "expected {w:?} in {e}");
     }
     // An unknown species and a missing column name the file, the row and the value.
-    common::write(&dir, "plot.csv", "TreeID,E,N,Elev,H_m,Art\n1,500010.5,5300080.25,,21.5,Buche\n");
+    common::write(
+        &dir,
+        "plot.csv",
+        "TreeID,E,N,Elev,H_m,Art\n1,500010.5,5300080.25,,21.5,Buche\n",
+    );
     let e = load_scene_file(&path).unwrap_err().to_string();
     for w in ["plot.csv", "line 2", "Buche", "unknown species"] {
         assert!(e.contains(w), "expected {w:?} in {e}");
     }
-    common::write(&dir, "plot.csv", "TreeID,E,N,Elev,Height,Art\n1,500010.5,5300080.25,,21.5,Fichte\n");
+    common::write(
+        &dir,
+        "plot.csv",
+        "TreeID,E,N,Elev,Height,Art\n1,500010.5,5300080.25,,21.5,Fichte\n",
+    );
     let e = load_scene_file(&path).unwrap_err().to_string();
     for w in ["plot.csv", "line 1", "H_m", "missing column"] {
         assert!(e.contains(w), "expected {w:?} in {e}");
@@ -411,18 +467,16 @@ fn a_geojson_inventory_on_an_ascii_grid() {
     );
     let scene = load_scene_file(&path).unwrap();
     assert_eq!(scene.instances.len(), 2);
-    assert_eq!(scene.instances[1].position[2] as f64 + scene.origin[2], 333.5);
+    assert_eq!(
+        scene.instances[1].position[2] as f64 + scene.origin[2],
+        333.5
+    );
     assert!((scene.instances[1].yaw - core::f32::consts::FRAC_PI_2).abs() < 1e-6);
     let p = scene.instances[0].position;
     assert_eq!(p[2], scene.terrain.height(p[0], p[1]));
 }
 
-fn frame_bits(
-    scene: &Scene,
-) -> (
-    forestlod_reference::raster::RenderTarget,
-    Vec<[u8; 4]>,
-) {
+fn frame_bits(scene: &Scene) -> (forestlod_reference::raster::RenderTarget, Vec<[u8; 4]>) {
     use forestlod_reference::ground_truth::GroundTruthScene;
     use forestlod_shared::{Camera, Params};
     let params = Params::default();
@@ -446,7 +500,13 @@ fn a_dem_equal_to_hills_on_the_same_grid_gives_the_same_frame() {
     // Trees over [0, 80] x [0, 60]; the grid spans [-2000, 2080] x [-2000, 2060]: 4080 / 64 and
     // 4060 / 64 are not whole, so take a footprint whose grid lines are exact: [0, 96] x [0, 64]
     // -> spans 4096 and 4064 (64 and 63.5 m cells, exact in f32 and f64).
-    let trees = [[0.0f32, 0.0], [96.0, 64.0], [40.0, 30.0], [60.0, 10.0], [20.0, 50.0]];
+    let trees = [
+        [0.0f32, 0.0],
+        [96.0, 64.0],
+        [40.0, 30.0],
+        [60.0, 10.0],
+        [20.0, 50.0],
+    ];
     let hscene = {
         let mut s = builtin::tiny();
         s.instances.truncate(trees.len());
@@ -480,7 +540,10 @@ fn a_dem_equal_to_hills_on_the_same_grid_gives_the_same_frame() {
     let mut csv = String::from("x,y,z,yaw,scale,species\n");
     for t in &hscene.instances {
         let name = &hscene.meshes[t.mesh as usize].name;
-        csv += &format!("{},{},{},{},{},{name}\n", t.position[0], t.position[1], t.position[2], t.yaw, t.scale);
+        csv += &format!(
+            "{},{},{},{},{},{name}\n",
+            t.position[0], t.position[1], t.position[2], t.yaw, t.scale
+        );
     }
     common::write(&dir, "trees.csv", csv);
     let path = common::write(
@@ -489,7 +552,11 @@ fn a_dem_equal_to_hills_on_the_same_grid_gives_the_same_frame() {
         "instances = \"trees.csv\"\norigin = [0.0, 0.0, 0.0]\n[terrain]\nkind = \"dem\"\nfile = \"dem.tif\"\nvertices = 5000\n",
     );
     let dscene = load_scene_file(&path).unwrap();
-    assert_eq!(dscene.ground_axes(), axes, "the DEM is drawn on the hills grid's lines");
+    assert_eq!(
+        dscene.ground_axes(),
+        axes,
+        "the DEM is drawn on the hills grid's lines"
+    );
     assert_eq!(dscene.instances, hscene.instances);
     let (a, b) = (frame_bits(&hscene), frame_bits(&dscene));
     assert!(a.0 == b.0, "the rasterized frame differs");
@@ -511,9 +578,13 @@ fn a_1km_dem_at_1m_loads_within_its_memory_bound() {
     let path = common::write(&dir, "dem.tif", write_geotiff(&spec, 1, &identity));
     let before = alloc::peak_reset();
     let r = load_dem(&path).unwrap();
-    let grid = forestlod_reference::scene::load::dem::resample(&r, 257 * 257, [CORNER[0], CORNER[1], 0.0]);
+    let grid =
+        forestlod_reference::scene::load::dem::resample(&r, 257 * 257, [CORNER[0], CORNER[1], 0.0]);
     let peak = alloc::peak_since(before);
-    println!("1 km DEM at 1 m: peak heap growth {peak} B (bound {DEM_MEMORY_BOUND} B), drawn {}x{}", grid.nx, grid.ny);
+    println!(
+        "1 km DEM at 1 m: peak heap growth {peak} B (bound {DEM_MEMORY_BOUND} B), drawn {}x{}",
+        grid.nx, grid.ny
+    );
     assert!(peak <= DEM_MEMORY_BOUND, "{peak} > {DEM_MEMORY_BOUND}");
     assert!(grid.nx * grid.ny <= 257 * 257);
 }

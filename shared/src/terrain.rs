@@ -118,14 +118,21 @@ pub fn uniform_axes(bounds: [f32; 4]) -> GridAxes {
     );
     let n = TERRAIN_CELLS;
     GridAxes {
-        xs: (0..=n).map(|i| x0 + (x1 - x0) * i as f32 / n as f32).collect(),
-        ys: (0..=n).map(|j| y0 + (y1 - y0) * j as f32 / n as f32).collect(),
+        xs: (0..=n)
+            .map(|i| x0 + (x1 - x0) * i as f32 / n as f32)
+            .collect(),
+        ys: (0..=n)
+            .map(|j| y0 + (y1 - y0) * j as f32 / n as f32)
+            .collect(),
     }
 }
 
 /// Every vertex of the grid on `axes` once, row by row (vertex `(i, j)` at `j · xs.len() + i`):
 /// `(position, linear colour)` as [`terrain_vertex`] makes them.
-pub fn axes_vertices(axes: &GridAxes, height: impl Fn(f32, f32) -> f32) -> Vec<([f32; 3], [f32; 3])> {
+pub fn axes_vertices(
+    axes: &GridAxes,
+    height: impl Fn(f32, f32) -> f32,
+) -> Vec<([f32; 3], [f32; 3])> {
     let mut out = Vec::with_capacity(axes.xs.len() * axes.ys.len());
     for &y in &axes.ys {
         for &x in &axes.xs {
@@ -205,8 +212,14 @@ mod tests {
         let bounds = [-350.0, 20.0, 900.0, 1700.0];
         let height = |x: f32, y: f32| (x * 0.013).sin() * 12.0 + (y * 0.007).cos() * 20.0;
         let bits = |v: &([f32; 3], [f32; 3])| (v.0.map(f32::to_bits), v.1.map(f32::to_bits));
-        let a: Vec<_> = terrain_grid_vertices(bounds, height).iter().map(bits).collect();
-        let b: Vec<_> = axes_vertices(&uniform_axes(bounds), height).iter().map(bits).collect();
+        let a: Vec<_> = terrain_grid_vertices(bounds, height)
+            .iter()
+            .map(bits)
+            .collect();
+        let b: Vec<_> = axes_vertices(&uniform_axes(bounds), height)
+            .iter()
+            .map(bits)
+            .collect();
         assert_eq!(a, b);
         let ta: Vec<_> = terrain_grid_triangles().collect();
         let tb: Vec<_> = axes_triangles(&uniform_axes(bounds)).collect();
@@ -240,10 +253,17 @@ mod tests {
         for k in 0..50 {
             let (x, y) = (10.0 + k as f32 * 0.173, -20.0 + k as f32 * 0.191);
             let z = grid_surface_height(&hp, nx, ny, o, d, x, y);
-            assert!((z - plane(x, y)).abs() < 1e-4, "{x} {y}: {z} vs {}", plane(x, y));
+            assert!(
+                (z - plane(x, y)).abs() < 1e-4,
+                "{x} {y}: {z} vs {}",
+                plane(x, y)
+            );
         }
         // Outside: the nearest edge point.
-        assert_eq!(grid_surface_height(&heights, nx, ny, o, d, -1e6, -1e6), heights[0]);
+        assert_eq!(
+            grid_surface_height(&heights, nx, ny, o, d, -1e6, -1e6),
+            heights[0]
+        );
     }
 
     #[test]

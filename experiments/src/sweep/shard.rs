@@ -47,7 +47,10 @@ impl Shard {
     /// unset) of `SLURM_ARRAY_TASK_COUNT`. `auto/N`: a Kubernetes Indexed Job of `N` completions,
     /// index `JOB_COMPLETION_INDEX` (the Job's own variable; the count is not in the pod's
     /// environment, so it is given). Errors name the variable and its value.
-    pub fn from_scheduler(text: &str, var: impl Fn(&str) -> Option<String>) -> Result<Self, String> {
+    pub fn from_scheduler(
+        text: &str,
+        var: impl Fn(&str) -> Option<String>,
+    ) -> Result<Self, String> {
         let num = |name: &str| -> Result<usize, String> {
             let v = var(name).ok_or_else(|| format!("shard {text:?}: {name} is not set"))?;
             v.trim()
@@ -444,11 +447,19 @@ mod tests {
     #[test]
     fn auto_shards_are_the_explicit_ones() {
         let env = |pairs: &'static [(&'static str, &'static str)]| {
-            move |k: &str| pairs.iter().find(|(n, _)| *n == k).map(|(_, v)| v.to_string())
+            move |k: &str| {
+                pairs
+                    .iter()
+                    .find(|(n, _)| *n == k)
+                    .map(|(_, v)| v.to_string())
+            }
         };
         let slurm = Shard::from_scheduler(
             "auto",
-            env(&[("SLURM_ARRAY_TASK_ID", "2"), ("SLURM_ARRAY_TASK_COUNT", "5")]),
+            env(&[
+                ("SLURM_ARRAY_TASK_ID", "2"),
+                ("SLURM_ARRAY_TASK_COUNT", "5"),
+            ]),
         );
         assert_eq!(slurm, "2/5".parse());
         let from_one = Shard::from_scheduler(
@@ -464,14 +475,25 @@ mod tests {
         assert_eq!(k8s, "5/6".parse());
         for (text, vars, want) in [
             ("auto", env(&[]), "SLURM_ARRAY_TASK_ID"),
-            ("auto", env(&[("SLURM_ARRAY_TASK_ID", "1")]), "SLURM_ARRAY_TASK_COUNT"),
             (
                 "auto",
-                env(&[("SLURM_ARRAY_TASK_ID", "4"), ("SLURM_ARRAY_TASK_COUNT", "4")]),
+                env(&[("SLURM_ARRAY_TASK_ID", "1")]),
+                "SLURM_ARRAY_TASK_COUNT",
+            ),
+            (
+                "auto",
+                env(&[
+                    ("SLURM_ARRAY_TASK_ID", "4"),
+                    ("SLURM_ARRAY_TASK_COUNT", "4"),
+                ]),
                 "not below",
             ),
             ("auto/3", env(&[]), "JOB_COMPLETION_INDEX"),
-            ("auto/3", env(&[("JOB_COMPLETION_INDEX", "x")]), "JOB_COMPLETION_INDEX"),
+            (
+                "auto/3",
+                env(&[("JOB_COMPLETION_INDEX", "x")]),
+                "JOB_COMPLETION_INDEX",
+            ),
             ("auto/0", env(&[("JOB_COMPLETION_INDEX", "0")]), "not below"),
         ] {
             let e = Shard::from_scheduler(text, vars).unwrap_err();

@@ -117,8 +117,12 @@ impl HeightGrid {
         let [x0, y0, x1, y1] = self.extent;
         let (nx, ny) = (self.nx as u32 - 1, self.ny as u32 - 1);
         forestlod_shared::GridAxes {
-            xs: (0..=nx).map(|i| x0 + (x1 - x0) * i as f32 / nx as f32).collect(),
-            ys: (0..=ny).map(|j| y0 + (y1 - y0) * j as f32 / ny as f32).collect(),
+            xs: (0..=nx)
+                .map(|i| x0 + (x1 - x0) * i as f32 / nx as f32)
+                .collect(),
+            ys: (0..=ny)
+                .map(|j| y0 + (y1 - y0) * j as f32 / ny as f32)
+                .collect(),
         }
     }
 }

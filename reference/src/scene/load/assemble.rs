@@ -71,7 +71,10 @@ impl std::fmt::Display for DemReport {
             f,
             "terrain {}: {w}x{h} samples at {dx} x {dy} m{}, {} nodata, drawn {}x{}; {} trees on it, {} with a given z: {} differ from the DEM by more than {} m",
             self.file,
-            self.crs.as_deref().map(|c| format!(" ({c})")).unwrap_or_default(),
+            self.crs
+                .as_deref()
+                .map(|c| format!(" ({c})"))
+                .unwrap_or_default(),
             self.nodata,
             self.drawn.0,
             self.drawn.1,
@@ -183,7 +186,10 @@ pub(super) fn build_scene_trees(
                     if d > *tolerance {
                         r.mismatches += 1;
                     }
-                    if r.worst.as_ref().is_none_or(|(_, wz, wd)| d > (wz - wd).abs()) {
+                    if r.worst
+                        .as_ref()
+                        .is_none_or(|(_, wz, wd)| d > (wz - wd).abs())
+                    {
                         r.worst = Some((t.at.clone(), z, h));
                     }
                 }
@@ -226,7 +232,11 @@ pub(super) fn build_scene_trees(
     for r in rows {
         let rel_xy = [r.xy[0] - origin[0], r.xy[1] - origin[1]];
         let rel_z = r.z.map(|z| z - origin[2]).unwrap_or(0.0);
-        if rel_xy.iter().chain([&rel_z]).any(|c| c.abs() > MAX_RELATIVE_COORDINATE) {
+        if rel_xy
+            .iter()
+            .chain([&rel_z])
+            .any(|c| c.abs() > MAX_RELATIVE_COORDINATE)
+        {
             return Err(InputError::new(
                 csv_file,
                 format!("{}, columns x,y,z", r.at),

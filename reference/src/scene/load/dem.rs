@@ -105,7 +105,12 @@ impl Raster {
     }
 }
 
-fn err(file: &str, field: impl Into<String>, value: impl std::fmt::Display, why: impl Into<String>) -> InputError {
+fn err(
+    file: &str,
+    field: impl Into<String>,
+    value: impl std::fmt::Display,
+    why: impl Into<String>,
+) -> InputError {
     InputError::new(file, field, value, why)
 }
 
@@ -173,7 +178,9 @@ fn check_size(
 pub fn parse_geotiff(bytes: &[u8], file: &str) -> Result<Raster, InputError> {
     use tiff::decoder::{Decoder, DecodingResult, Limits};
     use tiff::tags::Tag;
-    let tiff_err = |what: &str, e: tiff::TiffError| err(file, what, "", format!("not a readable GeoTIFF: {e}"));
+    let tiff_err = |what: &str, e: tiff::TiffError| {
+        err(file, what, "", format!("not a readable GeoTIFF: {e}"))
+    };
     let mut limits = Limits::default();
     limits.decoding_buffer_size = (MAX_DEM_SAMPLES * 8) as usize;
     let mut dec = Decoder::new(std::io::Cursor::new(bytes))
@@ -185,7 +192,12 @@ pub fn parse_geotiff(bytes: &[u8], file: &str) -> Result<Raster, InputError> {
         .map_err(|e| tiff_err("SamplesPerPixel", e))?
         .unwrap_or(1);
     if spp != 1 {
-        return Err(err(file, "SamplesPerPixel", spp, "expected one band (a single-band elevation model)"));
+        return Err(err(
+            file,
+            "SamplesPerPixel",
+            spp,
+            "expected one band (a single-band elevation model)",
+        ));
     }
     let bits = dec
         .find_tag_unsigned_vec::<u16>(Tag::BitsPerSample)
@@ -195,7 +207,10 @@ pub fn parse_geotiff(bytes: &[u8], file: &str) -> Result<Raster, InputError> {
         .find_tag_unsigned_vec::<u16>(Tag::SampleFormat)
         .map_err(|e| tiff_err("SampleFormat", e))?
         .unwrap_or_else(|| vec![1]);
-    let (b, f) = (bits.first().copied().unwrap_or(1), format.first().copied().unwrap_or(1));
+    let (b, f) = (
+        bits.first().copied().unwrap_or(1),
+        format.first().copied().unwrap_or(1),
+    );
     let bytes_per_sample = match (b, f) {
         (16, 1 | 2) => 2,
         (32, 3) => 4,
@@ -225,15 +240,13 @@ pub fn parse_geotiff(bytes: &[u8], file: &str) -> Result<Raster, InputError> {
     check_size(file, w.into(), h.into(), bytes_per_sample, available)?;
 
     // Georeferencing.
-    let f64s = |dec: &mut Decoder<_>, tag: Tag, name: &str| -> Result<Option<Vec<f64>>, InputError> {
-        match dec.find_tag(tag).map_err(|e| tiff_err(name, e))? {
-            None => Ok(None),
-            Some(v) => v
-                .into_f64_vec()
-                .map(Some)
-                .map_err(|e| tiff_err(name, e)),
-        }
-    };
+    let f64s =
+        |dec: &mut Decoder<_>, tag: Tag, name: &str| -> Result<Option<Vec<f64>>, InputError> {
+            match dec.find_tag(tag).map_err(|e| tiff_err(name, e))? {
+                None => Ok(None),
+                Some(v) => v.into_f64_vec().map(Some).map_err(|e| tiff_err(name, e)),
+            }
+        };
     let keys = dec
         .find_tag_unsigned_vec::<u16>(Tag::GeoKeyDirectoryTag)
         .map_err(|e| tiff_err("GeoKeyDirectory", e))?
@@ -261,7 +274,12 @@ pub fn parse_geotiff(bytes: &[u8], file: &str) -> Result<Raster, InputError> {
     let transform = f64s(&mut dec, Tag::ModelTransformationTag, "ModelTransformation")?;
     let (sx, sy, tx, ty) = if let Some(m) = transform {
         if m.len() != 16 || m.iter().any(|v| !v.is_finite()) {
-            return Err(err(file, "ModelTransformation", format!("{m:?}"), "expected 16 finite values"));
+            return Err(err(
+                file,
+                "ModelTransformation",
+                format!("{m:?}"),
+                "expected 16 finite values",
+            ));
         }
         if m[1] != 0.0 || m[4] != 0.0 {
             return Err(err(
@@ -297,7 +315,12 @@ pub fn parse_geotiff(bytes: &[u8], file: &str) -> Result<Raster, InputError> {
             }
         }
     };
-    if !(sx.is_finite() && sy.is_finite() && sx > 0.0 && sy > 0.0 && tx.is_finite() && ty.is_finite())
+    if !(sx.is_finite()
+        && sy.is_finite()
+        && sx > 0.0
+        && sy > 0.0
+        && tx.is_finite()
+        && ty.is_finite())
     {
         return Err(err(
             file,
@@ -311,14 +334,18 @@ pub fn parse_geotiff(bytes: &[u8], file: &str) -> Result<Raster, InputError> {
     } else {
         (tx + 0.5 * sx, ty - 0.5 * sy)
     };
-    let nodata = match dec.find_tag(Tag::GdalNodata).map_err(|e| tiff_err("GDAL_NODATA", e))? {
+    let nodata = match dec
+        .find_tag(Tag::GdalNodata)
+        .map_err(|e| tiff_err("GDAL_NODATA", e))?
+    {
         None => None,
         Some(v) => {
             let text = v.into_string().map_err(|e| tiff_err("GDAL_NODATA", e))?;
             let t = text.trim_matches(char::from(0)).trim();
-            Some(t.parse::<f64>().map_err(|_| {
-                err(file, "GDAL_NODATA", t, "expected a number (or nan)")
-            })?)
+            Some(
+                t.parse::<f64>()
+                    .map_err(|_| err(file, "GDAL_NODATA", t, "expected a number (or nan)"))?,
+            )
         }
     };
     // The `tiff` crate asserts on some malformed LZW streams (0.10.3, `LZWReader::read`): a
@@ -340,7 +367,15 @@ pub fn parse_geotiff(bytes: &[u8], file: &str) -> Result<Raster, InputError> {
         DecodingResult::F64(v) => v,
         _ => return Err(err(file, "samples", "", "unexpected sample type")),
     };
-    finish(file, w as usize, h as usize, [x0, y0, sx, sy], samples, nodata, crs)
+    finish(
+        file,
+        w as usize,
+        h as usize,
+        [x0, y0, sx, sy],
+        samples,
+        nodata,
+        crs,
+    )
 }
 
 /// Checks the samples and builds the raster: nodata (and NaN when the nodata value is NaN)
@@ -407,8 +442,14 @@ fn finish(
 
 /// Parses an ESRI ASCII grid (module docs).
 pub fn parse_ascii_grid(bytes: &[u8], file: &str) -> Result<Raster, InputError> {
-    let text = std::str::from_utf8(bytes)
-        .map_err(|e| err(file, format!("byte {}", e.valid_up_to()), "", "expected ASCII text"))?;
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        err(
+            file,
+            format!("byte {}", e.valid_up_to()),
+            "",
+            "expected ASCII text",
+        )
+    })?;
     let mut tokens = text.split_ascii_whitespace().peekable();
     let mut header: Vec<(String, f64)> = Vec::new();
     while let Some(t) = tokens.peek() {
@@ -421,7 +462,12 @@ pub fn parse_ascii_grid(bytes: &[u8], file: &str) -> Result<Raster, InputError> 
             .parse()
             .map_err(|_| err(file, format!("header {name}"), value, "expected a number"))?;
         if header.len() >= 8 {
-            return Err(err(file, format!("header {name}"), value, "too many header lines"));
+            return Err(err(
+                file,
+                format!("header {name}"),
+                value,
+                "too many header lines",
+            ));
         }
         header.push((name, v));
     }
@@ -432,16 +478,31 @@ pub fn parse_ascii_grid(bytes: &[u8], file: &str) -> Result<Raster, InputError> 
         if v.fract() == 0.0 && v >= 2.0 && v <= 1.0e9 {
             Ok(v as u64)
         } else {
-            Err(err(file, format!("header {k}"), v, "expected a whole number >= 2"))
+            Err(err(
+                file,
+                format!("header {k}"),
+                v,
+                "expected a whole number >= 2",
+            ))
         }
     };
     let (w, h) = (whole("ncols", ncols)?, whole("nrows", nrows)?);
     // Each sample takes at least two bytes (a digit and a separator).
     check_size(file, w, h, 2, Some(bytes.len() as u64 + 1))?;
     if !(cell.is_finite() && cell > 0.0) {
-        return Err(err(file, "header cellsize", cell, "expected a finite positive spacing"));
+        return Err(err(
+            file,
+            "header cellsize",
+            cell,
+            "expected a finite positive spacing",
+        ));
     }
-    let (xc, yc) = match (get("xllcorner"), get("yllcorner"), get("xllcenter"), get("yllcenter")) {
+    let (xc, yc) = match (
+        get("xllcorner"),
+        get("yllcorner"),
+        get("xllcenter"),
+        get("yllcenter"),
+    ) {
         (Some(x), Some(y), None, None) => (x + 0.5 * cell, y + 0.5 * cell),
         (None, None, Some(x), Some(y)) => (x, y),
         _ => {
@@ -454,19 +515,33 @@ pub fn parse_ascii_grid(bytes: &[u8], file: &str) -> Result<Raster, InputError> 
         }
     };
     if !(xc.is_finite() && yc.is_finite()) {
-        return Err(err(file, "header xllcorner", xc, "expected finite coordinates"));
+        return Err(err(
+            file,
+            "header xllcorner",
+            xc,
+            "expected finite coordinates",
+        ));
     }
     let nodata = get("nodata_value");
     let n = (w * h) as usize;
     let mut samples = Vec::with_capacity(n);
     for t in tokens {
         if samples.len() == n {
-            return Err(err(file, format!("sample {}", n + 1), t, format!("more than {w}x{h} samples")));
+            return Err(err(
+                file,
+                format!("sample {}", n + 1),
+                t,
+                format!("more than {w}x{h} samples"),
+            ));
         }
         let v: f64 = t.parse().map_err(|_| {
             err(
                 file,
-                format!("sample (column {}, row {})", samples.len() as u64 % w, samples.len() as u64 / w),
+                format!(
+                    "sample (column {}, row {})",
+                    samples.len() as u64 % w,
+                    samples.len() as u64 / w
+                ),
                 t,
                 "expected a number",
             )
@@ -482,7 +557,15 @@ pub fn parse_ascii_grid(bytes: &[u8], file: &str) -> Result<Raster, InputError> 
         ));
     }
     let y0 = yc + cell * (h - 1) as f64;
-    finish(file, w as usize, h as usize, [xc, y0, cell, cell], samples, nodata, None)
+    finish(
+        file,
+        w as usize,
+        h as usize,
+        [xc, y0, cell, cell],
+        samples,
+        nodata,
+        None,
+    )
 }
 
 /// Fills nodata samples (module docs): from the nearest valid sample of the row, rows without
@@ -570,7 +653,10 @@ pub fn resample(raster: &Raster, budget: u32, origin: [f64; 3]) -> HeightGrid {
             let z = if nx == w && ny == h {
                 f64::from(full[(h - 1 - j) * w + i])
             } else {
-                let (c, r) = ((fc.floor() as usize).min(w - 2), (fr.floor() as usize).min(h - 2));
+                let (c, r) = (
+                    (fc.floor() as usize).min(w - 2),
+                    (fr.floor() as usize).min(h - 2),
+                );
                 let (tx, ty) = (fc - c as f64, fr - r as f64);
                 let s = |c: usize, r: usize| f64::from(full[r * w + c]);
                 (s(c, r) * (1.0 - tx) + s(c + 1, r) * tx) * (1.0 - ty)

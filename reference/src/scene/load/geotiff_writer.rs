@@ -70,7 +70,14 @@ pub struct GeoTiffSpec {
 impl GeoTiffSpec {
     /// A projected (EPSG 32633) pixel-is-area GeoTIFF of `samples` with spacing `d` whose
     /// top-left pixel corner is at `corner`, in strips of 4 rows.
-    pub fn new(width: u32, height: u32, samples: Vec<f64>, kind: SampleKind, corner: [f64; 2], d: f64) -> Self {
+    pub fn new(
+        width: u32,
+        height: u32,
+        samples: Vec<f64>,
+        kind: SampleKind,
+        corner: [f64; 2],
+        d: f64,
+    ) -> Self {
         Self {
             width,
             height,
@@ -199,10 +206,22 @@ pub fn write_geotiff(
     entries.push((
         34735,
         V::S(vec![
-            1, 1, 0, 3, // version, revision, minor, key count
-            1024, 0, 1, spec.model_type, // GTModelTypeGeoKey
-            1025, 0, 1, raster_type, // GTRasterTypeGeoKey
-            3072, 0, 1, spec.epsg, // ProjectedCSTypeGeoKey
+            1,
+            1,
+            0,
+            3, // version, revision, minor, key count
+            1024,
+            0,
+            1,
+            spec.model_type, // GTModelTypeGeoKey
+            1025,
+            0,
+            1,
+            raster_type, // GTRasterTypeGeoKey
+            3072,
+            0,
+            1,
+            spec.epsg, // ProjectedCSTypeGeoKey
         ]),
     ));
     if let Some(n) = &spec.nodata {
@@ -213,9 +232,21 @@ pub fn write_geotiff(
     let mut ifd_entries: Vec<[u8; 12]> = Vec::new();
     for (tag, v) in &entries {
         let (ty, count, bytes): (u16, u32, Vec<u8>) = match v {
-            V::S(s) => (3, s.len() as u32, s.iter().flat_map(|x| x.to_le_bytes()).collect()),
-            V::L(s) => (4, s.len() as u32, s.iter().flat_map(|x| x.to_le_bytes()).collect()),
-            V::D(s) => (12, s.len() as u32, s.iter().flat_map(|x| x.to_le_bytes()).collect()),
+            V::S(s) => (
+                3,
+                s.len() as u32,
+                s.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            ),
+            V::L(s) => (
+                4,
+                s.len() as u32,
+                s.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            ),
+            V::D(s) => (
+                12,
+                s.len() as u32,
+                s.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            ),
             V::A(t) => {
                 let mut b = t.as_bytes().to_vec();
                 b.push(0);

@@ -190,7 +190,11 @@ fn row_from(
                 file,
                 format!("{at}, column {}", cut(names[c])),
                 "",
-                format!("missing: the column map names {} for {}", cut(names[c]), INVENTORY_COLUMNS[c]),
+                format!(
+                    "missing: the column map names {} for {}",
+                    cut(names[c]),
+                    INVENTORY_COLUMNS[c]
+                ),
             )
         })
     };
@@ -252,7 +256,12 @@ pub fn parse_named_csv(
     let mut csv = CsvRecords::new(std::io::BufReader::new(reader), file);
     let mut record = Vec::new();
     let Some(header_line) = csv.next_record(&mut record)? else {
-        return Err(InputError::new(file, "line 1", "", "empty file: expected a header"));
+        return Err(InputError::new(
+            file,
+            "line 1",
+            "",
+            "empty file: expected a header",
+        ));
     };
     let mapped = map.names();
     for (k, need) in [(0, "x"), (1, "y"), (5, "species")] {
@@ -293,7 +302,10 @@ pub fn parse_named_csv(
                 file,
                 format!("line {line}"),
                 record.join(","),
-                format!("wrong column count: expected {width} fields, found {}", record.len()),
+                format!(
+                    "wrong column count: expected {width} fields, found {}",
+                    record.len()
+                ),
             ));
         }
         if rows.len() >= MAX_INSTANCES {
@@ -306,10 +318,22 @@ pub fn parse_named_csv(
         }
         let k = rows.len();
         let get = |c: usize| column[c].map(|i| record[i].clone());
-        rows.push(row_from(file, format!("line {line}"), k, names, get, species)?);
+        rows.push(row_from(
+            file,
+            format!("line {line}"),
+            k,
+            names,
+            get,
+            species,
+        )?);
     }
     if rows.is_empty() {
-        return Err(InputError::new(file, "rows", "none", "expected at least one tree"));
+        return Err(InputError::new(
+            file,
+            "rows",
+            "none",
+            "expected at least one tree",
+        ));
     }
     Ok(rows)
 }
@@ -387,7 +411,12 @@ pub fn parse_geojson(
         rows.push(row_from(file, at, k, names, get, species)?);
     }
     if rows.is_empty() {
-        return Err(InputError::new(file, "features", "[]", "expected at least one tree"));
+        return Err(InputError::new(
+            file,
+            "features",
+            "[]",
+            "expected at least one tree",
+        ));
     }
     Ok(rows)
 }

@@ -66,8 +66,8 @@ use crate::scene::Scene;
 mod assemble;
 mod coords;
 pub mod dem;
-pub mod geotiff_writer;
 mod diagnostics;
+pub mod geotiff_writer;
 mod gltf_mesh;
 mod instances_csv;
 pub mod inventory;
@@ -81,8 +81,7 @@ mod test_util;
 use paths::label;
 
 pub use assemble::{
-    DemReport, load_instances_with_builtin_species, parse_instances_with_builtin_species,
-    scale_for,
+    DemReport, load_instances_with_builtin_species, parse_instances_with_builtin_species, scale_for,
 };
 pub use coords::{MAX_RELATIVE_COORDINATE, MAX_WORLD_COORDINATE, UpAxis, default_origin};
 pub use gltf_mesh::{GltfBuffers, load_gltf_mesh, parse_gltf_mesh};
@@ -94,8 +93,8 @@ pub use obj_mesh::{load_obj_mesh, parse_obj_mesh, triangulate_polygon};
 pub use paths::{LoadOptions, MAX_MESH_FILE_BYTES, MAX_SCENE_FILE_BYTES, MAX_TEXTURE_FILE_BYTES};
 pub use png_texture::{MAX_TEXTURE_SIDE, decode_png_texture, load_png_texture};
 pub use scene_toml::{
-    MAX_SPECIES, load_scene_file, load_scene_file_reported, load_scene_file_with,
-    parse_scene_file, parse_scene_file_reported, parse_scene_file_with,
+    MAX_SPECIES, load_scene_file, load_scene_file_reported, load_scene_file_with, parse_scene_file,
+    parse_scene_file_reported, parse_scene_file_with,
 };
 
 /// A scene file naming one mesh, as a one-line hint: what to write when someone hands a mesh file

@@ -15,15 +15,14 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::assemble::{DemReport, TerrainSpec, build_scene_trees, validated};
-use super::dem::{DEFAULT_DEM_VERTICES, MAX_DEM_VERTICES, load_dem};
-use super::inventory::{
-    ColumnMap, MAX_GEOJSON_BYTES, SpeciesLookup, TreeRow, TreeSize, parse_geojson,
-    parse_named_csv,
-};
 use super::coords::{MAX_WORLD_COORDINATE, UpAxis};
+use super::dem::{DEFAULT_DEM_VERTICES, MAX_DEM_VERTICES, load_dem};
 use super::diagnostics::{cut_quoted, line_col, utf8_error_line};
 use super::gltf_mesh::{GltfBuffers, parse_gltf_mesh};
 use super::instances_csv::load_instances_csv;
+use super::inventory::{
+    ColumnMap, MAX_GEOJSON_BYTES, SpeciesLookup, TreeRow, TreeSize, parse_geojson, parse_named_csv,
+};
 use super::obj_mesh::parse_obj_mesh;
 use super::paths::{
     LoadOptions, MAX_MESH_FILE_BYTES, MAX_SCENE_FILE_BYTES, label, read_limited, resolve_named,
@@ -242,8 +241,8 @@ pub fn parse_scene_file_reported(
     let columns = parsed.columns.as_ref().map(|c| c.get_ref().clone());
     let rows: Vec<TreeRow> = match (kind.as_deref(), &columns) {
         (Some("geojson" | "json"), map) => {
-            let bytes = read_limited(&instances_path, MAX_GEOJSON_BYTES)
-                .map_err(|e| e.within(&link))?;
+            let bytes =
+                read_limited(&instances_path, MAX_GEOJSON_BYTES).map_err(|e| e.within(&link))?;
             parse_geojson(
                 &bytes,
                 &label(&instances_path),
@@ -302,7 +301,11 @@ fn dem_spec(
         format!("line {line}, column {col}, field terrain.{field}")
     };
     let r = t.get_ref();
-    for (name, v) in [("z", &r.z), ("amplitude", &r.amplitude), ("wavelength", &r.wavelength)] {
+    for (name, v) in [
+        ("z", &r.z),
+        ("amplitude", &r.amplitude),
+        ("wavelength", &r.wavelength),
+    ] {
         if let Some(v) = v {
             return Err(InputError::new(
                 file,
@@ -382,9 +385,24 @@ fn terrain_spec(
         }
     };
     let dem_only = [
-        ("file", t_ref.file.as_ref().map(|v| (v.span(), v.get_ref().clone()))),
-        ("vertices", t_ref.vertices.as_ref().map(|v| (v.span(), v.get_ref().to_string()))),
-        ("z_tolerance", t_ref.z_tolerance.as_ref().map(|v| (v.span(), v.get_ref().to_string()))),
+        (
+            "file",
+            t_ref.file.as_ref().map(|v| (v.span(), v.get_ref().clone())),
+        ),
+        (
+            "vertices",
+            t_ref
+                .vertices
+                .as_ref()
+                .map(|v| (v.span(), v.get_ref().to_string())),
+        ),
+        (
+            "z_tolerance",
+            t_ref
+                .z_tolerance
+                .as_ref()
+                .map(|v| (v.span(), v.get_ref().to_string())),
+        ),
     ];
     for (name, v) in dem_only {
         if let Some((span, value)) = v {
