@@ -101,7 +101,10 @@ fn lzw(b: &[u8]) -> Vec<u8> {
         .unwrap()
 }
 
-fn compressions() -> [(&'static str, u16, fn(&[u8]) -> Vec<u8>); 3] {
+/// A compression: its name, its TIFF code and the compressor.
+type Compression = (&'static str, u16, fn(&[u8]) -> Vec<u8>);
+
+fn compressions() -> [Compression; 3] {
     [
         ("none", 1, identity),
         ("deflate", 8, deflate),
@@ -342,7 +345,7 @@ fn bad_ascii_grids_are_refused_naming_the_file() {
     let t = e(&good.replacen(" 304 ", " nan ", 1));
     assert!(t.contains("bad.asc") && t.contains("NaN"), "{t}");
     let mut all =
-        format!("ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value -1\n");
+        "ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value -1\n".to_string();
     all += "-1 -1\n-1 -1\n";
     let t = e(&all);
     assert!(t.contains("every sample is nodata"), "{t}");

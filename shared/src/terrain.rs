@@ -259,6 +259,35 @@ mod tests {
                 plane(x, y)
             );
         }
+        // The drawn surface: inside every cell, the height is the drawn triangle's (the grid's
+        // triangles on these lines, interpolated by barycentric weights), on a non-planar grid.
+        let axes = GridAxes {
+            xs: (0..nx).map(|i| o[0] + i as f32 * d[0]).collect(),
+            ys: (0..ny).map(|j| o[1] + j as f32 * d[1]).collect(),
+        };
+        let tris = axes_grid(&axes, |x, y| {
+            grid_surface_height(&heights, nx, ny, o, d, x, y)
+        });
+        for k in 0..400 {
+            let (x, y) = (
+                o[0] + (k as f32 * 0.0371) % (d[0] * (nx - 1) as f32),
+                o[1] + (k as f32 * 0.0533) % (d[1] * (ny - 1) as f32),
+            );
+            let z = grid_surface_height(&heights, nx, ny, o, d, x, y);
+            let inside = tris.iter().find_map(|t| {
+                let [a, b, c] = t.map(|v| v.0);
+                let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+                let u = ((x - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (y - a[1])) / det;
+                let v = ((b[0] - a[0]) * (y - a[1]) - (x - a[0]) * (b[1] - a[1])) / det;
+                (u >= -1e-6 && v >= -1e-6 && u + v <= 1.0 + 1e-6)
+                    .then(|| a[2] + u * (b[2] - a[2]) + v * (c[2] - a[2]) + TERRAIN_SINK)
+            });
+            let drawn = inside.expect("every point inside the grid is in a drawn triangle");
+            assert!(
+                (z - drawn).abs() < 1e-3,
+                "({x}, {y}): height {z}, drawn {drawn}"
+            );
+        }
         // Outside: the nearest edge point.
         assert_eq!(
             grid_surface_height(&heights, nx, ny, o, d, -1e6, -1e6),

@@ -86,7 +86,7 @@ impl Raster {
         let fc = (x - self.x0) / self.dx;
         let fr = (self.y0 - y) / self.dy;
         let (w, h) = ((self.width - 1) as f64, (self.height - 1) as f64);
-        if !(fc >= 0.0 && fc <= w && fr >= 0.0 && fr <= h) {
+        if !((0.0..=w).contains(&fc) && (0.0..=h).contains(&fr)) {
             return None;
         }
         let (c, r) = (
@@ -475,7 +475,7 @@ pub fn parse_ascii_grid(bytes: &[u8], file: &str) -> Result<Raster, InputError> 
     let need = |k: &str| get(k).ok_or_else(|| err(file, format!("header {k}"), "", "missing"));
     let (ncols, nrows, cell) = (need("ncols")?, need("nrows")?, need("cellsize")?);
     let whole = |k: &str, v: f64| {
-        if v.fract() == 0.0 && v >= 2.0 && v <= 1.0e9 {
+        if v.fract() == 0.0 && (2.0..=1.0e9).contains(&v) {
             Ok(v as u64)
         } else {
             Err(err(
