@@ -251,7 +251,7 @@ mod tests {
             }
         }
         for k in 0..50 {
-            let (x, y) = (10.0 + k as f32 * 0.173, -20.0 + k as f32 * 0.191);
+            let (x, y) = (10.0 + k as f32 * 0.159, -20.0 + k as f32 * 0.18);
             let z = grid_surface_height(&hp, nx, ny, o, d, x, y);
             assert!(
                 (z - plane(x, y)).abs() < 1e-4,
