@@ -77,8 +77,9 @@ fn a_dem_scene_renders_on_both_backends_with_a_verdict() {
         "96".into(),
         "--height".into(),
         "64".into(),
-        "--camera".into(),
-        "medium".into(),
+        // Scene-local metres: the origin is the trees' bounding-box centre (x ±45 m, y ±30 m).
+        "--eye=-100,-80,40".into(),
+        "--look-at=0,0,-5".into(),
         "--out".into(),
         out.display().to_string(),
     ];
