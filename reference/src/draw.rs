@@ -1357,6 +1357,19 @@ mod tests {
             amplitude: 7.0,
             wavelength: 310.0,
         };
+        // Two grid terrains (issue 34) of one shape and different heights: the memo must tell
+        // them apart (it keys a grid by its `Arc`).
+        let grid = |dz: f32| {
+            Terrain::Grid(std::sync::Arc::new(crate::scene::HeightGrid {
+                nx: 3,
+                ny: 2,
+                extent: [-50.0, -40.0, 60.0, 70.0],
+                heights: vec![0.0, 1.0 + dz, 2.0, 3.0, 4.0 - dz, 5.0],
+            }))
+        };
+        let (mut e, mut f) = (a.clone(), a.clone());
+        e.terrain = grid(0.0);
+        f.terrain = grid(2.5);
         let camera = Camera::look_at([-80.0, -120.0, 60.0], [40.0, 40.0, 0.0], 60.0, 320, 180);
         let vp = camera.view_projection();
         let bits = |t: &[Triangle<3>]| -> Vec<u32> {
@@ -1366,7 +1379,7 @@ mod tests {
                 .map(f32::to_bits)
                 .collect()
         };
-        for scene in [&a, &a, &b, &a, &c, &d, &d, &b] {
+        for scene in [&a, &a, &b, &a, &c, &d, &d, &b, &e, &e, &f, &e] {
             let got = terrain_triangles(scene, &vp);
             let want = plain_terrain_triangles(scene, &vp);
             assert_eq!(got.len(), want.len());
