@@ -350,7 +350,24 @@ fn bad_ascii_grids_are_refused_naming_the_file() {
     let t = e(&all);
     assert!(t.contains("every sample is nodata"), "{t}");
     let t = e("ncols 100000\nnrows 50000\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2 3\n");
-    assert!(t.contains("100000x50000"), "{t}");
+    // Refused by the size guard before the sample buffer is allocated (not by running out of
+    // samples after allocating it).
+    assert!(
+        t.contains("100000x50000") && t.contains("more than 67108864 samples"),
+        "{t}"
+    );
+    // Within the sample limit but more than the file can hold (two bytes a sample).
+    let t = e("ncols 4000
+nrows 4000
+xllcorner 0
+yllcorner 0
+cellsize 1
+1 2 3
+");
+    assert!(
+        t.contains("4000x4000") && t.contains("the file holds"),
+        "{t}"
+    );
 }
 
 /// A scene with a GeoTIFF DEM and a named-column CSV inventory: trees without z stand on the
@@ -635,6 +652,48 @@ proptest! {
         let scene = parse_scene_file(toml.as_bytes(), &dir.join("f.toml")).unwrap();
         for (t, &r) in scene.instances.iter().zip(&rows) {
             prop_assert_eq!(&scene.meshes[t.mesh as usize].name, scene_sp[r]);
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 96, ..ProptestConfig::default() })]
+
+    /// Hostile bytes (issue 28's rule for every reader): a valid GeoTIFF (tiled, deflate or LZW)
+    /// or ASCII grid with up to 8 bytes changed and maybe cut short is read or refused, never a
+    /// panic that escapes the reader.
+    #[test]
+    fn hostile_dem_bytes_never_panic(
+        edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8),
+        cut in any::<prop::sample::Index>(),
+        truncate in any::<bool>(),
+        which in 0usize..3,
+    ) {
+        let mut spec = GeoTiffSpec::new(W, H, samples(0.0), SampleKind::F32, CORNER, D);
+        spec.chunks = Chunks::Tiles(16, 16);
+        let mut bytes = match which {
+            0 => write_geotiff(&spec, 8, &deflate),
+            1 => write_geotiff(&spec, 5, &lzw),
+            _ => ascii_grid(false, Some("-9999")).into_bytes(),
+        };
+        for (at, b) in &edits {
+            let k = at.index(bytes.len());
+            bytes[k] = *b;
+        }
+        if truncate {
+            bytes.truncate(cut.index(bytes.len()));
+        }
+        let result = std::panic::catch_unwind(|| {
+            if which == 2 {
+                parse_ascii_grid(&bytes, "h.asc").map(|_| ())
+            } else {
+                parse_geotiff(&bytes, "h.tif").map(|_| ())
+            }
+        });
+        prop_assert!(result.is_ok(), "the reader panicked");
+        if let Ok(Err(e)) = result {
+            let e = e.to_string();
+            prop_assert!(e.contains("h.tif") || e.contains("h.asc"), "{}", e);
         }
     }
 }
