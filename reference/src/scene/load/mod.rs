@@ -37,6 +37,16 @@
 //! kind = "flat"                          # "flat" with z (world height, metres) ...
 //! z = 210.0
 //! # kind = "hills", amplitude = 25.0, wavelength = 1500.0   # ... or hills around the origin
+//! # kind = "dem", file = "dem.tif", vertices = 66049, z_tolerance = 1.0
+//! #                                      # ... or an elevation model (issue 34, [`dem`])
+//!
+//! [columns]                              # optional (issue 34, [`inventory`]): an inventory's own
+//! x = "East"                             # column names; `instances` may then be a CSV with
+//! y = "North"                            # named columns or GeoJSON points
+//! height = "H_m"
+//! species = "Baumart"
+//! [species_names]                        # optional: inventory species name -> scene species
+//! Fichte = "spruce"
 //!
 //! [[species]]                            # optional; default: the five built-in species
 //! name = "spruce"
