@@ -64,7 +64,13 @@ impl SceneArgs {
             allow_outside_paths: self.allow_outside_paths,
         };
         if self.scene.ends_with(".toml") || path.is_file() {
-            load::load_scene_file_with(path, &options)
+            // An elevation model's report (issue 34: trees whose z disagrees with it, counted
+            // and never moved) goes to stderr; the outputs stay as they were.
+            let (scene, report) = load::load_scene_file_reported(path, &options)?;
+            if let Some(r) = report {
+                eprintln!("{r}");
+            }
+            Ok(scene)
         } else {
             builtin::by_name(&self.scene)
         }

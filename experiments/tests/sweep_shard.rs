@@ -79,6 +79,71 @@ fn three_merged_shards_equal_the_unsharded_run_row_for_row() {
     merge.shards = shard_dirs[..2].to_vec();
     let e = run(&merge).unwrap_err().to_string();
     assert!(e.contains("2/3") && e.contains("missing"), "{e}");
+    // Issue 34: every missing index is named.
+    merge.shards = shard_dirs[..1].to_vec();
+    let e = run(&merge).unwrap_err().to_string();
+    assert!(
+        e.contains("1/3 2/3") && e.contains("2 shards are missing"),
+        "{e}"
+    );
+    // Issue 34: shards of another build are refused, naming the field.
+    let other = root.join("other-build");
+    copy_tree(&shard_dirs[2], &other);
+    for entry in std::fs::read_dir(&other).unwrap() {
+        let m = entry.unwrap().path().join("sweep.json");
+        if m.is_file() {
+            let mut v: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
+            v["build"] = serde_json::json!("forestlod 0.0.0 0000000000000000");
+            std::fs::write(&m, serde_json::to_string(&v).unwrap()).unwrap();
+        }
+    }
+    merge.shards = vec![shard_dirs[0].clone(), shard_dirs[1].clone(), other];
+    let e = run(&merge).unwrap_err().to_string();
+    assert!(e.contains("build") && e.contains("one build"), "{e}");
+    // Issue 34: `--shard auto` under a Slurm array's variables (task 2 of an array 1-3, so
+    // index 1 of 3) runs the frames of the explicit `--shard 1/3`, through the binary.
+    let sweep = BUILTIN_SWEEPS
+        .iter()
+        .map(|(n, _)| *n)
+        .find(|n| shard_dirs[1].join(n).join("sweep.json").is_file())
+        .unwrap();
+    let auto = root.join("auto");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_forestlod"))
+        .args([
+            "sweep",
+            sweep,
+            "--shard",
+            "auto",
+            "--quick",
+            "--backend",
+            "reference",
+            "--out",
+        ])
+        .arg(&auto)
+        .env("SLURM_ARRAY_TASK_ID", "2")
+        .env("SLURM_ARRAY_TASK_MIN", "1")
+        .env("SLURM_ARRAY_TASK_COUNT", "3")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (ma, me) = (
+        manifest(&auto.join(sweep)),
+        manifest(&shard_dirs[1].join(sweep)),
+    );
+    assert_eq!(ma.shard.as_deref(), Some("1/3"));
+    let frames = |dir: &Path, m: &Manifest| -> Vec<u64> {
+        read_rows(&dir.join(&m.csv))
+            .unwrap()
+            .iter()
+            .map(|r| r.frame)
+            .collect()
+    };
+    assert_eq!(
+        frames(&auto.join(sweep), &ma),
+        frames(&shard_dirs[1].join(sweep), &me),
+        "{sweep}: --shard auto picks the frames of --shard 1/3"
+    );
 
     let merged = root.join("merged");
     merge.out = merged.clone();
@@ -125,6 +190,15 @@ fn three_merged_shards_equal_the_unsharded_run_row_for_row() {
     // units lie in different shards: every one in a shard that does not own the previous pose).
     assert!(temporal > 0, "no temporal error compared");
     std::fs::remove_dir_all(&root).ok();
+}
+
+/// Copies the folder `from` to `to`, recursively.
+fn copy_tree(from: &Path, to: &Path) {
+    for rel in files_under(from) {
+        let dst = to.join(&rel);
+        std::fs::create_dir_all(dst.parent().unwrap()).unwrap();
+        std::fs::copy(from.join(&rel), dst).unwrap();
+    }
 }
 
 /// Every file under `dir` (recursively), as paths relative to it, sorted.

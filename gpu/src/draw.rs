@@ -207,7 +207,13 @@ impl DrawUniform {
 /// [`TERRAIN_CELLS`]² cells over the footprint `bounds = [min_x, min_y, max_x, max_y]` plus
 /// [`TERRAIN_MARGIN`], following `height(x, y)` (the scene's terrain), sunk 0.05 m.
 pub fn terrain_vertices(bounds: [f32; 4], height: impl Fn(f32, f32) -> f32) -> Vec<TerrainVertex> {
-    forestlod_shared::terrain_grid(bounds, height)
+    terrain_vertices_of(forestlod_shared::terrain_grid(bounds, height))
+}
+
+/// A ground triangle list (the reference scene's `ground_triangles`: the uniform grid, or an
+/// elevation model's own grid, issue 34) as the vertices the ground pipeline draws, in order.
+pub fn terrain_vertices_of(triangles: Vec<[([f32; 3], [f32; 3]); 3]>) -> Vec<TerrainVertex> {
+    triangles
         .into_iter()
         .flatten()
         .map(|(position, color)| TerrainVertex { position, color })

@@ -98,7 +98,7 @@ pub use cull::{CullTree, DrawIndirectArgs, GpuCull, GpuCulled};
 pub use draw::{
     DrawCalls, DrawInputs, DrawInstance, DrawScene, DrawSceneDesc, DrawTarget, DrawTextures,
     DrawVertex, DrawnImages, GpuDraw, IndirectMode, MipLevel, TerrainVertex, terrain_vertices,
-    upload_texture_array,
+    terrain_vertices_of, upload_texture_array,
 };
 pub use hier_select::{GpuHierSelect, HierUniform};
 pub use mips::{GpuMips, MipArray, MipLevelStats, MipTexels};

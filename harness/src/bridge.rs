@@ -8,7 +8,8 @@ use forestlod_gpu::draw::MipLevel;
 use forestlod_gpu::readback::upload_storage;
 use forestlod_gpu::{
     BakeMesh, CullTree, DrawInstance, DrawSceneDesc, DrawVertex, GpuBake, GpuBaked,
-    GpuCommandOrder, GpuContext, GpuError, SelectBuffers, terrain_vertices, upload_texture_array,
+    GpuCommandOrder, GpuContext, GpuError, SelectBuffers, terrain_vertices_of,
+    upload_texture_array,
 };
 use forestlod_reference::baselines::{proxies, tree_spheres};
 use forestlod_reference::coalesce::run_offsets;
@@ -52,7 +53,7 @@ impl DrawSceneData {
                     mesh: t.mesh,
                 })
                 .collect(),
-            terrain: terrain_vertices(scene.bounds, |x, y| scene.terrain.height(x, y)),
+            terrain: terrain_vertices_of(scene.ground_triangles()),
         }
     }
 

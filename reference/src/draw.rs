@@ -685,7 +685,7 @@ pub fn terrain_triangles(scene: &Scene, view_proj: &Mat4) -> Vec<Triangle<3>> {
         Vertex::new(clip.to_array(), color)
     };
     let projected: Vec<Vertex<3>> = ground_grid(scene).iter().map(project).collect();
-    forestlod_shared::terrain_grid_triangles()
+    forestlod_shared::axes_triangles(&scene.ground_axes())
         .map(|t| t.map(|k| projected[k as usize]))
         .collect()
 }
@@ -697,27 +697,45 @@ pub fn terrain_triangles(scene: &Scene, view_proj: &Mat4) -> Vec<Triangle<3>> {
 fn ground_grid(scene: &Scene) -> std::sync::Arc<Vec<([f32; 3], [f32; 3])>> {
     use crate::scene::Terrain;
     use std::sync::{Arc, Mutex};
-    type Key = ([u32; 4], u32, [u32; 2]);
+    // A grid terrain is keyed by its `Arc`, which the memo holds: while it is remembered its
+    // address cannot be reused by another grid, so equal pointers mean the same heights.
+    type Key = (
+        [u32; 4],
+        u32,
+        [u32; 2],
+        Option<Arc<crate::scene::HeightGrid>>,
+    );
     type Grid = Arc<Vec<([f32; 3], [f32; 3])>>;
     static LAST: Mutex<Option<(Key, Grid)>> = Mutex::new(None);
-    let terrain = match scene.terrain {
-        Terrain::Flat { z } => (0, [z.to_bits(), 0]),
+    let terrain = match &scene.terrain {
+        Terrain::Flat { z } => (0, [z.to_bits(), 0], None),
         Terrain::Hills {
             amplitude,
             wavelength,
-        } => (1, [amplitude.to_bits(), wavelength.to_bits()]),
+        } => (1, [amplitude.to_bits(), wavelength.to_bits()], None),
+        Terrain::Grid(g) => (2, [0, 0], Some(g.clone())),
     };
-    let key = (scene.bounds.map(f32::to_bits), terrain.0, terrain.1);
+    let same = |a: &Key, b: &Key| {
+        (a.0, a.1, a.2) == (b.0, b.1, b.2)
+            && match (&a.3, &b.3) {
+                (None, None) => true,
+                (Some(p), Some(q)) => Arc::ptr_eq(p, q),
+                _ => false,
+            }
+    };
+    let key = (
+        scene.bounds.map(f32::to_bits),
+        terrain.0,
+        terrain.1,
+        terrain.2,
+    );
     let mut last = LAST.lock().unwrap_or_else(|e| e.into_inner());
     if let Some((k, grid)) = last.as_ref()
-        && *k == key
+        && same(k, &key)
     {
         return grid.clone();
     }
-    let grid = Arc::new(forestlod_shared::terrain_grid_vertices(
-        scene.bounds,
-        |x, y| scene.terrain.height(x, y),
-    ));
+    let grid = Arc::new(scene.ground_vertices());
     *last = Some((key, grid.clone()));
     grid
 }
@@ -1226,7 +1244,8 @@ mod tests {
     /// The ground drawn the plain way: [`forestlod_shared::terrain_grid`] evaluated now, each
     /// triangle corner projected on its own.
     fn plain_terrain_triangles(scene: &Scene, view_proj: &Mat4) -> Vec<Triangle<3>> {
-        forestlod_shared::terrain_grid(scene.bounds, |x, y| scene.terrain.height(x, y))
+        scene
+            .ground_triangles()
             .into_iter()
             .map(|t| {
                 t.map(|(p, color)| {
@@ -1343,6 +1362,7 @@ mod tests {
         let a = crate::scene::builtin::tiny();
         let mut b = a.clone();
         b.terrain = match a.terrain {
+            Terrain::Grid(_) => unreachable!("tiny has hills"),
             Terrain::Flat { z } => Terrain::Flat { z: z + 3.0 },
             Terrain::Hills {
                 amplitude,
@@ -1359,6 +1379,19 @@ mod tests {
             amplitude: 7.0,
             wavelength: 310.0,
         };
+        // Two grid terrains (issue 34) of one shape and different heights: the memo must tell
+        // them apart (it keys a grid by its `Arc`).
+        let grid = |dz: f32| {
+            Terrain::Grid(std::sync::Arc::new(crate::scene::HeightGrid {
+                nx: 3,
+                ny: 2,
+                extent: [-50.0, -40.0, 60.0, 70.0],
+                heights: vec![0.0, 1.0 + dz, 2.0, 3.0, 4.0 - dz, 5.0],
+            }))
+        };
+        let (mut e, mut f) = (a.clone(), a.clone());
+        e.terrain = grid(0.0);
+        f.terrain = grid(2.5);
         let camera = Camera::look_at([-80.0, -120.0, 60.0], [40.0, 40.0, 0.0], 60.0, 320, 180);
         let vp = camera.view_projection();
         let bits = |t: &[Triangle<3>]| -> Vec<u32> {
@@ -1368,7 +1401,7 @@ mod tests {
                 .map(f32::to_bits)
                 .collect()
         };
-        for scene in [&a, &a, &b, &a, &c, &d, &d, &b] {
+        for scene in [&a, &a, &b, &a, &c, &d, &d, &b, &e, &e, &f, &e] {
             let got = terrain_triangles(scene, &vp);
             let want = plain_terrain_triangles(scene, &vp);
             assert_eq!(got.len(), want.len());

@@ -554,9 +554,7 @@ impl GroundTruthScene {
         // The ground grid, in terrain_triangles' order (`forestlod_shared::terrain_grid`, the
         // grid every renderer draws).
         let mut ground_colors = Vec::new();
-        for [p, q, r] in
-            forestlod_shared::terrain_grid(scene.bounds, |x, y| scene.terrain.height(x, y))
-        {
+        for [p, q, r] in scene.ground_triangles() {
             triangles.push(BvhTriangle {
                 v0: Vec3A::from(p.0),
                 v1: Vec3A::from(q.0),

@@ -108,8 +108,9 @@ pub use subset::{
     subset_dither_shift, subset_fragment_weight, subset_pack, subset_scale, subset_weight_code,
 };
 pub use terrain::{
-    TERRAIN_CELLS, TERRAIN_MARGIN, TERRAIN_SINK, ground_color, terrain_grid,
-    terrain_grid_triangles, terrain_grid_vertices, terrain_vertex,
+    GridAxes, TERRAIN_CELLS, TERRAIN_MARGIN, TERRAIN_SINK, axes_grid, axes_triangles,
+    axes_vertices, grid_surface_height, ground_color, terrain_grid, terrain_grid_triangles,
+    terrain_grid_vertices, terrain_vertex, uniform_axes,
 };
 pub use types::{
     BatchMeta, CommandData, DrawCommand, MeshMeta, NO_PARENT, NodeMeta, ProxyRecord, SelectCounters,

@@ -120,7 +120,9 @@ pub struct SweepArgs {
     /// With `merge`: the `--out` folders of the shard runs to join.
     pub shards: Vec<PathBuf>,
     /// Run shard I of N (`I/N`, 0 <= I < N): a deterministic 1/N of the frames; join the shards
-    /// with `forestlod sweep merge`.
+    /// with `forestlod sweep merge`. `auto`: I and N from a Slurm job array
+    /// (`SLURM_ARRAY_TASK_ID`, `SLURM_ARRAY_TASK_COUNT`); `auto/N`: I from a Kubernetes Indexed
+    /// Job (`JOB_COMPLETION_INDEX`) of N completions (`experiments/cluster/`).
     #[arg(long)]
     pub shard: Option<shard::Shard>,
     /// Output folder: one sub-folder per sweep.

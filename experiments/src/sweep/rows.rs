@@ -346,6 +346,13 @@ impl FrameImages {
 pub struct Manifest {
     /// Sweep name.
     pub name: String,
+    /// The build that ran it (issue 34, [`super::shard::build_id`]); `sweep merge` refuses a
+    /// mix. Absent in manifests of earlier builds.
+    #[serde(default)]
+    pub build: Option<String>,
+    /// FNV-1a of the sweep definition as run (issue 34); `sweep merge` refuses a mix.
+    #[serde(default)]
+    pub spec_hash: Option<String>,
     /// Title.
     pub title: String,
     /// Description.

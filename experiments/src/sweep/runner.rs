@@ -487,6 +487,11 @@ impl Runner {
             total_error: spec.total_error,
             spec: Some(spec.clone()),
             shard: shard.map(|s| s.to_string()),
+            build: Some(super::shard::build_id()),
+            spec_hash: Some(format!(
+                "{:016x}",
+                super::shard::fnv1a(serde_json::to_string(spec)?.as_bytes())
+            )),
         };
         let mpath = dir.join("sweep.json");
         std::fs::write(&mpath, serde_json::to_string_pretty(&manifest)?)

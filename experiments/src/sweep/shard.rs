@@ -41,9 +41,62 @@ impl fmt::Display for Shard {
     }
 }
 
+impl Shard {
+    /// `--shard auto` (issue 34): the shard from a scheduler's variables, read through `var`.
+    /// `auto`: a Slurm job array, index `SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN` (min 0 when
+    /// unset) of `SLURM_ARRAY_TASK_COUNT`. `auto/N`: a Kubernetes Indexed Job of `N` completions,
+    /// index `JOB_COMPLETION_INDEX` (the Job's own variable; the count is not in the pod's
+    /// environment, so it is given). Errors name the variable and its value.
+    pub fn from_scheduler(
+        text: &str,
+        var: impl Fn(&str) -> Option<String>,
+    ) -> Result<Self, String> {
+        let num = |name: &str| -> Result<usize, String> {
+            let v = var(name).ok_or_else(|| format!("shard {text:?}: {name} is not set"))?;
+            v.trim()
+                .parse()
+                .map_err(|_| format!("shard {text:?}: {name}={v:?} is not a whole number"))
+        };
+        let (index, count, from) = if text == "auto" {
+            if var("SLURM_ARRAY_TASK_ID").is_none() {
+                return Err(format!(
+                    "shard {text:?}: SLURM_ARRAY_TASK_ID is not set (for a Kubernetes Indexed Job give the count: --shard auto/N, index from JOB_COMPLETION_INDEX)"
+                ));
+            }
+            let id = num("SLURM_ARRAY_TASK_ID")?;
+            let min = match var("SLURM_ARRAY_TASK_MIN") {
+                Some(_) => num("SLURM_ARRAY_TASK_MIN")?,
+                None => 0,
+            };
+            let count = num("SLURM_ARRAY_TASK_COUNT")?;
+            if id < min {
+                return Err(format!(
+                    "shard {text:?}: SLURM_ARRAY_TASK_ID {id} below SLURM_ARRAY_TASK_MIN {min}"
+                ));
+            }
+            (id - min, count, "SLURM_ARRAY_TASK_ID")
+        } else {
+            let n = text
+                .strip_prefix("auto/")
+                .and_then(|n| n.trim().parse::<usize>().ok())
+                .ok_or_else(|| format!("shard {text:?}: expected auto, auto/N or I/N"))?;
+            (num("JOB_COMPLETION_INDEX")?, n, "JOB_COMPLETION_INDEX")
+        };
+        if count == 0 || index >= count {
+            return Err(format!(
+                "shard {text:?}: index {index} (from {from}) is not below the count {count}"
+            ));
+        }
+        Ok(Self { index, count })
+    }
+}
+
 impl FromStr for Shard {
     type Err = String;
     fn from_str(text: &str) -> Result<Self, String> {
+        if text.starts_with("auto") {
+            return Self::from_scheduler(text, |name| std::env::var(name).ok());
+        }
         let bad = || format!("shard {text:?}: expected I/N with 0 <= I < N, e.g. 0/4");
         let (i, n) = text.split_once('/').ok_or_else(bad)?;
         let (index, count) = (
@@ -218,8 +271,21 @@ pub fn merge(
                 )
                 .into());
             }
+            if m.build != first.build {
+                return Err(field(
+                    "build",
+                    format!(
+                        "sweep {name}: made by {} but {} by {}: rerun the shards with one build",
+                        m.build.as_deref().unwrap_or("an unknown build"),
+                        parts[0].0.display(),
+                        first.build.as_deref().unwrap_or("an unknown build")
+                    ),
+                )
+                .into());
+            }
             if serde_json::to_value(&m.spec)? != serde_json::to_value(&first.spec)?
                 || m.quick != first.quick
+                || m.spec_hash != first.spec_hash
             {
                 return Err(field(
                     "spec",
@@ -238,12 +304,29 @@ pub fn merge(
                 .into());
             }
         }
-        if let Some(missing) = (0..count).find(|i| !seen.contains_key(i)) {
+        // Every missing index named (at most 32 of them, then a count).
+        let missing: Vec<usize> = (0..count)
+            .filter(|i| !seen.contains_key(i))
+            .take(33)
+            .collect();
+        if !missing.is_empty() {
+            let mut names: Vec<String> = missing
+                .iter()
+                .take(32)
+                .map(|i| format!("{i}/{count}"))
+                .collect();
+            if missing.len() > 32 {
+                names.push("...".into());
+            }
             return Err(InputError::new(
                 "<command line>",
                 "sweep merge",
-                format!("{name} {missing}/{count}"),
-                "a shard is missing",
+                format!("{name} {}", names.join(" ")),
+                if missing.len() == 1 {
+                    "a shard is missing".to_string()
+                } else {
+                    format!("{} shards are missing", names.len())
+                },
             )
             .into());
         }
@@ -332,9 +415,91 @@ fn shard_of(dir: &Path, m: &Manifest) -> Result<Shard, InputError> {
         .map_err(|e: String| InputError::new(file, "shard", text, e))
 }
 
+/// The build a shard's manifest names (issue 34): the package version and a 64-bit FNV-1a hash
+/// of the running executable, so shards of different builds are not merged.
+pub fn build_id() -> String {
+    static ID: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    ID.get_or_init(|| {
+        let exe = std::env::current_exe()
+            .ok()
+            .and_then(|p| std::fs::read(p).ok())
+            .map(|b| format!("{:016x}", fnv1a(&b)))
+            .unwrap_or_else(|| "unknown".into());
+        format!("forestlod {} {exe}", env!("CARGO_PKG_VERSION"))
+    })
+    .clone()
+}
+
+/// 64-bit FNV-1a of `bytes`: the hash of a shard's sweep definition and of its build.
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `--shard auto` under each scheduler's variables is the explicit shard: Slurm (with and
+    /// without a non-zero array start), Kubernetes (`auto/N`); unset or inconsistent variables
+    /// are errors naming the variable.
+    #[test]
+    fn auto_shards_are_the_explicit_ones() {
+        let env = |pairs: &'static [(&'static str, &'static str)]| {
+            move |k: &str| {
+                pairs
+                    .iter()
+                    .find(|(n, _)| *n == k)
+                    .map(|(_, v)| v.to_string())
+            }
+        };
+        let slurm = Shard::from_scheduler(
+            "auto",
+            env(&[
+                ("SLURM_ARRAY_TASK_ID", "2"),
+                ("SLURM_ARRAY_TASK_COUNT", "5"),
+            ]),
+        );
+        assert_eq!(slurm, "2/5".parse());
+        let from_one = Shard::from_scheduler(
+            "auto",
+            env(&[
+                ("SLURM_ARRAY_TASK_ID", "3"),
+                ("SLURM_ARRAY_TASK_MIN", "1"),
+                ("SLURM_ARRAY_TASK_COUNT", "4"),
+            ]),
+        );
+        assert_eq!(from_one, "2/4".parse());
+        let k8s = Shard::from_scheduler("auto/6", env(&[("JOB_COMPLETION_INDEX", "5")]));
+        assert_eq!(k8s, "5/6".parse());
+        for (text, vars, want) in [
+            ("auto", env(&[]), "SLURM_ARRAY_TASK_ID"),
+            (
+                "auto",
+                env(&[("SLURM_ARRAY_TASK_ID", "1")]),
+                "SLURM_ARRAY_TASK_COUNT",
+            ),
+            (
+                "auto",
+                env(&[
+                    ("SLURM_ARRAY_TASK_ID", "4"),
+                    ("SLURM_ARRAY_TASK_COUNT", "4"),
+                ]),
+                "not below",
+            ),
+            ("auto/3", env(&[]), "JOB_COMPLETION_INDEX"),
+            (
+                "auto/3",
+                env(&[("JOB_COMPLETION_INDEX", "x")]),
+                "JOB_COMPLETION_INDEX",
+            ),
+            ("auto/0", env(&[("JOB_COMPLETION_INDEX", "0")]), "not below"),
+        ] {
+            let e = Shard::from_scheduler(text, vars).unwrap_err();
+            assert!(e.contains(want), "{text}: {e}");
+        }
+    }
 
     #[test]
     fn shards_parse_and_partition_the_units() {

@@ -692,6 +692,7 @@ pub fn forest(config: &ForestConfig) -> Result<Scene, InputError> {
             amplitude,
             wavelength,
         } => amplitude.is_finite() && wavelength.is_finite() && wavelength > 0.0,
+        Terrain::Grid(ref g) => g.heights.iter().all(|h| h.is_finite()),
     };
     if !terrain_ok {
         return Err(InputError::new(
@@ -786,7 +787,7 @@ fn generate(config: &ForestConfig) -> Scene {
     let half = side * 0.5;
     let dy = side / rows as f64;
     let seed = config.seed;
-    let terrain = config.terrain;
+    let terrain = &config.terrain;
     let per_row: Vec<Vec<Instance>> = (0..rows)
         .into_par_iter()
         .map(|row| {
@@ -835,7 +836,7 @@ fn generate(config: &ForestConfig) -> Scene {
         origin: [0.0, 0.0, 0.0],
         meshes: species_meshes(),
         instances,
-        terrain,
+        terrain: terrain.clone(),
         bounds: [-h, -h, h, h],
     }
 }

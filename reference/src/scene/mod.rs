@@ -51,7 +51,7 @@ pub struct Instance {
 }
 
 /// Ground under the trees: the draw stage renders it, scenes place trees on it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Terrain {
     /// A flat plane at height `z`.
     Flat {
@@ -66,6 +66,65 @@ pub enum Terrain {
         /// Wavelength of the first octave, metres.
         wavelength: f32,
     },
+    /// A grid of heights from an elevation model (issue 34: GeoTIFF or ESRI ASCII grid,
+    /// `load::dem`), resampled to its vertex budget, drawn on its own grid lines
+    /// ([`Scene::ground_axes`]) and as high everywhere as the drawn surface
+    /// ([`forestlod_shared::grid_surface_height`]).
+    Grid(std::sync::Arc<HeightGrid>),
+}
+
+/// The heights of an elevation model as drawn (issue 34): `nx · ny` samples, row by row from
+/// the south-west (`heights[j · nx + i]` at `x = x0 + (x1 - x0) · i / (nx - 1)`, `y` alike),
+/// relative to the scene origin.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeightGrid {
+    /// Samples per row (>= 2).
+    pub nx: usize,
+    /// Rows (>= 2).
+    pub ny: usize,
+    /// `[x0, y0, x1, y1]`: the first and the last sample's position, relative to the origin.
+    pub extent: [f32; 4],
+    /// Heights relative to the origin, finite.
+    pub heights: Vec<f32>,
+}
+
+impl HeightGrid {
+    /// The sample spacing `[dx, dy]`.
+    pub fn step(&self) -> [f32; 2] {
+        let [x0, y0, x1, y1] = self.extent;
+        [
+            (x1 - x0) / (self.nx - 1) as f32,
+            (y1 - y0) / (self.ny - 1) as f32,
+        ]
+    }
+
+    /// Height of the drawn surface at `(x, y)` ([`forestlod_shared::grid_surface_height`]).
+    pub fn height(&self, x: f32, y: f32) -> f32 {
+        forestlod_shared::grid_surface_height(
+            &self.heights,
+            self.nx,
+            self.ny,
+            [self.extent[0], self.extent[1]],
+            self.step(),
+            x,
+            y,
+        )
+    }
+
+    /// The sample lines, each computed as the uniform grid computes its lines
+    /// (`forestlod_shared::uniform_axes`): `x0 + (x1 - x0) · i / (nx - 1)`.
+    pub fn axes(&self) -> forestlod_shared::GridAxes {
+        let [x0, y0, x1, y1] = self.extent;
+        let (nx, ny) = (self.nx as u32 - 1, self.ny as u32 - 1);
+        forestlod_shared::GridAxes {
+            xs: (0..=nx)
+                .map(|i| x0 + (x1 - x0) * i as f32 / nx as f32)
+                .collect(),
+            ys: (0..=ny)
+                .map(|j| y0 + (y1 - y0) * j as f32 / ny as f32)
+                .collect(),
+        }
+    }
 }
 
 impl Terrain {
@@ -83,6 +142,7 @@ impl Terrain {
                     * ((k * x).sin() * (k * y).cos()
                         + 0.25 * (k2 * x + 1.3).sin() * (k2 * y + 0.7).cos())
             }
+            Terrain::Grid(ref g) => g.height(x, y),
         }
     }
 }
@@ -305,6 +365,42 @@ impl Scene {
     /// Per-mesh metadata for every mesh, in mesh order.
     pub fn mesh_metas(&self) -> Vec<MeshMeta> {
         self.meshes.iter().map(TreeMesh::meta).collect()
+    }
+
+    /// The ground grid's lines: the uniform grid over the footprint plus the margin
+    /// ([`forestlod_shared::uniform_axes`]) for flat and hills terrain; for a [`Terrain::Grid`]
+    /// its own sample lines, plus one line beyond each side that the footprint plus the margin
+    /// reaches past the grid (the edge heights continued, issue 34).
+    pub fn ground_axes(&self) -> forestlod_shared::GridAxes {
+        let Terrain::Grid(g) = &self.terrain else {
+            return forestlod_shared::uniform_axes(self.bounds);
+        };
+        let mut axes = g.axes();
+        let m = forestlod_shared::TERRAIN_MARGIN;
+        let [bx0, by0, bx1, by1] = self.bounds;
+        let widen = |lines: &mut Vec<f32>, lo: f32, hi: f32| {
+            if lo < lines[0] {
+                lines.insert(0, lo);
+            }
+            if hi > lines[lines.len() - 1] {
+                lines.push(hi);
+            }
+        };
+        widen(&mut axes.xs, bx0 - m, bx1 + m);
+        widen(&mut axes.ys, by0 - m, by1 + m);
+        axes
+    }
+
+    /// Every vertex of the ground grid once, row by row: [`forestlod_shared::axes_vertices`] on
+    /// [`Scene::ground_axes`] and the terrain's height.
+    pub fn ground_vertices(&self) -> Vec<([f32; 3], [f32; 3])> {
+        forestlod_shared::axes_vertices(&self.ground_axes(), |x, y| self.terrain.height(x, y))
+    }
+
+    /// The ground's triangles in draw order, each vertex `(position, linear colour)`: what every
+    /// renderer draws and the truth traces ([`forestlod_shared::axes_grid`]).
+    pub fn ground_triangles(&self) -> Vec<[([f32; 3], [f32; 3]); 3]> {
+        forestlod_shared::axes_grid(&self.ground_axes(), |x, y| self.terrain.height(x, y))
     }
 
     /// Footprint area in km².

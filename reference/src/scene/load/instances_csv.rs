@@ -224,7 +224,7 @@ pub const MAX_CSV_RECORD_BYTES: usize = 1 << 16;
 /// (`""` inside is a quote) and then may span lines; unquoted fields and quoted contents are
 /// trimmed of spaces and tabs; empty lines are skipped; a leading UTF-8 byte-order mark is dropped;
 /// line ends are `\n` or `\r\n`.
-struct CsvRecords<'a, R> {
+pub(super) struct CsvRecords<'a, R> {
     reader: R,
     file: &'a str,
     /// Lines read so far.
@@ -233,7 +233,7 @@ struct CsvRecords<'a, R> {
 }
 
 impl<'a, R: std::io::BufRead> CsvRecords<'a, R> {
-    fn new(reader: R, file: &'a str) -> Self {
+    pub(super) fn new(reader: R, file: &'a str) -> Self {
         Self {
             reader,
             file,
@@ -286,7 +286,10 @@ impl<'a, R: std::io::BufRead> CsvRecords<'a, R> {
 
     /// Reads the next non-empty record into `fields`; returns the line it starts on, or `None` at
     /// the end of input.
-    fn next_record(&mut self, fields: &mut Vec<String>) -> Result<Option<u64>, InputError> {
+    pub(super) fn next_record(
+        &mut self,
+        fields: &mut Vec<String>,
+    ) -> Result<Option<u64>, InputError> {
         fields.clear();
         // Skip empty lines.
         loop {

@@ -37,6 +37,16 @@
 //! kind = "flat"                          # "flat" with z (world height, metres) ...
 //! z = 210.0
 //! # kind = "hills", amplitude = 25.0, wavelength = 1500.0   # ... or hills around the origin
+//! # kind = "dem", file = "dem.tif", vertices = 66049, z_tolerance = 1.0
+//! #                                      # ... or an elevation model (issue 34, [`dem`])
+//!
+//! [columns]                              # optional (issue 34, [`inventory`]): an inventory's own
+//! x = "East"                             # column names; `instances` may then be a CSV with
+//! y = "North"                            # named columns or GeoJSON points
+//! height = "H_m"
+//! species = "Baumart"
+//! [species_names]                        # optional: inventory species name -> scene species
+//! Fichte = "spruce"
 //!
 //! [[species]]                            # optional; default: the five built-in species
 //! name = "spruce"
@@ -65,9 +75,12 @@ use crate::scene::Scene;
 
 mod assemble;
 mod coords;
+pub mod dem;
 mod diagnostics;
+pub mod geotiff_writer;
 mod gltf_mesh;
 mod instances_csv;
+pub mod inventory;
 mod obj_mesh;
 mod paths;
 mod png_texture;
@@ -77,7 +90,9 @@ mod test_util;
 
 use paths::label;
 
-pub use assemble::{load_instances_with_builtin_species, parse_instances_with_builtin_species};
+pub use assemble::{
+    DemReport, load_instances_with_builtin_species, parse_instances_with_builtin_species, scale_for,
+};
 pub use coords::{MAX_RELATIVE_COORDINATE, MAX_WORLD_COORDINATE, UpAxis, default_origin};
 pub use gltf_mesh::{GltfBuffers, load_gltf_mesh, parse_gltf_mesh};
 pub use instances_csv::{
@@ -88,7 +103,8 @@ pub use obj_mesh::{load_obj_mesh, parse_obj_mesh, triangulate_polygon};
 pub use paths::{LoadOptions, MAX_MESH_FILE_BYTES, MAX_SCENE_FILE_BYTES, MAX_TEXTURE_FILE_BYTES};
 pub use png_texture::{MAX_TEXTURE_SIDE, decode_png_texture, load_png_texture};
 pub use scene_toml::{
-    MAX_SPECIES, load_scene_file, load_scene_file_with, parse_scene_file, parse_scene_file_with,
+    MAX_SPECIES, load_scene_file, load_scene_file_reported, load_scene_file_with, parse_scene_file,
+    parse_scene_file_reported, parse_scene_file_with,
 };
 
 /// A scene file naming one mesh, as a one-line hint: what to write when someone hands a mesh file

@@ -9,14 +9,20 @@
 
 use std::path::Path;
 
+use std::collections::BTreeMap;
+
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::assemble::{TerrainSpec, build_scene, validated};
+use super::assemble::{DemReport, TerrainSpec, build_scene_trees, validated};
 use super::coords::{MAX_WORLD_COORDINATE, UpAxis};
+use super::dem::{DEFAULT_DEM_VERTICES, MAX_DEM_VERTICES, load_dem};
 use super::diagnostics::{cut_quoted, line_col, utf8_error_line};
 use super::gltf_mesh::{GltfBuffers, parse_gltf_mesh};
 use super::instances_csv::load_instances_csv;
+use super::inventory::{
+    ColumnMap, MAX_GEOJSON_BYTES, SpeciesLookup, TreeRow, TreeSize, parse_geojson, parse_named_csv,
+};
 use super::obj_mesh::parse_obj_mesh;
 use super::paths::{
     LoadOptions, MAX_MESH_FILE_BYTES, MAX_SCENE_FILE_BYTES, label, read_limited, resolve_named,
@@ -39,6 +45,10 @@ struct SceneFile {
     origin: Option<Spanned<[f64; 3]>>,
     terrain: Option<Spanned<TerrainFile>>,
     species: Option<Vec<Spanned<SpeciesFile>>>,
+    /// Issue 34: the inventory's own column names (module `inventory`).
+    columns: Option<Spanned<ColumnMap>>,
+    /// Issue 34: inventory species names to scene species names.
+    species_names: Option<Spanned<BTreeMap<String, String>>>,
 }
 
 #[derive(Deserialize)]
@@ -48,6 +58,12 @@ struct TerrainFile {
     z: Option<Spanned<f64>>,
     amplitude: Option<Spanned<f64>>,
     wavelength: Option<Spanned<f64>>,
+    /// `kind = "dem"`: the elevation model (GeoTIFF or ESRI ASCII grid).
+    file: Option<Spanned<String>>,
+    /// `kind = "dem"`: the drawn grid's vertex budget.
+    vertices: Option<Spanned<i64>>,
+    /// `kind = "dem"`: the `z` mismatch tolerance, metres.
+    z_tolerance: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -85,6 +101,25 @@ pub fn parse_scene_file_with(
     path: &Path,
     options: &LoadOptions,
 ) -> Result<Scene, InputError> {
+    parse_scene_file_reported(bytes, path, options).map(|(s, _)| s)
+}
+
+/// [`load_scene_file_with`] and what loading an elevation model found (issue 34; `None` without
+/// one): the CLI prints it.
+pub fn load_scene_file_reported(
+    path: &Path,
+    options: &LoadOptions,
+) -> Result<(Scene, Option<DemReport>), InputError> {
+    let bytes = read_limited(path, MAX_SCENE_FILE_BYTES)?;
+    parse_scene_file_reported(&bytes, path, options)
+}
+
+/// [`parse_scene_file_with`] and the [`DemReport`].
+pub fn parse_scene_file_reported(
+    bytes: &[u8],
+    path: &Path,
+    options: &LoadOptions,
+) -> Result<(Scene, Option<DemReport>), InputError> {
     let file = label(path);
     let text = std::str::from_utf8(bytes).map_err(|e| {
         InputError::new(
@@ -146,6 +181,9 @@ pub fn parse_scene_file_with(
     };
 
     let terrain = match &parsed.terrain {
+        Some(t) if t.get_ref().kind.get_ref() == "dem" => {
+            Some(dem_spec(t, &file, text, base, options)?)
+        }
         Some(t) => Some(terrain_spec(t, &file, text)?),
         None => None,
     };
@@ -176,19 +214,149 @@ pub fn parse_scene_file_with(
         "{file}: {instances_at} = {}",
         excerpt(parsed.instances.get_ref())
     );
-    let rows = load_instances_csv(&instances_path, &names).map_err(|e| e.within(&link))?;
-    validated(
-        build_scene(
-            name,
-            meshes,
-            &rows,
-            origin,
-            terrain,
-            &label(&instances_path),
-        )
-        .map_err(|e| e.within(&link))?,
-        &file,
+    let aliases = parsed
+        .species_names
+        .as_ref()
+        .map(|m| m.get_ref().clone())
+        .unwrap_or_default();
+    for (from, to) in &aliases {
+        if !names.contains(to) {
+            let span = parsed.species_names.as_ref().map_or(0..0, |m| m.span());
+            return Err(InputError::new(
+                &file,
+                at(span, &format!("species_names.{}", excerpt(from))),
+                to,
+                format!("not a species of this scene ({})", names.join(", ")),
+            ));
+        }
+    }
+    let lookup = SpeciesLookup {
+        names: &names,
+        aliases: &aliases,
+    };
+    let kind = instances_path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let columns = parsed.columns.as_ref().map(|c| c.get_ref().clone());
+    let rows: Vec<TreeRow> = match (kind.as_deref(), &columns) {
+        (Some("geojson" | "json"), map) => {
+            let bytes =
+                read_limited(&instances_path, MAX_GEOJSON_BYTES).map_err(|e| e.within(&link))?;
+            parse_geojson(
+                &bytes,
+                &label(&instances_path),
+                map.as_ref().unwrap_or(&ColumnMap::default()),
+                &lookup,
+            )
+            .map_err(|e| e.within(&link))?
+        }
+        (_, Some(map)) => {
+            let f = super::paths::open_file(&instances_path).map_err(|e| e.within(&link))?;
+            parse_named_csv(
+                std::io::BufReader::new(f),
+                &label(&instances_path),
+                map,
+                &lookup,
+            )
+            .map_err(|e| e.within(&link))?
+        }
+        (_, None) => load_instances_csv(&instances_path, &names)
+            .map_err(|e| e.within(&link))?
+            .into_iter()
+            .map(|r| TreeRow {
+                xy: [r.position[0], r.position[1]],
+                z: Some(r.position[2]),
+                yaw: r.yaw,
+                size: TreeSize::Scale(r.scale),
+                mesh: r.mesh,
+                at: format!("line {}", r.line),
+            })
+            .collect(),
+    };
+    let (scene, report) = build_scene_trees(
+        name,
+        meshes,
+        &rows,
+        origin,
+        terrain,
+        &label(&instances_path),
     )
+    .map_err(|e| e.within(&link))?;
+    Ok((validated(scene, &file)?, report))
+}
+
+/// Checks a `[terrain]` table of `kind = "dem"` (issue 34): `file` (required, under the scene's
+/// folder), `vertices` (the drawn grid's budget, default [`DEFAULT_DEM_VERTICES`]), `z_tolerance`
+/// (metres, default 1), nothing else; reads the elevation model.
+fn dem_spec(
+    t: &Spanned<TerrainFile>,
+    file: &str,
+    text: &str,
+    base: &Path,
+    options: &LoadOptions,
+) -> Result<TerrainSpec, InputError> {
+    let at = |span: std::ops::Range<usize>, field: &str| {
+        let (line, col) = line_col(text, span.start);
+        format!("line {line}, column {col}, field terrain.{field}")
+    };
+    let r = t.get_ref();
+    for (name, v) in [
+        ("z", &r.z),
+        ("amplitude", &r.amplitude),
+        ("wavelength", &r.wavelength),
+    ] {
+        if let Some(v) = v {
+            return Err(InputError::new(
+                file,
+                at(v.span(), name),
+                v.get_ref(),
+                "not allowed with kind = \"dem\"",
+            ));
+        }
+    }
+    let Some(dem) = &r.file else {
+        return Err(InputError::new(
+            file,
+            at(t.span(), "file"),
+            "",
+            "missing: kind = \"dem\" needs file (a GeoTIFF .tif or an ESRI ASCII grid .asc)",
+        ));
+    };
+    let budget = match &r.vertices {
+        None => DEFAULT_DEM_VERTICES,
+        Some(v) if (4..=i64::from(MAX_DEM_VERTICES)).contains(v.get_ref()) => *v.get_ref() as u32,
+        Some(v) => {
+            return Err(InputError::new(
+                file,
+                at(v.span(), "vertices"),
+                v.get_ref(),
+                format!("expected a vertex budget in [4, {MAX_DEM_VERTICES}]"),
+            ));
+        }
+    };
+    let tolerance = match &r.z_tolerance {
+        None => 1.0,
+        Some(v) if v.get_ref().is_finite() && *v.get_ref() >= 0.0 => *v.get_ref(),
+        Some(v) => {
+            return Err(InputError::new(
+                file,
+                at(v.span(), "z_tolerance"),
+                v.get_ref(),
+                "expected a finite tolerance >= 0 m",
+            ));
+        }
+    };
+    let dem_at = at(dem.span(), "file");
+    let path = resolve_named(base, dem.get_ref(), options, file, &dem_at)?;
+    let link = format!("{file}: {dem_at} = {}", excerpt(dem.get_ref()));
+    let raster = load_dem(&path).map_err(|e| e.within(&link))?;
+    Ok(TerrainSpec::Dem {
+        raster,
+        budget,
+        tolerance,
+        file: label(&path),
+    })
 }
 
 /// Checks a `[terrain]` table: `kind = "flat"` with `z`, or `kind = "hills"` with `amplitude` and
@@ -212,10 +380,40 @@ fn terrain_spec(
                 file,
                 at(t_ref.kind.span(), "kind"),
                 kind,
-                "expected \"flat\" or \"hills\"",
+                "expected \"flat\", \"hills\" or \"dem\"",
             ));
         }
     };
+    let dem_only = [
+        (
+            "file",
+            t_ref.file.as_ref().map(|v| (v.span(), v.get_ref().clone())),
+        ),
+        (
+            "vertices",
+            t_ref
+                .vertices
+                .as_ref()
+                .map(|v| (v.span(), v.get_ref().to_string())),
+        ),
+        (
+            "z_tolerance",
+            t_ref
+                .z_tolerance
+                .as_ref()
+                .map(|v| (v.span(), v.get_ref().to_string())),
+        ),
+    ];
+    for (name, v) in dem_only {
+        if let Some((span, value)) = v {
+            return Err(InputError::new(
+                file,
+                at(span, name),
+                value,
+                format!("not allowed with kind = \"{kind}\" (only with kind = \"dem\")"),
+            ));
+        }
+    }
     let field = |name: &str| match name {
         "z" => &t_ref.z,
         "amplitude" => &t_ref.amplitude,
