@@ -712,8 +712,12 @@ fn render_gpu_variant(
     counters: bool,
 ) -> Result<VariantFrame, Box<dyn std::error::Error>> {
     let gpu_variant = variant.gpu_variant();
+    // Each frame on its own, as the reference renders it: under occlusion culling `two-phase`
+    // a path's first frame (the scene keeps a history from render to render otherwise, issue 31).
+    gs.reset_history();
     let mut g = gs.render(f.prepared, gpu_variant, f.camera, f.params)?;
     for _ in 1..repeats.max(1) {
+        gs.reset_history();
         let next = gs.render(f.prepared, gpu_variant, f.camera, f.params)?;
         g.select_s = g.select_s.min(next.select_s);
         g.draw_s = g.draw_s.min(next.draw_s);
