@@ -23,7 +23,7 @@ use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::{Scene, builtin, load};
 use forestlod_reference::select::{BatchingCounts, batching_counts_banded, tree_bands};
 use forestlod_reference::texture::Rgba8Image;
-use forestlod_shared::{Camera, CommandData, DrawCommand, FramePlan, Params};
+use forestlod_shared::{Camera, CommandData, DrawCommand, FramePlan, Occlusion, Params};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::fair::{TruthLayout, box_filter, supersampled};
@@ -754,17 +754,43 @@ fn render_gpu_variant(
                     f.camera,
                     f.params,
                 );
+                // Under occlusion culling (issue 31) the trees of the final pass: the
+                // reference's frame, whose decisions the GPU's equal
+                // (`tests/tests/parity/occlusion.rs`); each GPU frame here starts a path.
+                let trees_drawn = if f.params.occlusion != Occlusion::Off as u32 {
+                    let frame = f.prepared.render(f.camera, f.params)?;
+                    frame
+                        .occlusion
+                        .as_ref()
+                        .map_or(0, |o| o.trees_drawn(f.prepared, f.camera, f.params).len())
+                } else {
+                    trees.len()
+                };
                 (
                     // Batches tested (the grid) or nodes the cut visits (a hierarchy), from
                     // the reference's selection of the same frame.
                     selection.counters.batches_tested as u64,
-                    trees.len() as u64,
+                    trees_drawn as u64,
                     batching,
                     ours_memory(f.prepared, f.params),
                 )
             }
             GpuPipeline::Vegetation | GpuPipeline::Primitive => {
                 let visible = g.trees_drawn.unwrap_or(0);
+                // Under occlusion culling (issue 31) Vegetation draws its final pass's trees:
+                // the reference's, as for ours.
+                let drawn = if gpu_variant == GpuPipeline::Vegetation
+                    && f.params.occlusion != Occlusion::Off as u32
+                {
+                    let v = forestlod_reference::baselines::render_vegetation(
+                        f.prepared, f.spheres, f.camera, f.params,
+                    );
+                    v.occlusion.as_ref().map_or(visible, |o| {
+                        o.trees_drawn(f.prepared, f.camera, f.params).len() as u64
+                    })
+                } else {
+                    visible
+                };
                 // The reference baselines' accounting (reference/src/baselines.rs).
                 let extra = if gpu_variant == GpuPipeline::Vegetation {
                     g.commands * (size_of::<DrawCommand>() + size_of::<CommandData>()) as u64
@@ -773,7 +799,7 @@ fn render_gpu_variant(
                 };
                 (
                     f.spheres.len() as u64,
-                    visible,
+                    drawn,
                     BatchingCounts::default(),
                     visible * INSTANCE_INDEX_BYTES + extra,
                 )

@@ -322,10 +322,11 @@ pub fn merge(
                 "<command line>",
                 "sweep merge",
                 format!("{name} {}", names.join(" ")),
-                if missing.len() == 1 {
-                    "a shard is missing".to_string()
-                } else {
-                    format!("{} shards are missing", names.len())
+                // The true count, not the named ones' (every index `seen` holds is below
+                // `count`, checked above).
+                match count - seen.len() {
+                    1 => "a shard is missing".to_string(),
+                    n => format!("{n} shards are missing"),
                 },
             )
             .into());
