@@ -649,6 +649,8 @@ pub fn selection_scene(scene: Scene, params: &Params) -> Result<Prepared> {
     let billboards = BakedBillboards {
         angle_count: params.angle_count,
         azimuth_count: params.azimuth_count,
+        sphere: params.billboard_views,
+        grid: params.octahedral_grid,
         texture_size: 1,
         layers: Vec::new(),
         chains: Vec::new(),
@@ -657,7 +659,11 @@ pub fn selection_scene(scene: Scene, params: &Params) -> Result<Prepared> {
     };
     Ok(Prepared {
         tree_scales: scene.instances.iter().map(|t| t.scale).collect(),
-        footprints: forestlod_reference::pipeline::tree_footprints(&scene, &geometry.meshes),
+        footprints: forestlod_reference::pipeline::tree_footprints(
+            &scene,
+            &geometry.meshes,
+            &params,
+        ),
         scene,
         geometry,
         batches,

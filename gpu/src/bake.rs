@@ -50,7 +50,7 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use forestlod_shared::{
     BillboardExtent, BillboardViews, MeshMeta, MipMode, Params, bake_azimuth, bake_elevation,
-    billboard_extent, view_layer,
+    billboard_extent,
 };
 use wgpu::util::DeviceExt;
 
@@ -127,8 +127,21 @@ pub struct BakeLayer {
     pub _pad0: f32,
     /// Explicit padding.
     pub _pad1: f32,
+    /// An octahedral frame's right vector (issue 32, `forestlod_shared::frame_basis`).
+    pub frame_right: [f32; 3],
+    /// 1 when the layer is an octahedral frame (issue 32): `bake.wgsl` then projects on the
+    /// frame's basis about the bounding-box centre (reference `octahedral_clip`).
+    pub octahedral: u32,
+    /// An octahedral frame's up vector.
+    pub frame_up: [f32; 3],
+    /// Explicit padding.
+    pub _pad2: f32,
+    /// An octahedral frame's direction toward the viewer.
+    pub frame_dir: [f32; 3],
+    /// Explicit padding.
+    pub _pad3: f32,
 }
-const _: () = assert!(size_of::<BakeLayer>() == 64);
+const _: () = assert!(size_of::<BakeLayer>() == 112);
 
 impl BakeLayer {
     /// The constants of layer `k` of `angle_count` for a mesh from the azimuth `+X`.
@@ -140,6 +153,27 @@ impl BakeLayer {
     /// `bake_clip_view` computes them: `elevation.sin_cos()` and `azimuth.sin_cos()` in `f32` and
     /// `billboard_extent`.
     pub fn view(meta: &MeshMeta, views: BillboardViews, k: u32, j: u32) -> Self {
+        if views.octahedral() {
+            // Frame `k` (issue 32): its direction and basis computed here as the reference
+            // computes them (`frame_direction`, `frame_basis`: sqrt and divisions, correctly
+            // rounded on both sides).
+            let d = forestlod_shared::frame_direction(
+                k,
+                views.grid,
+                forestlod_shared::octahedral::is_hemi(views.sphere),
+            );
+            let (r, u) = forestlod_shared::frame_basis(d);
+            return Self {
+                bbox_min: meta.bbox_min,
+                sphere_radius: meta.sphere_radius,
+                bbox_max: meta.bbox_max,
+                frame_right: r,
+                octahedral: 1,
+                frame_up: u,
+                frame_dir: d,
+                ..Self::zeroed()
+            };
+        }
         let elevation = bake_elevation(k, views.angle_count);
         let e = billboard_extent(meta, elevation);
         let (sin_e, cos_e) = elevation.sin_cos();
@@ -155,8 +189,7 @@ impl BakeLayer {
             height: e.height,
             sin_a,
             cos_a,
-            _pad0: 0.0,
-            _pad1: 0.0,
+            ..Self::zeroed()
         }
     }
 }
@@ -166,7 +199,19 @@ impl BakeLayer {
 pub fn layer_extents(metas: &[MeshMeta], views: BillboardViews) -> Vec<BillboardExtent> {
     views
         .views(metas.len())
-        .map(|(m, k, _)| billboard_extent(&metas[m], bake_elevation(k, views.angle_count)))
+        .map(|(m, k, _)| {
+            if views.octahedral() {
+                // The frame's square about the sphere centre (issue 32).
+                let s = metas[m].sphere_radius;
+                BillboardExtent {
+                    half_width: s,
+                    bottom: -s,
+                    height: 2.0 * s,
+                }
+            } else {
+                billboard_extent(&metas[m], bake_elevation(k, views.angle_count))
+            }
+        })
         .collect()
 }
 
@@ -458,7 +503,7 @@ impl<'a> GpuBake<'a> {
         let stride = (size_of::<BakeLayer>() as u64).next_multiple_of(align);
         let mut layer_bytes = vec![0u8; (stride * u64::from(layer_count)) as usize];
         for (mesh, k, j) in views.views(meshes.len()) {
-            let index = view_layer(mesh as u32, k, angle_count, j, azimuth_count);
+            let index = views.layer(mesh as u32, k, j);
             let at = (stride * u64::from(index)) as usize;
             let layer = BakeLayer::view(&meshes[mesh].meta, views, k, j);
             layer_bytes[at..at + size_of::<BakeLayer>()]
@@ -623,7 +668,13 @@ mod tests {
                 sin_a,
                 cos_a,
                 _pad0,
-                _pad1
+                _pad1,
+                frame_right,
+                octahedral,
+                frame_up,
+                _pad2,
+                frame_dir,
+                _pad3
             }),
         );
     }

@@ -165,12 +165,20 @@ pub struct DrawUniform {
     pub azimuth_count: u32,
     /// `AzimuthMode` as `u32`.
     pub azimuth_mode: u32,
+    /// [`forestlod_shared::ViewSphere`] as `u32` (issue 32): elevation views or octahedral frames.
+    pub billboard_views: u32,
+    /// Octahedral grid side `N` (issue 32).
+    pub octahedral_grid: u32,
+    /// `AzimuthMode` as `u32` (issue 32): the nearest octahedral frame or the three blended.
+    pub octahedral_blend: u32,
     /// Explicit padding.
-    pub _pad4: u32,
+    pub _pad6: u32,
     /// Explicit padding.
-    pub _pad5: u32,
+    pub _pad7: u32,
+    /// Explicit padding.
+    pub _pad8: u32,
 }
-const _: () = assert!(size_of::<DrawUniform>() == 304);
+const _: () = assert!(size_of::<DrawUniform>() == 320);
 
 impl DrawUniform {
     /// The uniform of a validated camera and parameters, derived as the reference derives its
@@ -196,8 +204,12 @@ impl DrawUniform {
             _pad3: 0,
             azimuth_count: params.azimuth_count,
             azimuth_mode: params.azimuth_mode,
-            _pad4: 0,
-            _pad5: 0,
+            billboard_views: params.billboard_views,
+            octahedral_grid: params.octahedral_grid,
+            octahedral_blend: params.octahedral_blend,
+            _pad6: 0,
+            _pad7: 0,
+            _pad8: 0,
         }
     }
 }
@@ -1391,8 +1403,12 @@ pub(crate) mod tests {
                 _pad3,
                 azimuth_count,
                 azimuth_mode,
-                _pad4,
-                _pad5
+                billboard_views,
+                octahedral_grid,
+                octahedral_blend,
+                _pad6,
+                _pad7,
+                _pad8
             }),
             rust_layout!(DrawVertex { position, uv }),
             draw_instance_layout(),

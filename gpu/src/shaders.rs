@@ -119,6 +119,10 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("OCCLUSION_SLACK_PX_BITS", s::OCCLUSION_SLACK_PX.to_bits()),
         ("OCCLUSION_SLACK_REL_BITS", s::OCCLUSION_SLACK_REL.to_bits()),
         ("OCCLUSION_Z_SLACK_BITS", s::OCCLUSION_Z_SLACK.to_bits()),
+        // Octahedral impostors (issue 32, shared/src/octahedral.rs).
+        ("OCTAHEDRAL_STEPS", s::OCTAHEDRAL_STEPS),
+        ("OCTAHEDRAL_LAYER_BITS", s::OCTAHEDRAL_LAYER_BITS),
+        ("MIN_OCTAHEDRAL_GRID", s::MIN_OCTAHEDRAL_GRID),
     ]
     .into_iter()
     .map(|(n, v)| (n.to_string(), v))
@@ -140,6 +144,7 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("FADE_GRANULARITY", s::FadeGranularity::choices()),
         ("AZIMUTH_MODE", s::AzimuthMode::choices()),
         ("OCCLUSION", s::Occlusion::choices()),
+        ("VIEW_SPHERE", s::ViewSphere::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {

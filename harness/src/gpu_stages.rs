@@ -357,6 +357,8 @@ impl<'a> FrameStages<'a> {
                     meshes: &p.scene.meshes,
                     angle_count: params.angle_count,
                     azimuth_count: params.azimuth_count,
+                    sphere: params.billboard_views,
+                    grid: params.octahedral_grid,
                     side: params.texture_size,
                 };
                 compare::<Bake>(&Reference, &GpuBakeBackend { bake: gpu_bake()? }, input)

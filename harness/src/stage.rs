@@ -233,6 +233,10 @@ pub struct BakeInput<'a> {
     pub angle_count: u32,
     /// J, the baked azimuth views per angle (issue 30; 1 is the thesis).
     pub azimuth_count: u32,
+    /// `ViewSphere` as `u32` (issue 32): elevation views, or `N×N` octahedral frames.
+    pub sphere: u32,
+    /// The octahedral grid side `N` (issue 32; read only under octahedral views).
+    pub grid: u32,
     /// The layer side, texels.
     pub side: u32,
 }

@@ -70,8 +70,13 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/bake.wgsl",
         backend: Some("stage::Bake"),
         parity: "tests/tests/parity/bake.rs",
-        modes: &[],
-        params: &["texture_size", "angle_count", "azimuth_count"],
+        modes: &["billboard_views"],
+        params: &[
+            "texture_size",
+            "angle_count",
+            "azimuth_count",
+            "octahedral_grid",
+        ],
     },
     StageEntry {
         id: StageId::Mips,
@@ -205,6 +210,8 @@ pub const STAGES: &[StageEntry] = &[
             "dither_space",
             "fade_granularity",
             "azimuth_mode",
+            "billboard_views",
+            "octahedral_blend",
         ],
         params: &[
             "alpha_cutoff",
@@ -223,6 +230,7 @@ pub const STAGES: &[StageEntry] = &[
             SUBSET_PARAMS[0],
             SUBSET_PARAMS[1],
             "noise_size",
+            "octahedral_grid",
         ],
     },
     StageEntry {

@@ -281,6 +281,8 @@ fn bake_views(i: &BakeInput<'_>) -> BillboardViews {
     BillboardViews {
         angle_count: i.angle_count,
         azimuth_count: i.azimuth_count,
+        sphere: i.sphere,
+        grid: i.grid,
     }
 }
 

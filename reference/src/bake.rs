@@ -27,7 +27,7 @@
 
 use forestlod_shared::{
     BillboardExtent, BillboardViews, MeshMeta, MipMode, Params, azimuth_to_view, bake_azimuth,
-    bake_elevation, billboard_extent,
+    bake_elevation, billboard_extent, frame_basis, frame_direction, octahedral::is_hemi,
 };
 use rayon::prelude::*;
 
@@ -45,6 +45,10 @@ pub struct BakedBillboards {
     pub angle_count: u32,
     /// Azimuths per angle, `J` (issue 30; 1 is the thesis).
     pub azimuth_count: u32,
+    /// [`forestlod_shared::ViewSphere`] as `u32` (issue 32): elevation views or octahedral frames.
+    pub sphere: u32,
+    /// Octahedral grid side `N` (issue 32; read only under octahedral views).
+    pub grid: u32,
     /// Layer side, `r`.
     pub texture_size: u32,
     /// Level 0 of every layer, `mesh·K·J + k·J + j` (`mesh * K + k` at `J = 1`).
@@ -63,6 +67,8 @@ impl BakedBillboards {
         BillboardViews {
             angle_count: self.angle_count,
             azimuth_count: self.azimuth_count,
+            sphere: self.sphere,
+            grid: self.grid,
         }
     }
 }
@@ -126,7 +132,29 @@ pub fn bake_layer(
     bake_view(mesh, meta, mesh_texture, views, k, 0, r)
 }
 
-/// Bakes view `(k, j)` of `views` for one mesh at `r x r` (module docs): level 0 only.
+/// Orthographic clip-space position of mesh-local point `p` in the octahedral frame looking
+/// along `-d` (issue 32, `forestlod_shared::octahedral`): the square `[-S, S]²` about the
+/// bounding-box centre on the frame's basis, depth 0 at the sphere's point nearest the viewer.
+pub fn octahedral_clip(p: [f32; 3], meta: &MeshMeta, d: [f32; 3]) -> [f32; 4] {
+    let (r, u) = frame_basis(d);
+    let c = mesh_center(meta);
+    let o = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+    let s = meta.sphere_radius.max(f32::MIN_POSITIVE);
+    let dot = |a: [f32; 3]| o[0] * a[0] + o[1] * a[1] + o[2] * a[2];
+    [dot(r) / s, dot(u) / s, (s - dot(d)) / (2.0 * s), 1.0]
+}
+
+/// The centre of a mesh's bounding box (its sphere's centre, mesh units).
+pub fn mesh_center(meta: &MeshMeta) -> [f32; 3] {
+    [
+        (meta.bbox_min[0] + meta.bbox_max[0]) * 0.5,
+        (meta.bbox_min[1] + meta.bbox_max[1]) * 0.5,
+        (meta.bbox_min[2] + meta.bbox_max[2]) * 0.5,
+    ]
+}
+
+/// Bakes view `(k, j)` of `views` for one mesh at `r x r` (module docs): level 0 only. Under
+/// octahedral views (issue 32) `k` is the frame `f` and `j` is 0.
 pub fn bake_view(
     mesh: &TreeMesh,
     meta: &MeshMeta,
@@ -136,16 +164,31 @@ pub fn bake_view(
     j: u32,
     r: u32,
 ) -> Rgba8Image {
+    if views.octahedral() {
+        let d = frame_direction(k, views.grid, is_hemi(views.sphere));
+        return bake_with(mesh, mesh_texture, r, |p| octahedral_clip(p, meta, d));
+    }
     let elevation = bake_elevation(k, views.angle_count);
     let (sin_a, cos_a) = bake_azimuth(j, views.azimuth_count).sin_cos();
+    bake_with(mesh, mesh_texture, r, |p| {
+        bake_clip_view(p, meta, elevation, sin_a, cos_a)
+    })
+}
+
+/// Renders `mesh` at `r x r` with the clip positions of `clip` (module docs' rules).
+fn bake_with(
+    mesh: &TreeMesh,
+    mesh_texture: &Texture,
+    r: u32,
+    clip: impl Fn([f32; 3]) -> [f32; 4],
+) -> Rgba8Image {
     let triangles: Vec<[Vertex<2>; 3]> = mesh
         .indices
         .chunks_exact(3)
         .map(|t| {
             core::array::from_fn(|i| {
                 let v = t[i] as usize;
-                let clip = bake_clip_view(mesh.positions[v], meta, elevation, sin_a, cos_a);
-                Vertex::new(clip, mesh.uvs[v])
+                Vertex::new(clip(mesh.positions[v]), mesh.uvs[v])
             })
         })
         .collect();
@@ -269,7 +312,19 @@ pub fn bake(
         .collect();
     let extents = jobs
         .iter()
-        .map(|&(m, k, _)| billboard_extent(&metas[m], bake_elevation(k, k_count)))
+        .map(|&(m, k, _)| {
+            if views.octahedral() {
+                // The frame's square about the sphere centre (issue 32).
+                let s = metas[m].sphere_radius;
+                BillboardExtent {
+                    half_width: s,
+                    bottom: -s,
+                    height: 2.0 * s,
+                }
+            } else {
+                billboard_extent(&metas[m], bake_elevation(k, k_count))
+            }
+        })
         .collect();
     let mode = params.mips().map_err(InputError::from)?;
     let chains = build_mip_array(&layers, mode, params.alpha_cutoff).map_err(|e| {
@@ -297,6 +352,8 @@ pub fn bake(
     Ok(BakedBillboards {
         angle_count: k_count,
         azimuth_count: views.azimuth_count,
+        sphere: views.sphere,
+        grid: views.grid,
         texture_size: r,
         layers,
         chains,
@@ -357,6 +414,8 @@ mod tests {
         let baked = BakedBillboards {
             angle_count: 2,
             azimuth_count: 1,
+            sphere: 0,
+            grid: 0,
             texture_size: r,
             layers: vec![opaque.clone(), half],
             chains: Vec::new(),

@@ -464,13 +464,19 @@ pub fn proxies(prepared: &Prepared, alpha_cutoff: f32) -> Vec<Proxy> {
         .iter()
         .enumerate()
         .map(|(m, meta)| {
-            let layer = forestlod_shared::view_layer(
-                m as u32,
-                0,
-                views.angle_count,
-                0,
-                views.azimuth_count,
-            );
+            // The level view from +X: layer (m, 0, 0), or under octahedral frames (issue 32) the
+            // frame nearest to +X (its opaque texels' mean is the proxy's colour).
+            let k = if views.octahedral() {
+                let hemi = forestlod_shared::octahedral::is_hemi(views.sphere);
+                let fr = forestlod_shared::octahedral_frames(
+                    forestlod_shared::octahedral_view([1.0, 0.0, 0.0], views.grid, hemi),
+                    views.grid,
+                );
+                fr.frames[fr.nearest]
+            } else {
+                0
+            };
+            let layer = views.layer(m as u32, k, 0);
             Proxy::of_mesh(
                 meta,
                 &prepared.billboards.layers[layer as usize],

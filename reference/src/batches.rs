@@ -298,7 +298,9 @@ pub fn memory_report(trees: usize, batches: usize, meshes: usize, params: &Param
     let batch_meta = size(core::mem::size_of::<BatchMeta>()) * t;
     let mesh_meta = size(core::mem::size_of::<MeshMeta>()) * m;
     let billboards = if l >= 2 {
-        a * j * m * mip_chain_bytes(r)
+        // K·J views a mesh, or N² octahedral frames (issue 32).
+        let per_mesh = u64::from(forestlod_shared::BillboardViews::of(params).per_mesh());
+        per_mesh * m * mip_chain_bytes(r)
     } else {
         0
     };

@@ -47,11 +47,13 @@
 
 use forestlod_shared::coverage;
 use forestlod_shared::{
-    COMMAND_SHIFT, Camera, CommandData, FadeGranularity, FadeMode, MAX_MESH_VERTICES, MeshMeta,
-    Params, Shading, angle_index_for, azimuth_mix, azimuth_pack, azimuth_position,
+    AzimuthMode, COMMAND_SHIFT, Camera, CommandData, FadeGranularity, FadeMode, MAX_MESH_VERTICES,
+    MeshMeta, Params, Shading, angle_index_for, azimuth_mix, azimuth_pack, azimuth_position,
     azimuth_second_layer, azimuth_unpack, azimuth_view, bake_elevation, billboard_extent,
-    crown_radii, fade_progress, subset_fragment_weight, subset_pack, subset_scale,
-    subset_weight_code, vertex_lightness, view_interval, view_layer,
+    crown_radii, fade_progress, frame_basis, frame_direction, octahedral_frames, octahedral_layer,
+    octahedral_mix, octahedral_pack, octahedral_unpack, octahedral_view, reproject_duv,
+    reproject_uv, subset_fragment_weight, subset_pack, subset_scale, subset_weight_code,
+    vertex_lightness, view_interval, view_layer,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -280,6 +282,10 @@ pub fn tree_stage(
             cos: c,
             layer: tree.mesh as f32,
         }
+    } else if forestlod_shared::octahedral::is_octahedral(params.billboard_views) {
+        octahedral_kind(
+            &tree, mesh_meta, eye, forward, camera.eye, u.forward, params,
+        )
     } else {
         let to_eye = eye - tree.base;
         let k_count = params.angle_count;
@@ -315,9 +321,11 @@ pub fn tree_stage(
             u.forward,
         );
         TreeKind::Billboard {
+            origin: tree.base,
             toward_eye: h.to_array(),
             right,
             up,
+            frame: None,
             half_width: e.half_width,
             bottom: e.bottom,
             height: e.height,
@@ -360,6 +368,75 @@ pub fn tree_stage(
     })
 }
 
+/// The billboard of an octahedral impostor (issue 32, `forestlod_shared::octahedral`): the
+/// eye's mesh-local direction from the tree's sphere centre picks the cell and the position in
+/// it; the quad, a square of half side `S·scale` about the sphere centre, faces the eye (the
+/// basis of the eye's direction, turned by the tree's yaw), its corners' `uv` their
+/// re-projection onto the nearest frame, and its layer word is the cell's packed view. The
+/// lighting's horizontal direction to the eye and the depth clamp are the thesis billboard's.
+fn octahedral_kind(
+    tree: &TreeFrame,
+    mesh_meta: &MeshMeta,
+    eye: Vec3,
+    forward: Vec3,
+    camera_eye: [f32; 3],
+    view_forward: [f32; 3],
+    params: &Params,
+) -> TreeKind {
+    let n = params.octahedral_grid;
+    let hemi = forestlod_shared::octahedral::is_hemi(params.billboard_views);
+    let centre = Vec3::from(tree.sphere_center);
+    let to_eye = eye - centre;
+    let (s, c) = tree.yaw.sin_cos();
+    // World to mesh-local: the yaw turned back.
+    let local = [
+        c * to_eye.x + s * to_eye.y,
+        c * to_eye.y - s * to_eye.x,
+        to_eye.z,
+    ];
+    let view = octahedral_view(local, n, hemi);
+    let frames = octahedral_frames(view, n);
+    let nearest = frames.frames[frames.nearest];
+    if coverage::enabled() {
+        coverage::hit(
+            coverage::Threshold::DrawOctahedralTriangle,
+            view.qx + view.qy > forestlod_shared::OCTAHEDRAL_STEPS,
+        );
+    }
+    let (r, u) = frame_basis(frame_direction(nearest, n, hemi));
+    // The quad faces the eye: the basis of the eye's own direction (mesh-local).
+    let len = (local[0] * local[0] + local[1] * local[1] + local[2] * local[2]).sqrt();
+    let (qr, qu) = frame_basis([local[0] / len, local[1] / len, local[2] / len]);
+    let turn = |v: [f32; 3]| Vec3::new(c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]);
+    let mut h = Vec3::new(eye.x - tree.base.x, eye.y - tree.base.y, 0.0);
+    if h.length_squared() < 1e-12 {
+        h = Vec3::new(-forward.x, -forward.y, 0.0);
+    }
+    if h.length_squared() < 1e-12 {
+        h = Vec3::X;
+    }
+    let interval = view_interval(
+        tree.sphere_center,
+        tree.sphere_radius,
+        camera_eye,
+        view_forward,
+    );
+    let half = mesh_meta.sphere_radius;
+    TreeKind::Billboard {
+        origin: centre,
+        toward_eye: h.normalize().to_array(),
+        right: turn(qr),
+        up: turn(qu),
+        frame: Some([qr, qu, r, u]),
+        half_width: half,
+        bottom: -half,
+        height: 2.0 * half,
+        layer: octahedral_pack(octahedral_layer(tree.mesh, view.cell, n), view) as f32,
+        depth_lo: interval.lo,
+        depth_hi: interval.hi,
+    }
+}
+
 /// What [`tree_stage`] computed for one tree in one command.
 #[derive(Clone, Copy, Debug)]
 pub struct TreeStage {
@@ -399,10 +476,17 @@ enum TreeKind {
         layer: f32,
     },
     Billboard {
+        /// The point the quad's extent is measured from: the tree's base (elevation views) or its
+        /// sphere centre (octahedral frames, issue 32).
+        origin: Vec3,
         /// The unit horizontal direction from the tree to the eye (`ĥ`), the quad's facing.
         toward_eye: [f32; 3],
         right: Vec3,
         up: Vec3,
+        /// An octahedral impostor's quad basis and nearest frame's basis, mesh-local
+        /// (`[R_quad, U_quad, R_frame, U_frame]`, issue 32): a corner's `uv` is its re-projection
+        /// onto the frame. `None` for the thesis's billboards (the corner is the `uv`).
+        frame: Option<[[f32; 3]; 4]>,
         half_width: f32,
         bottom: f32,
         height: f32,
@@ -442,8 +526,10 @@ impl TreeStage {
                 (self.base + rotated, v.uv, layer)
             }
             TreeKind::Billboard {
+                origin,
                 right,
                 up,
+                frame,
                 half_width,
                 bottom,
                 height,
@@ -455,11 +541,11 @@ impl TreeStage {
                     .uv;
                 let along_right = (2.0 * corner[0] - 1.0) * half_width * self.scale;
                 let along_up = (bottom + (1.0 - corner[1]) * height) * self.scale;
-                (
-                    self.base + right * along_right + up * along_up,
-                    corner,
-                    layer,
-                )
+                let uv = match frame {
+                    Some([qr, qu, r, u]) => reproject_uv(corner, qr, qu, r, u),
+                    None => corner,
+                };
+                (origin + right * along_right + up * along_up, uv, layer)
             }
         };
         let mut depth = (world - eye).dot(forward);
@@ -516,6 +602,8 @@ pub struct TreeShader<'a> {
     view: SelectUniform,
     /// The shading mode (issue 30): whether the lightness varying multiplies the texel.
     shading: Shading,
+    /// Whether octahedral impostors blend their three frames (issue 32).
+    octahedral_blend: bool,
 }
 
 impl<'a> TreeShader<'a> {
@@ -543,6 +631,7 @@ impl<'a> TreeShader<'a> {
             shading: params
                 .shading_mode()
                 .expect("parameters are validated before drawing"),
+            octahedral_blend: params.octahedral_blend == AzimuthMode::Blend as u32,
         }
     }
 
@@ -578,6 +667,8 @@ impl<'a> TreeShader<'a> {
         };
         if data.billboard == 0 {
             self.res.mesh_textures[layer as usize].sample(&sampler, 0, uv, ddx, ddy)
+        } else if self.res.billboards.views().octahedral() {
+            self.octahedral_texel(&sampler, layer, uv, ddx, ddy)
         } else {
             // The azimuth word (issue 30): the view's layer, and the blend's second view.
             let (layer, code) = azimuth_unpack(layer);
@@ -592,6 +683,50 @@ impl<'a> TreeShader<'a> {
                 azimuth_mix(first, other, code)
             }
         }
+    }
+}
+
+impl TreeShader<'_> {
+    /// An octahedral impostor's texel (issue 32, `forestlod_shared::octahedral`): the nearest
+    /// frame at the quad's `uv`; under the blend, the other two at the quad point re-projected
+    /// onto their frames (their derivatives the same linear map of the quad's), mixed
+    /// premultiplied.
+    fn octahedral_texel(
+        &self,
+        sampler: &Sampler,
+        word: u32,
+        uv: [f32; 2],
+        ddx: [f32; 2],
+        ddy: [f32; 2],
+    ) -> [f32; 4] {
+        let baked = self.res.billboards;
+        let (n, hemi) = (
+            baked.grid,
+            forestlod_shared::octahedral::is_hemi(baked.sphere),
+        );
+        let (cell_layer, view) = octahedral_unpack(word, n);
+        let base = cell_layer - view.cell;
+        let fr = octahedral_frames(view, n);
+        let array = &baked.texture;
+        let near = fr.frames[fr.nearest];
+        let first = array.sample(sampler, base + near, uv, ddx, ddy);
+        if !self.octahedral_blend {
+            return first;
+        }
+        let (r0, u0) = frame_basis(frame_direction(near, n, hemi));
+        let texels = core::array::from_fn(|k| {
+            if k == fr.nearest {
+                return first;
+            }
+            let (r, u) = frame_basis(frame_direction(fr.frames[k], n, hemi));
+            let at = reproject_uv(uv, r0, u0, r, u);
+            let (dx, dy) = (
+                reproject_duv(ddx, r0, u0, r, u),
+                reproject_duv(ddy, r0, u0, r, u),
+            );
+            array.sample(sampler, base + fr.frames[k], at, dx, dy)
+        });
+        octahedral_mix(texels, fr.weights)
     }
 }
 
@@ -778,13 +913,22 @@ pub fn tree_triangles(
 /// `|a| <= W·scale` and `b` in `[bottom, bottom + height]·scale`, whose ends
 /// `z_min cos e - W sin e` and `z_max cos e + W sin e` are at most `max(|z_min|, |z_max|) + W` in
 /// size: the quad lies within `scale·sqrt(W² + (max|z| + W)²)` of the base.
-pub fn tree_footprint_radius(instance: &Instance, mesh: &MeshMeta) -> f32 {
+///
+/// Under octahedral views (`octahedral`, issue 32) the quad is a square of half side `S·scale`
+/// about the sphere centre (`S` the mesh's sphere radius), so its corners lie within
+/// `|centre - base| + √2·S·scale` of the base (√2 rounded up).
+pub fn tree_footprint_radius(instance: &Instance, mesh: &MeshMeta, octahedral: bool) -> f32 {
     let (center, radius) = tree_sphere(instance, mesh);
-    let mesh_r = (Vec3::from(center) - Vec3::from(instance.position)).length() + radius;
+    let to_centre = (Vec3::from(center) - Vec3::from(instance.position)).length();
+    let mesh_r = to_centre + radius;
     let w = mesh.billboard_half_width.abs();
     let z = mesh.bbox_min[2].abs().max(mesh.bbox_max[2].abs()) + w;
     let quad_r = (w * w + z * z).sqrt() * instance.scale.abs();
-    mesh_r.max(quad_r)
+    if octahedral {
+        mesh_r.max(to_centre + 1.414_214 * radius)
+    } else {
+        mesh_r.max(quad_r)
+    }
 }
 
 /// Pixels of slack around a tree's projected footprint ([`tree_footprint_meets_mask`]): a pixel
@@ -963,7 +1107,7 @@ impl<'a> TreeTriangles<'a> {
                     &uniform.view_proj,
                     camera.near,
                     base,
-                    tree_footprint_radius(t, meta),
+                    tree_footprint_radius(t, meta, res.billboards.views().octahedral()),
                     mask,
                     camera.width,
                     camera.height,
@@ -1304,7 +1448,7 @@ mod tests {
                     scale,
                     mesh: 0,
                 };
-                let r = tree_footprint_radius(&instance, mesh);
+                let r = tree_footprint_radius(&instance, mesh, false);
                 let base = Vec3::from(position);
                 let mut check = |what: &str, p: Vec3| {
                     let d = (p - base).length();

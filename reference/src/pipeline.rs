@@ -117,14 +117,19 @@ pub fn scene_memory(
 }
 
 /// Every tree's footprint sphere ([`Prepared::footprints`]).
-pub fn tree_footprints(scene: &Scene, meshes: &[forestlod_shared::MeshMeta]) -> Vec<Footprint> {
+pub fn tree_footprints(
+    scene: &Scene,
+    meshes: &[forestlod_shared::MeshMeta],
+    params: &Params,
+) -> Vec<Footprint> {
+    let octahedral = forestlod_shared::octahedral::is_octahedral(params.billboard_views);
     scene
         .instances
         .iter()
         .map(|t| {
             (
                 t.position,
-                tree_footprint_radius(t, &meshes[t.mesh as usize]),
+                tree_footprint_radius(t, &meshes[t.mesh as usize], octahedral),
             )
         })
         .collect()
@@ -167,7 +172,11 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
         .map(|t| {
             (
                 t.position,
-                tree_footprint_radius(t, &geometry.meshes[t.mesh as usize]),
+                tree_footprint_radius(
+                    t,
+                    &geometry.meshes[t.mesh as usize],
+                    forestlod_shared::octahedral::is_octahedral(params.billboard_views),
+                ),
             )
         })
         .collect();

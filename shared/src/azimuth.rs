@@ -77,13 +77,18 @@ pub const AZIMUTH_TURN: f32 = 1.0 / TAU;
 const _: () = assert!(MAX_BILLBOARD_LAYERS <= 1 << AZIMUTH_LAYER_BITS);
 const _: () = assert!(AZIMUTH_WEIGHT_STEPS < 1 << (24 - AZIMUTH_LAYER_BITS));
 
-/// The views baked per mesh: `K` elevations times `J` azimuths (module docs).
+/// The views baked per mesh: `K` elevations times `J` azimuths (module docs), or `N×N`
+/// octahedral frames (issue 32, `crate::octahedral`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BillboardViews {
     /// Elevations `K` (E Alg. 3.1).
     pub angle_count: u32,
     /// Azimuths `J` (E§7).
     pub azimuth_count: u32,
+    /// [`crate::ViewSphere`] as `u32`: elevation views, or octahedral frames.
+    pub sphere: u32,
+    /// Octahedral grid side `N` (read only when `sphere` is octahedral).
+    pub grid: u32,
 }
 
 impl BillboardViews {
@@ -92,6 +97,8 @@ impl BillboardViews {
         Self {
             angle_count: params.angle_count,
             azimuth_count: params.azimuth_count,
+            sphere: params.billboard_views,
+            grid: params.octahedral_grid,
         }
     }
 
@@ -100,12 +107,33 @@ impl BillboardViews {
         Self {
             angle_count,
             azimuth_count: 1,
+            sphere: crate::ViewSphere::Elevation as u32,
+            grid: 0,
         }
     }
 
-    /// Layers per mesh, `K·J`.
+    /// Whether the views are octahedral frames.
+    pub fn octahedral(&self) -> bool {
+        crate::octahedral::is_octahedral(self.sphere)
+    }
+
+    /// Layers per mesh, `K·J`, or `N²` octahedral frames.
     pub fn per_mesh(&self) -> u32 {
-        self.angle_count * self.azimuth_count
+        if self.octahedral() {
+            self.grid * self.grid
+        } else {
+            self.angle_count * self.azimuth_count
+        }
+    }
+
+    /// The array layer of view `(k, j)` of mesh `mesh` ([`view_layer`]; an octahedral frame
+    /// `k = f` is layer `mesh·N² + f`, issue 32).
+    pub fn layer(&self, mesh: u32, k: u32, j: u32) -> u32 {
+        if self.octahedral() {
+            crate::octahedral::octahedral_layer(mesh, k, self.grid)
+        } else {
+            view_layer(mesh, k, self.angle_count, j, self.azimuth_count)
+        }
     }
 
     /// Layers of `meshes` meshes, `m·K·J` (saturating).
@@ -113,9 +141,14 @@ impl BillboardViews {
         (meshes as u64).saturating_mul(u64::from(self.per_mesh()))
     }
 
-    /// Every `(mesh, k, j)` of `meshes` meshes in layer order ([`view_layer`]).
+    /// Every `(mesh, k, j)` of `meshes` meshes in layer order ([`view_layer`]); octahedral
+    /// frames come as `(mesh, f, 0)`, frame `f` in `0..N²` (layer `mesh·N² + f`).
     pub fn views(&self, meshes: usize) -> impl Iterator<Item = (usize, u32, u32)> + use<> {
-        let (k_count, j_count) = (self.angle_count, self.azimuth_count);
+        let (k_count, j_count) = if self.octahedral() {
+            (self.grid * self.grid, 1)
+        } else {
+            (self.angle_count, self.azimuth_count)
+        };
         (0..meshes)
             .flat_map(move |m| (0..k_count).flat_map(move |k| (0..j_count).map(move |j| (m, k, j))))
     }
@@ -257,6 +290,9 @@ pub fn azimuth_mix(first: [f32; 4], second: [f32; 4], code: u32) -> [f32; 4] {
 /// naming `azimuth_count` (or `angle_count` when there is one azimuth: then the elevations alone
 /// are too many).
 pub fn check_billboard_layers(meshes: usize, params: &Params) -> Result<(), ParamError> {
+    if crate::octahedral::is_octahedral(params.billboard_views) {
+        return crate::octahedral::check_octahedral_layers(meshes, params);
+    }
     let views = BillboardViews::of(params);
     let layers = views.layers(meshes);
     if layers <= u64::from(MAX_BILLBOARD_LAYERS) {
@@ -337,6 +373,7 @@ mod tests {
         let v = BillboardViews {
             angle_count: 3,
             azimuth_count: 4,
+            ..BillboardViews::elevations(3)
         };
         let order: Vec<u32> = v
             .views(2)

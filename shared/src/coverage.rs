@@ -103,10 +103,13 @@ pub enum Threshold {
     OccludeEarly,
     /// Occlusion: a tested tree is culled (behind the pyramid or off screen) / passes.
     OccludeLate,
+    /// `draw`, vertex stage, an octahedral impostor (issue 32): the eye lies in its cell's lower /
+    /// upper triangle (a rule that read one triangle's frames only would be seen on the second).
+    DrawOctahedralTriangle,
 }
 
 /// Every threshold, in table order.
-pub const ALL: [Threshold; 38] = {
+pub const ALL: [Threshold; 39] = {
     use Threshold::*;
     [
         SelectDrawDistance,
@@ -147,6 +150,7 @@ pub const ALL: [Threshold; 38] = {
         DrawAzimuthRound,
         OccludeEarly,
         OccludeLate,
+        DrawOctahedralTriangle,
     ]
 };
 
@@ -225,6 +229,11 @@ impl Threshold {
             ),
             OccludeEarly => ("occlude: tree vs occluder rule", "late", "early"),
             OccludeLate => ("occlude: tested tree vs pyramid", "culled", "passes"),
+            DrawOctahedralTriangle => (
+                "draw: octahedral impostor's cell triangle",
+                "lower",
+                "upper",
+            ),
         }
     }
 }

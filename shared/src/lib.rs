@@ -44,6 +44,7 @@ pub mod metric;
 pub mod modes;
 pub mod noise;
 pub mod occlusion;
+pub mod octahedral;
 pub mod params;
 pub mod presets;
 pub mod registry;
@@ -98,6 +99,13 @@ pub use occlusion::{
     final_includes_early, is_early, is_occluder, may_occlude, nearest_occluder_depth, occluded,
     occlusion_bounds, occlusion_slot, pyramid_len, pyramid_level_floor, pyramid_level_for,
     pyramid_levels, pyramid_reduce, pyramid_texels_max,
+};
+pub use octahedral::{
+    MAX_OCTAHEDRAL_GRID, MIN_OCTAHEDRAL_GRID, OCTAHEDRAL_LAYER_BITS, OCTAHEDRAL_STEP,
+    OCTAHEDRAL_STEPS, OctahedralFrames, OctahedralView, ViewSphere, check_octahedral_layers,
+    frame_basis, frame_direction, frame_uv, octahedral_decode, octahedral_encode,
+    octahedral_frames, octahedral_layer, octahedral_mix, octahedral_pack, octahedral_unpack,
+    octahedral_view, reproject_duv, reproject_uv,
 };
 pub use params::{
     AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,

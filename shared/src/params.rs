@@ -246,8 +246,18 @@ pub struct Params {
     /// not culled in order (`exact`, default: bit-identical frames) or draws the late trees onto
     /// the early pass (`reorder`, niagara's: each tree once).
     pub occlusion_order: u32,
+    /// [`crate::ViewSphere`] as `u32` (issue 32, `shared/src/octahedral.rs`): the billboard array
+    /// holds the thesis's elevation views (default) or `N×N` octahedral impostor frames.
+    pub billboard_views: u32,
+    /// Octahedral grid side `N` (issue 32): `N²` frames per mesh. Read only under an octahedral
+    /// `billboard_views`. Default 12: Unity IMP's 12×12.
+    pub octahedral_grid: u32,
+    /// [`crate::AzimuthMode`] as `u32` (issue 32): the nearest octahedral frame, or the blend of
+    /// the three around the eye (default, the peers'). Read only under an octahedral
+    /// `billboard_views`.
+    pub octahedral_blend: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 140);
+const _: () = assert!(core::mem::size_of::<Params>() == 152);
 
 impl Default for Params {
     fn default() -> Self {
@@ -287,6 +297,9 @@ impl Default for Params {
             occlusion: crate::Occlusion::Off as u32,
             occluder_depth: 100.0,
             occlusion_order: crate::OcclusionOrder::Exact as u32,
+            billboard_views: crate::ViewSphere::Elevation as u32,
+            octahedral_grid: 12,
+            octahedral_blend: crate::AzimuthMode::Blend as u32,
         }
     }
 }

@@ -17,11 +17,12 @@
 use std::borrow::Cow;
 
 use crate::azimuth::MAX_AZIMUTH_COUNT;
+use crate::octahedral::{MAX_OCTAHEDRAL_GRID, MIN_OCTAHEDRAL_GRID};
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{
     AngleIndexMode, AzimuthMode, Coalesce, CommandOrder, DitherSpace, FadeGranularity, FadeMode,
     Hierarchy, LodMetric, MipMode, Occlusion, OcclusionOrder, Params, Shading, SubsetMode,
-    TreeCull,
+    TreeCull, ViewSphere,
 };
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.
@@ -328,7 +329,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 35] = [
+pub const PARAMS: [ParamSpec; 38] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -387,6 +388,10 @@ pub const PARAMS: [ParamSpec; 35] = [
     param!(occluder_depth, "occluder-depth", distance(0.0), "expected a finite distance in 0..=1e7 m",
         "Depth behind the nearest mesh tree within which mesh trees are occluders under occlusion single, metres"),
     choice!(occlusion_order, "occlusion-order", OcclusionOrder, "Pass order of occlusion culling (issue 31): ", ""),
+    choice!(billboard_views, "billboard-views", ViewSphere, "Views the billboard array holds (issue 32): ", ""),
+    param!(octahedral_grid, "octahedral-grid", uint(MIN_OCTAHEDRAL_GRID, MAX_OCTAHEDRAL_GRID), "expected 2..=32 frames a side",
+        "Side N of the octahedral impostor grid, N x N frames per mesh"),
+    choice!(octahedral_blend, "octahedral-blend", AzimuthMode, "Octahedral impostor frames drawn (issue 32): ", ""),
 ];
 
 /// Least `subset_min`: one tree in a thousand (a smaller floor leaves batches of a few hundred

@@ -87,6 +87,12 @@ impl Params {
             .ok_or_else(|| rejected("occlusion_order", self))
     }
 
+    /// The billboard views (issue 32), validated.
+    pub fn views(&self) -> Result<crate::ViewSphere, ParamError> {
+        crate::ViewSphere::from_id(self.billboard_views)
+            .ok_or_else(|| rejected("billboard_views", self))
+    }
+
     /// The azimuth view rule (issue 30), validated.
     pub fn azimuth(&self) -> Result<crate::AzimuthMode, ParamError> {
         crate::AzimuthMode::from_id(self.azimuth_mode).ok_or_else(|| rejected("azimuth_mode", self))

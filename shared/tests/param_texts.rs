@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 35] = [
+const PINNED: [(&str, &str, &str); 38] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -181,6 +181,21 @@ const PINNED: [(&str, &str, &str); 35] = [
         "occlusion_order",
         "expected 0 (exact) or 1 (reorder)",
         "Pass order of occlusion culling (issue 31): exact, reorder",
+    ),
+    (
+        "billboard_views",
+        "expected 0 (elevation), 1 (octahedral) or 2 (hemi-octahedral)",
+        "Views the billboard array holds (issue 32): elevation (E Alg. 3.1), octahedral, hemi-octahedral",
+    ),
+    (
+        "octahedral_grid",
+        "expected 2..=32 frames a side",
+        "Side N of the octahedral impostor grid, N x N frames per mesh",
+    ),
+    (
+        "octahedral_blend",
+        "expected 0 (nearest) or 1 (blend)",
+        "Octahedral impostor frames drawn (issue 32): nearest, blend",
     ),
 ];
 

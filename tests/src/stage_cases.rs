@@ -127,6 +127,7 @@ pub const READ_ONLY_UNDER: &[(&str, &str, &str)] = &[
     ("sun_elevation", "shading", "sun-depth-plane"),
     ("ambient", "shading", "sun-depth-plane"),
     ("noise_size", "dither_space", "texture"),
+    ("octahedral_grid", "billboard_views", "hemi-octahedral"),
 ];
 
 /// Azimuth views a case gets when it picks an azimuth rule other than the nearest at one view
@@ -136,13 +137,21 @@ pub const AZIMUTH_RULE_VIEWS: u32 = 4;
 /// Makes a case's parameters coherent ([`Params::validate`]'s cross-field rule): far-field
 /// subsets rank trees within a grid batch, so a case that turns them on drops the flat base's
 /// per-tree refinement (`tree_cull = none`; refine is skipped there, as the plan says). A case
-/// that picks the azimuth blend (issue 30) at one azimuth view gets [`AZIMUTH_RULE_VIEWS`].
+/// that picks the azimuth blend (issue 30) at one azimuth view gets [`AZIMUTH_RULE_VIEWS`], and
+/// one that picks the octahedral frames' nearest rule (issue 32) gets octahedral views.
 pub fn coherent(p: &mut Params) {
     if p.subset_mode != forestlod_shared::SubsetMode::Off as u32 {
         p.tree_cull = TreeCull::None as u32;
     }
     if p.azimuth_mode != forestlod_shared::AzimuthMode::Nearest as u32 && p.azimuth_count == 1 {
         p.azimuth_count = AZIMUTH_RULE_VIEWS;
+    }
+    // The octahedral frames' rule (issue 32) is read under octahedral views only: a case that
+    // picks its other choice draws hemi-octahedral impostors.
+    if p.octahedral_blend != Params::default().octahedral_blend
+        && !forestlod_shared::octahedral::is_octahedral(p.billboard_views)
+    {
+        p.billboard_views = forestlod_shared::ViewSphere::HemiOctahedral as u32;
     }
 }
 
@@ -198,6 +207,7 @@ fn affordable(scene: &mut &'static str, p: &mut Params) {
     if p.texture_size >= 1024 {
         *scene = SINGLE_SPECIES;
         p.angle_count = 1;
+        p.octahedral_grid = forestlod_shared::MIN_OCTAHEDRAL_GRID;
     }
     let species = forestlod_reference::scene::builtin::Species::ALL.len();
     if forestlod_shared::check_billboard_layers(species, p).is_err() {

@@ -179,7 +179,11 @@ fn prepared_like(base: &Prepared, scene: Scene, membership: &Batches) -> Prepare
         .collect();
     Prepared {
         tree_scales: scene.instances.iter().map(|t| t.scale).collect(),
-        footprints: forestlod_reference::pipeline::tree_footprints(&scene, &geometry.meshes),
+        footprints: forestlod_reference::pipeline::tree_footprints(
+            &scene,
+            &geometry.meshes,
+            &render_params(),
+        ),
         scene,
         geometry,
         batches: Batches {

@@ -47,6 +47,14 @@ struct BakeLayer {
     cos_a: f32,
     _pad0: f32,
     _pad1: f32,
+    // Octahedral frames (issue 32): the frame's basis and direction (computed on the CPU as the
+    // reference computes them) and whether this layer is one.
+    frame_right: vec3<f32>,
+    octahedral: u32,
+    frame_up: vec3<f32>,
+    _pad2: f32,
+    frame_dir: vec3<f32>,
+    _pad3: f32,
 }
 
 // f32::MIN_POSITIVE, the floor of every divisor of bake_clip.
@@ -95,8 +103,30 @@ fn bake_clip(p_mesh: vec3<f32>) -> vec4<f32> {
     );
 }
 
+// reference `octahedral_clip` (issue 32): the frame's square [-S, S]² about the bounding-box
+// centre on its basis, depth 0 at the sphere's point nearest the viewer.
+fn octahedral_clip(p: vec3<f32>) -> vec4<f32> {
+    let c = vec3<f32>(
+        (layer.bbox_min.x + layer.bbox_max.x) * 0.5,
+        (layer.bbox_min.y + layer.bbox_max.y) * 0.5,
+        (layer.bbox_min.z + layer.bbox_max.z) * 0.5,
+    );
+    let o = vec3<f32>(p.x - c.x, p.y - c.y, p.z - c.z);
+    let s = max(layer.sphere_radius, F32_MIN_POSITIVE);
+    let r = layer.frame_right;
+    let u = layer.frame_up;
+    let d = layer.frame_dir;
+    let dr = o.x * r.x + o.y * r.y + o.z * r.z;
+    let du = o.x * u.x + o.y * u.y + o.z * u.z;
+    let dd = o.x * d.x + o.y * d.y + o.z * d.z;
+    return vec4<f32>(dr / s, du / s, (s - dd) / (2.0 * s), 1.0);
+}
+
 @vertex
 fn bake_vs(@location(0) position: vec3<f32>, @location(1) uv: vec2<f32>) -> BakeVertex {
+    if layer.octahedral != 0u {
+        return BakeVertex(octahedral_clip(position), uv);
+    }
     return BakeVertex(bake_clip(position), uv);
 }
 

@@ -860,6 +860,211 @@ fn azimuth_mix(first: vec4<f32>, second: vec4<f32>, code: u32) -> vec4<f32> {
     return vec4<f32>(first.rgb * v + second.rgb * w, alpha);
 }
 
+// ---- Octahedral impostors (issue 32): twins of shared/src/octahedral.rs, read by draw.wgsl
+// (the frames, the re-projection and the mix) and by gpu/src/bake.rs's per-layer constants (the
+// frame bases are computed on the CPU there, as the reference computes them). OCTAHEDRAL_* and
+// VIEW_SPHERE_* are generated from Rust.
+
+// `sgn 0 = +1` (WGSL's `sign(0.0)` is 0).
+fn octahedral_sgn(x: f32) -> f32 {
+    return select(1.0, -1.0, x < 0.0);
+}
+
+fn octahedral_clamp01(v: f32) -> f32 {
+    return min(max(v * 0.5 + 0.5, 0.0), 1.0);
+}
+
+// forestlod_shared::octahedral_encode.
+fn octahedral_encode(d: vec3<f32>, hemi: bool) -> vec2<f32> {
+    var z = d.z;
+    if hemi {
+        z = max(d.z, 0.0);
+    }
+    let l1 = abs(d.x) + abs(d.y) + abs(z);
+    // `l1 > 0` and finite (f32::MAX = 0x7f7fffff); NaN fails both.
+    if !(l1 > 0.0 && l1 <= bitcast<f32>(0x7f7fffffu)) {
+        return vec2<f32>(0.5, 0.5);
+    }
+    var px = d.x / l1;
+    var py = d.y / l1;
+    if hemi {
+        let a = px + py;
+        let b = px - py;
+        px = a;
+        py = b;
+    } else if z < 0.0 {
+        let ax = abs(px);
+        let ay = abs(py);
+        px = (1.0 - ay) * octahedral_sgn(px);
+        py = (1.0 - ax) * octahedral_sgn(py);
+    }
+    return vec2<f32>(octahedral_clamp01(px), octahedral_clamp01(py));
+}
+
+// forestlod_shared::octahedral_decode.
+fn octahedral_decode(uv: vec2<f32>, hemi: bool) -> vec3<f32> {
+    let ax = uv.x * 2.0 - 1.0;
+    let ay = uv.y * 2.0 - 1.0;
+    var x = ax;
+    var y = ay;
+    if hemi {
+        x = (ax + ay) * 0.5;
+        y = (ax - ay) * 0.5;
+    }
+    var z = 1.0 - abs(x) - abs(y);
+    if !hemi && z < 0.0 {
+        let bx = abs(x);
+        let by = abs(y);
+        x = (1.0 - by) * octahedral_sgn(x);
+        y = (1.0 - bx) * octahedral_sgn(y);
+    }
+    if hemi {
+        z = max(z, 0.0);
+    }
+    let len = sqrt(x * x + y * y + z * z);
+    return vec3<f32>(x / len, y / len, z / len);
+}
+
+// forestlod_shared::frame_direction.
+fn octahedral_frame_direction(f: u32, grid: u32, hemi: bool) -> vec3<f32> {
+    let n = max(grid, MIN_OCTAHEDRAL_GRID);
+    let last = f32(n - 1u);
+    let i = f32(f % n);
+    let j = f32(min(f / n, n - 1u));
+    return octahedral_decode(vec2<f32>(i / last, j / last), hemi);
+}
+
+struct FrameBasis {
+    right: vec3<f32>,
+    up: vec3<f32>,
+}
+
+// forestlod_shared::frame_basis.
+fn octahedral_frame_basis(d: vec3<f32>) -> FrameBasis {
+    let len2 = d.x * d.x + d.y * d.y;
+    var r = vec3<f32>(0.0, 1.0, 0.0);
+    if !(len2 < 1e-12) {
+        let len = sqrt(len2);
+        r = vec3<f32>(-d.y / len, d.x / len, 0.0);
+    }
+    let u = vec3<f32>(
+        d.y * r.z - d.z * r.y,
+        d.z * r.x - d.x * r.z,
+        d.x * r.y - d.y * r.x,
+    );
+    return FrameBasis(r, u);
+}
+
+// forestlod_shared::OctahedralView.
+struct OctahedralView {
+    cell: u32,
+    qx: u32,
+    qy: u32,
+}
+
+fn octahedral_grid_axis(t_in: f32, n: u32) -> vec2<u32> {
+    let last = f32(n - 1u);
+    let t = min(max(t_in, 0.0), last);
+    let i0 = min(u32(floor(t)), n - 2u);
+    let f = t - f32(i0);
+    let q = min(u32(floor(f * f32(OCTAHEDRAL_STEPS) + 0.5)), OCTAHEDRAL_STEPS);
+    return vec2<u32>(i0, q);
+}
+
+// forestlod_shared::octahedral_view.
+fn octahedral_view(d: vec3<f32>, grid: u32, hemi: bool) -> OctahedralView {
+    let n = max(grid, MIN_OCTAHEDRAL_GRID);
+    let uv = octahedral_encode(d, hemi);
+    let last = f32(n - 1u);
+    let x = octahedral_grid_axis(uv.x * last, n);
+    let y = octahedral_grid_axis(uv.y * last, n);
+    return OctahedralView(y.x * n + x.x, x.y, y.y);
+}
+
+// forestlod_shared::OctahedralFrames.
+struct OctahedralFrames {
+    frames: vec3<u32>,
+    weights: vec3<f32>,
+    nearest: u32,
+}
+
+// forestlod_shared::octahedral_frames.
+fn octahedral_frames(view: OctahedralView, grid: u32) -> OctahedralFrames {
+    let n = max(grid, MIN_OCTAHEDRAL_GRID);
+    let s = OCTAHEDRAL_STEPS;
+    let qx = min(view.qx, s);
+    let qy = min(view.qy, s);
+    let f0 = view.cell;
+    var frames = vec3<u32>(f0, f0 + 1u, f0 + n);
+    var w = vec3<u32>(s - qx - qy, qx, qy);
+    if qx + qy > s {
+        frames = vec3<u32>(f0 + n + 1u, f0 + 1u, f0 + n);
+        w = vec3<u32>(qx + qy - s, s - qy, s - qx);
+    }
+    var nearest = 0u;
+    if w.y > w.x {
+        nearest = 1u;
+    }
+    if w.z > w[nearest] {
+        nearest = 2u;
+    }
+    let step = 1.0 / f32(OCTAHEDRAL_STEPS);
+    return OctahedralFrames(frames, vec3<f32>(w) * step, nearest);
+}
+
+// forestlod_shared::octahedral_pack.
+fn octahedral_pack(cell_layer: u32, view: OctahedralView) -> u32 {
+    let q = min(view.qx, OCTAHEDRAL_STEPS) * (OCTAHEDRAL_STEPS + 1u) + min(view.qy, OCTAHEDRAL_STEPS);
+    return (cell_layer & ((1u << OCTAHEDRAL_LAYER_BITS) - 1u)) | (q << OCTAHEDRAL_LAYER_BITS);
+}
+
+// forestlod_shared::octahedral_unpack's view (the cell's first layer is the word's low bits).
+fn octahedral_unpack_view(word: u32, grid: u32) -> OctahedralView {
+    let n = max(grid, MIN_OCTAHEDRAL_GRID);
+    let layer = word & ((1u << OCTAHEDRAL_LAYER_BITS) - 1u);
+    let q = word >> OCTAHEDRAL_LAYER_BITS;
+    return OctahedralView(
+        layer % (n * n),
+        min(q / (OCTAHEDRAL_STEPS + 1u), OCTAHEDRAL_STEPS),
+        q % (OCTAHEDRAL_STEPS + 1u),
+    );
+}
+
+// forestlod_shared::reproject_uv.
+fn octahedral_reproject(uv: vec2<f32>, from: FrameBasis, to: FrameBasis) -> vec2<f32> {
+    let a = uv.x * 2.0 - 1.0;
+    let b = 1.0 - uv.y * 2.0;
+    let p = vec3<f32>(
+        from.right.x * a + from.up.x * b,
+        from.right.y * a + from.up.y * b,
+        from.right.z * a + from.up.z * b,
+    );
+    let pr = p.x * to.right.x + p.y * to.right.y + p.z * to.right.z;
+    let pu = p.x * to.up.x + p.y * to.up.y + p.z * to.up.z;
+    return vec2<f32>(0.5 + pr * 0.5, 0.5 - pu * 0.5);
+}
+
+// forestlod_shared::octahedral_mix.
+fn octahedral_mix(t0: vec4<f32>, t1: vec4<f32>, t2: vec4<f32>, w: vec3<f32>) -> vec4<f32> {
+    if w.x == 1.0 {
+        return t0;
+    }
+    if w.y == 1.0 {
+        return t1;
+    }
+    if w.z == 1.0 {
+        return t2;
+    }
+    let a0 = t0.a * w.x;
+    let a1 = t1.a * w.y;
+    let a2 = t2.a * w.z;
+    let alpha = a0 + a1 + a2;
+    if alpha > 0.0 {
+        return vec4<f32>((t0.rgb * a0 + t1.rgb * a1 + t2.rgb * a2) / alpha, alpha);
+    }
+    return vec4<f32>(t0.rgb * w.x + t1.rgb * w.y + t2.rgb * w.z, alpha);
+}
+
 // ---- Occlusion culling (issue 31): twins of shared/src/occlusion.rs, read by pyramid.wgsl and
 // occlude.wgsl. The OCCLUSION_*_BITS slacks and MAX_PYRAMID_LEVELS are generated from Rust.
 

@@ -47,8 +47,14 @@ struct DrawUniform {
     // Billboard azimuth views J and the AzimuthMode id (issue 30, common.wgsl azimuth_*).
     azimuth_count: u32,
     azimuth_mode: u32,
-    _pad4: u32,
-    _pad5: u32,
+    // Octahedral impostors (issue 32, common.wgsl octahedral_*): the ViewSphere id, the grid
+    // side N and whether the three frames blend (an AzimuthMode id).
+    billboard_views: u32,
+    octahedral_grid: u32,
+    octahedral_blend: u32,
+    _pad6: u32,
+    _pad7: u32,
+    _pad8: u32,
 }
 
 // Keep in sync with gpu/src/draw.rs `DrawVertex` (= reference PackedVertex).
@@ -190,6 +196,41 @@ fn tree_vertex(
         world = base + rotated;
         uv = vec2<f32>(v.uv[0], v.uv[1]);
         layer = t.mesh;
+    } else if u.billboard_views != VIEW_SPHERE_ELEVATION {
+        // Octahedral impostors (issue 32; reference `octahedral_kind`): the eye's mesh-local
+        // direction from the sphere centre picks the cell; the quad lies on the nearest frame.
+        let corner_vertex = vertices[u.billboard_first_vertex + local];
+        let corner = vec2<f32>(corner_vertex.uv[0], corner_vertex.uv[1]);
+        let hemi = u.billboard_views == VIEW_SPHERE_HEMI_OCTAHEDRAL;
+        let to_eye = u.view.eye - sphere.center;
+        let s = sin(t.yaw);
+        let c = cos(t.yaw);
+        let local_eye = vec3<f32>(c * to_eye.x + s * to_eye.y, c * to_eye.y - s * to_eye.x, to_eye.z);
+        let view = octahedral_view(local_eye, u.octahedral_grid, hemi);
+        let frames = octahedral_frames(view, u.octahedral_grid);
+        let nearest = frames.frames[frames.nearest];
+        let basis = octahedral_frame_basis(octahedral_frame_direction(nearest, u.octahedral_grid, hemi));
+        // The quad faces the eye (the basis of the eye's own direction); its corners' uv are
+        // their re-projection onto the nearest frame.
+        let len = sqrt(local_eye.x * local_eye.x + local_eye.y * local_eye.y + local_eye.z * local_eye.z);
+        let quad = octahedral_frame_basis(vec3<f32>(local_eye.x / len, local_eye.y / len, local_eye.z / len));
+        let right = vec3<f32>(c * quad.right.x - s * quad.right.y, s * quad.right.x + c * quad.right.y, quad.right.z);
+        let up = vec3<f32>(c * quad.up.x - s * quad.up.y, s * quad.up.x + c * quad.up.y, quad.up.z);
+        var h = vec3<f32>(u.view.eye.x - base.x, u.view.eye.y - base.y, 0.0);
+        if dot(h, h) < 1e-12 {
+            h = vec3<f32>(-u.view.forward.x, -u.view.forward.y, 0.0);
+        }
+        if dot(h, h) < 1e-12 {
+            h = vec3<f32>(1.0, 0.0, 0.0);
+        }
+        toward_eye = h * (1.0 / length(h));
+        let half = mesh_meta.sphere_radius;
+        let along_right = (2.0 * corner.x - 1.0) * half * t.scale;
+        let along_up = (-half + (1.0 - corner.y) * (2.0 * half)) * t.scale;
+        world = sphere.center + right * along_right + up * along_up;
+        uv = octahedral_reproject(corner, quad, basis);
+        let n = max(u.octahedral_grid, MIN_OCTAHEDRAL_GRID);
+        layer = octahedral_pack(t.mesh * n * n + view.cell, view);
     } else {
         let corner_vertex = vertices[u.billboard_first_vertex + local];
         let corner = vec2<f32>(corner_vertex.uv[0], corner_vertex.uv[1]);
@@ -263,9 +304,33 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     // reason (the reference's are the rasterizer's coarse ones).
     let mesh_texel = textureSample(mesh_textures, tree_sampler, uv, layer);
     var billboard_texel = textureSample(billboard_textures, tree_sampler, uv, view_layer);
+    if u.billboard_views != VIEW_SPHERE_ELEVATION {
+        // Octahedral impostors (issue 32; reference `octahedral_texel`): the nearest frame at
+        // the quad's uv; under the blend the other two at the quad point re-projected onto their
+        // frames (uniform branches: the implicit derivatives of the re-projected uvs stay
+        // defined), mixed before the alpha test.
+        let hemi = u.billboard_views == VIEW_SPHERE_HEMI_OCTAHEDRAL;
+        let oview = octahedral_unpack_view(layer, u.octahedral_grid);
+        let base_layer = view_layer - oview.cell;
+        let fr = octahedral_frames(oview, u.octahedral_grid);
+        let near = fr.frames[fr.nearest];
+        let t_near = textureSample(billboard_textures, tree_sampler, uv, base_layer + near);
+        billboard_texel = t_near;
+        if u.octahedral_blend == AZIMUTH_MODE_BLEND {
+            let b0 = octahedral_frame_basis(octahedral_frame_direction(near, u.octahedral_grid, hemi));
+            var texels = array<vec4<f32>, 3>(t_near, t_near, t_near);
+            for (var k = 0u; k < 3u; k = k + 1u) {
+                let f = fr.frames[k];
+                let bk = octahedral_frame_basis(octahedral_frame_direction(f, u.octahedral_grid, hemi));
+                let at = octahedral_reproject(uv, b0, bk);
+                let sampled = textureSample(billboard_textures, tree_sampler, at, base_layer + f);
+                texels[k] = select(sampled, t_near, k == fr.nearest);
+            }
+            billboard_texel = octahedral_mix(texels[0], texels[1], texels[2], fr.weights);
+        }
+    } else if u.azimuth_mode == AZIMUTH_MODE_BLEND && u.azimuth_count > 1u {
     // The azimuth blend samples the second view too (a uniform branch: the derivatives stay
     // defined) and mixes before the alpha test.
-    if u.azimuth_mode == AZIMUTH_MODE_BLEND && u.azimuth_count > 1u {
         let second = azimuth_second_layer(view_layer, u.azimuth_count);
         let other = textureSample(billboard_textures, tree_sampler, uv, second);
         billboard_texel = azimuth_mix(billboard_texel, other, azimuth_code);

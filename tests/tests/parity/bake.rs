@@ -125,12 +125,24 @@ fn project(
 ) -> Vec<Projected> {
     let e = bake_elevation(k, views.angle_count);
     let (sin_a, cos_a) = bake_azimuth(j, views.azimuth_count).sin_cos();
+    // Octahedral frames (issue 32): frame `k` of the grid.
+    let frame = views.octahedral().then(|| {
+        forestlod_shared::frame_direction(
+            k,
+            views.grid,
+            forestlod_shared::octahedral::is_hemi(views.sphere),
+        )
+    });
+    let clip = |p: [f32; 3]| match frame {
+        Some(d) => forestlod_reference::bake::octahedral_clip(p, meta, d),
+        None => bake_clip_view(p, meta, e, sin_a, cos_a),
+    };
     let r = f64::from(r);
     mesh.indices
         .chunks_exact(3)
         .map(|t| {
             let v = |i: usize| {
-                let c = bake_clip_view(mesh.positions[t[i] as usize], meta, e, sin_a, cos_a);
+                let c = clip(mesh.positions[t[i] as usize]);
                 let x = (f64::from(c[0]) + 1.0) * 0.5 * r;
                 let y = (1.0 - f64::from(c[1])) * 0.5 * r;
                 (
@@ -405,6 +417,8 @@ fn check_bake(
         meshes,
         angle_count: views.angle_count,
         azimuth_count: views.azimuth_count,
+        sphere: views.sphere,
+        grid: views.grid,
         side: r,
     };
     let order: Vec<(usize, u32, u32)> = views.views(meshes.len()).collect();
@@ -541,6 +555,8 @@ fn run_views(views: BillboardViews, r: u32, full_path: bool) {
         let params = Params {
             angle_count,
             azimuth_count,
+            billboard_views: views.sphere,
+            octahedral_grid: views.grid.max(forestlod_shared::MIN_OCTAHEDRAL_GRID),
             texture_size: r,
             mip_mode: mode as u32,
             alpha_cutoff: 0.5,
@@ -601,8 +617,27 @@ fn gpu_bake_equals_the_reference_with_azimuths() {
     let views = BillboardViews {
         angle_count: 2,
         azimuth_count: 4,
+        ..BillboardViews::elevations(2)
     };
     run_views(views, 64, true);
+}
+
+/// Issue 32: octahedral frames (a 4x4 hemi-octahedral grid and a 3x3 full one, whose rim
+/// frames look from below), every frame judged by the classes above against the reference's
+/// projection of that frame; then the full path (bake and mips) for the hemi grid.
+#[test]
+fn gpu_bake_equals_the_reference_with_octahedral_frames() {
+    for (sphere, grid, full) in [
+        (forestlod_shared::ViewSphere::HemiOctahedral, 4, true),
+        (forestlod_shared::ViewSphere::Octahedral, 3, false),
+    ] {
+        let views = BillboardViews {
+            sphere: sphere as u32,
+            grid,
+            ..BillboardViews::elevations(1)
+        };
+        run_views(views, 64, full);
+    }
 }
 
 #[test]
@@ -634,6 +669,7 @@ fn gpu_bake_rejects_bad_inputs() {
     let none = BillboardViews {
         angle_count: 10,
         azimuth_count: 0,
+        ..BillboardViews::elevations(10)
     };
     let err = bake.bake_level0(&inputs, none, 64).unwrap_err();
     assert!(err.to_string().contains("0 azimuths"), "{err}");
@@ -693,10 +729,7 @@ fn h200_bake_pixels_are_classified() {
     for (r, layer, x, y, got, want, explained) in logged {
         let (m, k) = (layer as usize / 10, layer % 10);
         let mesh = &meshes[m];
-        let views = BillboardViews {
-            angle_count: 10,
-            azimuth_count: 1,
-        };
+        let views = BillboardViews::elevations(10);
         let tris = project(mesh, &mesh.meta(), views, (k, 0), r);
         let texture = Texture::new(vec![mesh.texture.clone()]).unwrap();
         let class = classify(&tris, &texture, x, y, got, want);

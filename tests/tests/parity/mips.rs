@@ -412,6 +412,8 @@ fn gpu_mips_equal_the_reference_on_baked_species() {
             meshes: &species_meshes(),
             angle_count: 10,
             azimuth_count: 1,
+            sphere: 0,
+            grid: 0,
             side: 128,
         },
     );

@@ -229,7 +229,7 @@ fn masked_draws_equal_unmasked_draws_at_the_mask() {
             }
             skipped_cases.set(skipped_cases.get() + u32::from(t1 < t0));
             let around_eye = prepared.scene.instances.iter().any(|t| {
-                let r = tree_footprint_radius(t, &metas[t.mesh as usize]);
+                let r = tree_footprint_radius(t, &metas[t.mesh as usize], false);
                 (Vec3::from(t.position) - eye).dot(forward) < r + camera.near
                     && (Vec3::from(t.position) - eye).length() < r + 1.0
             });

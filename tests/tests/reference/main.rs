@@ -17,5 +17,6 @@ mod blend;
 mod embree_crosscheck;
 mod goldens;
 mod metric;
+mod octahedral;
 mod shading;
 mod subsets;
