@@ -1031,16 +1031,16 @@ fn octahedral_unpack_view(word: u32, grid: u32) -> OctahedralView {
 }
 
 // forestlod_shared::reproject_uv.
-fn octahedral_reproject(uv: vec2<f32>, from: FrameBasis, to: FrameBasis) -> vec2<f32> {
+fn octahedral_reproject(uv: vec2<f32>, src: FrameBasis, dst: FrameBasis) -> vec2<f32> {
     let a = uv.x * 2.0 - 1.0;
     let b = 1.0 - uv.y * 2.0;
     let p = vec3<f32>(
-        from.right.x * a + from.up.x * b,
-        from.right.y * a + from.up.y * b,
-        from.right.z * a + from.up.z * b,
+        src.right.x * a + src.up.x * b,
+        src.right.y * a + src.up.y * b,
+        src.right.z * a + src.up.z * b,
     );
-    let pr = p.x * to.right.x + p.y * to.right.y + p.z * to.right.z;
-    let pu = p.x * to.up.x + p.y * to.up.y + p.z * to.up.z;
+    let pr = p.x * dst.right.x + p.y * dst.right.y + p.z * dst.right.z;
+    let pu = p.x * dst.up.x + p.y * dst.up.y + p.z * dst.up.z;
     return vec2<f32>(0.5 + pr * 0.5, 0.5 - pu * 0.5);
 }
 

@@ -622,21 +622,26 @@ fn gpu_bake_equals_the_reference_with_azimuths() {
     run_views(views, 64, true);
 }
 
-/// Issue 32: octahedral frames (a 4x4 hemi-octahedral grid and a 3x3 full one, whose rim
-/// frames look from below), every frame judged by the classes above against the reference's
-/// projection of that frame; then the full path (bake and mips) for the hemi grid.
+/// Issue 32: octahedral frames (a 4x4 hemi-octahedral grid and a 4x4 full one, whose rim frames
+/// look from below), every frame judged by the classes above against the reference's projection
+/// of that frame; then the full path (bake and mips) for the hemi grid. At r = 128: at r = 64 the
+/// frames' fewer covered texels hold fewer distinct values, and lavapipe's known per-element
+/// lean (green up, blue down: [`TEXEL_BIAS_MAX`]'s note; +0.08 green on the azimuth views above)
+/// tipped green's per-value sign test (88 of 104 values up on a 2x2 hemi grid, 1,088 texels);
+/// at r = 128 the full grid measures +0.055 per value, 111 up and 52 down, the azimuth views'
+/// +0.057, 105 up and 46 down.
 #[test]
 fn gpu_bake_equals_the_reference_with_octahedral_frames() {
     for (sphere, grid, full) in [
         (forestlod_shared::ViewSphere::HemiOctahedral, 4, true),
-        (forestlod_shared::ViewSphere::Octahedral, 3, false),
+        (forestlod_shared::ViewSphere::Octahedral, 4, false),
     ] {
         let views = BillboardViews {
             sphere: sphere as u32,
             grid,
             ..BillboardViews::elevations(1)
         };
-        run_views(views, 64, full);
+        run_views(views, 128, full);
     }
 }
 
