@@ -653,6 +653,20 @@ fn gpu_bake_equals_the_reference_at_the_extremes() {
             run(angle_count, r, false);
         }
     }
+    // Octahedral frames (issue 32) at the same sides: a 2x2 hemi grid and a 3x3 full one.
+    for (sphere, grid) in [
+        (forestlod_shared::ViewSphere::HemiOctahedral, 2),
+        (forestlod_shared::ViewSphere::Octahedral, 3),
+    ] {
+        for r in [1, 2, 4] {
+            let views = BillboardViews {
+                sphere: sphere as u32,
+                grid,
+                ..BillboardViews::elevations(1)
+            };
+            run_views(views, r, false);
+        }
+    }
 }
 
 #[test]
