@@ -146,7 +146,13 @@ impl RValue {
             RData::Real(v) => Some(v.clone()),
             RData::Int(v) => Some(
                 v.iter()
-                    .map(|&i| if i == i32::MIN { f64::NAN } else { f64::from(i) })
+                    .map(|&i| {
+                        if i == i32::MIN {
+                            f64::NAN
+                        } else {
+                            f64::from(i)
+                        }
+                    })
                     .collect(),
             ),
             _ => None,
@@ -420,9 +426,7 @@ impl LazyLoadDb {
         let mut entries = BTreeMap::new();
         for (name, v) in vars.names().into_iter().zip(items) {
             match v.numbers().as_deref() {
-                Some(&[off, len])
-                    if off >= 0.0 && len >= 4.0 && off + len <= rdb.len() as f64 =>
-                {
+                Some(&[off, len]) if off >= 0.0 && len >= 4.0 && off + len <= rdb.len() as f64 => {
                     entries.insert(name, (off as usize, len as usize));
                 }
                 other => {
@@ -729,7 +733,9 @@ pub fn write_scene(
         }
     }
     if trees == 0 {
-        return Err(derr(format!("window {w:?}: no tree of the census inside it")));
+        return Err(derr(format!(
+            "window {w:?}: no tree of the census inside it"
+        )));
     }
     let toml = format!(
         r#"# Barro Colorado Island, Panama: the {n} trees of Beilschmiedia pendula (Lauraceae) in the
@@ -836,7 +842,10 @@ mod tests {
         w.tag_new("names").strs(&["a", "b"]).int(254); // attrs of item 1: names = c("a","b")
         w.reals(false, &[3.0]);
         w.tag_new("class").strs(&["ppp"]); // attrs of the list: class, then names by reference
-        w.int(2 | (1 << 10)).int(0x0000_01ff).strs(&["x", "y"]).int(254);
+        w.int(2 | (1 << 10))
+            .int(0x0000_01ff)
+            .strs(&["x", "y"])
+            .int(254);
         let v = unserialize(&w.0, "test").unwrap();
         assert!(v.has_class("ppp"));
         assert_eq!(v.names(), ["x", "y"]);

@@ -51,7 +51,10 @@ fn the_real_example_scene_renders_on_both_backends_with_a_verdict() {
     assert_eq!(census.x.len(), 3604);
     assert_eq!(census.window, [0.0, 0.0, 1000.0, 500.0]);
     assert_eq!((census.x[0], census.y[0]), (11.7, 151.1));
-    assert_eq!((elev.xcol.len(), elev.yrow.len(), elev.step), (201, 101, 5.0));
+    assert_eq!(
+        (elev.xcol.len(), elev.yrow.len(), elev.step),
+        (201, 101, 5.0)
+    );
     assert_eq!(elev.range(), [119.81, 159.48]);
     assert_eq!(elev.at(0, 0), 120.63);
 
