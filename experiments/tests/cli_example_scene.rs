@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use forestlod_experiments::example_data::{
-    DATA_DIR_IN_PACKAGE, SPECIES_NAME, Window, read_bei, write_scene,
+    DATA_DIR_IN_PACKAGE, PACKAGE_SHA256, SPECIES_NAME, Window, read_bei, write_scene,
 };
 
 #[path = "../../reference/tests/common/mod.rs"]
@@ -46,6 +46,9 @@ fn fetched_package() -> PathBuf {
 #[test]
 fn the_real_example_scene_renders_on_both_backends_with_a_verdict() {
     let package = fetched_package();
+    // The script's pinned checksum is the module's (one package, one sha256).
+    let stamp = std::fs::read_to_string(package.join(".sha256-ok")).unwrap();
+    assert_eq!(stamp.trim(), PACKAGE_SHA256);
     let (census, elev) = read_bei(&package.join(DATA_DIR_IN_PACKAGE)).unwrap();
     // What the package holds (its documentation: 1000 m x 500 m, elevation on a 5 m grid).
     assert_eq!(census.x.len(), 3604);
