@@ -8,6 +8,7 @@
 pub mod camera;
 pub mod case;
 pub mod check;
+pub mod example_data;
 pub mod fair;
 pub mod gpu_time;
 pub mod html;
