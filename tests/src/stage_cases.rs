@@ -309,8 +309,6 @@ pub fn stage_cases() -> Vec<StageCase> {
                         (m.set)(&mut p, f64::from(code));
                     }
                     (spec.set)(&mut p, v);
-                    let mut scene = "tiny";
-                    affordable(&mut scene, &mut p);
                     let mut value = spec.format(&p);
                     if !mode.is_empty() {
                         value = format!("{value} with {mode} = {choice}");
@@ -329,6 +327,10 @@ pub fn stage_cases() -> Vec<StageCase> {
                             value = format!("{value} with {m} = {c}");
                         }
                     }
+                    // After the mode a parameter is read under is set: what it costs depends
+                    // on it (octahedral frames' layers, issue 32).
+                    let mut scene = "tiny";
+                    affordable(&mut scene, &mut p);
                     push(
                         format!("{base_name}-{name}-{value}"),
                         scene,

@@ -311,7 +311,9 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
         // defined), mixed before the alpha test.
         let hemi = u.billboard_views == VIEW_SPHERE_HEMI_OCTAHEDRAL;
         let oview = octahedral_unpack_view(layer, u.octahedral_grid);
-        let base_layer = view_layer - oview.cell;
+        // The word's low OCTAHEDRAL_LAYER_BITS (11, not the azimuth word's 12) are the cell's
+        // first layer.
+        let base_layer = (layer & ((1u << OCTAHEDRAL_LAYER_BITS) - 1u)) - oview.cell;
         let fr = octahedral_frames(oview, u.octahedral_grid);
         let near = fr.frames[fr.nearest];
         let t_near = textureSample(billboard_textures, tree_sampler, uv, base_layer + near);
