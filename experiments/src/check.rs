@@ -662,7 +662,7 @@ pub fn selection_scene(scene: Scene, params: &Params) -> Result<Prepared> {
         footprints: forestlod_reference::pipeline::tree_footprints(
             &scene,
             &geometry.meshes,
-            &params,
+            params,
         ),
         scene,
         geometry,

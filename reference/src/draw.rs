@@ -916,7 +916,7 @@ pub fn tree_triangles(
 ///
 /// Under octahedral views (`octahedral`, issue 32) the quad is a square of half side `S·scale`
 /// about the sphere centre (`S` the mesh's sphere radius), so its corners lie within
-/// `|centre - base| + √2·S·scale` of the base (√2 rounded up).
+/// `|centre - base| + √2·S·scale` of the base (√2 rounded up by one ulp).
 pub fn tree_footprint_radius(instance: &Instance, mesh: &MeshMeta, octahedral: bool) -> f32 {
     let (center, radius) = tree_sphere(instance, mesh);
     let to_centre = (Vec3::from(center) - Vec3::from(instance.position)).length();
@@ -925,7 +925,7 @@ pub fn tree_footprint_radius(instance: &Instance, mesh: &MeshMeta, octahedral: b
     let z = mesh.bbox_min[2].abs().max(mesh.bbox_max[2].abs()) + w;
     let quad_r = (w * w + z * z).sqrt() * instance.scale.abs();
     if octahedral {
-        mesh_r.max(to_centre + 1.414_214 * radius)
+        mesh_r.max(to_centre + core::f32::consts::SQRT_2 * (1.0 + f32::EPSILON) * radius)
     } else {
         mesh_r.max(quad_r)
     }
