@@ -199,19 +199,7 @@ impl BakeLayer {
 pub fn layer_extents(metas: &[MeshMeta], views: BillboardViews) -> Vec<BillboardExtent> {
     views
         .views(metas.len())
-        .map(|(m, k, _)| {
-            if views.octahedral() {
-                // The frame's square about the sphere centre (issue 32).
-                let s = metas[m].sphere_radius;
-                BillboardExtent {
-                    half_width: s,
-                    bottom: -s,
-                    height: 2.0 * s,
-                }
-            } else {
-                billboard_extent(&metas[m], bake_elevation(k, views.angle_count))
-            }
-        })
+        .map(|(m, k, _)| views.extent(&metas[m], k))
         .collect()
 }
 

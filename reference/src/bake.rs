@@ -312,19 +312,7 @@ pub fn bake(
         .collect();
     let extents = jobs
         .iter()
-        .map(|&(m, k, _)| {
-            if views.octahedral() {
-                // The frame's square about the sphere centre (issue 32).
-                let s = metas[m].sphere_radius;
-                BillboardExtent {
-                    half_width: s,
-                    bottom: -s,
-                    height: 2.0 * s,
-                }
-            } else {
-                billboard_extent(&metas[m], bake_elevation(k, k_count))
-            }
-        })
+        .map(|&(m, k, _)| views.extent(&metas[m], k))
         .collect();
     let mode = params.mips().map_err(InputError::from)?;
     let chains = build_mip_array(&layers, mode, params.alpha_cutoff).map_err(|e| {

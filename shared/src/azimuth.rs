@@ -136,6 +136,22 @@ impl BillboardViews {
         }
     }
 
+    /// The extent of view `k` of a mesh: its elevation's ([`crate::billboard_extent`]; every
+    /// azimuth of an elevation shares it), or an octahedral frame's square `[-S, S]²` about the
+    /// sphere centre (issue 32, `S` the sphere radius).
+    pub fn extent(&self, meta: &crate::MeshMeta, k: u32) -> crate::BillboardExtent {
+        if self.octahedral() {
+            let s = meta.sphere_radius;
+            crate::BillboardExtent {
+                half_width: s,
+                bottom: -s,
+                height: 2.0 * s,
+            }
+        } else {
+            crate::billboard_extent(meta, crate::bake_elevation(k, self.angle_count))
+        }
+    }
+
     /// Layers of `meshes` meshes, `m·K·J` (saturating).
     pub fn layers(&self, meshes: usize) -> u64 {
         (meshes as u64).saturating_mul(u64::from(self.per_mesh()))
