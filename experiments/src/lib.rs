@@ -7,6 +7,7 @@
 
 pub mod camera;
 pub mod case;
+pub mod chart;
 pub mod check;
 pub mod fair;
 pub mod gpu_time;
