@@ -1,7 +1,8 @@
 //! The report in a browser (issue 35): headless Chromium (Debian's `chromium`, installed by
 //! `scripts/install-deps`) loads the report of a quick sweep: the index page and every sweep
 //! page. On each, no script error and no `console.error`, and every image decodes
-//! (`naturalWidth > 0`, after `decode()`; lazy images are made eager first). A screenshot of the
+//! (`complete` and `naturalWidth > 0` at `load`; lazy images are made eager first, so `load`
+//! waits for them). A screenshot of the
 //! index's first screen is saved as `target/tmp/report-first-screen.png`.
 //!
 //! No webdriver: a copy of each page gets a small script at the top of its `<head>` that records
@@ -46,16 +47,12 @@ const PROBE: &str = r#"<script>
   console.error=function(){errors.push('console.error: '+Array.prototype.join.call(arguments,' '));return ce.apply(console,arguments);};
   window.addEventListener('load',function(){
     var imgs=Array.prototype.slice.call(document.images);
-    Promise.all(imgs.map(function(i){
-      i.loading='eager';
-      return i.decode().then(function(){return null;},function(){return 'decode failed: '+i.getAttribute('src');});
-    })).then(function(bad){
-      imgs.forEach(function(i){if(!(i.naturalWidth>0)){bad.push('naturalWidth 0: '+i.getAttribute('src'));}});
-      var r=document.createElement('pre');
-      r.id='RESULT_ID';
-      r.textContent=JSON.stringify({images:imgs.length,broken:bad.filter(Boolean),errors:errors});
-      document.body.appendChild(r);
-    });
+    var bad=imgs.filter(function(i){return !(i.complete&&i.naturalWidth>0);})
+      .map(function(i){return 'not decoded (naturalWidth '+i.naturalWidth+'): '+i.getAttribute('src');});
+    var r=document.createElement('pre');
+    r.id='RESULT_ID';
+    r.textContent=JSON.stringify({images:imgs.length,broken:bad,errors:errors});
+    document.body.appendChild(r);
   });
 })();
 </script>"#;
@@ -150,7 +147,10 @@ fn probe(browser: &Path, work: &Path, page: &Path) -> (usize, Vec<String>, Vec<S
     let probe = PROBE.replace("RESULT_ID", RESULT_ID);
     let at = html.find("<head>").expect("the page has a <head>") + "<head>".len();
     let copy = page.with_extension("browser-test.html");
-    std::fs::write(&copy, format!("{}{probe}{}", &html[..at], &html[at..])).unwrap();
+    // Every image eager, so `load` waits for all of them (a lazy one below the fold would not
+    // load in a headless window).
+    let body = html[at..].replace("loading=\"lazy\"", "loading=\"eager\"");
+    std::fs::write(&copy, format!("{}{probe}{body}", &html[..at])).unwrap();
     let url = format!("file://{}", copy.display());
     let dom = browse(
         browser,
