@@ -540,7 +540,8 @@ mod tests {
     }
 
     /// The plots' numbers are the CSV's (issue 35): for committed sweeps (one with the LOD error
-    /// on one backend, one with FLIP against the truth on two), every view's plots are drawn, the
+    /// on one backend, one with FLIP against the truth on two, one with frames that show no
+    /// tree), every view's plots are drawn, the
     /// point markers are read back from the SVG ([`crate::chart::read_back`]) and compared with
     /// the means computed here straight from the CSV's cells (not through [`Row`] or
     /// [`trade_points`]): the mean of `frame_s` × 1000 or `fragments`, and of the error's column,
@@ -557,7 +558,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let mut checked = 0;
         let mut worst: f64 = 0.0;
-        for sweep in ["hierarchy", "grid_size"] {
+        for sweep in ["hierarchy", "grid_size", "angles_texture"] {
             let csv_path = results.join(sweep).join(format!("{sweep}.csv"));
             let rows = crate::report::read_rows(&csv_path).unwrap();
             let mut reader = csv::Reader::from_path(&csv_path).unwrap();
