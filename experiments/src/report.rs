@@ -1,22 +1,36 @@
-//! `forestlod report --run DIR`: one self-contained Markdown page (`DIR/report.md`) over every sweep
-//! that `forestlod sweep --out DIR` wrote. Images are linked relatively, so the folder can be moved
-//! or zipped as a whole.
+//! `forestlod report --run DIR`: the report over every sweep that `forestlod sweep --out DIR`
+//! wrote (issue 35: a report a researcher reads). Images are linked relatively, so the folder can
+//! be moved or zipped as a whole. It writes ([`write_report`]):
+//!
+//! - `DIR/index.html`, the page to open: its first screen is the trade, cost against error, per
+//!   sweep, scene and camera (one point per variant with its 95 % intervals, the Pareto front
+//!   drawn and its members named: [`trade`]); below, one sentence per sweep saying what it found,
+//!   from the paired intervals ([`finding`]: *outside the noise* or not), linking to its page.
+//!   Images are linked, not embedded (lazy thumbnails that open the full image), so the index
+//!   weighs kilobytes;
+//! - `DIR/sweep-<folder>.html`, one page per sweep: its section below, images linked;
+//! - `DIR/report.md`, every section on one page, for reading in a repository;
+//! - `DIR/report.html`, the same as one self-contained page (images embedded), for mailing;
+//! - `DIR/flip_scale.png` (and `.svg`): the colour scale of the FLIP error maps, shown beside
+//!   the frames.
 //!
 //! Per sweep: the question, the setup, a summary table (means per variant / setting / camera of
-//! cost and accuracy), the speed-up of ours over the baselines where they ran (frame-time ratios,
-//! E§5's "70 % up to 500 %"), the Pareto front of cost against FLIP (the settings no other setting
-//! beats on both), per scene the trade as a curve (frame time and fragments against LOD error,
-//! with intervals and the Pareto front named: [`trade`]), the plots, and the saved frames side by
-//! side: ground truth, frame, FLIP error, LOD ids, then ours' per-LOD error maps. Beside the LOD
-//! error and the total error, the summary and the paired differences give the temporal error of
-//! camera paths (`Row::temporal_mean`, [`crate::temporal`]) where the sweep has one.
+//! cost and accuracy), the paired differences, the speed-up of ours over the baselines where they
+//! ran (frame-time ratios, E§5's "70 % up to 500 %"), the Pareto front of cost against FLIP (the
+//! settings no other setting beats on both), per scene and camera the trade plots with their
+//! fronts and intervals, the other plots, and the saved frames side by side, each column named
+//! (ground truth, frame, FLIP error, LOD error, total error, LOD ids) and the error maps' colour
+//! scale beside them, then ours' per-LOD error maps. Beside the LOD error and the total error,
+//! the summary and the paired differences give the temporal error of camera paths
+//! (`Row::temporal_mean`, [`crate::temporal`]) where the sweep has one.
 //!
 //! **A report reads only its run** (issue 28; a report is a file people mail around). Every path
 //! a `sweep.json` names (`csv`, `plots`, every frame image) must be relative to its sweep folder,
 //! without `..`, and resolve (links followed) to a regular file under the run folder; the
 //! manifest itself too. Anything else is an error naming the run folder, the manifest, the key
 //! and the value, and no report is written. A named image that is absent is shown as missing,
-//! as before. `report.html` embeds only the images so checked ([`crate::html::Embeds`]), and all
+//! as before. The pages show (and `report.html` embeds) only the images so checked
+//! ([`crate::html::Embeds`]), and all
 //! text taken from a manifest or a CSV (titles, descriptions, captions, names, settings, labels)
 //! is escaped ([`crate::html::escape_markdown`]), so it cannot become an image or a link.
 //!
@@ -29,7 +43,7 @@
 //! within [`MAX_EMBEDDED_IMAGE_BYTES`], and all of a report's images together (each counted
 //! every time the page shows it) within [`MAX_EMBEDDED_TOTAL_BYTES`]: sizes are checked before
 //! anything is read. Every file is read through [`forestlod_reference::files`]. All of this is
-//! checked and both pages are made before either is written: a refused run gets no report.
+//! checked and every page is made before any is written: a refused run gets no report.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -1415,20 +1429,6 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
         );
     }
     let _ = writeln!(out);
-    let mut pages: Vec<(PathBuf, String)> = Vec::new();
-    let back = format!(
-        "[← all sweeps](index.html) · the error maps' colour scale: ![FLIP error scale]({FLIP_SCALE})\n\n"
-    );
-    for (Sweep { dir, m, .. }, rows) in &sweeps {
-        let mut section = String::new();
-        sweep_section(&mut section, dir, m, rows);
-        out.push_str(&section);
-        let title = format!("forestlod: {}", m.title);
-        pages.push((
-            run.join(sweep_page(&folder(dir, m))),
-            crate::html::linked_page(&format!("{back}{section}"), &embeds, &title),
-        ));
-    }
     // The FLIP scale is the report's own image: drawn into a private temporary folder (removed
     // whatever happens), embedded from there, and copied beside the pages with them, so a
     // refused run still gets nothing written.
@@ -1466,6 +1466,20 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
             named_by: "the report's FLIP colour scale".into(),
         }),
     );
+    let mut pages: Vec<(PathBuf, String)> = Vec::new();
+    let back = format!(
+        "[← all sweeps](index.html) · the error maps' colour scale: ![FLIP error scale]({FLIP_SCALE})\n\n"
+    );
+    for (Sweep { dir, m, .. }, rows) in &sweeps {
+        let mut section = String::new();
+        sweep_section(&mut section, dir, m, rows);
+        out.push_str(&section);
+        let title = format!("forestlod: {}", m.title);
+        pages.push((
+            run.join(sweep_page(&folder(dir, m))),
+            crate::html::linked_page(&format!("{back}{section}"), &embeds, &title),
+        ));
+    }
     let page = crate::html::report_page(&out, &embeds, "forestlod sweep report")?;
     let index = crate::html::linked_page(
         &index_markdown(run, &sweeps),

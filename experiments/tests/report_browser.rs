@@ -1,8 +1,9 @@
 //! The report in a browser (issue 35): headless Chromium (Debian's `chromium`, installed by
 //! `scripts/install-deps`) loads the report of a quick sweep: the index page and every sweep
-//! page. On each, no script error and no `console.error`, and every image decodes
-//! (`complete` and `naturalWidth > 0` at `load`; lazy images are made eager first, so `load`
-//! waits for them). A screenshot of the
+//! page. On each, no script error and no `console.error`, every image decodes (`complete` and
+//! `naturalWidth > 0` at `load`; lazy images are made eager first, so `load` waits for them), and
+//! no image the report names is shown as missing or not embedded (a quick sweep writes all of
+//! them). A screenshot of the
 //! index's first screen is saved as `target/tmp/report-first-screen.png`.
 //!
 //! No webdriver: a copy of each page gets a small script at the top of its `<head>` that records
@@ -49,6 +50,7 @@ const PROBE: &str = r#"<script>
     var imgs=Array.prototype.slice.call(document.images);
     var bad=imgs.filter(function(i){return !(i.complete&&i.naturalWidth>0);})
       .map(function(i){return 'not decoded (naturalWidth '+i.naturalWidth+'): '+i.getAttribute('src');});
+    Array.prototype.forEach.call(document.querySelectorAll('.missing'),function(m){bad.push('not shown: '+m.textContent);});
     var r=document.createElement('pre');
     r.id='RESULT_ID';
     r.textContent=JSON.stringify({images:imgs.length,broken:bad,errors:errors});
