@@ -263,19 +263,23 @@ macro_rules! with_axes {
     }};
 }
 
+/// A chart with its coordinates, and the legend area beside it.
+type Framed<'a, DB, X, Y> = (
+    ChartContext<
+        'a,
+        DB,
+        Cartesian2d<<X as AsRangedCoord>::CoordDescType, <Y as AsRangedCoord>::CoordDescType>,
+    >,
+    DrawingArea<DB, Shift>,
+);
+
 /// The chart area of a plot: the frame, title, axes, grid and labels; the legend area beside.
 fn frame<'a, DB, X, Y>(
     root: &'a DrawingArea<DB, Shift>,
     axes: &Axes,
     x: X,
     y: Y,
-) -> DrawResult<
-    (
-        ChartContext<'a, DB, Cartesian2d<X::CoordDescType, Y::CoordDescType>>,
-        DrawingArea<DB, Shift>,
-    ),
-    DB,
->
+) -> DrawResult<Framed<'a, DB, X, Y>, DB>
 where
     DB: DrawingBackend + 'a,
     X: AsRangedCoord<Value = f64>,
