@@ -3,7 +3,8 @@
 //! page. On each, no script error and no `console.error`, every image decodes (`complete` and
 //! `naturalWidth > 0` at `load`; lazy images are made eager first, so `load` waits for them), and
 //! no image the report names is shown as missing or not embedded (a quick sweep writes all of
-//! them). A screenshot of the
+//! them), and every section link (`#anchor`) names a heading of the page; the self-contained
+//! `report.html` is loaded too. A screenshot of the
 //! index's first screen is saved as `target/tmp/report-first-screen.png`.
 //!
 //! No webdriver: a copy of each page gets a small script at the top of its `<head>` that records
@@ -36,7 +37,7 @@ const BROWSER_TIMEOUT: Duration = Duration::from_secs(60);
 const RESULT_ID: &str = "forestlod-browser-test";
 
 /// Injected at the top of `<head>` of a test copy of a page (module docs).
-const PROBE: &str = r#"<script>
+const PROBE: &str = r##"<script>
 (function(){
   var errors=[];
   window.addEventListener('error',function(e){
@@ -51,13 +52,17 @@ const PROBE: &str = r#"<script>
     var bad=imgs.filter(function(i){return !(i.complete&&i.naturalWidth>0);})
       .map(function(i){return 'not decoded (naturalWidth '+i.naturalWidth+'): '+i.getAttribute('src');});
     Array.prototype.forEach.call(document.querySelectorAll('.missing'),function(m){bad.push('not shown: '+m.textContent);});
+    Array.prototype.forEach.call(document.querySelectorAll('a[href^="#"]'),function(a){
+      var id=decodeURIComponent(a.getAttribute('href').slice(1));
+      if(!document.getElementById(id)){errors.push('section link to nothing: #'+id);}
+    });
     var r=document.createElement('pre');
     r.id='RESULT_ID';
     r.textContent=JSON.stringify({images:imgs.length,broken:bad,errors:errors});
     document.body.appendChild(r);
   });
 })();
-</script>"#;
+</script>"##;
 
 /// The Chromium binary: `FORESTLOD_CHROMIUM`, else the first of Debian's and others' names on
 /// `PATH`.
@@ -231,6 +236,8 @@ fn the_report_of_a_quick_sweep_loads_in_chromium_without_errors_and_every_image_
         }
     }
     assert!(pages.len() >= 2, "no sweep page: {pages:?}");
+    // The self-contained page for mailing too (images embedded).
+    pages.push(out.join("report.html"));
     let work = out.join("browser");
     std::fs::create_dir_all(&work).unwrap();
     let mut failures = Vec::new();
