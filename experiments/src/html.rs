@@ -2,7 +2,8 @@
 //! `pulldown-cmark` (CommonMark with GitHub tables), in two forms:
 //!
 //! - [`report_page`]: **one self-contained page** (`report.html`, for mailing or archiving): every
-//!   image embedded as a `data:` URI (base64 by the `base64` crate);
+//!   image embedded as a `data:` URI (base64 by the `base64` crate); a PNG plot whose SVG twin
+//!   is in the [`Embeds`] too is embedded as that SVG (a quarter of the bytes);
 //! - [`linked_page`]: **a page that links its images** (the index and the per-sweep pages): each
 //!   image is a lazy-loaded thumbnail that links to the full-size file beside the page, so a page
 //!   weighs its text only.
@@ -178,6 +179,12 @@ impl Images<'_> {
             Mode::Embedded(limit) => limit,
             Mode::Linked => return linked_image(alt, path, self.embeds),
         };
+        // A PNG whose checked SVG twin is listed too: the twin is embedded (smaller, sharp).
+        let twin = path
+            .strip_suffix(".png")
+            .map(|stem| format!("{stem}.svg"))
+            .filter(|svg| matches!(self.embeds.get(svg), Some(Some(_))));
+        let path = twin.as_deref().unwrap_or(path);
         image(alt, path, self.embeds, limit, &mut self.total).unwrap_or_else(|e| {
             self.error = Some(e);
             String::new()

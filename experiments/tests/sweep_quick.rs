@@ -348,7 +348,7 @@ fn check_temporal_columns(
 
 /// The trade as a curve (issues 29, 35) in the report of sweep `name`: its manifest lists a
 /// `trade_*` plot (PNG, with its SVG twin) per scene, camera, cost and error, each linked from
-/// `report.md` (`text`) and embedded in `report.html` (`html`), and the report names every group
+/// `report.md` (`text`) and embedded in `report.html` (`html`, as its SVG), and the report names every group
 /// of its Pareto front; the index links each view's headline plot and the sweep's page.
 fn check_trade_plots(name: &str, out: &std::path::Path, text: &str, html: &str) {
     use forestlod_experiments::html::escape_markdown;
@@ -386,9 +386,14 @@ fn check_trade_plots(name: &str, out: &std::path::Path, text: &str, html: &str) 
                 text.contains(&format!("]({path})")),
                 "{name}: {plot} not linked"
             );
+            // The self-contained page embeds the SVG twin (issue 35).
+            let svg = format!(
+                "{name}/{}",
+                std::path::Path::new(&plot).with_extension("svg").display()
+            );
             assert!(
                 html.contains(&format!(
-                    "title=\"{path}\" loading=\"lazy\" src=\"data:image/png;base64,"
+                    "title=\"{svg}\" loading=\"lazy\" src=\"data:image/svg+xml;base64,"
                 )),
                 "{name}: {plot} not embedded"
             );
