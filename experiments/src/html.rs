@@ -1,19 +1,23 @@
-//! `report.html`: the Markdown report (`report.md`) as one self-contained page. Every image is
-//! embedded as a `data:` URI, so the page can be mailed or archived alone; a click on an image
-//! shows it full size over the page (a second click closes it), and tables scroll sideways.
+//! The report's HTML pages (issue 35): the Markdown `report.rs` writes, turned into HTML by
+//! `pulldown-cmark` (CommonMark with GitHub tables), in two forms:
 //!
-//! It converts exactly the Markdown `report.rs` writes: `#` headings, pipe tables, `- ` lists,
-//! paragraphs, and inline `![alt](path)`, `[text](#anchor)`, `**bold**`, `*italic*`,
-//! `` `code` `` and backslash escapes of ASCII punctuation (`\[` is a literal `[`, as CommonMark).
-//! Everything else passes through escaped. A general Markdown engine is not needed for one
-//! generator's output (and none is in the dependency set).
+//! - [`report_page`]: **one self-contained page** (`report.html`, for mailing or archiving): every
+//!   image embedded as a `data:` URI (base64 by the `base64` crate); a PNG plot whose SVG twin
+//!   is in the [`Embeds`] too is embedded as that SVG (a quarter of the bytes);
+//! - [`linked_page`]: **a page that links its images** (the index and the per-sweep pages): each
+//!   image is a lazy-loaded thumbnail that links to the full-size file beside the page, so a page
+//!   weighs its text only.
 //!
-//! **A report reads only what its generator listed** (issue 28): the page embeds an image only
-//! when its path, as the Markdown writes it, is a key of the [`Embeds`] the caller checked (a
-//! plot or frame its run's manifest names, resolved to a regular file under the run folder); any
-//! other image path is shown as not embedded and never opened. Text the generator takes from a
-//! manifest goes through [`escape_markdown`] (or [`code_span`]), so it cannot become an image or
-//! a link, and paths through [`escape_destination`].
+//! In both a click on an image shows it full size over the page (a second click closes it), tables
+//! scroll sideways and headings carry the GitHub-style anchors ([`anchor`]) the contents link to.
+//!
+//! **A report reads only what its generator listed** (issue 28): a page shows an image only when
+//! its path, as the Markdown writes it, is a key of the [`Embeds`] the caller checked (a plot or
+//! frame its run's manifest names, resolved to a regular file under the run folder); any other
+//! image path is shown as not embedded and never opened. Text the generator takes from a manifest
+//! goes through [`escape_markdown`] (or [`code_span`]), so it cannot become an image or a link,
+//! and paths through [`escape_destination`]. Raw HTML in the Markdown is shown as text, except
+//! the `<br>` line breaks the generator writes in table cells.
 //!
 //! **Bounded** (issue 28, unbounded reads): each embedded image is read through
 //! [`forestlod_reference::files`] (regular files only) with a limit of
@@ -26,8 +30,10 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+use base64::Engine as _;
 use forestlod_reference::InputError;
 use forestlod_reference::files::{read_limited, size_text};
+use pulldown_cmark::{CowStr, Event, HeadingLevel, Options, Parser, Tag, TagEnd};
 
 /// Largest image a report embeds, bytes: 32 MiB. The sweeps' plots and frames are PNGs of at
 /// most a few MB (a 1280x720 frame is under 1 MB, the committed ones at most 0.7 MB); a 4K RGBA
@@ -111,61 +117,21 @@ pub fn code_span(text: &str) -> String {
     }
 }
 
-/// A path as a link or image destination: `\`, `(` and `)` escaped (the converter unescapes
-/// it before looking it up in [`Embeds`]).
+/// A path as a link or image destination: `\\`, `(` and `)` escaped, and the whole in angle
+/// brackets when it holds a space, a control character or an angle bracket (CommonMark allows
+/// those only there, where `<` and `>` are escaped).
 pub fn escape_destination(path: &str) -> String {
-    escape_chars(path, &['\\', '(', ')'])
-}
-
-/// `text` with its backslash escapes resolved.
-fn unescape(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    let mut chars = text.chars().peekable();
-    while let Some(c) = chars.next() {
-        match chars.peek() {
-            Some(&n) if c == '\\' && n.is_ascii_punctuation() => {
-                out.push(n);
-                chars.next();
-            }
-            _ => out.push(c),
-        }
+    if path.contains(|c: char| c == ' ' || c == '<' || c == '>' || c.is_control()) {
+        let inner: String = path.chars().filter(|c| !matches!(c, '\n' | '\r')).collect();
+        format!("<{}>", escape_chars(&inner, &['\\', '<', '>']))
+    } else {
+        escape_chars(path, &['\\', '(', ')'])
     }
-    out
 }
 
-/// The byte index of the first `pat` in `text` that no backslash escapes.
-fn find_unescaped(text: &str, pat: &str) -> Option<usize> {
-    let mut chars = text.char_indices();
-    while let Some((i, c)) = chars.next() {
-        if c == '\\' {
-            chars.next();
-        } else if text[i..].starts_with(pat) {
-            return Some(i);
-        }
-    }
-    None
-}
-
-/// Standard base64 (RFC 4648, with padding).
+/// Standard base64 (RFC 4648, with padding), by the `base64` crate.
 pub fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        for (i, shift) in [18, 12, 6, 0].into_iter().enumerate() {
-            if i <= chunk.len() {
-                out.push(ALPHABET[(n >> shift & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
+    base64::engine::general_purpose::STANDARD.encode(bytes)
 }
 
 /// The anchor of a heading, as GitHub's Markdown makes it (lower case, spaces to `-`,
@@ -186,12 +152,20 @@ fn escape(text: &str) -> String {
         .replace('"', "&quot;")
 }
 
+/// How a page shows its images.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Mode {
+    /// Embedded as `data:` URIs, at most this many bytes in all.
+    Embedded(u64),
+    /// Linked: a lazy-loaded thumbnail linking to the full-size file.
+    Linked,
+}
+
 /// What a page's images have used so far: the bytes embedded, and the first error (after which
 /// no image is read).
 struct Images<'a> {
     embeds: &'a Embeds,
-    /// Most bytes of all images ([`MAX_EMBEDDED_TOTAL_BYTES`]; smaller in tests).
-    limit: u64,
+    mode: Mode,
     total: u64,
     error: Option<InputError>,
 }
@@ -201,74 +175,64 @@ impl Images<'_> {
         if self.error.is_some() {
             return String::new();
         }
-        image(alt, path, self.embeds, self.limit, &mut self.total).unwrap_or_else(|e| {
+        let limit = match self.mode {
+            Mode::Embedded(limit) => limit,
+            Mode::Linked => return linked_image(alt, path, self.embeds),
+        };
+        // A PNG whose checked SVG twin is listed too: the twin is embedded (smaller, sharp).
+        let twin = path
+            .strip_suffix(".png")
+            .map(|stem| format!("{stem}.svg"))
+            .filter(|svg| matches!(self.embeds.get(svg), Some(Some(_))));
+        let path = twin.as_deref().unwrap_or(path);
+        image(alt, path, self.embeds, limit, &mut self.total).unwrap_or_else(|e| {
             self.error = Some(e);
             String::new()
         })
     }
 }
 
-/// Inline Markdown of one line (see module docs); images are embedded from `embeds` only.
-fn inline(text: &str, embeds: &mut Images) -> String {
-    let mut out = String::new();
-    let mut rest = text;
-    'outer: while let Some(c) = rest.chars().next() {
-        // `\X`: X literally.
-        if let Some(n) = rest.strip_prefix('\\').and_then(|r| r.chars().next())
-            && n.is_ascii_punctuation()
-        {
-            out.push_str(&escape(&n.to_string()));
-            rest = &rest[1 + n.len_utf8()..];
-            continue;
+/// The markup of a path that is not a checked file of the run: named but absent (`Some(None)`),
+/// or not listed at all.
+fn not_shown(path: &str, embeds: &Embeds) -> String {
+    match embeds.get(path) {
+        Some(_) => format!(
+            "<span class=\"missing\">[missing image {}]</span>",
+            escape(path)
+        ),
+        None => format!(
+            "<span class=\"missing\">[image not embedded: {} is not a file of this run's manifests]</span>",
+            escape(path)
+        ),
+    }
+}
+
+/// A linked image: a lazy-loaded thumbnail of the checked file `path` (relative to the page),
+/// inside a link to it at full size.
+fn linked_image(alt: &str, path: &str, embeds: &Embeds) -> String {
+    match embeds.get(path) {
+        Some(Some(_)) => {
+            let href = escape(&percent_path(path));
+            format!(
+                "<a class=\"full\" href=\"{href}\"><img alt=\"{}\" title=\"{}\" loading=\"lazy\" src=\"{href}\"></a>",
+                escape(alt),
+                escape(path),
+            )
         }
-        // `![alt](path)` and `[text](href)`.
-        let link = rest
-            .strip_prefix("![")
-            .map(|r| (true, r))
-            .or_else(|| rest.strip_prefix('[').map(|r| (false, r)));
-        if let Some((is_image, after)) = link
-            && let Some(end) = find_unescaped(after, "](")
-            && let Some(close) = find_unescaped(&after[end + 2..], ")")
-        {
-            let label = &after[..end];
-            let target = unescape(&after[end + 2..end + 2 + close]);
-            if is_image {
-                out.push_str(&embeds.image(&unescape(label), &target));
-            } else {
-                out.push_str(&format!(
-                    "<a href=\"{}\">{}</a>",
-                    escape(&target),
-                    inline(label, embeds)
-                ));
-            }
-            rest = &after[end + 2 + close + 1..];
-            continue;
+        _ => not_shown(path, embeds),
+    }
+}
+
+/// `path` as a relative URL: every byte outside the unreserved set and `/` percent-encoded, so
+/// a file name with spaces, `#` or `?` still names the file.
+fn percent_path(path: &str) -> String {
+    let mut out = String::with_capacity(path.len());
+    for b in path.bytes() {
+        if b.is_ascii_alphanumeric() || b"-._~/".contains(&b) {
+            out.push(b as char);
+        } else {
+            out.push_str(&format!("%{b:02X}"));
         }
-        for (mark, tag) in [("**", "strong"), ("`", "code"), ("*", "em")] {
-            if let Some(r) = rest.strip_prefix(mark) {
-                // A code span is literal (CommonMark): it ends at the next backtick.
-                let close = if tag == "code" {
-                    r.find(mark)
-                } else {
-                    find_unescaped(r, mark)
-                };
-                if let Some(i) = close
-                    && i > 0
-                {
-                    let inner = &r[..i];
-                    let inner = if tag == "code" {
-                        escape(inner)
-                    } else {
-                        inline(inner, embeds)
-                    };
-                    out.push_str(&format!("<{tag}>{inner}</{tag}>"));
-                    rest = &r[i + mark.len()..];
-                    continue 'outer;
-                }
-            }
-        }
-        out.push_str(&escape(&c.to_string()));
-        rest = &rest[c.len_utf8()..];
     }
     out
 }
@@ -282,43 +246,36 @@ fn image(
     limit: u64,
     total: &mut u64,
 ) -> Result<String, InputError> {
-    let missing = || {
-        format!(
-            "<span class=\"missing\">[missing image {}]</span>",
-            escape(path)
-        )
+    let Some(Some(embed)) = embeds.get(path) else {
+        return Ok(not_shown(path, embeds));
     };
-    Ok(match embeds.get(path) {
-        Some(Some(embed)) => {
-            let bytes = read_limited(&embed.file, MAX_EMBEDDED_IMAGE_BYTES)
-                .map_err(|e| e.within(embed.named_by.clone()))?;
-            *total += bytes.len() as u64;
-            if *total > limit {
-                let file = embed.file.display().to_string();
-                return Err(InputError::new(
-                    &file,
-                    "embedded images",
-                    size_text(*total),
-                    format!(
-                        "embedding it brings the report's images over the limit of {} for one report",
-                        size_text(limit)
-                    ),
-                )
-                .within(embed.named_by.clone()));
-            }
+    let bytes = read_limited(&embed.file, MAX_EMBEDDED_IMAGE_BYTES)
+        .map_err(|e| e.within(embed.named_by.clone()))?;
+    *total += bytes.len() as u64;
+    if *total > limit {
+        let file = embed.file.display().to_string();
+        return Err(InputError::new(
+            &file,
+            "embedded images",
+            size_text(*total),
             format!(
-                "<img alt=\"{}\" title=\"{}\" loading=\"lazy\" src=\"data:image/png;base64,{}\">",
-                escape(alt),
-                escape(path),
-                base64(&bytes)
-            )
-        }
-        Some(None) => missing(),
-        None => format!(
-            "<span class=\"missing\">[image not embedded: {} is not a file of this run's manifests]</span>",
-            escape(path)
-        ),
-    })
+                "embedding it brings the report's images over the limit of {} for one report",
+                size_text(limit)
+            ),
+        )
+        .within(embed.named_by.clone()));
+    }
+    let mime = if path.ends_with(".svg") {
+        "image/svg+xml"
+    } else {
+        "image/png"
+    };
+    Ok(format!(
+        "<img alt=\"{}\" title=\"{}\" loading=\"lazy\" src=\"data:{mime};base64,{}\">",
+        escape(alt),
+        escape(path),
+        base64(&bytes)
+    ))
 }
 
 /// The page for the Markdown report `md`, embedding the images of `embeds` it names; an error
@@ -329,73 +286,113 @@ pub fn report_page(md: &str, embeds: &Embeds, title: &str) -> Result<String, Inp
 
 /// [`report_page`] with `limit` bytes of images in all.
 fn page(md: &str, embeds: &Embeds, title: &str, limit: u64) -> Result<String, InputError> {
-    let embeds = &mut Images {
+    convert(md, embeds, title, Mode::Embedded(limit))
+}
+
+/// The page for the Markdown `md` whose images (paths relative to the page, those of `embeds`
+/// only) are linked, not embedded: lazy-loaded thumbnails linking to the full-size files (module
+/// docs). Reads no image, so it cannot fail.
+pub fn linked_page(md: &str, embeds: &Embeds, title: &str) -> String {
+    convert(md, embeds, title, Mode::Linked)
+        .unwrap_or_else(|e| unreachable!("a linked page reads no image, so it has no error: {e}"))
+}
+
+/// The plain text of a heading's events (for its anchor).
+fn plain_text(events: &[Event]) -> String {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Text(t) | Event::Code(t) => Some(t.as_ref()),
+            _ => None,
+        })
+        .collect()
+}
+
+fn convert(md: &str, embeds: &Embeds, title: &str, mode: Mode) -> Result<String, InputError> {
+    let mut images = Images {
         embeds,
-        limit,
+        mode,
         total: 0,
         error: None,
     };
-    let mut body = String::new();
-    let mut lines = md.lines().peekable();
-    while let Some(line) = lines.next() {
-        let t = line.trim_end();
-        if t.is_empty() {
-            continue;
-        }
-        if let Some(level) =
-            (1..=6).find(|&n| t.starts_with(&"#".repeat(n)) && t[n..].starts_with(' '))
-        {
-            let text = t[level + 1..].trim();
-            let id = anchor(text);
-            body.push_str(&format!(
-                "<h{level} id=\"{id}\">{}</h{level}>\n",
-                inline(text, embeds)
-            ));
-        } else if t.starts_with('|') {
-            let mut rows = vec![t.to_string()];
-            while let Some(next) = lines.peek().filter(|l| l.trim_start().starts_with('|')) {
-                rows.push(next.trim().to_string());
-                lines.next();
-            }
-            body.push_str("<div class=\"table\"><table>\n");
-            let cells = |row: &str| -> Vec<String> {
-                row.trim()
-                    .trim_matches('|')
-                    .split('|')
-                    .map(|c| c.trim().to_string())
-                    .collect()
-            };
-            for (i, row) in rows.iter().enumerate() {
-                if i == 1 && row.contains("---") {
-                    continue;
+    let mut events: Vec<Event> = Vec::new();
+    let mut parser = Parser::new_ext(md, Options::ENABLE_TABLES);
+    while let Some(event) = parser.next() {
+        match event {
+            // An image: its alt text is the plain text up to its end; the markup is ours.
+            Event::Start(Tag::Image { dest_url, .. }) => {
+                let mut alt = String::new();
+                for inner in parser.by_ref() {
+                    match inner {
+                        Event::End(TagEnd::Image) => break,
+                        Event::Text(t) | Event::Code(t) => alt.push_str(&t),
+                        _ => {}
+                    }
                 }
-                let tag = if i == 0 { "th" } else { "td" };
-                body.push_str("<tr>");
-                for c in cells(row) {
-                    body.push_str(&format!("<{tag}>{}</{tag}>", inline(&c, embeds)));
+                events.push(Event::InlineHtml(CowStr::from(
+                    images.image(&alt, &dest_url),
+                )));
+            }
+            // A heading gets the anchor of its text.
+            Event::Start(Tag::Heading { level, .. }) => {
+                let mut inner: Vec<Event> = Vec::new();
+                for e in parser.by_ref() {
+                    if matches!(e, Event::End(TagEnd::Heading(_))) {
+                        break;
+                    }
+                    inner.push(e);
                 }
-                body.push_str("</tr>\n");
+                let id = anchor(&plain_text(&inner));
+                events.push(Event::Html(CowStr::from(format!(
+                    "<{} id=\"{}\">",
+                    tag_name(level),
+                    escape(&id)
+                ))));
+                // Images inside a heading are not written by the generator: shown as text.
+                events.extend(inner.into_iter().map(|e| match e {
+                    Event::Html(h) | Event::InlineHtml(h) => Event::Text(h),
+                    e => e,
+                }));
+                events.push(Event::Html(CowStr::from(format!(
+                    "</{}>\n",
+                    tag_name(level)
+                ))));
             }
-            body.push_str("</table></div>\n");
-        } else if let Some(item) = t.strip_prefix("- ") {
-            body.push_str("<ul>\n");
-            body.push_str(&format!("<li>{}</li>\n", inline(item, embeds)));
-            while let Some(next) = lines.peek().and_then(|l| l.strip_prefix("- ")) {
-                body.push_str(&format!("<li>{}</li>\n", inline(next, embeds)));
-                lines.next();
+            // Raw HTML is text, except the generator's `<br>`.
+            Event::InlineHtml(h) if h.as_ref() == "<br>" => events.push(Event::InlineHtml(h)),
+            Event::Html(h) | Event::InlineHtml(h) => events.push(Event::Text(h)),
+            Event::Start(Tag::Table(a)) => {
+                events.push(Event::Html(CowStr::from("<div class=\"table\">")));
+                events.push(Event::Start(Tag::Table(a)));
             }
-            body.push_str("</ul>\n");
-        } else {
-            body.push_str(&format!("<p>{}</p>\n", inline(t, embeds)));
+            Event::End(TagEnd::Table) => {
+                events.push(Event::End(TagEnd::Table));
+                events.push(Event::Html(CowStr::from("</div>\n")));
+            }
+            e => events.push(e),
         }
     }
-    if let Some(e) = embeds.error.take() {
+    if let Some(e) = images.error.take() {
         return Err(e);
     }
+    let mut body = String::new();
+    pulldown_cmark::html::push_html(&mut body, events.into_iter());
     Ok(format!(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>\n<style>\n{STYLE}</style></head>\n<body>\n{body}<div id=\"zoom\" onclick=\"this.style.display='none'\"></div>\n<script>{SCRIPT}</script>\n</body></html>\n",
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><meta name=\"viewport\" content=\"width=device-width, initial-scale=1\"><title>{title}</title>\n<style>\n{STYLE}</style></head>\n<body>\n{body}<div id=\"zoom\" onclick=\"this.style.display='none'\"></div>\n<script>{SCRIPT}</script>\n</body></html>\n",
         title = escape(title)
     ))
+}
+
+/// `h1` .. `h6`.
+fn tag_name(level: HeadingLevel) -> &'static str {
+    match level {
+        HeadingLevel::H1 => "h1",
+        HeadingLevel::H2 => "h2",
+        HeadingLevel::H3 => "h3",
+        HeadingLevel::H4 => "h4",
+        HeadingLevel::H5 => "h5",
+        HeadingLevel::H6 => "h6",
+    }
 }
 
 const STYLE: &str = "body{font:15px/1.45 system-ui,sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}
@@ -407,13 +404,17 @@ th:first-child,td:first-child{text-align:left}
 tr:nth-child(even){background:#f6f6f6}
 img{max-width:100%;cursor:zoom-in;image-rendering:pixelated}
 td img{max-width:320px}
+h1{font-size:1.6em;margin:.4em 0}
+a.full img{width:620px;max-width:calc(50% - 8px);margin:0 4px 8px 0;vertical-align:top;image-rendering:auto}
+td a.full img{width:auto;max-width:320px;image-rendering:pixelated}
+img[src$=\".svg\"]{image-rendering:auto}
 code{background:#f0f0f0;padding:0 3px}
 .missing{color:#b00}
 #zoom{display:none;position:fixed;inset:0;background:rgba(0,0,0,.85);z-index:9;cursor:zoom-out;overflow:auto;text-align:center}
 #zoom img{max-width:none;cursor:zoom-out;margin:2em auto}
 ";
 
-const SCRIPT: &str = "document.querySelectorAll('body > * img').forEach(function(i){i.addEventListener('click',function(){var z=document.getElementById('zoom');z.innerHTML='';var c=i.cloneNode();z.appendChild(c);z.style.display='block';});});";
+const SCRIPT: &str = "document.querySelectorAll('body > * img').forEach(function(i){if(i.closest('a.full'))return;i.addEventListener('click',function(){var z=document.getElementById('zoom');z.innerHTML='';var c=i.cloneNode();z.appendChild(c);z.style.display='block';});});";
 
 #[cfg(test)]
 mod tests {
@@ -453,7 +454,7 @@ mod tests {
         assert!(page.contains("<h1 id=\"title\">Title</h1>"), "{page}");
         assert!(page.contains("<strong>bold</strong>") && page.contains("<code>a&lt;b</code>"));
         assert!(page.contains("<em>it</em>"));
-        assert!(page.contains("<th>x</th><th>y</th>") && !page.contains("---"));
+        assert!(page.contains("<th>x</th>") && page.contains(">y</th>") && !page.contains("---"));
         assert!(
             page.contains("src=\"data:image/png;base64,AQID\""),
             "{page}"

@@ -7,7 +7,10 @@
 //!   match, match within the ±1 px window, ambiguous (edge, alpha-test threshold or depth tie),
 //!   mismatch);
 //! - `diff.png`: `max |GPU - reference|` over R, G, B through a colour scale, with the scale bar
-//!   ([`difference_heatmap`], [`with_diff_scale`]).
+//!   ([`difference_heatmap`], [`with_diff_scale`]);
+//! - the sweeps' frames (issue 35): the truth and each frame named ([`with_caption`]), the FLIP
+//!   error maps with what they measure and their colour scale ([`with_flip_scale`]), the LOD ids
+//!   with their colours ([`with_lod_legend`]).
 //!
 //! The images the golden and parity tests compare come from other functions
 //! (`forestlod_reference::output::lod_id_image`, `forestlod_harness::image_compare::class_image`);
@@ -223,6 +226,50 @@ pub fn with_diff_scale(image: &Rgba8Image) -> Rgba8Image {
     out
 }
 
+/// Appends one line of text below `image`: what the image is (issue 35: every image people look
+/// at says what it shows).
+pub fn with_caption(image: &Rgba8Image, caption: &str) -> Rgba8Image {
+    let s = text_scale(image.width);
+    let pad = 4 * s;
+    let mut out = extend(image, text_width(caption, s) + 2 * pad, 8 * s + 2 * pad);
+    text(&mut out, caption, pad, image.height + pad, s, TEXT);
+    out
+}
+
+/// Appends what a FLIP error map shows (`title`) and its colour scale below it: FLIP's magma
+/// colours from 0 (black, no error) to 1 ([`crate::metrics::error_image`]), ticks at 0, 0.5, 1.
+pub fn with_flip_scale(image: &Rgba8Image, title: &str) -> Rgba8Image {
+    let s = text_scale(image.width);
+    let pad = 4 * s;
+    let line = 8 * s;
+    let bar_w = image.width.saturating_sub(2 * pad).clamp(64 * s, 256 * s);
+    let width = text_width(title, s).max(bar_w + text_width("1", s)) + 2 * pad;
+    let mut out = extend(image, width, 3 * line + 4 * pad);
+    let y = image.height + pad;
+    text(&mut out, title, pad, y, s, TEXT);
+    let by = y + line + pad;
+    let magma = crate::metrics::error_image(
+        &(0..bar_w)
+            .map(|i| i as f32 / (bar_w - 1) as f32)
+            .collect::<Vec<_>>(),
+        bar_w,
+        1,
+    );
+    for (i, c) in magma.texels.iter().enumerate() {
+        fill(&mut out, pad + i as u32, by, 1, line, *c);
+    }
+    outline(&mut out, pad, by, bar_w, line, OUTLINE);
+    for (v, label) in [(0, "0"), (1, "0.5"), (2, "1")] {
+        let tx = pad + v * (bar_w - 1) / 2;
+        fill(&mut out, tx, by + line, 1, pad, OUTLINE);
+        let lx = tx
+            .saturating_sub(text_width(label, s) / 2)
+            .min(out.width.saturating_sub(text_width(label, s)));
+        text(&mut out, label, lx, by + line + pad, s, TEXT);
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -234,6 +281,8 @@ mod tests {
             with_lod_legend(&img),
             with_class_legend(&img),
             with_diff_scale(&img),
+            with_caption(&img, "ground truth"),
+            with_flip_scale(&img, "FLIP vs truth"),
         ] {
             assert!(out.height > img.height);
             assert!(out.width >= img.width);

@@ -7,6 +7,7 @@
 
 pub mod camera;
 pub mod case;
+pub mod chart;
 pub mod check;
 pub mod example_data;
 pub mod fair;

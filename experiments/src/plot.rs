@@ -1,34 +1,31 @@
-//! Small PNG plots for the sweeps (tiny-skia for shapes, the public-domain `font8x8` bitmap font for
-//! labels): scatter plots (cost against accuracy), line plots (runtime over a sweep, thesis style,
-//! E Fig. 5.1–5.7) and grouped bar charts (mean time of each pass, E Fig. 5.1c).
+//! The sweeps' plots, drawn with `plotters` (issue 35; they were drawn by hand with tiny-skia and
+//! an 8x8 bitmap font before): scatter plots (cost against accuracy), line plots (runtime over a
+//! sweep, thesis style, E Fig. 5.1–5.7), points with interval bars, and grouped bar charts (mean
+//! time of each pass, E Fig. 5.1c). Real text (DejaVu Sans, [`crate::chart`]), a legend panel
+//! naming every series, logarithmic axes when asked and every value is positive.
 //!
-//! Axes are linear, or logarithmic when asked and every value is positive; ticks are "nice"
-//! numbers. Nothing here knows about forests: it draws what it is given.
+//! Every plot is written twice: the PNG at the path given, and an SVG twin beside it (same stem).
+//! Nothing here knows about forests: it draws what it is given.
 
 use std::path::Path;
 
-use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, Rect, Stroke, Transform};
+use plotters::coord::Shift;
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::prelude::*;
+
+use crate::chart::{FAMILY, font, tick};
 
 /// Plot width in pixels.
-pub const WIDTH: u32 = 880;
+pub const WIDTH: u32 = 960;
 /// Plot height in pixels.
-pub const HEIGHT: u32 = 520;
-const LEFT: f32 = 90.0;
-const RIGHT: f32 = 300.0;
-const TOP: f32 = 40.0;
-const BOTTOM: f32 = 60.0;
+pub const HEIGHT: u32 = 540;
+/// Width of the legend panel at the right.
+const RIGHT: u32 = 300;
+/// Longest legend label, characters (longer ones end in `…`).
+const LABEL_CHARS: usize = 36;
 
 /// A qualitative palette (Okabe–Ito, colour-blind safe), cycled by series index.
-pub const PALETTE: [[u8; 3]; 8] = [
-    [0, 114, 178],
-    [213, 94, 0],
-    [0, 158, 115],
-    [204, 121, 167],
-    [230, 159, 0],
-    [86, 180, 233],
-    [100, 100, 100],
-    [240, 228, 66],
-];
+pub const PALETTE: [[u8; 3]; 8] = crate::chart::PALETTE;
 
 /// One named series of points.
 #[derive(Clone, Debug)]
@@ -76,71 +73,6 @@ impl Axes {
     }
 }
 
-fn color(c: [u8; 3]) -> Color {
-    Color::from_rgba8(c[0], c[1], c[2], 255)
-}
-
-fn paint(c: [u8; 3]) -> Paint<'static> {
-    let mut p = Paint::default();
-    p.set_color(color(c));
-    p.anti_alias = true;
-    p
-}
-
-/// Draws `text` with the 8x8 font at pixel `(x, y)` (top-left), `scale` pixels per font pixel.
-pub fn draw_text(pixmap: &mut Pixmap, text: &str, x: f32, y: f32, scale: u32, c: [u8; 3]) {
-    let p = paint(c);
-    let mut pen = x;
-    for ch in text.chars() {
-        let code = ch as usize;
-        let glyph = if code < 128 {
-            font8x8::legacy::BASIC_LEGACY[code]
-        } else {
-            font8x8::legacy::BASIC_LEGACY[b'?' as usize]
-        };
-        for (row, bits) in glyph.iter().enumerate() {
-            for col in 0..8 {
-                if bits & (1 << col) != 0
-                    && let Some(r) = Rect::from_xywh(
-                        pen + (col * scale) as f32,
-                        y + (row as u32 * scale) as f32,
-                        scale as f32,
-                        scale as f32,
-                    )
-                {
-                    pixmap.fill_rect(r, &p, Transform::identity(), None);
-                }
-            }
-        }
-        pen += (8 * scale) as f32;
-    }
-}
-
-/// Width in pixels of `text` at `scale`.
-pub fn text_width(text: &str, scale: u32) -> f32 {
-    (text.chars().count() as u32 * 8 * scale) as f32
-}
-
-/// Draws `text` rotated a quarter turn (reading bottom to top), its baseline at `x`, ending at `y`.
-fn draw_text_vertical(pixmap: &mut Pixmap, text: &str, x: f32, y: f32, c: [u8; 3]) {
-    let p = paint(c);
-    let mut pen = y;
-    for ch in text.chars() {
-        let code = (ch as usize).min(127);
-        let glyph = font8x8::legacy::BASIC_LEGACY[code];
-        for (row, bits) in glyph.iter().enumerate() {
-            for col in 0..8 {
-                if bits & (1 << col) != 0
-                    && let Some(r) = Rect::from_xywh(x + row as f32, pen - col as f32, 1.0, 1.0)
-                {
-                    pixmap.fill_rect(r, &p, Transform::identity(), None);
-                }
-            }
-        }
-        pen -= 8.0;
-    }
-}
-
 /// A compact number label: 3 significant digits, scientific beyond 1e5 or below 1e-3.
 pub fn format_number(v: f64) -> String {
     if v == 0.0 {
@@ -160,292 +92,265 @@ pub fn format_number(v: f64) -> String {
     }
 }
 
-/// "Nice" tick values covering `[lo, hi]` (about five).
-fn nice_ticks(lo: f64, hi: f64) -> Vec<f64> {
-    let span = (hi - lo).max(1e-12);
-    let raw = span / 5.0;
-    let mag = 10f64.powf(raw.log10().floor());
-    let step = [1.0, 2.0, 2.5, 5.0, 10.0]
-        .iter()
-        .map(|m| m * mag)
-        .find(|s| span / s <= 6.0)
-        .unwrap_or(10.0 * mag);
-    let first = (lo / step).ceil() * step;
-    let mut t = Vec::new();
-    let mut v = first;
-    while v <= hi + step * 1e-9 && t.len() < 20 {
-        t.push(if v.abs() < step * 1e-9 { 0.0 } else { v });
-        v += step;
+/// An axis' range over `values` (finite ones): padded by 5 %; from 0 when linear, all positive
+/// and the low end is near 0 compared with the span; logarithmic when asked and all positive
+/// (then a factor of 1.3 of room). Returns `(lo, hi, log)`.
+fn axis_range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64, bool) {
+    let v: Vec<f64> = values.filter(|v| v.is_finite()).collect();
+    if v.is_empty() {
+        return (0.0, 1.0, false);
     }
-    t
-}
-
-/// A mapping from data to pixels along one axis.
-struct Scale {
-    lo: f64,
-    hi: f64,
-    log: bool,
-    p0: f32,
-    p1: f32,
-}
-
-impl Scale {
-    fn new(values: impl Iterator<Item = f64> + Clone, log: bool, p0: f32, p1: f32) -> Self {
-        let log = log && values.clone().all(|v| v > 0.0);
-        let f = |v: f64| if log { v.log10() } else { v };
-        let (mut lo, mut hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(f(v)), b.max(f(v)))
-        });
-        if !lo.is_finite() || !hi.is_finite() {
-            (lo, hi) = (0.0, 1.0);
-        }
-        if hi - lo < 1e-12 {
-            let pad = if lo == 0.0 { 1.0 } else { lo.abs() * 0.1 };
-            lo -= pad;
-            hi += pad;
+    let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if log && lo > 0.0 {
+        let (lo, hi) = if hi / lo < 1.01 {
+            (lo / 2.0, hi * 2.0)
         } else {
-            let pad = (hi - lo) * 0.05;
-            lo -= pad;
-            hi += pad;
-        }
-        if !log && lo > 0.0 && lo < (hi - lo) * 0.5 {
-            lo = 0.0;
-        }
-        Self {
-            lo,
-            hi,
-            log,
-            p0,
-            p1,
-        }
-    }
-
-    fn map(&self, v: f64) -> f32 {
-        let v = if self.log { v.log10() } else { v };
-        self.p0 + ((v - self.lo) / (self.hi - self.lo)) as f32 * (self.p1 - self.p0)
-    }
-
-    fn ticks(&self) -> Vec<(f64, String)> {
-        if self.log {
-            let (a, b) = (self.lo.floor() as i32, self.hi.ceil() as i32);
-            let mut t: Vec<(f64, String)> = (a..=b)
-                .map(|e| 10f64.powi(e))
-                .filter(|v| (self.lo..=self.hi).contains(&v.log10()))
-                .map(|v| (v, format_number(v)))
-                .collect();
-            if t.len() < 2 {
-                t = nice_ticks(10f64.powf(self.lo), 10f64.powf(self.hi))
-                    .into_iter()
-                    .filter(|v| *v > 0.0)
-                    .map(|v| (v, format_number(v)))
-                    .collect();
-            }
-            t
-        } else {
-            nice_ticks(self.lo, self.hi)
-                .into_iter()
-                .map(|v| (v, format_number(v)))
-                .collect()
-        }
-    }
-}
-
-fn frame(pixmap: &mut Pixmap, axes: &Axes) {
-    pixmap.fill(Color::WHITE);
-    let (w, h) = (pixmap.width() as f32, pixmap.height() as f32);
-    draw_text(pixmap, &axes.title, LEFT, 12.0, 2, [20, 20, 20]);
-    let xl = &axes.x_label;
-    draw_text(
-        pixmap,
-        xl,
-        LEFT + (w - LEFT - RIGHT - text_width(xl, 1)) * 0.5,
-        h - 18.0,
-        1,
-        [20, 20, 20],
-    );
-    let yl = &axes.y_label;
-    draw_text_vertical(
-        pixmap,
-        yl,
-        14.0,
-        TOP + (h - TOP - BOTTOM + text_width(yl, 1)) * 0.5,
-        [20, 20, 20],
-    );
-}
-
-fn stroke_line(pixmap: &mut Pixmap, pts: &[(f32, f32)], c: [u8; 3], width: f32) {
-    if pts.len() < 2 {
-        return;
-    }
-    let mut pb = PathBuilder::new();
-    pb.move_to(pts[0].0, pts[0].1);
-    for p in &pts[1..] {
-        pb.line_to(p.0, p.1);
-    }
-    if let Some(path) = pb.finish() {
-        let stroke = Stroke {
-            width,
-            ..Stroke::default()
+            (lo / 1.3, hi * 1.3)
         };
-        pixmap.stroke_path(&path, &paint(c), &stroke, Transform::identity(), None);
+        return (lo, hi, true);
     }
-}
-
-fn marker(pixmap: &mut Pixmap, x: f32, y: f32, c: [u8; 3], shape: usize) {
-    let r = 4.0;
-    let mut pb = PathBuilder::new();
-    match shape % 3 {
-        0 => pb.push_circle(x, y, r),
-        1 => {
-            if let Some(rect) = Rect::from_xywh(x - r, y - r, 2.0 * r, 2.0 * r) {
-                pb.push_rect(rect);
-            }
-        }
-        _ => {
-            pb.move_to(x, y - r - 1.0);
-            pb.line_to(x + r + 1.0, y + r);
-            pb.line_to(x - r - 1.0, y + r);
-            pb.close();
-        }
-    }
-    if let Some(path) = pb.finish() {
-        pixmap.fill_path(
-            &path,
-            &paint(c),
-            FillRule::Winding,
-            Transform::identity(),
-            None,
-        );
-    }
-}
-
-fn grid_and_ticks(pixmap: &mut Pixmap, xs: &Scale, ys: &Scale) {
-    let (w, h) = (pixmap.width() as f32, pixmap.height() as f32);
-    let (x0, x1, y0, y1) = (LEFT, w - RIGHT, h - BOTTOM, TOP);
-    for (v, label) in xs.ticks() {
-        let x = xs.map(v);
-        stroke_line(pixmap, &[(x, y0), (x, y1)], [225, 225, 225], 1.0);
-        draw_text(
-            pixmap,
-            &label,
-            x - text_width(&label, 1) * 0.5,
-            y0 + 8.0,
-            1,
-            [60, 60, 60],
-        );
-    }
-    for (v, label) in ys.ticks() {
-        let y = ys.map(v);
-        stroke_line(pixmap, &[(x0, y), (x1, y)], [225, 225, 225], 1.0);
-        draw_text(
-            pixmap,
-            &label,
-            x0 - 6.0 - text_width(&label, 1),
-            y - 4.0,
-            1,
-            [60, 60, 60],
-        );
-    }
-    stroke_line(
-        pixmap,
-        &[(x0, y1), (x0, y0), (x1, y0), (x1, y1), (x0, y1)],
-        [40, 40, 40],
-        1.5,
-    );
-}
-
-fn legend(pixmap: &mut Pixmap, labels: &[String], markers: bool) {
-    let swatch = if markers { Swatch::Marker } else { Swatch::Box };
-    let entries: Vec<(String, [u8; 3], Swatch, usize)> = labels
-        .iter()
-        .enumerate()
-        .map(|(i, l)| (l.clone(), PALETTE[i % PALETTE.len()], swatch, i))
-        .collect();
-    legend_entries(pixmap, &entries);
-}
-
-/// How a legend entry shows its series.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Swatch {
-    /// The series' marker (its shape index is the entry's).
-    Marker,
-    /// A filled box (bars).
-    Box,
-    /// A short line (a series drawn as a line only).
-    Line,
-}
-
-/// Legend rows `(label, colour, swatch, marker shape)` right of the plot; rows that do not fit
-/// the plot's height are replaced by one `+N more` row.
-fn legend_entries(pixmap: &mut Pixmap, entries: &[(String, [u8; 3], Swatch, usize)]) {
-    let x = pixmap.width() as f32 - RIGHT + 16.0;
-    let rows = (((pixmap.height() as f32 - BOTTOM) - (TOP + 10.0)) / 18.0).max(1.0) as usize;
-    let shown = if entries.len() > rows {
-        rows - 1
+    let (mut lo, mut hi) = (lo, hi);
+    if hi - lo < 1e-12 {
+        let pad = if lo == 0.0 { 1.0 } else { lo.abs() * 0.1 };
+        lo -= pad;
+        hi += pad;
     } else {
-        entries.len()
-    };
-    for (i, (label, c, swatch, shape)) in entries[..shown].iter().enumerate() {
-        let y = TOP + 10.0 + i as f32 * 18.0;
-        let c = *c;
-        match swatch {
-            Swatch::Marker => marker(pixmap, x + 6.0, y + 4.0, c, *shape),
-            Swatch::Box => {
-                if let Some(r) = Rect::from_xywh(x, y, 12.0, 9.0) {
-                    pixmap.fill_rect(r, &paint(c), Transform::identity(), None);
-                }
-            }
-            Swatch::Line => stroke_line(pixmap, &[(x, y + 4.0), (x + 12.0, y + 4.0)], c, 2.0),
-        }
-        // Cut long labels (e.g. `select vegetation (reference)`) to the legend's width, marking
-        // the cut with `~`, so that no label runs off the image.
-        let room = pixmap.width() as f32 - (x + 18.0) - 4.0;
-        let mut short = label.clone();
-        while text_width(&short, 1) > room && short.chars().count() > 1 {
-            short.pop();
-            short.pop();
-            short.push('~');
-        }
-        draw_text(pixmap, &short, x + 18.0, y, 1, [20, 20, 20]);
+        let pad = (hi - lo) * 0.05;
+        lo -= pad;
+        hi += pad;
     }
-    if shown < entries.len() {
-        let y = TOP + 10.0 + shown as f32 * 18.0;
-        let more = format!("+{} more", entries.len() - shown);
-        draw_text(pixmap, &more, x + 18.0, y, 1, [20, 20, 20]);
+    if lo > 0.0 && lo < (hi - lo) * 0.5 {
+        lo = 0.0;
+    }
+    (lo, hi, false)
+}
+
+fn rgb(c: [u8; 3]) -> RGBColor {
+    RGBColor(c[0], c[1], c[2])
+}
+
+fn short(label: &str) -> String {
+    if label.chars().count() <= LABEL_CHARS {
+        label.to_string()
+    } else {
+        let mut s: String = label.chars().take(LABEL_CHARS - 1).collect();
+        s.push('…');
+        s
     }
 }
 
-/// A scatter or line plot of `series`, written as PNG.
+/// How a legend row shows its series.
+#[derive(Clone, Copy)]
+enum Swatch {
+    /// A marker of this shape.
+    Marker(usize),
+    /// A line.
+    Line,
+    /// A filled box (a bar).
+    Bar,
+}
+
+type DrawResult<T, DB> = Result<T, DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+
+/// A marker of shape `shape` (circle, square, triangle, diamond, cycled) at `(x, y)` pixels.
+fn marker_at<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    (x, y): (i32, i32),
+    c: RGBColor,
+    shape: usize,
+) -> DrawResult<(), DB> {
+    let r = 4;
+    match shape % 4 {
+        0 => area.draw(&Circle::new((x, y), r, c.filled())),
+        1 => area.draw(&Rectangle::new(
+            [(x - r, y - r), (x + r, y + r)],
+            c.filled(),
+        )),
+        2 => area.draw(&Polygon::new(
+            vec![(x, y - r - 1), (x - r - 1, y + r), (x + r + 1, y + r)],
+            c.filled(),
+        )),
+        _ => area.draw(&Polygon::new(
+            vec![
+                (x, y - r - 1),
+                (x + r + 1, y),
+                (x, y + r + 1),
+                (x - r - 1, y),
+            ],
+            c.filled(),
+        )),
+    }
+}
+
+/// The legend panel: one row per entry, then `+N more` when they do not fit.
+fn legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    entries: &[(String, RGBColor, Swatch)],
+) -> DrawResult<(), DB> {
+    let row = 19;
+    let mut y = 44;
+    for (i, (label, c, swatch)) in entries.iter().enumerate() {
+        if y + row > HEIGHT as i32 - 30 {
+            area.draw(&Text::new(
+                format!("+{} more", entries.len() - i),
+                (28, y),
+                (FAMILY, 13).into_font().color(&BLACK),
+            ))?;
+            break;
+        }
+        match swatch {
+            Swatch::Marker(shape) => marker_at(area, (14, y + 8), *c, *shape)?,
+            Swatch::Line => area.draw(&PathElement::new(
+                vec![(4, y + 8), (22, y + 8)],
+                c.stroke_width(2),
+            ))?,
+            Swatch::Bar => area.draw(&Rectangle::new([(6, y + 2), (20, y + 14)], c.filled()))?,
+        }
+        area.draw(&Text::new(
+            short(label),
+            (28, y + 1),
+            (FAMILY, 13).into_font().color(&BLACK),
+        ))?;
+        y += row;
+    }
+    Ok(())
+}
+
+/// Runs `$body` (a [`DrawResult`]) with `$root` an SVG drawing area (`path` with `.svg`), then
+/// with `$root` a PNG one (`path`): one drawing, two files.
+macro_rules! both {
+    ($path:expr, |$root:ident| $body:block) => {{
+        font();
+        let path: &Path = $path;
+        let io = |e: String| std::io::Error::other(format!("{}: {e}", path.display()));
+        let svg = path.with_extension("svg");
+        {
+            let area = SVGBackend::new(&svg, (WIDTH, HEIGHT)).into_drawing_area();
+            let $root = &area;
+            (|| $body)().map_err(|e| io(e.to_string()))?;
+            area.present().map_err(|e| io(e.to_string()))?;
+        }
+        let area = BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area();
+        let $root = &area;
+        (|| $body)().map_err(|e| io(e.to_string()))?;
+        area.present().map_err(|e| io(e.to_string()))
+    }};
+}
+
+/// Runs `$body` with `$x`, `$y` the linear or logarithmic specs of the `(lo, hi, log)` ranges.
+macro_rules! with_axes {
+    ($xr:expr, $yr:expr, |$x:ident, $y:ident| $body:block) => {{
+        let ((xl, xh, xlog), (yl, yh, ylog)): ((f64, f64, bool), (f64, f64, bool)) = ($xr, $yr);
+        match (xlog, ylog) {
+            (false, false) => {
+                let ($x, $y) = (xl..xh, yl..yh);
+                $body
+            }
+            (true, false) => {
+                let ($x, $y) = ((xl..xh).log_scale(), yl..yh);
+                $body
+            }
+            (false, true) => {
+                let ($x, $y) = (xl..xh, (yl..yh).log_scale());
+                $body
+            }
+            (true, true) => {
+                let ($x, $y) = ((xl..xh).log_scale(), (yl..yh).log_scale());
+                $body
+            }
+        }
+    }};
+}
+
+/// A chart with its coordinates, and the legend area beside it.
+type Framed<'a, DB, X, Y> = (
+    ChartContext<
+        'a,
+        DB,
+        Cartesian2d<<X as AsRangedCoord>::CoordDescType, <Y as AsRangedCoord>::CoordDescType>,
+    >,
+    DrawingArea<DB, Shift>,
+);
+
+/// The chart area of a plot: the frame, title, axes, grid and labels; the legend area beside.
+fn frame<'a, DB, X, Y>(
+    root: &'a DrawingArea<DB, Shift>,
+    axes: &Axes,
+    x: X,
+    y: Y,
+) -> DrawResult<Framed<'a, DB, X, Y>, DB>
+where
+    DB: DrawingBackend + 'a,
+    X: AsRangedCoord<Value = f64>,
+    Y: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+    Y::CoordDescType: ValueFormatter<f64>,
+{
+    root.fill(&WHITE)?;
+    let (plot, legend_area) = root.split_horizontally(WIDTH - RIGHT);
+    let mut c = ChartBuilder::on(&plot)
+        .caption(&axes.title, (FAMILY, 17))
+        .margin(12)
+        .x_label_area_size(48)
+        .y_label_area_size(78)
+        .build_cartesian_2d(x, y)?;
+    c.configure_mesh()
+        .x_desc(axes.x_label.as_str())
+        .y_desc(axes.y_label.as_str())
+        .label_style((FAMILY, 13))
+        .axis_desc_style((FAMILY, 14))
+        .x_label_formatter(&|v| tick(*v))
+        .y_label_formatter(&|v| tick(*v))
+        .light_line_style(RGBColor(238, 238, 238))
+        .bold_line_style(RGBColor(215, 215, 215))
+        .draw()?;
+    Ok((c, legend_area))
+}
+
+/// A scatter or line plot of `series`, written as PNG (and its SVG twin).
 pub fn xy_plot(path: &Path, axes: &Axes, series: &[Series], style: Style) -> std::io::Result<()> {
-    let mut pixmap = Pixmap::new(WIDTH, HEIGHT).expect("non-zero plot size");
-    frame(&mut pixmap, axes);
     let finite = |p: &&(f64, f64)| p.0.is_finite() && p.1.is_finite();
     let all: Vec<(f64, f64)> = series
         .iter()
         .flat_map(|s| s.points.iter().filter(finite).copied())
         .collect();
-    let (w, h) = (WIDTH as f32, HEIGHT as f32);
-    let xs = Scale::new(all.iter().map(|p| p.0), axes.log_x, LEFT, w - RIGHT);
-    let ys = Scale::new(all.iter().map(|p| p.1), axes.log_y, h - BOTTOM, TOP);
-    grid_and_ticks(&mut pixmap, &xs, &ys);
-    for (i, s) in series.iter().enumerate() {
-        let c = PALETTE[i % PALETTE.len()];
-        let mut pts: Vec<(f64, f64)> = s.points.iter().filter(finite).copied().collect();
-        if style == Style::Lines {
-            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let px: Vec<(f32, f32)> = pts.iter().map(|p| (xs.map(p.0), ys.map(p.1))).collect();
-            stroke_line(&mut pixmap, &px, c, 2.0);
-        }
-        for p in &pts {
-            marker(&mut pixmap, xs.map(p.0), ys.map(p.1), c, i);
-        }
-    }
-    legend(
-        &mut pixmap,
-        &series.iter().map(|s| s.label.clone()).collect::<Vec<_>>(),
-        true,
-    );
-    save(&pixmap, path)
+    let xr = axis_range(all.iter().map(|p| p.0), axes.log_x);
+    let yr = axis_range(all.iter().map(|p| p.1), axes.log_y);
+    both!(path, |root| {
+        with_axes!(xr, yr, |x, y| {
+            let (mut c, legend_area) = frame(root, axes, x, y)?;
+            for (i, s) in series.iter().enumerate() {
+                let colour = rgb(PALETTE[i % PALETTE.len()]);
+                let mut pts: Vec<(f64, f64)> = s.points.iter().filter(finite).copied().collect();
+                if style == Style::Lines {
+                    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                    c.draw_series(std::iter::once(PathElement::new(
+                        pts.clone(),
+                        colour.stroke_width(2),
+                    )))?;
+                }
+                let area = c.plotting_area().strip_coord_spec();
+                for p in &pts {
+                    let px = c.backend_coord(p);
+                    let (ox, oy) = area.get_base_pixel();
+                    marker_at(&area, (px.0 - ox, px.1 - oy), colour, i)?;
+                }
+            }
+            let entries: Vec<(String, RGBColor, Swatch)> = series
+                .iter()
+                .enumerate()
+                .map(|(i, s)| {
+                    (
+                        s.label.clone(),
+                        rgb(PALETTE[i % PALETTE.len()]),
+                        Swatch::Marker(i),
+                    )
+                })
+                .collect();
+            legend(&legend_area, &entries)
+        })
+    })
 }
 
 /// A point with the half-widths of its intervals (e.g. 95 % intervals of two means); a
@@ -475,7 +380,7 @@ pub struct IntervalSeries {
     pub markers: bool,
     /// Colour.
     pub colour: [u8; 3],
-    /// Marker shape (circle, square, triangle, cycled).
+    /// Marker shape (circle, square, triangle, diamond, cycled).
     pub shape: usize,
     /// Text drawn beside each point (e.g. its number in the legend); empty for none.
     pub tag: String,
@@ -485,80 +390,99 @@ pub struct IntervalSeries {
 /// lines where asked, tags beside points and a legend of the labelled series: e.g. cost against
 /// error with their 95 % intervals and a Pareto front. The axes cover the intervals.
 pub fn interval_plot(path: &Path, axes: &Axes, series: &[IntervalSeries]) -> std::io::Result<()> {
-    let mut pixmap = Pixmap::new(WIDTH, HEIGHT).expect("non-zero plot size");
-    frame(&mut pixmap, axes);
     let finite = |p: &&IntervalPoint| p.x.is_finite() && p.y.is_finite();
     let half = |h: f64| if h.is_finite() && h > 0.0 { h } else { 0.0 };
     let all: Vec<IntervalPoint> = series
         .iter()
         .flat_map(|s| s.points.iter().filter(finite).copied())
         .collect();
-    let (w, h) = (WIDTH as f32, HEIGHT as f32);
-    let xs = Scale::new(
-        all.iter()
-            .flat_map(|p| [p.x - half(p.x_half), p.x + half(p.x_half)]),
+    // A log axis cannot show an interval reaching 0 or below: such ends are left out of the
+    // range and cut at the axis' end.
+    let ends = |log: bool, v: f64, h: f64| {
+        [v - half(h), v, v + half(h)]
+            .into_iter()
+            .filter(move |e| !log || *e > 0.0)
+    };
+    let xr = axis_range(
+        all.iter().flat_map(|p| ends(axes.log_x, p.x, p.x_half)),
         axes.log_x,
-        LEFT,
-        w - RIGHT,
     );
-    let ys = Scale::new(
-        all.iter()
-            .flat_map(|p| [p.y - half(p.y_half), p.y + half(p.y_half)]),
+    let yr = axis_range(
+        all.iter().flat_map(|p| ends(axes.log_y, p.y, p.y_half)),
         axes.log_y,
-        h - BOTTOM,
-        TOP,
     );
-    grid_and_ticks(&mut pixmap, &xs, &ys);
-    // A log axis cannot show an interval reaching 0 or below: it is cut at the axis' end.
-    let map_x = |v: f64| xs.map(if xs.log { v.max(10f64.powf(xs.lo)) } else { v });
-    let map_y = |v: f64| ys.map(if ys.log { v.max(10f64.powf(ys.lo)) } else { v });
-    for s in series {
-        let mut pts: Vec<IntervalPoint> = s.points.iter().filter(finite).copied().collect();
-        pts.sort_by(|a, b| a.x.total_cmp(&b.x));
-        if s.line {
-            let px: Vec<(f32, f32)> = pts.iter().map(|p| (map_x(p.x), map_y(p.y))).collect();
-            stroke_line(&mut pixmap, &px, s.colour, 2.0);
-        }
-        if !s.markers {
-            continue;
-        }
-        for p in &pts {
-            let (x, y) = (map_x(p.x), map_y(p.y));
-            let cap = 3.0;
-            if half(p.x_half) > 0.0 {
-                let (a, b) = (map_x(p.x - p.x_half), map_x(p.x + p.x_half));
-                stroke_line(&mut pixmap, &[(a, y), (b, y)], s.colour, 1.0);
-                for e in [a, b] {
-                    stroke_line(&mut pixmap, &[(e, y - cap), (e, y + cap)], s.colour, 1.0);
+    both!(path, |root| {
+        with_axes!(xr, yr, |x, y| {
+            let (mut c, legend_area) = frame(root, axes, x, y)?;
+            let cx = |v: f64| v.clamp(xr.0, xr.1);
+            let cy = |v: f64| v.clamp(yr.0, yr.1);
+            for s in series {
+                let colour = rgb(s.colour);
+                let mut pts: Vec<IntervalPoint> = s.points.iter().filter(finite).copied().collect();
+                pts.sort_by(|a, b| a.x.total_cmp(&b.x));
+                if s.line {
+                    c.draw_series(std::iter::once(PathElement::new(
+                        pts.iter().map(|p| (p.x, p.y)).collect::<Vec<_>>(),
+                        colour.stroke_width(2),
+                    )))?;
+                }
+                if !s.markers {
+                    continue;
+                }
+                let area = c.plotting_area().strip_coord_spec();
+                let (ox, oy) = area.get_base_pixel();
+                for p in &pts {
+                    let at = |v: (f64, f64)| {
+                        let b = c.backend_coord(&v);
+                        (b.0 - ox, b.1 - oy)
+                    };
+                    let cap = 3;
+                    if half(p.x_half) > 0.0 {
+                        let (a, b) = (at((cx(p.x - p.x_half), p.y)), at((cx(p.x + p.x_half), p.y)));
+                        area.draw(&PathElement::new(vec![a, b], colour.stroke_width(1)))?;
+                        for e in [a, b] {
+                            area.draw(&PathElement::new(
+                                vec![(e.0, e.1 - cap), (e.0, e.1 + cap)],
+                                colour.stroke_width(1),
+                            ))?;
+                        }
+                    }
+                    if half(p.y_half) > 0.0 {
+                        let (a, b) = (at((p.x, cy(p.y - p.y_half))), at((p.x, cy(p.y + p.y_half))));
+                        area.draw(&PathElement::new(vec![a, b], colour.stroke_width(1)))?;
+                        for e in [a, b] {
+                            area.draw(&PathElement::new(
+                                vec![(e.0 - cap, e.1), (e.0 + cap, e.1)],
+                                colour.stroke_width(1),
+                            ))?;
+                        }
+                    }
+                    let m = at((p.x, p.y));
+                    marker_at(&area, m, colour, s.shape)?;
+                    if !s.tag.is_empty() {
+                        area.draw(&Text::new(
+                            s.tag.clone(),
+                            (m.0 + 7, m.1 - 18),
+                            (FAMILY, 14).into_font().color(&BLACK),
+                        ))?;
+                    }
                 }
             }
-            if half(p.y_half) > 0.0 {
-                let (a, b) = (map_y(p.y - p.y_half), map_y(p.y + p.y_half));
-                stroke_line(&mut pixmap, &[(x, a), (x, b)], s.colour, 1.0);
-                for e in [a, b] {
-                    stroke_line(&mut pixmap, &[(x - cap, e), (x + cap, e)], s.colour, 1.0);
-                }
-            }
-            marker(&mut pixmap, x, y, s.colour, s.shape);
-            if !s.tag.is_empty() {
-                draw_text(&mut pixmap, &s.tag, x + 6.0, y - 12.0, 1, [20, 20, 20]);
-            }
-        }
-    }
-    let entries: Vec<(String, [u8; 3], Swatch, usize)> = series
-        .iter()
-        .filter(|s| !s.label.is_empty())
-        .map(|s| {
-            let swatch = if s.markers {
-                Swatch::Marker
-            } else {
-                Swatch::Line
-            };
-            (s.label.clone(), s.colour, swatch, s.shape)
+            let entries: Vec<(String, RGBColor, Swatch)> = series
+                .iter()
+                .filter(|s| !s.label.is_empty())
+                .map(|s| {
+                    let swatch = if s.markers {
+                        Swatch::Marker(s.shape)
+                    } else {
+                        Swatch::Line
+                    };
+                    (s.label.clone(), rgb(s.colour), swatch)
+                })
+                .collect();
+            legend(&legend_area, &entries)
         })
-        .collect();
-    legend_entries(&mut pixmap, &entries);
-    save(&pixmap, path)
+    })
 }
 
 /// Grouped bars: one group per `groups` entry, one bar per `bars` label within it;
@@ -570,99 +494,69 @@ pub fn bar_plot(
     bars: &[String],
     values: &[Vec<f64>],
 ) -> std::io::Result<()> {
-    let mut pixmap = Pixmap::new(WIDTH, HEIGHT).expect("non-zero plot size");
-    frame(&mut pixmap, axes);
-    let (w, h) = (WIDTH as f32, HEIGHT as f32);
     let all: Vec<f64> = values
         .iter()
         .flatten()
         .copied()
         .filter(|v| v.is_finite())
-        .chain([0.0])
+        .chain((!axes.log_y).then_some(0.0))
         .collect();
-    let ys = Scale::new(all.iter().copied(), axes.log_y, h - BOTTOM, TOP);
-    let xs = Scale {
-        lo: 0.0,
-        hi: 1.0,
-        log: false,
-        p0: LEFT,
-        p1: w - RIGHT,
-    };
-    // Y grid and labels only.
-    for (v, label) in ys.ticks() {
-        let y = ys.map(v);
-        stroke_line(
-            &mut pixmap,
-            &[(LEFT, y), (w - RIGHT, y)],
-            [225, 225, 225],
-            1.0,
-        );
-        draw_text(
-            &mut pixmap,
-            &label,
-            LEFT - 6.0 - text_width(&label, 1),
-            y - 4.0,
-            1,
-            [60, 60, 60],
-        );
-    }
-    let group_w = (xs.p1 - xs.p0) / groups.len().max(1) as f32;
-    let bar_w = group_w * 0.8 / bars.len().max(1) as f32;
-    let base = ys.map(if ys.log { 10f64.powf(ys.lo) } else { 0.0 });
-    for (g, name) in groups.iter().enumerate() {
-        let gx = xs.p0 + g as f32 * group_w + group_w * 0.1;
-        for (b, v) in values.get(g).into_iter().flatten().enumerate() {
-            if !v.is_finite() {
-                continue;
-            }
-            let top = ys.map(*v);
-            let (y, hgt) = if top < base {
-                (top, base - top)
-            } else {
-                (base, top - base)
+    let yr = axis_range(all.iter().copied(), axes.log_y);
+    let n = groups.len().max(1);
+    both!(path, |root| {
+        with_axes!((0.0, n as f64, false), yr, |x, y| {
+            root.fill(&WHITE)?;
+            let (plot, legend_area) = root.split_horizontally(WIDTH - RIGHT);
+            let mut c = ChartBuilder::on(&plot)
+                .caption(&axes.title, (FAMILY, 17))
+                .margin(12)
+                .x_label_area_size(48)
+                .y_label_area_size(78)
+                .build_cartesian_2d(x, y)?;
+            // Group names under the groups' centres.
+            let name = |v: &f64| {
+                let g = v.floor() as usize;
+                if (v - g as f64 - 0.5).abs() < 1e-6 && g < groups.len() {
+                    let max = (((WIDTH - RIGHT - 100) as usize / n) / 7).max(3);
+                    groups[g].chars().take(max).collect()
+                } else {
+                    String::new()
+                }
             };
-            if let Some(r) = Rect::from_xywh(gx + b as f32 * bar_w, y, bar_w * 0.9, hgt.max(1.0)) {
-                pixmap.fill_rect(
-                    r,
-                    &paint(PALETTE[b % PALETTE.len()]),
-                    Transform::identity(),
-                    None,
-                );
+            c.configure_mesh()
+                .disable_x_mesh()
+                .x_desc(axes.x_label.as_str())
+                .y_desc(axes.y_label.as_str())
+                .label_style((FAMILY, 13))
+                .axis_desc_style((FAMILY, 14))
+                .x_labels(2 * n + 1)
+                .x_label_formatter(&name)
+                .y_label_formatter(&|v| tick(*v))
+                .light_line_style(RGBColor(238, 238, 238))
+                .bold_line_style(RGBColor(215, 215, 215))
+                .draw()?;
+            let base = if yr.2 { yr.0 } else { 0.0 };
+            let width = 0.8 / bars.len().max(1) as f64;
+            for (g, row) in values.iter().enumerate().take(groups.len()) {
+                for (b, v) in row.iter().enumerate() {
+                    if !v.is_finite() {
+                        continue;
+                    }
+                    let x0 = g as f64 + 0.1 + b as f64 * width;
+                    c.draw_series(std::iter::once(Rectangle::new(
+                        [(x0, base), (x0 + width * 0.9, v.clamp(yr.0, yr.1))],
+                        rgb(PALETTE[b % PALETTE.len()]).filled(),
+                    )))?;
+                }
             }
-        }
-        let short: String = name
-            .chars()
-            .take(((group_w / 8.0) as usize).max(3))
-            .collect();
-        draw_text(
-            &mut pixmap,
-            &short,
-            gx + (group_w * 0.8 - text_width(&short, 1)) * 0.5,
-            h - BOTTOM + 8.0,
-            1,
-            [60, 60, 60],
-        );
-    }
-    stroke_line(
-        &mut pixmap,
-        &[
-            (LEFT, TOP),
-            (LEFT, h - BOTTOM),
-            (w - RIGHT, h - BOTTOM),
-            (w - RIGHT, TOP),
-            (LEFT, TOP),
-        ],
-        [40, 40, 40],
-        1.5,
-    );
-    legend(&mut pixmap, bars, false);
-    save(&pixmap, path)
-}
-
-fn save(pixmap: &Pixmap, path: &Path) -> std::io::Result<()> {
-    pixmap
-        .save_png(path)
-        .map_err(|e| std::io::Error::other(format!("{}: {e}", path.display())))
+            let entries: Vec<(String, RGBColor, Swatch)> = bars
+                .iter()
+                .enumerate()
+                .map(|(b, l)| (l.clone(), rgb(PALETTE[b % PALETTE.len()]), Swatch::Bar))
+                .collect();
+            legend(&legend_area, &entries)
+        })
+    })
 }
 
 #[cfg(test)]
@@ -670,18 +564,21 @@ mod tests {
     use super::*;
 
     #[test]
-    fn numbers_and_ticks_are_readable() {
+    fn numbers_and_ranges_are_readable() {
         assert_eq!(format_number(0.0), "0");
         assert_eq!(format_number(250.0), "250");
         assert_eq!(format_number(1.5), "1.5");
         assert_eq!(format_number(0.0125), "0.0125");
-        let t = nice_ticks(0.0, 1.0);
-        assert!(t.len() >= 3 && t.len() <= 7, "{t:?}");
-        assert_eq!(t[0], 0.0);
+        assert_eq!(axis_range([1.0, 3.0].into_iter(), false).0, 0.0);
+        assert!(axis_range([1.0, 1000.0].into_iter(), true).2);
+        assert!(
+            !axis_range([0.0, 1000.0].into_iter(), true).2,
+            "no log with 0"
+        );
     }
 
     #[test]
-    fn plots_are_written() {
+    fn plots_are_written_as_png_and_svg() {
         let dir = std::env::temp_dir().join(format!("forestlod-plot-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let axes = Axes {
@@ -692,7 +589,7 @@ mod tests {
             log_y: false,
         };
         let s = vec![Series {
-            label: "a".into(),
+            label: "series a".into(),
             points: vec![(1.0, 2.0), (10.0, 3.0), (f64::NAN, 1.0)],
         }];
         xy_plot(&dir.join("a.png"), &axes, &s, Style::Lines).unwrap();
@@ -720,8 +617,14 @@ mod tests {
             tag: "1".into(),
         };
         interval_plot(&dir.join("c.png"), &axes, &[front]).unwrap();
-        assert!(dir.join("a.png").is_file() && dir.join("b.png").is_file());
-        assert!(dir.join("c.png").is_file());
+        for f in ["a", "b", "c"] {
+            let png = image::open(dir.join(f).with_extension("png")).unwrap();
+            assert_eq!((png.width(), png.height()), (WIDTH, HEIGHT));
+            let svg = std::fs::read_to_string(dir.join(f).with_extension("svg")).unwrap();
+            assert!(svg.contains("<text"), "{f}: real text");
+        }
+        let svg = std::fs::read_to_string(dir.join("a.svg")).unwrap();
+        assert!(svg.contains("series a"), "the legend names the series");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

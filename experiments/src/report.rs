@@ -1,22 +1,36 @@
-//! `forestlod report --run DIR`: one self-contained Markdown page (`DIR/report.md`) over every sweep
-//! that `forestlod sweep --out DIR` wrote. Images are linked relatively, so the folder can be moved
-//! or zipped as a whole.
+//! `forestlod report --run DIR`: the report over every sweep that `forestlod sweep --out DIR`
+//! wrote (issue 35: a report a researcher reads). Images are linked relatively, so the folder can
+//! be moved or zipped as a whole. It writes ([`write_report`]):
+//!
+//! - `DIR/index.html`, the page to open: its first screen is the trade, cost against error, per
+//!   sweep, scene and camera (one point per variant with its 95 % intervals, the Pareto front
+//!   drawn and its members named: [`trade`]); below, one sentence per sweep saying what it found,
+//!   from the paired intervals ([`finding`]: *outside the noise* or not), linking to its page.
+//!   Images are linked, not embedded (lazy thumbnails that open the full image), so the index
+//!   weighs kilobytes;
+//! - `DIR/sweep-<folder>.html`, one page per sweep: its section below, images linked;
+//! - `DIR/report.md`, every section on one page, for reading in a repository;
+//! - `DIR/report.html`, the same as one self-contained page (images embedded), for mailing;
+//! - `DIR/flip_scale.png` (and `.svg`): the colour scale of the FLIP error maps, shown beside
+//!   the frames.
 //!
 //! Per sweep: the question, the setup, a summary table (means per variant / setting / camera of
-//! cost and accuracy), the speed-up of ours over the baselines where they ran (frame-time ratios,
-//! E§5's "70 % up to 500 %"), the Pareto front of cost against FLIP (the settings no other setting
-//! beats on both), per scene the trade as a curve (frame time and fragments against LOD error,
-//! with intervals and the Pareto front named: [`trade`]), the plots, and the saved frames side by
-//! side: ground truth, frame, FLIP error, LOD ids, then ours' per-LOD error maps. Beside the LOD
-//! error and the total error, the summary and the paired differences give the temporal error of
-//! camera paths (`Row::temporal_mean`, [`crate::temporal`]) where the sweep has one.
+//! cost and accuracy), the paired differences, the speed-up of ours over the baselines where they
+//! ran (frame-time ratios, E§5's "70 % up to 500 %"), the Pareto front of cost against FLIP (the
+//! settings no other setting beats on both), per scene and camera the trade plots with their
+//! fronts and intervals, the other plots, and the saved frames side by side, each column named
+//! (ground truth, frame, FLIP error, LOD error, total error, LOD ids) and the error maps' colour
+//! scale beside them, then ours' per-LOD error maps. Beside the LOD error and the total error,
+//! the summary and the paired differences give the temporal error of camera paths
+//! (`Row::temporal_mean`, [`crate::temporal`]) where the sweep has one.
 //!
 //! **A report reads only its run** (issue 28; a report is a file people mail around). Every path
 //! a `sweep.json` names (`csv`, `plots`, every frame image) must be relative to its sweep folder,
 //! without `..`, and resolve (links followed) to a regular file under the run folder; the
 //! manifest itself too. Anything else is an error naming the run folder, the manifest, the key
 //! and the value, and no report is written. A named image that is absent is shown as missing,
-//! as before. `report.html` embeds only the images so checked ([`crate::html::Embeds`]), and all
+//! as before. The pages show (and `report.html` embeds) only the images so checked
+//! ([`crate::html::Embeds`]), and all
 //! text taken from a manifest or a CSV (titles, descriptions, captions, names, settings, labels)
 //! is escaped ([`crate::html::escape_markdown`]), so it cannot become an image or a link.
 //!
@@ -29,7 +43,7 @@
 //! within [`MAX_EMBEDDED_IMAGE_BYTES`], and all of a report's images together (each counted
 //! every time the page shows it) within [`MAX_EMBEDDED_TOTAL_BYTES`]: sizes are checked before
 //! anything is read. Every file is read through [`forestlod_reference::files`]. All of this is
-//! checked and both pages are made before either is written: a refused run gets no report.
+//! checked and every page is made before any is written: a refused run gets no report.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -273,6 +287,34 @@ impl Run {
                 }
             };
             embeds.insert(rel(dir, m, p), embed);
+        }
+        // A plot's SVG twin (issue 35: `crate::plot`, `crate::chart` write one beside each PNG),
+        // when it is a regular file under the run within the per-image limit: the self-contained
+        // page embeds it instead of the PNG (a quarter of the bytes, and sharp at any zoom).
+        // Anything else (absent, a link out of the run, a special file) is skipped unread, and
+        // the PNG is embedded.
+        for (i, (p, _)) in m.plots.iter().enumerate() {
+            let Some(svg) = p.strip_suffix(".png").map(|stem| format!("{stem}.svg")) else {
+                continue;
+            };
+            let key = format!("plots[{i}][0] (its SVG twin)");
+            let Ok(Some(file)) = self.named(mpath, dir, &key, &svg) else {
+                continue;
+            };
+            let Ok(size) = regular_file(&file) else {
+                continue;
+            };
+            if size > MAX_EMBEDDED_IMAGE_BYTES || self.embedded + size > MAX_EMBEDDED_TOTAL_BYTES {
+                continue;
+            }
+            self.embedded += size;
+            embeds.insert(
+                rel(dir, m, &svg),
+                Some(Embed {
+                    file,
+                    named_by: self.named_by(mpath, &key, &svg),
+                }),
+            );
         }
         Ok(embeds)
     }
@@ -712,42 +754,40 @@ pub fn noise_section(out: &mut String, groups: &[(String, Vec<&Row>)]) {
     let _ = writeln!(out);
 }
 
-/// Cost against LOD error per scene ([`trade`]): the sweep's trade plots, and under each its
+/// The trade per scene and camera ([`trade`]): the sweep's trade plots, and under each its
 /// Pareto front with the intervals of its points. A run written before the trade plots existed
-/// gets the fronts and a hint to redraw the plots (`--replot`).
+/// (or before they were drawn per camera) gets the fronts and a hint to redraw the plots
+/// (`--replot`).
 fn trade_section(out: &mut String, m: &Manifest, rows: &[Row], rel: &dyn Fn(&str) -> String) {
-    let scenes = trade::files(rows);
-    let any = scenes.iter().any(|(scene, _)| {
-        let points = trade::trade_points(rows, scene);
-        trade::Cost::ALL
-            .iter()
-            .any(|&c| !trade::fronts(&points, c).is_empty())
+    let views = trade::views(rows);
+    let any = views.iter().any(|v| {
+        let points = trade::trade_points(rows, &v.scene, &v.camera);
+        !trade::plots(&points).is_empty()
     });
     if !any {
-        return; // no LOD error measured (a CSV written before it)
+        return; // no group shows a tree
     }
     let _ = writeln!(
         out,
-        "### Cost against LOD error
+        "### The trade: cost against error
 
-Per scene, one point per variant / backend / setting: mean LOD error (FLIP against the same backend's full-detail frame) against mean frame time and mean tree fragments (reference backend only), over the group's frames that show trees, with 95% intervals. The **Pareto front** (per backend: times of two backends are not comparable) is the groups no other group beats on both; in the plots its points are numbered and joined by a line.
+Per scene and camera, one point per variant / backend / setting: mean error against mean frame time and mean tree fragments (reference backend only), over the group's frames that show trees, with 95% intervals. The error is the LOD error (FLIP against the same backend's full-detail frame), the total error and the temporal error where the sweep measured them, else FLIP against the ray-traced truth. The **Pareto front** (per backend: times of two backends are not comparable) is the groups no other group beats on both; in the plots its points are numbered and joined by a line. Each plot is also written as SVG beside the PNG.
 "
     );
-    for (scene, stem) in &scenes {
-        let points = trade::trade_points(rows, scene);
-        for cost in trade::Cost::ALL {
-            let fronts = trade::fronts(&points, cost);
-            if fronts.is_empty() {
-                continue;
-            }
-            let name = trade::plot_name(stem, cost);
+    for view in &views {
+        let points = trade::trade_points(rows, &view.scene, &view.camera);
+        for (cost, error) in trade::plots(&points) {
+            let fronts = trade::fronts(&points, cost, error);
+            let name = trade::plot_name(&view.stem, cost, error);
             let plot = m.plots.iter().find(|(p, _)| *p == name);
             let _ = writeln!(
                 out,
-                "Scene {}, {}:
+                "Scene {}, camera {}, {} against {}:
 ",
-                crate::html::code_span(scene),
-                cost.label()
+                crate::html::code_span(&view.scene),
+                crate::html::code_span(&view.camera),
+                cost.label(),
+                error.name()
             );
             match plot {
                 Some((p, caption)) => {
@@ -771,8 +811,9 @@ Per scene, one point per variant / backend / setting: mean LOD error (FLIP again
             }
             let _ = writeln!(
                 out,
-                "| # | Pareto front | backend | frames | LOD error ±95% | {} ±95% |
+                "| # | Pareto front | backend | frames | {} ±95% | {} ±95% |
 |--:|---|---|--:|--:|--:|",
+                error.name(),
                 cost.label()
             );
             let mut number = 0;
@@ -780,6 +821,7 @@ Per scene, one point per variant / backend / setting: mean LOD error (FLIP again
                 for &i in front {
                     number += 1;
                     let p = &points[i];
+                    let (e, eh) = error.of(p);
                     let (c, h) = cost.of(p);
                     let _ = writeln!(
                         out,
@@ -787,7 +829,7 @@ Per scene, one point per variant / backend / setting: mean LOD error (FLIP again
                         md(&p.group),
                         md(backend),
                         p.frames,
-                        pm(p.lod.0, p.lod.1, 4),
+                        pm(e, eh, 4),
                         if cost == trade::Cost::Fragments {
                             if h.is_nan() {
                                 big(c)
@@ -803,6 +845,118 @@ Per scene, one point per variant / backend / setting: mean LOD error (FLIP again
             let _ = writeln!(out);
         }
     }
+}
+
+/// The error a sweep's finding is about: the first of [`trade::errors`] over all its rows.
+fn headline_error(rows: &[Row]) -> trade::ErrorKind {
+    let measured = |f: fn(&Row) -> f64| rows.iter().any(|r| f(r).is_finite());
+    if measured(|r| r.accuracy.lod_flip_mean) {
+        trade::ErrorKind::Lod
+    } else if measured(|r| r.accuracy.total_flip_mean) {
+        trade::ErrorKind::Total
+    } else {
+        trade::ErrorKind::Truth
+    }
+}
+
+/// The per-frame value of `error`.
+fn error_value(error: trade::ErrorKind) -> fn(&Row) -> f64 {
+    match error {
+        trade::ErrorKind::Lod => |r| r.accuracy.lod_flip_mean,
+        trade::ErrorKind::Total => |r| r.accuracy.total_flip_mean,
+        trade::ErrorKind::Temporal => |r| r.temporal_mean.unwrap_or(f64::NAN),
+        trade::ErrorKind::Truth => |r| r.accuracy.flip_mean,
+    }
+}
+
+/// One sentence saying what a sweep found, from the paired intervals of [`noise_section`]: each
+/// group against the first group of its camera (or distance), paired by pose, in the headline
+/// error ([`headline_error`]) and in frame time; how many differences are *outside the noise*
+/// (the 95 % interval of the mean paired difference excludes 0), and the largest of them.
+pub fn finding(m: &Manifest, rows: &[Row]) -> String {
+    let error = headline_error(rows);
+    let mut order: Vec<String> = Vec::new();
+    let mut groups: BTreeMap<String, Vec<&Row>> = BTreeMap::new();
+    for r in rows {
+        let k = group_key(&m.x_axis, r);
+        if !groups.contains_key(&k) {
+            order.push(k.clone());
+        }
+        groups.entry(k).or_default().push(r);
+    }
+    let camera = |k: &str| k.split(", ").next().unwrap_or("").to_string();
+    let mut firsts: Vec<(String, String)> = Vec::new();
+    for k in &order {
+        if !firsts.iter().any(|(c, _)| *c == camera(k)) {
+            firsts.push((camera(k), k.clone()));
+        }
+    }
+    // (group, against, error difference, time difference)
+    type Diff = (f64, f64, usize);
+    let mut diffs: Vec<(String, String, Diff, Diff)> = Vec::new();
+    for k in &order {
+        let Some((_, first)) = firsts.iter().find(|(c, _)| *c == camera(k)) else {
+            continue;
+        };
+        if first == k {
+            continue;
+        }
+        let (a, b) = (&groups[k], &groups[first]);
+        diffs.push((
+            k.clone(),
+            first.clone(),
+            paired_difference(a, b, error_value(error)),
+            paired_difference(a, b, |r| r.frame_s * 1e3),
+        ));
+    }
+    let outside = |d: &Diff| d.0.is_finite() && d.1.is_finite() && d.0.abs() > d.1;
+    let compared: Vec<_> = diffs
+        .iter()
+        .filter(|(_, _, e, _)| e.0.is_finite())
+        .collect();
+    if compared.is_empty() {
+        return format!(
+            "one group per {}: nothing to compare, see the plots for the trade.",
+            if m.x_axis == "distance" {
+                "distance"
+            } else {
+                "camera"
+            }
+        );
+    }
+    let out_error: Vec<_> = compared.iter().filter(|(_, _, e, _)| outside(e)).collect();
+    let out_time = compared.iter().filter(|(_, _, _, t)| outside(t)).count();
+    let mut s = format!(
+        "of {} groups compared with the first of their {} (paired by pose), {} differ in {} outside the noise",
+        compared.len(),
+        if m.x_axis == "distance" {
+            "distance"
+        } else {
+            "camera"
+        },
+        out_error.len(),
+        error.name()
+    );
+    if let Some((k, first, e, _)) = out_error
+        .iter()
+        .max_by(|a, b| a.2.0.abs().total_cmp(&b.2.0.abs()))
+    {
+        let _ = write!(
+            s,
+            " (largest: {} against {}, {:+.4} ± {:.4})",
+            code_span(k.trim()),
+            code_span(first.trim()),
+            e.0,
+            e.1
+        );
+    }
+    let _ = write!(
+        s,
+        ", {} within it; {} differ in frame time outside the noise.",
+        compared.len() - out_error.len(),
+        out_time
+    );
+    s
 }
 
 fn sweep_section(out: &mut String, dir: &Path, m: &Manifest, rows: &[Row]) {
@@ -1090,6 +1244,10 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest, rows: &[Row]) {
         let _ = writeln!(out, "### Frames\n");
         let _ = writeln!(
             out,
+            "Per pose and variant, side by side: the ray-traced **ground truth**, the **frame** the variant rendered on its backend, and the error maps: **FLIP error** against the truth, **LOD error** against the same backend's full-detail frame, **total error** at the truth's sampling rate; then the **LOD ids** (colours of E Fig. 3.1). The error maps' colour scale: ![FLIP error scale]({FLIP_SCALE})\n"
+        );
+        let _ = writeln!(
+            out,
             "| pose | variant / setting | ground truth | frame | FLIP error | LOD error | total error | LOD ids |"
         );
         let _ = writeln!(out, "|---|---|---|---|---|---|---|---|");
@@ -1169,9 +1327,86 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest, rows: &[Row]) {
     }
 }
 
-/// Writes `DIR/report.md` and `DIR/report.html` from every `DIR/*/sweep.json`; returns the
-/// Markdown's path. Every input is read and checked (module docs) and both pages are made before
-/// either is written, so a refused run gets no report.
+/// The file name of the FLIP colour scale the report writes beside its pages.
+pub const FLIP_SCALE: &str = "flip_scale.png";
+
+/// The file name of the page of the sweep in folder `folder` (beside the index).
+pub fn sweep_page(folder: &str) -> String {
+    format!("sweep-{folder}.html")
+}
+
+/// The index page's Markdown: the headline trade plot of every sweep, scene and camera first
+/// (the first screen), then one sentence per sweep saying what it found ([`finding`]), each
+/// linking to the sweep's page.
+fn index_markdown(run: &Path, sweeps: &[(Sweep, Vec<Row>)]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "# forestlod: the speed–accuracy trade, measured\n");
+    let _ = writeln!(
+        out,
+        "One plot per sweep, scene and camera: one point per variant (mean error against mean frame time over the frames that show trees, 95% intervals as bars), the **Pareto front** (no other variant is both faster and more accurate) as a line, its members numbered. Click a plot for full size; [what each sweep found](#what-each-sweep-found) is below the plots, and each sweep's page has its tables, plots and frames. Generated by {}; `report.md` (for reading in a repository) and `report.html` (one self-contained file, for mailing) hold the same.\n",
+        code_span(&format!("forestlod report --run {}", run.display()))
+    );
+    let _ = writeln!(out, "## The trade per scene and camera\n");
+    let mut line = String::new();
+    for (Sweep { dir, m, .. }, rows) in sweeps {
+        for view in trade::views(rows) {
+            let points = trade::trade_points(rows, &view.scene, &view.camera);
+            let Some(&(cost, error)) = trade::plots(&points).first() else {
+                continue;
+            };
+            let name = trade::plot_name(&view.stem, cost, error);
+            match m.plots.iter().find(|(p, _)| *p == name) {
+                Some((p, _)) => {
+                    let alt = md(&format!(
+                        "{}: scene {}, camera {}, {} against {}",
+                        m.name,
+                        view.scene,
+                        view.camera,
+                        cost.label(),
+                        error.name()
+                    ));
+                    let _ = write!(line, "![{alt}]({}) ", dest(&rel(dir, m, p)));
+                }
+                None => {
+                    let _ = write!(
+                        line,
+                        "\n\n({}: scene {}, camera {}: no trade plot in this run; `forestlod report --replot` draws it.)\n\n",
+                        code_span(&m.name),
+                        code_span(&view.scene),
+                        code_span(&view.camera)
+                    );
+                }
+            }
+        }
+    }
+    let _ = writeln!(out, "{}\n", line.trim_end());
+    let _ = writeln!(out, "## What each sweep found\n");
+    for (Sweep { dir, m, .. }, rows) in sweeps {
+        let _ = writeln!(
+            out,
+            "- **[{}]({})** ({}): {}",
+            md(&m.title),
+            dest(&sweep_page(&folder(dir, m))),
+            code_span(&m.name),
+            finding(m, rows)
+        );
+    }
+    let _ = writeln!(out);
+    out
+}
+
+/// Writes the report of the run `run` from every `DIR/*/sweep.json`; returns the Markdown's
+/// path. The pages (issue 35):
+///
+/// - `DIR/index.html`: the first screen, [`index_markdown`]; images linked, not embedded;
+/// - `DIR/sweep-<folder>.html` ([`sweep_page`]): one page per sweep, its section of the report
+///   with its images linked (lazy-loaded thumbnails that open the full image);
+/// - `DIR/report.md`: every sweep on one page, for reading in a repository;
+/// - `DIR/report.html`: `report.md` as one self-contained page (images embedded), for mailing;
+/// - `DIR/flip_scale.png` (and `.svg`): the colour scale of the FLIP error maps.
+///
+/// Every input is read and checked (module docs) and every page is made before any is written,
+/// so a refused run gets no report.
 pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
     let mut checked = Run::new(run)?;
     let mut sweeps = Vec::new();
@@ -1202,30 +1437,93 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
          fragments, overdraw) and memory (E Eq. 4.1). Accuracy is the error against a ray-traced \
          ground truth of full meshes for every tree, alpha-tested and supersampled (SPEC §10): FLIP \
          mean and 95th/99th percentiles, and the fraction of pixels whose tree / not-tree class \
-         differs. Thesis references: E§5 (Eichner 2024).\n",
+         differs. Thesis references: E§5 (Eichner 2024). The error maps' colour scale: \
+         ![FLIP error scale]({FLIP_SCALE})\n",
         code_span(&format!("forestlod report --run {}", run.display()))
     );
-    let _ = writeln!(out, "Contents:\n");
-    for (Sweep { m, .. }, _) in &sweeps {
+    let _ = writeln!(
+        out,
+        "What each sweep found (paired by pose; details in its section):\n"
+    );
+    for (Sweep { m, .. }, rows) in &sweeps {
         let heading = format!("{} ({})", m.title, m.scenes.join(", "));
         let anchor = crate::html::anchor(&heading);
         let _ = writeln!(
             out,
-            "- [{}](#{anchor}) ({})",
+            "- [{}](#{anchor}) ({}): {}",
             md(&heading),
-            code_span(&m.name)
+            code_span(&m.name),
+            finding(m, rows)
         );
     }
     let _ = writeln!(out);
+    // The FLIP scale is the report's own image: drawn into a private temporary folder (removed
+    // whatever happens), embedded from there, and copied beside the pages with them, so a
+    // refused run still gets nothing written.
+    struct Scratch(PathBuf);
+    impl Drop for Scratch {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+    let scratch = Scratch(std::env::temp_dir().join(format!(
+        "forestlod-report-{}-{}",
+        std::process::id(),
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos())
+    )));
+    let write_error = |p: &Path, e: &dyn std::fmt::Display| {
+        InputError::new(p.display().to_string(), "write", "", e.to_string())
+    };
+    std::fs::create_dir_all(&scratch.0).map_err(|e| write_error(&scratch.0, &e))?;
+    let scale = scratch.0.join(FLIP_SCALE);
+    crate::chart::colour_scale(
+        &scale,
+        "FLIP error (error maps: black 0, no error; yellow-white 1)",
+        &|v| {
+            let t = crate::metrics::error_image(&[v as f32], 1, 1).texels[0];
+            [t[0], t[1], t[2]]
+        },
+    )
+    .map_err(|e| write_error(&scale, &e))?;
+    embeds.insert(
+        FLIP_SCALE.to_string(),
+        Some(crate::html::Embed {
+            file: scale.clone(),
+            named_by: "the report's FLIP colour scale".into(),
+        }),
+    );
+    let mut pages: Vec<(PathBuf, String)> = Vec::new();
+    let back = format!(
+        "[← all sweeps](index.html) · the error maps' colour scale: ![FLIP error scale]({FLIP_SCALE})\n\n"
+    );
     for (Sweep { dir, m, .. }, rows) in &sweeps {
-        sweep_section(&mut out, dir, m, rows);
+        let mut section = String::new();
+        sweep_section(&mut section, dir, m, rows);
+        out.push_str(&section);
+        let title = format!("forestlod: {}", m.title);
+        pages.push((
+            run.join(sweep_page(&folder(dir, m))),
+            crate::html::linked_page(&format!("{back}{section}"), &embeds, &title),
+        ));
     }
     let page = crate::html::report_page(&out, &embeds, "forestlod sweep report")?;
+    let index = crate::html::linked_page(
+        &index_markdown(run, &sweeps),
+        &embeds,
+        "forestlod: the speed–accuracy trade",
+    );
+    pages.push((run.join("index.html"), index));
     let path = run.join("report.md");
-    let html = run.join("report.html");
-    for (file, text) in [(&path, &out), (&html, &page)] {
-        std::fs::write(file, text)
-            .map_err(|e| InputError::new(file.display().to_string(), "write", "", e.to_string()))?;
+    pages.push((path.clone(), out));
+    pages.push((run.join("report.html"), page));
+    for (file, text) in &pages {
+        std::fs::write(file, text).map_err(|e| write_error(file, &e))?;
+    }
+    for ext in ["png", "svg"] {
+        let to = run.join(FLIP_SCALE).with_extension(ext);
+        std::fs::copy(scale.with_extension(ext), &to).map_err(|e| write_error(&to, &e))?;
     }
     Ok(path)
 }
@@ -1271,7 +1569,8 @@ pub fn run(args: &ReportArgs) -> Result<(), Box<dyn std::error::Error>> {
     }
     let path = write_report(&args.run)?;
     println!(
-        "wrote {} and {} (self-contained)",
+        "wrote {} (open this: the trade per sweep, scene and camera, and a page per sweep), {} and {} (self-contained)",
+        args.run.join("index.html").display(),
         path.display(),
         args.run.join("report.html").display()
     );
@@ -1389,5 +1688,31 @@ mod tests {
         ];
         let front: Vec<String> = pareto(&groups).into_iter().map(|(k, _)| k).collect();
         assert_eq!(front, ["fast bad", "middle", "slow good"]);
+    }
+
+    proptest::proptest! {
+        /// Issue 35: a point is on the Pareto front if and only if no other point is better in
+        /// both cost and error (at most as large in each, smaller in one); the front lists each
+        /// such point once, by increasing first coordinate. Points come from a small grid, so
+        /// ties and duplicates are frequent.
+        #[test]
+        fn a_point_is_on_the_front_iff_no_other_beats_it_on_both(
+            points in proptest::collection::vec((0u8..6, 0u8..6), 0..14)
+        ) {
+            let points: Vec<(f64, f64)> =
+                points.iter().map(|&(x, y)| (f64::from(x), f64::from(y))).collect();
+            let front = pareto_indices(&points);
+            let beats = |b: (f64, f64), a: (f64, f64)| {
+                b.0 <= a.0 && b.1 <= a.1 && (b.0 < a.0 || b.1 < a.1)
+            };
+            for (i, &a) in points.iter().enumerate() {
+                let beaten = points.iter().enumerate().any(|(j, &b)| j != i && beats(b, a));
+                proptest::prop_assert_eq!(front.contains(&i), !beaten, "point {} {:?} in {:?}", i, a, points);
+            }
+            let mut unique = front.clone();
+            unique.dedup();
+            proptest::prop_assert_eq!(unique.len(), front.len());
+            proptest::prop_assert!(front.windows(2).all(|w| points[w[0]].0 <= points[w[1]].0));
+        }
     }
 }

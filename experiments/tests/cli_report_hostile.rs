@@ -124,11 +124,36 @@ fn the_unedited_copy_reports_and_embeds_its_plots() {
     let (run, _, secret, text) = crafted_run("control");
     assert!(matches!(report(&run, &secret, &text), Outcome::Written));
     let html = std::fs::read_to_string(run.join("report.html")).unwrap();
-    let plot = std::fs::read(run.join("mip_mode/runtime.png")).unwrap();
+    // Issue 35: a plot with an SVG twin beside it is embedded as that SVG.
+    let plot = std::fs::read(run.join("mip_mode/runtime.svg")).unwrap();
     assert!(
         html.contains(&base64(&plot)),
         "the run's own plot is embedded"
     );
+}
+
+#[cfg(unix)]
+#[test]
+fn a_plot_twin_that_leaves_the_run_is_not_read() {
+    // The SVG twin of a plot is not named by the manifest; a twin that is a link to a file
+    // outside the run (or a special file) is skipped unread, and the PNG is embedded instead.
+    let (run, sweep, secret, text) = crafted_run("twin");
+    let twin = sweep.join("runtime.svg");
+    std::fs::remove_file(&twin).unwrap();
+    std::os::unix::fs::symlink(&secret, &twin).unwrap();
+    let fifo = sweep.join("accuracy.svg");
+    std::fs::remove_file(&fifo).unwrap();
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success());
+    assert!(made, "mkfifo");
+    assert!(matches!(report(&run, &secret, &text), Outcome::Written));
+    let html = std::fs::read_to_string(run.join("report.html")).unwrap();
+    for png in ["runtime.png", "accuracy.png"] {
+        let plot = std::fs::read(sweep.join(png)).unwrap();
+        assert!(html.contains(&base64(&plot)), "{png} embedded instead");
+    }
 }
 
 #[test]

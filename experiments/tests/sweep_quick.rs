@@ -346,44 +346,63 @@ fn check_temporal_columns(
     scored
 }
 
-/// The trade as a curve (issue 29) in the report of sweep `name`: its manifest lists a
-/// `trade_*` plot per scene and cost, each linked from `report.md` (`text`) and embedded in
-/// `report.html` (`html`), and the report names every group of its Pareto front.
+/// The trade as a curve (issues 29, 35) in the report of sweep `name`: its manifest lists a
+/// `trade_*` plot (PNG, with its SVG twin) per scene, camera, cost and error, each linked from
+/// `report.md` (`text`) and embedded in `report.html` (`html`, as its SVG), and the report names every group
+/// of its Pareto front; the index links each view's headline plot and the sweep's page.
 fn check_trade_plots(name: &str, out: &std::path::Path, text: &str, html: &str) {
     use forestlod_experiments::html::escape_markdown;
-    use forestlod_experiments::report::trade::{Cost, files, fronts, plot_name, trade_points};
+    use forestlod_experiments::report::trade::{fronts, plot_name, plots, trade_points, views};
     let dir = out.join(name);
     let manifest: Manifest =
         serde_json::from_str(&std::fs::read_to_string(dir.join("sweep.json")).unwrap()).unwrap();
     let rows = read_rows(&dir.join(&manifest.csv)).unwrap();
+    let index = std::fs::read_to_string(out.join("index.html")).unwrap();
     assert!(
-        text.contains("### Cost against LOD error"),
+        text.contains("### The trade: cost against error"),
         "{name}: no trade section"
     );
-    let mut plots = 0;
-    for (scene, stem) in files(&rows) {
-        let points = trade_points(&rows, &scene);
-        for cost in Cost::ALL {
-            let fronts = fronts(&points, cost);
-            let plot = plot_name(&stem, cost);
+    assert!(
+        index.contains(&format!("href=\"sweep-{name}.html\"")),
+        "{name}: the index does not link its page"
+    );
+    assert!(out.join(format!("sweep-{name}.html")).is_file());
+    let mut count = 0;
+    for view in views(&rows) {
+        let points = trade_points(&rows, &view.scene, &view.camera);
+        for (k, (cost, error)) in plots(&points).into_iter().enumerate() {
+            let fronts = fronts(&points, cost, error);
+            assert!(!fronts.is_empty());
+            let plot = plot_name(&view.stem, cost, error);
             let listed = manifest.plots.iter().find(|(p, _)| *p == plot);
-            if fronts.is_empty() {
-                assert!(listed.is_none(), "{name}: {plot} without a front");
-                continue;
-            }
             let (_, caption) = listed.unwrap_or_else(|| panic!("{name}: {plot} not listed"));
             assert!(dir.join(&plot).is_file(), "{name}: {plot} missing");
+            assert!(
+                dir.join(&plot).with_extension("svg").is_file(),
+                "{name}: {plot}'s SVG missing"
+            );
             let path = format!("{name}/{plot}");
             assert!(
                 text.contains(&format!("]({path})")),
                 "{name}: {plot} not linked"
             );
+            // The self-contained page embeds the SVG twin (issue 35).
+            let svg = format!(
+                "{name}/{}",
+                std::path::Path::new(&plot).with_extension("svg").display()
+            );
             assert!(
                 html.contains(&format!(
-                    "title=\"{path}\" loading=\"lazy\" src=\"data:image/png;base64,"
+                    "title=\"{svg}\" loading=\"lazy\" src=\"data:image/svg+xml;base64,"
                 )),
                 "{name}: {plot} not embedded"
             );
+            if k == 0 {
+                assert!(
+                    index.contains(&format!("src=\"{path}\"")),
+                    "{name}: headline plot {plot} not on the index"
+                );
+            }
             for (backend, front) in &fronts {
                 assert!(
                     caption.contains(&format!("Pareto front ({backend}): ")),
@@ -401,8 +420,8 @@ fn check_trade_plots(name: &str, out: &std::path::Path, text: &str, html: &str) 
                     );
                 }
             }
-            plots += 1;
+            count += 1;
         }
     }
-    assert!(plots > 0, "{name}: no trade plot");
+    assert!(count > 0, "{name}: no trade plot");
 }

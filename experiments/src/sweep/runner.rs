@@ -27,6 +27,7 @@ use forestlod_shared::{Camera, CommandData, DrawCommand, FramePlan, Occlusion, P
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::fair::{TruthLayout, box_filter, supersampled};
+use crate::legend::{with_caption, with_flip_scale, with_lod_legend};
 use crate::metrics::{Accuracy, accuracy, error_image, lod_error, per_lod_error_maps, total_error};
 use crate::temporal::{DEFAULT_POOL, TemporalError, full_change, pair_excess, pool, score};
 
@@ -882,24 +883,44 @@ fn save_frame_images(
     };
     let gt_path = rel(format!("{}_gt.png", slug(&truth_slug)));
     let gt_class = rel(format!("{}_gt_class.png", slug(&truth_slug)));
+    // Every image the report shows says what it is, the error maps with their scale (issue 35,
+    // `crate::legend`: a strip below the image; the measured pixels are untouched).
     if !dir.join(&gt_path).is_file() {
-        write_png(&dir.join(&gt_path), &gt.srgb)?;
+        write_png(
+            &dir.join(&gt_path),
+            &with_caption(&gt.srgb, "ground truth (ray traced)"),
+        )?;
         write_png(&dir.join(&gt_class), &gt.class_image())?;
     }
     let color_path = rel(format!("{stem}_color.png"));
     let lod = rel(format!("{stem}_lod.png"));
     let flip = rel(format!("{stem}_flip.png"));
     let lod_flip = rel(format!("{stem}_lod_flip.png"));
-    write_png(&dir.join(&lod_flip), &error_image(lod_map, w, h))?;
-    write_png(&dir.join(&color_path), color)?;
-    write_png(&dir.join(&lod), &lod_id_image(w, h, aux))?;
+    write_png(
+        &dir.join(&lod_flip),
+        &with_flip_scale(&error_image(lod_map, w, h), "LOD error (FLIP)"),
+    )?;
+    write_png(
+        &dir.join(&color_path),
+        &with_caption(
+            color,
+            &format!("{} ({}), {}", variant.name(), backend.name(), set.label),
+        ),
+    )?;
+    write_png(&dir.join(&lod), &with_lod_legend(&lod_id_image(w, h, aux)))?;
     // The errors against the truth are on its layout (the mosaic of sampled tiles, or the frame).
     let (tw, th) = (gt.width, gt.height);
-    write_png(&dir.join(&flip), &error_image(map, tw, th))?;
+    write_png(
+        &dir.join(&flip),
+        &with_flip_scale(&error_image(map, tw, th), "FLIP vs truth"),
+    )?;
     let total_flip = match total {
         Some((total_map, _)) => {
             let p = rel(format!("{stem}_total_flip.png"));
-            write_png(&dir.join(&p), &error_image(total_map, tw, th))?;
+            write_png(
+                &dir.join(&p),
+                &with_flip_scale(&error_image(total_map, tw, th), "total error (FLIP)"),
+            )?;
             p
         }
         None => String::new(),
@@ -913,7 +934,10 @@ fn save_frame_images(
                     continue;
                 }
                 let p = rel(format!("{stem}_{kind}_{}.png", m.label));
-                write_png(&dir.join(&p), &m.image)?;
+                write_png(
+                    &dir.join(&p),
+                    &with_flip_scale(&m.image, &format!("{kind}, {}", m.label)),
+                )?;
                 out.push((m.label.to_string(), p, m.flip_mean, m.pixels));
             }
         }
