@@ -50,10 +50,10 @@ use forestlod_shared::{
     AzimuthMode, COMMAND_SHIFT, Camera, CommandData, FadeGranularity, FadeMode, MAX_MESH_VERTICES,
     MeshMeta, Params, Shading, angle_index_for, azimuth_mix, azimuth_pack, azimuth_position,
     azimuth_second_layer, azimuth_unpack, azimuth_view, bake_elevation, billboard_extent,
-    crown_radii, fade_progress, frame_basis, frame_direction, octahedral_frames, octahedral_layer,
-    octahedral_mix, octahedral_pack, octahedral_unpack, octahedral_view, reproject_duv,
-    reproject_uv, subset_fragment_weight, subset_pack, subset_scale, subset_weight_code,
-    vertex_lightness, view_interval, view_layer,
+    crown_radii, fade_progress, fitted_corner, frame_basis, frame_direction, octahedral_frames,
+    octahedral_layer, octahedral_mix, octahedral_pack, octahedral_unpack, octahedral_view,
+    quad_fit, reproject_duv, reproject_uv, subset_fragment_weight, subset_pack, subset_scale,
+    subset_weight_code, vertex_lightness, view_interval, view_layer,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -421,20 +421,36 @@ fn octahedral_kind(
         camera_eye,
         view_forward,
     );
-    let half = mesh_meta.sphere_radius;
+    // The quad fitted to the bounding box on the quad's basis (`quad_fit`).
+    let s_r = mesh_meta.sphere_radius;
+    let half = [0, 1, 2].map(|i| (mesh_meta.bbox_max[i] - mesh_meta.bbox_min[i]) * 0.5);
+    let fit = quad_fit(half, qr, qu, s_r);
     TreeKind::Billboard {
         origin: centre,
         toward_eye: h.normalize().to_array(),
         right: turn(qr),
         up: turn(qu),
-        frame: Some([qr, qu, r, u]),
-        half_width: half,
-        bottom: -half,
-        height: 2.0 * half,
+        frame: Some(OctahedralQuad {
+            quad: [qr, qu],
+            frame: [r, u],
+            fit,
+        }),
+        half_width: fit[0] * s_r,
+        bottom: -(fit[1] * s_r),
+        height: 2.0 * (fit[1] * s_r),
         layer: octahedral_pack(octahedral_layer(tree.mesh, view.cell, n), view) as f32,
         depth_lo: interval.lo,
         depth_hi: interval.hi,
     }
+}
+
+/// An octahedral impostor's quad (issue 32): its basis and the nearest frame's (mesh-local), and
+/// its fit in the sphere's square ([`forestlod_shared::quad_fit`]).
+#[derive(Clone, Copy, Debug)]
+struct OctahedralQuad {
+    quad: [[f32; 3]; 2],
+    frame: [[f32; 3]; 2],
+    fit: [f32; 2],
 }
 
 /// What [`tree_stage`] computed for one tree in one command.
@@ -483,10 +499,9 @@ enum TreeKind {
         toward_eye: [f32; 3],
         right: Vec3,
         up: Vec3,
-        /// An octahedral impostor's quad basis and nearest frame's basis, mesh-local
-        /// (`[R_quad, U_quad, R_frame, U_frame]`, issue 32): a corner's `uv` is its re-projection
-        /// onto the frame. `None` for the thesis's billboards (the corner is the `uv`).
-        frame: Option<[[f32; 3]; 4]>,
+        /// An octahedral impostor's quad (issue 32): a corner's `uv` is its re-projection onto
+        /// the nearest frame. `None` for the thesis's billboards (the corner is the `uv`).
+        frame: Option<OctahedralQuad>,
         half_width: f32,
         bottom: f32,
         height: f32,
@@ -542,7 +557,13 @@ impl TreeStage {
                 let along_right = (2.0 * corner[0] - 1.0) * half_width * self.scale;
                 let along_up = (bottom + (1.0 - corner[1]) * height) * self.scale;
                 let uv = match frame {
-                    Some([qr, qu, r, u]) => reproject_uv(corner, qr, qu, r, u),
+                    Some(q) => reproject_uv(
+                        fitted_corner(corner, q.fit),
+                        q.quad[0],
+                        q.quad[1],
+                        q.frame[0],
+                        q.frame[1],
+                    ),
                     None => corner,
                 };
                 (origin + right * along_right + up * along_up, uv, layer)

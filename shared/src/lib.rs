@@ -103,9 +103,9 @@ pub use occlusion::{
 pub use octahedral::{
     MAX_OCTAHEDRAL_GRID, MIN_OCTAHEDRAL_GRID, OCTAHEDRAL_LAYER_BITS, OCTAHEDRAL_STEP,
     OCTAHEDRAL_STEPS, OctahedralFrames, OctahedralView, ViewSphere, check_octahedral_layers,
-    frame_basis, frame_direction, frame_uv, octahedral_decode, octahedral_encode,
+    fitted_corner, frame_basis, frame_direction, frame_uv, octahedral_decode, octahedral_encode,
     octahedral_frames, octahedral_layer, octahedral_mix, octahedral_pack, octahedral_unpack,
-    octahedral_view, reproject_duv, reproject_uv,
+    octahedral_view, quad_fit, reproject_duv, reproject_uv,
 };
 pub use params::{
     AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,

@@ -42,11 +42,14 @@
 //!   upper `(1,1), (1,0), (0,1)` with `(q_x + q_y − 64, 64 − q_y, 64 − q_x)/64`. The weights are
 //!   multiples of `1/64`, exact in `f32`, non-negative, and sum to 1 exactly. The *nearest* frame is
 //!   the one of largest weight, the first on a tie.
-//! - **Quad** (draw stage): a square of half side `S·scale` about the tree's sphere centre facing
-//!   the eye (the [`frame_basis`] of the eye's mesh-local direction, turned by the tree's yaw).
-//!   Its corners' `uv` are their re-projection onto the nearest frame ([`reproject_uv`]: the
-//!   peers' "virtual plane" projection, `uv_i = (½ + ½ p·R_i, ½ − ½ p·U_i)` for the quad point
-//!   `p = (2u − 1)R + (1 − 2v)U`), linear in the corner, so it interpolates exactly.
+//! - **Quad** (draw stage): a rectangle about the tree's sphere centre facing the eye (the
+//!   [`frame_basis`] of the eye's mesh-local direction, turned by the tree's yaw), fitted to the
+//!   mesh's bounding box projected on that basis ([`quad_fit`]: at most the sphere's square of
+//!   half side `S·scale`). Its corners' `uv` are their re-projection onto the nearest frame
+//!   ([`reproject_uv`] of [`fitted_corner`]: the peers' "virtual plane" projection,
+//!   `uv_i = (½ + ½ p·R_i, ½ − ½ p·U_i)` for the quad point `p = (2u − 1)R + (1 − 2v)U`), linear in
+//!   the corner, so it interpolates exactly. The fit halved the fragments rasterized against the
+//!   sphere's square (`experiments/results/impostors/`).
 //! - **Blend** (`Params::octahedral_blend`, `AzimuthMode`'s names): `nearest` samples that frame
 //!   only; `blend` also samples the other two at the nearest frame's `uv` re-projected onto
 //!   theirs (through the nearest frame's plane: the error against re-projecting the eye-facing
@@ -303,6 +306,25 @@ pub fn reproject_uv(
     ];
     let dot = |q: [f32; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
     [0.5 + dot(r) * 0.5, 0.5 - dot(u) * 0.5]
+}
+
+/// How much of the sphere's square the quad on basis `(r, u)` needs (the quad fit): the mesh's
+/// bounding box (half sizes `half`, centred on the sphere centre) projected on `r` and on `u`, as
+/// fractions of the sphere radius `s`, at most 1. Every mesh point projects inside the fitted
+/// rectangle, so a quad of half sides `f_r·s`, `f_u·s` holds the tree from this eye.
+pub fn quad_fit(half: [f32; 3], r: [f32; 3], u: [f32; 3], s: f32) -> [f32; 2] {
+    let reach = |a: [f32; 3]| a[0].abs() * half[0] + a[1].abs() * half[1] + a[2].abs() * half[2];
+    let f = |x: f32| (x / s.max(f32::MIN_POSITIVE)).max(0.0).min(1.0);
+    [f(reach(r)), f(reach(u))]
+}
+
+/// A corner `corner ∈ [0, 1]²` of the fitted quad ([`quad_fit`]) as a point of the sphere's
+/// square, `½ + (corner − ½)·fit`: what [`reproject_uv`] takes.
+pub fn fitted_corner(corner: [f32; 2], fit: [f32; 2]) -> [f32; 2] {
+    [
+        0.5 + (corner[0] - 0.5) * fit[0],
+        0.5 + (corner[1] - 0.5) * fit[1],
+    ]
 }
 
 /// A `uv` derivative of the quad re-projected onto frame `(r, u)` ([`reproject_uv`] is linear in
@@ -569,6 +591,27 @@ mod tests {
             let want = frame_uv(p, r1, u1, 1.0);
             let got = reproject_uv([u, v], r0, u0, r1, u1);
             prop_assert!((want[0] - got[0]).abs() < 1e-5 && (want[1] - got[1]).abs() < 1e-5);
+        }
+
+        /// The fitted quad holds every point of the bounding box from every eye: a point's
+        /// offset on the quad's basis is within the fit (to f32 rounding), and the fit is at most
+        /// the sphere's square.
+        #[test]
+        fn the_fitted_quad_holds_the_box(
+            hx in 0.1f32..5.0, hy in 0.1f32..5.0, hz in 0.5f32..20.0,
+            px in -1.0f32..=1.0, py in -1.0f32..=1.0, pz in -1.0f32..=1.0,
+            x in -1.0f32..1.0, y in -1.0f32..1.0, z in -1.0f32..1.0,
+        ) {
+            prop_assume!(x.abs() + y.abs() + z.abs() > 1e-3);
+            let l = (x * x + y * y + z * z).sqrt();
+            let (r, u) = frame_basis([x / l, y / l, z / l]);
+            let s = (hx * hx + hy * hy + hz * hz).sqrt();
+            let fit = quad_fit([hx, hy, hz], r, u, s);
+            prop_assert!(fit[0] <= 1.0 && fit[1] <= 1.0 && fit[0] >= 0.0 && fit[1] >= 0.0);
+            let p = [px * hx, py * hy, pz * hz];
+            let dot = |a: [f32; 3]| p[0] * a[0] + p[1] * a[1] + p[2] * a[2];
+            prop_assert!(dot(r).abs() <= fit[0] * s * (1.0 + 1e-5) + 1e-5, "{} > {}", dot(r), fit[0] * s);
+            prop_assert!(dot(u).abs() <= fit[1] * s * (1.0 + 1e-5) + 1e-5, "{} > {}", dot(u), fit[1] * s);
         }
 
         /// The mix is a weighted mean: alpha is the weighted alpha, colours stay within the

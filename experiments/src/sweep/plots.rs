@@ -416,7 +416,7 @@ pub fn write_plots(
     if let Some((name, caption, series)) = billboard_memory_series(rows) {
         let axes = Axes {
             title: format!("{}: billboard LOD error vs memory", spec.name),
-            x_label: "memory beside E Eq. 4.1 [MB] (billboards: K x J x r^2 x 5.3 B a mesh)".into(),
+            x_label: "memory beside E Eq. 4.1 [MB] (billboards: K x J or N^2 layers x r^2 x 5.3 B a mesh)".into(),
             y_label: "LOD error in the billboard region".into(),
             log_x: true,
             log_y: false,
@@ -438,7 +438,16 @@ fn billboard_memory_series(
     rows: &[Row],
 ) -> Option<(&'static str, String, Vec<crate::plot::IntervalSeries>)> {
     use crate::plot::{IntervalPoint, IntervalSeries, PALETTE};
-    let views = |r: &Row| (r.params.angle_count, r.params.azimuth_count);
+    let views = |r: &Row| {
+        let p = &r.params;
+        (
+            p.angle_count,
+            p.azimuth_count,
+            p.billboard_views,
+            p.octahedral_grid,
+            p.texture_size,
+        )
+    };
     let first = rows.first().map(views)?;
     if rows.iter().all(|r| views(r) == first)
         || !rows
@@ -450,19 +459,38 @@ fn billboard_memory_series(
     let mut order: Vec<String> = Vec::new();
     let mut points: BTreeMap<(String, u32), Vec<&Row>> = BTreeMap::new();
     for r in rows {
-        let mode =
-            forestlod_shared::AzimuthMode::from_id(r.params.azimuth_mode).map_or("?", |m| m.name());
-        let label = format!(
-            "{} {} J{} {mode}",
-            r.camera, r.backend, r.params.azimuth_count
-        );
+        let p = &r.params;
+        let name = |id: u32| forestlod_shared::AzimuthMode::from_id(id).map_or("?", |m| m.name());
+        // Octahedral impostors (issue 32): one line per map, rule and texture side, its points
+        // the grid sides N; elevation views: one line per J, rule and side, its points K.
+        let (label, point) = match forestlod_shared::ViewSphere::from_id(p.billboard_views) {
+            Some(v) if v.is_octahedral() => (
+                format!(
+                    "{} {} {} {} r{}",
+                    r.camera,
+                    r.backend,
+                    v.name(),
+                    name(p.octahedral_blend),
+                    p.texture_size
+                ),
+                p.octahedral_grid,
+            ),
+            _ => (
+                format!(
+                    "{} {} J{} {} r{}",
+                    r.camera,
+                    r.backend,
+                    p.azimuth_count,
+                    name(p.azimuth_mode),
+                    p.texture_size
+                ),
+                p.angle_count,
+            ),
+        };
         if !order.contains(&label) {
             order.push(label.clone());
         }
-        points
-            .entry((label, r.params.angle_count))
-            .or_default()
-            .push(r);
+        points.entry((label, point)).or_default().push(r);
     }
     let series = order
         .iter()
@@ -498,8 +526,9 @@ fn billboard_memory_series(
         "billboard_memory.png",
         "The billboards' own LOD error (mean FLIP against the full-detail frame over the pixels \
          drawn as billboards, 95 % intervals over frames) against memory beside E Eq. 4.1, one \
-         line per camera, backend, azimuth count J and rule, its points the elevation counts K \
-         (issue 30)."
+         line per camera, backend, azimuth count J, rule and texture side, its points the \
+         elevation counts K (issue 30); octahedral impostors one line per map, rule and side, \
+         their points the grid sides N (issue 32)."
             .into(),
         series,
     ))

@@ -1030,6 +1030,14 @@ fn octahedral_unpack_view(word: u32, grid: u32) -> OctahedralView {
     );
 }
 
+// forestlod_shared::quad_fit.
+fn octahedral_quad_fit(half: vec3<f32>, q: FrameBasis, s: f32) -> vec2<f32> {
+    let d = max(s, 1.17549435e-38);
+    let rr = abs(q.right.x) * half.x + abs(q.right.y) * half.y + abs(q.right.z) * half.z;
+    let ru = abs(q.up.x) * half.x + abs(q.up.y) * half.y + abs(q.up.z) * half.z;
+    return vec2<f32>(min(max(rr / d, 0.0), 1.0), min(max(ru / d, 0.0), 1.0));
+}
+
 // forestlod_shared::reproject_uv.
 fn octahedral_reproject(uv: vec2<f32>, src: FrameBasis, dst: FrameBasis) -> vec2<f32> {
     let a = uv.x * 2.0 - 1.0;

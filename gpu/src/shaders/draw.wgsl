@@ -224,11 +224,21 @@ fn tree_vertex(
             h = vec3<f32>(1.0, 0.0, 0.0);
         }
         toward_eye = h * (1.0 / length(h));
-        let half = mesh_meta.sphere_radius;
-        let along_right = (2.0 * corner.x - 1.0) * half * t.scale;
-        let along_up = (-half + (1.0 - corner.y) * (2.0 * half)) * t.scale;
+        // The quad fitted to the bounding box on the quad's basis (common.wgsl octahedral_quad_fit).
+        let s_r = mesh_meta.sphere_radius;
+        let half = vec3<f32>(
+            (mesh_meta.bbox_max[0] - mesh_meta.bbox_min[0]) * 0.5,
+            (mesh_meta.bbox_max[1] - mesh_meta.bbox_min[1]) * 0.5,
+            (mesh_meta.bbox_max[2] - mesh_meta.bbox_min[2]) * 0.5,
+        );
+        let fit = octahedral_quad_fit(half, quad, s_r);
+        let half_width = fit.x * s_r;
+        let half_height = fit.y * s_r;
+        let along_right = (2.0 * corner.x - 1.0) * half_width * t.scale;
+        let along_up = (-half_height + (1.0 - corner.y) * (2.0 * half_height)) * t.scale;
         world = sphere.center + right * along_right + up * along_up;
-        uv = octahedral_reproject(corner, quad, basis);
+        let fitted = vec2<f32>(0.5 + (corner.x - 0.5) * fit.x, 0.5 + (corner.y - 0.5) * fit.y);
+        uv = octahedral_reproject(fitted, quad, basis);
         let n = max(u.octahedral_grid, MIN_OCTAHEDRAL_GRID);
         layer = octahedral_pack(t.mesh * n * n + view.cell, view);
     } else {
