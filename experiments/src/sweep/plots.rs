@@ -469,7 +469,12 @@ fn billboard_memory_series(
                     "{} {} {} {} r{}",
                     r.camera,
                     r.backend,
-                    v.name(),
+                    // Short, so the legend does not cut the rule and the side.
+                    if v == forestlod_shared::ViewSphere::HemiOctahedral {
+                        "hemi"
+                    } else {
+                        "octa"
+                    },
                     name(p.octahedral_blend),
                     p.texture_size
                 ),
