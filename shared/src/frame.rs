@@ -139,14 +139,24 @@ pub struct FramePlan {
     /// Occlusion culling (issue 31): `off`, or the draw split in two around `pyramid` and
     /// `occlude` (`crate::occlusion`).
     pub occlusion: Occlusion,
+    /// The far level (issue 32, `crate::far`) under `lod_levels = 3`: `far_bake` runs and the
+    /// cut selects far nodes.
+    pub far: Option<crate::FarLod>,
 }
 
 impl FramePlan {
     /// The plan of `params` (the one place the selection strategy is decided). Fails on an
     /// unknown mode id.
     pub fn new(params: &Params) -> Result<Self, ParamError> {
+        // Only the cut decides far nodes: a far level selects the grid batches by the cut of
+        // their depth-1 hierarchy.
+        let far = if params.lod_levels >= 3 {
+            Some(params.far_level()?)
+        } else {
+            None
+        };
         let selection = match params.hierarchy_mode()? {
-            Hierarchy::Grid => SelectionPlan::Flat,
+            Hierarchy::Grid if far.is_none() => SelectionPlan::Flat,
             hierarchy => SelectionPlan::Cut {
                 hierarchy,
                 coalesce: params.coalescing()?,
@@ -162,6 +172,7 @@ impl FramePlan {
             selection,
             refine,
             occlusion,
+            far,
         })
     }
 

@@ -37,6 +37,7 @@ pub mod coverage;
 pub mod cut;
 pub mod emit;
 pub mod fade;
+pub mod far;
 pub mod frame;
 pub mod interval;
 pub mod light;
@@ -78,6 +79,12 @@ pub use emit::{EmitGroup, count_command, emit_command};
 pub use fade::{
     DitherSpace, FadeGranularity, FadeMode, LodWeights, fade_progress, lod_weights,
     tree_lod_weights, weights_at,
+};
+pub use far::{
+    CUBE_VERTICES, FAR_ALPHA_MIN, FAR_BAKE_PIXELS, FarCell, FarLevel, FarLod, FarNode, FarUniform,
+    FarVertex, LOD_FAR, MAX_CLUSTER_SIZE, MAX_HULL_TRIANGLES, ParentRule, SIDE_COUNT,
+    SPRITE_VERTICES, box_area_along, cube_corner, far_eligible, pack_far_colour, side_mix,
+    side_normal, side_of, side_weights, sprite_corner, sprite_half, unpack_far_colour,
 };
 pub use frame::{FramePart, FramePlan, SelectionPlan, StageId};
 pub use interval::{

@@ -256,8 +256,24 @@ pub struct Params {
     /// the three around the eye (default, the peers'). Read only under an octahedral
     /// `billboard_views`.
     pub octahedral_blend: u32,
+    /// [`crate::FarLod`] as `u32` (issue 32, `shared/src/far.rs`): the far level's primitive under
+    /// `lod_levels = 3`. Default `octant-cube`, G§6's.
+    pub far_lod: u32,
+    /// View depth from which a whole node may go far (issue 32), metres; at least
+    /// `lod1_transition` under `lod_levels = 3`, so the chain mesh → billboard → far holds per tree.
+    pub far_start: f32,
+    /// Screen area under which a node goes far (issue 32, C§4.6.3's metric on the node's box),
+    /// pixels. Default 64.
+    pub far_pixels: f32,
+    /// Cells per axis of a node's far level (G§2.4 `clusterSize`, read in 3D: `cs³` cells). Default 1.
+    pub cluster_size: u32,
+    /// [`crate::ParentRule`] as `u32` (issue 32, G§2.2): how interior nodes' cells are made from
+    /// their children's. Default `average`, the seed's.
+    pub parent_rule: u32,
+    /// Explicit padding to a multiple of 8 bytes.
+    pub _pad_far: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 152);
+const _: () = assert!(core::mem::size_of::<Params>() == 176);
 
 impl Default for Params {
     fn default() -> Self {
@@ -300,6 +316,12 @@ impl Default for Params {
             billboard_views: crate::ViewSphere::Elevation as u32,
             octahedral_grid: 12,
             octahedral_blend: crate::AzimuthMode::Blend as u32,
+            far_lod: crate::FarLod::OctantCube as u32,
+            far_start: 2000.0,
+            far_pixels: 64.0,
+            cluster_size: 1,
+            parent_rule: crate::ParentRule::Average as u32,
+            _pad_far: 0,
         }
     }
 }

@@ -17,12 +17,13 @@
 use std::borrow::Cow;
 
 use crate::azimuth::MAX_AZIMUTH_COUNT;
+use crate::far::MAX_CLUSTER_SIZE;
 use crate::octahedral::{MAX_OCTAHEDRAL_GRID, MIN_OCTAHEDRAL_GRID};
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{
     AngleIndexMode, AzimuthMode, Coalesce, CommandOrder, DitherSpace, FadeGranularity, FadeMode,
-    Hierarchy, LodMetric, MipMode, Occlusion, OcclusionOrder, Params, Shading, SubsetMode,
-    TreeCull, ViewSphere,
+    FarLod, Hierarchy, LodMetric, MipMode, Occlusion, OcclusionOrder, Params, ParentRule, Shading,
+    SubsetMode, TreeCull, ViewSphere,
 };
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.
@@ -329,16 +330,16 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 38] = [
+pub const PARAMS: [ParamSpec; 43] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
         "Number of billboard elevation angles K (E§3.3)"),
     param!(texture_size, "texture-size", power_of_two(MAX_TEXTURE_SIZE), "expected a power of two in 1..=4096",
         "Billboard texture side r, a power of two (E§3.3)"),
-    param!(lod_levels, "lod-levels", uint(1, 2),
-        "expected 1 (meshes only) or 2 (meshes then billboards): a scene has only these two representations",
-        "LOD levels: 1 (meshes only) or 2"),
+    param!(lod_levels, "lod-levels", uint(1, 3),
+        "expected 1 (meshes only), 2 (meshes then billboards) or 3 (then the far level of far-lod)",
+        "LOD levels: 1 (meshes only), 2 (then billboards) or 3 (then far-lod, issue 32)"),
     param!(lod1_transition, "transition", distance(0.0), "expected a finite distance in 0..=1e7 m",
         "View depth where billboards have fully replaced meshes, metres (E§3.5)"),
     param!(fade_width, "fade-width", distance(0.0), "expected a finite width in 0..=1e7 m",
@@ -392,6 +393,14 @@ pub const PARAMS: [ParamSpec; 38] = [
     param!(octahedral_grid, "octahedral-grid", uint(MIN_OCTAHEDRAL_GRID, MAX_OCTAHEDRAL_GRID), "expected 2..=32 frames a side",
         "Side N of the octahedral impostor grid, N x N frames per mesh"),
     choice!(octahedral_blend, "octahedral-blend", AzimuthMode, "Octahedral impostor frames drawn (issue 32): ", ""),
+    choice!(far_lod, "far-lod", FarLod, "Far level of whole nodes under lod-levels 3 (issue 32): ", ""),
+    param!(far_start, "far-start", distance(0.0), "expected a finite distance in 0..=1e7 m",
+        "View depth from which a whole node may go far, metres (issue 32)"),
+    param!(far_pixels, "far-pixels", float(0.0, MAX_METRIC_THRESHOLD), "expected a finite area in 0..=1e9 pixels",
+        "Screen area under which a node goes far, pixels (C§4.6.3 metric on its box)"),
+    param!(cluster_size, "cluster-size", uint(1, MAX_CLUSTER_SIZE), "expected 1..=12 cells per axis",
+        "Cells per axis of a node's far level (G§2.4 clusterSize, cs^3 cells)"),
+    choice!(parent_rule, "parent-rule", ParentRule, "How interior nodes' far cells come from their children (G§2.2): ", ""),
 ];
 
 /// Least `subset_min`: one tree in a thousand (a smaller floor leaves batches of a few hundred

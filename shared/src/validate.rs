@@ -93,6 +93,16 @@ impl Params {
             .ok_or_else(|| rejected("billboard_views", self))
     }
 
+    /// The far level's primitive (issue 32), validated.
+    pub fn far_level(&self) -> Result<crate::FarLod, ParamError> {
+        crate::FarLod::from_id(self.far_lod).ok_or_else(|| rejected("far_lod", self))
+    }
+
+    /// The far level's parent rule (issue 32), validated.
+    pub fn far_parent_rule(&self) -> Result<crate::ParentRule, ParamError> {
+        crate::ParentRule::from_id(self.parent_rule).ok_or_else(|| rejected("parent_rule", self))
+    }
+
     /// The azimuth view rule (issue 30), validated.
     pub fn azimuth(&self) -> Result<crate::AzimuthMode, ParamError> {
         crate::AzimuthMode::from_id(self.azimuth_mode).ok_or_else(|| rejected("azimuth_mode", self))
@@ -126,6 +136,20 @@ impl Params {
                 reason: "occlusion culling needs subset_mode = off (it compacts the instance \
                          lists, which then carry no subset rank)"
                     .into(),
+            });
+        }
+        // The chain mesh -> billboard -> far is conservative per tree only if the far level starts
+        // where billboards have fully replaced meshes (issue 32, `shared/src/far.rs`).
+        if self.lod_levels >= 3 && !(self.far_start >= self.lod1_transition) {
+            return Err(ParamError {
+                field: "far_start",
+                value: self.far_start.to_string(),
+                reason: format!(
+                    "under lod_levels = 3 the far level must start at or beyond lod1_transition = {} \
+                     (a node goes far only where every tree would be a billboard)",
+                    self.lod1_transition
+                )
+                .into(),
             });
         }
         // One mesh's `K·J` views must fit the billboard array (issue 30); the scene's `m·K·J` is

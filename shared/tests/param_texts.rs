@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 38] = [
+const PINNED: [(&str, &str, &str); 43] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -24,8 +24,8 @@ const PINNED: [(&str, &str, &str); 38] = [
     ),
     (
         "lod_levels",
-        "expected 1 (meshes only) or 2 (meshes then billboards): a scene has only these two representations",
-        "LOD levels: 1 (meshes only) or 2",
+        "expected 1 (meshes only), 2 (meshes then billboards) or 3 (then the far level of far-lod)",
+        "LOD levels: 1 (meshes only), 2 (then billboards) or 3 (then far-lod, issue 32)",
     ),
     (
         "lod1_transition",
@@ -196,6 +196,31 @@ const PINNED: [(&str, &str, &str); 38] = [
         "octahedral_blend",
         "expected 0 (nearest) or 1 (blend)",
         "Octahedral impostor frames drawn (issue 32): nearest, blend",
+    ),
+    (
+        "far_lod",
+        "expected 0 (octant-sprite), 1 (octant-cube) or 2 (hull)",
+        "Far level of whole nodes under lod-levels 3 (issue 32): octant-sprite (G§2.3 sprite), octant-cube (G§2.3 cube), hull (E§7 batch hull)",
+    ),
+    (
+        "far_start",
+        "expected a finite distance in 0..=1e7 m",
+        "View depth from which a whole node may go far, metres (issue 32)",
+    ),
+    (
+        "far_pixels",
+        "expected a finite area in 0..=1e9 pixels",
+        "Screen area under which a node goes far, pixels (C§4.6.3 metric on its box)",
+    ),
+    (
+        "cluster_size",
+        "expected 1..=12 cells per axis",
+        "Cells per axis of a node's far level (G§2.4 clusterSize, cs^3 cells)",
+    ),
+    (
+        "parent_rule",
+        "expected 0 (average) or 1 (composite)",
+        "How interior nodes' far cells come from their children (G§2.2): average (G§2.2), composite (beyond the seed)",
     ),
 ];
 
