@@ -668,6 +668,7 @@ pub fn selection_scene(scene: Scene, params: &Params) -> Result<Prepared> {
         geometry,
         batches,
         hierarchy,
+        far: None,
         mesh_textures: Vec::new(),
         billboards,
         memory,

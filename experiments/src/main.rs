@@ -208,6 +208,7 @@ fn select_frame(
         geometry: &geometry,
         batches: &batches,
         hierarchy: hierarchy.as_ref(),
+        far: None,
         tree_spheres: &spheres,
         tree_scales: &scales,
     };

@@ -18,7 +18,9 @@
 use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
-use forestlod_shared::{Camera, MeshMeta, NodeMeta, Params, SelectCounters, ViewUniform};
+use forestlod_shared::{
+    Camera, FarNode, FarUniform, MeshMeta, NodeMeta, Params, SelectCounters, ViewUniform,
+};
 
 use crate::context::{
     Dispatch, READ, Slot, WRITE, buffer_bind_group, compute_pass, compute_pipelines,
@@ -58,6 +60,14 @@ pub struct HierUniform {
     pub billboard_first_index: u32,
     /// Index count of the billboard quad.
     pub billboard_index_count: u32,
+    /// [`forestlod_shared::FarUniform::kind`] (issue 32): 0 without a far level.
+    pub far_kind: u32,
+    /// [`forestlod_shared::FarUniform::start`].
+    pub far_start: f32,
+    /// [`forestlod_shared::FarUniform::ratio`].
+    pub far_ratio: f32,
+    /// First index of the packed geometry's far iota range.
+    pub far_first_index: u32,
     /// Explicit padding.
     pub _pad0: u32,
     /// Explicit padding.
@@ -65,7 +75,7 @@ pub struct HierUniform {
     /// Explicit padding.
     pub _pad2: u32,
 }
-const _: () = assert!(size_of::<HierUniform>() == 192);
+const _: () = assert!(size_of::<HierUniform>() == 208);
 
 compute_pipelines! {
     /// The compiled pipelines of `hier_select.wgsl`, one set per [`GpuContext`] (cached there).
@@ -73,7 +83,7 @@ compute_pipelines! {
         Slot::Uniform(size_of::<HierUniform>() as u64),
         READ, READ, WRITE, WRITE, WRITE, WRITE, WRITE,
         Slot::Write(size_of::<SelectCounters>() as u64),
-        READ,
+        READ, READ,
     ],
     {
         decide: "hier_decide",
@@ -98,12 +108,25 @@ pub struct GpuHierSelect<'a> {
     node_count: u32,
     mode: u32,
     billboard: MeshMeta,
+    /// The far iota range's first index, when a far level was uploaded.
+    far_first_index: Option<u32>,
+}
+
+/// A hierarchy's far level as the cut reads it (issue 32): its per-node records and the packed
+/// geometry's far iota range's first index.
+#[derive(Clone, Copy, Debug)]
+pub struct FarNodes<'f> {
+    /// One record per hierarchy node.
+    pub nodes: &'f [FarNode],
+    /// `PackedGeometry::far`'s first index.
+    pub first_index: u32,
 }
 
 impl<'a> GpuHierSelect<'a> {
     /// Uploads the nodes (of a hierarchy built for `mode`, a `forestlod_shared::Hierarchy` id)
     /// and meshes, and allocates two commands per node. Fails on a node whose mesh index is out of
-    /// range or on more commands than `base_vertex` can address.
+    /// range, on more commands than `base_vertex` can address, or on a far level whose records
+    /// do not match the nodes one for one.
     pub fn new(
         ctx: &'a GpuContext,
         nodes: &[NodeMeta],
@@ -111,7 +134,17 @@ impl<'a> GpuHierSelect<'a> {
         mode: u32,
         meshes: &[MeshMeta],
         billboard: &MeshMeta,
+        far: Option<FarNodes<'_>>,
     ) -> Result<Self, GpuError> {
+        if let Some(f) = far
+            && f.nodes.len() != nodes.len()
+        {
+            return Err(GpuError::Input {
+                field: "far level node records",
+                value: format!("{} for {} hierarchy nodes", f.nodes.len(), nodes.len()),
+                reason: "expected one FarNode per hierarchy node",
+            });
+        }
         check_scale_count("node scales", nodes.len(), scales.len())?;
         check_mesh_indices(
             "node.mesh",
@@ -130,6 +163,12 @@ impl<'a> GpuHierSelect<'a> {
         let node_buffer = upload_storage(ctx, "hier nodes", nodes, U::empty());
         let mesh_buffer = upload_storage(ctx, "hier meshes", meshes, U::empty());
         let scale_buffer = upload_storage(ctx, "hier scales", scales, U::empty());
+        let far_buffer = upload_storage(
+            ctx,
+            "hier far nodes",
+            far.map_or(&[][..], |f| f.nodes),
+            U::empty(),
+        );
         let uniform = stage_uniform::<HierUniform>(ctx, "hier uniform");
         let codes = zeroed_buffer(ctx, "hier codes", n * 4, U::STORAGE | U::COPY_SRC);
         let states = zeroed_buffer(ctx, "hier states", n * 4, U::STORAGE | U::COPY_SRC);
@@ -151,6 +190,7 @@ impl<'a> GpuHierSelect<'a> {
                     &raw.data,
                     &raw.counters,
                     &scale_buffer,
+                    &far_buffer,
                 ],
             )
         })?;
@@ -166,6 +206,7 @@ impl<'a> GpuHierSelect<'a> {
             node_count: nodes.len() as u32,
             mode,
             billboard: *billboard,
+            far_first_index: far.map(|f| f.first_index),
         })
     }
 
@@ -187,6 +228,11 @@ impl<'a> GpuHierSelect<'a> {
     /// Records one frame's cut into `encoder`: uniform through the queue, counters cleared, four
     /// dispatches. `params` must be valid.
     pub fn encode(&mut self, encoder: &mut wgpu::CommandEncoder, camera: &Camera, params: &Params) {
+        // No far level uploaded: the cut has none, whatever `params` say.
+        let far = match self.far_first_index {
+            Some(_) => FarUniform::new(camera, params),
+            None => FarUniform::default(),
+        };
         let uniform = HierUniform {
             view: ViewUniform::new(camera, params),
             node_count: self.node_count,
@@ -194,6 +240,10 @@ impl<'a> GpuHierSelect<'a> {
             max_cull_depth: params.max_cull_depth,
             billboard_first_index: self.billboard.first_index,
             billboard_index_count: self.billboard.index_count,
+            far_kind: far.kind,
+            far_start: far.start,
+            far_ratio: far.ratio,
+            far_first_index: self.far_first_index.unwrap_or(0),
             _pad0: 0,
             _pad1: 0,
             _pad2: 0,

@@ -123,6 +123,12 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("OCTAHEDRAL_STEPS", s::OCTAHEDRAL_STEPS),
         ("OCTAHEDRAL_LAYER_BITS", s::OCTAHEDRAL_LAYER_BITS),
         ("MIN_OCTAHEDRAL_GRID", s::MIN_OCTAHEDRAL_GRID),
+        // The far level (issue 32, shared/src/far.rs).
+        ("LOD_FAR", s::LOD_FAR),
+        ("NODE_FAR", s::NODE_FAR),
+        ("LOD_ID_FAR", s::LOD_ID_FAR),
+        ("CUBE_VERTICES", s::CUBE_VERTICES),
+        ("SPRITE_VERTICES", s::SPRITE_VERTICES),
     ]
     .into_iter()
     .map(|(n, v)| (n.to_string(), v))
@@ -145,6 +151,7 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("AZIMUTH_MODE", s::AzimuthMode::choices()),
         ("OCCLUSION", s::Occlusion::choices()),
         ("VIEW_SPHERE", s::ViewSphere::choices()),
+        ("FAR_LOD", s::FarLod::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {

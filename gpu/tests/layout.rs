@@ -197,6 +197,10 @@ fn hier_select_structs_match_their_rust_twins() {
             max_cull_depth,
             billboard_first_index,
             billboard_index_count,
+            far_kind,
+            far_start,
+            far_ratio,
+            far_first_index,
             _pad0,
             _pad1,
             _pad2

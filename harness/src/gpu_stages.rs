@@ -113,6 +113,10 @@ impl Backend<HierSelect> for GpuStage {
                 h.mode as u32,
                 i.meshes,
                 i.billboard,
+                i.far.map(|f| forestlod_gpu::hier_select::FarNodes {
+                    nodes: &f.level.nodes,
+                    first_index: f.first_index,
+                }),
             ),
         );
         ok(
@@ -394,6 +398,12 @@ impl<'a> FrameStages<'a> {
                     hierarchy: p.hierarchy.as_ref()?,
                     meshes: &g.meshes,
                     billboard: &g.billboard,
+                    far: forestlod_reference::hier_select::FarCut::new(
+                        p.far.as_ref(),
+                        g.far.first_index,
+                        camera,
+                        params,
+                    ),
                     camera,
                     params,
                 };

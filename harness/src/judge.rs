@@ -152,7 +152,11 @@ pub fn threshold_ambiguity(
 /// thresholds ([`Thresholds::BATCH`]), then its box's (interval ends against the draw distance and
 /// the fade band, the Euclidean box distance against the fade end, plane distances against the
 /// cull and "wholly inside" limits).
-pub fn node_ambiguity(n: &NodeMeta, u: &ViewUniform) -> Option<String> {
+pub fn node_ambiguity(
+    n: &NodeMeta,
+    u: &ViewUniform,
+    far: Option<&forestlod_shared::FarUniform>,
+) -> Option<String> {
     if let Some(why) = threshold_ambiguity(n.center, n.radius, u, AMBIGUITY_REL, Thresholds::BATCH)
     {
         return Some(format!("sphere: {why}"));
@@ -180,11 +184,55 @@ pub fn node_ambiguity(n: &NodeMeta, u: &ViewUniform) -> Option<String> {
         }
     }
     let m = aabb_margin(rel, n.extent);
+    if let Some(why) = far_ambiguity(n, u, far) {
+        return Some(why);
+    }
     for (k, p) in u.frustum.planes.iter().enumerate() {
         let r = p[0].abs() * n.extent[0] + p[1].abs() * n.extent[1] + p[2].abs() * n.extent[2];
         let s = p[0] * rel[0] + p[1] * rel[1] + p[2] * rel[2] + p[3];
         if near(s, -r - m) || near(s, r + m) {
             return Some(format!("box plane {k}: {s} vs ±{}", r + m));
+        }
+    }
+    None
+}
+
+/// The far level's thresholds (issue 32, [`forestlod_shared::far_eligible`]): the interval's
+/// lower end within [`AMBIGUITY_REL`] of `far_start` (either volume's, as the cut intersects
+/// them), or the box's `area / lo²` within it of the pixel ratio.
+fn far_ambiguity(
+    n: &NodeMeta,
+    u: &ViewUniform,
+    far: Option<&forestlod_shared::FarUniform>,
+) -> Option<String> {
+    let far = far.filter(|f| f.kind != 0)?;
+    let s = forestlod_shared::view_interval(n.center, n.radius, u.eye, u.forward);
+    let b = aabb_view_interval(n.box_center, n.extent, u.eye, u.forward);
+    let scale = s.lo.abs().max(b.lo.abs()) + n.radius + far.start.abs();
+    for (what, x) in [
+        ("sphere lo", s.lo),
+        ("box lo", b.lo),
+        ("sphere hi", s.hi),
+        ("box hi", b.hi),
+    ] {
+        if (x - far.start).abs() <= AMBIGUITY_REL * scale {
+            return Some(format!("{what} ≈ far start: {x} vs {}", far.start));
+        }
+    }
+    let lo = s.lo.max(b.lo);
+    if lo > 0.0 {
+        let d = [
+            u.eye[0] - n.box_center[0],
+            u.eye[1] - n.box_center[1],
+            u.eye[2] - n.box_center[2],
+        ];
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        if len > 0.0 {
+            let v = d.map(|x| x / len);
+            let q = forestlod_shared::box_area_along(n.extent, v) / (lo * lo);
+            if (q - far.ratio).abs() <= 8.0 * AMBIGUITY_REL * far.ratio.abs().max(q.abs()) {
+                return Some(format!("box pixels ≈ far pixels: {q} vs {}", far.ratio));
+            }
         }
     }
     None
@@ -206,6 +254,7 @@ pub struct CutJudgement {
 pub fn judge_cut(
     h: &Hierarchy,
     (meshes, billboard): (&[MeshMeta], &MeshMeta),
+    far: Option<forestlod_reference::hier_select::FarCut<'_>>,
     u: &ViewUniform,
     want: &HierSelection,
     got: &HierSelection,
@@ -221,7 +270,7 @@ pub fn judge_cut(
     let mut out = CutJudgement::default();
     for (i, (w, g)) in want.codes.iter().zip(&got.codes).enumerate() {
         if w != g {
-            match node_ambiguity(&h.nodes[i], u) {
+            match node_ambiguity(&h.nodes[i], u, far.as_ref().map(|f| &f.uniform)) {
                 Some(why) => {
                     eprintln!("node {i} ambiguous ({why}): reference {w:#x}, GPU {g:#x}");
                     out.ambiguous_nodes += 1;
@@ -235,7 +284,7 @@ pub fn judge_cut(
             }
         }
     }
-    let own = resolve_and_compact(h, got.codes.clone(), meshes, billboard, u);
+    let own = resolve_and_compact(h, got.codes.clone(), meshes, billboard, far, u);
     if got.states != own.states {
         return Err("states differ from the resolution of the backend's own codes".into());
     }

@@ -13,7 +13,7 @@ use forestlod_reference::baselines::{
 };
 use forestlod_reference::coalesce::{coalesce, run_offsets};
 use forestlod_reference::command_order::{order, run_keys};
-use forestlod_reference::hier_select::{HierSelection, hier_select};
+use forestlod_reference::hier_select::{FarCut, HierSelection, hier_select};
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::refine::refine;
 use forestlod_reference::select::{SelectUniform, Selection};
@@ -50,6 +50,8 @@ pub struct HierSelectInput<'a> {
     pub meshes: &'a [MeshMeta],
     /// The billboard quad's record.
     pub billboard: &'a MeshMeta,
+    /// The far level under `lod_levels = 3` (issue 32).
+    pub far: Option<FarCut<'a>>,
     /// The camera (valid).
     pub camera: &'a Camera,
     /// Parameters (valid).
@@ -63,14 +65,21 @@ impl Stage for HierSelect {
 
 impl Backend<HierSelect> for Reference {
     fn run(&self, i: HierSelectInput<'_>) -> HierSelection {
-        hier_select(i.hierarchy, i.meshes, i.billboard, i.camera, i.params)
+        hier_select(
+            i.hierarchy,
+            i.meshes,
+            i.billboard,
+            i.far,
+            i.camera,
+            i.params,
+        )
     }
 }
 
 impl Judged for HierSelect {
     fn judge(i: HierSelectInput<'_>, want: &HierSelection, got: &HierSelection) -> StageCheck {
         let u = ViewUniform::new(i.camera, i.params);
-        let r = judge_cut(i.hierarchy, (i.meshes, i.billboard), &u, want, got);
+        let r = judge_cut(i.hierarchy, (i.meshes, i.billboard), i.far, &u, want, got);
         StageCheck::of(
             StageId::HierSelect,
             r.map(|j| {

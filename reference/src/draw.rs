@@ -72,8 +72,8 @@ use crate::texture::srgb_to_linear;
 // The LOD-id codes, the sky colour and the ground grid are shared with the GPU twin
 // (`forestlod_shared::{color, terrain}`); re-exported where the reference's users find them.
 pub use forestlod_shared::{
-    LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION, SKY_SRGB,
-    TERRAIN_CELLS, TERRAIN_MARGIN, ground_color,
+    LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_FAR, LOD_ID_MESH, LOD_ID_TERRAIN,
+    LOD_ID_TRANSITION, SKY_SRGB, TERRAIN_CELLS, TERRAIN_MARGIN, ground_color,
 };
 
 /// Varyings of the tree pipeline: `u, v, view depth, texture layer, command index, tree scale
@@ -1397,6 +1397,7 @@ pub fn lod_id_color(id: u32) -> [u8; 4] {
         LOD_ID_BILLBOARD => [50, 90, 230, 255],
         LOD_ID_TRANSITION => [230, 40, 40, 255],
         LOD_ID_TERRAIN => [90, 90, 90, 255],
+        LOD_ID_FAR => [200, 150, 30, 255],
         _ => [20, 20, 20, 255],
     }
 }

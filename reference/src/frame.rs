@@ -25,7 +25,7 @@ use crate::batches::Batches;
 use crate::coalesce::coalesce;
 use crate::command_order::{order, run_keys};
 use crate::geometry::PackedGeometry;
-use crate::hier_select::{HierSelection, hier_select};
+use crate::hier_select::{FarCut, HierSelection, hier_select};
 use crate::hierarchy::Hierarchy;
 use crate::refine::{Refined, refine};
 use crate::select::{Selection, select};
@@ -128,6 +128,8 @@ pub struct SelectScene<'a> {
     pub batches: &'a Batches,
     /// The hierarchy, for a cut.
     pub hierarchy: Option<&'a Hierarchy>,
+    /// The hierarchy's far level under `lod_levels = 3` (issue 32).
+    pub far: Option<&'a forestlod_shared::FarLevel>,
     /// Every tree's bounding sphere (`refine`'s input).
     pub tree_spheres: &'a [([f32; 3], f32)],
     /// Every tree's scale (`refine`'s per-tree band, issue 29).
@@ -168,10 +170,12 @@ pub fn select_stages(
             let h = prepared
                 .hierarchy
                 .expect("a scene prepared with a hierarchy mode has its hierarchy");
+            let far = FarCut::new(prepared.far, g.far.first_index, camera, params);
             let (ordered, trace) = cut_stages(
                 h,
                 &g.meshes,
                 &g.billboard,
+                far,
                 camera,
                 params,
                 (mode, order_mode),
@@ -217,6 +221,7 @@ pub fn cut_stages(
     h: &Hierarchy,
     meshes: &[forestlod_shared::MeshMeta],
     billboard: &forestlod_shared::MeshMeta,
+    far: Option<FarCut<'_>>,
     camera: &Camera,
     params: &Params,
     (mode, order_mode): (Coalesce, CommandOrder),
@@ -224,7 +229,7 @@ pub fn cut_stages(
     seconds: &mut StageSeconds,
 ) -> (Selection, CutTrace) {
     let mut raw = seconds.time(StageId::HierSelect, || {
-        hier_select(h, meshes, billboard, camera, params)
+        hier_select(h, meshes, billboard, far, camera, params)
     });
     let merged = seconds.time(StageId::Coalesce, || coalesce(&raw.selection, mode));
     let coalesced = keep.then(|| merged.clone());
@@ -245,11 +250,13 @@ pub fn cut_stages(
 }
 
 /// [`cut_stages`] with the modes of `params` (valid), every output kept: the whole cut of one
-/// frame, for tests and experiments that judge the cut on its own hierarchy.
+/// frame, for tests and experiments that judge the cut on its own hierarchy (with its far level
+/// when `far` is given).
 pub fn cut(
     h: &Hierarchy,
     meshes: &[forestlod_shared::MeshMeta],
     billboard: &forestlod_shared::MeshMeta,
+    far: Option<FarCut<'_>>,
     camera: &Camera,
     params: &Params,
 ) -> (Selection, CutTrace) {
@@ -261,6 +268,7 @@ pub fn cut(
         h,
         meshes,
         billboard,
+        far,
         camera,
         params,
         modes,
@@ -297,7 +305,7 @@ mod tests {
         assert_eq!(ran, trace.plan.selection_stages());
         let g = &prepared.geometry;
         let h = prepared.hierarchy.as_ref().unwrap();
-        let raw = hier_select(h, &g.meshes, &g.billboard, &camera, &params).selection;
+        let raw = hier_select(h, &g.meshes, &g.billboard, None, &camera, &params).selection;
         assert!(!raw.commands.is_empty(), "the case draws something");
         assert_eq!(trace.output(StageId::HierSelect), Some(&raw));
         let merged = coalesce(&raw, Coalesce::On);

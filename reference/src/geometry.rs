@@ -39,6 +39,10 @@ pub struct PackedGeometry {
     pub meshes: Vec<MeshMeta>,
     /// The billboard quad's range (only the offset and count fields are meaningful).
     pub billboard: MeshMeta,
+    /// The far level's iota range (issue 32, `forestlod_shared::far`): local vertex ids
+    /// `0..3·MAX_HULL_TRIANGLES`, after the billboard quad; far commands index its start. No
+    /// vertices: the far primitives pull theirs from the cells and the hull.
+    pub far: MeshMeta,
 }
 
 /// Packs the scene's meshes in mesh order and appends the billboard quad.
@@ -74,10 +78,18 @@ pub fn pack_geometry(scene: &Scene) -> PackedGeometry {
         uv: *c,
     }));
     indices.extend_from_slice(&BILLBOARD_INDICES);
+    let far_len = 3 * forestlod_shared::MAX_HULL_TRIANGLES;
+    let far = MeshMeta {
+        first_index: indices.len() as u32,
+        index_count: far_len,
+        ..bytemuck::Zeroable::zeroed()
+    };
+    indices.extend(0..far_len);
     PackedGeometry {
         vertices,
         indices,
         meshes,
         billboard,
+        far,
     }
 }

@@ -27,14 +27,24 @@
 //! - The `grid` mode on the depth-1 hierarchy of grid batches equals `select` bit for bit.
 //! - Deterministic for any thread count.
 //!
+//! ## The far level (issue 32, `forestlod_shared::far`)
+//! With a [`FarCut`] (`lod_levels = 3`) each node's code passes through
+//! [`forestlod_shared::far_code`]: a drawn node that needs no mesh, lies wholly beyond `far_start`
+//! and covers fewer than `far_pixels` pixels goes far (`NODE_FAR`, not recursing) and emits one
+//! far command ([`forestlod_shared::emit_far_command`]) in its node's place of the list; an
+//! interior node whose interval reaches `far_start` recurses. Being emitted still means
+//! visited and not recursing, so the emitted set stays an antichain: every visible tree is drawn
+//! once, by a mesh, a billboard or its node's far level.
+//!
 //! Counters: `batches_tested` counts the **visited** nodes (C§5's "nodes walked", what the
 //! recursion would touch; [`HierSelection::nodes_visited`]), the culls are those of visited nodes,
 //! `transition_batches` the emitted nodes with both LODs.
 
 use forestlod_shared::{
-    Camera, DECISION_DRAW, DECISION_KIND_MASK, Decision, EmitGroup, LOD_BILLBOARD, LOD_MESH,
-    MeshMeta, NO_PARENT, NODE_RECURSE, Params, ViewUniform, code_recurses, count_command,
-    emit_command, emitted_needs, node_code,
+    Camera, DECISION_DRAW, DECISION_KIND_MASK, Decision, EmitGroup, FarLevel, FarUniform,
+    LOD_BILLBOARD, LOD_FAR, LOD_MESH, MeshMeta, NO_PARENT, NODE_FAR, NODE_RECURSE, Params,
+    ViewUniform, code_is_far, code_recurses, count_command, emit_command, emit_far_command,
+    emitted_needs, far_code, node_code,
 };
 use rayon::prelude::*;
 
@@ -82,12 +92,47 @@ pub fn node_state(nodes: &[forestlod_shared::NodeMeta], codes: &[u32], i: usize)
         }
 }
 
+/// The far level a cut may select (module docs): the hierarchy's baked [`FarLevel`], the frame's
+/// far constants and the first index of the packed geometry's far iota range.
+#[derive(Clone, Copy, Debug)]
+pub struct FarCut<'a> {
+    /// The baked far level of the cut's hierarchy (one [`forestlod_shared::FarNode`] per node).
+    pub level: &'a FarLevel,
+    /// The frame's far constants (`kind` 0: no far level).
+    pub uniform: FarUniform,
+    /// `PackedGeometry::far`'s first index.
+    pub first_index: u32,
+}
+
+impl<'a> FarCut<'a> {
+    /// The far level of a frame with `camera` and `params` (`None` without `lod_levels = 3`).
+    pub fn new(
+        level: Option<&'a FarLevel>,
+        first_index: u32,
+        camera: &Camera,
+        params: &Params,
+    ) -> Option<Self> {
+        let uniform = FarUniform::new(camera, params);
+        Some(Self {
+            level: level.filter(|_| uniform.kind != 0)?,
+            uniform,
+            first_index,
+        })
+    }
+
+    /// Kept cells of node `i` (0 when the level has no such node).
+    fn cells(&self, i: usize) -> u32 {
+        self.level.nodes.get(i).map_or(0, |n| n.cell_count)
+    }
+}
+
 /// The cut of `h` for one frame (module docs). `meshes` carry their packed index ranges; `params`
-/// must be valid ([`Params::validate`]).
+/// must be valid ([`Params::validate`]); `far` is the far level when the frame has one.
 pub fn hier_select(
     h: &Hierarchy,
     meshes: &[MeshMeta],
     billboard: &MeshMeta,
+    far: Option<FarCut<'_>>,
     camera: &Camera,
     params: &Params,
 ) -> HierSelection {
@@ -97,12 +142,18 @@ pub fn hier_select(
         .nodes
         .par_iter()
         .zip(&h.scales)
-        .map(|(n, &s)| {
+        .enumerate()
+        .map(|(i, (n, &s))| {
             let band = u.group_band(u.mesh_band(&meshes[n.mesh as usize]), s);
-            node_code(&u.with_band(band), n, h.mode, params.max_cull_depth)
+            let banded = u.with_band(band);
+            let code = node_code(&banded, n, h.mode, params.max_cull_depth);
+            match &far {
+                Some(f) => far_code(code, &banded, &f.uniform, n, h.mode, f.cells(i)),
+                None => code,
+            }
         })
         .collect();
-    resolve_and_compact(h, codes, meshes, billboard, &u)
+    resolve_and_compact(h, codes, meshes, billboard, far, &u)
 }
 
 /// Passes 2 and 3 on given per-node codes (the reference's, or a GPU's read back, to check the
@@ -112,6 +163,7 @@ pub fn resolve_and_compact(
     codes: Vec<u32>,
     meshes: &[MeshMeta],
     billboard: &MeshMeta,
+    far: Option<FarCut<'_>>,
     u: &ViewUniform,
 ) -> HierSelection {
     let states: Vec<u32> = (0..h.nodes.len())
@@ -134,12 +186,32 @@ pub fn resolve_and_compact(
             continue;
         }
         out.counters.batches_tested += 1;
-        match Decision::from_code(code & !NODE_RECURSE) {
+        match Decision::from_code(code & !(NODE_RECURSE | NODE_FAR)) {
             Decision::CulledDistance => out.counters.culled_distance += 1,
             Decision::CulledFrustum => out.counters.culled_frustum += 1,
             Decision::Draw(_) => {}
         }
         if state & NODE_EMITTED == 0 {
+            continue;
+        }
+        if code_is_far(code) {
+            // `far_code` sets NODE_FAR only with a far level whose node has cells.
+            let Some(f) = far.as_ref() else { continue };
+            let Some(kind) = f.uniform.far_lod() else {
+                continue;
+            };
+            let slot = out.commands.len() as u32;
+            let (command, data) = emit_far_command(
+                slot,
+                i as u32,
+                n.mesh,
+                &f.level.nodes[i],
+                kind,
+                f.first_index,
+            );
+            count_command(&mut out.counters, &command, LOD_FAR);
+            out.commands.push(command);
+            out.data.push(data);
             continue;
         }
         let needs = emitted_needs(code, n, h.mode, u.lod_levels);

@@ -84,7 +84,13 @@ impl Hierarchy {
             .collect();
         let cap = params.nodes_per_node.max(2) as usize;
         let roots: Vec<(u32, Build)> = match mode {
-            HierarchyMode::Grid => return Ok(None),
+            // The flat selection needs none; a far level (issue 32) selects by the cut, over the
+            // depth-1 hierarchy of the grid batches, whose cut equals `select`.
+            HierarchyMode::Grid if params.lod_levels < 3 => return Ok(None),
+            HierarchyMode::Grid => {
+                let batches = build_batches(scene, meshes, params.grid_size)?;
+                return Ok(Some(Self::from_batches(&batches, &spheres, mode)));
+            }
             HierarchyMode::GridAabb => {
                 let batches = build_batches(scene, meshes, params.grid_size)?;
                 return Ok(Some(Self::from_batches(&batches, &spheres, mode)));

@@ -54,6 +54,8 @@ pub struct Prepared {
     /// The tree hierarchy when `params.hierarchy` is not `grid` ([`Hierarchy::build`]); then
     /// [`Prepared::select`] evaluates its cut ([`hier_select`]) instead of deciding the batches.
     pub hierarchy: Option<Hierarchy>,
+    /// The hierarchy's far level (issue 32, `forestlod_shared::far`) under `lod_levels = 3`.
+    pub far: Option<forestlod_shared::FarLevel>,
     /// Mesh textures with mips.
     pub mesh_textures: Vec<Texture>,
     /// The billboard array texture.
@@ -156,6 +158,7 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
     let t = Instant::now();
     let billboards = bake(&scene, &geometry.meshes, &textures, params)?;
     timings.bake = t.elapsed().as_secs_f64();
+    let far: Option<forestlod_shared::FarLevel> = None;
     let memory = scene_memory(&scene, &batches, hierarchy.as_ref(), params);
     let tree_spheres = {
         use rayon::prelude::*;
@@ -187,6 +190,7 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
         geometry,
         batches,
         hierarchy,
+        far,
         mesh_textures: textures,
         billboards,
         memory,
@@ -301,6 +305,7 @@ impl Prepared {
             geometry: &self.geometry,
             batches: &self.batches,
             hierarchy: self.hierarchy.as_ref(),
+            far: self.far.as_ref(),
             tree_spheres: &self.tree_spheres,
             tree_scales: &self.tree_scales,
         }
@@ -325,10 +330,17 @@ impl Prepared {
     /// The hierarchy's raw cut with its per-node codes and states (`None` without a hierarchy).
     pub fn hier_select(&self, camera: &Camera, params: &Params) -> Option<HierSelection> {
         let h = self.hierarchy.as_ref()?;
+        let far = crate::hier_select::FarCut::new(
+            self.far.as_ref(),
+            self.geometry.far.first_index,
+            camera,
+            params,
+        );
         Some(hier_select(
             h,
             &self.geometry.meshes,
             &self.geometry.billboard,
+            far,
             camera,
             params,
         ))

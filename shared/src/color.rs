@@ -25,6 +25,8 @@ pub const LOD_ID_BILLBOARD: u32 = 2;
 pub const LOD_ID_TRANSITION: u32 = 3;
 /// LOD-id of the ground.
 pub const LOD_ID_TERRAIN: u32 = 4;
+/// LOD-id of the far level (issue 32, `crate::far`): octant impostors and batch hulls.
+pub const LOD_ID_FAR: u32 = 5;
 
 /// Sky colour (sRGB8), the clear colour of every frame.
 pub const SKY_SRGB: [u8; 3] = [168, 198, 226];

@@ -49,6 +49,10 @@ use crate::{
 /// Node code bit: a drawn interior node whose children decide instead (module docs).
 pub const NODE_RECURSE: u32 = 16;
 
+/// Node code bit: the node goes far (issue 32, `crate::far`): emitted as one far command, its
+/// subtree not visited. Set only by [`far_code`], with no LOD bit and no [`NODE_RECURSE`].
+pub const NODE_FAR: u32 = 32;
+
 /// Node state bit of the cut: every ancestor recursed (the node is visited).
 pub const NODE_VISITED: u32 = 1;
 /// Node state bit of the cut: visited, drawn and not recursing: the node emits its commands.
@@ -68,15 +72,23 @@ pub fn aabb_distance(center: [f32; 3], extent: [f32; 3], eye: [f32; 3]) -> f32 {
     s.sqrt()
 }
 
+/// The view-depth interval `[lo, hi]` a node decides on under `mode` (module docs): its sphere's
+/// for `grid`, the sphere's ∩ the box's otherwise.
+pub fn node_interval(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy) -> (f32, f32) {
+    let s = view_interval(n.center, n.radius, u.eye, u.forward);
+    if mode == Hierarchy::Grid {
+        return (s.lo, s.hi);
+    }
+    let b = aabb_view_interval(n.box_center, n.extent, u.eye, u.forward);
+    (s.lo.max(b.lo), s.hi.min(b.hi))
+}
+
 /// The node's decision under `mode`'s bounds (module docs).
 pub fn decide_node(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy) -> Decision {
     if mode == Hierarchy::Grid {
         return u.decide(n.center, n.radius);
     }
-    let s = view_interval(n.center, n.radius, u.eye, u.forward);
-    let b = aabb_view_interval(n.box_center, n.extent, u.eye, u.forward);
-    let lo = s.lo.max(b.lo);
-    let hi = s.hi.min(b.hi);
+    let (lo, hi) = node_interval(u, n, mode);
     if lo > u.draw_distance {
         Decision::CulledDistance
     } else if !u.frustum.sphere_visible(n.center, n.radius, u.eye)
@@ -128,6 +140,40 @@ pub fn node_code(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy, max_cull_depth:
     code | if recurse { NODE_RECURSE } else { 0 }
 }
 
+/// The far level's part of a node's code (issue 32, `crate::far`): `code` ([`node_code`]) as it
+/// is without a far level (`far.kind == 0`) or unless the node is drawn. A drawn node that needs
+/// no mesh (every tree a billboard, so the chain mesh → billboard → far stays conservative per
+/// tree) and is [`crate::far_eligible`] with its `cells` becomes `DECISION_DRAW | NODE_FAR`; an
+/// interior node that is not far but whose interval reaches `far.start` recurses, so that its
+/// smaller descendants may go far.
+pub fn far_code(
+    code: u32,
+    u: &ViewUniform,
+    far: &crate::FarUniform,
+    n: &NodeMeta,
+    mode: Hierarchy,
+    cells: u32,
+) -> u32 {
+    if far.kind == 0 || code & DECISION_KIND_MASK != DECISION_DRAW {
+        return code;
+    }
+    let (lo, hi) = node_interval(u, n, mode);
+    let billboards_only = code & crate::DECISION_LOD0 == 0;
+    if billboards_only && crate::far_eligible(far, lo, n.box_center, n.extent, u.eye, cells) {
+        return DECISION_DRAW | NODE_FAR;
+    }
+    if n.child_count > 0 && hi >= far.start {
+        code | NODE_RECURSE
+    } else {
+        code
+    }
+}
+
+/// Whether a node code says "goes far" ([`far_code`]).
+pub fn code_is_far(code: u32) -> bool {
+    code & DECISION_KIND_MASK == DECISION_DRAW && code & NODE_FAR != 0
+}
+
 /// Threshold coverage of the octree's partial-visibility test (test-only counters,
 /// [`crate::coverage`]): whether the depth allows the test, whether the box straddles a plane, and
 /// whether the same test on the sphere's centre would decide otherwise.
@@ -173,7 +219,7 @@ pub fn code_recurses(code: u32) -> bool {
 /// The LODs an emitted node draws (module docs): its interval's, except an `octree-euclidean`
 /// interior unit, which draws billboards only when there are two LOD levels.
 pub fn emitted_needs(code: u32, n: &NodeMeta, mode: Hierarchy, lod_levels: u32) -> LodNeeds {
-    let needs = Decision::from_code(code & !NODE_RECURSE).needs();
+    let needs = Decision::from_code(code & !(NODE_RECURSE | NODE_FAR)).needs();
     if mode == Hierarchy::OctreeEuclidean && n.child_count > 0 && lod_levels >= 2 && needs.lod1 {
         return LodNeeds {
             lod0: false,

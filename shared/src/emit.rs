@@ -11,7 +11,8 @@
 //! ([`DrawCommand`]).
 
 use crate::{
-    COMMAND_SHIFT, CommandData, DrawCommand, LOD_BILLBOARD, LOD_MESH, MeshMeta, SelectCounters,
+    COMMAND_SHIFT, CUBE_VERTICES, CommandData, DrawCommand, FarLod, FarNode, LOD_BILLBOARD,
+    LOD_FAR, LOD_MESH, MeshMeta, SPRITE_VERTICES, SelectCounters,
 };
 
 /// What a group contributes to one command: its index (`CommandData::batch`), mesh, instance
@@ -69,13 +70,55 @@ pub fn emit_command(
     (command, data)
 }
 
+/// The far command of node `node` (issue 32, `crate::far`'s "command encoding") in output slot
+/// `slot`: one instance per kept cell over the primitive's iota range from `first_index` (the
+/// packed geometry's far range) for the octant impostors; for a hull one instance whose index
+/// is the node's (the vertex stage reads its [`FarNode`]), over its `3·triangles` vertices.
+/// `CommandData::first_tree` and `group_len` carry the instance range, so coalescing merges
+/// far commands of adjacent ranges like tree commands.
+pub fn emit_far_command(
+    slot: u32,
+    node: u32,
+    mesh: u32,
+    far_node: &FarNode,
+    far_lod: FarLod,
+    first_index: u32,
+) -> (DrawCommand, CommandData) {
+    let (index_count, instance_count, first_instance) = match far_lod {
+        FarLod::OctantSprite => (SPRITE_VERTICES, far_node.cell_count, far_node.cell_offset),
+        FarLod::OctantCube => (CUBE_VERTICES, far_node.cell_count, far_node.cell_offset),
+        FarLod::Hull => (far_node.hull_count, 1, node),
+    };
+    let command = DrawCommand {
+        index_count,
+        instance_count,
+        first_index,
+        base_vertex: (slot << COMMAND_SHIFT) as i32,
+        first_instance,
+    };
+    let data = CommandData {
+        fade_start: 0.0,
+        fade_end: 0.0,
+        batch: node,
+        mesh,
+        lod: LOD_FAR,
+        billboard: 0,
+        fading: 0,
+        first_tree: first_instance,
+        group_len: instance_count,
+        _pad0: 0,
+    };
+    (command, data)
+}
+
 /// Counts one emitted command in `counters` (its instances and its LOD's command count; the
-/// caller sets `commands` to the list's length).
+/// caller sets `commands` to the list's length). A far command (issue 32) counts its
+/// instances (cells, or one hull) and neither LOD's commands.
 pub fn count_command(counters: &mut SelectCounters, command: &DrawCommand, lod: u32) {
     counters.instances += command.instance_count;
     if lod == LOD_MESH {
         counters.lod0_commands += 1;
-    } else {
+    } else if lod == LOD_BILLBOARD {
         counters.lod1_commands += 1;
     }
 }

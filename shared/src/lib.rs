@@ -68,14 +68,15 @@ pub use azimuth::{
 pub use billboard::{BillboardExtent, billboard_extent, dither_threshold};
 pub use camera::{Camera, CameraBasis, FrustumPlanes};
 pub use color::{
-    LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION, SKY_SRGB,
-    linear_to_srgb, srgb_to_linear, unorm8,
+    LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_FAR, LOD_ID_MESH, LOD_ID_TERRAIN,
+    LOD_ID_TRANSITION, SKY_SRGB, linear_to_srgb, srgb_to_linear, unorm8,
 };
 pub use cut::{
-    MAX_HIERARCHY_DEPTH, NODE_EMITTED, NODE_RECURSE, NODE_VISITED, aabb_distance, code_recurses,
-    command_depth_key, continues_run, decide_node, emitted_needs, node_code, node_near_depth,
+    MAX_HIERARCHY_DEPTH, NODE_EMITTED, NODE_FAR, NODE_RECURSE, NODE_VISITED, aabb_distance,
+    code_is_far, code_recurses, command_depth_key, continues_run, decide_node, emitted_needs,
+    far_code, node_code, node_interval, node_near_depth,
 };
-pub use emit::{EmitGroup, count_command, emit_command};
+pub use emit::{EmitGroup, count_command, emit_command, emit_far_command};
 pub use fade::{
     DitherSpace, FadeGranularity, FadeMode, LodWeights, fade_progress, lod_weights,
     tree_lod_weights, weights_at,

@@ -460,7 +460,8 @@ pub fn full_cut(
     camera: &Camera,
     params: &Params,
 ) -> FullCut {
-    let (selection, trace) = forestlod_reference::frame::cut(h, meshes, billboard, camera, params);
+    let (selection, trace) =
+        forestlod_reference::frame::cut(h, meshes, billboard, None, camera, params);
     FullCut {
         selection,
         codes: trace.cut.codes,
@@ -479,7 +480,8 @@ pub fn full_resolve(
     coalesce: forestlod_shared::Coalesce,
     order: forestlod_shared::CommandOrder,
 ) -> FullCut {
-    let raw = forestlod_reference::hier_select::resolve_and_compact(h, codes, meshes, billboard, u);
+    let raw =
+        forestlod_reference::hier_select::resolve_and_compact(h, codes, meshes, billboard, None, u);
     let merged = forestlod_reference::coalesce::coalesce(&raw.selection, coalesce);
     let keys = forestlod_reference::command_order::run_keys(
         &h.nodes,

@@ -193,6 +193,7 @@ fn prepared_like(base: &Prepared, scene: Scene, membership: &Batches) -> Prepare
             scales: membership.scales.clone(),
         },
         hierarchy: None,
+        far: None,
         mesh_textures: base.mesh_textures.clone(),
         billboards: base.billboards.clone(),
         memory: base.memory.clone(),

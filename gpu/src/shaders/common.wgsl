@@ -618,6 +618,77 @@ fn node_code(n: NodeMeta, mode: u32, max_cull_depth: u32, v: ViewUniform) -> u32
     return code | select(0u, NODE_RECURSE, recurse);
 }
 
+// forestlod_shared::far (issue 32): the far level's records (layouts checked by
+// gpu/tests/layout.rs) and its rules.
+struct FarCell {
+    center: array<f32, 3>,
+    extent: array<f32, 3>,
+    colours: array<u32, 6>,
+}
+
+struct FarNode {
+    cell_offset: u32,
+    cell_count: u32,
+    hull_offset: u32,
+    hull_count: u32,
+}
+
+struct FarVertex {
+    position: array<f32, 3>,
+    colour: u32,
+}
+
+// forestlod_shared::node_interval: the sphere's view-depth interval for `grid`, the sphere's ∩
+// the box's otherwise.
+fn node_interval(n: NodeMeta, mode: u32, v: ViewUniform) -> ViewInterval {
+    let center = vec3<f32>(n.center[0], n.center[1], n.center[2]);
+    let s = view_interval(center, n.radius, v.eye, v.forward);
+    if mode == HIERARCHY_GRID {
+        return s;
+    }
+    let bc = vec3<f32>(n.box_center[0], n.box_center[1], n.box_center[2]);
+    let e = vec3<f32>(n.extent[0], n.extent[1], n.extent[2]);
+    let b = aabb_view_interval(bc, e, v.eye, v.forward);
+    return ViewInterval(max(s.lo, b.lo), min(s.hi, b.hi));
+}
+
+// forestlod_shared::box_area_along: the box's area projected along the unit direction `v`.
+fn box_area_along(e: vec3<f32>, v: vec3<f32>) -> f32 {
+    return 4.0 * (abs(v.x) * e.y * e.z + abs(v.y) * e.x * e.z + abs(v.z) * e.x * e.y);
+}
+
+// forestlod_shared::far_eligible, with FarUniform's fields `kind`, `start`, `ratio`.
+fn far_eligible(kind: u32, start: f32, ratio: f32, lo: f32, bc: vec3<f32>, e: vec3<f32>, eye: vec3<f32>, cells: u32) -> bool {
+    if kind == 0u || cells == 0u || !(lo >= start) || !(lo > 0.0) {
+        return false;
+    }
+    let d = eye - bc;
+    let len = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+    if !(len > 0.0) {
+        return false;
+    }
+    let v = vec3<f32>(d.x / len, d.y / len, d.z / len);
+    return box_area_along(e, v) / (lo * lo) < ratio;
+}
+
+// forestlod_shared::far_code: a drawn node that needs no mesh and is far-eligible goes far
+// (DECISION_DRAW | NODE_FAR); an interior node whose interval reaches the far start recurses.
+fn far_code(code: u32, n: NodeMeta, mode: u32, v: ViewUniform, kind: u32, start: f32, ratio: f32, cells: u32) -> u32 {
+    if kind == 0u || (code & DECISION_KIND_MASK) != DECISION_DRAW {
+        return code;
+    }
+    let i = node_interval(n, mode, v);
+    let bc = vec3<f32>(n.box_center[0], n.box_center[1], n.box_center[2]);
+    let e = vec3<f32>(n.extent[0], n.extent[1], n.extent[2]);
+    if (code & DECISION_LOD0) == 0u && far_eligible(kind, start, ratio, i.lo, bc, e, v.eye, cells) {
+        return DECISION_DRAW | NODE_FAR;
+    }
+    if n.child_count > 0u && i.hi >= start {
+        return code | NODE_RECURSE;
+    }
+    return code;
+}
+
 // One emitted command and its data (EmittedCommand): twin of forestlod_shared::emit_command
 // (shared/src/emit.rs), the one command emission of the flat selection (select.wgsl) and the cut
 // (hier_select.wgsl). A group (batch or node) of `len` trees at `offset` in the indirection, at

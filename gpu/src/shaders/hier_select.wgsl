@@ -22,6 +22,12 @@ struct HierUniform {
     max_cull_depth: u32,
     billboard_first_index: u32,
     billboard_index_count: u32,
+    // The far level (issue 32, forestlod_shared::FarUniform): kind 0 = none, else 1 + FarLod.
+    far_kind: u32,
+    far_start: f32,
+    far_ratio: f32,
+    // First index of the packed geometry's far iota range.
+    far_first_index: u32,
     _pad0: u32,
     _pad1: u32,
     _pad2: u32,
@@ -44,6 +50,16 @@ struct HierUniform {
 // Per node: its trees' scale range [min, max] (reference Hierarchy::scales), what a scaled LOD
 // metric widens the node's band by (common.wgsl `group_band`, C§4.6).
 @group(0) @binding(9) var<storage, read> scales: array<vec2<f32>>;
+// Per node: its far level's cells and hull (issue 32); one zeroed record without a far level.
+@group(0) @binding(10) var<storage, read> far_nodes: array<FarNode>;
+
+// Kept cells of node `i` under a far level (0 without one: the buffer then holds one record).
+fn far_cells(i: u32) -> u32 {
+    if u.far_kind == 0u {
+        return 0u;
+    }
+    return far_nodes[i].cell_count;
+}
 
 fn node_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
     return gid.y * (groups.x * HIER_WORKGROUP_SIZE) + gid.x;
@@ -69,7 +85,9 @@ fn hier_decide(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
     // The node decides on its group band (the frame's band under the distance metric).
     let n = nodes[i];
     let band = group_band(u.view, mesh_band(u.view, meshes[n.mesh]), scales[i]);
-    codes[i] = node_code(n, u.mode, u.max_cull_depth, with_band(u.view, band));
+    let banded = with_band(u.view, band);
+    let code = node_code(n, u.mode, u.max_cull_depth, banded);
+    codes[i] = far_code(code, n, u.mode, banded, u.far_kind, u.far_start, u.far_ratio, far_cells(i));
 }
 
 @compute @workgroup_size(HIER_WORKGROUP_SIZE)
@@ -108,6 +126,18 @@ fn hier_resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
         return;
     }
     states[i] = NODE_VISITED | NODE_EMITTED;
+    if (code & NODE_FAR) != 0u {
+        // forestlod_shared::emit_far_command's instances: the cells, or one hull.
+        let f = far_nodes[i];
+        var instances = f.cell_count;
+        if u.far_kind == 1u + FAR_LOD_HULL {
+            instances = 1u;
+        }
+        atomicAdd(&counters.instances, instances);
+        atomicAdd(&counters.commands, 1u);
+        offsets[i] = 1u;
+        return;
+    }
     let bits = emitted_bits(code, n);
     let lod0 = (bits & DECISION_LOD0) != 0u;
     let lod1 = (bits & DECISION_LOD1) != 0u;
@@ -148,6 +178,24 @@ fn emit(slot: u32, i: u32, n: NodeMeta, lod: u32, fading: bool) {
     command_data[slot] = e.data;
 }
 
+// forestlod_shared::emit_far_command: one instance per cell over the primitive's iota range, or
+// one hull instance (the node's index) over its vertices.
+fn emit_far(slot: u32, i: u32, n: NodeMeta) {
+    let f = far_nodes[i];
+    var index_count = CUBE_VERTICES;
+    var instances = f.cell_count;
+    var first = f.cell_offset;
+    if u.far_kind == 1u + FAR_LOD_OCTANT_SPRITE {
+        index_count = SPRITE_VERTICES;
+    } else if u.far_kind == 1u + FAR_LOD_HULL {
+        index_count = f.hull_count;
+        instances = 1u;
+        first = i;
+    }
+    commands[slot] = DrawCommand(index_count, instances, u.far_first_index, i32(slot << COMMAND_SHIFT), first);
+    command_data[slot] = CommandData(0.0, 0.0, i, n.mesh, LOD_FAR, 0u, 0u, first, instances, 0u);
+}
+
 @compute @workgroup_size(HIER_WORKGROUP_SIZE)
 fn hier_write(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let i = node_index(gid, groups);
@@ -155,10 +203,14 @@ fn hier_write(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
         return;
     }
     let n = nodes[i];
+    let slot = offsets[i];
+    if (codes[i] & NODE_FAR) != 0u {
+        emit_far(slot, i, n);
+        return;
+    }
     let bits = emitted_bits(codes[i], n);
     let lod0 = (bits & DECISION_LOD0) != 0u;
     let lod1 = (bits & DECISION_LOD1) != 0u;
-    let slot = offsets[i];
     if lod0 {
         emit(slot, i, n, LOD_MESH, lod0 && lod1);
     }

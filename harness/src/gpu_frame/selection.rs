@@ -12,6 +12,7 @@
 //! (`super::GpuScene`) keeps one for the scene and records it after the chain when the plan has it.
 
 use forestlod_gpu::command_order::OrderInputs;
+use forestlod_gpu::hier_select::FarNodes;
 use forestlod_gpu::readback::upload_storage;
 
 use crate::bridge::OrderFromCpu;
@@ -83,6 +84,10 @@ impl<'a> SelectionChain<'a> {
                 h.mode as u32,
                 &g.meshes,
                 &g.billboard,
+                prepared.far.as_ref().map(|f| FarNodes {
+                    nodes: &f.nodes,
+                    first_index: g.far.first_index,
+                }),
             )?,
         })
     }
@@ -97,8 +102,9 @@ impl<'a> SelectionChain<'a> {
         mode: u32,
         meshes: &[MeshMeta],
         billboard: &MeshMeta,
+        far: Option<FarNodes<'_>>,
     ) -> Result<Self, GpuError> {
-        let hier = GpuHierSelect::new(ctx, nodes, scales, mode, meshes, billboard)?;
+        let hier = GpuHierSelect::new(ctx, nodes, scales, mode, meshes, billboard, far)?;
         let coalesce = GpuCoalesce::new(ctx, hier.buffers())?;
         let order = GpuCommandOrder::new(
             ctx,

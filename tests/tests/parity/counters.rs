@@ -320,7 +320,7 @@ fn reference_counters_equal_their_recount() {
                 .unwrap()
                 .unwrap();
             let (selection, trace) =
-                forestlod_reference::frame::cut(&h, &g.meshes, &g.billboard, &camera, &p);
+                forestlod_reference::frame::cut(&h, &g.meshes, &g.billboard, None, &camera, &p);
             let cut = &trace.cut;
             let want = cut_recount(&h, &cut.codes, &cut.selection, None);
             prop_assert_eq_counters(&cut.selection.counters, &want, &format!("{mode:?} raw cut"))?;
@@ -667,6 +667,7 @@ fn gpu_counters_equal_their_recount() {
             hmode as u32,
             &g.meshes,
             &g.billboard,
+            None,
         )
         .map_err(fail)?;
         let sel = chain.run(&camera, &p, Compaction::Stable).map_err(fail)?;

@@ -107,6 +107,7 @@ fn check_cut(
         mode as u32,
         &g.meshes,
         &g.billboard,
+        None,
     )
     .map_err(|e| TestCaseError::fail(e.to_string()))?;
     let sel = gpu
@@ -121,7 +122,7 @@ fn check_cut(
     let mut ambiguous = 0;
     for (i, (w, gc)) in want.codes.iter().zip(&codes).enumerate() {
         if w != gc {
-            match node_ambiguity(&h.nodes[i], &u) {
+            match node_ambiguity(&h.nodes[i], &u, None) {
                 Some(why) => {
                     eprintln!(
                         "{mode:?}: node {i} ambiguous ({why}): reference {w:#x}, GPU {gc:#x}"
@@ -504,6 +505,7 @@ fn gpu_cut_on_box_knife_edges() {
             mode as u32,
             &g.meshes,
             &g.billboard,
+            None,
         )
         .unwrap();
         for (i, n) in h.nodes.iter().enumerate() {
@@ -703,6 +705,7 @@ fn gpu_cut_walks_every_ancestor() {
             Mode::Quadtree as u32,
             &g.meshes,
             &g.billboard,
+            None,
         )
         .unwrap();
         let sel = gpu.run(&camera, &p, Compaction::Stable).unwrap();
