@@ -649,7 +649,7 @@ fn node_interval(n: NodeMeta, mode: u32, v: ViewUniform) -> ViewInterval {
     let bc = vec3<f32>(n.box_center[0], n.box_center[1], n.box_center[2]);
     let e = vec3<f32>(n.extent[0], n.extent[1], n.extent[2]);
     let b = aabb_view_interval(bc, e, v.eye, v.forward);
-    return ViewInterval(max(s.lo, b.lo), min(s.hi, b.hi));
+    return ViewInterval(s.d, max(s.lo, b.lo), min(s.hi, b.hi));
 }
 
 // forestlod_shared::box_area_along: the box's area projected along the unit direction `v`.
