@@ -171,12 +171,13 @@ pub struct DrawUniform {
     pub octahedral_grid: u32,
     /// `AzimuthMode` as `u32` (issue 32): the nearest octahedral frame or the three blended.
     pub octahedral_blend: u32,
-    /// Explicit padding.
-    pub _pad6: u32,
-    /// Explicit padding.
-    pub _pad7: u32,
-    /// Explicit padding.
-    pub _pad8: u32,
+    /// The far level's primitive (issue 32, [`forestlod_shared::FarUniform::kind`]): 0 without
+    /// a far level, else `1 + FarLod`.
+    pub far_kind: u32,
+    /// First word of the far level's node records in the far buffer ([`far_words`]).
+    pub far_nodes_base: u32,
+    /// First word of the far level's hull vertices in the far buffer.
+    pub far_hull_base: u32,
 }
 const _: () = assert!(size_of::<DrawUniform>() == 320);
 
@@ -207,11 +208,25 @@ impl DrawUniform {
             billboard_views: params.billboard_views,
             octahedral_grid: params.octahedral_grid,
             octahedral_blend: params.octahedral_blend,
-            _pad6: 0,
-            _pad7: 0,
-            _pad8: 0,
+            far_kind: 0,
+            far_nodes_base: 0,
+            far_hull_base: 0,
         }
     }
+}
+
+/// A far level (issue 32) as the draw binds it: one `u32` buffer holding the cells
+/// ([`forestlod_shared::FarCell`], 12 words each) from word 0, then the node records (4 words
+/// each) from the second value returned, then the hull vertices (4 words each) from the third.
+/// One buffer, not three: the draw's vertex stage already binds six storage buffers and WebGPU's
+/// default limit is eight per stage.
+pub fn far_words(far: &forestlod_shared::FarLevel) -> (Vec<u32>, u32, u32) {
+    let mut words: Vec<u32> = bytemuck::cast_slice(&far.cells).to_vec();
+    let nodes_base = words.len() as u32;
+    words.extend_from_slice(bytemuck::cast_slice(&far.nodes));
+    let hull_base = words.len() as u32;
+    words.extend_from_slice(bytemuck::cast_slice(&far.hull));
+    (words, nodes_base, hull_base)
 }
 
 /// The ground grid as a triangle list in world space: [`forestlod_shared::terrain_grid`] (the
@@ -390,6 +405,8 @@ pub struct DrawSceneDesc<'a> {
     pub indirection: &'a [u32],
     /// The ground, from [`terrain_vertices`].
     pub terrain: &'a [TerrainVertex],
+    /// The far level (issue 32) under `lod_levels = 3`.
+    pub far: Option<&'a forestlod_shared::FarLevel>,
 }
 
 /// A scene's static draw buffers on the GPU (what E§4.1 uploads once).
@@ -404,6 +421,10 @@ pub struct DrawScene {
     pub(crate) terrain_vertex_count: u32,
     billboard_first_vertex: u32,
     mesh_count: u32,
+    /// The far level's words ([`far_words`]; one zero word without a far level).
+    far: wgpu::Buffer,
+    /// Whether a far level was uploaded, and its node and hull bases in `far`.
+    far_bases: Option<(u32, u32)>,
 }
 
 impl DrawScene {
@@ -474,6 +495,13 @@ impl DrawScene {
             );
         }
         use wgpu::BufferUsages as U;
+        let (far_data, far_bases) = match desc.far {
+            Some(f) => {
+                let (words, nodes, hull) = far_words(f);
+                (words, Some((nodes, hull)))
+            }
+            None => (Vec::new(), None),
+        };
         let terrain = ctx
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -495,6 +523,8 @@ impl DrawScene {
             terrain_vertex_count: desc.terrain.len() as u32,
             billboard_first_vertex: desc.billboard.first_vertex,
             mesh_count: desc.meshes.len() as u32,
+            far: upload_storage(ctx, "draw far level", &far_data, U::empty()),
+            far_bases,
         })
     }
 
@@ -518,7 +548,12 @@ impl DrawScene {
         camera: &Camera,
         params: &Params,
     ) -> wgpu::Buffer {
-        let uniform = DrawUniform::new(camera, params, self.billboard_first_vertex);
+        let mut uniform = DrawUniform::new(camera, params, self.billboard_first_vertex);
+        if let Some((nodes, hull)) = self.far_bases {
+            uniform.far_kind = forestlod_shared::FarUniform::new(camera, params).kind;
+            uniform.far_nodes_base = nodes;
+            uniform.far_hull_base = hull;
+        }
         frame_uniform(ctx, label, &uniform)
     }
 }
@@ -1100,6 +1135,7 @@ impl StagePipelines for DrawPipelines {
                     texture(7),
                     texture(8),
                     sampler_entry(9, S::FRAGMENT),
+                    buffer_entry(10, S::VERTEX, storage, 0),
                 ],
             );
             // Straight-alpha source-over (reference raster `Blend::AlphaBlend`).
@@ -1273,6 +1309,7 @@ impl GpuDraw {
                 wgpu::BindingResource::TextureView(&textures.mesh),
                 wgpu::BindingResource::TextureView(&textures.billboards),
                 wgpu::BindingResource::Sampler(&self.pipelines.sampler),
+                scene.far.as_entire_binding(),
             ],
         );
         Ok(bind_group)
@@ -1406,9 +1443,9 @@ pub(crate) mod tests {
                 billboard_views,
                 octahedral_grid,
                 octahedral_blend,
-                _pad6,
-                _pad7,
-                _pad8
+                far_kind,
+                far_nodes_base,
+                far_hull_base
             }),
             rust_layout!(DrawVertex { position, uv }),
             draw_instance_layout(),

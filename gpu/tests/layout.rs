@@ -10,8 +10,8 @@ use forestlod_gpu::shaders::with_common;
 use forestlod_gpu::{CoalesceUniform, CullTree, HierUniform, SelectUniform};
 use forestlod_gpu::{coalesce, cull, hier_select, primitive, select};
 use forestlod_shared::{
-    BatchMeta, Camera, CommandData, DrawCommand, FrustumPlanes, MeshMeta, NodeMeta, ProxyRecord,
-    SelectCounters,
+    BatchMeta, Camera, CommandData, DrawCommand, FarCell, FarNode, FarVertex, FrustumPlanes,
+    MeshMeta, NodeMeta, ProxyRecord, SelectCounters,
 };
 
 /// The crate's own layout-test support (`gpu/src/wgsl_layout.rs`), shared with its unit tests.
@@ -206,6 +206,26 @@ fn hier_select_structs_match_their_rust_twins() {
             _pad2
         }),
     );
+    // The far level's records (issue 32, `common.wgsl`): the cut binds `FarNode`s; the draw
+    // reads all three from one word buffer at these strides (`gpu/src/draw.rs` `far_words`).
+    assert_layout(
+        &module,
+        &rust_layout!(FarNode {
+            cell_offset,
+            cell_count,
+            hull_offset,
+            hull_count
+        }),
+    );
+    assert_layout(
+        &module,
+        &rust_layout!(FarCell {
+            center,
+            extent,
+            colours
+        }),
+    );
+    assert_layout(&module, &rust_layout!(FarVertex { position, colour }));
 }
 
 /// `coalesce.wgsl`'s uniform has its Rust twin's layout (its atomic counters are `common.wgsl`'s

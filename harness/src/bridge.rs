@@ -67,6 +67,7 @@ impl DrawSceneData {
             instances: &self.instances,
             indirection: &prepared.batches.indirection,
             terrain: &self.terrain,
+            far: prepared.far.as_ref(),
         }
     }
 }

@@ -275,6 +275,7 @@ pub fn render_vegetation_with_history(
                 indirection: &indirection,
                 mesh_textures: &prepared.mesh_textures,
                 billboards: &prepared.billboards,
+                far: None,
                 lod_rule: crate::sampler::LodRule::Exact,
             };
             (draw_frame(&res, &selection, camera, params), None, 0.0)

@@ -43,6 +43,16 @@
 //! - **Shading** (G§5, issue 30; `forestlod_shared::light`): under a sun-depth mode each vertex
 //!   carries its lightness (the 8th varying, perspective-interpolated) and the fragment multiplies
 //!   its texel's linear RGB by it; under `unlit` nothing is multiplied (bit-identical frames).
+//! - **The far level** (issue 32, `forestlod_shared::far`): a command with `lod = LOD_FAR` pulls
+//!   no tree. Its instance is a cell of [`DrawResources::far`] (octant sprite or cube) or a node
+//!   (hull); the vertex stage builds the cube's corner ([`forestlod_shared::cube_corner`]), the
+//!   sprite's corner on the basis of the eye's direction from the cell
+//!   ([`forestlod_shared::sprite_half`], the colour [`forestlod_shared::side_mix`] of that
+//!   direction) or reads the hull's vertex, and passes the primitive's RGBA8 colour as two
+//!   constant varyings: the RGB word in the layer's place, the alpha byte in the scale's. The
+//!   fragment keeps a pixel where `alpha / 255` exceeds the pixel's
+//!   [`forestlod_shared::dither_threshold`] (a screen door, no sorting) and writes the colour
+//!   opaque with [`LOD_ID_FAR`]. Far levels are unlit (baked unlit).
 //! - A flat terrain-following ground grid is drawn first ([`terrain_triangles`]), opaque.
 
 use forestlod_shared::coverage;
@@ -54,6 +64,10 @@ use forestlod_shared::{
     octahedral_layer, octahedral_mix, octahedral_pack, octahedral_unpack, octahedral_view,
     quad_fit, reproject_duv, reproject_uv, subset_fragment_weight, subset_pack, subset_scale,
     subset_weight_code, vertex_lightness, view_interval, view_layer,
+};
+use forestlod_shared::{
+    FarLevel, FarLod, LOD_FAR, cube_corner, dither_threshold, pack_far_colour, side_mix,
+    sprite_corner, sprite_half, unpack_far_colour,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -128,6 +142,8 @@ pub struct DrawResources<'a> {
     pub mesh_textures: &'a [Texture],
     /// Billboard array texture.
     pub billboards: &'a BakedBillboards,
+    /// The far level (issue 32) the far commands draw, under `lod_levels = 3`.
+    pub far: Option<&'a FarLevel>,
     /// How the tree shader's implicit level of detail computes `ρ`: [`LodRule::Exact`] (the
     /// pipeline's); the others only for the reference frames that classify what a conforming
     /// adapter's other `λ` explains (`forestlod-harness`'s alternatives).
@@ -210,6 +226,9 @@ pub fn tree_stage(
 ) -> Option<TreeStage> {
     let (u, camera, params) = (&uniform.select, uniform.camera, uniform.params);
     let data = &selection.data[command as usize];
+    if data.lod == LOD_FAR {
+        return far_stage(res, uniform, command, instance_index);
+    }
     let tree_index = res.indirection[instance_index as usize] as usize;
     let t = &res.scene.instances[tree_index];
     let mesh_meta = &res.geometry.meshes[t.mesh as usize];
@@ -341,7 +360,7 @@ pub fn tree_stage(
         radii: crown_radii(mesh_meta, tree.scale),
         toward_eye: match kind {
             TreeKind::Billboard { toward_eye, .. } => toward_eye,
-            TreeKind::Mesh { .. } => [0.0; 3],
+            _ => [0.0; 3],
         },
         sun: uniform.sun,
         ambient: params.ambient,
@@ -453,6 +472,73 @@ struct OctahedralQuad {
     fit: [f32; 2],
 }
 
+/// [`tree_stage`] for a far command (module docs): the cell (sprite, cube) or the node (hull)
+/// `instance`; `None` when the frame has no far level or the instance is out of its range.
+fn far_stage(
+    res: &DrawResources,
+    uniform: &DrawUniform,
+    command: u32,
+    instance: u32,
+) -> Option<TreeStage> {
+    let far = res.far?;
+    let kind = match uniform.params.far_level().ok()? {
+        FarLod::Hull => {
+            let node = far.nodes.get(instance as usize)?;
+            TreeKind::FarHull {
+                offset: node.hull_offset,
+            }
+        }
+        lod => {
+            let cell = far.cells.get(instance as usize)?;
+            if lod == FarLod::OctantCube {
+                TreeKind::FarCube {
+                    center: Vec3::from(cell.center),
+                    extent: Vec3::from(cell.extent),
+                    colours: cell.colours,
+                }
+            } else {
+                let to_eye = Vec3::from(uniform.camera.eye) - Vec3::from(cell.center);
+                let len = (to_eye.x * to_eye.x + to_eye.y * to_eye.y + to_eye.z * to_eye.z).sqrt();
+                let v = if len > 0.0 {
+                    [to_eye.x / len, to_eye.y / len, to_eye.z / len]
+                } else {
+                    [0.0, 0.0, 1.0]
+                };
+                let (r, u) = frame_basis(v);
+                TreeKind::FarSprite {
+                    center: Vec3::from(cell.center),
+                    right: Vec3::from(r),
+                    up: Vec3::from(u),
+                    half: sprite_half(cell.extent, r, u),
+                    word: pack_far_colour(side_mix(&cell.colours, v)),
+                }
+            }
+        }
+    };
+    Some(TreeStage {
+        command,
+        base: Vec3::ZERO,
+        scale: 1.0,
+        fade_word: 0.0,
+        subset: 0.0,
+        kind,
+        light: TreeLight {
+            shading: Shading::Unlit as u32,
+            centre: [0.0; 3],
+            radii: [0.0; 2],
+            toward_eye: [0.0; 3],
+            sun: uniform.sun,
+            ambient: 1.0,
+        },
+    })
+}
+
+/// A far primitive's colour word as the two varyings (module docs): the RGB bytes as one 24-bit
+/// integer and the alpha byte, both exact in an `f32`.
+fn far_varyings(word: u32) -> (f32, f32) {
+    ((word & 0x00ff_ffff) as f32, (word >> 24) as f32)
+}
+
 /// What [`tree_stage`] computed for one tree in one command.
 #[derive(Clone, Copy, Debug)]
 pub struct TreeStage {
@@ -510,6 +596,22 @@ enum TreeKind {
         depth_lo: f32,
         depth_hi: f32,
     },
+    /// An octant cube (issue 32): the cell's box and its six side colours.
+    FarCube {
+        center: Vec3,
+        extent: Vec3,
+        colours: [u32; forestlod_shared::SIDE_COUNT],
+    },
+    /// An octant sprite (issue 32): the quad facing the eye and its mixed colour word.
+    FarSprite {
+        center: Vec3,
+        right: Vec3,
+        up: Vec3,
+        half: [f32; 2],
+        word: u32,
+    },
+    /// A batch hull (issue 32): its first vertex in the far level's hull.
+    FarHull { offset: u32 },
 }
 
 impl TreeStage {
@@ -528,6 +630,43 @@ impl TreeStage {
         let (camera, view_proj) = (uniform.camera, &uniform.view_proj);
         let eye = Vec3::from(camera.eye);
         let forward = Vec3::from(uniform.select.forward);
+        let far_word = match self.kind {
+            TreeKind::FarCube {
+                center,
+                extent,
+                colours,
+            } => {
+                let (face, s) = cube_corner(local);
+                Some((center + Vec3::from(s) * extent, colours[face as usize]))
+            }
+            TreeKind::FarSprite {
+                center,
+                right,
+                up,
+                half,
+                word,
+            } => {
+                let c = sprite_corner(local);
+                Some((
+                    center + right * (c[0] * half[0]) + up * (c[1] * half[1]),
+                    word,
+                ))
+            }
+            TreeKind::FarHull { offset } => res
+                .far
+                .and_then(|f| f.hull.get((offset + local) as usize))
+                .map(|v| (Vec3::from(v.position), v.colour)),
+            _ => None,
+        };
+        if let Some((world, word)) = far_word {
+            let depth = (world - eye).dot(forward);
+            let clip = *view_proj * Vec4::new(world.x, world.y, world.z, 1.0);
+            let (rgb, alpha) = far_varyings(word);
+            return Vertex::new(
+                clip.to_array(),
+                [0.0, 0.0, depth, rgb, self.command as f32, alpha, 0.0, 1.0],
+            );
+        }
         let (world, uv, layer) = match self.kind {
             TreeKind::Mesh {
                 first_vertex,
@@ -567,6 +706,10 @@ impl TreeStage {
                     None => corner,
                 };
                 (origin + right * along_right + up * along_up, uv, layer)
+            }
+            TreeKind::FarCube { .. } | TreeKind::FarSprite { .. } | TreeKind::FarHull { .. } => {
+                // Handled above; a hull vertex out of range draws at the eye, degenerate.
+                (eye, [0.0; 2], 0.0)
             }
         };
         let mut depth = (world - eye).dot(forward);
@@ -751,6 +894,27 @@ impl TreeShader<'_> {
     }
 }
 
+impl TreeShader<'_> {
+    /// A far primitive's fragment (module docs): its colour where its alpha beats the pixel's
+    /// dither threshold, opaque, [`LOD_ID_FAR`]; every pass alike (no alpha test).
+    fn far_fragment(&self, f: &Fragment<TREE_VARYINGS>) -> Option<FragmentOutput> {
+        let rgb = round_exact(f.varyings[3]) as u32;
+        let alpha = round_exact(f.varyings[5]) as f32 / 255.0;
+        let (px, py) = (f.x + self.pixel_origin[0], f.y + self.pixel_origin[1]);
+        let kept = alpha > dither_threshold(px, py);
+        coverage::hit(coverage::Threshold::DrawFarAlpha, kept);
+        if !kept {
+            return None;
+        }
+        let c = unpack_far_colour(rgb | 0xff00_0000);
+        Some(FragmentOutput {
+            color: [c[0], c[1], c[2], 1.0],
+            id: LOD_ID_FAR,
+            depth: None,
+        })
+    }
+}
+
 impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
     fn shade_passes(
         &self,
@@ -760,6 +924,9 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
         let subset = f.varyings[6];
         let lightness = f.varyings[7];
         let data = self.data(f);
+        if data.lod == LOD_FAR {
+            return self.far_fragment(f).map(|out| (out, passes));
+        }
         let texel = self.texel(f);
         // The alpha test, per pass.
         let mut kept: PassSet = 0;
@@ -1118,7 +1285,8 @@ impl<'a> TreeTriangles<'a> {
         let cmd = &self.selection.commands[c as usize];
         let indices = &res.geometry.indices
             [cmd.first_index as usize..(cmd.first_index + cmd.index_count) as usize];
-        if let Some(mask) = self.mask {
+        let far = self.selection.data[c as usize].lod == LOD_FAR;
+        if let Some(mask) = self.mask.filter(|_| !far) {
             let t = &res.scene.instances[res.indirection[instance as usize] as usize];
             let meta = &res.geometry.meshes[t.mesh as usize];
             let base = Vec3::from(t.position);

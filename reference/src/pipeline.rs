@@ -295,6 +295,7 @@ impl Prepared {
             indirection: &self.batches.indirection,
             mesh_textures: &self.mesh_textures,
             billboards: &self.billboards,
+            far: self.far.as_ref(),
             lod_rule: crate::sampler::LodRule::Exact,
         }
     }

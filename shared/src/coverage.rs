@@ -106,10 +106,16 @@ pub enum Threshold {
     /// `draw`, vertex stage, an octahedral impostor (issue 32): the eye lies in its cell's lower /
     /// upper triangle (a rule that read one triangle's frames only would be seen on the second).
     DrawOctahedralTriangle,
+    /// The cut with a far level (issue 32): a drawn node that needs no mesh stays / goes far
+    /// ([`crate::far_code`]).
+    CutFar,
+    /// `draw`, a far primitive's fragment (issue 32): its alpha is at or below / above the
+    /// pixel's dither threshold (discarded / kept).
+    DrawFarAlpha,
 }
 
 /// Every threshold, in table order.
-pub const ALL: [Threshold; 39] = {
+pub const ALL: [Threshold; 41] = {
     use Threshold::*;
     [
         SelectDrawDistance,
@@ -151,6 +157,8 @@ pub const ALL: [Threshold; 39] = {
         OccludeEarly,
         OccludeLate,
         DrawOctahedralTriangle,
+        CutFar,
+        DrawFarAlpha,
     ]
 };
 
@@ -234,6 +242,8 @@ impl Threshold {
                 "lower",
                 "upper",
             ),
+            CutFar => ("cut: billboard node vs far rule", "stays", "far"),
+            DrawFarAlpha => ("draw: far fragment alpha vs dither", "discarded", "kept"),
         }
     }
 }

@@ -159,7 +159,12 @@ pub fn far_code(
     }
     let (lo, hi) = node_interval(u, n, mode);
     let billboards_only = code & crate::DECISION_LOD0 == 0;
-    if billboards_only && crate::far_eligible(far, lo, n.box_center, n.extent, u.eye, cells) {
+    let goes_far =
+        billboards_only && crate::far_eligible(far, lo, n.box_center, n.extent, u.eye, cells);
+    if billboards_only {
+        crate::coverage::hit(crate::coverage::Threshold::CutFar, goes_far);
+    }
+    if goes_far {
         return DECISION_DRAW | NODE_FAR;
     }
     if n.child_count > 0 && hi >= far.start {

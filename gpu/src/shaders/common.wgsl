@@ -1350,3 +1350,87 @@ fn is_occluder(
 fn occlusion_slot(phase: u32, lod: u32, m: u32, first_instance: u32) -> u32 {
     return (2u * phase + min(lod, 1u)) * m + first_instance;
 }
+
+// The far level's colours and primitives (issue 32, forestlod_shared::far).
+
+// forestlod_shared::srgb_to_linear, evaluated in f32 (the reference reads an f64-exact table:
+// the two differ by ulps, far below half an 8-bit step, so a decoded byte encodes back to itself).
+fn srgb_decode(b: u32) -> f32 {
+    let c = f32(b & 255u) / 255.0;
+    if c <= 0.04045 {
+        return c / 12.92;
+    }
+    return pow((c + 0.055) / 1.055, 2.4);
+}
+
+// forestlod_shared::linear_to_srgb in f32 (NaN to 0).
+fn srgb_encode8(l: f32) -> u32 {
+    let x = min(max(l, 0.0), 1.0);
+    var s: f32;
+    if x <= 0.0031308 {
+        s = x * 12.92;
+    } else {
+        s = 1.055 * pow(x, 1.0 / 2.4) - 0.055;
+    }
+    return u32(floor(s * 255.0 + 0.5));
+}
+
+// forestlod_shared::unpack_far_colour.
+fn unpack_far_colour(c: u32) -> vec4<f32> {
+    return vec4<f32>(srgb_decode(c), srgb_decode(c >> 8u), srgb_decode(c >> 16u), f32((c >> 24u) & 255u) / 255.0);
+}
+
+// forestlod_shared::pack_far_colour.
+fn pack_far_colour(c: vec4<f32>) -> u32 {
+    let a = u32(floor(min(max(c.w, 0.0), 1.0) * 255.0 + 0.5));
+    return srgb_encode8(c.x) | (srgb_encode8(c.y) << 8u) | (srgb_encode8(c.z) << 16u) | (a << 24u);
+}
+
+// forestlod_shared::side_weights and side_mix over six RGBA8 side colours.
+fn side_mix(colours: array<u32, 6>, v: vec3<f32>) -> vec4<f32> {
+    let sq = vec3<f32>(v.x * v.x, v.y * v.y, v.z * v.z);
+    let sum = sq.x + sq.y + sq.z;
+    var w = vec3<f32>(0.0, 0.0, 1.0);
+    if sum > 0.0 {
+        w = vec3<f32>(sq.x / sum, sq.y / sum, sq.z / sum);
+    }
+    let sides = vec3<u32>(select(1u, 0u, v.x >= 0.0), select(3u, 2u, v.y >= 0.0), select(5u, 4u, v.z >= 0.0));
+    var out = vec4<f32>(0.0);
+    out = out + w.x * unpack_far_colour(colours[sides.x]);
+    out = out + w.y * unpack_far_colour(colours[sides.y]);
+    out = out + w.z * unpack_far_colour(colours[sides.z]);
+    return out;
+}
+
+// The six corners of the two triangles on a square (forestlod_shared::sprite_corner's QUAD).
+fn far_quad_corner(k: u32) -> vec2<f32> {
+    let xs = array<f32, 6>(-1.0, 1.0, 1.0, -1.0, 1.0, -1.0);
+    let ys = array<f32, 6>(-1.0, -1.0, 1.0, -1.0, 1.0, 1.0);
+    return vec2<f32>(xs[k % 6u], ys[k % 6u]);
+}
+
+struct CubeCorner {
+    face: u32,
+    p: vec3<f32>,
+}
+
+// forestlod_shared::cube_corner.
+fn cube_corner(v: u32) -> CubeCorner {
+    let face = v / 6u;
+    let st = far_quad_corner(v % 6u);
+    let axis = face / 2u;
+    let sign = select(-1.0, 1.0, face % 2u == 0u);
+    var p = vec3<f32>(0.0);
+    p[axis] = sign;
+    p[(axis + 1u) % 3u] = st.x * sign;
+    p[(axis + 2u) % 3u] = st.y;
+    return CubeCorner(face, p);
+}
+
+// forestlod_shared::sprite_half: the box's reach along the quad's right and up.
+fn sprite_half(e: vec3<f32>, r: vec3<f32>, up: vec3<f32>) -> vec2<f32> {
+    return vec2<f32>(
+        abs(r.x) * e.x + abs(r.y) * e.y + abs(r.z) * e.z,
+        abs(up.x) * e.x + abs(up.y) * e.y + abs(up.z) * e.z,
+    );
+}

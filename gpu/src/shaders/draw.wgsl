@@ -52,9 +52,11 @@ struct DrawUniform {
     billboard_views: u32,
     octahedral_grid: u32,
     octahedral_blend: u32,
-    _pad6: u32,
-    _pad7: u32,
-    _pad8: u32,
+    // The far level (issue 32): 0 without one, else 1 + FarLod; the node records' and the hull
+    // vertices' first words in `far_words`.
+    far_kind: u32,
+    far_nodes_base: u32,
+    far_hull_base: u32,
 }
 
 // Keep in sync with gpu/src/draw.rs `DrawVertex` (= reference PackedVertex).
@@ -84,6 +86,78 @@ struct DrawInstance {
 @group(0) @binding(8) var billboard_textures: texture_2d_array<f32>;
 // Trilinear, clamp-to-edge (reference Sampler::TRILINEAR).
 @group(0) @binding(9) var tree_sampler: sampler;
+// The far level (issue 32; gpu/src/draw.rs `far_words`): cells (12 words each) from word 0, node
+// records (4 words) from `u.far_nodes_base`, hull vertices (4 words) from `u.far_hull_base`.
+@group(0) @binding(10) var<storage, read> far_words: array<u32>;
+
+fn far_f32(i: u32) -> f32 {
+    return bitcast<f32>(far_words[i]);
+}
+
+fn far_vec3(i: u32) -> vec3<f32> {
+    return vec3<f32>(far_f32(i), far_f32(i + 1u), far_f32(i + 2u));
+}
+
+// reference `far_stage` and the far arm of `TreeStage::vertex`: the cell's cube corner or sprite
+// corner, or the node's hull vertex, and its colour word as two flat varyings (RGB, alpha).
+fn far_vertex(command: u32, local: u32, instance: u32) -> TreeVaryings {
+    var out: TreeVaryings;
+    out.clip = DISCARDED_POSITION;
+    out.uv_depth_light = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    out.layer_command_scale = vec4<u32>(0u, command, 0u, 0u);
+    let words = arrayLength(&far_words);
+    if u.far_kind == 0u {
+        return out;
+    }
+    var world: vec3<f32>;
+    var word: u32;
+    if u.far_kind == 1u + FAR_LOD_HULL {
+        let nb = u.far_nodes_base + instance * 4u;
+        if nb + 4u > u.far_hull_base {
+            return out;
+        }
+        let vb = u.far_hull_base + (far_words[nb + 2u] + local) * 4u;
+        if vb + 4u > words {
+            return out;
+        }
+        world = far_vec3(vb);
+        word = far_words[vb + 3u];
+    } else {
+        let cb = instance * 12u;
+        if cb + 12u > u.far_nodes_base {
+            return out;
+        }
+        let c = far_vec3(cb);
+        let e = far_vec3(cb + 3u);
+        if u.far_kind == 1u + FAR_LOD_OCTANT_CUBE {
+            let k = cube_corner(local);
+            world = c + k.p * e;
+            word = far_words[cb + 6u + k.face];
+        } else {
+            let d = u.view.eye - c;
+            let len = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+            var v = vec3<f32>(0.0, 0.0, 1.0);
+            if len > 0.0 {
+                v = vec3<f32>(d.x / len, d.y / len, d.z / len);
+            }
+            let basis = octahedral_frame_basis(v);
+            let half = sprite_half(e, basis.right, basis.up);
+            let q = far_quad_corner(local);
+            world = c + basis.right * (q.x * half.x) + basis.up * (q.y * half.y);
+            var colours: array<u32, 6>;
+            for (var s = 0u; s < 6u; s = s + 1u) {
+                colours[s] = far_words[cb + 6u + s];
+            }
+            word = pack_far_colour(side_mix(colours, v));
+        }
+    }
+    let rel = world - u.view.eye;
+    let depth = rel.x * u.view.forward.x + rel.y * u.view.forward.y + rel.z * u.view.forward.z;
+    out.clip = u.view_proj * vec4<f32>(world, 1.0);
+    out.uv_depth_light = vec4<f32>(0.0, 0.0, depth, 1.0);
+    out.layer_command_scale = vec4<u32>(word & 0xffffffu, command, word >> 24u, 0u);
+    return out;
+}
 
 // Two locations, not four (issue 14): lavapipe keeps every set-up triangle of a frame's scene
 // with three vec4s per location (a0, d/dx, d/dy), so packing the reference's five varyings
@@ -160,6 +234,9 @@ fn tree_vertex(
         return out;
     }
     let data = command_data[command];
+    if data.lod == LOD_FAR {
+        return far_vertex(command, local, instance_index);
+    }
     let tree_index = indirection[instance_index];
     var t = instances[tree_index];
     let mesh_meta = meshes[t.mesh];
@@ -349,6 +426,19 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     }
     let duv_dx = dpdxCoarse(uv);
     let duv_dy = dpdyCoarse(uv);
+    if data.lod == LOD_FAR {
+        // reference `TreeShader::far_fragment`: a screen door of the alpha, opaque colour.
+        let pixel = vec2<u32>(in.clip.xy);
+        let alpha = f32(in.layer_command_scale.z) / 255.0;
+        if !(alpha > dither_threshold(pixel.x + u.pixel_origin_x, pixel.y + u.pixel_origin_y)) {
+            discard;
+        }
+        let w = in.layer_command_scale.x;
+        var far_out: TargetOutput;
+        far_out.color = vec4<f32>(srgb_decode(w), srgb_decode(w >> 8u), srgb_decode(w >> 16u), 1.0);
+        far_out.lod_id = LOD_ID_FAR;
+        return far_out;
+    }
     let texel = select(mesh_texel, billboard_texel, data.billboard != 0u);
     if texel.a < u.alpha_cutoff {
         discard;
