@@ -3,6 +3,7 @@
 //! exercise the selection rules alone.
 
 pub mod azimuth;
+pub mod far_fixture;
 pub mod scenarios;
 pub mod stage_cases;
 

@@ -23,6 +23,7 @@
 mod coalesce_properties;
 mod command_order_properties;
 mod extremes;
+mod far_properties;
 mod hierarchy_properties;
 mod occlusion_properties;
 mod refine_properties;
