@@ -27,6 +27,7 @@ mod blend;
 mod counters;
 mod draw;
 mod every_stage;
+mod far;
 mod from_cpu;
 mod h200;
 mod hier_select;

@@ -1,0 +1,102 @@
+//! Parity of the far level (issue 32, `forestlod_shared::far`): the cut's far decision
+//! (`hier_select.wgsl`) and the far primitives' draw (`draw.wgsl`) against the reference
+//! (`reference/src/hier_select.rs`, `reference/src/draw.rs`), through the existing stage checks
+//! and image classes. The far level is the test fixture's (one cell per node, distinct side
+//! colours, alphas from 128 to 255: `forestlod_tests::far_fixture`), so that only the cut and
+//! the draw are judged here; the bake has its own parity.
+//!
+//! Scenarios: the cropped `synthetic` (600 m) seen from `medium` with the far level from the
+//! transition (550 m) on and a pixel threshold that lets most far nodes go, under the octree
+//! and the grid's depth-1 hierarchy, for each far primitive (sprite, cube, hull). Backends: the
+//! draw alone (`from-cpu: select,textures`) and the GPU cut feeding the GPU draw
+//! (`from-cpu: textures`).
+
+use forestlod_harness::alternatives::alpha_test_alternatives;
+use forestlod_harness::backend::GpuRenderer;
+use forestlod_harness::context::gpu_context;
+use forestlod_harness::diagnose::{check_stages, first_differing};
+use forestlod_harness::gpu_frame::StagesFromCpu;
+use forestlod_harness::image_compare::{compare_images, write_failure_images};
+use forestlod_harness::stage::{Backend, Draw, FrameInput, Named, Reference};
+use forestlod_reference::pipeline::prepare;
+use forestlod_shared::{FadeMode, FarLod, Hierarchy, LOD_ID_FAR, Params};
+use forestlod_tests::assert_no_failures;
+use forestlod_tests::far_fixture::synthetic_far_level;
+use forestlod_tests::scenarios::{crop_params, cropped_synthetic};
+
+/// The least far pixels a scenario's reference frame must show, so the far path is judged.
+const MIN_FAR_PIXELS: usize = 500;
+
+#[test]
+fn gpu_far_level_matches_the_reference() {
+    let Some(ctx) = gpu_context() else { return };
+    let mut failures = Vec::new();
+    for hierarchy in [Hierarchy::Octree, Hierarchy::Grid] {
+        for kind in FarLod::ALL {
+            let params = Params {
+                lod_levels: 3,
+                hierarchy: hierarchy as u32,
+                nodes_per_node: 16,
+                far_lod: kind as u32,
+                far_start: 550.0,
+                far_pixels: 2.0e4,
+                ..crop_params(FadeMode::DitherSequential)
+            };
+            let crop = cropped_synthetic(300.0);
+            let camera =
+                forestlod_reference::cameras::named_camera("medium", &crop, 30.0, 160, 160)
+                    .expect("named camera");
+            let mut prepared = prepare(crop, &params).expect("prepare the crop");
+            let h = prepared
+                .hierarchy
+                .as_ref()
+                .expect("a far level cuts a hierarchy");
+            prepared.far = Some(synthetic_far_level(h, kind));
+            let input = FrameInput {
+                prepared: &prepared,
+                camera: &camera,
+                params: &params,
+            };
+            let want = Backend::<Draw>::run(&Reference, input);
+            let far_pixels = want.lod_id.iter().filter(|&&id| id == LOD_ID_FAR).count();
+            let name = format!("{}-{}", hierarchy.name(), kind.name());
+            eprintln!("{name}: {far_pixels} far pixels in the reference frame");
+            if far_pixels < MIN_FAR_PIXELS {
+                failures.push(format!(
+                    "{name}: only {far_pixels} far pixels (want {MIN_FAR_PIXELS})"
+                ));
+            }
+            let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
+            for option in [StagesFromCpu::ALL, StagesFromCpu::TEXTURES] {
+                let checks = check_stages(
+                    ctx,
+                    &prepared,
+                    &camera,
+                    &params,
+                    true,
+                    option.selection.is_some(),
+                );
+                for c in &checks {
+                    eprintln!("{name}: stage {}: {}", c.stage, c.summary);
+                }
+                if let Some(f) = first_differing(&checks) {
+                    failures.push(format!("{name}: {f}"));
+                }
+                let backend = GpuRenderer { ctx, option };
+                let got = backend.run(input);
+                let label = format!("{name}/{}", backend.name());
+                let report = compare_images(&label, &got, &want, &alternatives, &camera);
+                eprintln!("{report}");
+                if !report.passed() {
+                    let dir = write_failure_images(&report, &got, &want);
+                    failures.push(format!(
+                        "{label}: {} (images in {})",
+                        report.failures().join("; "),
+                        dir.display()
+                    ));
+                }
+            }
+        }
+    }
+    assert_no_failures("far level parity failed", &failures);
+}
