@@ -118,8 +118,10 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/hier_select.wgsl",
         backend: Some("stage::HierSelect"),
         parity: "tests/tests/parity/hier_select.rs",
-        modes: &["hierarchy", "lod_metric"],
+        modes: &["hierarchy", "lod_metric", "far_lod"],
         params: &[
+            "far_start",
+            "far_pixels",
             "nodes_per_node",
             "max_cull_depth",
             "grid_size",
@@ -212,6 +214,7 @@ pub const STAGES: &[StageEntry] = &[
             "azimuth_mode",
             "billboard_views",
             "octahedral_blend",
+            "far_lod",
         ],
         params: &[
             "alpha_cutoff",

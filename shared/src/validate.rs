@@ -152,6 +152,29 @@ impl Params {
                 .into(),
             });
         }
+        // The far level's commands (issue 32) index cells, not trees: the stages that rewrite
+        // instance lists (refine, occlusion) and the grid's subsets (which rank trees within a
+        // flat selection's batches) do not apply to them.
+        if self.lod_levels >= 3 {
+            let conflict = if self.tree_culling()? != TreeCull::None {
+                Some(("tree_cull", self.tree_culling()?.name()))
+            } else if occlusion != crate::Occlusion::Off {
+                Some(("occlusion", occlusion.name()))
+            } else if subset != crate::SubsetMode::Off {
+                Some(("subset_mode", subset.name()))
+            } else {
+                None
+            };
+            if let Some((field, value)) = conflict {
+                return Err(ParamError {
+                    field,
+                    value: value.to_string(),
+                    reason: "lod_levels = 3 (the far level) needs tree_cull = none, occlusion = off \
+                             and subset_mode = off (far commands index cells, not trees)"
+                        .into(),
+                });
+            }
+        }
         // One mesh's `K·J` views must fit the billboard array (issue 30); the scene's `m·K·J` is
         // checked where the mesh count is known (`crate::check_billboard_layers`).
         crate::check_billboard_layers(1, self)?;

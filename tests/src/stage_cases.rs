@@ -128,6 +128,8 @@ pub const READ_ONLY_UNDER: &[(&str, &str, &str)] = &[
     ("ambient", "shading", "sun-depth-plane"),
     ("noise_size", "dither_space", "texture"),
     ("octahedral_grid", "billboard_views", "hemi-octahedral"),
+    ("far_start", "far_lod", "octant-sprite"),
+    ("far_pixels", "far_lod", "octant-sprite"),
 ];
 
 /// Azimuth views a case gets when it picks an azimuth rule other than the nearest at one view
@@ -152,6 +154,22 @@ pub fn coherent(p: &mut Params) {
         && !forestlod_shared::octahedral::is_octahedral(p.billboard_views)
     {
         p.billboard_views = forestlod_shared::ViewSphere::HemiOctahedral as u32;
+    }
+    // The far level (issue 32) is read under `lod_levels = 3` only: a case that picks a far
+    // primitive other than the default gets it, and a far case drops what the far level refuses
+    // (per-tree refinement, occlusion culling, subsets) and pulls the transition in to a far
+    // start below it (so `far_start = 0` is the extreme "everything far that can be").
+    if p.far_lod != Params::default().far_lod {
+        p.lod_levels = 3;
+    }
+    if p.lod_levels >= 3 {
+        p.tree_cull = TreeCull::None as u32;
+        p.occlusion = forestlod_shared::Occlusion::Off as u32;
+        p.subset_mode = forestlod_shared::SubsetMode::Off as u32;
+        if p.far_start < p.lod1_transition {
+            p.lod1_transition = p.far_start;
+            p.fade_width = p.fade_width.min(p.far_start);
+        }
     }
 }
 
