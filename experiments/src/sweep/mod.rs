@@ -60,7 +60,7 @@ pub use spec::{
 pub use variant::{Engine, Pipeline, ReferenceRenderer, Registered};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 24] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 25] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -109,6 +109,7 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 24] = [
     ("azimuths", include_str!("../../sweeps/azimuths.toml")),
     ("occlusion", include_str!("../../sweeps/occlusion.toml")),
     ("impostors", include_str!("../../sweeps/impostors.toml")),
+    ("far_levels", include_str!("../../sweeps/far_levels.toml")),
 ];
 
 /// Options of `forestlod sweep` (`Default`: no file, no override, an empty `out`).
