@@ -68,10 +68,10 @@
 //!
 //! ## Numerics
 //! Coordinates are relative to the centre of the corners' box, in `f64` (1e5 m offsets keep
-//! their precision). A clip treats a vertex within a millionth of the batch's size inside a new
-//! plane, or within a quarter of the smallest cut outside it, as on the plane (no sliver beside
-//! it): the first can dip a face inwards by that millionth, which the margin of step 4 adds; the
-//! second only leaves the hull larger. A clip whose cap does not close is skipped.
+//! their precision). A clip treats a vertex within [`ON_PLANE_REL`] of the batch's size of a new
+//! plane as on it, so that several planes through one box corner meet in one vertex; such a
+//! vertex can leave a face that far inside its plane, which the margin of step 4 adds. A clip
+//! whose cap does not close is skipped.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -233,7 +233,7 @@ pub fn build_hull(boxes: &[HullBox], max_triangles: u32) -> Result<BatchHull, Hu
         }
         let Some((j, _)) = best else { break };
         alive[j] = false;
-        if let Some(next) = poly.clip(candidates[j], supports[j], frame.tol_in, frame.tol_out)
+        if let Some(next) = poly.clip(candidates[j], supports[j], frame.tol)
             && next.triangle_count() <= max_triangles as usize
             && next.rounds_apart(&frame)
         {
@@ -266,9 +266,8 @@ struct Frame {
     margin: f64,
     /// The smallest cut (step 3).
     min_cut: f64,
-    /// A vertex this far inside a new plane or `tol_out` outside it is on it.
-    tol_in: f64,
-    tol_out: f64,
+    /// A vertex this close to a new plane is on it.
+    tol: f64,
 }
 
 impl Frame {
@@ -309,7 +308,7 @@ impl Frame {
         }
         let origin = (lo + hi) * 0.5;
         let size = (hi - lo).length();
-        let tol_in = ON_PLANE_REL * size;
+        let tol = ON_PLANE_REL * size;
         let min_cut = (MIN_CUT_REL * size).max(MIN_CUT_EPS * big);
         Ok(Self {
             origin,
@@ -323,10 +322,9 @@ impl Frame {
                 .iter()
                 .map(|(_, h)| DVec3::from(h.map(|x| x as f64)))
                 .collect(),
-            margin: MARGIN_EPS * big + tol_in,
+            margin: MARGIN_EPS * big + tol,
             min_cut,
-            tol_in,
-            tol_out: min_cut * 0.25,
+            tol,
         })
     }
 
@@ -475,17 +473,17 @@ impl Poly {
         self.faces.iter().map(|f| f.len() - 2).sum()
     }
 
-    /// The polytope cut by `n · p ≤ s`; a vertex from `tol_in` inside to `tol_out` outside the
-    /// plane stays, on it. `None` when nothing is cut, everything would be, or the cap does not
-    /// close (module docs, Numerics).
-    fn clip(&self, n: DVec3, s: f64, tol_in: f64, tol_out: f64) -> Option<Self> {
+    /// The polytope cut by `n · p ≤ s`; a vertex within `tol` of the plane stays, on it. `None`
+    /// when nothing is cut, everything would be, or the cap does not close (module docs,
+    /// Numerics).
+    fn clip(&self, n: DVec3, s: f64, tol: f64) -> Option<Self> {
         let d: Vec<f64> = self.verts.iter().map(|v| n.dot(*v) - s).collect();
         let side: Vec<Side> = d
             .iter()
             .map(|&x| {
-                if x > tol_out {
+                if x > tol {
                     Side::Out
-                } else if x < -tol_in {
+                } else if x < -tol {
                     Side::In
                 } else {
                     Side::On
@@ -734,7 +732,7 @@ mod tests {
     fn dop(frame: &Frame, dirs: &[DVec3]) -> Poly {
         let mut poly = frame.start();
         for &n in dirs {
-            if let Some(p) = poly.clip(n, frame.support(n), frame.tol_in, frame.tol_out) {
+            if let Some(p) = poly.clip(n, frame.support(n), frame.tol) {
                 poly = p;
             }
         }
@@ -762,7 +760,7 @@ mod tests {
         assert!(p.volume() > 0.0);
         // A corner cut: one new triangle, three faces one vertex longer.
         let n = DVec3::ONE.normalize();
-        let q = p.clip(n, n.dot(DVec3::new(2.0, 3.0, 4.0)) - 0.5, 1e-9, 1e-9).unwrap();
+        let q = p.clip(n, n.dot(DVec3::new(2.0, 3.0, 4.0)) - 0.5, 1e-9).unwrap();
         assert!(q.is_closed());
         assert_eq!(q.faces.len(), 7);
         assert_eq!(q.verts.len(), 10);
