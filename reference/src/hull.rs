@@ -79,7 +79,7 @@ use forestlod_shared::{MAX_HULL_TRIANGLES, MeshMeta};
 use glam::{DMat3, DVec3};
 use glam_quickhull::Vec3A;
 
-use crate::scene::Instance;
+use crate::scene::{Instance, Scene};
 
 /// A box: centre and half-size (every component `≥ 0`), world space.
 pub type HullBox = ([f32; 3], [f32; 3]);
@@ -192,6 +192,18 @@ pub fn tree_box(instance: &Instance, mesh: &MeshMeta) -> HullBox {
         f32_at_least(half[k] + slack)
     });
     (centre32, half32)
+}
+
+/// The boxes of the trees `trees` of `scene` ([`tree_box`]), `meshes` the scene's mesh metadata
+/// (`Scene::mesh_metas`): a batch's input to [`batch_hull`].
+pub fn tree_boxes(scene: &Scene, meshes: &[MeshMeta], trees: &[u32]) -> Vec<HullBox> {
+    trees
+        .iter()
+        .map(|&t| {
+            let tree = &scene.instances[t as usize];
+            tree_box(tree, &meshes[tree.mesh as usize])
+        })
+        .collect()
 }
 
 /// Rounds a non-negative `f64` up to the nearest `f32` not below it.
@@ -338,12 +350,10 @@ impl Frame {
             .fold(f64::NEG_INFINITY, f64::max)
     }
 
-    /// The corners' box (step 1), an axis thinner than the margin widened to it so that the
-    /// polytope is a solid.
+    /// The corners' box (step 1). A flat or empty axis (one point, boxes in a plane) gives
+    /// coincident vertices; the clip works on indices, and step 4 moves them apart.
     fn start(&self) -> Poly {
-        let thin = (self.hi - self.lo).cmplt(DVec3::splat(self.margin));
-        let pad = DVec3::select(thin, DVec3::splat(self.margin * 0.5), DVec3::ZERO);
-        Poly::cuboid(self.lo - pad, self.hi + pad)
+        Poly::cuboid(self.lo, self.hi)
     }
 
     /// Every box corner, local, in `f32` for the hull crate.
