@@ -126,7 +126,9 @@ fn check(boxes: &[HullBox], tris: &[Triangle]) -> Seen {
     let verts: Vec<[f64; 3]> = {
         let mut v: Vec<([u32; 3], usize)> = ids.iter().map(|(p, i)| (*p, *i)).collect();
         v.sort_by_key(|(_, i)| *i);
-        v.iter().map(|(p, _)| p.map(|b| f32::from_bits(b) as f64)).collect()
+        v.iter()
+            .map(|(p, _)| p.map(|b| f32::from_bits(b) as f64))
+            .collect()
     };
     let all = corners(boxes);
     let big = all
@@ -221,10 +223,7 @@ fn forest(
         .map(|&(u, v, w, h)| {
             let (x, y) = (u * cell, v * cell);
             let ground = slope.0 * x + slope.1 * y;
-            (
-                [offset + x, offset + y, ground + h * 0.5],
-                [w, w, h * 0.5],
-            )
+            ([offset + x, offset + y, ground + h * 0.5], [w, w, h * 0.5])
         })
         .collect()
 }
@@ -332,7 +331,12 @@ fn degenerate_batches_keep_the_contract() {
         (
             "trees on a diagonal line",
             (0..40)
-                .map(|i| ([i as f32 * 7.0, i as f32 * 7.0, 10.0 + i as f32], [2.0, 2.0, 10.0]))
+                .map(|i| {
+                    (
+                        [i as f32 * 7.0, i as f32 * 7.0, 10.0 + i as f32],
+                        [2.0, 2.0, 10.0],
+                    )
+                })
                 .collect(),
         ),
         ("one point", vec![([1.0, 2.0, 3.0], [0.0; 3])]),
@@ -345,13 +349,23 @@ fn degenerate_batches_keep_the_contract() {
         (
             "flat boxes in a plane",
             (0..20)
-                .map(|i| ([(i * 37 % 11) as f32, (i * 13 % 7) as f32, 0.0], [1.0, 1.0, 0.0]))
+                .map(|i| {
+                    (
+                        [(i * 37 % 11) as f32, (i * 13 % 7) as f32, 0.0],
+                        [1.0, 1.0, 0.0],
+                    )
+                })
                 .collect(),
         ),
         (
             "a grid of identical trees",
             (0..100)
-                .map(|i| ([(i % 10) as f32 * 50.0, (i / 10) as f32 * 50.0, 10.0], [3.0, 3.0, 10.0]))
+                .map(|i| {
+                    (
+                        [(i % 10) as f32 * 50.0, (i / 10) as f32 * 50.0, 10.0],
+                        [3.0, 3.0, 10.0],
+                    )
+                })
                 .collect(),
         ),
         (
@@ -360,7 +374,11 @@ fn degenerate_batches_keep_the_contract() {
                 .map(|i| {
                     let f = i as f32;
                     (
-                        [1e5 + (f * 37.0) % 500.0, -1e5 + (f * 91.0) % 500.0, 300.0 + f * 0.3],
+                        [
+                            1e5 + (f * 37.0) % 500.0,
+                            -1e5 + (f * 91.0) % 500.0,
+                            300.0 + f * 0.3,
+                        ],
                         [2.0 + f % 3.0, 2.0, 8.0 + f % 7.0],
                     )
                 })
@@ -390,12 +408,35 @@ fn bad_batches_are_errors_naming_the_box() {
     let ok = ([0.0, 0.0, 5.0], [1.0, 1.0, 5.0]);
     assert_eq!(batch_hull(&[]), Err(HullError::Empty));
     let e = batch_hull(&[ok, ok, ([f32::NAN, 0.0, 0.0], [1.0; 3])]).unwrap_err();
-    assert!(matches!(e, HullError::NonFinite { index: 2, field: "centre", .. }), "{e:?}");
+    assert!(
+        matches!(
+            e,
+            HullError::NonFinite {
+                index: 2,
+                field: "centre",
+                ..
+            }
+        ),
+        "{e:?}"
+    );
     assert!(e.to_string().contains("box 2"), "{e}");
     let e = batch_hull(&[ok, ([0.0; 3], [1.0, f32::INFINITY, 1.0])]).unwrap_err();
-    assert!(matches!(e, HullError::NonFinite { index: 1, field: "half-size", .. }), "{e:?}");
+    assert!(
+        matches!(
+            e,
+            HullError::NonFinite {
+                index: 1,
+                field: "half-size",
+                ..
+            }
+        ),
+        "{e:?}"
+    );
     let e = batch_hull(&[([0.0; 3], [1.0, -1.0, 1.0])]).unwrap_err();
-    assert!(matches!(e, HullError::NegativeExtent { index: 0, .. }), "{e:?}");
+    assert!(
+        matches!(e, HullError::NegativeExtent { index: 0, .. }),
+        "{e:?}"
+    );
     let e = batch_hull(&[ok, ([3e38, 0.0, 0.0], [1.0; 3])]).unwrap_err();
     assert!(matches!(e, HullError::OutOfRange { index: 1, .. }), "{e:?}");
     assert_eq!(build_hull(&[ok], 11), Err(HullError::Budget(11)));
@@ -407,7 +448,11 @@ fn the_hull_is_the_same_from_any_thread() {
         .map(|i| {
             let f = i as f32;
             (
-                [(f * 37.3) % 500.0, (f * 91.7) % 500.0, 0.2 * ((f * 91.7) % 500.0) + 10.0],
+                [
+                    (f * 37.3) % 500.0,
+                    (f * 91.7) % 500.0,
+                    0.2 * ((f * 91.7) % 500.0) + 10.0,
+                ],
                 [2.0 + f % 3.0, 2.0 + f % 4.0, 5.0 + f % 10.0],
             )
         })
@@ -427,7 +472,9 @@ fn the_hull_is_the_same_from_any_thread() {
     for boxes in [scattered, diamond, ring] {
         let here = batch_hull(&boxes).unwrap();
         let there: Vec<Vec<Triangle>> = std::thread::scope(|s| {
-            let handles: Vec<_> = (0..4).map(|_| s.spawn(|| batch_hull(&boxes).unwrap())).collect();
+            let handles: Vec<_> = (0..4)
+                .map(|_| s.spawn(|| batch_hull(&boxes).unwrap()))
+                .collect();
             handles.into_iter().map(|h| h.join().unwrap()).collect()
         });
         for t in there {
@@ -442,13 +489,21 @@ fn the_hull_is_the_same_from_any_thread() {
 /// hull measured 0.16 of it; the module's table has the greedy within 1.1 of the exact hull).
 #[test]
 fn the_hull_is_tight() {
-    let few: Vec<HullBox> = [[10.0, 20.0, 12.0], [300.0, 50.0, 25.0], [120.0, 410.0, 18.0]]
-        .iter()
-        .map(|&[x, y, h]| ([x, y, h * 0.5], [3.0, 3.0, h * 0.5]))
-        .collect();
+    let few: Vec<HullBox> = [
+        [10.0, 20.0, 12.0],
+        [300.0, 50.0, 25.0],
+        [120.0, 410.0, 18.0],
+    ]
+    .iter()
+    .map(|&[x, y, h]| ([x, y, h * 0.5], [3.0, 3.0, h * 0.5]))
+    .collect();
     let h = build_hull(&few, u32::MAX).unwrap();
     let size = 500.0f64;
-    println!("three trees: excess {} m, {} triangles", h.excess, h.triangles.len());
+    println!(
+        "three trees: excess {} m, {} triangles",
+        h.excess,
+        h.triangles.len()
+    );
     assert!(h.excess <= MIN_CUT_REL * size, "excess {} m", h.excess);
     let sloped: Vec<HullBox> = (0..100)
         .map(|i| {
@@ -470,7 +525,11 @@ fn the_hull_is_tight() {
         },
     );
     let boxed: f64 = (0..3).map(|k| hi[k] - lo[k]).product();
-    println!("slope: hull {:.4e} m³, box {boxed:.4e} m³, ratio {:.3}", seen.volume, seen.volume / boxed);
+    println!(
+        "slope: hull {:.4e} m³, box {boxed:.4e} m³, ratio {:.3}",
+        seen.volume,
+        seen.volume / boxed
+    );
     assert!(seen.volume < 0.25 * boxed);
 }
 
@@ -492,7 +551,11 @@ fn a_tree_box_holds_its_rotated_mesh_box() {
         let (s, co) = (yaw as f64).sin_cos();
         for k in 0..8 {
             let l = [0, 1, 2].map(|a| {
-                let v = if k >> a & 1 == 0 { mesh.bbox_min[a] } else { mesh.bbox_max[a] };
+                let v = if k >> a & 1 == 0 {
+                    mesh.bbox_min[a]
+                } else {
+                    mesh.bbox_max[a]
+                };
                 v as f64 * 1.7
             });
             let w = [
