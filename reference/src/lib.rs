@@ -46,6 +46,7 @@ pub mod geometry;
 pub mod ground_truth;
 pub mod hier_select;
 pub mod hierarchy;
+pub mod hull;
 pub mod metric;
 pub mod mips;
 pub mod occlude;

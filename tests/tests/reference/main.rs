@@ -7,6 +7,7 @@
 //! - [`shading`]: sun-depth shading (G§5) on lone trees: the seed's defect and its fix.
 //! - [`blend`]: issue 30's G§4 blend per tree (one t per tree, covered pixels, kept fractions,
 //!   translation invariance of the kept texels).
+//! - [`hull`]: issue 32's batch hull (E§7): conservative, closed, convex, within budget.
 //!
 //! Run one module with `cargo test -p forestlod-tests --test reference <module>::`.
 
@@ -16,6 +17,7 @@ mod baselines;
 mod blend;
 mod embree_crosscheck;
 mod goldens;
+mod hull;
 mod metric;
 mod octahedral;
 mod shading;
