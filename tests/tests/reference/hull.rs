@@ -347,6 +347,26 @@ fn degenerate_batches_keep_the_contract() {
                 .collect(),
         ),
         (
+            "points in a tilted plane",
+            (0..30)
+                .map(|i| {
+                    let (u, v) = ((i * 37 % 11) as f32 * 9.0, (i * 13 % 7) as f32 * 13.0);
+                    ([u, v, 0.3 * u - 0.2 * v + 5.0], [0.0; 3])
+                })
+                .collect(),
+        ),
+        (
+            "nested boxes at one spot",
+            (1..20)
+                .map(|i| {
+                    (
+                        [4.0, -2.0, 7.0],
+                        [i as f32, 20.0 / i as f32, (i % 5) as f32],
+                    )
+                })
+                .collect(),
+        ),
+        (
             "flat boxes in a plane",
             (0..20)
                 .map(|i| {
