@@ -290,7 +290,12 @@ pub fn judge_cut(
     }
     compare_selections("raw cut (of its own codes)", &own.selection, &got.selection)?;
     // Far commands (issue 32) carry no band.
-    for d in got.selection.data.iter().filter(|d| d.lod != forestlod_shared::LOD_FAR) {
+    for d in got
+        .selection
+        .data
+        .iter()
+        .filter(|d| d.lod != forestlod_shared::LOD_FAR)
+    {
         let diff = (d.fade_start - u.fade_start)
             .abs()
             .max((d.fade_end - u.fade_end).abs());

@@ -899,7 +899,7 @@ impl TreeShader<'_> {
     /// dither threshold, opaque, [`LOD_ID_FAR`]; every pass alike (no alpha test).
     fn far_fragment(&self, f: &Fragment<TREE_VARYINGS>) -> Option<FragmentOutput> {
         let rgb = round_exact(f.varyings[3]) as u32;
-        let alpha = round_exact(f.varyings[5]) as f32 / 255.0;
+        let alpha = round_exact(f.varyings[5]) / 255.0;
         let (px, py) = (f.x + self.pixel_origin[0], f.y + self.pixel_origin[1]);
         let kept = alpha > dither_threshold(px, py);
         coverage::hit(coverage::Threshold::DrawFarAlpha, kept);

@@ -168,7 +168,7 @@ pub const fn side_of(axis: usize, positive: bool) -> usize {
 /// The unit normal pointing out of side `side` (towards its eye).
 pub fn side_normal(side: usize) -> [f32; 3] {
     let mut n = [0.0; 3];
-    n[side / 2] = if side % 2 == 0 { 1.0 } else { -1.0 };
+    n[side / 2] = if side.is_multiple_of(2) { 1.0 } else { -1.0 };
     n
 }
 
@@ -182,7 +182,7 @@ pub fn side_weights(v: [f32; 3]) -> ([f32; 3], [u32; 3]) {
         side_of(1, v[1] >= 0.0) as u32,
         side_of(2, v[2] >= 0.0) as u32,
     ];
-    if !(sum > 0.0) {
+    if sum.is_nan() || sum <= 0.0 {
         return ([0.0, 0.0, 1.0], sides);
     }
     ([sq[0] / sum, sq[1] / sum, sq[2] / sum], sides)
@@ -273,7 +273,8 @@ pub fn far_eligible(
     eye: [f32; 3],
     cells: u32,
 ) -> bool {
-    if far.kind == 0 || cells == 0 || !(lo >= far.start) || !(lo > 0.0) {
+    // NaN fails every comparison: a NaN depth never goes far.
+    if far.kind == 0 || cells == 0 || lo.is_nan() || lo < far.start || lo <= 0.0 {
         return false;
     }
     let d = [
@@ -282,7 +283,7 @@ pub fn far_eligible(
         eye[2] - box_center[2],
     ];
     let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-    if !(len > 0.0) {
+    if len.is_nan() || len <= 0.0 {
         return false;
     }
     let v = [d[0] / len, d[1] / len, d[2] / len];
@@ -304,7 +305,7 @@ pub fn cube_corner(v: u32) -> (u32, [f32; 3]) {
     let face = v / 6;
     let [s, t] = QUAD[(v % 6) as usize];
     let axis = (face / 2) as usize;
-    let sign = if face % 2 == 0 { 1.0 } else { -1.0 };
+    let sign = if face.is_multiple_of(2) { 1.0 } else { -1.0 };
     // (axis, a1, a2) right-handed, so s along a1 and t along a2 wind counter-clockwise seen from
     // +axis; the -axis face swaps s for -s.
     let a1 = (axis + 1) % 3;

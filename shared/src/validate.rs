@@ -140,7 +140,9 @@ impl Params {
         }
         // The chain mesh -> billboard -> far is conservative per tree only if the far level starts
         // where billboards have fully replaced meshes (issue 32, `shared/src/far.rs`).
-        if self.lod_levels >= 3 && !(self.far_start >= self.lod1_transition) {
+        if self.lod_levels >= 3
+            && (self.far_start.is_nan() || self.far_start < self.lod1_transition)
+        {
             return Err(ParamError {
                 field: "far_start",
                 value: self.far_start.to_string(),
@@ -169,9 +171,10 @@ impl Params {
                 return Err(ParamError {
                     field,
                     value: value.to_string(),
-                    reason: "lod_levels = 3 (the far level) needs tree_cull = none, occlusion = off \
+                    reason:
+                        "lod_levels = 3 (the far level) needs tree_cull = none, occlusion = off \
                              and subset_mode = off (far commands index cells, not trees)"
-                        .into(),
+                            .into(),
                 });
             }
         }
