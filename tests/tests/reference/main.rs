@@ -15,6 +15,7 @@ mod azimuths;
 mod baselines;
 mod blend;
 mod embree_crosscheck;
+mod far_bake;
 mod goldens;
 mod metric;
 mod octahedral;
