@@ -27,7 +27,9 @@
 //!   nodes are then made sequentially. Memory: [`FarLevel::bytes`] (`48 B` a cell, of which
 //!   `24 B` colours, G§2.4's `6 × clusterSize³` colours per node).
 
-use forestlod_shared::far_bake::{FarView, assemble_far_level, cell_count, scatter_slice, tree_point};
+use forestlod_shared::far_bake::{
+    FarView, assemble_far_level, cell_count, scatter_slice, tree_point,
+};
 use forestlod_shared::{FarLevel, ParamError, Params, SIDE_COUNT};
 use rayon::prelude::*;
 
@@ -97,13 +99,10 @@ pub fn placed_trees(
         .collect()
 }
 
-/// Renders `trees` in `view` (module docs): the `(cs · FAR_BAKE_PIXELS)²` slice image.
-pub fn render_view(
-    trees: &[PlacedTree],
-    mesh_textures: &[Texture],
-    view: &FarView,
-    alpha_cutoff: f32,
-) -> Rgba8Image {
+/// Renders `trees` in `view` (module docs; its alpha test at `view.alpha_cutoff`): the
+/// `(cs · FAR_BAKE_PIXELS)²` slice image.
+pub fn render_view(trees: &[PlacedTree], mesh_textures: &[Texture], view: &FarView) -> Rgba8Image {
+    let alpha_cutoff = view.alpha_cutoff;
     let triangles: Vec<[Vertex<FAR_BAKE_VARYINGS>; 3]> = trees
         .iter()
         .filter(|t| view.reaches(t.center, t.radius))
@@ -150,8 +149,8 @@ pub fn leaf_cells(
     let mut raw = vec![[0u32; SIDE_COUNT]; cell_count(cs)];
     for side in 0..SIDE_COUNT {
         for slice in 0..cs {
-            let view = FarView::new(center, extent, cs, side, slice);
-            let image = render_view(trees, mesh_textures, &view, params.alpha_cutoff);
+            let view = FarView::with_cutoff(center, extent, cs, side, slice, params.alpha_cutoff);
+            let image = render_view(trees, mesh_textures, &view);
             scatter_slice(&view, &image.texels, &mut raw);
         }
     }

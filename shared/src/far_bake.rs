@@ -165,8 +165,11 @@ pub struct FarView {
     pub side: u32,
     /// Slice (`0..cs`).
     pub slice: u32,
+    /// The alpha test's cutoff (`params.alpha_cutoff`; the GPU's fragment stage reads it here,
+    /// the reference's shader from `params`).
+    pub alpha_cutoff: f32,
     /// Padding to 16-byte rows.
-    pub _pad: [u32; 3],
+    pub _pad: [u32; 2],
 }
 const _: () = assert!(core::mem::size_of::<FarView>() == 64);
 
@@ -174,6 +177,18 @@ impl FarView {
     /// The view of slice `slice` from side `side` of the box `center ± extent` at cluster size
     /// `cs` (module docs).
     pub fn new(center: [f32; 3], extent: [f32; 3], cs: u32, side: usize, slice: u32) -> Self {
+        Self::with_cutoff(center, extent, cs, side, slice, 0.0)
+    }
+
+    /// [`FarView::new`] with the alpha test's cutoff `alpha_cutoff`.
+    pub fn with_cutoff(
+        center: [f32; 3],
+        extent: [f32; 3],
+        cs: u32,
+        side: usize,
+        slice: u32,
+        alpha_cutoff: f32,
+    ) -> Self {
         let axis = side / 2;
         let [right, up] = image_axes(axis);
         let (lo, hi) = node_bounds(center, extent);
@@ -206,7 +221,8 @@ impl FarView {
             depth_scale: 1.0 / span,
             side: side as u32,
             slice,
-            _pad: [0; 3],
+            alpha_cutoff,
+            _pad: [0; 2],
         }
     }
 
@@ -243,6 +259,21 @@ impl FarView {
         cell_index(self.cs, i)
     }
 }
+
+/// One corner of a node's world-space triangle list as the GPU twin's vertex buffer holds it:
+/// [`tree_point`] of a mesh vertex, its texture coordinate and the tree's mesh (its layer of
+/// the mesh texture array). Keep in sync with `gpu/src/far_bake.rs`'s vertex layout.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct FarBakeVertex {
+    /// World position.
+    pub position: [f32; 3],
+    /// The tree's mesh.
+    pub mesh: u32,
+    /// Texture coordinate.
+    pub uv: [f32; 2],
+}
+const _: () = assert!(core::mem::size_of::<FarBakeVertex>() == 24);
 
 /// A tree's mesh-local point `local` in the world: `base + Rz(yaw) · scale · local`, with
 /// `(sin, cos)` of the yaw (the draw's LOD0 vertex transform, `reference/src/draw.rs`, written
@@ -529,16 +560,12 @@ mod tests {
             for side in 0..6 {
                 for k in 0..cs {
                     let v = FarView::new([0.0; 3], [1.0; 3], cs, side, k);
-                    let mut seen: Vec<usize> = (0..cs * cs)
-                        .map(|b| v.block_cell(b % cs, b / cs))
-                        .collect();
+                    let mut seen: Vec<usize> =
+                        (0..cs * cs).map(|b| v.block_cell(b % cs, b / cs)).collect();
                     seen.sort_unstable();
                     seen.dedup();
                     assert_eq!(seen.len(), (cs * cs) as usize);
-                    assert!(
-                        seen.iter()
-                            .all(|&n| cell_coords(cs, n)[side / 2] == k)
-                    );
+                    assert!(seen.iter().all(|&n| cell_coords(cs, n)[side / 2] == k));
                 }
             }
         }
@@ -574,7 +601,14 @@ mod tests {
         assert_eq!(block_colour([0.0; 3], 0.0), 0);
         assert!(cell_is_empty(&[0; 6]));
         // One covered pixel of 64 keeps a cell.
-        assert!(!cell_is_empty(&[block_colour([0.5; 3], 1.0), 0, 0, 0, 0, 0]));
+        assert!(!cell_is_empty(&[
+            block_colour([0.5; 3], 1.0),
+            0,
+            0,
+            0,
+            0,
+            0
+        ]));
     }
 
     #[test]
@@ -593,8 +627,16 @@ mod tests {
             colours: [blue; 6],
         };
         assert_eq!(composite_side(plo, phi, 4, &[front]), red);
-        assert_eq!(composite_side(plo, phi, 4, &[back, front]), red, "+Z sees the top");
-        assert_eq!(composite_side(plo, phi, 5, &[front, back]), blue, "-Z the bottom");
+        assert_eq!(
+            composite_side(plo, phi, 4, &[back, front]),
+            red,
+            "+Z sees the top"
+        );
+        assert_eq!(
+            composite_side(plo, phi, 5, &[front, back]),
+            blue,
+            "-Z the bottom"
+        );
         // A quarter of the face, opaque: alpha 1/4.
         let quarter = FarCell {
             center: [0.25, 0.25, 0.5],

