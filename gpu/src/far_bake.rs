@@ -361,16 +361,25 @@ impl<'a> GpuFarBake<'a> {
                 usage: U::UNIFORM | U::COPY_DST,
                 mapped_at_creation: false,
             });
-            let reduce_group = bind_group(
-                device,
-                "far_bake reduce",
-                &self.pipelines.reduce_layout,
-                [
-                    reduce_uniform.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(&slices_view),
-                    out_buffer.as_entire_binding(),
+            // Bindings 3-5 (the render's are 0-2 in the same module): explicit numbers.
+            let reduce_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("far_bake reduce"),
+                layout: &self.pipelines.reduce_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 3,
+                        resource: reduce_uniform.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 4,
+                        resource: wgpu::BindingResource::TextureView(&slices_view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 5,
+                        resource: out_buffer.as_entire_binding(),
+                    },
                 ],
-            );
+            });
             let mut sums = Vec::with_capacity(passes.len() * blocks);
             for (chunk_index, chunk) in passes.chunks(batch).enumerate() {
                 let first = chunk_index * batch;
