@@ -197,7 +197,7 @@ impl FarView {
             grid_plane(lo[axis], hi[axis], cs, slice + 1),
         );
         // The eye on the +a side looks along -a: the upper plane is near.
-        let (near, far) = if side % 2 == 0 {
+        let (near, far) = if side.is_multiple_of(2) {
             (above, below)
         } else {
             (below, above)
@@ -398,7 +398,11 @@ pub fn composite_side(plo: [f32; 3], phi: [f32; 3], side: usize, cells: &[FarCel
         }
         // Front first: the largest centre along a seen from +a, the smallest from -a.
         let centre = (a0 + a1) * 0.5;
-        let key = if side % 2 == 0 { -centre } else { centre };
+        let key = if side.is_multiple_of(2) {
+            -centre
+        } else {
+            centre
+        };
         rects.push(([r0, r1, u0, u1], key, unpack_far_colour(c.colours[side])));
     }
     // Stable: ties keep the gathering order.
