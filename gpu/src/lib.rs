@@ -20,6 +20,7 @@
 //! | per-tree refinement of the selected commands (beyond the thesis) | [`refine`] | `shaders/refine.wgsl` | E§3.5, §7 |
 //! | occlusion culling's depth pyramid (issue 31) | [`pyramid`] | `shaders/pyramid.wgsl` | beyond the seeds (E§7) |
 //! | occlusion culling of the commands (issue 31) | [`occlude`] | `shaders/occlude.wgsl` | beyond the seeds (E§7) |
+//! | the far level's octant impostors, leaves rendered and reduced (issue 32) | [`far_bake`] | `shaders/far_bake.wgsl` | G§2.2-2.4 |
 //!
 //! Every stage is a `forestlod_shared::StageId`; the frame's order of them is
 //! `forestlod_shared::FramePlan`, and the harness's stage table (`harness/src/stages.rs`) names
@@ -75,6 +76,7 @@ pub mod command_order;
 pub mod context;
 pub mod cull;
 pub mod draw;
+pub mod far_bake;
 pub mod hier_select;
 pub mod mips;
 pub mod occlude;
@@ -100,6 +102,7 @@ pub use draw::{
     DrawVertex, DrawnImages, GpuDraw, IndirectMode, MipLevel, TerrainVertex, terrain_vertices,
     terrain_vertices_of, upload_texture_array,
 };
+pub use far_bake::{FarLeaf, GpuFarBake};
 pub use hier_select::{GpuHierSelect, HierUniform};
 pub use mips::{GpuMips, MipArray, MipLevelStats, MipTexels};
 pub use occlude::{GpuOcclude, GpuOccluded, OccludeUniform};
@@ -111,7 +114,7 @@ pub use shaders::{StageSource, WgslFile};
 
 /// Every stage's WGSL module as its driver declares it, in the order of the table above. The
 /// crate's tests compile each and check their constants against each other.
-pub const STAGE_SOURCES: [&StageSource; 12] = [
+pub const STAGE_SOURCES: [&StageSource; 13] = [
     &select::SOURCE,
     &bake::SOURCE,
     &mips::SOURCE,
@@ -124,6 +127,7 @@ pub const STAGE_SOURCES: [&StageSource; 12] = [
     &refine::SOURCE,
     &pyramid::SOURCE,
     &occlude::SOURCE,
+    &far_bake::SOURCE,
 ];
 
 #[cfg(test)]

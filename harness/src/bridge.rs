@@ -314,3 +314,35 @@ impl<'a> OrderFromCpu<'a> {
         })
     }
 }
+
+/// Per node of `prepared`'s hierarchy, the far bake's world-space triangle list of a leaf's
+/// trees (`forestlod_reference::far_bake::placed_trees`, as the reference renders them), empty
+/// for interior nodes: the GPU far bake's input (issue 32, `forestlod_gpu::far_bake`).
+pub fn far_bake_vertices(
+    prepared: &Prepared,
+) -> Vec<Vec<forestlod_shared::far_bake::FarBakeVertex>> {
+    let Some(h) = prepared.hierarchy.as_ref() else {
+        return Vec::new();
+    };
+    (0..h.nodes.len())
+        .map(|i| {
+            if h.nodes[i].child_count > 0 {
+                return Vec::new();
+            }
+            forestlod_reference::far_bake::placed_trees(h, &prepared.scene, &prepared.geometry, i)
+                .iter()
+                .flat_map(|t| {
+                    t.triangles.iter().flat_map(move |tri| {
+                        tri.iter().map(move |&(position, uv)| {
+                            forestlod_shared::far_bake::FarBakeVertex {
+                                position,
+                                mesh: t.mesh,
+                                uv,
+                            }
+                        })
+                    })
+                })
+                .collect()
+        })
+        .collect()
+}

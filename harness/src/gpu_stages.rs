@@ -40,9 +40,9 @@ use crate::image_compare::Images;
 use crate::judge::{CullCase, Culled, RefineCase, Refinement, primitive_args};
 use crate::stage::{
     Backend, Bake, BakeInput, Coalesce, CoalesceInput, Coalesced, CommandOrder, CommandOrderInput,
-    Cull, Draw, FrameInput, HierSelect, HierSelectInput, Mips, MipsInput, Named, Occlude,
-    OccludeInput, Occluded, Ordered, Primitive, Pyramid, PyramidInput, Reference, Refine,
-    RefineInput, Select, SelectInput, StageCheck, compare,
+    Cull, Draw, FarBake, FarBakeInput, FrameInput, HierSelect, HierSelectInput, Mips, MipsInput,
+    Named, Occlude, OccludeInput, Occluded, Ordered, Primitive, Pyramid, PyramidInput, Reference,
+    Refine, RefineInput, Select, SelectInput, StageCheck, compare,
 };
 use crate::texel_compare::{GpuBakeBackend, GpuMipsBackend, gpu_bake};
 
@@ -193,6 +193,31 @@ impl Backend<Refine> for GpuStage {
                 trees_kept: u64::from(got.counters.trees_kept),
             },
         }
+    }
+}
+
+impl Backend<FarBake> for GpuStage {
+    fn run(&self, i: FarBakeInput<'_>) -> forestlod_shared::FarLevel {
+        let p = i.prepared;
+        let h = p
+            .hierarchy
+            .as_ref()
+            .expect("a far level is baked over a hierarchy");
+        let lists = crate::bridge::far_bake_vertices(p);
+        let refs: Vec<&[forestlod_shared::far_bake::FarBakeVertex]> =
+            lists.iter().map(Vec::as_slice).collect();
+        let textures: Vec<&forestlod_reference::sampler::Texture> =
+            p.mesh_textures.iter().collect();
+        let mesh = ok(
+            "mesh textures (cpu)",
+            forestlod_gpu::upload_texture_array(
+                self.ctx,
+                "far bake mesh textures (cpu)",
+                &crate::bridge::mip_levels(&textures),
+            ),
+        );
+        let bake = ok("GpuFarBake::new", forestlod_gpu::GpuFarBake::new(self.ctx));
+        ok("far bake", bake.far_bake(&h.nodes, &refs, &mesh, i.params))
     }
 }
 
@@ -495,6 +520,18 @@ impl<'a> FrameStages<'a> {
                 compare::<Cull>(&Reference, &gpu, input)
             }
             StageId::Primitive => compare::<Primitive>(&Reference, &gpu, frame),
+            StageId::FarBake => {
+                self.trace.plan.far?;
+                p.hierarchy.as_ref()?;
+                compare::<FarBake>(
+                    &Reference,
+                    &gpu,
+                    FarBakeInput {
+                        prepared: p,
+                        params,
+                    },
+                )
+            }
         })
     }
 }

@@ -754,3 +754,200 @@ impl Judged for Occlude {
         StageCheck::of(StageId::Occlude, r)
     }
 }
+
+/// `far_bake` (issue 32 item 2, G§2.2-2.4): the far level's cells of a prepared scene's
+/// hierarchy (`forestlod_shared::far_bake`).
+pub struct FarBake;
+
+/// The input of [`FarBake`].
+#[derive(Clone, Copy)]
+pub struct FarBakeInput<'a> {
+    /// The prepared scene (its hierarchy, scene, geometry and mesh textures).
+    pub prepared: &'a forestlod_reference::pipeline::Prepared,
+    /// Parameters (valid).
+    pub params: &'a Params,
+}
+
+impl Stage for FarBake {
+    type Input<'a> = FarBakeInput<'a>;
+    type Output = forestlod_shared::FarLevel;
+}
+
+impl Backend<FarBake> for Reference {
+    fn run(&self, i: FarBakeInput<'_>) -> forestlod_shared::FarLevel {
+        let p = i.prepared;
+        let h = p
+            .hierarchy
+            .as_ref()
+            .expect("a far level is baked over a hierarchy");
+        forestlod_reference::far_bake::far_bake(
+            h,
+            &p.scene,
+            &p.geometry,
+            &p.mesh_textures,
+            i.params,
+        )
+        .unwrap_or_else(|e| panic!("reference far bake: {e}"))
+    }
+}
+
+/// Largest sRGB byte difference of a far cell's side whose coverage (alpha byte) both twins
+/// agree on, for all but [`FAR_COLOUR_SHARE`] of the sides: the issue's ±1 (the sRGB encodes and
+/// `f32` sums round apart).
+pub const FAR_CHANNEL_TOLERANCE: i32 = 1;
+
+/// Largest share of equally covered sides beyond [`FAR_CHANNEL_TOLERANCE`]: lavapipe quantizes
+/// bilinear weights to 8 bits and interpolates uv from unsnapped vertices (`gpu/src/bake.rs`
+/// module docs), so a few texels of a block move by a few bytes. Measured on `tiny`'s octree
+/// (`tests/tests/parity/far_bake.rs`, printed): 3.1 % at cluster size 1, 1.6 % at 2, 0.24 % at 4.
+pub const FAR_COLOUR_SHARE: f64 = 0.05;
+
+// No bound on the largest sRGB difference of an equally covered side: a block with one covered
+// pixel whose winner swaps where two leaves meet at nearly one depth (the bake's depth-ambiguous
+// class) moves by that pixel's whole difference. Measured (printed): 42 on `tiny`'s leaves at
+// cluster size 2, 137 on its whole level at 12. The share above is what is judged.
+
+/// Largest share of sides whose coverage differs (a pixel kept by one twin only: an edge within
+/// the 8-bit subpixel ambiguity, a filtered alpha at the cutoff, the bake's classes). Their colour
+/// is not judged (a flipped pixel moves the mean by its own difference over the covered count).
+/// Measured on `tiny`: 12 % of the sides at cluster size 1 (8² pixels over a whole leaf: most
+/// pixels lie on a leaf's alpha edge at the mip level an 8-pixel view samples), 7.8 % at 2, 1.7 %
+/// at 4.
+pub const FAR_COVERAGE_SHARE: f64 = 0.15;
+
+/// Largest alpha byte difference of a leaf's side: 8 pixels of the block's 64 (`255/64` each).
+/// Measured: 28 (7 pixels). Not applied to whole levels ([`judge_far_level`]): an interior cell
+/// averages its gathered cells, and a cell kept for one pixel on one twin only changes how many
+/// `average` divides by.
+pub const FAR_ALPHA_MAX: i32 = 32;
+
+/// Largest share of kept cells in one twin's level only (a cell kept for one covered pixel on one
+/// twin). Measured: 0.6 %.
+pub const FAR_KEPT_SHARE: f64 = 0.02;
+
+/// The tally of far cell sides compared ([`far_tally`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FarTally {
+    /// Sides compared.
+    pub sides: usize,
+    /// Sides whose alpha bytes differ by more than [`FAR_CHANNEL_TOLERANCE`].
+    pub coverage_differs: usize,
+    /// Largest alpha byte difference.
+    pub max_alpha: i32,
+    /// Equally covered sides beyond [`FAR_CHANNEL_TOLERANCE`].
+    pub colour_beyond: usize,
+    /// Largest sRGB byte difference of an equally covered side (0 for uncovered ones).
+    pub max_colour: i32,
+}
+
+/// Tallies pairs of packed far side colours (`(reference, other)`).
+pub fn far_tally(pairs: impl IntoIterator<Item = (u32, u32)>) -> FarTally {
+    let b = |w: u32, k: u32| ((w >> (8 * k)) & 255) as i32;
+    let mut t = FarTally::default();
+    for (x, y) in pairs {
+        t.sides += 1;
+        let alpha = (b(x, 3) - b(y, 3)).abs();
+        if alpha > FAR_CHANNEL_TOLERANCE {
+            t.coverage_differs += 1;
+            t.max_alpha = t.max_alpha.max(alpha);
+            continue;
+        }
+        t.max_alpha = t.max_alpha.max(alpha);
+        if b(x, 3) == 0 && b(y, 3) == 0 {
+            continue;
+        }
+        let d = (0..3).map(|k| (b(x, k) - b(y, k)).abs()).max().unwrap_or(0);
+        t.max_colour = t.max_colour.max(d);
+        if d > FAR_CHANNEL_TOLERANCE {
+            t.colour_beyond += 1;
+        }
+    }
+    t
+}
+
+impl FarTally {
+    /// Whether the tally of leaf sides is within the named tolerances; the summary either way.
+    pub fn verdict(&self) -> Result<String, String> {
+        self.verdict_with(true)
+    }
+
+    /// [`FarTally::verdict`], with [`FAR_ALPHA_MAX`] applied or not (whole levels).
+    pub fn verdict_with(&self, alpha_max: bool) -> Result<String, String> {
+        let n = self.sides.max(1) as f64;
+        let summary = format!(
+            "{} sides: {} equally covered beyond ±{FAR_CHANNEL_TOLERANCE} (largest {}), coverage \
+             differs on {} (largest alpha difference {})",
+            self.sides, self.colour_beyond, self.max_colour, self.coverage_differs, self.max_alpha
+        );
+        if self.colour_beyond as f64 > FAR_COLOUR_SHARE * n
+            || self.coverage_differs as f64 > FAR_COVERAGE_SHARE * n
+            || (alpha_max && self.max_alpha > FAR_ALPHA_MAX)
+        {
+            Err(summary)
+        } else {
+            Ok(summary)
+        }
+    }
+}
+
+/// Judges a far level against the reference's: node by node, the kept cells (by their boxes'
+/// bits) in one level only (at most [`FAR_KEPT_SHARE`]), and the common cells' sides
+/// ([`far_tally`], [`FarTally::verdict`]). The summary and the largest byte difference.
+pub fn judge_far_level(
+    want: &forestlod_shared::FarLevel,
+    got: &forestlod_shared::FarLevel,
+) -> Result<(String, f64), String> {
+    if want.nodes.len() != got.nodes.len() {
+        return Err(format!(
+            "{} nodes, reference {}",
+            got.nodes.len(),
+            want.nodes.len()
+        ));
+    }
+    let cells = |l: &forestlod_shared::FarLevel, i: usize| {
+        let f = l.nodes[i];
+        l.cells
+            .get(f.cell_offset as usize..(f.cell_offset + f.cell_count) as usize)
+            .unwrap_or(&[])
+            .to_vec()
+    };
+    let key =
+        |c: &forestlod_shared::FarCell| (c.center.map(f32::to_bits), c.extent.map(f32::to_bits));
+    let (mut pairs, mut one_only) = (Vec::new(), 0usize);
+    for i in 0..want.nodes.len() {
+        let (w, g) = (cells(want, i), cells(got, i));
+        for c in &w {
+            match g.iter().find(|x| key(x) == key(c)) {
+                None => one_only += 1,
+                Some(x) => pairs.extend(c.colours.iter().copied().zip(x.colours)),
+            }
+        }
+        one_only += g
+            .iter()
+            .filter(|x| !w.iter().any(|c| key(c) == key(x)))
+            .count();
+    }
+    let tally = far_tally(pairs);
+    let kept = format!(
+        "{} kept cells, {one_only} in one level only",
+        want.cells.len()
+    );
+    let largest = f64::from(tally.max_colour.max(tally.max_alpha));
+    match tally.verdict_with(false) {
+        Ok(s) if one_only as f64 <= FAR_KEPT_SHARE * want.cells.len().max(1) as f64 => {
+            Ok((format!("{kept}; {s}"), largest))
+        }
+        Ok(s) | Err(s) => Err(format!("{kept}; {s}")),
+    }
+}
+
+impl Judged for FarBake {
+    /// [`judge_far_level`].
+    fn judge(
+        _: FarBakeInput<'_>,
+        want: &forestlod_shared::FarLevel,
+        got: &forestlod_shared::FarLevel,
+    ) -> StageCheck {
+        StageCheck::of(StageId::FarBake, judge_far_level(want, got))
+    }
+}

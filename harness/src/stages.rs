@@ -90,6 +90,17 @@ pub const STAGES: &[StageEntry] = &[
         params: &["texture_size", "alpha_cutoff"],
     },
     StageEntry {
+        id: StageId::FarBake,
+        seed: "G§2.2-2.4",
+        reference: "reference/src/far_bake.rs",
+        driver: "gpu/src/far_bake.rs",
+        wgsl: "gpu/src/shaders/far_bake.wgsl",
+        backend: Some("stage::FarBake"),
+        parity: "tests/tests/parity/far_bake.rs",
+        modes: &["parent_rule"],
+        params: &["cluster_size", "alpha_cutoff"],
+    },
+    StageEntry {
         id: StageId::Select,
         seed: "E§3.5, §4.3",
         reference: "reference/src/select.rs",

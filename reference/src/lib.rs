@@ -40,6 +40,7 @@ pub mod coalesce;
 pub mod command_order;
 pub mod draw;
 pub mod error;
+pub mod far_bake;
 pub mod files;
 pub mod frame;
 pub mod geometry;

@@ -78,6 +78,8 @@ stages! {
     Bake => "bake", Textures,
     /// Alpha-aware mip chains (E Alg. 3.2, §4.1) of the mesh textures and the billboards.
     Mips => "mips", Textures,
+    /// The far level's octant impostors (issue 32, G§2.2-2.4): every hierarchy node's cells.
+    FarBake => "far_bake", Textures,
     /// Flat per-batch selection (E§3.5, §4.3).
     Select => "select", Selection,
     /// The hierarchy's cut (G§3 Fig. 4, C§4.5): one command per emitted node and LOD.
@@ -200,11 +202,15 @@ impl FramePlan {
         out
     }
 
-    /// Every stage of the frame, in order: the slow path (`bake`, `mips`), the selection stages,
+    /// Every stage of the frame, in order: the slow path (`bake`, `mips`, and `far_bake` under a
+    /// far level), the selection stages,
     /// under occlusion culling `pyramid` and `occlude` (which run interleaved with the draw's two
     /// passes: early split, early draw, pyramid, late test, late draw), then `draw`.
     pub fn stages(&self) -> Vec<StageId> {
         let mut out = vec![StageId::Bake, StageId::Mips];
+        if self.far.is_some() {
+            out.push(StageId::FarBake);
+        }
         out.extend(self.selection_stages());
         if self.occlusion != Occlusion::Off {
             out.extend([StageId::Pyramid, StageId::Occlude]);
@@ -235,6 +241,21 @@ mod tests {
         assert_eq!(
             flat.stages(),
             [StageId::Bake, StageId::Mips, StageId::Select, StageId::Draw]
+        );
+        // A far level (issue 32) bakes its cells after the mips, over a cut.
+        let far = FramePlan::new(&Params {
+            lod_levels: 3,
+            ..Params::default()
+        })
+        .unwrap();
+        assert_eq!(
+            far.stages()[..4],
+            [
+                StageId::Bake,
+                StageId::Mips,
+                StageId::FarBake,
+                StageId::HierSelect
+            ]
         );
         let p = Params {
             hierarchy: Hierarchy::Octree as u32,

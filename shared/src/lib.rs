@@ -38,6 +38,7 @@ pub mod cut;
 pub mod emit;
 pub mod fade;
 pub mod far;
+pub mod far_bake;
 pub mod frame;
 pub mod interval;
 pub mod light;

@@ -195,6 +195,14 @@ pub fn base(stage: StageId) -> (&'static str, Params) {
                 ..tiny_hierarchy_params(Hierarchy::Grid)
             },
         ),
+        // The far level (issue 32) is baked under `lod_levels = 3`, over the octree.
+        StageId::FarBake => (
+            "far",
+            Params {
+                lod_levels: 3,
+                ..tiny_hierarchy_params(Hierarchy::Octree)
+            },
+        ),
         _ => (
             "flat",
             Params {

@@ -69,6 +69,19 @@ fn frame_params() -> Vec<(&'static str, Params)> {
                 TreeCull::None,
             ),
         ),
+        // The far level's bake (issue 32) runs only under `lod_levels = 3`.
+        (
+            "octree-far",
+            Params {
+                lod_levels: 3,
+                ..cut(
+                    Hierarchy::Octree,
+                    Coalesce::On,
+                    CommandOrder::FrontToBack,
+                    TreeCull::All,
+                )
+            },
+        ),
         // Occlusion culling's stages (issue 31): `pyramid` and `occlude` run only with it on.
         (
             "grid-none-occlusion-single",
@@ -107,6 +120,11 @@ fn every_stage_alone_on_the_gpu_matches_the_reference() {
             for e in STAGES {
                 // The texture stages read no camera: once. The frames' stages: one camera each.
                 let once = matches!(e.id, StageId::Bake | StageId::Mips);
+                // The far frame is there for `far_bake` (a texture stage: one camera); its
+                // other stages are the octree frame's.
+                if name == "octree-far" && (e.id != StageId::FarBake || j != 0) {
+                    continue;
+                }
                 let per_scene = matches!(e.id, StageId::Draw | StageId::Primitive);
                 if (once && (k, j) != (0, 0)) || (per_scene && j != 0) {
                     continue;
@@ -295,6 +313,7 @@ macro_rules! walks {
 walks! {
     walk_bake => Bake,
     walk_mips => Mips,
+    walk_far_bake => FarBake,
     walk_select => Select,
     walk_hier_select => HierSelect,
     walk_coalesce => Coalesce,

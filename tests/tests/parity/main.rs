@@ -3,6 +3,7 @@
 //! against the reference pipeline:
 //! - [`hier_select`]: the hierarchical cut (issue 13) against the reference, frames against the grid's;
 //! - [`select`], [`refine`], [`draw`], [`mips`], [`bake`]: the GPU twin of each reference stage;
+//! - [`far_bake`]: issue 32's far level bake (octant impostors' leaves) against the reference;
 //! - [`blend`]: issue 30's G§4 blend (texture-space noise, per-tree progress) in the draw stage,
 //!   with the noise level's rounding boundary classified;
 //! - [`every_stage`]: every stage of the stage table run alone on the GPU and judged by its
@@ -28,6 +29,7 @@ mod counters;
 mod draw;
 mod every_stage;
 mod far;
+mod far_bake;
 mod from_cpu;
 mod h200;
 mod hier_select;

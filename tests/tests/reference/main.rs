@@ -16,6 +16,7 @@ mod azimuths;
 mod baselines;
 mod blend;
 mod embree_crosscheck;
+mod far_bake;
 mod goldens;
 mod hull;
 mod metric;
