@@ -651,5 +651,17 @@ mod tests {
             composite_side(plo, phi, 4, &[quarter]),
             pack_far_colour([1.0, 0.0, 0.0, 0.25])
         );
+        // Two half-covered layers: "over" gives 1 - (1 - 1/2)² = 3/4, the front one's colour
+        // weighted 1/2, the back one's 1/4 (an additive composite would give alpha 1).
+        let half = |c: FarCell, rgb: [f32; 3]| FarCell {
+            colours: [pack_far_colour([rgb[0], rgb[1], rgb[2], 0.5]); 6],
+            ..c
+        };
+        let (hf, hb) = (half(front, [1.0, 0.0, 0.0]), half(back, [0.0, 0.0, 1.0]));
+        let got = unpack_far_colour(composite_side(plo, phi, 4, &[hb, hf]));
+        let a = unpack_far_colour(hf.colours[4])[3];
+        let want_alpha = a + (1.0 - a) * a;
+        assert!((got[3] - want_alpha).abs() <= 0.5 / 255.0, "{got:?}");
+        assert!(got[0] > got[2], "the front layer weighs more: {got:?}");
     }
 }

@@ -368,8 +368,8 @@ proptest! {
     #![proptest_config(property_config())]
 
     /// A leaf's every cell side (kept or dropped) against the independent direct render of the
-    /// cell (module docs). Mutation-checked: see the report in the module's history (+X/−X
-    /// swapped, wrong slice bounds, image rows not flipped).
+    /// cell (module docs). Mutation-checked: +X/−X swapped (`FarView`'s near/far by side
+    /// parity) fails it; a slice from the box's bottom plane to its own top fails it.
     #[test]
     fn a_leaf_cell_side_is_the_direct_render_of_the_cell(scene in forests(), p in far_params()) {
         let forest = Forest::new(scene, &p);
@@ -441,7 +441,11 @@ proptest! {
     /// `composite` against the parent baked directly as a leaf (its own trees, its own box):
     /// mean alpha and colour differences within the stated bounds (module docs). The same
     /// differences of `average` are printed beside (not asserted: the seed's rule ignores
-    /// occlusion and area).
+    /// occlusion and area). Mutation-checked: the front-to-back order reversed failed it at the
+    /// first bounds (0.25, 20) but passes the final ones, and an additive composite (no
+    /// `1 − α` behind) passes too: both are pinned by `forestlod_shared::far_bake`'s unit test
+    /// `composite_of_one_face_filling_cell_is_itself_and_hides_what_is_behind`, which fails on
+    /// each. This property bounds the approximation itself.
     #[test]
     fn composite_matches_the_direct_render_of_the_parent(scene in forests(), p in far_params()) {
         let p = Params { parent_rule: ParentRule::Composite as u32, ..p };
@@ -460,7 +464,9 @@ proptest! {
     }
 
     /// The level's structure (module docs). Mutation-checked: loose boxes (the node's sphere
-    /// instead of its box) fail the grid check.
+    /// instead of its box) fail the grid check; dropping a cell when **any** side is under
+    /// `FAR_ALPHA_MIN` (instead of all) fails the kept-cell check (`<` → `<=` is equivalent: no
+    /// alpha byte is exactly `255/64`).
     #[test]
     fn the_level_is_well_formed(scene in forests(), p in far_params()) {
         let forest = Forest::new(scene, &p);
@@ -497,7 +503,8 @@ proptest! {
         prop_assert_eq!(level.colour_bytes(), 24 * level.cells.len() as u64);
     }
 
-    /// One thread and four give the same level, with either parent rule.
+    /// One thread and four give the same level, with either parent rule. Mutation-checked: the
+    /// leaves collected in completion order (a `Mutex<Vec>` pushed from `for_each`) fail it.
     #[test]
     fn the_level_does_not_depend_on_the_thread_count(scene in forests(), p in far_params()) {
         let forest = Forest::new(scene, &p);
