@@ -169,6 +169,7 @@ fn scene_info(scene: &SceneArgs, params: &ParamArgs, json: bool) -> Result<()> {
         ("commands (52lt)", memory.commands, 52 * memory.l * memory.t),
         ("counters (4lm)", memory.counters, 4 * memory.l * memory.m),
         ("interior nodes", memory.hierarchy_nodes, 0),
+        ("far level (issue 32)", memory.far_level, 0),
     ];
     for (name, ours, eq) in rows {
         println!("  {name:<22} {ours:>12} {eq:>12}");

@@ -265,6 +265,9 @@ pub struct MemoryReport {
     pub counters: u64,
     /// Interior nodes of a hierarchy (64 bytes each; the leaves are the batches): 0 for the grid.
     pub hierarchy_nodes: u64,
+    /// The far level (issue 32, `FarLevel::bytes`): nodes, cells (48 B, of which 24 B are
+    /// G§2.4's six colours) and hull vertices; 0 without one.
+    pub far_level: u64,
     /// Sum of the above.
     pub total: u64,
     /// E Eq. 4.1 for the same n, t, m, a, r, l, extended by `J` ([`eq41_azimuth_bytes`]).
@@ -322,6 +325,7 @@ pub fn memory_report(trees: usize, batches: usize, meshes: usize, params: &Param
         commands,
         counters,
         hierarchy_nodes: 0,
+        far_level: 0,
         total: indirection + batch_meta + mesh_meta + billboards + commands + counters,
         eq41: eq41_azimuth_bytes(n, t, m, a, j, r, l),
     }

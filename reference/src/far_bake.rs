@@ -30,7 +30,10 @@
 use forestlod_shared::far_bake::{
     FarView, assemble_far_level, cell_count, scatter_slice, tree_point,
 };
-use forestlod_shared::{FarLevel, ParamError, Params, SIDE_COUNT};
+use forestlod_shared::{
+    FarLevel, FarVertex, ParamError, Params, SIDE_COUNT, pack_far_colour, side_mix,
+    unpack_far_colour,
+};
 use rayon::prelude::*;
 
 use crate::geometry::PackedGeometry;
@@ -185,4 +188,106 @@ pub fn far_bake(
         rule,
         leaves,
     ))
+}
+
+/// Batch hulls (issue 32 item 4, E§7 "an entire batch as a single opaque ultra-low-polygon-count
+/// mesh, of similar shape to the convex hull of the batch"): each node's convex hull
+/// ([`crate::hull::batch_hull`] of its trees' boxes, at most `MAX_HULL_TRIANGLES` triangles),
+/// every triangle coloured by its outward normal `n` from the node's six side colours
+/// ([`forestlod_shared::side_mix`], `w_a = n_a²`: a face that looks along `+X` shows the node's
+/// `+X` side), opaque. The node's six colours are its kept cells' per side, alpha-weighted (its
+/// one cell under `cluster_size = 1`); a side no cell covers takes the mean of the covered ones.
+/// A node without kept cells gets no hull (it never goes far). Deterministic: nodes in parallel,
+/// collected in node order.
+pub fn far_hulls(
+    level: &mut FarLevel,
+    h: &Hierarchy,
+    scene: &Scene,
+    meshes: &[forestlod_shared::MeshMeta],
+) -> Result<(), crate::hull::HullError> {
+    let hulls: Vec<Vec<FarVertex>> = (0..h.nodes.len())
+        .into_par_iter()
+        .map(|i| {
+            let far = level.nodes[i];
+            if far.cell_count == 0 {
+                return Ok(Vec::new());
+            }
+            let n = &h.nodes[i];
+            let trees = &h.indirection[n.offset as usize..(n.offset + n.len) as usize];
+            let boxes = crate::hull::tree_boxes(scene, meshes, trees);
+            let triangles = crate::hull::batch_hull(&boxes)?;
+            let cells = &level.cells
+                [far.cell_offset as usize..(far.cell_offset + far.cell_count) as usize];
+            let colours = node_side_colours(cells);
+            Ok(triangles
+                .iter()
+                .flat_map(|t| {
+                    let colour = pack_far_colour(side_mix(&colours, face_normal(t)));
+                    let opaque = colour | 0xff00_0000;
+                    t.map(|position| FarVertex {
+                        position,
+                        colour: opaque,
+                    })
+                })
+                .collect())
+        })
+        .collect::<Result<_, _>>()?;
+    for (node, vertices) in level.nodes.iter_mut().zip(hulls) {
+        node.hull_offset = level.hull.len() as u32;
+        node.hull_count = vertices.len() as u32;
+        level.hull.extend(vertices);
+    }
+    Ok(())
+}
+
+/// A node's six side colours from its kept cells (alpha-weighted per side, opaque), for its hull.
+fn node_side_colours(cells: &[forestlod_shared::FarCell]) -> [u32; SIDE_COUNT] {
+    let mut sums = [[0.0f64; 4]; SIDE_COUNT];
+    for c in cells {
+        for (s, sum) in sums.iter_mut().enumerate() {
+            let [r, g, b, a] = unpack_far_colour(c.colours[s]);
+            let a = a as f64;
+            sum[0] += r as f64 * a;
+            sum[1] += g as f64 * a;
+            sum[2] += b as f64 * a;
+            sum[3] += a;
+        }
+    }
+    let covered: Vec<[f64; 3]> = sums
+        .iter()
+        .filter(|s| s[3] > 0.0)
+        .map(|s| [s[0] / s[3], s[1] / s[3], s[2] / s[3]])
+        .collect();
+    let fallback = if covered.is_empty() {
+        [0.0; 3]
+    } else {
+        let k = covered.len() as f64;
+        [0, 1, 2].map(|j| covered.iter().map(|c| c[j]).sum::<f64>() / k)
+    };
+    sums.map(|s| {
+        let rgb = if s[3] > 0.0 {
+            [s[0] / s[3], s[1] / s[3], s[2] / s[3]]
+        } else {
+            fallback
+        };
+        pack_far_colour([rgb[0] as f32, rgb[1] as f32, rgb[2] as f32, 1.0])
+    })
+}
+
+/// The unit outward normal of a counter-clockwise triangle (`+Z` for a degenerate one).
+fn face_normal(t: &[[f32; 3]; 3]) -> [f32; 3] {
+    let [a, b, c] = t.map(|p| p.map(f64::from));
+    let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    let n = [
+        e1[1] * e2[2] - e1[2] * e2[1],
+        e1[2] * e2[0] - e1[0] * e2[2],
+        e1[0] * e2[1] - e1[1] * e2[0],
+    ];
+    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    if len > 0.0 {
+        n.map(|x| (x / len) as f32)
+    } else {
+        [0.0, 0.0, 1.0]
+    }
 }

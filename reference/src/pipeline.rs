@@ -40,6 +40,8 @@ pub struct PrepareTimings {
     pub mesh_mips: f64,
     /// Billboard bake and mips (E Alg. 3.1, 3.2).
     pub bake: f64,
+    /// The far level's bake (issue 32; 0 without one).
+    pub far_bake: f64,
 }
 
 /// Everything the per-frame path reads, built once per scene and parameters.
@@ -158,8 +160,37 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
     let t = Instant::now();
     let billboards = bake(&scene, &geometry.meshes, &textures, params)?;
     timings.bake = t.elapsed().as_secs_f64();
-    let far: Option<forestlod_shared::FarLevel> = None;
-    let memory = scene_memory(&scene, &batches, hierarchy.as_ref(), params);
+    // The far level (issue 32): the octant cells of every node, and under `far_lod = hull` each
+    // node's hull coloured from them.
+    let t = Instant::now();
+    let far = match forestlod_shared::FramePlan::new(params)?.far {
+        None => None,
+        Some(kind) => {
+            let h = hierarchy
+                .as_ref()
+                .expect("a far level groups the trees in a hierarchy (FramePlan)");
+            let mut level = crate::far_bake::far_bake(h, &scene, &geometry, &textures, params)?;
+            if kind == forestlod_shared::FarLod::Hull {
+                crate::far_bake::far_hulls(&mut level, h, &scene, &geometry.meshes).map_err(
+                    |e| {
+                        InputError::new(
+                            format!("<scene {}>", scene.name),
+                            "far level, field far_lod",
+                            "hull",
+                            e.to_string(),
+                        )
+                    },
+                )?;
+            }
+            Some(level)
+        }
+    };
+    timings.far_bake = t.elapsed().as_secs_f64();
+    let mut memory = scene_memory(&scene, &batches, hierarchy.as_ref(), params);
+    if let Some(f) = &far {
+        memory.far_level = f.bytes();
+        memory.total += memory.far_level;
+    }
     let tree_spheres = {
         use rayon::prelude::*;
         scene
