@@ -18,8 +18,8 @@
 
 use forestlod_harness::image_compare::CLASS_COLORS;
 use forestlod_reference::draw::{
-    LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_MESH, LOD_ID_TERRAIN, LOD_ID_TRANSITION,
-    lod_id_color,
+    LOD_ID_BACKGROUND, LOD_ID_BILLBOARD, LOD_ID_FAR, LOD_ID_MESH, LOD_ID_TERRAIN,
+    LOD_ID_TRANSITION, lod_id_color,
 };
 use forestlod_reference::texture::Rgba8Image;
 
@@ -135,6 +135,7 @@ pub fn with_lod_legend(image: &Rgba8Image) -> Rgba8Image {
             (lod_id_color(LOD_ID_MESH), "LOD0 mesh"),
             (lod_id_color(LOD_ID_BILLBOARD), "LOD1 billboard"),
             (lod_id_color(LOD_ID_TRANSITION), "transition band"),
+            (lod_id_color(LOD_ID_FAR), "far"),
             (lod_id_color(LOD_ID_TERRAIN), "terrain"),
             (lod_id_color(LOD_ID_BACKGROUND), "sky"),
         ],

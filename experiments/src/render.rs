@@ -892,7 +892,7 @@ pub fn summary_text(m: &serde_json::Value) -> String {
     };
     let text = format!(
         "forestlod reference render: scene {} ({} trees, {} batches), camera {} at {}x{}\n\
-         selection: {} commands ({} LOD0, {} LOD1), {} batches in the fade band, {} culled by distance, {} by frustum\n\
+         selection: {} commands ({} LOD0, {} LOD1, {} far), {} batches in the fade band, {} culled by distance, {} by frustum\n\
          draw: {} triangles, {} fragments written (overdraw {:.2}), {} trees beyond the draw distance\n\
          time: prepare {:.3} s (bake {:.3} s), select {:.4} s, draw {:.3} s\n\
          memory: {} bytes (E Eq. 4.1 gives {} bytes)\n",
@@ -905,6 +905,9 @@ pub fn summary_text(m: &serde_json::Value) -> String {
         f("/selection/commands"),
         f("/selection/lod0_commands"),
         f("/selection/lod1_commands"),
+        f("/selection/commands").as_u64().unwrap_or(0)
+            - f("/selection/lod0_commands").as_u64().unwrap_or(0)
+            - f("/selection/lod1_commands").as_u64().unwrap_or(0),
         f("/selection/transition_batches"),
         f("/selection/culled_distance"),
         f("/selection/culled_frustum"),

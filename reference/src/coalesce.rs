@@ -75,10 +75,12 @@ pub fn coalesce(s: &Selection, mode: Coalesce) -> Selection {
             run.instance_count = c.first_instance + c.instance_count - run.first_instance;
         }
     }
-    let lod0 = out.data.iter().filter(|d| d.lod == LOD_MESH).count() as u32;
+    let count = |lod| out.data.iter().filter(|d| d.lod == lod).count() as u32;
+    let (lod0, lod1) = (count(LOD_MESH), count(forestlod_shared::LOD_BILLBOARD));
     out.counters.commands = out.commands.len() as u32;
     out.counters.lod0_commands = lod0;
-    out.counters.lod1_commands = out.counters.commands - lod0;
+    // Far commands (issue 32) are neither.
+    out.counters.lod1_commands = lod1;
     out
 }
 

@@ -216,8 +216,8 @@ pub fn far_hulls(
             let trees = &h.indirection[n.offset as usize..(n.offset + n.len) as usize];
             let boxes = crate::hull::tree_boxes(scene, meshes, trees);
             let triangles = crate::hull::batch_hull(&boxes)?;
-            let cells = &level.cells
-                [far.cell_offset as usize..(far.cell_offset + far.cell_count) as usize];
+            let cells =
+                &level.cells[far.cell_offset as usize..(far.cell_offset + far.cell_count) as usize];
             let colours = node_side_colours(cells);
             Ok(triangles
                 .iter()

@@ -76,7 +76,8 @@ fn coalesce_heads(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wo
         atomicAdd(&counters.commands, 1u);
         if raw_data[j].lod == LOD_MESH {
             atomicAdd(&counters.lod0_commands, 1u);
-        } else {
+        } else if raw_data[j].lod == LOD_BILLBOARD {
+            // Far commands (issue 32) are neither.
             atomicAdd(&counters.lod1_commands, 1u);
         }
     }

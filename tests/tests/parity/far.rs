@@ -7,7 +7,9 @@
 //!
 //! Scenarios: the cropped `synthetic` (600 m) seen from `medium` with the far level from the
 //! transition (550 m) on and a pixel threshold that lets most far nodes go, under the octree
-//! and the grid's depth-1 hierarchy, for each far primitive (sprite, cube, hull). Backends: the
+//! and the grid's depth-1 hierarchy, for each far primitive (sprite, cube, hull), on the
+//! fixture's far level and, under the octree, on the baked one (`prepare`'s: the reference
+//! bake's cells and hulls, drawn by both backends). Backends: the
 //! draw alone (`from-cpu: select,textures`) and the GPU cut feeding the GPU draw
 //! (`from-cpu: textures`).
 
@@ -24,14 +26,20 @@ use forestlod_tests::assert_no_failures;
 use forestlod_tests::far_fixture::synthetic_far_level;
 use forestlod_tests::scenarios::{crop_params, cropped_synthetic};
 
-/// The least far pixels a scenario's reference frame must show, so the far path is judged.
-const MIN_FAR_PIXELS: usize = 500;
+/// The least far pixels a scenario's reference frame must show, so the far path is judged
+/// (measured: 1221-1762 on the fixture's level, 446-451 on the baked one, whose cells' real
+/// coverage keeps fewer pixels through the screen door).
+const MIN_FAR_PIXELS: usize = 300;
 
 #[test]
 fn gpu_far_level_matches_the_reference() {
     let Some(ctx) = gpu_context() else { return };
     let mut failures = Vec::new();
-    for hierarchy in [Hierarchy::Octree, Hierarchy::Grid] {
+    for (hierarchy, baked) in [
+        (Hierarchy::Octree, false),
+        (Hierarchy::Grid, false),
+        (Hierarchy::Octree, true),
+    ] {
         for kind in FarLod::ALL {
             let params = Params {
                 lod_levels: 3,
@@ -51,7 +59,9 @@ fn gpu_far_level_matches_the_reference() {
                 .hierarchy
                 .as_ref()
                 .expect("a far level cuts a hierarchy");
-            prepared.far = Some(synthetic_far_level(h, kind));
+            if !baked {
+                prepared.far = Some(synthetic_far_level(h, kind));
+            }
             let input = FrameInput {
                 prepared: &prepared,
                 camera: &camera,
@@ -59,7 +69,8 @@ fn gpu_far_level_matches_the_reference() {
             };
             let want = Backend::<Draw>::run(&Reference, input);
             let far_pixels = want.lod_id.iter().filter(|&&id| id == LOD_ID_FAR).count();
-            let name = format!("{}-{}", hierarchy.name(), kind.name());
+            let source = if baked { "baked" } else { "fixture" };
+            let name = format!("{}-{}-{source}", hierarchy.name(), kind.name());
             eprintln!("{name}: {far_pixels} far pixels in the reference frame");
             if far_pixels < MIN_FAR_PIXELS {
                 failures.push(format!(
