@@ -160,6 +160,13 @@ pub fn trees_drawn_by_selection(
     params: &Params,
 ) -> Vec<u32> {
     let u = crate::select::SelectUniform::new(camera, params);
+    // A far command stands for its nodes' trees (issue 32).
+    let selection = crate::hier_select::tree_view(
+        selection,
+        prepared.hierarchy.as_ref(),
+        prepared.far.as_ref(),
+        params,
+    );
     let mut out: Vec<u32> = selection
         .commands
         .iter()

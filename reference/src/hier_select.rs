@@ -248,3 +248,66 @@ pub fn resolve_and_compact(
         states,
     }
 }
+
+/// The trees a far command of the cut stands for (issue 32), as a range of the hierarchy's
+/// indirection: from its first node's (`data.batch`) first tree to the end of the last node its
+/// instances cover. An octant command's instances are cells, node by node in node order (the
+/// following nodes whose kept cells lie in its range, as coalescing merges adjacent ranges, skipping
+/// each node's own subtree); a hull command's are node indices. Consecutive emitted nodes own
+/// adjacent tree ranges (children's ranges tile their parent's in order), so the range is theirs.
+pub fn far_command_trees(
+    h: &Hierarchy,
+    level: &FarLevel,
+    kind: forestlod_shared::FarLod,
+    cmd: &forestlod_shared::DrawCommand,
+    data: &forestlod_shared::CommandData,
+) -> std::ops::Range<u32> {
+    let end = cmd.first_instance + cmd.instance_count;
+    let covered = |j: usize| -> bool {
+        let f = &level.nodes[j];
+        match kind {
+            forestlod_shared::FarLod::Hull => (j as u32) >= cmd.first_instance && (j as u32) < end,
+            _ => f.cell_count > 0 && f.cell_offset >= cmd.first_instance && f.cell_offset < end,
+        }
+    };
+    let first = &h.nodes[data.batch as usize];
+    let mut last_end = first.offset + first.len;
+    let mut j = data.batch as usize;
+    let count = h.nodes.len().min(level.nodes.len());
+    while j < count && covered(j) {
+        let n = h.nodes[j];
+        last_end = n.offset + n.len;
+        j += 1;
+        // Past the node's own subtree (an emitted node's descendants are not emitted).
+        while j < count && h.nodes[j].depth > n.depth && h.nodes[j].offset < n.offset + n.len {
+            j += 1;
+        }
+    }
+    first.offset..last_end
+}
+
+/// `selection` with each far command (issue 32) replaced by a billboard command over the trees it
+/// stands for ([`far_command_trees`]): what the per-tree counts of a frame (trees drawn,
+/// `crate::select::batching_counts`) read, a far tree counted as drawn coarser than a mesh, as a
+/// billboard is. Without a far level, `selection` itself.
+pub fn tree_view(
+    selection: &Selection,
+    h: Option<&Hierarchy>,
+    level: Option<&FarLevel>,
+    params: &Params,
+) -> Selection {
+    let (Some(h), Some(level), Ok(kind)) = (h, level, params.far_level()) else {
+        return selection.clone();
+    };
+    let mut out = selection.clone();
+    for (c, d) in out.commands.iter_mut().zip(out.data.iter_mut()) {
+        if d.lod == LOD_FAR {
+            let r = far_command_trees(h, level, kind, c, d);
+            c.first_instance = r.start;
+            c.instance_count = r.end - r.start;
+            d.lod = LOD_BILLBOARD;
+            d.billboard = 1;
+        }
+    }
+    out
+}

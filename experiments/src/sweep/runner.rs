@@ -636,11 +636,18 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
                     ),
                 };
                 let bands = tree_bands(&prepared.scene, &prepared.geometry.meshes, camera, params);
+                // Far commands (issue 32) counted by the trees they stand for.
+                let tree_cmds = forestlod_reference::hier_select::tree_view(
+                    &frame.selection,
+                    prepared.hierarchy.as_ref(),
+                    prepared.far.as_ref(),
+                    params,
+                );
                 let batching = batching_counts_banded(
                     spheres,
                     &bands,
                     indirection,
-                    &frame.selection,
+                    &tree_cmds,
                     camera,
                     params,
                 );
@@ -747,11 +754,17 @@ fn render_gpu_variant(
                     f.camera,
                     f.params,
                 );
+                let tree_cmds = forestlod_reference::hier_select::tree_view(
+                    &selection,
+                    f.prepared.hierarchy.as_ref(),
+                    f.prepared.far.as_ref(),
+                    f.params,
+                );
                 let batching = batching_counts_banded(
                     f.spheres,
                     &bands,
                     indirection,
-                    &selection,
+                    &tree_cmds,
                     f.camera,
                     f.params,
                 );
