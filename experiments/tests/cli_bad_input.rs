@@ -263,7 +263,7 @@ fn invalid_params_flags() {
         ("--grid-size", "nan", "grid_size"),
         ("--grid-size", "0", "grid_size"),
         ("--angles", "0", "angle_count"),
-        ("--lod-levels", "3", "lod_levels"),
+        ("--lod-levels", "4", "lod_levels"),
         ("--transition", "-5", "lod1_transition"),
         ("--fade-width", "inf", "fade_width"),
         ("--draw-distance", "1e9", "draw_distance"),

@@ -15,6 +15,9 @@
 //! Guerrero 2006 §4 names one blend (issue 30): `guerrero-blend` is the sequential dithered fade
 //! with the noise in each LOD's texture space and the blend factor per tree
 //! (`shared/src/fade.rs`, `shared/src/noise.rs`).
+//!
+//! `far-hulls` (issue 32) is the best trade the far-level sweep found: a third LOD level of
+//! Eichner's batch hulls (E§7) for octree nodes past 1000 m under 1024 pixels.
 
 use crate::registry::{ParseError, param};
 use crate::{ParamError, Params};
@@ -31,7 +34,7 @@ pub struct Preset {
 }
 
 /// Every preset, in table order (module docs).
-pub const PRESETS: [Preset; 6] = [
+pub const PRESETS: [Preset; 7] = [
     celba("celba-extra-high", &[CELBA_METRIC, ("lod_pixel_area", "5")]),
     celba("celba-high", &[CELBA_METRIC, ("lod_pixel_area", "10")]),
     celba("celba-normal", &[CELBA_METRIC, ("lod_pixel_area", "15")]),
@@ -44,6 +47,20 @@ pub const PRESETS: [Preset; 6] = [
             ("fade_mode", "dither-sequential"),
             ("dither_space", "texture"),
             ("fade_granularity", "tree"),
+        ],
+    },
+    // The best trade of the far levels (issue 32, `experiments/results/far_levels/README.md`):
+    // Eichner's batch hulls on the octree past the transition.
+    Preset {
+        name: "far-hulls",
+        seed: "E§7 batch hull, issue 32",
+        settings: &[
+            ("lod_levels", "3"),
+            ("hierarchy", "octree"),
+            ("nodes_per_node", "64"),
+            ("far_lod", "hull"),
+            ("far_start", "1000"),
+            ("far_pixels", "1024"),
         ],
     },
 ];

@@ -108,9 +108,14 @@ pub fn judged_elsewhere(t: &Target) -> Option<&'static str> {
         .map(|&(_, _, _, test, _)| test)
 }
 
-/// Whether `(stage, param, choice)` is one of [`CHOICES_THAT_SKIP_THE_STAGE`].
+/// Whether `(stage, param, choice)` is one of [`CHOICES_THAT_SKIP_THE_STAGE`], or the far level's
+/// `lod_levels = 3` (issue 32) for `select` (a far level selects by the cut, the grid by its
+/// depth-1 hierarchy) and `refine` (refused under a far level: far commands index cells).
 pub fn skips(stage: StageId, param: &str, choice: &str) -> bool {
-    CHOICES_THAT_SKIP_THE_STAGE
+    let far = param == "lod_levels"
+        && (choice == "3" || choice.starts_with("3 "))
+        && matches!(stage, StageId::Select | StageId::Refine);
+    far || CHOICES_THAT_SKIP_THE_STAGE
         .iter()
         .any(|&(s, p, c, _)| s == stage && p == param && c == choice)
 }

@@ -183,3 +183,35 @@ fn no_far_level_no_far_commands() {
     }
     assert_eq!(far_count(&p, &empty), 0);
 }
+
+proptest! {
+    #![proptest_config(property_config())]
+
+    /// A sprite's colour (G§2.3, `forestlod_shared::side_mix`): its weights are a partition of
+    /// unity, each in [0, 1]; each channel of the mix lies between the three chosen sides'; on an
+    /// axis the mix is that side's colour exactly. Mutation-checked: choosing the side by the
+    /// opposite sign (`side_of(a, v_a < 0)`) fails the axis case; weights `|v_a|` left unnormalised
+    /// fail the partition.
+    #[test]
+    fn sprite_weights_are_a_partition_and_exact_on_the_axes(
+        v in prop::array::uniform3(-1.0f32..1.0),
+        colours in prop::array::uniform6(any::<u32>()),
+        axis in 0usize..3,
+        positive in any::<bool>(),
+    ) {
+        use forestlod_shared::{side_mix, side_normal, side_of, side_weights, unpack_far_colour};
+        let (w, sides) = side_weights(v);
+        let sum: f32 = w.iter().sum();
+        prop_assert!((sum - 1.0).abs() <= 4.0 * f32::EPSILON, "weights {:?} sum to {}", w, sum);
+        prop_assert!(w.iter().all(|&x| (0.0..=1.0).contains(&x)));
+        let mix = side_mix(&colours, v);
+        for ch in 0..4 {
+            let vals: Vec<f32> = sides.iter().map(|&s| unpack_far_colour(colours[s as usize])[ch]).collect();
+            let lo = vals.iter().cloned().fold(f32::INFINITY, f32::min);
+            let hi = vals.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+            prop_assert!(mix[ch] >= lo - 1e-6 && mix[ch] <= hi + 1e-6, "channel {} {} outside [{}, {}]", ch, mix[ch], lo, hi);
+        }
+        let s = side_of(axis, positive);
+        prop_assert_eq!(side_mix(&colours, side_normal(s)), unpack_far_colour(colours[s]));
+    }
+}
