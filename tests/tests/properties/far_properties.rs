@@ -205,11 +205,11 @@ proptest! {
         prop_assert!((sum - 1.0).abs() <= 4.0 * f32::EPSILON, "weights {:?} sum to {}", w, sum);
         prop_assert!(w.iter().all(|&x| (0.0..=1.0).contains(&x)));
         let mix = side_mix(&colours, v);
-        for ch in 0..4 {
+        for (ch, &m) in mix.iter().enumerate() {
             let vals: Vec<f32> = sides.iter().map(|&s| unpack_far_colour(colours[s as usize])[ch]).collect();
             let lo = vals.iter().cloned().fold(f32::INFINITY, f32::min);
             let hi = vals.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
-            prop_assert!(mix[ch] >= lo - 1e-6 && mix[ch] <= hi + 1e-6, "channel {} {} outside [{}, {}]", ch, mix[ch], lo, hi);
+            prop_assert!(m >= lo - 1e-6 && m <= hi + 1e-6, "channel {} {} outside [{}, {}]", ch, m, lo, hi);
         }
         let s = side_of(axis, positive);
         prop_assert_eq!(side_mix(&colours, side_normal(s)), unpack_far_colour(colours[s]));
