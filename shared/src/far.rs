@@ -290,20 +290,22 @@ pub fn far_eligible(
     box_area_along(extent, v) / (lo * lo) < far.ratio
 }
 
+/// The two counter-clockwise triangles of a square, corners in `{-1, 1}²`: a cube face's (seen
+/// from outside) and a sprite's (seen from the eye). Twinned by `far_quad_corner` in `common.wgsl`.
+const QUAD_CORNERS: [[f32; 2]; 6] = [
+    [-1.0, -1.0],
+    [1.0, -1.0],
+    [1.0, 1.0],
+    [-1.0, -1.0],
+    [1.0, 1.0],
+    [-1.0, 1.0],
+];
+
 /// Corner `v` (`0..CUBE_VERTICES`) of a cube: `(face, signs)`, the face ([`side_of`]) and the
 /// corner's sign per axis. Triangles wind counter-clockwise seen from outside.
 pub fn cube_corner(v: u32) -> (u32, [f32; 3]) {
-    // Two triangles on the face's square, (s, t) in {-1, 1}², counter-clockwise from outside.
-    const QUAD: [[f32; 2]; 6] = [
-        [-1.0, -1.0],
-        [1.0, -1.0],
-        [1.0, 1.0],
-        [-1.0, -1.0],
-        [1.0, 1.0],
-        [-1.0, 1.0],
-    ];
     let face = v / 6;
-    let [s, t] = QUAD[(v % 6) as usize];
+    let [s, t] = QUAD_CORNERS[(v % 6) as usize];
     let axis = (face / 2) as usize;
     let sign = if face.is_multiple_of(2) { 1.0 } else { -1.0 };
     // (axis, a1, a2) right-handed, so s along a1 and t along a2 wind counter-clockwise seen from
@@ -319,15 +321,7 @@ pub fn cube_corner(v: u32) -> (u32, [f32; 3]) {
 
 /// Corner `v` (`0..SPRITE_VERTICES`) of a sprite, in `{-1, 1}²` on the quad's (right, up).
 pub fn sprite_corner(v: u32) -> [f32; 2] {
-    const QUAD: [[f32; 2]; 6] = [
-        [-1.0, -1.0],
-        [1.0, -1.0],
-        [1.0, 1.0],
-        [-1.0, -1.0],
-        [1.0, 1.0],
-        [-1.0, 1.0],
-    ];
-    QUAD[(v % 6) as usize]
+    QUAD_CORNERS[(v % 6) as usize]
 }
 
 /// The half-sizes of a sprite on the basis `(r, u)` that covers the box `extent`: the box's reach
