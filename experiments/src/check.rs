@@ -656,6 +656,7 @@ pub fn selection_scene(scene: Scene, params: &Params) -> Result<Prepared> {
         chains: Vec::new(),
         texture: Texture::new(vec![placeholder]).map_err(|e| e.to_string())?,
         extents: Vec::new(),
+        depth: None,
     };
     Ok(Prepared {
         tree_scales: scene.instances.iter().map(|t| t.scale).collect(),

@@ -217,6 +217,9 @@ pub struct GpuBaked {
     pub mips: MipArray,
     /// Extent of every layer.
     pub extents: Vec<BillboardExtent>,
+    /// The octahedral impostors' depth channel (issue 32), when
+    /// [`forestlod_shared::depth_channel`] asks for it: the same layers' depth, with mips.
+    pub depth: Option<MipArray>,
 }
 
 impl GpuBaked {
@@ -273,6 +276,7 @@ impl GpuBaked {
             texture_size: side,
             mips: mips()?,
             extents: layer_extents(metas, views),
+            depth: None,
         })
     }
 }
@@ -338,6 +342,8 @@ fn validate_mesh(i: usize, m: &BakeMesh<'_>, max_dim: u32) -> Result<(), GpuErro
 struct BakePipelines {
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::RenderPipeline,
+    /// The depth channel's (issue 32): the same render through `bake_depth_fs`.
+    depth_pipeline: wgpu::RenderPipeline,
     sampler: wgpu::Sampler,
 }
 
@@ -357,56 +363,60 @@ impl StagePipelines for BakePipelines {
                     sampler_entry(2, fragment),
                 ],
             );
-            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("bake"),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("bake_vs"),
-                    compilation_options: Default::default(),
-                    buffers: &[
-                        Some(wgpu::VertexBufferLayout {
-                            array_stride: 12,
-                            step_mode: wgpu::VertexStepMode::Vertex,
-                            attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-                        }),
-                        Some(wgpu::VertexBufferLayout {
-                            array_stride: 8,
-                            step_mode: wgpu::VertexStepMode::Vertex,
-                            attributes: &wgpu::vertex_attr_array![1 => Float32x2],
-                        }),
-                    ],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    strip_index_format: None,
-                    front_face: wgpu::FrontFace::Ccw,
-                    cull_mode: None,
-                    unclipped_depth: false,
-                    polygon_mode: wgpu::PolygonMode::Fill,
-                    conservative: false,
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: BAKE_DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: wgpu::StencilState::default(),
-                    bias: wgpu::DepthBiasState::default(),
-                }),
-                multisample: wgpu::MultisampleState::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("bake_fs"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: BILLBOARD_FORMAT,
-                        blend: Some(wgpu::BlendState::REPLACE),
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            let make = |label: &str, fragment_entry: &str| {
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some(label),
+                    layout: Some(&pipeline_layout),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("bake_vs"),
+                        compilation_options: Default::default(),
+                        buffers: &[
+                            Some(wgpu::VertexBufferLayout {
+                                array_stride: 12,
+                                step_mode: wgpu::VertexStepMode::Vertex,
+                                attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+                            }),
+                            Some(wgpu::VertexBufferLayout {
+                                array_stride: 8,
+                                step_mode: wgpu::VertexStepMode::Vertex,
+                                attributes: &wgpu::vertex_attr_array![1 => Float32x2],
+                            }),
+                        ],
+                    },
+                    primitive: wgpu::PrimitiveState {
+                        topology: wgpu::PrimitiveTopology::TriangleList,
+                        strip_index_format: None,
+                        front_face: wgpu::FrontFace::Ccw,
+                        cull_mode: None,
+                        unclipped_depth: false,
+                        polygon_mode: wgpu::PolygonMode::Fill,
+                        conservative: false,
+                    },
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: BAKE_DEPTH_FORMAT,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Less),
+                        stencil: wgpu::StencilState::default(),
+                        bias: wgpu::DepthBiasState::default(),
+                    }),
+                    multisample: wgpu::MultisampleState::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some(fragment_entry),
+                        compilation_options: Default::default(),
+                        targets: &[Some(wgpu::ColorTargetState {
+                            format: BILLBOARD_FORMAT,
+                            blend: Some(wgpu::BlendState::REPLACE),
+                            write_mask: wgpu::ColorWrites::ALL,
+                        })],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+            let pipeline = make("bake", "bake_fs");
+            let depth_pipeline = make("bake depth", "bake_depth_fs");
             let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("bake mesh texture"),
                 address_mode_u: wgpu::AddressMode::ClampToEdge,
@@ -420,6 +430,7 @@ impl StagePipelines for BakePipelines {
             Self {
                 layout,
                 pipeline,
+                depth_pipeline,
                 sampler,
             }
         })
@@ -456,6 +467,28 @@ impl<'a> GpuBake<'a> {
         views: BillboardViews,
         side: u32,
     ) -> Result<wgpu::Texture, GpuError> {
+        self.bake_layers(meshes, views, side, false)
+    }
+
+    /// The octahedral impostors' depth channel at level 0 (issue 32; reference
+    /// `bake_depth_view`): every layer of [`Self::bake_level0`] rendered through
+    /// `bake_depth_fs`, red = the kept fragment's depth, alpha = its texel's.
+    pub fn bake_depth_level0(
+        &self,
+        meshes: &[BakeMesh<'_>],
+        views: BillboardViews,
+        side: u32,
+    ) -> Result<wgpu::Texture, GpuError> {
+        self.bake_layers(meshes, views, side, true)
+    }
+
+    fn bake_layers(
+        &self,
+        meshes: &[BakeMesh<'_>],
+        views: BillboardViews,
+        side: u32,
+        depth_channel: bool,
+    ) -> Result<wgpu::Texture, GpuError> {
         let ctx = self.mips.context();
         let (angle_count, azimuth_count) = (views.angle_count, views.azimuth_count);
         if meshes.is_empty() || angle_count == 0 || azimuth_count == 0 {
@@ -473,7 +506,12 @@ impl<'a> GpuBake<'a> {
             validate_mesh(i, m, max_dim)?;
         }
         let layer_count = u32::try_from(views.layers(meshes.len())).unwrap_or(u32::MAX);
-        let texture = create_billboard_texture(ctx, side, layer_count, "billboards (gpu bake)")?;
+        let label = if depth_channel {
+            "billboard depth (gpu bake)"
+        } else {
+            "billboards (gpu bake)"
+        };
+        let texture = create_billboard_texture(ctx, side, layer_count, label)?;
 
         // Shared geometry buffers; each mesh draws with its own base vertex and index range.
         let (mut positions, mut uvs, mut indices) = (Vec::new(), Vec::new(), Vec::new());
@@ -595,7 +633,11 @@ impl<'a> GpuBake<'a> {
                     if range.is_empty() {
                         continue;
                     }
-                    pass.set_pipeline(&self.pipelines.pipeline);
+                    pass.set_pipeline(if depth_channel {
+                        &self.pipelines.depth_pipeline
+                    } else {
+                        &self.pipelines.pipeline
+                    });
                     pass.set_bind_group(
                         0,
                         &bind_groups[mesh],
@@ -624,12 +666,19 @@ impl<'a> GpuBake<'a> {
         let (views, r) = (BillboardViews::of(params), params.texture_size);
         let texture = self.bake_level0(meshes, views, r)?;
         let metas: Vec<MeshMeta> = meshes.iter().map(|m| m.meta).collect();
+        let depth = if forestlod_shared::depth_channel(params) {
+            let level0 = self.bake_depth_level0(meshes, views, r)?;
+            Some(self.mips.run(level0, mode, params.alpha_cutoff)?)
+        } else {
+            None
+        };
         Ok(GpuBaked {
             angle_count: views.angle_count,
             azimuth_count: views.azimuth_count,
             texture_size: r,
             mips: self.mips.run(texture, mode, params.alpha_cutoff)?,
             extents: layer_extents(&metas, views),
+            depth,
         })
     }
 }

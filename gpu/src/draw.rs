@@ -159,8 +159,9 @@ pub struct DrawUniform {
     pub ambient: f32,
     /// The unit direction towards the sun ([`Params::sun_dir`]).
     pub sun: [f32; 3],
-    /// Explicit padding.
-    pub _pad3: u32,
+    /// [`forestlod_shared::depth_channel`] as 0/1 (issue 32): the octahedral blend re-projects
+    /// the nearest frame's surface point from the depth channel (binding 11).
+    pub octahedral_depth: u32,
     /// Billboard azimuth views `J` (issue 30, `Params::azimuth_count`).
     pub azimuth_count: u32,
     /// `AzimuthMode` as `u32`.
@@ -202,7 +203,7 @@ impl DrawUniform {
             noise_size: params.noise_size,
             ambient: params.ambient,
             sun: params.sun_dir(),
-            _pad3: 0,
+            octahedral_depth: u32::from(forestlod_shared::depth_channel(params)),
             azimuth_count: params.azimuth_count,
             azimuth_mode: params.azimuth_mode,
             billboard_views: params.billboard_views,
@@ -565,40 +566,59 @@ impl DrawScene {
 pub struct DrawTextures {
     mesh: wgpu::TextureView,
     billboards: wgpu::TextureView,
+    /// The octahedral impostors' depth channel (issue 32), when baked.
+    depth: Option<wgpu::TextureView>,
     mesh_layers: u32,
     billboard_layers: u32,
+    depth_layers: u32,
+}
+
+/// A view of a 2D array texture the draw samples (`TEXTURE_BINDING` usage, a filterable float
+/// format), or an error naming `what`.
+fn sampled_array_view(
+    t: &wgpu::Texture,
+    what: &'static str,
+) -> Result<wgpu::TextureView, GpuError> {
+    let filterable = matches!(
+        t.format().sample_type(None, None),
+        Some(wgpu::TextureSampleType::Float { filterable: true })
+    );
+    if !filterable
+        || !t.usage().contains(wgpu::TextureUsages::TEXTURE_BINDING)
+        || t.dimension() != wgpu::TextureDimension::D2
+    {
+        return Err(GpuError::Input {
+            field: what,
+            value: format!("{:?} {:?} {:?}", t.format(), t.dimension(), t.usage()),
+            reason: "expected a 2D (array) texture of a filterable float format with TEXTURE_BINDING usage",
+        });
+    }
+    Ok(t.create_view(&wgpu::TextureViewDescriptor {
+        label: Some(what),
+        dimension: Some(wgpu::TextureViewDimension::D2Array),
+        ..Default::default()
+    }))
 }
 
 impl DrawTextures {
     /// Views of two 2D array textures (`TEXTURE_BINDING` usage, a filterable float format).
     pub fn new(mesh: &wgpu::Texture, billboards: &wgpu::Texture) -> Result<Self, GpuError> {
-        let view = |t: &wgpu::Texture, what: &'static str| {
-            let filterable = matches!(
-                t.format().sample_type(None, None),
-                Some(wgpu::TextureSampleType::Float { filterable: true })
-            );
-            if !filterable
-                || !t.usage().contains(wgpu::TextureUsages::TEXTURE_BINDING)
-                || t.dimension() != wgpu::TextureDimension::D2
-            {
-                return Err(GpuError::Input {
-                    field: what,
-                    value: format!("{:?} {:?} {:?}", t.format(), t.dimension(), t.usage()),
-                    reason: "expected a 2D (array) texture of a filterable float format with TEXTURE_BINDING usage",
-                });
-            }
-            Ok(t.create_view(&wgpu::TextureViewDescriptor {
-                label: Some(what),
-                dimension: Some(wgpu::TextureViewDimension::D2Array),
-                ..Default::default()
-            }))
-        };
         Ok(Self {
-            mesh: view(mesh, "mesh texture array")?,
-            billboards: view(billboards, "billboard texture array")?,
+            mesh: sampled_array_view(mesh, "mesh texture array")?,
+            billboards: sampled_array_view(billboards, "billboard texture array")?,
+            depth: None,
             mesh_layers: mesh.depth_or_array_layers(),
             billboard_layers: billboards.depth_or_array_layers(),
+            depth_layers: 0,
         })
+    }
+
+    /// The same with the octahedral impostors' depth channel (issue 32), a layer per billboard
+    /// layer, which `octahedral_depth = on` needs.
+    pub fn with_depth(mut self, depth: &wgpu::Texture) -> Result<Self, GpuError> {
+        self.depth = Some(sampled_array_view(depth, "billboard depth array")?);
+        self.depth_layers = depth.depth_or_array_layers();
+        Ok(self)
     }
 }
 
@@ -1136,6 +1156,7 @@ impl StagePipelines for DrawPipelines {
                     texture(8),
                     sampler_entry(9, S::FRAGMENT),
                     buffer_entry(10, S::VERTEX, storage, 0),
+                    texture(11),
                 ],
             );
             // Straight-alpha source-over (reference raster `Blend::AlphaBlend`).
@@ -1284,6 +1305,18 @@ impl GpuDraw {
                 reason: "expected a layer per mesh and K·J layers per mesh in the billboard array",
             });
         }
+        if forestlod_shared::depth_channel(params)
+            && textures.depth_layers < textures.billboard_layers
+        {
+            return Err(GpuError::Input {
+                field: "draw textures",
+                value: format!(
+                    "{} depth layers for {} billboard layers",
+                    textures.depth_layers, textures.billboard_layers
+                ),
+                reason: "octahedral_depth = on needs the depth channel's array (DrawTextures::with_depth), a layer per billboard layer",
+            });
+        }
         if selection.capacity > MAX_COMMANDS {
             return Err(GpuError::Input {
                 field: "selection capacity",
@@ -1310,6 +1343,9 @@ impl GpuDraw {
                 wgpu::BindingResource::TextureView(&textures.billboards),
                 wgpu::BindingResource::Sampler(&self.pipelines.sampler),
                 scene.far.as_entire_binding(),
+                wgpu::BindingResource::TextureView(
+                    textures.depth.as_ref().unwrap_or(&textures.billboards),
+                ),
             ],
         );
         Ok(bind_group)
@@ -1437,7 +1473,7 @@ pub(crate) mod tests {
                 noise_size,
                 ambient,
                 sun,
-                _pad3,
+                octahedral_depth,
                 azimuth_count,
                 azimuth_mode,
                 billboard_views,

@@ -93,11 +93,34 @@ pub fn mip_levels<'a>(textures: &[&'a Texture]) -> Vec<Vec<MipLevel<'a>>> {
         .collect()
 }
 
-/// Uploads the reference's mesh textures (one layer per mesh) and billboard array.
+/// The textures a frame's draw samples: the mesh textures (one layer per mesh), the billboard
+/// array and, under `octahedral_depth = on` (issue 32), the depth channel's array.
+#[derive(Debug)]
+pub struct SceneTextures {
+    /// One layer per mesh, with mips.
+    pub mesh: wgpu::Texture,
+    /// The billboard array, with mips.
+    pub billboards: wgpu::Texture,
+    /// The octahedral impostors' depth channel, a layer per billboard layer, when baked.
+    pub depth: Option<wgpu::Texture>,
+}
+
+impl SceneTextures {
+    /// The draw's views of them.
+    pub fn draw_textures(&self) -> Result<forestlod_gpu::DrawTextures, GpuError> {
+        let textures = forestlod_gpu::DrawTextures::new(&self.mesh, &self.billboards)?;
+        match &self.depth {
+            Some(depth) => textures.with_depth(depth),
+            None => Ok(textures),
+        }
+    }
+}
+
+/// Uploads the reference's mesh textures (one layer per mesh), billboard array and depth channel.
 pub fn upload_reference_textures(
     ctx: &GpuContext,
     prepared: &Prepared,
-) -> Result<(wgpu::Texture, wgpu::Texture), GpuError> {
+) -> Result<SceneTextures, GpuError> {
     let meshes: Vec<&Texture> = prepared.mesh_textures.iter().collect();
     let mesh = upload_texture_array(ctx, "mesh textures (cpu)", &mip_levels(&meshes))?;
     let billboards = upload_texture_array(
@@ -105,7 +128,19 @@ pub fn upload_reference_textures(
         "billboards (cpu)",
         &mip_levels(&[&prepared.billboards.texture]),
     )?;
-    Ok((mesh, billboards))
+    let depth = match &prepared.billboards.depth {
+        Some(d) => Some(upload_texture_array(
+            ctx,
+            "billboard depth (cpu)",
+            &mip_levels(&[&d.texture]),
+        )?),
+        None => None,
+    };
+    Ok(SceneTextures {
+        mesh,
+        billboards,
+        depth,
+    })
 }
 
 /// The GPU's own textures for a prepared scene: the mesh textures' chains built by the GPU mips
@@ -116,7 +151,7 @@ pub fn gpu_textures(
     ctx: &GpuContext,
     prepared: &Prepared,
     params: &Params,
-) -> Result<(wgpu::Texture, wgpu::Texture), GpuError> {
+) -> Result<SceneTextures, GpuError> {
     gpu_textures_with(ctx, prepared, params, BillboardLevel0::Gpu)
 }
 
@@ -137,7 +172,7 @@ pub fn gpu_textures_with(
     prepared: &Prepared,
     params: &Params,
     level0: BillboardLevel0,
-) -> Result<(wgpu::Texture, wgpu::Texture), GpuError> {
+) -> Result<SceneTextures, GpuError> {
     let scene = &prepared.scene;
     let mode = params.mips().map_err(|e| GpuError::Input {
         field: "params.mip_mode",
@@ -166,7 +201,7 @@ pub fn gpu_textures_with(
         .mips()
         .run(mesh_level0, mode, params.alpha_cutoff)?
         .texture;
-    let billboards = match level0 {
+    let baked = match level0 {
         BillboardLevel0::Gpu => {
             let meshes: Vec<BakeMesh> = scene
                 .meshes
@@ -181,28 +216,37 @@ pub fn gpu_textures_with(
                     meta: m.meta(),
                 })
                 .collect();
-            bake.bake(&meshes, params)?.mips.texture
+            bake.bake(&meshes, params)?
         }
         BillboardLevel0::Reference => {
-            let t = &prepared.billboards.texture;
-            let layers: Vec<&[[u8; 4]]> = (0..t.layer_count() as u32)
-                .map(|layer| &t.level(layer, 0).texels[..])
-                .collect();
             let metas: Vec<MeshMeta> = scene.meshes.iter().map(|m| m.meta()).collect();
-            GpuBaked::from_cpu_level0(
-                bake.mips(),
-                &metas,
-                forestlod_shared::BillboardViews::of(params),
-                params.texture_size,
-                &layers,
-                mode,
-                params.alpha_cutoff,
-            )?
-            .mips
-            .texture
+            let views = forestlod_shared::BillboardViews::of(params);
+            let from_level0 = |t: &Texture| {
+                let layers: Vec<&[[u8; 4]]> = (0..t.layer_count() as u32)
+                    .map(|layer| &t.level(layer, 0).texels[..])
+                    .collect();
+                GpuBaked::from_cpu_level0(
+                    bake.mips(),
+                    &metas,
+                    views,
+                    params.texture_size,
+                    &layers,
+                    mode,
+                    params.alpha_cutoff,
+                )
+            };
+            let mut baked = from_level0(&prepared.billboards.texture)?;
+            if let Some(d) = &prepared.billboards.depth {
+                baked.depth = Some(from_level0(&d.texture)?.mips);
+            }
+            baked
         }
     };
-    Ok((mesh, billboards))
+    Ok(SceneTextures {
+        mesh,
+        billboards: baked.mips.texture,
+        depth: baked.depth.map(|d| d.texture),
+    })
 }
 
 /// Every tree's bounding sphere (`baselines::tree_spheres`, computed on the CPU) and mesh: the

@@ -20,6 +20,7 @@
 
 use forestlod_gpu::{Compaction, GpuContext, MipArray};
 use forestlod_reference::pipeline::Prepared;
+use forestlod_reference::sampler::Texture;
 use forestlod_shared::{Camera, FramePlan, Params, StageId};
 
 use crate::bridge::gpu_textures;
@@ -76,7 +77,7 @@ pub fn texel_check(stage: &'static str, tally: &TexelTally) -> StageCheck {
 
 /// Compares the GPU's textures (mesh mips, billboards) with the reference's.
 pub fn check_textures(ctx: &GpuContext, prepared: &Prepared, params: &Params) -> Vec<StageCheck> {
-    let (mesh, billboards) = gpu_textures(ctx, prepared, params).expect("GPU textures");
+    let textures = gpu_textures(ctx, prepared, params).expect("GPU textures");
     let mode = params.mips().expect("valid mip mode");
     let read = |t: wgpu::Texture| {
         MipArray::from_texture(ctx, t, mode, params.alpha_cutoff)
@@ -86,7 +87,7 @@ pub fn check_textures(ctx: &GpuContext, prepared: &Prepared, params: &Params) ->
     };
     let mut out = Vec::new();
     let mut tally = TexelTally::default();
-    for (layer, chain) in read(mesh).iter().enumerate() {
+    for (layer, chain) in read(textures.mesh).iter().enumerate() {
         let t = &prepared.mesh_textures[layer];
         for (k, level) in chain.iter().enumerate() {
             tally.compare(
@@ -98,19 +99,44 @@ pub fn check_textures(ctx: &GpuContext, prepared: &Prepared, params: &Params) ->
         }
     }
     out.push(texel_check("mesh textures (mips)", &tally));
-    let mut tally = TexelTally::default();
-    let reference = &prepared.billboards.texture;
-    for (layer, chain) in read(billboards).iter().enumerate() {
-        for (k, level) in chain.iter().enumerate() {
-            tally.compare(
-                &format!("billboard layer {layer} level {k}"),
-                &level.texels,
-                &reference.level(layer as u32, k).texels,
-                1,
-            );
+    let compare_array = |name: &str, got: wgpu::Texture, reference: &Texture| {
+        let mut tally = TexelTally::default();
+        for (layer, chain) in read(got).iter().enumerate() {
+            for (k, level) in chain.iter().enumerate() {
+                tally.compare(
+                    &format!("{name} layer {layer} level {k}"),
+                    &level.texels,
+                    &reference.level(layer as u32, k).texels,
+                    1,
+                );
+            }
         }
-    }
+        tally
+    };
+    let tally = compare_array(
+        "billboard",
+        textures.billboards,
+        &prepared.billboards.texture,
+    );
     out.push(texel_check("billboards (bake + mips)", &tally));
+    // The octahedral impostors' depth channel (issue 32), when both sides baked it.
+    match (textures.depth, &prepared.billboards.depth) {
+        (Some(got), Some(want)) => {
+            let tally = compare_array("depth", got, &want.texture);
+            out.push(texel_check("billboard depth (bake + mips)", &tally));
+        }
+        (None, None) => {}
+        (got, want) => out.push(StageCheck {
+            stage: "billboard depth (bake + mips)",
+            summary: format!(
+                "the GPU baked {} depth channel, the reference {}",
+                if got.is_some() { "a" } else { "no" },
+                if want.is_some() { "one" } else { "none" }
+            ),
+            max_difference: f64::INFINITY,
+            differs: true,
+        }),
+    }
     out
 }
 

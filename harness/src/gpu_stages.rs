@@ -389,6 +389,7 @@ impl<'a> FrameStages<'a> {
                     sphere: params.billboard_views,
                     grid: params.octahedral_grid,
                     side: params.texture_size,
+                    depth: forestlod_shared::depth_channel(params),
                 };
                 compare::<Bake>(&Reference, &GpuBakeBackend { bake: gpu_bake()? }, input)
             }

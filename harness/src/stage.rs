@@ -239,6 +239,10 @@ pub struct BakeInput<'a> {
     pub grid: u32,
     /// The layer side, texels.
     pub side: u32,
+    /// Whether the octahedral impostors' depth channel is baked too (issue 32,
+    /// `forestlod_shared::depth_channel`): its layers then follow the colour layers, in the same
+    /// order.
+    pub depth: bool,
 }
 
 impl Stage for Bake {

@@ -70,7 +70,7 @@ pub const STAGES: &[StageEntry] = &[
         wgsl: "gpu/src/shaders/bake.wgsl",
         backend: Some("stage::Bake"),
         parity: "tests/tests/parity/bake.rs",
-        modes: &["billboard_views"],
+        modes: &["billboard_views", "octahedral_depth"],
         params: &[
             "texture_size",
             "angle_count",
@@ -225,6 +225,7 @@ pub const STAGES: &[StageEntry] = &[
             "azimuth_mode",
             "billboard_views",
             "octahedral_blend",
+            "octahedral_depth",
             "far_lod",
         ],
         params: &[

@@ -21,7 +21,7 @@ use std::sync::OnceLock;
 use forestlod_gpu::bake::BakeMesh;
 use forestlod_gpu::mips::{ADJUST_CONSTANT, ADJUST_KEEP, ADJUST_REMAP, ADJUST_SCALE};
 use forestlod_gpu::{GpuBake, MipLevelStats};
-use forestlod_reference::bake::bake_view;
+use forestlod_reference::bake::{bake_depth_view, bake_view};
 use forestlod_reference::mips::{AlphaAdjust, build_mip_array};
 use forestlod_reference::sampler::Texture;
 use forestlod_reference::scene::TreeMesh;
@@ -256,6 +256,16 @@ pub fn reference_bake_level0(
     views: BillboardViews,
     side: u32,
 ) -> Vec<Rgba8Image> {
+    reference_bake_layers(meshes, views, side, false)
+}
+
+/// [`reference_bake_level0`]'s layers, or the depth channel's (issue 32, `bake_depth_view`).
+fn reference_bake_layers(
+    meshes: &[TreeMesh],
+    views: BillboardViews,
+    side: u32,
+    depth: bool,
+) -> Vec<Rgba8Image> {
     let textures: Vec<Texture> = meshes
         .iter()
         .map(|m| Texture::new(vec![m.texture.clone()]).expect("mesh texture"))
@@ -263,15 +273,12 @@ pub fn reference_bake_level0(
     let jobs: Vec<(usize, u32, u32)> = views.views(meshes.len()).collect();
     jobs.par_iter()
         .map(|&(m, k, j)| {
-            bake_view(
-                &meshes[m],
-                &meshes[m].meta(),
-                &textures[m],
-                views,
-                k,
-                j,
-                side,
-            )
+            let (mesh, meta) = (&meshes[m], meshes[m].meta());
+            if depth {
+                bake_depth_view(mesh, &meta, &textures[m], views, k, side)
+            } else {
+                bake_view(mesh, &meta, &textures[m], views, k, j, side)
+            }
         })
         .collect()
 }
@@ -316,22 +323,33 @@ impl Backend<Bake> for GpuBakeBackend {
         let (meshes, views, side) = (i.meshes, bake_views(&i), i.side);
         let ctx = self.bake.mips().context();
         let inputs: Vec<BakeMesh<'_>> = meshes.iter().map(bake_mesh).collect();
-        let texture = self
-            .bake
-            .bake_level0(&inputs, views, side)
-            .expect("GpuBake::bake_level0");
-        let array = forestlod_gpu::MipArray::from_texture(ctx, texture, MipMode::Box, 0.5)
-            .expect("wrap the baked texture");
-        array
-            .read_level0(ctx)
-            .expect("read level 0")
-            .into_iter()
-            .map(|l| Rgba8Image {
-                width: l.side,
-                height: l.side,
-                texels: l.texels,
-            })
-            .collect()
+        let read = |texture: wgpu::Texture| {
+            let array = forestlod_gpu::MipArray::from_texture(ctx, texture, MipMode::Box, 0.5)
+                .expect("wrap the baked texture");
+            array
+                .read_level0(ctx)
+                .expect("read level 0")
+                .into_iter()
+                .map(|l| Rgba8Image {
+                    width: l.side,
+                    height: l.side,
+                    texels: l.texels,
+                })
+                .collect::<Vec<_>>()
+        };
+        let mut layers = read(
+            self.bake
+                .bake_level0(&inputs, views, side)
+                .expect("GpuBake::bake_level0"),
+        );
+        if i.depth {
+            layers.extend(read(
+                self.bake
+                    .bake_depth_level0(&inputs, views, side)
+                    .expect("GpuBake::bake_depth_level0"),
+            ));
+        }
+        layers
     }
 }
 
@@ -351,7 +369,16 @@ impl Backend<Mips> for Reference {
 
 impl Backend<Bake> for Reference {
     fn run(&self, i: BakeInput<'_>) -> Vec<Rgba8Image> {
-        reference_bake_level0(i.meshes, bake_views(&i), i.side)
+        let mut layers = reference_bake_level0(i.meshes, bake_views(&i), i.side);
+        if i.depth {
+            layers.extend(reference_bake_layers(
+                i.meshes,
+                bake_views(&i),
+                i.side,
+                true,
+            ));
+        }
+        layers
     }
 }
 

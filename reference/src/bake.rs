@@ -59,6 +59,22 @@ pub struct BakedBillboards {
     pub texture: Texture,
     /// Extent of every layer.
     pub extents: Vec<BillboardExtent>,
+    /// The octahedral impostors' depth channel (issue 32, `forestlod_shared::octahedral`), when
+    /// [`forestlod_shared::depth_channel`] asks for it: one layer per billboard layer.
+    pub depth: Option<BakedDepth>,
+}
+
+/// The depth channel of octahedral impostors (issue 32, `forestlod_shared::octahedral` module
+/// docs): per frame, red = the orthographic bake's depth `z` of the visible surface, alpha = the
+/// colour layer's alpha, mipmapped like the colour layers (alpha-weighted, so red stays a depth).
+#[derive(Clone, Debug)]
+pub struct BakedDepth {
+    /// Level 0 of every layer, in the colour layers' order.
+    pub layers: Vec<Rgba8Image>,
+    /// Full mip chain of every layer.
+    pub chains: Vec<MipChain>,
+    /// The sampled array texture.
+    pub texture: Texture,
 }
 
 impl BakedBillboards {
@@ -166,20 +182,38 @@ pub fn bake_view(
 ) -> Rgba8Image {
     if views.octahedral() {
         let d = frame_direction(k, views.grid, is_hemi(views.sphere));
-        return bake_with(mesh, mesh_texture, r, |p| octahedral_clip(p, meta, d));
+        return bake_with(mesh, mesh_texture, r, false, |p| {
+            octahedral_clip(p, meta, d)
+        });
     }
     let elevation = bake_elevation(k, views.angle_count);
     let (sin_a, cos_a) = bake_azimuth(j, views.azimuth_count).sin_cos();
-    bake_with(mesh, mesh_texture, r, |p| {
+    bake_with(mesh, mesh_texture, r, false, |p| {
         bake_clip_view(p, meta, elevation, sin_a, cos_a)
     })
 }
 
-/// Renders `mesh` at `r x r` with the clip positions of `clip` (module docs' rules).
+/// The depth layer of octahedral frame `f` (issue 32, [`BakedDepth`]): the same render as
+/// [`bake_view`]'s, writing `[z, 0, 0, α]` (linear) for the kept fragment of depth `z`.
+pub fn bake_depth_view(
+    mesh: &TreeMesh,
+    meta: &MeshMeta,
+    mesh_texture: &Texture,
+    views: BillboardViews,
+    f: u32,
+    r: u32,
+) -> Rgba8Image {
+    let d = frame_direction(f, views.grid, is_hemi(views.sphere));
+    bake_with(mesh, mesh_texture, r, true, |p| octahedral_clip(p, meta, d))
+}
+
+/// Renders `mesh` at `r x r` with the clip positions of `clip` (module docs' rules); `depth`
+/// writes the fragment's depth in red instead of its colour ([`bake_depth_view`]).
 fn bake_with(
     mesh: &TreeMesh,
     mesh_texture: &Texture,
     r: u32,
+    depth: bool,
     clip: impl Fn([f32; 3]) -> [f32; 4],
 ) -> Rgba8Image {
     let triangles: Vec<[Vertex<2>; 3]> = mesh
@@ -195,7 +229,11 @@ fn bake_with(
     let shader = |f: &crate::raster::Fragment<2>| {
         let texel = mesh_texture.bilinear(0, 0, f.varyings);
         (texel[3] > 0.0).then_some(FragmentOutput {
-            color: texel,
+            color: if depth {
+                [f.depth, 0.0, 0.0, texel[3]]
+            } else {
+                texel
+            },
             id: 1,
             depth: None,
         })
@@ -260,7 +298,10 @@ pub fn bake_memory_bytes(meshes: usize, params: &Params) -> u64 {
         }
         side /= 2;
     }
-    let layers = BillboardViews::of(params).layers(meshes);
+    let mut layers = BillboardViews::of(params).layers(meshes);
+    if forestlod_shared::depth_channel(params) {
+        layers = layers.saturating_mul(2); // the depth channel: one more layer per frame
+    }
     layers.saturating_mul(per_layer).saturating_add(12 * r * r)
 }
 
@@ -315,10 +356,49 @@ pub fn bake(
         .map(|&(m, k, _)| views.extent(&metas[m], k))
         .collect();
     let mode = params.mips().map_err(InputError::from)?;
-    let chains = build_mip_array(&layers, mode, params.alpha_cutoff).map_err(|e| {
+    let (chains, texture) = mip_array(&layers, mode, params.alpha_cutoff, r, "billboard")?;
+    let depth = if forestlod_shared::depth_channel(params) {
+        let layers: Vec<Rgba8Image> = jobs
+            .par_iter()
+            .map(|&(m, f, _)| {
+                bake_depth_view(&scene.meshes[m], &metas[m], &mesh_textures[m], views, f, r)
+            })
+            .collect();
+        let (chains, texture) = mip_array(&layers, mode, params.alpha_cutoff, r, "depth")?;
+        Some(BakedDepth {
+            layers,
+            chains,
+            texture,
+        })
+    } else {
+        None
+    };
+    Ok(BakedBillboards {
+        angle_count: k_count,
+        azimuth_count: views.azimuth_count,
+        sphere: views.sphere,
+        grid: views.grid,
+        texture_size: r,
+        layers,
+        chains,
+        texture,
+        extents,
+        depth,
+    })
+}
+
+/// The mips stage on a set of layers and the sampled array of their chains; errors name `what`.
+fn mip_array(
+    layers: &[Rgba8Image],
+    mode: MipMode,
+    alpha_ref: f32,
+    r: u32,
+    what: &str,
+) -> Result<(Vec<MipChain>, Texture), InputError> {
+    let chains = build_mip_array(layers, mode, alpha_ref).map_err(|e| {
         InputError::new(
             "<bake>",
-            "billboard layers",
+            format!("{what} layers"),
             format!("{r}x{r}"),
             e.to_string(),
         )
@@ -332,22 +412,12 @@ pub fn bake(
     .map_err(|e| {
         InputError::new(
             "<bake>",
-            "billboard array",
+            format!("{what} array"),
             format!("{r}x{r}"),
             e.to_string(),
         )
     })?;
-    Ok(BakedBillboards {
-        angle_count: k_count,
-        azimuth_count: views.azimuth_count,
-        sphere: views.sphere,
-        grid: views.grid,
-        texture_size: r,
-        layers,
-        chains,
-        texture,
-        extents,
-    })
+    Ok((chains, texture))
 }
 
 /// A contact sheet of level 0 of every layer: one row per mesh, one column per view (angle-major:
@@ -409,6 +479,7 @@ mod tests {
             chains: Vec::new(),
             texture: Texture::new(vec![opaque]).unwrap(),
             extents: Vec::new(),
+            depth: None,
         };
         let sheet = contact_sheet(&baked, 2);
         assert_eq!((sheet.width, sheet.height), (2 * r, 2 * r));

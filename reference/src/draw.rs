@@ -60,10 +60,11 @@ use forestlod_shared::{
     AzimuthMode, COMMAND_SHIFT, Camera, CommandData, FadeGranularity, FadeMode, MAX_MESH_VERTICES,
     MeshMeta, Params, Shading, angle_index_for, azimuth_mix, azimuth_pack, azimuth_position,
     azimuth_second_layer, azimuth_unpack, azimuth_view, bake_elevation, billboard_extent,
-    crown_radii, fade_progress, fitted_corner, frame_basis, frame_direction, octahedral_frames,
-    octahedral_layer, octahedral_mix, octahedral_pack, octahedral_unpack, octahedral_view,
-    quad_fit, reproject_duv, reproject_uv, subset_fragment_weight, subset_pack, subset_scale,
-    subset_weight_code, vertex_lightness, view_interval, view_layer,
+    crown_radii, depth_offset, fade_progress, fitted_corner, frame_basis, frame_direction,
+    octahedral_frames, octahedral_layer, octahedral_mix, octahedral_pack, octahedral_unpack,
+    octahedral_view, quad_fit, reproject_duv, reproject_uv, reproject_uv_depth,
+    subset_fragment_weight, subset_pack, subset_scale, subset_weight_code, vertex_lightness,
+    view_interval, view_layer,
 };
 use forestlod_shared::{
     FarLevel, FarLod, LOD_FAR, cube_corner, dither_threshold, pack_far_colour, side_mix,
@@ -877,13 +878,19 @@ impl TreeShader<'_> {
         if !self.octahedral_blend {
             return first;
         }
-        let (r0, u0) = frame_basis(frame_direction(near, n, hemi));
+        let d0 = frame_direction(near, n, hemi);
+        let (r0, u0) = frame_basis(d0);
+        // The depth channel (issue 32): the nearest frame's surface point, not its plane's.
+        let t = baked.depth.as_ref().map_or(0.0, |depth| {
+            let z = depth.texture.sample(sampler, base + near, uv, ddx, ddy);
+            depth_offset(z[0], z[3])
+        });
         let texels = core::array::from_fn(|k| {
             if k == fr.nearest {
                 return first;
             }
             let (r, u) = frame_basis(frame_direction(fr.frames[k], n, hemi));
-            let at = reproject_uv(uv, r0, u0, r, u);
+            let at = reproject_uv_depth(uv, t, (r0, u0, d0), r, u);
             let (dx, dy) = (
                 reproject_duv(ddx, r0, u0, r, u),
                 reproject_duv(ddy, r0, u0, r, u),

@@ -111,10 +111,11 @@ pub use occlusion::{
 };
 pub use octahedral::{
     MAX_OCTAHEDRAL_GRID, MIN_OCTAHEDRAL_GRID, OCTAHEDRAL_LAYER_BITS, OCTAHEDRAL_STEP,
-    OCTAHEDRAL_STEPS, OctahedralFrames, OctahedralView, ViewSphere, check_octahedral_layers,
-    fitted_corner, frame_basis, frame_direction, frame_uv, octahedral_decode, octahedral_encode,
-    octahedral_frames, octahedral_layer, octahedral_mix, octahedral_pack, octahedral_unpack,
-    octahedral_view, quad_fit, reproject_duv, reproject_uv,
+    OCTAHEDRAL_STEPS, OctahedralDepth, OctahedralFrames, OctahedralView, ViewSphere,
+    check_octahedral_layers, depth_channel, depth_offset, fitted_corner, frame_basis,
+    frame_direction, frame_uv, octahedral_decode, octahedral_encode, octahedral_frames,
+    octahedral_layer, octahedral_mix, octahedral_pack, octahedral_unpack, octahedral_view,
+    quad_fit, reproject_duv, reproject_uv, reproject_uv_depth,
 };
 pub use params::{
     AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,

@@ -63,9 +63,24 @@
 //!   means equal. On a coarse 3×3 grid each lost badly at one eye (0.83 on the frame's plane,
 //!   which tilts edge-on as the eye leaves the frame; 0.59 facing the eye). Kept: facing the eye,
 //!   the peers' choice, whose quad never turns edge-on and always holds the sphere's silhouette.
-//! - **No depth channel.** Re-projection assumes the content lies on the frame's plane through
-//!   `c`; a per-texel depth for parallax (the peers' option) is not built: the sweep measures what
-//!   the plane costs against the truth.
+//! - **Depth channel** (`Params::octahedral_depth`, [`OctahedralDepth`]; the peers' option: Unity
+//!   IMP bakes normal-depth, Godot's addon a depth map). `off` (default): the blend re-projects
+//!   through the nearest frame's plane, i.e. it assumes every texel lies on the plane through `c`
+//!   facing that frame. `on`: the bake also writes, per frame, a second array layer whose red
+//!   channel is the depth of the visible surface, `z = (S − (p − c)·d) / 2S ∈ [0, 1]` (the
+//!   orthographic bake's own depth: 0 at the sphere's point nearest the frame's eye), alpha the
+//!   colour's alpha, mipmapped by the same alpha-aware rule so red stays an alpha-weighted depth.
+//!   The blend then re-projects the *surface point* of the nearest frame's texel,
+//!   `P = a·R₀ + b·U₀ + t·d₀` with `t = 1 − 2z` ([`depth_offset`]) and `(a, b)` the quad point on
+//!   the nearest frame's plane, onto the other two frames ([`reproject_uv_depth`]): both sample
+//!   the same leaf the nearest frame shows, instead of whatever lies behind the plane point, which
+//!   is what ghosts (doubles) a blended impostor. A transparent texel (`α = 0`, no surface) keeps
+//!   the plane (`t = 0`). Only the blend uses depth; the nearest frame itself is still drawn on the
+//!   eye-facing quad without per-texel parallax (a ray march per fragment; not built), so the
+//!   field is read only under octahedral views with the blend ([`depth_channel`]). Cost: the
+//!   depth array doubles the billboard array's bytes (stored as RGBA8 so the alpha-aware mips
+//!   serve both; a packed R8 layer would add a quarter),
+//!   and the blend takes one more sample.
 
 use crate::params::{ParamError, Params};
 
@@ -78,6 +93,16 @@ crate::modes::modes! {
         Octahedral = 1 => "octahedral",
         /// `N×N` frames over the upper hemisphere on a hemi-octahedral map.
         HemiOctahedral = 2 => "hemi-octahedral",
+    }
+}
+
+crate::modes::modes! {
+    /// Whether octahedral impostors carry a depth channel for the blend (module docs).
+    pub enum OctahedralDepth {
+        /// The blend re-projects through the nearest frame's plane.
+        Off = 0 => "off",
+        /// The blend re-projects the nearest frame's surface point, from a baked depth layer.
+        On = 1 => "on",
     }
 }
 
@@ -308,6 +333,42 @@ pub fn reproject_uv(
     [0.5 + dot(r) * 0.5, 0.5 - dot(u) * 0.5]
 }
 
+/// The offset `t` along the frame's direction, in sphere radii, of a depth texel whose red
+/// channel is the bake's depth `z` and whose alpha is `alpha` (module docs): `1 − 2z`, or 0 (the
+/// plane) where the texel is transparent.
+pub fn depth_offset(z: f32, alpha: f32) -> f32 {
+    if alpha > 0.0 { 1.0 - 2.0 * z } else { 0.0 }
+}
+
+/// [`reproject_uv`] of the surface point `t` sphere radii along the nearest frame's direction
+/// `d0` behind (toward the frame's eye: `t > 0`) the quad point at `uv` (module docs). At `t = 0`
+/// it is [`reproject_uv`].
+pub fn reproject_uv_depth(
+    uv: [f32; 2],
+    t: f32,
+    (r0, u0, d0): ([f32; 3], [f32; 3], [f32; 3]),
+    r: [f32; 3],
+    u: [f32; 3],
+) -> [f32; 2] {
+    let (a, b) = (uv[0] * 2.0 - 1.0, 1.0 - uv[1] * 2.0);
+    let p = [
+        r0[0] * a + u0[0] * b + d0[0] * t,
+        r0[1] * a + u0[1] * b + d0[1] * t,
+        r0[2] * a + u0[2] * b + d0[2] * t,
+    ];
+    let dot = |q: [f32; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
+    [0.5 + dot(r) * 0.5, 0.5 - dot(u) * 0.5]
+}
+
+/// Whether `params` bake and read the depth channel (module docs): `octahedral_depth = on`
+/// under octahedral views with the blend. Elsewhere the field is not read (like
+/// `octahedral_grid` under elevation views): nothing is baked for it and nothing changes.
+pub fn depth_channel(params: &Params) -> bool {
+    params.octahedral_depth == OctahedralDepth::On as u32
+        && is_octahedral(params.billboard_views)
+        && params.octahedral_blend == crate::AzimuthMode::Blend as u32
+}
+
 /// How much of the sphere's square the quad on basis `(r, u)` needs (the quad fit): the mesh's
 /// bounding box (half sizes `half`, centred on the sphere centre) projected on `r` and on `u`, as
 /// fractions of the sphere radius `s`, at most 1. Every mesh point projects inside the fitted
@@ -408,6 +469,47 @@ mod tests {
         (a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
             .clamp(-1.0, 1.0)
             .acos()
+    }
+
+    proptest! {
+        #![proptest_config(proptest_config())]
+        /// The depth channel's re-projection (module docs) is exact: a surface point `P` seen in
+        /// the nearest frame at `uv₀` with depth `t = P·d₀` lands in every other frame where that
+        /// frame's bake put it; at `t = 0` it is the plane's re-projection. Planted bug: the
+        /// `d₀·t` term dropped (the plane again) fails the first check for any `t ≠ 0`.
+        #[test]
+        fn depth_reprojection_lands_where_the_other_frame_baked_the_point(
+            p in prop::array::uniform3(-0.7f32..0.7),
+            f0 in 0u32..64,
+            f1 in 0u32..64,
+            hemi in any::<bool>(),
+        ) {
+            let n = 8;
+            let d0 = frame_direction(f0, n, hemi);
+            let (r0, u0) = frame_basis(d0);
+            let d1 = frame_direction(f1, n, hemi);
+            let (r1, u1) = frame_basis(d1);
+            let uv0 = frame_uv(p, r0, u0, 1.0);
+            let t = p[0] * d0[0] + p[1] * d0[1] + p[2] * d0[2];
+            let got = reproject_uv_depth(uv0, t, (r0, u0, d0), r1, u1);
+            let want = frame_uv(p, r1, u1, 1.0);
+            for k in 0..2 {
+                prop_assert!((got[k] - want[k]).abs() < 1e-5, "{got:?} vs {want:?}");
+            }
+            prop_assert_eq!(
+                reproject_uv_depth(uv0, 0.0, (r0, u0, d0), r1, u1),
+                reproject_uv(uv0, r0, u0, r1, u1)
+            );
+        }
+    }
+
+    #[test]
+    fn depth_offset_reads_the_bakes_depth_and_keeps_the_plane_where_transparent() {
+        // z = (S - o·d) / 2S: the sphere's near point (o·d = S) is z = 0, t = 1.
+        assert_eq!(depth_offset(0.0, 1.0), 1.0);
+        assert_eq!(depth_offset(1.0, 0.5), -1.0);
+        assert_eq!(depth_offset(0.5, 1.0), 0.0);
+        assert_eq!(depth_offset(0.0, 0.0), 0.0);
     }
 
     #[test]

@@ -270,8 +270,10 @@ pub struct Params {
     /// [`crate::ParentRule`] as `u32` (issue 32, G§2.2): how interior nodes' cells are made from
     /// their children's. Default `average`, the seed's.
     pub parent_rule: u32,
-    /// Explicit padding to a multiple of 8 bytes.
-    pub _pad_far: u32,
+    /// [`crate::OctahedralDepth`] as `u32` (issue 32): whether octahedral impostors bake a depth
+    /// layer per frame and the blend re-projects the nearest frame's surface point (`on`) or its
+    /// plane (`off`, default). Read only under octahedral views with the blend.
+    pub octahedral_depth: u32,
 }
 const _: () = assert!(core::mem::size_of::<Params>() == 176);
 
@@ -321,7 +323,7 @@ impl Default for Params {
             far_pixels: 64.0,
             cluster_size: 1,
             parent_rule: crate::ParentRule::Average as u32,
-            _pad_far: 0,
+            octahedral_depth: crate::OctahedralDepth::Off as u32,
         }
     }
 }

@@ -22,8 +22,8 @@ use crate::octahedral::{MAX_OCTAHEDRAL_GRID, MIN_OCTAHEDRAL_GRID};
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::{
     AngleIndexMode, AzimuthMode, Coalesce, CommandOrder, DitherSpace, FadeGranularity, FadeMode,
-    FarLod, Hierarchy, LodMetric, MipMode, Occlusion, OcclusionOrder, Params, ParentRule, Shading,
-    SubsetMode, TreeCull, ViewSphere,
+    FarLod, Hierarchy, LodMetric, MipMode, Occlusion, OcclusionOrder, OctahedralDepth, Params,
+    ParentRule, Shading, SubsetMode, TreeCull, ViewSphere,
 };
 
 /// What values a parameter takes, and so what [`Params::validate`] accepts.
@@ -330,7 +330,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 43] = [
+pub const PARAMS: [ParamSpec; 44] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -401,6 +401,7 @@ pub const PARAMS: [ParamSpec; 43] = [
     param!(cluster_size, "cluster-size", uint(1, MAX_CLUSTER_SIZE), "expected 1..=12 cells per axis",
         "Cells per axis of a node's far level (G§2.4 clusterSize, cs^3 cells)"),
     choice!(parent_rule, "parent-rule", ParentRule, "How interior nodes' far cells come from their children (G§2.2): ", ""),
+    choice!(octahedral_depth, "octahedral-depth", OctahedralDepth, "Depth channel of octahedral impostors for the blend (issue 32): ", ""),
 ];
 
 /// Least `subset_min`: one tree in a thousand (a smaller floor leaves batches of a few hundred

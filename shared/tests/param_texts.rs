@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 43] = [
+const PINNED: [(&str, &str, &str); 44] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -221,6 +221,11 @@ const PINNED: [(&str, &str, &str); 43] = [
         "parent_rule",
         "expected 0 (average) or 1 (composite)",
         "How interior nodes' far cells come from their children (G§2.2): average (G§2.2), composite (beyond the seed)",
+    ),
+    (
+        "octahedral_depth",
+        "expected 0 (off) or 1 (on)",
+        "Depth channel of octahedral impostors for the blend (issue 32): off, on",
     ),
 ];
 

@@ -145,7 +145,8 @@ pub const AZIMUTH_RULE_VIEWS: u32 = 4;
 /// subsets rank trees within a grid batch, so a case that turns them on drops the flat base's
 /// per-tree refinement (`tree_cull = none`; refine is skipped there, as the plan says). A case
 /// that picks the azimuth blend (issue 30) at one azimuth view gets [`AZIMUTH_RULE_VIEWS`], and
-/// one that picks the octahedral frames' nearest rule (issue 32) gets octahedral views.
+/// one that picks the octahedral frames' nearest rule (issue 32) gets octahedral views, and one
+/// that picks their depth channel gets octahedral views with the blend.
 pub fn coherent(p: &mut Params) {
     if p.subset_mode != forestlod_shared::SubsetMode::Off as u32 {
         p.tree_cull = TreeCull::None as u32;
@@ -159,6 +160,13 @@ pub fn coherent(p: &mut Params) {
         && !forestlod_shared::octahedral::is_octahedral(p.billboard_views)
     {
         p.billboard_views = forestlod_shared::ViewSphere::HemiOctahedral as u32;
+    }
+    // The depth channel (issue 32) is read under octahedral views with the blend only.
+    if p.octahedral_depth != Params::default().octahedral_depth {
+        if !forestlod_shared::octahedral::is_octahedral(p.billboard_views) {
+            p.billboard_views = forestlod_shared::ViewSphere::HemiOctahedral as u32;
+        }
+        p.octahedral_blend = forestlod_shared::AzimuthMode::Blend as u32;
     }
     // The far level (issue 32) is read under `lod_levels = 3` only: a case that picks a far
     // primitive other than the default gets it, and a far case drops what the far level refuses

@@ -37,7 +37,7 @@ use clap::Parser;
 use forestlod_experiments::gpu_time::timestamped;
 use forestlod_experiments::options::ParamArgs;
 use forestlod_experiments::plot::{Axes, Series, Style, bar_plot, xy_plot};
-use forestlod_gpu::draw::{DrawInputs, DrawProbe, DrawScene, DrawTarget, DrawTextures};
+use forestlod_gpu::draw::{DrawInputs, DrawProbe, DrawScene, DrawTarget};
 use forestlod_gpu::{
     Compaction, GpuContext, GpuCull, GpuDraw, GpuError, GpuRefine, GpuSelection, SelectBuffers,
 };
@@ -344,8 +344,7 @@ fn main() -> Res<()> {
             let prepared = prepare(scene.clone(), &params)?;
             let data = DrawSceneData::new(&prepared);
             let gpu_scene = DrawScene::new(&ctx, &data.desc(&prepared))?;
-            let (mesh, billboards) = gpu_textures(&ctx, &prepared, &params)?;
-            let textures = DrawTextures::new(&mesh, &billboards)?;
+            let textures = gpu_textures(&ctx, &prepared, &params)?.draw_textures()?;
             let mut select = SelectionChain::gpu(&ctx, &prepared)?;
             let first = hi == 0;
             let trees = cull_trees(&prepared);

@@ -139,3 +139,14 @@ fn bake_fs(v: BakeVertex) -> @location(0) vec4<f32> {
     }
     return texel;
 }
+
+// The octahedral impostors' depth channel (issue 32; reference `bake_depth_view`): the same
+// render writing the kept fragment's depth in red and the texel's alpha.
+@fragment
+fn bake_depth_fs(v: BakeVertex) -> @location(0) vec4<f32> {
+    let texel = textureSampleLevel(mesh_texture, mesh_sampler, v.uv, 0.0);
+    if !(texel.a > 0.0) {
+        discard;
+    }
+    return vec4<f32>(v.clip.z, 0.0, 0.0, texel.a);
+}

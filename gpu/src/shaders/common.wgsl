@@ -1123,6 +1123,33 @@ fn octahedral_reproject(uv: vec2<f32>, src: FrameBasis, dst: FrameBasis) -> vec2
     return vec2<f32>(0.5 + pr * 0.5, 0.5 - pu * 0.5);
 }
 
+// forestlod_shared::depth_offset (issue 32, the depth channel): the surface's offset along the
+// nearest frame's direction in sphere radii, 0 (the plane) where the texel is transparent.
+fn octahedral_depth_offset(z: f32, alpha: f32) -> f32 {
+    return select(0.0, 1.0 - 2.0 * z, alpha > 0.0);
+}
+
+// forestlod_shared::reproject_uv_depth: octahedral_reproject of the surface point `t` radii along
+// the source frame's direction `d0` from the quad point (same operation order as the reference).
+fn octahedral_reproject_depth(
+    uv: vec2<f32>,
+    t: f32,
+    src: FrameBasis,
+    d0: vec3<f32>,
+    dst: FrameBasis,
+) -> vec2<f32> {
+    let a = uv.x * 2.0 - 1.0;
+    let b = 1.0 - uv.y * 2.0;
+    let p = vec3<f32>(
+        src.right.x * a + src.up.x * b + d0.x * t,
+        src.right.y * a + src.up.y * b + d0.y * t,
+        src.right.z * a + src.up.z * b + d0.z * t,
+    );
+    let pr = p.x * dst.right.x + p.y * dst.right.y + p.z * dst.right.z;
+    let pu = p.x * dst.up.x + p.y * dst.up.y + p.z * dst.up.z;
+    return vec2<f32>(0.5 + pr * 0.5, 0.5 - pu * 0.5);
+}
+
 // forestlod_shared::octahedral_mix.
 fn octahedral_mix(t0: vec4<f32>, t1: vec4<f32>, t2: vec4<f32>, w: vec3<f32>) -> vec4<f32> {
     if w.x == 1.0 {

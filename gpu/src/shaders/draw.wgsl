@@ -43,7 +43,9 @@ struct DrawUniform {
     noise_size: u32,
     ambient: f32,
     sun: vec3<f32>,
-    _pad3: u32,
+    // forestlod_shared::depth_channel as 0/1 (issue 32): the blend re-projects the nearest
+    // frame's surface point read from `billboard_depth`.
+    octahedral_depth: u32,
     // Billboard azimuth views J and the AzimuthMode id (issue 30, common.wgsl azimuth_*).
     azimuth_count: u32,
     azimuth_mode: u32,
@@ -89,6 +91,9 @@ struct DrawInstance {
 // The far level (issue 32; gpu/src/draw.rs `far_words`): cells (12 words each) from word 0, node
 // records (4 words) from `u.far_nodes_base`, hull vertices (4 words) from `u.far_hull_base`.
 @group(0) @binding(10) var<storage, read> far_words: array<u32>;
+// The octahedral impostors' depth channel (issue 32), in the billboard array's layer order; the
+// billboard array itself when there is none (then never read).
+@group(0) @binding(11) var billboard_depth: texture_2d_array<f32>;
 
 fn far_f32(i: u32) -> f32 {
     return bitcast<f32>(far_words[i]);
@@ -406,13 +411,26 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
         let t_near = textureSample(billboard_textures, tree_sampler, uv, base_layer + near);
         billboard_texel = t_near;
         if u.octahedral_blend == AZIMUTH_MODE_BLEND {
-            let b0 = octahedral_frame_basis(octahedral_frame_direction(near, u.octahedral_grid, hemi));
+            let d0 = octahedral_frame_direction(near, u.octahedral_grid, hemi);
+            let b0 = octahedral_frame_basis(d0);
+            // The depth channel (issue 32): the nearest frame's surface point, not its plane's.
+            let z = textureSample(billboard_depth, tree_sampler, uv, base_layer + near);
+            let t = select(0.0, octahedral_depth_offset(z.r, z.a), u.octahedral_depth != 0u);
             var texels = array<vec4<f32>, 3>(t_near, t_near, t_near);
             for (var k = 0u; k < 3u; k = k + 1u) {
                 let f = fr.frames[k];
                 let bk = octahedral_frame_basis(octahedral_frame_direction(f, u.octahedral_grid, hemi));
-                let at = octahedral_reproject(uv, b0, bk);
-                let sampled = textureSample(billboard_textures, tree_sampler, at, base_layer + f);
+                // Derivatives of the plane's re-projection (linear in uv), as the reference's
+                // `reproject_duv`: the depth's steps must not pick the mip level.
+                // (A uniform branch; without the depth channel the plane's sample as before.)
+                let plane = octahedral_reproject(uv, b0, bk);
+                var sampled = textureSample(billboard_textures, tree_sampler, plane, base_layer + f);
+                if u.octahedral_depth != 0u {
+                    let at = octahedral_reproject_depth(uv, t, b0, d0, bk);
+                    sampled = textureSampleGrad(
+                        billboard_textures, tree_sampler, at, base_layer + f, dpdx(plane), dpdy(plane),
+                    );
+                }
                 texels[k] = select(sampled, t_near, k == fr.nearest);
             }
             billboard_texel = octahedral_mix(texels[0], texels[1], texels[2], fr.weights);

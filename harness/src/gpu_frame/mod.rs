@@ -207,14 +207,14 @@ impl<'a> GpuScene<'a> {
         // The CPU copies are uploaded: free them before the frame (the main job's peak memory is
         // its frame's, issue 14).
         drop(data);
-        let (mesh, billboards) = match from_cpu.textures {
+        let textures = match from_cpu.textures {
             None => gpu_textures(ctx, prepared, params)?,
             Some(StageId::Bake) => {
                 gpu_textures_with(ctx, prepared, params, BillboardLevel0::Reference)?
             }
             Some(_) => upload_reference_textures(ctx, prepared)?,
-        };
-        let textures = DrawTextures::new(&mesh, &billboards)?;
+        }
+        .draw_textures()?;
         Ok(Self {
             ctx,
             from_cpu,

@@ -26,7 +26,7 @@
 use std::time::Instant;
 
 use forestlod_gpu::draw::{DrawTarget, GpuDraw, IndirectMode};
-use forestlod_gpu::{Compaction, DrawInputs, DrawScene, DrawTextures, GpuSelect};
+use forestlod_gpu::{Compaction, DrawInputs, DrawScene, GpuSelect};
 use forestlod_harness::alternatives::alpha_test_alternatives;
 use forestlod_harness::backend::GpuRenderer;
 use forestlod_harness::bridge::{DrawSceneData, upload_reference_textures};
@@ -599,8 +599,10 @@ fn one_draw_call_and_stale_slots_past_the_count_are_ignored() {
 
     let data = DrawSceneData::new(&prepared);
     let scene = DrawScene::new(ctx, &data.desc(&prepared)).unwrap();
-    let (mesh, billboards) = upload_reference_textures(ctx, &prepared).unwrap();
-    let textures = DrawTextures::new(&mesh, &billboards).unwrap();
+    let textures = upload_reference_textures(ctx, &prepared)
+        .unwrap()
+        .draw_textures()
+        .unwrap();
     let mut select = GpuSelect::new(
         ctx,
         &prepared.batches.metas,
@@ -745,8 +747,10 @@ fn draw_probes_remove_what_they_say() {
     let camera = forestlod_reference::cameras::named_camera("close", &tiny, 0.0, 96, 96).unwrap();
     let data = DrawSceneData::new(&prepared);
     let scene = DrawScene::new(ctx, &data.desc(&prepared)).unwrap();
-    let (mesh, billboards) = upload_reference_textures(ctx, &prepared).unwrap();
-    let textures = DrawTextures::new(&mesh, &billboards).unwrap();
+    let textures = upload_reference_textures(ctx, &prepared)
+        .unwrap()
+        .draw_textures()
+        .unwrap();
     let mut select = GpuSelect::new(
         ctx,
         &prepared.batches.metas,

@@ -415,6 +415,7 @@ fn gpu_mips_equal_the_reference_on_baked_species() {
             sphere: 0,
             grid: 0,
             side: 128,
+            depth: false,
         },
     );
     assert_eq!(layers.len(), 50);

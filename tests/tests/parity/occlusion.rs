@@ -143,9 +143,9 @@ struct Uploaded {
 fn upload(ctx: &GpuContext, prepared: &Prepared) -> Uploaded {
     let data = DrawSceneData::new(prepared);
     let scene = DrawScene::new(ctx, &data.desc(prepared)).expect("draw scene");
-    let (mesh, billboards) = upload_reference_textures(ctx, prepared).expect("textures");
+    let uploaded = upload_reference_textures(ctx, prepared).expect("textures");
     Uploaded {
-        textures: DrawTextures::new(&mesh, &billboards).expect("draw textures"),
+        textures: uploaded.draw_textures().expect("draw textures"),
         scene,
     }
 }
