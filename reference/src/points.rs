@@ -18,10 +18,10 @@
 use forestlod_shared::ParamError;
 use forestlod_shared::color::{linear_to_srgb, srgb_to_linear, unorm8};
 use forestlod_shared::points::{
-    NO_PARENT, PointParams, PointRecord, PointSelect, ROOT_PARENT_AREA, UnionMode,
-    area_per_depth2, change_distance, cut_keep, cut_range, hash_unit, interval_keep,
-    interval_range, largest_remainder, pack_normal, pack_rgba8, point_hash, square_xz,
-    texel_opaque, triangle_sample, union_area, unpack_normal, unpack_rgba8,
+    NO_PARENT, PointParams, PointRecord, PointSelect, ROOT_PARENT_AREA, UnionMode, area_per_depth2,
+    change_distance, cut_keep, cut_range, hash_unit, interval_keep, interval_range,
+    largest_remainder, pack_normal, pack_rgba8, point_hash, square_xz, texel_opaque,
+    triangle_sample, union_area, unpack_normal, unpack_rgba8,
 };
 use rayon::prelude::*;
 
@@ -144,7 +144,8 @@ fn length(a: [f32; 3]) -> f32 {
 pub fn texel_at(mesh: &TreeMesh, uv: [f32; 2]) -> [u8; 4] {
     let (w, h) = (mesh.texture.width, mesh.texture.height);
     let clamp = |x: f32, n: u32| (x.floor().max(0.0) as u64).min(n as u64 - 1) as u32;
-    mesh.texture.get(clamp(uv[0] * w as f32, w), clamp(uv[1] * h as f32, h))
+    mesh.texture
+        .get(clamp(uv[0] * w as f32, w), clamp(uv[1] * h as f32, h))
 }
 
 /// `uv` at barycentric weights `(b1, b2)` of triangle `t` of `mesh` (`f32`, as placement
@@ -198,7 +199,10 @@ pub fn triangle_coverage(mesh: &TreeMesh, t: [usize; 3], cutoff: f32) -> (f64, V
         let (i0, i1) = ((x0 - 0.5).ceil(), (x1 - 0.5).floor());
         let (j0, j1) = ((y0 - 0.5).ceil(), (y1 - 0.5).floor());
         let (nx, ny) = ((i1 - i0 + 1.0).max(0.0), (j1 - j0 + 1.0).max(0.0));
-        let step = ((nx * ny) / MAX_COVERAGE_SAMPLES as f64).sqrt().ceil().max(1.0);
+        let step = ((nx * ny) / MAX_COVERAGE_SAMPLES as f64)
+            .sqrt()
+            .ceil()
+            .max(1.0);
         let mut j = j0;
         while j <= j1 {
             let mut i = i0;
@@ -376,10 +380,14 @@ fn merge(
             pos[k] += p.pos[k] as f64;
             normal[k] += w * p.normal[k] as f64;
         }
-        for k in 0..3 {
-            colour[k] += w * srgb_to_linear(p.rgba[k]) as f64;
+        for (k, c) in colour.iter_mut().enumerate() {
+            let linear = if k < 3 {
+                srgb_to_linear(p.rgba[k]) as f64
+            } else {
+                p.rgba[3] as f64 / 255.0
+            };
+            *c += w * linear;
         }
-        colour[3] += w * p.rgba[3] as f64 / 255.0;
         weight += w;
         squares.push(square_xz(p.pos, p.area));
     }
@@ -391,7 +399,13 @@ fn merge(
     } else {
         [0.0, 0.0, 1.0]
     };
-    let c = |x: f64| if weight > 0.0 { (x / weight) as f32 } else { 0.0 };
+    let c = |x: f64| {
+        if weight > 0.0 {
+            (x / weight) as f32
+        } else {
+            0.0
+        }
+    };
     let rgba = [
         linear_to_srgb(c(colour[0])),
         linear_to_srgb(c(colour[1])),
@@ -565,8 +579,8 @@ pub fn build_mesh_points(mesh: &TreeMesh, params: &PointParams) -> Result<MeshPo
     set.triangle_areas = tri_areas;
     // The whole-tree node (C§4.4.3): copies of the biggest `uplift` fraction of the records,
     // merged again with one point per group.
-    let count = ((params.uplift as f64 * set.records.len() as f64).ceil() as usize)
-        .min(set.records.len());
+    let count =
+        ((params.uplift as f64 * set.records.len() as f64).ceil() as usize).min(set.records.len());
     if count > 0 {
         let first = set.records.len() - count;
         set.uplifted = (first as u32..set.records.len() as u32).collect();
@@ -703,7 +717,12 @@ pub fn holes_and_doubles(set: &MeshPoints, drawn: &[u32]) -> (usize, usize) {
 }
 
 /// The mesh's safe change distance at unit scale (C§4.6.3), `None` without a whole-tree node.
-pub fn mesh_change_distance(set: &MeshPoints, c: f64, min_tree_px: f32, max_tree_px: f32) -> Option<f64> {
+pub fn mesh_change_distance(
+    set: &MeshPoints,
+    c: f64,
+    min_tree_px: f32,
+    max_tree_px: f32,
+) -> Option<f64> {
     let whole = set.whole_tree.as_ref()?;
     let min_area = whole.records.first()?.area;
     Some(change_distance(

@@ -261,7 +261,11 @@ impl PointParams {
             })
         };
         if self.n_pts == 0 || self.n_pts > MAX_POINTS_PER_MESH {
-            return err("n_pts", self.n_pts.to_string(), "1 ..= 1048576 points per mesh");
+            return err(
+                "n_pts",
+                self.n_pts.to_string(),
+                "1 ..= 1048576 points per mesh",
+            );
         }
         if self.max_group == 0 {
             return err("max_group", self.max_group.to_string(), "at least 1");
@@ -280,7 +284,11 @@ impl PointParams {
             );
         }
         if !(self.scale_factor > 0.0 && self.scale_factor <= 1e3) {
-            return err("scale_factor", self.scale_factor.to_string(), "in (0, 1000]");
+            return err(
+                "scale_factor",
+                self.scale_factor.to_string(),
+                "in (0, 1000]",
+            );
         }
         if !(0.0..=1.0).contains(&self.uplift) {
             return err("uplift", self.uplift.to_string(), "a fraction in [0, 1]");
@@ -362,7 +370,7 @@ pub fn texel_opaque(alpha: u8, cutoff: f32) -> bool {
 /// `floor(n·w/Σw)` each, then one more to the largest fractional parts, ties to the lower index.
 pub fn largest_remainder(weights: &[f64], n: u32) -> Vec<u32> {
     let total: f64 = weights.iter().sum();
-    if !(total > 0.0) || !total.is_finite() {
+    if total.is_nan() || total <= 0.0 || total.is_infinite() {
         return vec![0; weights.len()];
     }
     let quotas: Vec<f64> = weights.iter().map(|w| n as f64 * w / total).collect();
@@ -580,7 +588,12 @@ pub fn seed_hull_area(rects: &[[f64; 4]]) -> f64 {
         1 => return rect_area(&live[0]),
         2 => {
             let (a, b) = (live[0], live[1]);
-            let inter = [a[0].max(b[0]), a[1].max(b[1]), a[2].min(b[2]), a[3].min(b[3])];
+            let inter = [
+                a[0].max(b[0]),
+                a[1].max(b[1]),
+                a[2].min(b[2]),
+                a[3].min(b[3]),
+            ];
             return rect_area(&a) + rect_area(&b) - rect_area(&inter);
         }
         _ => {}
@@ -591,7 +604,10 @@ pub fn seed_hull_area(rects: &[[f64; 4]]) -> f64 {
     let mut prev_x = ev[0].0;
     for &(x, delta, i) in &ev {
         if !active.is_empty() {
-            let lo = active.iter().map(|&k| live[k][1]).fold(f64::INFINITY, f64::min);
+            let lo = active
+                .iter()
+                .map(|&k| live[k][1])
+                .fold(f64::INFINITY, f64::min);
             let hi = active
                 .iter()
                 .map(|&k| live[k][3])
@@ -669,14 +685,62 @@ mod tests {
     #[test]
     fn bad_point_params_name_the_field() {
         let bad = [
-            (PointParams { n_pts: 0, ..Default::default() }, "n_pts"),
-            (PointParams { max_group: 0, ..Default::default() }, "max_group"),
-            (PointParams { grid: [1, 11, 1], ..Default::default() }, "grid"),
-            (PointParams { retries: 65, ..Default::default() }, "retries"),
-            (PointParams { alpha_cutoff: 0.0, ..Default::default() }, "alpha_cutoff"),
-            (PointParams { scale_factor: f32::NAN, ..Default::default() }, "scale_factor"),
-            (PointParams { uplift: 1.5, ..Default::default() }, "uplift"),
-            (PointParams { triangle_cutoff: -0.1, ..Default::default() }, "triangle_cutoff"),
+            (
+                PointParams {
+                    n_pts: 0,
+                    ..Default::default()
+                },
+                "n_pts",
+            ),
+            (
+                PointParams {
+                    max_group: 0,
+                    ..Default::default()
+                },
+                "max_group",
+            ),
+            (
+                PointParams {
+                    grid: [1, 11, 1],
+                    ..Default::default()
+                },
+                "grid",
+            ),
+            (
+                PointParams {
+                    retries: 65,
+                    ..Default::default()
+                },
+                "retries",
+            ),
+            (
+                PointParams {
+                    alpha_cutoff: 0.0,
+                    ..Default::default()
+                },
+                "alpha_cutoff",
+            ),
+            (
+                PointParams {
+                    scale_factor: f32::NAN,
+                    ..Default::default()
+                },
+                "scale_factor",
+            ),
+            (
+                PointParams {
+                    uplift: 1.5,
+                    ..Default::default()
+                },
+                "uplift",
+            ),
+            (
+                PointParams {
+                    triangle_cutoff: -0.1,
+                    ..Default::default()
+                },
+                "triangle_cutoff",
+            ),
         ];
         for (p, field) in bad {
             assert_eq!(p.validate().unwrap_err().field, field);
@@ -686,7 +750,12 @@ mod tests {
 
     #[test]
     fn normals_and_colours_round_trip() {
-        for n in [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.6, 0.0, -0.8]] {
+        for n in [
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+            [0.0, -1.0, 0.0],
+            [0.6, 0.0, -0.8],
+        ] {
             let m = unpack_normal(pack_normal(n));
             assert!((0..3).all(|k| (m[k] - n[k]).abs() < 1e-3), "{n:?} -> {m:?}");
         }
