@@ -140,7 +140,9 @@ fn length(a: [f32; 3]) -> f32 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
-/// The level-0 texel of `uv` (nearest, clamp-to-edge: `crate::sampler`'s addressing).
+/// The level-0 texel of `uv`, as stored (sRGB RGBA8): nearest, clamp-to-edge, the addressing
+/// of [`crate::sampler::Texture::nearest`] (tested equal there, `points_properties`), which
+/// returns the decoded texel; placement needs the stored bytes for the colour.
 pub fn texel_at(mesh: &TreeMesh, uv: [f32; 2]) -> [u8; 4] {
     let (w, h) = (mesh.texture.width, mesh.texture.height);
     let clamp = |x: f32, n: u32| (x.floor().max(0.0) as u64).min(n as u64 - 1) as u32;

@@ -69,21 +69,31 @@
 //!
 //! ## The point command path (design; issue 33 item 1, not implemented yet)
 //! Points cannot go through the mesh path: [`crate::emit_command`] encodes the command slot in
-//! `base_vertex = slot << COMMAND_SHIFT`, which leaves the draw `MAX_MESH_VERTICES` = 256 local
-//! vertices, and a point range is up to `n_pts` × 2 records of 6 vertices each. The far level's
-//! trick (`crate::far`: an iota index range, the vertex stage pulls its primitive) extends to
-//! points with the range moved into the instance: a point command is an **indexed** command
-//! over the 6-index iota of one quad (`index_count = 6`, `base_vertex = slot << COMMAND_SHIFT`
-//! as today, so the draw still finds its `CommandData`), with `instance_count = trees × (i1 − i0)`
-//! and `first_instance` = the base of a per-frame `point_instances` array that select writes,
-//! one `(tree, record)` pair per instance (the `refine` stage's compaction pattern); the vertex
-//! stage reads its pair, the record (area order, or through the cut order's permutation), tests
-//! [`interval_keep`] / [`cut_keep`] with the tree's own depth and scale and collapses a failed
-//! record to a degenerate quad, else expands a camera-facing square of side `√(A·s²)` at
-//! `base + Rz(yaw)·s·pos` with the record's flat colour. `CommandData::lod` gets a `LOD_POINTS`
-//! id; `first_tree`/`group_len` keep the batch's tree range so coalescing still works. The
-//! alternative (non-indexed `draw_indirect`, `first_vertex = 6·i0`) frees the range but loses
-//! `base_vertex`, so the command slot would need a second channel: rejected.
+//! `base_vertex = slot << COMMAND_SHIFT`, which leaves a draw `MAX_MESH_VERTICES` = 256 local
+//! vertices, and a point range is up to about `2·n_pts` records of 6 vertices each. The far
+//! level's trick (`crate::far`: an iota index range, the vertex stage pulls its primitive) extends
+//! to points by moving the range into the **instances**:
+//! - a point command is an indexed command over the 6-index iota of one quad (`index_count = 6`,
+//!   `base_vertex = slot << COMMAND_SHIFT` as today, so the draw still finds its `CommandData`),
+//!   `instance_count = trees × n` for a batch of `trees` trees and a range of `n` records
+//!   (interval: `[i0, i0 + n)` in area order; cut: in cut order, read through the cut
+//!   permutation), `first_instance = 0`;
+//! - a per-slot `PointCommand { mesh, first_tree, trees, i0, n, order }` (beside `CommandData`,
+//!   which keeps `lod = LOD_POINTS`, `first_tree`, `group_len` so coalescing still merges ranges)
+//!   lets the vertex stage decode instance `k` as tree `first_tree + k / n` and record
+//!   `i0 + k % n` (exact `u32` division, no per-frame array, deterministic);
+//! - the vertex stage applies [`interval_keep`] / [`cut_keep`] with the tree's own depth and scale
+//!   (a failed record becomes a degenerate quad, as the fade's culled trees do) and otherwise
+//!   expands a camera-facing square of side `√(A·s²)` at `base + Rz(yaw)·s·pos`, flat colour.
+//!   A root's `parent_area · s²` overflows to +∞ for `s > 1`: the WGSL twin tests
+//!   `parent == NO_PARENT` first rather than rely on overflow.
+//!
+//! Rejected: non-indexed `draw_indirect` with `first_vertex = 6·i0` (frees the 256 limit but
+//! loses `base_vertex`, the slot's only channel); a compaction pass writing kept
+//! `(tree, record)` pairs (the `refine` pattern) saves degenerate quads but makes the order
+//! atomic (multiset parity instead of exact): worth it only if degenerate quads dominate; the
+//! ranges keep them few (one tree's interval range is exactly what it draws, a cut range holds
+//! its drawn records and their ancestors only).
 //!
 //! Everything here is CPU-side preprocessing or a scalar formula; nothing is in `Params` yet.
 

@@ -575,3 +575,30 @@ fn measure_point_lod_table() {
         }
     }
 }
+
+/// Placement's texel lookup ([`texel_at`]) is the sampler's nearest texel at level 0
+/// (`Texture::nearest`), addressing and alpha decode included, for `uv` inside, on the edges of
+/// and outside the texture (clamp-to-edge). Caught: `texel_at` rounding to the nearest texel
+/// centre (`round` instead of `floor`).
+#[test]
+fn placement_reads_the_samplers_nearest_texel() {
+    use forestlod_reference::sampler::Texture;
+    let mesh = random_mesh(3, 1, 16, 0.5);
+    let texture = Texture::new(vec![mesh.texture.clone()]).unwrap();
+    let mut checked = 0;
+    for i in -40..=80 {
+        for j in -40..=80 {
+            let uv = [i as f32 / 53.0, j as f32 / 47.0];
+            let stored = texel_at(&mesh, uv);
+            let sampled = texture.nearest(0, 0, uv);
+            assert_eq!(stored[3] as f32 / 255.0, sampled[3], "alpha at {uv:?}");
+            assert_eq!(
+                texel_opaque(stored[3], 0.5),
+                sampled[3] >= 0.5,
+                "alpha test at {uv:?}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 10_000);
+}
