@@ -735,3 +735,49 @@ pub fn mesh_change_distance(
         max_tree_px as f64,
     ))
 }
+
+/// What one tree draws at a view depth with the seed's change distance (C§4.6.3): the
+/// cell-level records by `mode` at `[min_point, max_point]` up to `scale·D_c`, and beyond it the
+/// whole-tree node's records at `[min_tree_point, max_tree_point]` (no whole-tree node: always
+/// the cell level).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TreePoints {
+    /// Whether the records are the whole-tree node's.
+    pub whole_tree: bool,
+    /// Area-order indices into the drawn set's records.
+    pub records: Vec<u32>,
+}
+
+/// [`TreePoints`] of one tree of scale `scale` at view depth `depth`, metric constant `c`.
+pub fn select_tree_lod(
+    set: &MeshPoints,
+    mode: PointSelect,
+    depth: f32,
+    scale: f32,
+    c: f64,
+    sizes: &forestlod_shared::points::DetailSizes,
+) -> TreePoints {
+    let change = mesh_change_distance(set, c, sizes.min_tree_point, sizes.max_tree_point);
+    match (&set.whole_tree, change) {
+        (Some(whole), Some(dc)) if depth as f64 >= scale as f64 * dc => TreePoints {
+            whole_tree: true,
+            records: select_tree(
+                whole,
+                mode,
+                depth,
+                scale,
+                PointThresholds::new(c, sizes.min_tree_point, sizes.max_tree_point),
+            ),
+        },
+        _ => TreePoints {
+            whole_tree: false,
+            records: select_tree(
+                set,
+                mode,
+                depth,
+                scale,
+                PointThresholds::new(c, sizes.min_point, sizes.max_point),
+            ),
+        },
+    }
+}

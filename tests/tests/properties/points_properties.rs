@@ -20,7 +20,7 @@ use std::sync::OnceLock;
 use forestlod_reference::points::{
     MeshPoints, PlacedPoint, PointThresholds, batch_range, build_hierarchy, build_mesh_points,
     build_points, holes_and_doubles, mesh_change_distance, range_records, representation_counts,
-    select_tree, texel_at, uv_at,
+    select_tree, select_tree_lod, texel_at, uv_at,
 };
 use forestlod_reference::scene::TreeMesh;
 use forestlod_reference::scene::builtin::species_meshes;
@@ -359,8 +359,10 @@ proptest! {
 
     /// Beyond the safe change distance every cell-level record left out of the whole-tree node
     /// covers at most `MinTreeLevelPointSize` pixels and every triangle but the tolerated biggest
-    /// at most `MaxTreeLevelPointSize`. Caught: `change_distance` taking the smaller of its two
-    /// distances.
+    /// at most `MaxTreeLevelPointSize`; a tree's selection switches to the whole-tree node there
+    /// and not before. Caught: `change_distance` taking the smaller of its two
+    /// distances; and [`select_tree_lod`] switching to the whole tree with its comparison
+    /// reversed (`depth < s·D_c`).
     #[test]
     fn beyond_the_change_distance_dropped_primitives_are_small(
         mesh in mesh_strategy(),
@@ -379,6 +381,12 @@ proptest! {
         };
         let d = dc * beyond;
         let px = |a: f32| c * a as f64 / (d * d);
+        // The tree's selection switches to the whole-tree node there (unit scale), and not
+        // before it.
+        let far = select_tree_lod(&set, PointSelect::Cut, d as f32 * 1.000_001, 1.0, c, &sizes);
+        prop_assert!(far.whole_tree, "cell level at {d} beyond D_c {dc}");
+        let near = select_tree_lod(&set, PointSelect::Cut, (dc * 0.999) as f32, 1.0, c, &sizes);
+        prop_assert!(!near.whole_tree, "whole tree at {} before D_c {dc}", dc * 0.999);
         let first_uplifted = set.uplifted.first().copied().unwrap_or(set.records.len() as u32);
         for r in &set.records[..first_uplifted as usize] {
             prop_assert!(px(r.area) <= sizes.min_tree_point as f64 * (1.0 + CHANGE_REL_TOL),
