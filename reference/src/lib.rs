@@ -62,6 +62,8 @@ pub mod scene;
 pub mod select;
 pub mod subset;
 pub mod texture;
+// Issue 33 item 1: Celba's point LOD (CPU preprocessing and selection).
+pub mod points;
 
 pub use error::InputError;
 pub use forestlod_shared as shared;

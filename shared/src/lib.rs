@@ -55,6 +55,8 @@ pub mod terrain;
 pub mod types;
 mod validate;
 pub mod view;
+// Issue 33 item 1 (kept apart for the merge): Celba's point LOD, CPU preprocessing and its rules.
+pub mod points;
 
 pub use angle::{
     angle_index, angle_index_eq31, angle_index_eq31_clamped, angle_index_for, bake_elevation,
