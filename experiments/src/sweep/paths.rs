@@ -30,14 +30,13 @@
 //!   from `-½` to `+½` of it (row column `yaw_deg`; `distance_m` is `T - W`): trees slide
 //!   sideways by a few pixels a step at 1280x720 (0.25° a step at 9 steps, 2.7 px at the image
 //!   centre), the motion under which a screen-space dither stays put while the trees move.
-//!
 //! - **walkthrough** (issue 33, C§5.2's 50 s walk "through the forest as someone walks or runs"):
 //!   the eye [`WALK_EYE_HEIGHT_M`] (1.7 m) above the terrain at every step, walking
 //!   [`WALK_SECONDS`]` · `[`WALK_SPEED_M_S`] (75 m) east through the footprint's centre along a
 //!   sine sway of [`WALK_SWAY_M`] over [`WALK_SWAY_WAVELENGTH_M`], looking level (pitch 0, as
 //!   Celba avoided looking into the ground) along the walk: the yaw wanders by `± atan(2π · 4 /
 //!   50)` = ±26.7°, a pure function of the distance walked. `steps = 51` is one step a second,
-//!   1.5-1.9 m apart (the sway lengthens the diagonal steps); fewer steps sample the same walk.
+//!   1.5-1.7 m apart (the sway lengthens the diagonal steps); fewer steps sample the same walk.
 //!   Row columns: `yaw_deg` the heading, `distance_m` the distance walked along the x axis.
 //! - **flight** (issue 33, C§5.2's 55 s flight that "starts with low altitude flight upon the
 //!   forest while at the end ... the flight upon the forest is in much higher altitude"): east
@@ -46,8 +45,8 @@
 //!   height above the terrain rising linearly from [`FLIGHT_START_HEIGHT_M`] (20 m, among the
 //!   crowns) to [`FLIGHT_END_HEIGHT_M`] (300 m), pitched down to the ground
 //!   [`FLIGHT_LOOK_AHEAD_M`] ahead (-2.3° at 20 m, -31° at 300 m; at most `R` ahead in a small
-//!   scene). Row columns: `yaw_deg` 0,
-//!   `distance_m` the height above the terrain (what the flight's cost follows).
+//!   scene). Row columns: `yaw_deg` 0, `distance_m` the height above the terrain (what the
+//!   flight's cost follows).
 //!
 //! Every frame records its tree fraction (the truth's and the frame's, `gt_tree_fraction`,
 //! `tree_fraction`), and the report leaves frames whose truth shows no tree out of the means.
