@@ -756,5 +756,9 @@ fn celba_scenes_render_and_bad_celba_names_are_rejected() {
     assert!(metrics.contains("celba-20-4"), "{metrics}");
     reject_scene(&dir, "celba-30-4", &["30 trees/ha", "5, 10, 20, 40, 80"]);
     reject_scene(&dir, "celba-20-3", &["3 km", "1, 2, 4, 5, 10, 20"]);
-    reject_scene(&dir, "celba-20", &["celba-20", "celba-<trees per ha>-<side km>"]);
+    reject_scene(
+        &dir,
+        "celba-20",
+        &["celba-20", "celba-<trees per ha>-<side km>"],
+    );
 }

@@ -325,7 +325,10 @@ mod tests {
             yaw_min = yaw_min.min(*yaw);
             yaw_max = yaw_max.max(*yaw);
         }
-        assert!(yaw_min < -20.0 && yaw_max > 20.0, "wander {yaw_min}..{yaw_max}");
+        assert!(
+            yaw_min < -20.0 && yaw_max > 20.0,
+            "wander {yaw_min}..{yaw_max}"
+        );
         let again = path_camera("walkthrough", &scene, &params, 0.37, 320, 180).unwrap();
         let once = path_camera("walkthrough", &scene, &params, 0.37, 320, 180).unwrap();
         assert_eq!(again, once, "deterministic");
@@ -364,7 +367,10 @@ mod tests {
             }
         }
         let flown = poses[steps as usize - 1].0.eye[0] - poses[0].0.eye[0];
-        assert!((flown - FLIGHT_SPEED_M_S * FLIGHT_SECONDS).abs() < 0.5, "{flown}");
+        assert!(
+            (flown - FLIGHT_SPEED_M_S * FLIGHT_SECONDS).abs() < 0.5,
+            "{flown}"
+        );
         let a = path_camera("flight", &scene, &params, 0.61, 64, 48).unwrap();
         let b = path_camera("flight", &scene, &params, 0.61, 64, 48).unwrap();
         assert_eq!(a, b, "deterministic");

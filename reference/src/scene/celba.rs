@@ -33,8 +33,8 @@
 //!   (peak 359 MB) and, with the GPU twin's frame (lavapipe) and the image comparisons, peaks at
 //!   704 MB max RSS in 6.5 s wall (638 MB with the default grid). It fits in memory with room.
 
-use super::builtin::{ForestConfig, HILLS, forest};
 use super::Scene;
+use super::builtin::{ForestConfig, HILLS, forest};
 use crate::InputError;
 
 /// Prefix of every Celba scene name.
@@ -99,7 +99,11 @@ pub fn parse_celba_name(name: &str) -> Result<Option<(u32, u32)>, InputError> {
         (celba_name(d, k) == name).then_some((d, k))
     });
     let Some((per_ha, side_km)) = parsed else {
-        return err("name", name, "not of the form celba-<trees per ha>-<side km>".into());
+        return err(
+            "name",
+            name,
+            "not of the form celba-<trees per ha>-<side km>".into(),
+        );
     };
     if !CELBA_DENSITIES_PER_HA.contains(&per_ha) {
         return err(
