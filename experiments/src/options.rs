@@ -13,7 +13,8 @@ use forestlod_shared::{PARAMS, Params};
 /// Which scene to use.
 #[derive(Args, Clone, Debug)]
 pub struct SceneArgs {
-    /// A built-in scene name (tiny, synthetic, stress, patchy) or a path to a TOML scene file.
+    /// A built-in scene name (tiny, synthetic, stress, patchy, or Celba's forests
+    /// celba-<trees per ha>-<side km>, e.g. celba-20-10) or a path to a TOML scene file.
     #[arg(long, default_value = "synthetic")]
     pub scene: String,
     /// A bare instance CSV (x,y,z,yaw,scale,species) drawn with the built-in species meshes;

@@ -740,3 +740,25 @@ fn bad_free_cameras() {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Issue 33: Celba's built-in forests (`celba-<trees per ha>-<side km>`, C§5.2)
+// ---------------------------------------------------------------------------------------------
+
+/// A Celba scene renders from the command line; a name outside his densities or sizes, or not of
+/// the form, exits 1 naming the value and the valid densities and sizes.
+#[test]
+fn celba_scenes_render_and_bad_celba_names_are_rejected() {
+    let dir = case_dir("celba");
+    let out = dir.join("out");
+    run_ok(&dir, &render_small("celba-20-4", &out));
+    let metrics = std::fs::read_to_string(out.join("metrics.json")).unwrap();
+    assert!(metrics.contains("celba-20-4"), "{metrics}");
+    reject_scene(&dir, "celba-30-4", &["30 trees/ha", "5, 10, 20, 40, 80"]);
+    reject_scene(&dir, "celba-20-3", &["3 km", "1, 2, 4, 5, 10, 20"]);
+    reject_scene(
+        &dir,
+        "celba-20",
+        &["celba-20", "celba-<trees per ha>-<side km>"],
+    );
+}

@@ -845,7 +845,11 @@ impl SweepSpec {
                 return Err(Bad::new(
                     at.key("name"),
                     &c.name,
-                    "expected far, medium, close, distance, orbit, dolly, flyover, pan or slow-yaw",
+                    format!(
+                        "expected {}, distance or a path ({})",
+                        forestlod_reference::cameras::CAMERA_NAMES.join(", "),
+                        super::paths::PATH_NAMES.join(", ")
+                    ),
                 ));
             }
             for (field, given, applies, hint) in [
@@ -859,7 +863,7 @@ impl SweepSpec {
                     "steps",
                     c.steps.is_some(),
                     is_path,
-                    "for the paths orbit, dolly, flyover, pan and slow-yaw",
+                    "for the scene-defined paths (PATH_NAMES)",
                 ),
                 (
                     "distances",

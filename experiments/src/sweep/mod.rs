@@ -60,7 +60,7 @@ pub use spec::{
 pub use variant::{Engine, Pipeline, ReferenceRenderer, Registered};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 25] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 28] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -110,6 +110,12 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 25] = [
     ("occlusion", include_str!("../../sweeps/occlusion.toml")),
     ("impostors", include_str!("../../sweeps/impostors.toml")),
     ("far_levels", include_str!("../../sweeps/far_levels.toml")),
+    (
+        "celba_density",
+        include_str!("../../sweeps/celba_density.toml"),
+    ),
+    ("celba_nodes", include_str!("../../sweeps/celba_nodes.toml")),
+    ("celba_size", include_str!("../../sweeps/celba_size.toml")),
 ];
 
 /// Options of `forestlod sweep` (`Default`: no file, no override, an empty `out`).
@@ -145,7 +151,7 @@ pub struct SweepArgs {
     /// Replace the yaw steps of every 360° camera.
     #[arg(long)]
     pub yaw_steps: Option<u32>,
-    /// Replace the frames of every scene-defined camera path (orbit, dolly, flyover, pan, slow-yaw).
+    /// Replace the frames of every scene-defined camera path (`paths::PATH_NAMES`).
     #[arg(long)]
     pub path_steps: Option<u32>,
     /// Replace the ground truth's samples per pixel side (the total error's too).
@@ -407,19 +413,25 @@ fn check_scenes(specs: &[SweepSpec]) -> Result<(), InputError> {
     for spec in specs {
         for (i, scene) in spec.scenes.iter().enumerate() {
             if done.contains(&scene.as_str())
-                || forestlod_reference::scene::builtin::BUILTIN_NAMES.contains(&scene.as_str())
+                || forestlod_reference::scene::builtin::is_builtin(scene)
             {
                 continue;
             }
             let path = std::path::Path::new(scene);
+            if std::fs::symlink_metadata(path).is_err() {
+                // A Celba name that is not one (`celba-30-4`): its own error, naming the value.
+                forestlod_reference::scene::celba::parse_celba_name(scene)
+                    .map_err(|e| e.within(format!("<sweep {}>: key scenes[{i}]", spec.name)))?;
+            }
             if !scene.ends_with(".toml") && std::fs::symlink_metadata(path).is_err() {
                 return Err(InputError::new(
                     format!("<sweep {}>", spec.name),
                     format!("key scenes[{i}]"),
                     scene,
                     format!(
-                        "expected a built-in scene ({}) or a scene file",
-                        forestlod_reference::scene::builtin::BUILTIN_NAMES.join(", ")
+                        "expected a built-in scene ({}, or {}) or a scene file",
+                        forestlod_reference::scene::builtin::BUILTIN_NAMES.join(", "),
+                        forestlod_reference::scene::celba::celba_name_hint()
                     ),
                 ));
             }

@@ -5,7 +5,7 @@
 //!
 //! ```toml
 //! [[cameras]]
-//! name = "orbit"     # orbit, dolly, flyover, pan or slow-yaw
+//! name = "orbit"     # any of PATH_NAMES
 //! steps = 8
 //! ```
 //!
@@ -30,6 +30,23 @@
 //!   from `-½` to `+½` of it (row column `yaw_deg`; `distance_m` is `T - W`): trees slide
 //!   sideways by a few pixels a step at 1280x720 (0.25° a step at 9 steps, 2.7 px at the image
 //!   centre), the motion under which a screen-space dither stays put while the trees move.
+//! - **walkthrough** (issue 33, C§5.2's 50 s walk "through the forest as someone walks or runs"):
+//!   the eye [`WALK_EYE_HEIGHT_M`] (1.7 m) above the terrain at every step, walking
+//!   [`WALK_SECONDS`]` · `[`WALK_SPEED_M_S`] (75 m) east through the footprint's centre along a
+//!   sine sway of [`WALK_SWAY_M`] over [`WALK_SWAY_WAVELENGTH_M`], looking level (pitch 0, as
+//!   Celba avoided looking into the ground) along the walk: the yaw wanders by `± atan(2π · 4 /
+//!   50)` = ±26.7°, a pure function of the distance walked. `steps = 51` is one step a second,
+//!   1.5-1.7 m apart (the sway lengthens the diagonal steps); fewer steps sample the same walk.
+//!   Row columns: `yaw_deg` the heading, `distance_m` the distance walked along the x axis.
+//! - **flight** (issue 33, C§5.2's 55 s flight that "starts with low altitude flight upon the
+//!   forest while at the end ... the flight upon the forest is in much higher altitude"): east
+//!   through the footprint's centre at [`FLIGHT_SPEED_M_S`] for [`FLIGHT_SECONDS`] (1650 m; at most
+//!   [`FLIGHT_MAX_FOOTPRINT`] of the footprint's width, so it stays over small scenes too), the eye's
+//!   height above the terrain rising linearly from [`FLIGHT_START_HEIGHT_M`] (20 m, among the
+//!   crowns) to [`FLIGHT_END_HEIGHT_M`] (300 m), pitched down to the ground
+//!   [`FLIGHT_LOOK_AHEAD_M`] ahead (-2.3° at 20 m, -31° at 300 m; at most `R` ahead in a small
+//!   scene). Row columns: `yaw_deg` 0, `distance_m` the height above the terrain (what the
+//!   flight's cost follows).
 //!
 //! Every frame records its tree fraction (the truth's and the frame's, `gt_tree_fraction`,
 //! `tree_fraction`), and the report leaves frames whose truth shows no tree out of the means.
@@ -39,7 +56,15 @@ use forestlod_reference::scene::Scene;
 use forestlod_shared::{Camera, Params};
 
 /// Names of the scene-defined paths.
-pub const PATH_NAMES: [&str; 5] = ["orbit", "dolly", "flyover", "pan", "slow-yaw"];
+pub const PATH_NAMES: [&str; 7] = [
+    "orbit",
+    "dolly",
+    "flyover",
+    "pan",
+    "slow-yaw",
+    "walkthrough",
+    "flight",
+];
 
 /// Frames of a path when the sweep file gives no `steps`.
 pub const DEFAULT_PATH_STEPS: u32 = 8;
@@ -59,6 +84,38 @@ pub const PAN_PITCH_DEGREES: f32 = 5.0;
 
 /// The slow yaw's whole turn, degrees (module docs).
 pub const SLOW_YAW_DEGREES: f32 = 2.0;
+
+/// The walkthrough's eye height above the terrain, metres (C§5.2: a person walking).
+pub const WALK_EYE_HEIGHT_M: f32 = 1.7;
+/// The walkthrough's speed, metres per second of the seed's animation (a walk: 1-2 m/s).
+pub const WALK_SPEED_M_S: f32 = 1.5;
+/// The walkthrough's length, seconds (C§5.2: 50 s).
+pub const WALK_SECONDS: f32 = 50.0;
+/// Amplitude of the walkthrough's sideways sway, metres.
+pub const WALK_SWAY_M: f32 = 4.0;
+/// Wavelength of the walkthrough's sway along its course, metres.
+pub const WALK_SWAY_WAVELENGTH_M: f32 = 50.0;
+/// The flight's height above the terrain at its start, metres (C§5.2: "low altitude").
+pub const FLIGHT_START_HEIGHT_M: f32 = 20.0;
+/// The flight's height above the terrain at its end, metres (C§5.2: "much higher altitude").
+pub const FLIGHT_END_HEIGHT_M: f32 = 300.0;
+/// The flight's ground speed, metres per second.
+pub const FLIGHT_SPEED_M_S: f32 = 30.0;
+/// The flight's length, seconds (C§5.2: 55 s).
+pub const FLIGHT_SECONDS: f32 = 55.0;
+/// The most of the footprint's width the flight covers (small scenes).
+pub const FLIGHT_MAX_FOOTPRINT: f32 = 0.8;
+/// The flight looks at the ground this far ahead, metres.
+pub const FLIGHT_LOOK_AHEAD_M: f32 = 500.0;
+
+/// Where the walkthrough is after `walked` metres along x: `(x offset, y offset, heading in
+/// degrees)` from its start (module docs).
+fn walk_at(walked: f32) -> (f32, f32, f32) {
+    let k = core::f32::consts::TAU / WALK_SWAY_WAVELENGTH_M;
+    let y = WALK_SWAY_M * (k * walked).sin();
+    let slope = WALK_SWAY_M * k * (k * walked).cos();
+    (walked, y, slope.atan().to_degrees())
+}
 
 /// Whether `name` is a scene-defined path.
 pub fn is_path(name: &str) -> bool {
@@ -153,6 +210,21 @@ pub fn path_camera(
             let yaw = SLOW_YAW_DEGREES * (t - 0.5);
             (aimed(eye, yaw, pitch, width, height), yaw, d)
         }
+        "walkthrough" => {
+            let length = WALK_SPEED_M_S * WALK_SECONDS;
+            let (dx, dy, yaw) = walk_at(length * t);
+            let (ex, ey) = (cx - 0.5 * length + dx, cy + dy);
+            let eye = [ex, ey, ground(ex, ey) + WALK_EYE_HEIGHT_M];
+            (aimed(eye, yaw, 0.0, width, height), yaw, dx)
+        }
+        "flight" => {
+            let length = (FLIGHT_SPEED_M_S * FLIGHT_SECONDS).min(FLIGHT_MAX_FOOTPRINT * (x1 - x0));
+            let ex = cx - 0.5 * length + length * t;
+            let h = FLIGHT_START_HEIGHT_M + (FLIGHT_END_HEIGHT_M - FLIGHT_START_HEIGHT_M) * t;
+            let eye = [ex, cy, ground(ex, cy) + h];
+            let pitch = -h.atan2(FLIGHT_LOOK_AHEAD_M.min(r)).to_degrees();
+            (aimed(eye, 0.0, pitch, width, height), 0.0, h)
+        }
         _ => return None,
     })
 }
@@ -197,6 +269,111 @@ mod tests {
             }
         }
         assert!(path_camera("medium", &builtin::tiny(), &Params::default(), 0.0, 8, 8).is_none());
+    }
+
+    /// Trees of `scene` inside `c`'s frustum and within `reach` metres of the eye.
+    fn trees_in_view(scene: &Scene, c: &Camera, reach: f32) -> usize {
+        let planes = c.frustum().planes;
+        let eye = glam::Vec3::from(c.eye);
+        scene
+            .instances
+            .iter()
+            .filter(|i| {
+                let p = glam::Vec3::from(i.position);
+                p.distance(eye) <= reach
+                    && planes
+                        .iter()
+                        .all(|q| glam::Vec3::new(q[0], q[1], q[2]).dot(p - eye) + q[3] >= 0.0)
+            })
+            .count()
+    }
+
+    /// The walkthrough (C§5.2): the eye 1.7 m above the terrain at every step, steps of 1-2 m
+    /// at one a second, a yaw that wanders both ways, level, inside the forest, deterministic,
+    /// with trees in view within the default draw distance in a Celba scene.
+    #[test]
+    fn the_walkthrough_walks_at_eye_height_through_a_celba_forest() {
+        let scene = forestlod_reference::scene::celba::celba("celba-20-4").unwrap();
+        let params = Params::default();
+        let steps = (WALK_SECONDS + 1.0) as u32; // one a second
+        let poses: Vec<_> = (0..steps)
+            .map(|i| {
+                let t = path_fraction("walkthrough", i, steps);
+                path_camera("walkthrough", &scene, &params, t, 320, 180).unwrap()
+            })
+            .collect();
+        let [x0, y0, x1, y1] = scene.bounds;
+        let (mut yaw_min, mut yaw_max) = (f32::INFINITY, f32::NEG_INFINITY);
+        for (i, (c, yaw, walked)) in poses.iter().enumerate() {
+            c.validate().unwrap();
+            let [x, y, z] = c.eye;
+            let above = z - scene.terrain.height(x, y);
+            assert!(
+                (above - WALK_EYE_HEIGHT_M).abs() < 1e-3,
+                "step {i}: eye {above} m above the terrain"
+            );
+            assert!(x > x0 && x < x1 && y > y0 && y < y1, "step {i}: outside");
+            assert!(c.forward[2].abs() < 1e-6, "step {i}: level");
+            let seen = trees_in_view(&scene, c, params.draw_distance);
+            assert!(seen > 10, "step {i}: {seen} trees in view");
+            if i > 0 {
+                let (p, ..) = &poses[i - 1];
+                let step = glam::Vec3::from(c.eye).distance(glam::Vec3::from(p.eye));
+                assert!((1.0..=2.0).contains(&step), "step {i}: {step} m");
+                assert!(*walked > poses[i - 1].2, "step {i}: walks on");
+            }
+            yaw_min = yaw_min.min(*yaw);
+            yaw_max = yaw_max.max(*yaw);
+        }
+        assert!(
+            yaw_min < -20.0 && yaw_max > 20.0,
+            "wander {yaw_min}..{yaw_max}"
+        );
+        let again = path_camera("walkthrough", &scene, &params, 0.37, 320, 180).unwrap();
+        let once = path_camera("walkthrough", &scene, &params, 0.37, 320, 180).unwrap();
+        assert_eq!(again, once, "deterministic");
+    }
+
+    /// The flight (C§5.2): its height above the terrain rises strictly from 20 m to 300 m, it
+    /// looks down more as it climbs, stays over the forest, sees trees at every step in a Celba
+    /// scene, and is deterministic.
+    #[test]
+    fn the_flight_rises_from_20_to_300_m_over_a_celba_forest() {
+        let scene = forestlod_reference::scene::celba::celba("celba-5-4").unwrap();
+        let params = Params::default();
+        let steps = 12;
+        let poses: Vec<_> = (0..steps)
+            .map(|i| {
+                let t = path_fraction("flight", i, steps);
+                path_camera("flight", &scene, &params, t, 320, 180).unwrap()
+            })
+            .collect();
+        let above = |c: &Camera| c.eye[2] - scene.terrain.height(c.eye[0], c.eye[1]);
+        assert!((above(&poses[0].0) - FLIGHT_START_HEIGHT_M).abs() < 1e-3);
+        assert!((above(&poses[steps as usize - 1].0) - FLIGHT_END_HEIGHT_M).abs() < 1e-3);
+        let [x0, y0, x1, y1] = scene.bounds;
+        for (i, (c, _, h)) in poses.iter().enumerate() {
+            c.validate().unwrap();
+            assert!((above(c) - h).abs() < 1e-3, "step {i}: row height {h}");
+            let [x, y, _] = c.eye;
+            assert!(x > x0 && x < x1 && y > y0 && y < y1, "step {i}: outside");
+            let seen = trees_in_view(&scene, c, params.draw_distance);
+            assert!(seen > 10, "step {i}: {seen} trees in view");
+            if i > 0 {
+                let (p, _, ph) = &poses[i - 1];
+                assert!(h > ph && above(c) > above(p), "step {i}: rises");
+                assert!(c.forward[2] < p.forward[2], "step {i}: looks further down");
+                assert!(c.eye[0] > p.eye[0], "step {i}: flies on");
+            }
+        }
+        let flown = poses[steps as usize - 1].0.eye[0] - poses[0].0.eye[0];
+        assert!(
+            (flown - FLIGHT_SPEED_M_S * FLIGHT_SECONDS).abs() < 0.5,
+            "{flown}"
+        );
+        let a = path_camera("flight", &scene, &params, 0.61, 64, 48).unwrap();
+        let b = path_camera("flight", &scene, &params, 0.61, 64, 48).unwrap();
+        assert_eq!(a, b, "deterministic");
     }
 
     #[test]

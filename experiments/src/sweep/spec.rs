@@ -19,7 +19,7 @@ use crate::fair::TileSpec;
 #[serde(deny_unknown_fields)]
 pub struct CameraSpec {
     /// `far`, `medium`, `close` (E§5.0.1, [`forestlod_reference::cameras`]), `distance`, or a
-    /// scene-defined path: `orbit`, `dolly`, `flyover`, `pan`, `slow-yaw` ([`super::paths`]).
+    /// scene-defined path (`PATH_NAMES` of [`super::paths`]).
     pub name: String,
     /// For paths: frames along the path (default [`super::paths::DEFAULT_PATH_STEPS`]).
     #[serde(default)]

@@ -29,7 +29,9 @@
 //!   (200 m square, normal density), [`synthetic`] (2 km square, normal density of
 //!   ~36,700 trees/km², E§4.5.1, basic terrain: the *Synthetic* scene of E§5) and [`stress`] (the same
 //!   area and stands at 10x density, the stress test of E§5). All pass [`Scene::validate`], origin
-//!   `[0, 0, 0]`, every mesh in [`Species`] order (mesh index = `Species as u32`).
+//!   `[0, 0, 0]`, every mesh in [`Species`] order (mesh index = `Species as u32`). [`by_name`] also
+//!   builds Celba's forests, `celba-<trees per ha>-<side km>` ([`super::celba`], C§5.2), which are
+//!   not in [`BUILTIN_NAMES`] ([`is_builtin`] knows both).
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
@@ -953,9 +955,19 @@ pub fn patchy() -> Scene {
     super::patchy::patchy_from(stress(), STRESS_DENSITY_FACTOR)
 }
 
-/// The built-in scene called `name` (one of [`BUILTIN_NAMES`]); an unknown name is an error that
-/// lists the valid ones.
+/// Whether `name` is a built-in scene: one of [`BUILTIN_NAMES`] or a Celba scene
+/// ([`super::celba::celba_names`], `celba-<trees per ha>-<side km>`).
+pub fn is_builtin(name: &str) -> bool {
+    BUILTIN_NAMES.contains(&name) || super::celba::is_celba_name(name)
+}
+
+/// The built-in scene called `name` (one of [`BUILTIN_NAMES`], or a Celba scene
+/// `celba-<trees per ha>-<side km>` of [`super::celba`]); an unknown name is an error that lists
+/// the valid ones.
 pub fn by_name(name: &str) -> Result<Scene, InputError> {
+    if name.starts_with(super::celba::CELBA_PREFIX) {
+        return super::celba::celba(name);
+    }
     match name {
         "single" => Ok(single()),
         "pair" => Ok(pair()),
@@ -968,8 +980,9 @@ pub fn by_name(name: &str) -> Result<Scene, InputError> {
             "scene name",
             name,
             format!(
-                "unknown built-in scene; expected one of: {}",
-                BUILTIN_NAMES.join(", ")
+                "unknown built-in scene; expected one of: {}, or {}",
+                BUILTIN_NAMES.join(", "),
+                super::celba::celba_name_hint()
             ),
         )),
     }

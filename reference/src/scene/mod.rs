@@ -10,6 +10,7 @@
 //! Built-in scenes are in [`builtin`], user scenes (scene file + CSV + OBJ/glTF) in [`load`].
 
 pub mod builtin;
+pub mod celba;
 pub mod load;
 pub mod patchy;
 
