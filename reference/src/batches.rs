@@ -302,7 +302,13 @@ pub fn memory_report(trees: usize, batches: usize, meshes: usize, params: &Param
     let mesh_meta = size(core::mem::size_of::<MeshMeta>()) * m;
     let billboards = if l >= 2 {
         // K·J views a mesh, or N² octahedral frames (issue 32).
-        let per_mesh = u64::from(forestlod_shared::BillboardViews::of(params).per_mesh());
+        // The depth channel (issue 32) adds one RGBA8 layer a frame.
+        let per_mesh = u64::from(forestlod_shared::BillboardViews::of(params).per_mesh())
+            * if forestlod_shared::depth_channel(params) {
+                2
+            } else {
+                1
+            };
         per_mesh * m * mip_chain_bytes(r)
     } else {
         0

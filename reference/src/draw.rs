@@ -62,9 +62,9 @@ use forestlod_shared::{
     azimuth_second_layer, azimuth_unpack, azimuth_view, bake_elevation, billboard_extent,
     crown_radii, depth_offset, fade_progress, fitted_corner, frame_basis, frame_direction,
     octahedral_frames, octahedral_layer, octahedral_mix, octahedral_pack, octahedral_unpack,
-    octahedral_view, quad_fit, reproject_duv, reproject_uv, reproject_uv_depth,
+    octahedral_view, parallax_uv, quad_fit, quad_point, reproject_duv, reproject_uv,
     subset_fragment_weight, subset_pack, subset_scale, subset_weight_code, vertex_lightness,
-    view_interval, view_layer,
+    view_direction, view_interval, view_layer,
 };
 use forestlod_shared::{
     FarLevel, FarLod, LOD_FAR, cube_corner, dither_threshold, pack_far_colour, side_mix,
@@ -851,6 +851,10 @@ impl<'a> TreeShader<'a> {
     }
 }
 
+fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
 impl TreeShader<'_> {
     /// An octahedral impostor's texel (issue 32, `forestlod_shared::octahedral`): the nearest
     /// frame at the quad's `uv`; under the blend, the other two at the quad point re-projected
@@ -880,17 +884,38 @@ impl TreeShader<'_> {
         }
         let d0 = frame_direction(near, n, hemi);
         let (r0, u0) = frame_basis(d0);
-        // The depth channel (issue 32): the nearest frame's surface point, not its plane's.
-        let t = baked.depth.as_ref().map_or(0.0, |depth| {
-            let z = depth.texture.sample(sampler, base + near, uv, ddx, ddy);
-            depth_offset(z[0], z[3])
-        });
+        let basis = |f: u32| {
+            let d = frame_direction(f, n, hemi);
+            let (r, u) = frame_basis(d);
+            (r, u, d)
+        };
+        // The depth channel (issue 32, module docs of `forestlod_shared::octahedral`): each
+        // frame sampled one parallax step along the eye's ray from the quad point.
+        if let Some(depth) = baked.depth.as_ref() {
+            let e = view_direction(view, n, hemi);
+            let q = quad_point(uv, e, (r0, u0, d0));
+            let texels = core::array::from_fn(|k| {
+                let f = fr.frames[k];
+                let (r, u, d) = basis(f);
+                // Derivatives of the plane's re-projection (linear in uv): the depth's steps must
+                // not pick the mip level.
+                let (dx, dy) = (
+                    reproject_duv(ddx, r0, u0, r, u),
+                    reproject_duv(ddy, r0, u0, r, u),
+                );
+                let plane = parallax_uv(q, e, dot3(q, d), (r, u, d));
+                let z = depth.texture.sample(sampler, base + f, plane, dx, dy);
+                let at = parallax_uv(q, e, depth_offset(z[0], z[3]), (r, u, d));
+                array.sample(sampler, base + f, at, dx, dy)
+            });
+            return octahedral_mix(texels, fr.weights);
+        }
         let texels = core::array::from_fn(|k| {
             if k == fr.nearest {
                 return first;
             }
-            let (r, u) = frame_basis(frame_direction(fr.frames[k], n, hemi));
-            let at = reproject_uv_depth(uv, t, (r0, u0, d0), r, u);
+            let (r, u, _) = basis(fr.frames[k]);
+            let at = reproject_uv(uv, r0, u0, r, u);
             let (dx, dy) = (
                 reproject_duv(ddx, r0, u0, r, u),
                 reproject_duv(ddy, r0, u0, r, u),

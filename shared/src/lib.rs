@@ -117,7 +117,7 @@ pub use octahedral::{
     check_octahedral_layers, depth_channel, depth_offset, fitted_corner, frame_basis,
     frame_direction, frame_uv, octahedral_decode, octahedral_encode, octahedral_frames,
     octahedral_layer, octahedral_mix, octahedral_pack, octahedral_unpack, octahedral_view,
-    quad_fit, reproject_duv, reproject_uv, reproject_uv_depth,
+    parallax_uv, quad_fit, quad_point, reproject_duv, reproject_uv, view_direction,
 };
 pub use params::{
     AngleIndexMode, Coalesce, CommandOrder, Hierarchy, MipMode, ParamError, Params, TreeCull,

@@ -70,17 +70,23 @@
 //!   channel is the depth of the visible surface, `z = (S − (p − c)·d) / 2S ∈ [0, 1]` (the
 //!   orthographic bake's own depth: 0 at the sphere's point nearest the frame's eye), alpha the
 //!   colour's alpha, mipmapped by the same alpha-aware rule so red stays an alpha-weighted depth.
-//!   The blend then re-projects the *surface point* of the nearest frame's texel,
-//!   `P = a·R₀ + b·U₀ + t·d₀` with `t = 1 − 2z` ([`depth_offset`]) and `(a, b)` the quad point on
-//!   the nearest frame's plane, onto the other two frames ([`reproject_uv_depth`]): both sample
-//!   the same leaf the nearest frame shows, instead of whatever lies behind the plane point, which
-//!   is what ghosts (doubles) a blended impostor. A transparent texel (`α = 0`, no surface) keeps
-//!   the plane (`t = 0`). Only the blend uses depth; the nearest frame itself is still drawn on the
-//!   eye-facing quad without per-texel parallax (a ray march per fragment; not built), so the
-//!   field is read only under octahedral views with the blend ([`depth_channel`]). Cost: the
-//!   depth array doubles the billboard array's bytes (stored as RGBA8 so the alpha-aware mips
-//!   serve both; a packed R8 layer would add a quarter),
-//!   and the blend takes one more sample.
+//!   The blend then samples each of its three frames with one step of parallax along the *eye's*
+//!   ray: the fragment's quad point `q` (recovered from the nearest frame's `uv` and the eye's
+//!   direction `e`, [`quad_point`], [`view_direction`]), the frame's depth `t_k` read at `q`'s
+//!   projection, and the frame sampled where the ray `q + s·e` reaches that depth
+//!   ([`parallax_uv`]): each frame shows what lies on the eye's ray, not on the plane. A
+//!   transparent texel keeps the plane (`t = 0`, [`depth_offset`]).
+//! - **Rejected (measured): re-projecting the nearest frame's surface point** `P = a·R₀ + b·U₀ +
+//!   t·d₀` onto the other two frames. It makes the two frames show what the *nearest* frame sees,
+//!   so the blend collapses toward the nearest frame's view, which the blend exists to avoid: on
+//!   a 4×4 hemi grid at 12 in-between eyes (`tests/tests/reference/octahedral.rs`) it raised the
+//!   mean silhouette XOR against the mesh from 0.380 (plane) to 0.397, and the colour difference
+//!   at every eye.
+//! - One step, not a ray march (the peers' cheap form): exact where the surface is locally flat
+//!   across the step. The field is read only under octahedral views with the blend
+//!   ([`depth_channel`]); the nearest-frame rule stays without parallax. Cost: the depth array
+//!   doubles the billboard array's bytes (stored as RGBA8 so the alpha-aware mips serve both; a
+//!   packed R8 layer would add a quarter), and the blend takes three more samples.
 
 use crate::params::{ParamError, Params};
 
@@ -340,24 +346,62 @@ pub fn depth_offset(z: f32, alpha: f32) -> f32 {
     if alpha > 0.0 { 1.0 - 2.0 * z } else { 0.0 }
 }
 
-/// [`reproject_uv`] of the surface point `t` sphere radii along the nearest frame's direction
-/// `d0` behind (toward the frame's eye: `t > 0`) the quad point at `uv` (module docs). At `t = 0`
-/// it is [`reproject_uv`].
-pub fn reproject_uv_depth(
+/// The eye's mesh-local unit direction as the packed view holds it (module docs, depth channel):
+/// the octahedral map decoded at the view's quantised place in its cell. The vertex stage built
+/// the quad from the exact direction; this one is within `1/`[`OCTAHEDRAL_STEPS`] of a cell of it.
+pub fn view_direction(view: OctahedralView, n: u32, hemi: bool) -> [f32; 3] {
+    let n = n.max(MIN_OCTAHEDRAL_GRID);
+    let last = (n - 1) as f32;
+    let (i0, j0) = ((view.cell % n) as f32, (view.cell / n) as f32);
+    let step = OCTAHEDRAL_STEP;
+    octahedral_decode(
+        [
+            (i0 + view.qx as f32 * step) / last,
+            (j0 + view.qy as f32 * step) / last,
+        ],
+        hemi,
+    )
+}
+
+/// The quad point (sphere radii from `c`) whose projection on the nearest frame `(r0, u0, d0)` is
+/// `uv`: the point of the plane through `c` facing the eye `e` (the quad's plane) over that uv
+/// (module docs, depth channel). Where the frame is edge-on to the eye (`d0·e ≤ 1e-3`) the
+/// frame's own plane point.
+pub fn quad_point(
     uv: [f32; 2],
-    t: f32,
+    e: [f32; 3],
     (r0, u0, d0): ([f32; 3], [f32; 3], [f32; 3]),
-    r: [f32; 3],
-    u: [f32; 3],
-) -> [f32; 2] {
+) -> [f32; 3] {
+    let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let (a, b) = (uv[0] * 2.0 - 1.0, 1.0 - uv[1] * 2.0);
-    let p = [
-        r0[0] * a + u0[0] * b + d0[0] * t,
-        r0[1] * a + u0[1] * b + d0[1] * t,
-        r0[2] * a + u0[2] * b + d0[2] * t,
-    ];
-    let dot = |q: [f32; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
-    [0.5 + dot(r) * 0.5, 0.5 - dot(u) * 0.5]
+    let de = dot(d0, e);
+    let c = if de > 1e-3 {
+        -(a * dot(r0, e) + b * dot(u0, e)) / de
+    } else {
+        0.0
+    };
+    [
+        r0[0] * a + u0[0] * b + d0[0] * c,
+        r0[1] * a + u0[1] * b + d0[1] * c,
+        r0[2] * a + u0[2] * b + d0[2] * c,
+    ]
+}
+
+/// One parallax step in frame `(r, u, d)` (module docs, depth channel): the point of the eye ray
+/// `q + s·e` whose offset along `d` is the frame's depth `t` there, projected on the frame. At
+/// `t = q·d` (the plane) it is the frame's projection of `q`; where the frame is edge-on to the
+/// eye (`d·e ≤ 1e-3`) too.
+pub fn parallax_uv(
+    q: [f32; 3],
+    e: [f32; 3],
+    t: f32,
+    (r, u, d): ([f32; 3], [f32; 3], [f32; 3]),
+) -> [f32; 2] {
+    let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let ed = dot(e, d);
+    let s = if ed > 1e-3 { (t - dot(q, d)) / ed } else { 0.0 };
+    let p = [q[0] + e[0] * s, q[1] + e[1] * s, q[2] + e[2] * s];
+    [0.5 + dot(p, r) * 0.5, 0.5 - dot(p, u) * 0.5]
 }
 
 /// Whether `params` bake and read the depth channel (module docs): `octahedral_depth = on`
@@ -473,33 +517,57 @@ mod tests {
 
     proptest! {
         #![proptest_config(proptest_config())]
-        /// The depth channel's re-projection (module docs) is exact: a surface point `P` seen in
-        /// the nearest frame at `uv₀` with depth `t = P·d₀` lands in every other frame where that
-        /// frame's bake put it; at `t = 0` it is the plane's re-projection. Planted bug: the
-        /// `d₀·t` term dropped (the plane again) fails the first check for any `t ≠ 0`.
+        /// The depth channel's parallax step (module docs) is exact: for a surface point `P`
+        /// seen along the eye's direction `e`, the quad point `q` (P moved along `e` onto the
+        /// quad's plane) is recovered from its nearest-frame `uv`, and one step in any frame
+        /// whose depth there is `P·d` lands on `P`'s projection in that frame. Planted bugs:
+        /// the step taken along the frame's direction instead of the eye's, and the quad point
+        /// left on the frame's plane, each fail.
         #[test]
-        fn depth_reprojection_lands_where_the_other_frame_baked_the_point(
+        fn the_parallax_step_lands_on_the_eye_rays_surface_point(
             p in prop::array::uniform3(-0.7f32..0.7),
             f0 in 0u32..64,
             f1 in 0u32..64,
+            wobble in prop::array::uniform3(-0.15f32..0.15),
             hemi in any::<bool>(),
         ) {
             let n = 8;
-            let d0 = frame_direction(f0, n, hemi);
-            let (r0, u0) = frame_basis(d0);
-            let d1 = frame_direction(f1, n, hemi);
-            let (r1, u1) = frame_basis(d1);
-            let uv0 = frame_uv(p, r0, u0, 1.0);
-            let t = p[0] * d0[0] + p[1] * d0[1] + p[2] * d0[2];
-            let got = reproject_uv_depth(uv0, t, (r0, u0, d0), r1, u1);
-            let want = frame_uv(p, r1, u1, 1.0);
-            for k in 0..2 {
-                prop_assert!((got[k] - want[k]).abs() < 1e-5, "{got:?} vs {want:?}");
+            let basis = |f| {
+                let d = frame_direction(f, n, hemi);
+                let (r, u) = frame_basis(d);
+                (r, u, d)
+            };
+            let (b0, b1) = (basis(f0), basis(f1));
+            let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+            // An eye near the nearest frame (the blend's case), facing both frames.
+            let e = {
+                let v = [b0.2[0] + wobble[0], b0.2[1] + wobble[1], b0.2[2] + wobble[2]];
+                let l = dot(v, v).sqrt();
+                v.map(|x| x / l)
+            };
+            prop_assume!(dot(e, b1.2) > 0.2);
+            let pe = dot(p, e);
+            let q = [p[0] - e[0] * pe, p[1] - e[1] * pe, p[2] - e[2] * pe];
+            let uv0 = frame_uv(q, b0.0, b0.1, 1.0);
+            let q2 = quad_point(uv0, e, b0);
+            for k in 0..3 {
+                prop_assert!((q2[k] - q[k]).abs() < 1e-4, "{q2:?} vs {q:?}");
             }
-            prop_assert_eq!(
-                reproject_uv_depth(uv0, 0.0, (r0, u0, d0), r1, u1),
-                reproject_uv(uv0, r0, u0, r1, u1)
-            );
+            let got = parallax_uv(q2, e, dot(p, b1.2), b1);
+            let want = frame_uv(p, b1.0, b1.1, 1.0);
+            for k in 0..2 {
+                prop_assert!((got[k] - want[k]).abs() < 1e-3, "{got:?} vs {want:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_view_direction_is_the_eyes_to_a_step() {
+        for d in [[0.6f32, 0.3, 0.5], [-0.4, 0.7, 0.35], [0.2, -0.8, 0.6]] {
+            for hemi in [true, false] {
+                let v = view_direction(octahedral_view(d, 8, hemi), 8, hemi);
+                assert!(angle(v, d) < 0.02, "{d:?} {hemi}: {v:?}");
+            }
         }
     }
 

@@ -446,6 +446,7 @@ fn billboard_memory_series(
             p.billboard_views,
             p.octahedral_grid,
             p.texture_size,
+            p.octahedral_depth,
         )
     };
     let first = rows.first().map(views)?;
@@ -466,7 +467,7 @@ fn billboard_memory_series(
         let (label, point) = match forestlod_shared::ViewSphere::from_id(p.billboard_views) {
             Some(v) if v.is_octahedral() => (
                 format!(
-                    "{} {} {} {} r{}",
+                    "{} {} {} {}{} r{}",
                     r.camera,
                     r.backend,
                     // Short, so the legend does not cut the rule and the side.
@@ -476,6 +477,12 @@ fn billboard_memory_series(
                         "octa"
                     },
                     name(p.octahedral_blend),
+                    // The depth channel (issue 32).
+                    if forestlod_shared::depth_channel(p) {
+                        "+depth"
+                    } else {
+                        ""
+                    },
                     p.texture_size
                 ),
                 p.octahedral_grid,

@@ -1129,25 +1129,53 @@ fn octahedral_depth_offset(z: f32, alpha: f32) -> f32 {
     return select(0.0, 1.0 - 2.0 * z, alpha > 0.0);
 }
 
-// forestlod_shared::reproject_uv_depth: octahedral_reproject of the surface point `t` radii along
-// the source frame's direction `d0` from the quad point (same operation order as the reference).
-fn octahedral_reproject_depth(
-    uv: vec2<f32>,
-    t: f32,
-    src: FrameBasis,
-    d0: vec3<f32>,
-    dst: FrameBasis,
-) -> vec2<f32> {
+// forestlod_shared::view_direction: the eye's mesh-local direction at the packed view's
+// quantised place in its cell.
+fn octahedral_view_direction(view: OctahedralView, n_in: u32, hemi: bool) -> vec3<f32> {
+    let n = max(n_in, MIN_OCTAHEDRAL_GRID);
+    let last = f32(n - 1u);
+    let i0 = f32(view.cell % n);
+    let j0 = f32(view.cell / n);
+    return octahedral_decode(
+        vec2<f32>(
+            (i0 + f32(view.qx) * (1.0 / f32(OCTAHEDRAL_STEPS))) / last,
+            (j0 + f32(view.qy) * (1.0 / f32(OCTAHEDRAL_STEPS))) / last,
+        ),
+        hemi,
+    );
+}
+
+// glam's `Vec3::dot` and the reference's `dot3`, written out to keep the order of operations.
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+
+// forestlod_shared::quad_point: the quad-plane point over the nearest frame's uv (same operation
+// order as the reference).
+fn octahedral_quad_point(uv: vec2<f32>, e: vec3<f32>, src: FrameBasis, d0: vec3<f32>) -> vec3<f32> {
     let a = uv.x * 2.0 - 1.0;
     let b = 1.0 - uv.y * 2.0;
-    let p = vec3<f32>(
-        src.right.x * a + src.up.x * b + d0.x * t,
-        src.right.y * a + src.up.y * b + d0.y * t,
-        src.right.z * a + src.up.z * b + d0.z * t,
+    let de = dot3(d0, e);
+    var c = 0.0;
+    if de > 1e-3 {
+        c = -(a * dot3(src.right, e) + b * dot3(src.up, e)) / de;
+    }
+    return vec3<f32>(
+        src.right.x * a + src.up.x * b + d0.x * c,
+        src.right.y * a + src.up.y * b + d0.y * c,
+        src.right.z * a + src.up.z * b + d0.z * c,
     );
-    let pr = p.x * dst.right.x + p.y * dst.right.y + p.z * dst.right.z;
-    let pu = p.x * dst.up.x + p.y * dst.up.y + p.z * dst.up.z;
-    return vec2<f32>(0.5 + pr * 0.5, 0.5 - pu * 0.5);
+}
+
+// forestlod_shared::parallax_uv: one parallax step along the eye's ray in frame (dst, d).
+fn octahedral_parallax_uv(q: vec3<f32>, e: vec3<f32>, t: f32, dst: FrameBasis, d: vec3<f32>) -> vec2<f32> {
+    let ed = dot3(e, d);
+    var s = 0.0;
+    if ed > 1e-3 {
+        s = (t - dot3(q, d)) / ed;
+    }
+    let p = vec3<f32>(q.x + e.x * s, q.y + e.y * s, q.z + e.z * s);
+    return vec2<f32>(0.5 + dot3(p, dst.right) * 0.5, 0.5 - dot3(p, dst.up) * 0.5);
 }
 
 // forestlod_shared::octahedral_mix.

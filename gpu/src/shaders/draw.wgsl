@@ -413,25 +413,33 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
         if u.octahedral_blend == AZIMUTH_MODE_BLEND {
             let d0 = octahedral_frame_direction(near, u.octahedral_grid, hemi);
             let b0 = octahedral_frame_basis(d0);
-            // The depth channel (issue 32): the nearest frame's surface point, not its plane's.
-            let z = textureSample(billboard_depth, tree_sampler, uv, base_layer + near);
-            let t = select(0.0, octahedral_depth_offset(z.r, z.a), u.octahedral_depth != 0u);
+            // The depth channel (issue 32; reference `octahedral_texel`): each frame one parallax
+            // step along the eye's ray from the quad point.
+            let e = octahedral_view_direction(oview, u.octahedral_grid, hemi);
+            let q = octahedral_quad_point(uv, e, b0, d0);
             var texels = array<vec4<f32>, 3>(t_near, t_near, t_near);
             for (var k = 0u; k < 3u; k = k + 1u) {
                 let f = fr.frames[k];
-                let bk = octahedral_frame_basis(octahedral_frame_direction(f, u.octahedral_grid, hemi));
+                let dk = octahedral_frame_direction(f, u.octahedral_grid, hemi);
+                let bk = octahedral_frame_basis(dk);
                 // Derivatives of the plane's re-projection (linear in uv), as the reference's
-                // `reproject_duv`: the depth's steps must not pick the mip level.
-                // (A uniform branch; without the depth channel the plane's sample as before.)
+                // `reproject_duv`: the depth's steps must not pick the mip level. (A uniform
+                // branch; without the depth channel the plane's sample as before.)
                 let plane = octahedral_reproject(uv, b0, bk);
                 var sampled = textureSample(billboard_textures, tree_sampler, plane, base_layer + f);
                 if u.octahedral_depth != 0u {
-                    let at = octahedral_reproject_depth(uv, t, b0, d0, bk);
+                    let on_plane = octahedral_parallax_uv(q, e, dot3(q, dk), bk, dk);
+                    let z = textureSampleGrad(
+                        billboard_depth, tree_sampler, on_plane, base_layer + f, dpdx(plane), dpdy(plane),
+                    );
+                    let at = octahedral_parallax_uv(q, e, octahedral_depth_offset(z.r, z.a), bk, dk);
                     sampled = textureSampleGrad(
                         billboard_textures, tree_sampler, at, base_layer + f, dpdx(plane), dpdy(plane),
                     );
+                    texels[k] = sampled;
+                } else {
+                    texels[k] = select(sampled, t_near, k == fr.nearest);
                 }
-                texels[k] = select(sampled, t_near, k == fr.nearest);
             }
             billboard_texel = octahedral_mix(texels[0], texels[1], texels[2], fr.weights);
         }

@@ -85,10 +85,7 @@ fn proxy_bounding_radius(p: ProxyRecord) -> f32 {
     return sqrt(2.0 * p.crown_radius * p.crown_radius + half_h * half_h) * u.bound_scale;
 }
 
-// glam's `Vec3::dot`, written out to keep its order of operations.
-fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return a.x * b.x + a.y * b.y + a.z * b.z;
-}
+// `dot3` (common.wgsl) is glam's `Vec3::dot`, written out to keep its order of operations.
 
 // reference `primitive_vertex` of `render_primitive` and `primitive_quad`: corner `corner`
 // (0..4: -x-y, +x-y, +x+y, -x+y) of the quad of the sphere `(center, radius)`.

@@ -52,12 +52,24 @@ fn one_tree(mesh: u32, yaw: f32) -> Scene {
 /// Every tree a mesh (`lod_levels = 1`), or every tree an octahedral impostor (the billboard band
 /// ends at 2 m), with a draw distance beyond the camera.
 fn params(impostor: bool, sphere: ViewSphere, grid: u32, blend: AzimuthMode) -> Params {
+    with_depth(impostor, sphere, grid, blend, false)
+}
+
+/// [`params`] with the depth channel (issue 32) on or off.
+fn with_depth(
+    impostor: bool,
+    sphere: ViewSphere,
+    grid: u32,
+    blend: AzimuthMode,
+    depth: bool,
+) -> Params {
     let p = Params {
         draw_distance: 100_000.0,
         texture_size: 128,
         billboard_views: sphere as u32,
         octahedral_grid: grid,
         octahedral_blend: blend as u32,
+        octahedral_depth: u32::from(depth),
         ..Params::default()
     };
     if impostor {
@@ -101,8 +113,20 @@ fn compare(
     grid: u32,
     blend: AzimuthMode,
 ) -> (f64, f64) {
+    compare_depth(scene, dir, sphere, grid, blend, false)
+}
+
+/// [`compare`] with the depth channel (issue 32) on or off.
+fn compare_depth(
+    scene: &Scene,
+    dir: [f32; 3],
+    sphere: ViewSphere,
+    grid: u32,
+    blend: AzimuthMode,
+    depth: bool,
+) -> (f64, f64) {
     let mesh_p = params(false, sphere, grid, blend);
-    let imp_p = params(true, sphere, grid, blend);
+    let imp_p = with_depth(true, sphere, grid, blend, depth);
     let a = prepare(scene.clone(), &mesh_p).expect("prepare meshes");
     let b = prepare(scene.clone(), &imp_p).expect("prepare impostors");
     let camera = camera_along(&a, dir);
@@ -213,6 +237,59 @@ fn between_frames_the_blend_still_reproduces_the_mesh() {
         }
     }
     println!("{n} in-between poses: worst silhouette xor {worst:.3}");
+}
+
+/// The depth channel (issue 32, `forestlod_shared::octahedral` module docs) at the in-between
+/// eyes of [`between_frames_the_blend_still_reproduces_the_mesh`] on a coarse 4×4 hemi grid
+/// (frames far apart, where re-projecting through the plane ghosts most): the means of the
+/// silhouette XOR and of the colour difference against the mesh no worse than the plane's.
+/// Printed per pose and as means. Measured: XOR 0.380 → 0.370, colour 5.1 → 3.5 (lower at every
+/// pose). The rejected first design (the nearest frame's surface point re-projected onto the
+/// other two) failed this test: XOR 0.397, colour higher at every pose.
+#[test]
+fn the_depth_channel_keeps_the_blend_on_the_mesh() {
+    let (mut plane, mut depth, mut n) = (0.0f64, 0.0f64, 0);
+    let (mut plane_colour, mut depth_colour) = (0.0f64, 0.0f64);
+    for (mesh, yaw) in [(0, 0.3), (2, 1.1), (4, -0.6)] {
+        let scene = one_tree(mesh, yaw);
+        for d in [
+            [0.6f32, 0.3, 0.5],
+            [-0.4, 0.7, 0.35],
+            [0.2, -0.8, 0.6],
+            [0.9, 0.1, 0.2],
+        ] {
+            let run = |on| {
+                compare_depth(
+                    &scene,
+                    turned(d, yaw),
+                    ViewSphere::HemiOctahedral,
+                    4,
+                    AzimuthMode::Blend,
+                    on,
+                )
+            };
+            let ((x0, c0), (x1, c1)) = (run(false), run(true));
+            println!(
+                "mesh {mesh} eye {d:?}: silhouette xor plane {x0:.3} depth {x1:.3}, colour plane {c0:.1} depth {c1:.1}"
+            );
+            plane += x0;
+            depth += x1;
+            plane_colour += c0;
+            depth_colour += c1;
+            n += 1;
+        }
+    }
+    let (plane, depth) = (plane / n as f64, depth / n as f64);
+    let (plane_colour, depth_colour) = (plane_colour / n as f64, depth_colour / n as f64);
+    println!(
+        "{n} poses, 4x4 hemi grid: mean silhouette xor plane {plane:.4}, depth {depth:.4}; \
+         mean colour plane {plane_colour:.2}, depth {depth_colour:.2}"
+    );
+    assert!(
+        depth <= plane && depth_colour <= plane_colour,
+        "the depth channel (xor {depth:.4}, colour {depth_colour:.2}) is worse than the plane \
+         (xor {plane:.4}, colour {plane_colour:.2})"
+    );
 }
 
 #[test]
