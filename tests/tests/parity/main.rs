@@ -37,6 +37,7 @@ mod metamorphic;
 mod mips;
 mod mutants;
 mod occlusion;
+mod octahedral_depth;
 mod refine;
 mod sampler_lod;
 mod select;
