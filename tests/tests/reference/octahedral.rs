@@ -41,6 +41,18 @@ const BLEND_XOR_MAX: f64 = 0.42;
 /// The grid of the in-between poses: 8×8 over the hemisphere.
 const BETWEEN_GRID: u32 = 8;
 
+/// The in-between poses' trees: species and yaw.
+const BETWEEN_TREES: [(u32, f32); 3] = [(0, 0.3), (2, 1.1), (4, -0.6)];
+
+/// The in-between poses' eyes (mesh-local directions): inside cells of the hemi grid, away from
+/// the frames.
+const BETWEEN_EYES: [[f32; 3]; 4] = [
+    [0.6, 0.3, 0.5],
+    [-0.4, 0.7, 0.35],
+    [0.2, -0.8, 0.6],
+    [0.9, 0.1, 0.2],
+];
+
 /// `single`'s spruce changed to species `mesh`, turned by `yaw`.
 fn one_tree(mesh: u32, yaw: f32) -> Scene {
     let mut s = builtin::single();
@@ -206,15 +218,9 @@ fn a_frame_seen_from_its_own_direction_reproduces_the_mesh() {
 #[test]
 fn between_frames_the_blend_still_reproduces_the_mesh() {
     let (mut worst, mut n) = (0.0f64, 0);
-    for (mesh, yaw) in [(0, 0.3), (2, 1.1), (4, -0.6)] {
+    for (mesh, yaw) in BETWEEN_TREES {
         let scene = one_tree(mesh, yaw);
-        // Eyes inside cells of the hemi grid, away from the frames.
-        for d in [
-            [0.6f32, 0.3, 0.5],
-            [-0.4, 0.7, 0.35],
-            [0.2, -0.8, 0.6],
-            [0.9, 0.1, 0.2],
-        ] {
+        for d in BETWEEN_EYES {
             for blend in [AzimuthMode::Nearest, AzimuthMode::Blend] {
                 let (xor, col) = compare(
                     &scene,
@@ -250,14 +256,9 @@ fn between_frames_the_blend_still_reproduces_the_mesh() {
 fn the_depth_channel_keeps_the_blend_on_the_mesh() {
     let (mut plane, mut depth, mut n) = (0.0f64, 0.0f64, 0);
     let (mut plane_colour, mut depth_colour) = (0.0f64, 0.0f64);
-    for (mesh, yaw) in [(0, 0.3), (2, 1.1), (4, -0.6)] {
+    for (mesh, yaw) in BETWEEN_TREES {
         let scene = one_tree(mesh, yaw);
-        for d in [
-            [0.6f32, 0.3, 0.5],
-            [-0.4, 0.7, 0.35],
-            [0.2, -0.8, 0.6],
-            [0.9, 0.1, 0.2],
-        ] {
+        for d in BETWEEN_EYES {
             let run = |on| {
                 compare_depth(
                     &scene,
