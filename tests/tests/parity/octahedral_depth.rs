@@ -32,13 +32,11 @@ const MIN_IMPOSTOR_PIXELS: usize = 2000;
 
 fn mean_colour_difference(a: &Images, b: &Images, mask: &[bool]) -> f64 {
     let (mut sum, mut n) = (0u64, 0u64);
-    for i in 0..mask.len() {
-        if mask[i] {
-            sum += (0..3)
-                .map(|c| u64::from(a.color[i][c].abs_diff(b.color[i][c])))
-                .sum::<u64>();
-            n += 3;
-        }
+    for (i, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+        sum += (0..3)
+            .map(|c| u64::from(a.color[i][c].abs_diff(b.color[i][c])))
+            .sum::<u64>();
+        n += 3;
     }
     sum as f64 / n.max(1) as f64
 }
