@@ -528,11 +528,30 @@ fn a_cluster_size_out_of_range_is_refused_naming_the_field() {
         ..Params::default()
     };
     let forest = Forest::new(scene, &p);
-    for bad in [0, 13] {
-        let q = Params {
-            cluster_size: bad,
-            ..p
-        };
+    let bad = [
+        (
+            "cluster_size",
+            Params {
+                cluster_size: 0,
+                ..p
+            },
+        ),
+        (
+            "cluster_size",
+            Params {
+                cluster_size: 13,
+                ..p
+            },
+        ),
+        (
+            "parent_rule",
+            Params {
+                parent_rule: 7,
+                ..p
+            },
+        ),
+    ];
+    for (field, q) in bad {
         let e = far_bake(
             &forest.hierarchy,
             &forest.scene,
@@ -541,19 +560,6 @@ fn a_cluster_size_out_of_range_is_refused_naming_the_field() {
             &q,
         )
         .unwrap_err();
-        assert_eq!(e.field, "cluster_size", "{e}");
+        assert_eq!(e.field, field, "{e}");
     }
-    let q = Params {
-        parent_rule: 7,
-        ..p
-    };
-    let e = far_bake(
-        &forest.hierarchy,
-        &forest.scene,
-        &forest.geometry,
-        &forest.textures,
-        &q,
-    )
-    .unwrap_err();
-    assert_eq!(e.field, "parent_rule", "{e}");
 }
