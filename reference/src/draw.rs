@@ -878,9 +878,8 @@ impl TreeShader<'_> {
         let fr = octahedral_frames(view, n);
         let array = &baked.texture;
         let near = fr.frames[fr.nearest];
-        let first = array.sample(sampler, base + near, uv, ddx, ddy);
         if !self.octahedral_blend {
-            return first;
+            return array.sample(sampler, base + near, uv, ddx, ddy);
         }
         let d0 = frame_direction(near, n, hemi);
         let (r0, u0) = frame_basis(d0);
@@ -910,6 +909,8 @@ impl TreeShader<'_> {
             });
             return octahedral_mix(texels, fr.weights);
         }
+        // Without the depth channel the nearest frame's own sample at the quad's uv.
+        let first = array.sample(sampler, base + near, uv, ddx, ddy);
         let texels = core::array::from_fn(|k| {
             if k == fr.nearest {
                 return first;
