@@ -47,11 +47,22 @@ pub struct PackedGeometry {
 
 /// Packs the scene's meshes in mesh order and appends the billboard quad.
 pub fn pack_geometry(scene: &Scene) -> PackedGeometry {
+    pack_geometry_with(scene, crate::scene::TreeMesh::meta)
+}
+
+/// [`pack_geometry`] with each mesh's metadata from `meta` (offsets are filled in here). A
+/// caller that never selects by a screen-space metric may pass `TreeMesh::bounds_meta` and skip
+/// the metric's measurement (`crate::metric`, several renders per mesh); the metric sizes are
+/// then 0.
+pub fn pack_geometry_with(
+    scene: &Scene,
+    meta: impl Fn(&crate::scene::TreeMesh) -> MeshMeta,
+) -> PackedGeometry {
     let mut vertices = Vec::new();
     let mut indices = Vec::new();
     let mut meshes = Vec::with_capacity(scene.meshes.len());
     for mesh in &scene.meshes {
-        let mut meta = mesh.meta();
+        let mut meta = meta(mesh);
         meta.first_vertex = vertices.len() as u32;
         meta.first_index = indices.len() as u32;
         vertices.extend(

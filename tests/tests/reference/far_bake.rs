@@ -7,7 +7,9 @@
 //! - **a leaf cell's side is the direct render of that cell from that side**: an independent
 //!   render (an orthographic view of the cell alone, its own tree
 //!   transform, `FAR_BAKE_PIXELS²` pixels, its own reduction in `f64`) within
-//!   [`LEAF_CHANNEL_TOLERANCE`] per 8-bit channel, alpha likewise;
+//!   [`LEAF_CHANNEL_TOLERANCE`] per 8-bit channel, alpha likewise; where crossed cards' depths
+//!   tie (along their common axis) the colour may lie anywhere the two tie-breaking renders
+//!   allow ([`TIE_BIAS`]);
 //! - **`average` stays between the children**: per side and channel (sRGB bytes over the
 //!   gathered cells that cover that side; alpha bytes over all gathered ones), min ≤ parent ≤ max;
 //! - **`composite` matches the direct render of the parent** (the parent baked as if it were a
@@ -20,13 +22,13 @@
 
 use forestlod_reference::bake::mesh_textures;
 use forestlod_reference::far_bake::{far_bake, leaf_cells, placed_trees};
-use forestlod_reference::geometry::{PackedGeometry, pack_geometry};
+use forestlod_reference::geometry::{PackedGeometry, pack_geometry_with};
 use forestlod_reference::hierarchy::Hierarchy;
 use forestlod_reference::raster::{
     ClearValues, DrawState, Fragment, FragmentOutput, RenderTarget, Vertex,
 };
 use forestlod_reference::sampler::{Sampler, Texture};
-use forestlod_reference::scene::{Instance, Scene};
+use forestlod_reference::scene::{Instance, Scene, TreeMesh};
 use forestlod_reference::texture::Rgba8Image;
 use forestlod_shared::far_bake::{
     cell_bounds, cell_box, cell_coords, cell_count, image_axes, node_bounds,
@@ -40,6 +42,16 @@ use glam::{Quat, Vec3};
 use proptest::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
 
+/// The depth step (clip `z`, 0-1 across the cell) that the tie-breaking direct renders add per
+/// triangle of the node ([`direct_cell_image`]). Crossed cards meet along their trunk axis,
+/// where both cards' depths are equal; the bake and the direct render compute them with
+/// different matrices, so `f32` rounding (about 1e-7) hands a pixel on that line to either card
+/// (the first failure of this kind: node 0 cell [1, 1, 0] side 0, 9 bytes of blue, kept as the
+/// last seed of `proptest-regressions/far_bake.txt`). 1e-5 per triangle outweighs that rounding
+/// a hundredfold and moves a surface by 1e-5 of the cell's depth per triangle (a node's dozen
+/// triangles: about 1e-4), so only surfaces that nearly touch change order.
+const TIE_BIAS: f32 = 1e-5;
+
 /// Largest difference per 8-bit channel (sRGB colour bytes, alpha byte) between a baked leaf
 /// side and the direct render of its cell: the issue's ±1. Both renders put the same pixel
 /// centres at the same world points (the cell's 8 pixels are the slice image's block), so they
@@ -47,7 +59,9 @@ use std::sync::atomic::{AtomicU32, Ordering};
 /// reduction's sums. Measured over 256 cases: 0 (none differs; printed by the test when one
 /// does). The independent render takes the contract's image orientation: mirrored, the top-left
 /// rule hands a pixel centre on a snapped edge to the other side (the first failure seen: a card
-/// edge snapped onto a pixel centre, 6 pixels of a block apart).
+/// edge snapped onto a pixel centre, 6 pixels of a block apart). A side beyond it passes only
+/// where the near-ties of depth explain it ([`TIE_BIAS`]: between the two tie-breaking renders'
+/// picks, within this tolerance; printed when it happens, about once in 1,000 runs' cases).
 const LEAF_CHANNEL_TOLERANCE: i32 = 1;
 
 /// Largest mean absolute alpha difference (0-1, over the cells and sides either keeps) between
@@ -84,7 +98,9 @@ struct Forest {
 
 impl Forest {
     fn new(scene: Scene, params: &Params) -> Self {
-        let geometry = pack_geometry(&scene);
+        // The far bake reads the meshes' bounds, never the screen-space metric's sizes: skip
+        // their measurement (90 % of these properties' time, a random texture per case).
+        let geometry = pack_geometry_with(&scene, TreeMesh::bounds_meta);
         let textures =
             mesh_textures(&scene, params.mips().unwrap(), params.alpha_cutoff).expect("mips");
         let hierarchy = Hierarchy::build(&scene, &geometry.meshes, params)
@@ -180,16 +196,19 @@ fn far_params() -> impl Strategy<Value = Params> {
     })
 }
 
-/// The independent direct render of cell `[lo, hi]` from side `side` (module docs): the mean of
-/// its `FAR_BAKE_PIXELS²` pixels as a packed side colour.
-fn direct_cell_side(
+/// The independent direct render of cell `[lo, hi]` from side `side` (module docs): its
+/// `FAR_BAKE_PIXELS²` pixels. `tie` breaks near-ties of depth by triangle order ([`TIE_BIAS`]):
+/// 0 renders as is, +1 moves each later triangle of the node slightly farther (earlier ones win
+/// near-ties), −1 nearer (later ones win).
+fn direct_cell_image(
     forest: &Forest,
     node: usize,
     lo: [f32; 3],
     hi: [f32; 3],
     side: usize,
     cutoff: f32,
-) -> u32 {
+    tie: f32,
+) -> Rgba8Image {
     let (lo, hi) = (Vec3::from(lo), Vec3::from(hi));
     let (c, e) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
     let n = Vec3::from(side_normal(side));
@@ -221,12 +240,15 @@ fn direct_cell_side(
         let mesh = &forest.scene.meshes[tree.mesh as usize];
         let rot = Quat::from_rotation_z(tree.yaw);
         for tri in mesh.indices.chunks_exact(3) {
+            let bias = tie * TIE_BIAS * triangles.len() as f32;
             triangles.push(core::array::from_fn(|k| {
                 let v = tri[k] as usize;
                 let p =
                     Vec3::from(tree.position) + rot * (Vec3::from(mesh.positions[v]) * tree.scale);
                 let uv = mesh.uvs[v];
-                Vertex::new(clip(p), [uv[0], uv[1], tree.mesh as f32])
+                let mut c = clip(p);
+                c[2] += bias;
+                Vertex::new(c, [uv[0], uv[1], tree.mesh as f32])
             }));
         }
     }
@@ -248,12 +270,26 @@ fn direct_cell_side(
     let px = FAR_BAKE_PIXELS;
     let mut target = RenderTarget::new(px, px, ClearValues::default());
     target.draw(&triangles, &shader, &DrawState::OPAQUE);
-    let image = target.color_image();
+    target.color_image()
+}
+
+/// The packed side colour of pixels `image` (module docs): alpha-weighted mean colour in linear
+/// light, mean alpha.
+fn reduce(image: &Rgba8Image) -> u32 {
+    reduce_with(image, image, false)
+}
+
+/// [`reduce`] of the pixels picked from `a` and `b` per pixel and channel: the smaller value of
+/// the two, or the larger (`largest`), colour in linear light. With `a` and `b` the two
+/// tie-breaking renders, every mix of their per-pixel winners reduces to a colour between the
+/// two picks, channel by channel (coverage does not depend on which fragment wins).
+fn reduce_with(a: &Rgba8Image, b: &Rgba8Image, largest: bool) -> u32 {
     let (mut sum_a, mut sum_c) = (0.0f64, [0.0f64; 3]);
-    for t in &image.texels {
-        let w = t[3] as f64 / 255.0;
+    for (x, y) in a.texels.iter().zip(&b.texels) {
+        let w = x[3] as f64 / 255.0;
         for k in 0..3 {
-            sum_c[k] += w * srgb_to_linear(t[k]) as f64;
+            let (u, v) = (srgb_to_linear(x[k]) as f64, srgb_to_linear(y[k]) as f64);
+            sum_c[k] += w * if largest { u.max(v) } else { u.min(v) };
         }
         sum_a += w;
     }
@@ -262,12 +298,39 @@ fn direct_cell_side(
     } else {
         [0.0; 3]
     };
+    let px = FAR_BAKE_PIXELS;
     pack_far_colour([
         colour[0],
         colour[1],
         colour[2],
         (sum_a / (px * px) as f64) as f32,
     ])
+}
+
+/// The direct render of a cell side, packed ([`direct_cell_image`], [`reduce`]).
+fn direct_cell_side(
+    forest: &Forest,
+    node: usize,
+    lo: [f32; 3],
+    hi: [f32; 3],
+    side: usize,
+    cutoff: f32,
+) -> u32 {
+    reduce(&direct_cell_image(forest, node, lo, hi, side, cutoff, 0.0))
+}
+
+/// Whether `baked` lies within [`LEAF_CHANNEL_TOLERANCE`] of the range that the near-ties of
+/// depth allow (module docs): per colour channel between the smaller and the larger pick of the
+/// two tie-breaking renders, alpha as the direct render's.
+fn within_the_ties(baked: u32, a: &Rgba8Image, b: &Rgba8Image, direct: u32) -> bool {
+    let byte = |w: u32, k: u32| ((w >> (8 * k)) & 255) as i32;
+    let (lo, hi) = (reduce_with(a, b, false), reduce_with(a, b, true));
+    let t = LEAF_CHANNEL_TOLERANCE;
+    (byte(baked, 3) - byte(direct, 3)).abs() <= t
+        && (0..3).all(|k| {
+            let (l, h) = (byte(lo, k).min(byte(hi, k)), byte(lo, k).max(byte(hi, k)));
+            (l - t..=h + t).contains(&byte(baked, k))
+        })
 }
 
 /// The unit vector along world axis `k`.
@@ -386,10 +449,25 @@ proptest! {
                 for (s, &side) in baked.iter().enumerate() {
                     let direct = direct_cell_side(&forest, i, clo, chi, s, p.alpha_cutoff);
                     let d = byte_diff(side, direct);
-                    record("far bake leaf: byte difference", &LEAF_MAX, d as f64, 1.0);
+                    if d <= LEAF_CHANNEL_TOLERANCE {
+                        record("far bake leaf: byte difference", &LEAF_MAX, d as f64, 1.0);
+                        continue;
+                    }
+                    // Beyond the tolerance: a near-tie of depth (module docs) or a bug.
+                    let render = |tie| direct_cell_image(&forest, i, clo, chi, s, p.alpha_cutoff, tie);
+                    let (a, b) = (render(1.0), render(-1.0));
+                    let tie = within_the_ties(side, &a, &b, direct);
+                    if tie {
+                        eprintln!(
+                            "far bake leaf: node {i} cell {:?} side {s}: baked {side:08x}, direct {direct:08x}: within the near-ties of depth ({} of {} pixels differ between the tie-breaking renders)",
+                            cell_coords(cs, k),
+                            a.texels.iter().zip(&b.texels).filter(|(x, y)| x != y).count(),
+                            a.texels.len()
+                        );
+                    }
                     prop_assert!(
-                        d <= LEAF_CHANNEL_TOLERANCE,
-                        "node {} cell {:?} side {}: baked {:08x}, direct {:08x}",
+                        tie,
+                        "node {} cell {:?} side {}: baked {:08x}, direct {:08x}, not within the near-ties either",
                         i, cell_coords(cs, k), s, side, direct
                     );
                 }
