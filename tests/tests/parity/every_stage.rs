@@ -228,6 +228,7 @@ fn walk(stage: StageId) {
     let mut failures = Vec::new();
     let (mut reached, mut max, mut targets) = (Vec::new(), 0.0f64, 0);
     for case in &cases {
+        let case_started = Instant::now();
         let scene = forestlod_tests::stage_cases::scene(case.scene);
         let prepared = match prepare(scene, &case.params) {
             Ok(p) => p,
@@ -237,8 +238,15 @@ fn walk(stage: StageId) {
             }
         };
         let (_, _, camera) = small_poses(&prepared.scene, &[("medium", 0.0)]).remove(0);
+        let prepared_s = case_started.elapsed().as_secs_f64();
         let frame = FrameStages::new(&prepared, &camera, &case.params);
         let check = frame.check(ctx, stage);
+        eprintln!(
+            "walk: {}: {}: prepare {prepared_s:.1} s, case {:.1} s",
+            stage.name(),
+            case.name,
+            case_started.elapsed().as_secs_f64()
+        );
         for t in case.targets.iter().filter(|t| t.stage == stage) {
             targets += 1;
             let what = format!("{}: {} {} = {}", stage.name(), t.reach, t.param, t.value);
