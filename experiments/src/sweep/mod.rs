@@ -60,7 +60,7 @@ pub use spec::{
 pub use variant::{Engine, Pipeline, ReferenceRenderer, Registered};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 28] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 29] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -116,6 +116,10 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 28] = [
     ),
     ("celba_nodes", include_str!("../../sweeps/celba_nodes.toml")),
     ("celba_size", include_str!("../../sweeps/celba_size.toml")),
+    (
+        "far_levels_temporal",
+        include_str!("../../sweeps/far_levels_temporal.toml"),
+    ),
 ];
 
 /// Options of `forestlod sweep` (`Default`: no file, no override, an empty `out`).
