@@ -60,7 +60,7 @@ pub use spec::{
 pub use variant::{Engine, Pipeline, ReferenceRenderer, Registered};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 29] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 30] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -119,6 +119,10 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 29] = [
     (
         "far_levels_temporal",
         include_str!("../../sweeps/far_levels_temporal.toml"),
+    ),
+    (
+        "impostors_temporal",
+        include_str!("../../sweeps/impostors_temporal.toml"),
     ),
 ];
 
