@@ -662,7 +662,7 @@ pub fn select_tree(
 }
 
 /// A batch's conservative range (trees at depths `[lo, hi]`, scales `[s_min, s_max]`), in the
-/// mode's order (area order for interval, cut order for cut), by binary search.
+/// mode's order (area order under the interval rule, cut order under the cut), by binary search.
 pub fn batch_range(
     set: &MeshPoints,
     mode: PointSelect,

@@ -95,11 +95,23 @@
 //! ranges keep them few (one tree's interval range is exactly what it draws, a cut range holds
 //! its drawn records and their ancestors only).
 //!
-//! Everything here is CPU-side preprocessing or a scalar formula; nothing is in `Params` yet.
+//! In `Params` (issue 33 item 1, the draw): `lod1` ([`Lod1`]) selects points as the level past
+//! the mesh, `point_select`, `point_detail` ([`DetailPreset`]) and `point_count` (`N_pts`)
+//! configure it ([`PointParams::from_params`], [`draws_points`]).
 
 use bytemuck::{Pod, Zeroable};
 
 use crate::ParamError;
+
+crate::modes::modes! {
+    /// What stands for a tree past the mesh level (`Params::lod1`, issue 33).
+    pub enum Lod1 {
+        /// The thesis's billboard (E§3.3).
+        Billboard = 0 => "billboard" ("E§3.3"),
+        /// Celba's point hierarchy, drawn as camera-facing squares (C§4.4, §4.6.3).
+        Points = 1 => "points" ("C§4.4"),
+    }
+}
 
 crate::modes::modes! {
     /// How a merged point's area is computed from the squares below it (module docs).
@@ -233,6 +245,23 @@ pub struct PointParams {
     /// `TriangleCutOffToleration` (fraction in `[0, 1]`): the biggest triangles that may vanish
     /// at the change distance. 0: none (safe).
     pub triangle_cutoff: f32,
+}
+
+impl PointParams {
+    /// The build settings of the point LOD drawn under `params` (issue 33): `point_count`
+    /// points per mesh, placed under the draw's `alpha_cutoff`; the rest the defaults.
+    pub fn from_params(params: &crate::Params) -> Self {
+        Self {
+            n_pts: params.point_count,
+            alpha_cutoff: params.alpha_cutoff.max(f32::MIN_POSITIVE),
+            ..Self::default()
+        }
+    }
+}
+
+/// Whether `params` draw points as the second level (`lod1 = points` with `lod_levels >= 2`).
+pub fn draws_points(params: &crate::Params) -> bool {
+    params.lod1 == Lod1::Points as u32 && params.lod_levels >= 2
 }
 
 /// The seed's default grid (C§4.4.3, 4x4x4).
