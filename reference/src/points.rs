@@ -781,3 +781,82 @@ pub fn select_tree_lod(
         },
     }
 }
+
+/// The point LOD a frame draws under `lod1 = points` (issue 33, `forestlod_shared::points`'s
+/// module docs, "the point command path"): every mesh's [`MeshPoints`], built once in
+/// `prepare`, with their areas (the interval rule's binary search) and the selection's rule and
+/// thresholds. The draw keeps a record with [`forestlod_shared::points::point_keep`] at the
+/// tree's own depth and scale; it visits the tree's own range ([`PointLod::tree_records`]), in
+/// the mode's order, which holds every record the keep test can pass.
+#[derive(Clone, Debug)]
+pub struct PointLod {
+    /// Per mesh, its point hierarchy (cell level; the whole-tree node is built but not drawn).
+    pub sets: Vec<MeshPoints>,
+    /// Per mesh, its records' areas in area order.
+    pub areas: Vec<Vec<f32>>,
+    /// [`PointSelect`] as `u32` (`Params::point_select`).
+    pub mode: u32,
+    /// The detail setting (`Params::point_detail`).
+    pub sizes: forestlod_shared::points::DetailSizes,
+}
+
+impl PointLod {
+    /// The point LOD of `meshes` under `params`, `None` unless `params` draw points
+    /// ([`forestlod_shared::points::draws_points`]). `params` must be valid.
+    pub fn build(
+        meshes: &[TreeMesh],
+        params: &forestlod_shared::Params,
+    ) -> Result<Option<Self>, ParamError> {
+        use forestlod_shared::points::{DetailPreset, draws_points};
+        if !draws_points(params) {
+            return Ok(None);
+        }
+        let sets = build_points(meshes, &PointParams::from_params(params))?;
+        let areas = sets.iter().map(MeshPoints::areas).collect();
+        let detail = DetailPreset::from_id(params.point_detail).ok_or_else(|| ParamError {
+            field: "point_detail",
+            value: params.point_detail.to_string(),
+            reason: "not a detail preset".into(),
+        })?;
+        Ok(Some(PointLod {
+            sets,
+            areas,
+            mode: params.point_select,
+            sizes: detail.sizes(),
+        }))
+    }
+
+    /// Records of every mesh (memory and counters).
+    pub fn records(&self) -> usize {
+        self.sets.iter().map(|s| s.records.len()).sum()
+    }
+
+    /// The records (area-order indices) one tree of `mesh` at view depth `depth` and scale
+    /// `scale` may draw, in the mode's order: its own range ([`interval_range`] or
+    /// [`cut_range`] with `[depth, depth]`, `[scale, scale]`), a superset of what the keep test
+    /// passes (exactly it under the interval rule).
+    pub fn tree_records(
+        &self,
+        mesh: u32,
+        depth: f32,
+        scale: f32,
+        k: [f32; 2],
+    ) -> impl Iterator<Item = u32> + '_ {
+        let set = &self.sets[mesh as usize];
+        let (area, cut): (std::ops::Range<u32>, &[u32]) =
+            if self.mode == PointSelect::Interval as u32 {
+                let [i0, i1] = interval_range(
+                    &self.areas[mesh as usize],
+                    [depth, depth],
+                    [scale, scale],
+                    k[0],
+                    k[1],
+                );
+                (i0..i1, &[])
+            } else {
+                let [i0, _] = cut_range(&set.cut_keys, [depth, depth], [scale, scale], k[1]);
+                (0..0, &set.cut_order[i0 as usize..])
+            };
+        area.chain(cut.iter().copied())
+    }
+}

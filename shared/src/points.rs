@@ -475,6 +475,48 @@ pub fn cut_keep(lower: f32, parent_area: f32, scale: f32, depth: f32, k_max: f32
     lower * s2 <= t && t < parent_area * s2
 }
 
+/// The per-depth² area factors `[k_min, k_max]` of a detail setting (`min_point`,
+/// `max_point`, [`area_per_depth2`]) for the metric constant `c`: what the draw compares with.
+pub fn point_thresholds(c: f64, sizes: &DetailSizes) -> [f32; 2] {
+    [
+        area_per_depth2(c, sizes.min_point),
+        area_per_depth2(c, sizes.max_point),
+    ]
+}
+
+/// Whether the draw keeps record `r` of a tree of scale `scale` whose centre lies at view depth
+/// `depth` under `mode` ([`PointSelect`] as `u32`; module docs): [`interval_keep`] or
+/// [`cut_keep`], a root's bound above every threshold tested by its [`NO_PARENT`] link (not by
+/// the overflow of [`ROOT_PARENT_AREA`]` · s²`, which WGSL need not give). The draw's one keep
+/// test, twinned by `point_keep` in `common.wgsl` (issue 33, C§4.6.3).
+pub fn point_keep(r: &PointRecord, mode: u32, scale: f32, depth: f32, k: [f32; 2]) -> bool {
+    if mode == PointSelect::Interval as u32 {
+        return interval_keep(r.area, scale, depth, k[0], k[1]);
+    }
+    if r.parent == NO_PARENT {
+        return r.lower * (scale * scale) <= depth * depth * k[1];
+    }
+    cut_keep(r.lower, r.parent_area, scale, depth, k[1])
+}
+
+/// The world-space centre of record position `pos` of a tree at `base` turned by the yaw of
+/// sine `sin` and cosine `cos` and scaled by `scale`: `base + Rz(yaw)·(scale·pos)`, the mesh
+/// vertex's transform (E§4.4).
+pub fn point_centre(base: [f32; 3], sin: f32, cos: f32, scale: f32, pos: [f32; 3]) -> [f32; 3] {
+    let p = [pos[0] * scale, pos[1] * scale, pos[2] * scale];
+    [
+        base[0] + (cos * p[0] - sin * p[1]),
+        base[1] + (sin * p[0] + cos * p[1]),
+        base[2] + p[2],
+    ]
+}
+
+/// Half the side of a record's square at scale `scale`: `√(A·s²) / 2` (the square covers the
+/// record's area, C§4.4.3's `D = √A`).
+pub fn point_half_side(area: f32, scale: f32) -> f32 {
+    (area * (scale * scale)).sqrt() * 0.5
+}
+
 /// The interval rule's range in area order for trees at depths `[lo, hi]` and scales
 /// `[s_min, s_max]` (module docs): conservative, by binary search on `areas` (ascending).
 pub fn interval_range(
