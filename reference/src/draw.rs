@@ -1289,8 +1289,11 @@ struct TreeTriangles<'a> {
     discarded: u64,
     /// Point records drawn so far (issue 33; 0 without the point LOD).
     points: u64,
-    /// The point LOD's `[k_min, k_max]` ([`forestlod_shared::points::point_thresholds`]).
+    /// The point LOD's `[k_min, k_max]` ([`forestlod_shared::points::point_thresholds`] of
+    /// `params.point_detail`).
     point_k: [f32; 2],
+    /// `params.point_select`.
+    point_mode: u32,
     /// The camera's frame: a point's square lies in its `right`, `up` plane.
     basis: forestlod_shared::CameraBasis,
 }
@@ -1325,12 +1328,14 @@ impl<'a> TreeTriangles<'a> {
             piece: Vec::new(),
             discarded: 0,
             points: 0,
-            point_k: res.points.map_or([0.0; 2], |p| {
-                forestlod_shared::points::point_thresholds(
-                    forestlod_shared::metric::metric_constant(camera, false),
-                    &p.sizes,
-                )
-            }),
+            point_k: forestlod_shared::points::DetailPreset::from_id(params.point_detail)
+                .map_or([0.0; 2], |d| {
+                    forestlod_shared::points::point_thresholds(
+                        forestlod_shared::metric::metric_constant(camera, false),
+                        &d.sizes(),
+                    )
+                }),
+            point_mode: params.point_select,
             basis: camera.basis(),
         }
     }
@@ -1372,7 +1377,7 @@ impl<'a> TreeTriangles<'a> {
         instance: u32,
         out: &mut Vec<Triangle<TREE_VARYINGS>>,
     ) -> Option<u64> {
-        use forestlod_shared::points::{point_centre, point_half_side, point_keep};
+        use forestlod_shared::points::{point_centre, point_half_side};
         let (res, uniform) = (self.res, &self.uniform);
         let tree = tree_stage(res, self.selection, uniform, c, instance)?;
         let t = &res.scene.instances[res.indirection[instance as usize] as usize];
@@ -1387,13 +1392,9 @@ impl<'a> TreeTriangles<'a> {
         let eye = Vec3::from(uniform.camera.eye);
         let forward = Vec3::from(uniform.select.forward);
         let (right, up) = (self.basis.right, self.basis.up);
-        let k = self.point_k;
         let mut kept = 0;
-        for i in points.tree_records(t.mesh, tree.depth, tree.scale, k) {
+        for i in kept_records(points, self.point_mode, &tree, t.mesh, self.point_k) {
             let r = &set.records[i as usize];
-            if !point_keep(r, points.mode, tree.scale, tree.depth, k) {
-                continue;
-            }
             kept += 1;
             let centre = Vec3::from(point_centre(
                 tree.base.to_array(),
@@ -1511,6 +1512,58 @@ impl<'a> TreeTriangles<'a> {
         }
         Some(0)
     }
+}
+
+/// The records (area-order indices) a staged tree of `mesh` draws under the point LOD, in draw
+/// order: those of its range ([`crate::points::PointLod::tree_records`]) that
+/// [`forestlod_shared::points::point_keep`] keeps at its centre depth and drawn scale.
+fn kept_records<'p>(
+    points: &'p crate::points::PointLod,
+    mode: u32,
+    tree: &TreeStage,
+    mesh: u32,
+    k: [f32; 2],
+) -> impl Iterator<Item = u32> + 'p {
+    let set = &points.sets[mesh as usize];
+    let (scale, depth) = (tree.scale, tree.depth);
+    points
+        .tree_records(mode, mesh, depth, scale, k)
+        .filter(move |&i| {
+            forestlod_shared::points::point_keep(&set.records[i as usize], mode, scale, depth, k)
+        })
+}
+
+/// What the point LOD draws in a frame (issue 33; empty without it): per instance of every point
+/// command, in draw order, the tree and the records it draws (area-order indices into its mesh's
+/// [`crate::points::PointLod::sets`]); trees the vertex stage discards are left out. The draw's
+/// own selection ([`TreeTriangles`]), exposed for the properties: their total is
+/// [`DrawnFrame::points_drawn`].
+pub fn drawn_point_records(
+    res: &DrawResources,
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+) -> Vec<(u32, Vec<u32>)> {
+    let source = TreeTriangles::new(res, selection, camera, params, None);
+    let Some(points) = res.points else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for (c, cmd) in selection.commands.iter().enumerate() {
+        if source.points_of(c as u32).is_none() {
+            continue;
+        }
+        for j in 0..cmd.instance_count {
+            let instance = cmd.first_instance + j;
+            if let Some(tree) = tree_stage(res, selection, &source.uniform, c as u32, instance) {
+                let t = res.indirection[instance as usize];
+                let mesh = res.scene.instances[t as usize].mesh;
+                let kept = kept_records(points, source.point_mode, &tree, mesh, source.point_k);
+                out.push((t, kept.collect()));
+            }
+        }
+    }
+    out
 }
 
 impl TriangleSource<TREE_VARYINGS> for TreeTriangles<'_> {

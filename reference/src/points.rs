@@ -13,7 +13,8 @@
 //!   conservative range by binary search), [`representation_counts`] (how often each placed
 //!   point is represented: interval mode's holes and doubles), [`mesh_change_distance`].
 //!
-//! Nothing here is drawn yet: the draw path and the WGSL twin come later (issue 33).
+//! - [`PointLod`]: what the draw reads under `lod1 = points` (`crate::draw` expands each kept
+//!   record to a square; the WGSL twin comes later).
 
 use forestlod_shared::ParamError;
 use forestlod_shared::color::{linear_to_srgb, srgb_to_linear, unorm8};
@@ -784,8 +785,9 @@ pub fn select_tree_lod(
 
 /// The point LOD a frame draws under `lod1 = points` (issue 33, `forestlod_shared::points`'s
 /// module docs, "the point command path"): every mesh's [`MeshPoints`], built once in
-/// `prepare`, with their areas (the interval rule's binary search) and the selection's rule and
-/// thresholds. The draw keeps a record with [`forestlod_shared::points::point_keep`] at the
+/// `prepare` (they depend on `point_count` and `alpha_cutoff` only), with their areas (the
+/// interval rule's binary search). The rule (`point_select`) and the thresholds
+/// (`point_detail`) are per frame, read from `Params` by the draw. The draw keeps a record with [`forestlod_shared::points::point_keep`] at the
 /// tree's own depth and scale; it visits the tree's own range ([`PointLod::tree_records`]), in
 /// the mode's order, which holds every record the keep test can pass.
 #[derive(Clone, Debug)]
@@ -794,10 +796,6 @@ pub struct PointLod {
     pub sets: Vec<MeshPoints>,
     /// Per mesh, its records' areas in area order.
     pub areas: Vec<Vec<f32>>,
-    /// [`PointSelect`] as `u32` (`Params::point_select`).
-    pub mode: u32,
-    /// The detail setting (`Params::point_detail`).
-    pub sizes: forestlod_shared::points::DetailSizes,
 }
 
 impl PointLod {
@@ -807,23 +805,12 @@ impl PointLod {
         meshes: &[TreeMesh],
         params: &forestlod_shared::Params,
     ) -> Result<Option<Self>, ParamError> {
-        use forestlod_shared::points::{DetailPreset, draws_points};
-        if !draws_points(params) {
+        if !forestlod_shared::points::draws_points(params) {
             return Ok(None);
         }
         let sets = build_points(meshes, &PointParams::from_params(params))?;
         let areas = sets.iter().map(MeshPoints::areas).collect();
-        let detail = DetailPreset::from_id(params.point_detail).ok_or_else(|| ParamError {
-            field: "point_detail",
-            value: params.point_detail.to_string(),
-            reason: "not a detail preset".into(),
-        })?;
-        Ok(Some(PointLod {
-            sets,
-            areas,
-            mode: params.point_select,
-            sizes: detail.sizes(),
-        }))
+        Ok(Some(PointLod { sets, areas }))
     }
 
     /// Records of every mesh (memory and counters).
@@ -832,11 +819,12 @@ impl PointLod {
     }
 
     /// The records (area-order indices) one tree of `mesh` at view depth `depth` and scale
-    /// `scale` may draw, in the mode's order: its own range ([`interval_range`] or
+    /// `scale` may draw under `mode` ([`PointSelect`] as `u32`), in the mode's order: its own range ([`interval_range`] or
     /// [`cut_range`] with `[depth, depth]`, `[scale, scale]`), a superset of what the keep test
     /// passes (exactly it under the interval rule).
     pub fn tree_records(
         &self,
+        mode: u32,
         mesh: u32,
         depth: f32,
         scale: f32,
@@ -844,7 +832,7 @@ impl PointLod {
     ) -> impl Iterator<Item = u32> + '_ {
         let set = &self.sets[mesh as usize];
         let (area, cut): (std::ops::Range<u32>, &[u32]) =
-            if self.mode == PointSelect::Interval as u32 {
+            if mode == PointSelect::Interval as u32 {
                 let [i0, i1] = interval_range(
                     &self.areas[mesh as usize],
                     [depth, depth],
