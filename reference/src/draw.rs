@@ -808,7 +808,7 @@ impl<'a> TreeShader<'a> {
                 .shading_mode()
                 .expect("parameters are validated before drawing"),
             octahedral_blend: params.octahedral_blend == AzimuthMode::Blend as u32,
-            points: res.points.is_some(),
+            points: res.points.is_some() && forestlod_shared::points::draws_points(params),
         }
     }
 
@@ -1294,6 +1294,8 @@ struct TreeTriangles<'a> {
     point_k: [f32; 2],
     /// `params.point_select`.
     point_mode: u32,
+    /// The point LOD when `params` draw points ([`forestlod_shared::points::draws_points`]).
+    points_lod: Option<&'a crate::points::PointLod>,
     /// The camera's frame: a point's square lies in its `right`, `up` plane.
     basis: forestlod_shared::CameraBasis,
 }
@@ -1336,6 +1338,9 @@ impl<'a> TreeTriangles<'a> {
                     )
                 }),
             point_mode: params.point_select,
+            points_lod: res
+                .points
+                .filter(|_| forestlod_shared::points::draws_points(params)),
             basis: camera.basis(),
         }
     }
@@ -1343,8 +1348,7 @@ impl<'a> TreeTriangles<'a> {
     /// The point LOD of command `c`, when it draws points (a LOD1 command under `lod1 = points`).
     fn points_of(&self, c: u32) -> Option<&'a crate::points::PointLod> {
         let data = &self.selection.data[c as usize];
-        self.res
-            .points
+        self.points_lod
             .filter(|_| data.billboard != 0 && data.lod != LOD_FAR)
     }
 
@@ -1545,7 +1549,7 @@ pub fn drawn_point_records(
     params: &Params,
 ) -> Vec<(u32, Vec<u32>)> {
     let source = TreeTriangles::new(res, selection, camera, params, None);
-    let Some(points) = res.points else {
+    let Some(points) = source.points_lod else {
         return Vec::new();
     };
     let mut out = Vec::new();

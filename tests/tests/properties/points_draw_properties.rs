@@ -140,9 +140,8 @@ proptest! {
 
 /// At a distance where every record of every tree is sub-pixel (each tree's root covers 0.7 px²
 /// at its centre's depth), cut mode draws each tree's roots only and every square writes at
-/// most one pixel: the points cover at most as many pixels as roots drawn. The billboards' pixels
-/// of the same frame are printed beside it (not asserted: a billboard's opaque texels need not
-/// cover the union of the squares). Deterministic (one forest: a prepare per case would be
+/// most one pixel: the points cover at most as many pixels as roots drawn, and (the sanity
+/// check) no more than the billboards of the same trees (printed beside it). Deterministic (one forest: a prepare per case would be
 /// slow): 40 trees spread across the view, each at its own depth.
 #[test]
 fn sub_pixel_points_cover_at_most_a_pixel_each() {
@@ -189,4 +188,5 @@ fn sub_pixel_points_cover_at_most_a_pixel_each() {
     );
     assert!(records.len() >= 30, "most trees are drawn ({})", records.len());
     assert!(frame.drawn.tree_stats.fragments_written <= frame.drawn.points_drawn);
+    assert!(pixels(&frame.drawn) <= pixels(&billboards.drawn), "sub-pixel points cover more than the billboards");
 }
