@@ -53,6 +53,13 @@
 //!   fragment keeps a pixel where `alpha / 255` exceeds the pixel's
 //!   [`forestlod_shared::dither_threshold`] (a screen door, no sorting) and writes the colour
 //!   opaque with [`LOD_ID_FAR`]. Far levels are unlit (baked unlit).
+//! - **Points** (issue 33, C§4.4, §4.6.3; `forestlod_shared::points`): under `lod1 = points` a
+//!   LOD1 command's tree is drawn as the records of its point hierarchy that
+//!   [`forestlod_shared::points::point_keep`] keeps at the tree's centre depth and drawn scale
+//!   (`point_select`, `point_detail`), each a camera-facing square of side `√(A·s²)` at the
+//!   tree's transform, two triangles, flat colour (the record's sRGB word in the first varying,
+//!   unlit, opaque), depth-tested, with the billboard's fade and LOD id ([`drawn_point_records`],
+//!   [`DrawnFrame::points_drawn`]).
 //! - A flat terrain-following ground grid is drawn first ([`terrain_triangles`]), opaque.
 
 use forestlod_shared::coverage;
@@ -1330,13 +1337,15 @@ impl<'a> TreeTriangles<'a> {
             piece: Vec::new(),
             discarded: 0,
             points: 0,
-            point_k: forestlod_shared::points::DetailPreset::from_id(params.point_detail)
-                .map_or([0.0; 2], |d| {
+            point_k: forestlod_shared::points::DetailPreset::from_id(params.point_detail).map_or(
+                [0.0; 2],
+                |d| {
                     forestlod_shared::points::point_thresholds(
                         forestlod_shared::metric::metric_constant(camera, false),
                         &d.sizes(),
                     )
-                }),
+                },
+            ),
             point_mode: params.point_select,
             points_lod: res
                 .points

@@ -831,20 +831,19 @@ impl PointLod {
         k: [f32; 2],
     ) -> impl Iterator<Item = u32> + '_ {
         let set = &self.sets[mesh as usize];
-        let (area, cut): (std::ops::Range<u32>, &[u32]) =
-            if mode == PointSelect::Interval as u32 {
-                let [i0, i1] = interval_range(
-                    &self.areas[mesh as usize],
-                    [depth, depth],
-                    [scale, scale],
-                    k[0],
-                    k[1],
-                );
-                (i0..i1, &[])
-            } else {
-                let [i0, _] = cut_range(&set.cut_keys, [depth, depth], [scale, scale], k[1]);
-                (0..0, &set.cut_order[i0 as usize..])
-            };
+        let (area, cut): (std::ops::Range<u32>, &[u32]) = if mode == PointSelect::Interval as u32 {
+            let [i0, i1] = interval_range(
+                &self.areas[mesh as usize],
+                [depth, depth],
+                [scale, scale],
+                k[0],
+                k[1],
+            );
+            (i0..i1, &[])
+        } else {
+            let [i0, _] = cut_range(&set.cut_keys, [depth, depth], [scale, scale], k[1]);
+            (0..0, &set.cut_order[i0 as usize..])
+        };
         area.chain(cut.iter().copied())
     }
 }

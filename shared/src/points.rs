@@ -67,7 +67,20 @@
 //!   the seed's pixels (its constant was 4x too large, `crate::metric`: pass `seed = true` to
 //!   [`crate::metric::metric_constant`] to reproduce its behaviour).
 //!
-//! ## The point command path (design; issue 33 item 1, not implemented yet)
+//! ## The point command path (issue 33 item 1: the reference draws it, the WGSL twin is next)
+//! What the reference does (`reference/src/draw.rs`, `reference/src/points.rs` `PointLod`):
+//! selection is unchanged (the LOD1 commands are the billboards' own, so coalescing, ordering,
+//! `refine`, occlusion and subsets apply as they are); under `lod1 = points` the draw expands
+//! each instance of a LOD1 command into the records of its tree's own range (in the mode's
+//! order) that [`point_keep`] keeps at the tree's centre depth and drawn scale, each a square of
+//! half side [`point_half_side`] about [`point_centre`] in the camera's `right`/`up` plane (so
+//! it projects to an axis-aligned square of exactly `A·s²·C/d²` pixels at its own depth), flat
+//! colour, depth-tested, fading like the billboard it replaces. The per-tree range visits
+//! exactly the kept records under the interval rule and the kept ones and their ancestors under
+//! the cut; the GPU design below replaces it with the batch's range and degenerate quads, which
+//! draws the same records in the same order (the keep test decides, not the range).
+//!
+//! The GPU design (the plan for the WGSL twin):
 //! Points cannot go through the mesh path: [`crate::emit_command`] encodes the command slot in
 //! `base_vertex = slot << COMMAND_SHIFT`, which leaves a draw `MAX_MESH_VERTICES` = 256 local
 //! vertices, and a point range is up to about `2·n_pts` records of 6 vertices each. The far

@@ -19,8 +19,8 @@ use std::borrow::Cow;
 use crate::azimuth::MAX_AZIMUTH_COUNT;
 use crate::far::MAX_CLUSTER_SIZE;
 use crate::octahedral::{MAX_OCTAHEDRAL_GRID, MIN_OCTAHEDRAL_GRID};
-use crate::points::{DetailPreset, Lod1, MAX_POINTS_PER_MESH, PointSelect};
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
+use crate::points::{DetailPreset, Lod1, MAX_POINTS_PER_MESH, PointSelect};
 use crate::{
     AngleIndexMode, AzimuthMode, Coalesce, CommandOrder, DitherSpace, FadeGranularity, FadeMode,
     FarLod, Hierarchy, LodMetric, MipMode, Occlusion, OcclusionOrder, OctahedralDepth, Params,

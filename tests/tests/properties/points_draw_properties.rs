@@ -17,10 +17,10 @@ use forestlod_reference::draw::{DrawnFrame, LOD_ID_BILLBOARD, drawn_point_record
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::points::representation_counts;
 use forestlod_reference::scene::Instance;
+use forestlod_reference::scene::Scene;
 use forestlod_shared::points::{DetailPreset, Lod1, NO_PARENT, PointSelect};
 use forestlod_shared::{Camera, FadeMode, Params};
 use forestlod_tests::{scene_of, with_threads};
-use forestlod_reference::scene::Scene;
 use proptest::prelude::*;
 
 /// `scene_of` over the five built-in species (the card trees of `scene_of` are solid squares).
@@ -56,10 +56,12 @@ fn forest() -> &'static Prepared {
     P.get_or_init(|| {
         let trees = (0..60u32)
             .map(|i| {
-                let h = |k: u32| forestlod_shared::points::point_hash(i, k, 33, 1) as f32 / u32::MAX as f32;
+                let h = |k: u32| {
+                    forestlod_shared::points::point_hash(i, k, 33, 1) as f32 / u32::MAX as f32
+                };
                 Instance {
                     position: [40.0 + 120.0 * h(1), 120.0 * h(2) - 60.0, 0.0],
-                    yaw: 6.28 * h(3),
+                    yaw: std::f32::consts::TAU * h(3),
                     scale: 0.5 + 1.5 * h(4),
                     mesh: i % 5,
                 }
@@ -71,17 +73,34 @@ fn forest() -> &'static Prepared {
 
 /// A camera west of the forest looking roughly east, 2..60 m up, 24..120 x 16..90 pixels.
 fn cameras() -> impl Strategy<Value = Camera> {
-    (-80.0f32..30.0, -40.0f32..40.0, 2.0f32..60.0, -30.0f32..30.0, -20.0f32..5.0, 24u32..120, 16u32..90)
+    (
+        -80.0f32..30.0,
+        -40.0f32..40.0,
+        2.0f32..60.0,
+        -30.0f32..30.0,
+        -20.0f32..5.0,
+        24u32..120,
+        16u32..90,
+    )
         .prop_map(|(x, y, z, yaw, pitch, w, h)| {
             let (yaw, pitch) = (yaw.to_radians(), pitch.to_radians());
-            let f = [yaw.cos() * pitch.cos(), yaw.sin() * pitch.cos(), pitch.sin()];
+            let f = [
+                yaw.cos() * pitch.cos(),
+                yaw.sin() * pitch.cos(),
+                pitch.sin(),
+            ];
             Camera::look_at([x, y, z], [x + f[0], y + f[1], z + f[2]], 60.0, w, h)
         })
 }
 
 /// Frame parameters: every fade mode and detail preset, transition 0..150 m, fade 0..60 m.
 fn frame_params(select: PointSelect) -> impl Strategy<Value = Params> {
-    (0usize..FadeMode::ALL.len(), 0usize..DetailPreset::ALL.len(), 0.0f32..150.0, 0.0f32..60.0)
+    (
+        0usize..FadeMode::ALL.len(),
+        0usize..DetailPreset::ALL.len(),
+        0.0f32..150.0,
+        0.0f32..60.0,
+    )
         .prop_map(move |(f, d, t, w)| Params {
             fade_mode: FadeMode::ALL[f] as u32,
             point_detail: DetailPreset::ALL[d] as u32,
@@ -92,8 +111,11 @@ fn frame_params(select: PointSelect) -> impl Strategy<Value = Params> {
         })
 }
 
+/// Colour, depth bits, ids, and the fragments, discarded trees and points counters of a frame.
+type Fingerprint = (Vec<[u8; 4]>, Vec<u32>, Vec<u32>, u64, u64, u64);
+
 /// Every buffer and counter of a drawn frame, for bitwise comparison.
-fn fingerprint(d: &DrawnFrame) -> (Vec<[u8; 4]>, Vec<u32>, Vec<u32>, u64, u64, u64) {
+fn fingerprint(d: &DrawnFrame) -> Fingerprint {
     (
         d.target.color().to_vec(),
         d.target.depth().iter().map(|x| x.to_bits()).collect(),
@@ -145,7 +167,11 @@ proptest! {
 /// slow): 40 trees spread across the view, each at its own depth.
 #[test]
 fn sub_pixel_points_cover_at_most_a_pixel_each() {
-    let params = Params { lod1_transition: 10.0, fade_width: 0.0, ..base() };
+    let params = Params {
+        lod1_transition: 10.0,
+        fade_width: 0.0,
+        ..base()
+    };
     let camera = Camera::look_at([0.0, 0.0, 2.0], [1.0, 0.0, 2.0], 60.0, 320, 180);
     let c = forestlod_shared::metric::metric_constant(&camera, false);
     // Each species' root area (one cell: one root), from a prepare of the species alone.
@@ -156,7 +182,11 @@ fn sub_pixel_points_cover_at_most_a_pixel_each() {
     .expect("valid point parameters");
     let root = |m: usize| {
         let set = &sets[m];
-        set.records.iter().filter(|r| r.parent == NO_PARENT).map(|r| r.area).fold(0.0f32, f32::max)
+        set.records
+            .iter()
+            .filter(|r| r.parent == NO_PARENT)
+            .map(|r| r.area)
+            .fold(0.0f32, f32::max)
     };
     let trees: Vec<Instance> = (0..40u32)
         .map(|i| {
@@ -164,7 +194,12 @@ fn sub_pixel_points_cover_at_most_a_pixel_each() {
             let scale = 0.6 + 0.02 * i as f32;
             let d = scale as f64 * (root(mesh as usize) as f64 * c / 0.7).sqrt();
             let lateral = (i as f32 / 39.0 - 0.5) * 0.9 * d as f32;
-            Instance { position: [d as f32, lateral, 0.0], yaw: i as f32, scale, mesh }
+            Instance {
+                position: [d as f32, lateral, 0.0],
+                yaw: i as f32,
+                scale,
+                mesh,
+            }
         })
         .collect();
     let prepared = prepare(species_scene(trees), &params).expect("a valid forest");
@@ -174,10 +209,28 @@ fn sub_pixel_points_cover_at_most_a_pixel_each() {
     let sets = &prepared.points.as_ref().unwrap().sets;
     for (tree, kept) in &records {
         let set = &sets[prepared.scene.instances[*tree as usize].mesh as usize];
-        assert!(kept.iter().all(|&i| set.records[i as usize].parent == NO_PARENT), "tree {tree} draws a non-root");
+        assert!(
+            kept.iter()
+                .all(|&i| set.records[i as usize].parent == NO_PARENT),
+            "tree {tree} draws a non-root"
+        );
     }
-    let pixels = |d: &DrawnFrame| d.target.aux().iter().filter(|&&id| id == LOD_ID_BILLBOARD).count() as u64;
-    let billboards = prepared.render(&camera, &Params { lod1: Lod1::Billboard as u32, ..params }).unwrap();
+    let pixels = |d: &DrawnFrame| {
+        d.target
+            .aux()
+            .iter()
+            .filter(|&&id| id == LOD_ID_BILLBOARD)
+            .count() as u64
+    };
+    let billboards = prepared
+        .render(
+            &camera,
+            &Params {
+                lod1: Lod1::Billboard as u32,
+                ..params
+            },
+        )
+        .unwrap();
     println!(
         "sub-pixel points: {} trees, {} points drawn, {} fragments written, {} pixels; billboards {} pixels",
         records.len(),
@@ -186,7 +239,14 @@ fn sub_pixel_points_cover_at_most_a_pixel_each() {
         pixels(&frame.drawn),
         pixels(&billboards.drawn),
     );
-    assert!(records.len() >= 30, "most trees are drawn ({})", records.len());
+    assert!(
+        records.len() >= 30,
+        "most trees are drawn ({})",
+        records.len()
+    );
     assert!(frame.drawn.tree_stats.fragments_written <= frame.drawn.points_drawn);
-    assert!(pixels(&frame.drawn) <= pixels(&billboards.drawn), "sub-pixel points cover more than the billboards");
+    assert!(
+        pixels(&frame.drawn) <= pixels(&billboards.drawn),
+        "sub-pixel points cover more than the billboards"
+    );
 }
