@@ -110,7 +110,10 @@
 //!
 //! In `Params` (issue 33 item 1, the draw): `lod1` ([`Lod1`]) selects points as the level past
 //! the mesh, `point_select`, `point_detail` ([`DetailPreset`]) and `point_count` (`N_pts`)
-//! configure it ([`PointParams::from_params`], [`draws_points`]).
+//! configure it ([`PointParams::from_params`], [`draws_points`]). They are checked by
+//! [`check_point_fields`], not yet rows of the parameter table (no CLI flag or sweep key): the
+//! stage table requires every row to be walked on both backends, and the GPU draw refuses
+//! `lod1 = points` until the WGSL twin below exists.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -270,6 +273,49 @@ impl PointParams {
             ..Self::default()
         }
     }
+}
+
+/// Checks the point LOD's fields of `params` (`lod1`, `point_select`, `point_detail`,
+/// `point_count`; [`crate::Params::validate`] calls it): a [`ParamError`] names the field and the
+/// value. They are not rows of `crate::registry::PARAMS` yet: a row is a CLI flag and sweep key,
+/// and the stage table requires every row to be walked on both backends, which needs the WGSL
+/// twin of the point draw.
+pub fn check_point_fields(params: &crate::Params) -> Result<(), ParamError> {
+    let err = |field: &'static str, value: u32, reason: String| ParamError {
+        field,
+        value: value.to_string(),
+        reason: reason.into(),
+    };
+    let names = |all: &[(&str, u32)]| {
+        let v: Vec<String> = all.iter().map(|(n, c)| format!("{c} ({n})")).collect();
+        format!("expected one of {}", v.join(", "))
+    };
+    if Lod1::from_id(params.lod1).is_none() {
+        let all: Vec<(&str, u32)> = Lod1::ALL.iter().map(|m| (m.name(), *m as u32)).collect();
+        return Err(err("lod1", params.lod1, names(&all)));
+    }
+    if PointSelect::from_id(params.point_select).is_none() {
+        let all: Vec<(&str, u32)> = PointSelect::ALL
+            .iter()
+            .map(|m| (m.name(), *m as u32))
+            .collect();
+        return Err(err("point_select", params.point_select, names(&all)));
+    }
+    if DetailPreset::from_id(params.point_detail).is_none() {
+        let all: Vec<(&str, u32)> = DetailPreset::ALL
+            .iter()
+            .map(|m| (m.name(), *m as u32))
+            .collect();
+        return Err(err("point_detail", params.point_detail, names(&all)));
+    }
+    if params.point_count == 0 || params.point_count > MAX_POINTS_PER_MESH {
+        return Err(err(
+            "point_count",
+            params.point_count,
+            "expected 1..=1048576 points per mesh".into(),
+        ));
+    }
+    Ok(())
 }
 
 /// Whether `params` draw points as the second level (`lod1 = points` with `lod_levels >= 2`).
@@ -840,6 +886,54 @@ mod tests {
             assert_eq!(p.validate().unwrap_err().field, field);
         }
         PointParams::default().validate().unwrap();
+    }
+
+    #[test]
+    fn bad_point_fields_of_params_name_the_field() {
+        let base = crate::Params::default();
+        let bad = [
+            (crate::Params { lod1: 2, ..base }, "lod1"),
+            (
+                crate::Params {
+                    point_select: 2,
+                    ..base
+                },
+                "point_select",
+            ),
+            (
+                crate::Params {
+                    point_detail: 5,
+                    ..base
+                },
+                "point_detail",
+            ),
+            (
+                crate::Params {
+                    point_count: 0,
+                    ..base
+                },
+                "point_count",
+            ),
+            (
+                crate::Params {
+                    lod1: Lod1::Points as u32,
+                    lod_levels: 3,
+                    far_start: 4000.0,
+                    ..base
+                },
+                "lod1",
+            ),
+        ];
+        for (p, field) in bad {
+            let e = p.validate().unwrap_err();
+            assert_eq!(e.field, field, "{e}");
+        }
+        crate::Params {
+            lod1: Lod1::Points as u32,
+            ..base
+        }
+        .validate()
+        .unwrap();
     }
 
     #[test]

@@ -178,6 +178,9 @@ impl Params {
                 });
             }
         }
+        // The point LOD's fields (issue 33): not registry rows yet (a row must be walked on both
+        // backends by `parity::every_stage`, and the GPU draw has no point path), so checked here.
+        crate::points::check_point_fields(self)?;
         // The point LOD (issue 33) replaces the billboard as the second level; the far level's
         // chain (mesh -> billboard -> far) is not defined over points.
         if self.lod1 == crate::points::Lod1::Points as u32 && self.lod_levels >= 3 {

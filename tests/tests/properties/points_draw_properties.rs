@@ -250,3 +250,34 @@ fn sub_pixel_points_cover_at_most_a_pixel_each() {
         "sub-pixel points cover more than the billboards"
     );
 }
+
+/// Not a property: points drawn and draw time of the default scene (`synthetic`) at the
+/// `medium` camera, 1280x720, points (cut, normal, 1024 per mesh) against billboards, on the
+/// reference. `cargo test --release -p forestlod-tests --test properties -- --ignored
+/// points_against_billboards --nocapture`.
+#[test]
+#[ignore]
+fn points_against_billboards_on_the_default_scene() {
+    let scene = forestlod_reference::scene::builtin::synthetic();
+    for lod1 in [Lod1::Billboard, Lod1::Points] {
+        let params = Params {
+            lod1: lod1 as u32,
+            ..Params::default()
+        };
+        let prepared = prepare(scene.clone(), &params).expect("prepare synthetic");
+        let camera =
+            forestlod_reference::cameras::named_camera("medium", &prepared.scene, 0.0, 1280, 720)
+                .expect("the medium camera");
+        let frame = prepared.render(&camera, &params).unwrap();
+        println!(
+            "{}: prepare points {:.2} s; select {:.3} s, draw {:.3} s; {} points, {} triangles, {} fragments written",
+            lod1.name(),
+            prepared.timings.points,
+            frame.timings.select,
+            frame.timings.draw,
+            frame.drawn.points_drawn,
+            frame.drawn.tree_stats.triangles_in,
+            frame.drawn.tree_stats.fragments_written,
+        );
+    }
+}
