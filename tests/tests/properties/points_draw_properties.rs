@@ -7,7 +7,8 @@
 //! - at a distance where every record is sub-pixel each tree draws its roots only, and each
 //!   square writes at most one pixel (so the points cover at most one pixel per root; the
 //!   billboards' coverage of the same trees is printed beside it);
-//! - the frame (colour, depth, ids, counters) is identical on 1 and 3 threads.
+//! - the frame (colour, depth, ids, counters) is identical on 1 and 3 threads;
+//! - the interval rule's holes and doubles per frame are printed (the cut's are asserted 0).
 //!
 //! 64 cases each (a case draws two or three small frames; 256 would take about a minute here).
 
@@ -157,6 +158,53 @@ proptest! {
         let one = with_threads(1, || prepared.render(&camera, &p).unwrap());
         let three = with_threads(3, || prepared.render(&camera, &p).unwrap());
         prop_assert!(fingerprint(&one.drawn) == fingerprint(&three.drawn), "frames differ between 1 and 3 threads");
+    }
+}
+
+/// The interval rule's holes and doubles in a frame (slip (c), reported, not asserted: the
+/// seed's rule is not a cut), beside the cut's (none), for the forest at one camera per
+/// detail preset.
+#[test]
+fn interval_frames_report_holes_and_doubles() {
+    use forestlod_reference::points::holes_and_doubles;
+    let prepared = forest();
+    let camera = Camera::look_at([-20.0, 0.0, 20.0], [100.0, 0.0, 0.0], 60.0, 96, 54);
+    let sets = &prepared.points.as_ref().unwrap().sets;
+    for detail in DetailPreset::ALL {
+        let mut line = format!("{}:", detail.name());
+        for select in PointSelect::ALL {
+            let p = Params {
+                point_select: select as u32,
+                point_detail: detail as u32,
+                lod1_transition: 0.0,
+                fade_width: 0.0,
+                ..base()
+            };
+            let frame = prepared.render(&camera, &p).unwrap();
+            let records = drawn_point_records(&prepared.resources(), &frame.selection, &camera, &p);
+            let (mut holes, mut doubles, mut placed) = (0, 0, 0);
+            for (tree, kept) in &records {
+                let set = &sets[prepared.scene.instances[*tree as usize].mesh as usize];
+                let (h, d) = holes_and_doubles(set, kept);
+                holes += h;
+                doubles += d;
+                placed += set.placed().count();
+            }
+            if select == PointSelect::Cut {
+                assert_eq!(
+                    (holes, doubles),
+                    (0, 0),
+                    "the cut has no hole and no double"
+                );
+            }
+            line += &format!(
+                " {} {} trees, {} points drawn, holes {holes} doubles {doubles} of {placed} placed;",
+                select.name(),
+                records.len(),
+                frame.drawn.points_drawn
+            );
+        }
+        println!("{line}");
     }
 }
 
