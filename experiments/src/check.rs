@@ -670,6 +670,7 @@ pub fn selection_scene(scene: Scene, params: &Params) -> Result<Prepared> {
         batches,
         hierarchy,
         far: None,
+        points: None,
         mesh_textures: Vec::new(),
         billboards,
         memory,

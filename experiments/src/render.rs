@@ -203,6 +203,7 @@ pub fn metrics(
         },
         "draw": {
             "trees_discarded_by_draw_distance": drawn.trees_discarded,
+            "points_drawn": drawn.points_drawn,
             "triangles": trees.triangles_in, "triangles_rasterized": trees.triangles_rasterized,
             "fragments_covered": trees.fragments_covered, "fragments_shaded": trees.fragments_shaded,
             "fragments_written": trees.fragments_written,
@@ -893,7 +894,7 @@ pub fn summary_text(m: &serde_json::Value) -> String {
     let text = format!(
         "forestlod reference render: scene {} ({} trees, {} batches), camera {} at {}x{}\n\
          selection: {} commands ({} LOD0, {} LOD1, {} far), {} batches in the fade band, {} culled by distance, {} by frustum\n\
-         draw: {} triangles, {} fragments written (overdraw {:.2}), {} trees beyond the draw distance\n\
+         draw: {} triangles, {} fragments written (overdraw {:.2}), {} trees beyond the draw distance, {} points\n\
          time: prepare {:.3} s (bake {:.3} s), select {:.4} s, draw {:.3} s\n\
          memory: {} bytes (E Eq. 4.1 gives {} bytes)\n",
         f("/scene"),
@@ -915,6 +916,7 @@ pub fn summary_text(m: &serde_json::Value) -> String {
         f("/draw/fragments_written"),
         f("/draw/overdraw").as_f64().unwrap_or(0.0),
         f("/draw/trees_discarded_by_draw_distance"),
+        f("/draw/points_drawn"),
         f("/times_seconds/prepare/bake").as_f64().unwrap_or(0.0)
             + f("/times_seconds/prepare/batches").as_f64().unwrap_or(0.0)
             + f("/times_seconds/prepare/mesh_mips")

@@ -129,6 +129,8 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("LOD_ID_FAR", s::LOD_ID_FAR),
         ("CUBE_VERTICES", s::CUBE_VERTICES),
         ("SPRITE_VERTICES", s::SPRITE_VERTICES),
+        // The point LOD (issue 33, shared/src/points.rs).
+        ("POINT_NO_PARENT", s::points::NO_PARENT),
     ]
     .into_iter()
     .map(|(n, v)| (n.to_string(), v))
@@ -152,6 +154,8 @@ pub fn shared_constants() -> Vec<(String, u32)> {
         ("OCCLUSION", s::Occlusion::choices()),
         ("VIEW_SPHERE", s::ViewSphere::choices()),
         ("FAR_LOD", s::FarLod::choices()),
+        ("LOD1", s::points::Lod1::choices()),
+        ("POINT_SELECT", s::points::PointSelect::choices()),
     ];
     for (prefix, choices) in modes {
         for (name, id) in choices {

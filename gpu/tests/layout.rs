@@ -9,6 +9,7 @@
 use forestlod_gpu::shaders::with_common;
 use forestlod_gpu::{CoalesceUniform, CullTree, HierUniform, SelectUniform};
 use forestlod_gpu::{coalesce, cull, hier_select, primitive, select};
+use forestlod_shared::points::PointRecord;
 use forestlod_shared::{
     BatchMeta, Camera, CommandData, DrawCommand, FarCell, FarNode, FarVertex, FrustumPlanes,
     MeshMeta, NodeMeta, ProxyRecord, SelectCounters,
@@ -95,6 +96,17 @@ fn rust_layouts() -> Vec<RustLayout> {
             scale
         }),
         rust_layout!(FrustumPlanes { planes }),
+        rust_layout!(PointRecord {
+            pos,
+            area,
+            lower,
+            parent_area,
+            normal,
+            rgba8,
+            parent,
+            leaves,
+            _pad
+        }),
         view_uniform_layout(),
         rust_layout!(SelectUniform {
             view,
@@ -138,7 +150,7 @@ fn wgsl_structs_match_their_rust_twins() {
             rust.size
         );
     }
-    assert_eq!(checked, 11);
+    assert_eq!(checked, 12);
 }
 
 /// `common.wgsl` with its generated constants and no stage validates.

@@ -283,6 +283,7 @@ pub fn render_vegetation_with_history(
                 mesh_textures: &prepared.mesh_textures,
                 billboards: &prepared.billboards,
                 far: None,
+                points: prepared.points.as_ref(),
                 lod_rule: crate::sampler::LodRule::Exact,
             };
             (draw_frame(&res, &selection, camera, params), None, 0.0)

@@ -53,6 +53,13 @@
 //!   fragment keeps a pixel where `alpha / 255` exceeds the pixel's
 //!   [`forestlod_shared::dither_threshold`] (a screen door, no sorting) and writes the colour
 //!   opaque with [`LOD_ID_FAR`]. Far levels are unlit (baked unlit).
+//! - **Points** (issue 33, C§4.4, §4.6.3; `forestlod_shared::points`): under `lod1 = points` a
+//!   LOD1 command's tree is drawn as the records of its point hierarchy that
+//!   [`forestlod_shared::points::point_keep`] keeps at the tree's centre depth and drawn scale
+//!   (`point_select`, `point_detail`), each a camera-facing square of side `√(A·s²)` at the
+//!   tree's transform, two triangles, flat colour (the record's sRGB word in the first varying,
+//!   unlit, opaque), depth-tested, with the billboard's fade and LOD id ([`drawn_point_records`],
+//!   [`DrawnFrame::points_drawn`]).
 //! - A flat terrain-following ground grid is drawn first ([`terrain_triangles`]), opaque.
 
 use forestlod_shared::coverage;
@@ -145,6 +152,9 @@ pub struct DrawResources<'a> {
     pub billboards: &'a BakedBillboards,
     /// The far level (issue 32) the far commands draw, under `lod_levels = 3`.
     pub far: Option<&'a FarLevel>,
+    /// The point LOD (issue 33) the LOD1 commands draw under `lod1 = points`; `None` draws
+    /// billboards.
+    pub points: Option<&'a crate::points::PointLod>,
     /// How the tree shader's implicit level of detail computes `ρ`: [`LodRule::Exact`] (the
     /// pipeline's); the others only for the reference frames that classify what a conforming
     /// adapter's other `λ` explains (`forestlod-harness`'s alternatives).
@@ -383,6 +393,7 @@ pub fn tree_stage(
         scale: tree.scale,
         fade_word,
         subset,
+        depth: d_tree,
         kind,
         light,
     })
@@ -522,6 +533,7 @@ fn far_stage(
         scale: 1.0,
         fade_word: 0.0,
         subset: 0.0,
+        depth: 0.0,
         kind,
         light: TreeLight {
             shading: Shading::Unlit as u32,
@@ -552,6 +564,9 @@ pub struct TreeStage {
     fade_word: f32,
     /// The subset word ([`TREE_VARYINGS`]) as an `f32`.
     subset: f32,
+    /// The view depth of the tree's bounding-sphere centre (0 for a far primitive): the depth
+    /// the point LOD's keep test reads (issue 33).
+    depth: f32,
     kind: TreeKind,
     light: TreeLight,
 }
@@ -769,6 +784,9 @@ pub struct TreeShader<'a> {
     shading: Shading,
     /// Whether octahedral impostors blend their three frames (issue 32).
     octahedral_blend: bool,
+    /// Whether LOD1 commands draw points (issue 33): their colour is the flat word of the
+    /// first varying, not a texel.
+    points: bool,
 }
 
 impl<'a> TreeShader<'a> {
@@ -797,6 +815,7 @@ impl<'a> TreeShader<'a> {
                 .shading_mode()
                 .expect("parameters are validated before drawing"),
             octahedral_blend: params.octahedral_blend == AzimuthMode::Blend as u32,
+            points: res.points.is_some() && forestlod_shared::points::draws_points(params),
         }
     }
 
@@ -960,7 +979,13 @@ impl PassShader<TREE_VARYINGS> for TreeShader<'_> {
         if data.lod == LOD_FAR {
             return self.far_fragment(f).map(|out| (out, passes));
         }
-        let texel = self.texel(f);
+        // A point's flat colour (issue 33): its sRGB RGB word, opaque, so every alpha test
+        // keeps it.
+        let texel = if self.points && data.billboard != 0 {
+            unpack_far_colour(round_exact(f.varyings[0]) as u32 | 0xff00_0000)
+        } else {
+            self.texel(f)
+        };
         // The alpha test, per pass.
         let mut kept: PassSet = 0;
         for (p, &cutoff) in self.alpha_cutoffs.iter().enumerate() {
@@ -1109,6 +1134,9 @@ pub struct DrawnFrame {
     pub tree_stats: DrawStats,
     /// Trees dropped by the per-tree draw-distance discard.
     pub trees_discarded: u64,
+    /// Point records drawn (issue 33, `lod1 = points`; 0 otherwise): each a square of two
+    /// triangles.
+    pub points_drawn: u64,
 }
 
 /// Assembles the tree triangles of every command in command order (the input assembly and vertex
@@ -1266,6 +1294,17 @@ struct TreeTriangles<'a> {
     piece: Vec<Triangle<TREE_VARYINGS>>,
     /// Trees discarded by the vertex stage so far.
     discarded: u64,
+    /// Point records drawn so far (issue 33; 0 without the point LOD).
+    points: u64,
+    /// The point LOD's `[k_min, k_max]` ([`forestlod_shared::points::point_thresholds`] of
+    /// `params.point_detail`).
+    point_k: [f32; 2],
+    /// `params.point_select`.
+    point_mode: u32,
+    /// The point LOD when `params` draw points ([`forestlod_shared::points::draws_points`]).
+    points_lod: Option<&'a crate::points::PointLod>,
+    /// The camera's frame: a point's square lies in its `right`, `up` plane.
+    basis: forestlod_shared::CameraBasis,
 }
 
 impl<'a> TreeTriangles<'a> {
@@ -1297,7 +1336,111 @@ impl<'a> TreeTriangles<'a> {
             next: (0, 0),
             piece: Vec::new(),
             discarded: 0,
+            points: 0,
+            point_k: forestlod_shared::points::DetailPreset::from_id(params.point_detail).map_or(
+                [0.0; 2],
+                |d| {
+                    forestlod_shared::points::point_thresholds(
+                        forestlod_shared::metric::metric_constant(camera, false),
+                        &d.sizes(),
+                    )
+                },
+            ),
+            point_mode: params.point_select,
+            points_lod: res
+                .points
+                .filter(|_| forestlod_shared::points::draws_points(params)),
+            basis: camera.basis(),
         }
+    }
+
+    /// The point LOD of command `c`, when it draws points (a LOD1 command under `lod1 = points`).
+    fn points_of(&self, c: u32) -> Option<&'a crate::points::PointLod> {
+        let data = &self.selection.data[c as usize];
+        self.points_lod
+            .filter(|_| data.billboard != 0 && data.lod != LOD_FAR)
+    }
+
+    /// Upper bound of the triangles one instance of command `c` gives: its index count's, or
+    /// under the point LOD two per record of its mesh.
+    fn instance_triangles(&self, c: usize) -> usize {
+        match self.points_of(c as u32) {
+            Some(p) => {
+                let mesh = self.selection.data[c].mesh as usize;
+                2 * p.sets.get(mesh).map_or(0, |s| s.records.len())
+            }
+            None => self.selection.commands[c].index_count as usize / 3,
+        }
+    }
+
+    /// [`Self::shade_instance`] for a point command (issue 33, `forestlod_shared::points`'s
+    /// module docs): the tree's share of the vertex stage ([`tree_stage`]: the draw distance,
+    /// the subset, the fade word), then per record of its range that
+    /// [`forestlod_shared::points::point_keep`] keeps at the tree's centre depth and drawn scale,
+    /// a square of half side [`forestlod_shared::points::point_half_side`] in the camera's
+    /// `right`, `up` plane about [`forestlod_shared::points::point_centre`]: six vertices
+    /// ([`sprite_corner`]), two triangles, its colour word (sRGB RGB, 24 bits, exact in an
+    /// `f32`) in the first varying, lightness 1 (unlit), the per-vertex depth clamped to the
+    /// tree's sphere interval as a billboard's. `None` when the tree is discarded, else the
+    /// records drawn.
+    fn shade_points(
+        &self,
+        points: &crate::points::PointLod,
+        c: u32,
+        instance: u32,
+        out: &mut Vec<Triangle<TREE_VARYINGS>>,
+    ) -> Option<u64> {
+        use forestlod_shared::points::{point_centre, point_half_side};
+        let (res, uniform) = (self.res, &self.uniform);
+        let tree = tree_stage(res, self.selection, uniform, c, instance)?;
+        let t = &res.scene.instances[res.indirection[instance as usize] as usize];
+        let set = &points.sets[t.mesh as usize];
+        let (sin, cos) = t.yaw.sin_cos();
+        let (depth_lo, depth_hi) = match tree.kind {
+            TreeKind::Billboard {
+                depth_lo, depth_hi, ..
+            } => (depth_lo, depth_hi),
+            _ => (f32::NEG_INFINITY, f32::INFINITY),
+        };
+        let eye = Vec3::from(uniform.camera.eye);
+        let forward = Vec3::from(uniform.select.forward);
+        let (right, up) = (self.basis.right, self.basis.up);
+        let mut kept = 0;
+        for i in kept_records(points, self.point_mode, &tree, t.mesh, self.point_k) {
+            let r = &set.records[i as usize];
+            kept += 1;
+            let centre = Vec3::from(point_centre(
+                tree.base.to_array(),
+                sin,
+                cos,
+                tree.scale,
+                r.pos,
+            ));
+            let half = point_half_side(r.area, tree.scale);
+            let word = (r.rgba8 & 0x00ff_ffff) as f32;
+            let v: [Vertex<TREE_VARYINGS>; 6] = core::array::from_fn(|local| {
+                let q = sprite_corner(local as u32);
+                let world = centre + right * (q[0] * half) + up * (q[1] * half);
+                let depth = (world - eye).dot(forward).max(depth_lo).min(depth_hi);
+                let clip = uniform.view_proj * Vec4::new(world.x, world.y, world.z, 1.0);
+                Vertex::new(
+                    clip.to_array(),
+                    [
+                        word,
+                        0.0,
+                        depth,
+                        0.0,
+                        c as f32,
+                        tree.fade_word,
+                        tree.subset,
+                        1.0,
+                    ],
+                )
+            });
+            out.push([v[0], v[1], v[2]]);
+            out.push([v[3], v[4], v[5]]);
+        }
+        Some(kept)
     }
 
     /// Appends the triangles of `instance` of command `c` to `out` (those meeting the mask,
@@ -1313,7 +1456,12 @@ impl<'a> TreeTriangles<'a> {
         c: u32,
         instance: u32,
         out: &mut Vec<Triangle<TREE_VARYINGS>>,
-    ) -> bool {
+    ) -> Option<u64> {
+        // A point command's trees are not culled by the mask: a record's square may reach past
+        // the billboard's footprint.
+        if let Some(points) = self.points_of(c) {
+            return self.shade_points(points, c, instance, out);
+        }
         let (res, camera, uniform) = (self.res, self.camera, &self.uniform);
         let cmd = &self.selection.commands[c as usize];
         let indices = &res.geometry.indices
@@ -1335,7 +1483,7 @@ impl<'a> TreeTriangles<'a> {
                     camera.height,
                 )
             {
-                return true;
+                return Some(0);
             }
         }
         let (lo, hi) = self.index_ranges[c as usize];
@@ -1361,7 +1509,7 @@ impl<'a> TreeTriangles<'a> {
                         }
                         let Some(tree) = &tree else {
                             out.truncate(start);
-                            return false;
+                            return None;
                         };
                         let v = tree.vertex(res, uniform, local);
                         *slot = Some(v);
@@ -1375,8 +1523,60 @@ impl<'a> TreeTriangles<'a> {
                 out.push(tri);
             }
         }
-        true
+        Some(0)
     }
+}
+
+/// The records (area-order indices) a staged tree of `mesh` draws under the point LOD, in draw
+/// order: those of its range ([`crate::points::PointLod::tree_records`]) that
+/// [`forestlod_shared::points::point_keep`] keeps at its centre depth and drawn scale.
+fn kept_records<'p>(
+    points: &'p crate::points::PointLod,
+    mode: u32,
+    tree: &TreeStage,
+    mesh: u32,
+    k: [f32; 2],
+) -> impl Iterator<Item = u32> + 'p {
+    let set = &points.sets[mesh as usize];
+    let (scale, depth) = (tree.scale, tree.depth);
+    points
+        .tree_records(mode, mesh, depth, scale, k)
+        .filter(move |&i| {
+            forestlod_shared::points::point_keep(&set.records[i as usize], mode, scale, depth, k)
+        })
+}
+
+/// What the point LOD draws in a frame (issue 33; empty without it): per instance of every point
+/// command, in draw order, the tree and the records it draws (area-order indices into its mesh's
+/// [`crate::points::PointLod::sets`]); trees the vertex stage discards are left out. The draw's
+/// own selection ([`TreeTriangles`]), exposed for the properties: their total is
+/// [`DrawnFrame::points_drawn`].
+pub fn drawn_point_records(
+    res: &DrawResources,
+    selection: &Selection,
+    camera: &Camera,
+    params: &Params,
+) -> Vec<(u32, Vec<u32>)> {
+    let source = TreeTriangles::new(res, selection, camera, params, None);
+    let Some(points) = source.points_lod else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for (c, cmd) in selection.commands.iter().enumerate() {
+        if source.points_of(c as u32).is_none() {
+            continue;
+        }
+        for j in 0..cmd.instance_count {
+            let instance = cmd.first_instance + j;
+            if let Some(tree) = tree_stage(res, selection, &source.uniform, c as u32, instance) {
+                let t = res.indirection[instance as usize];
+                let mesh = res.scene.instances[t as usize].mesh;
+                let kept = kept_records(points, source.point_mode, &tree, mesh, source.point_k);
+                out.push((t, kept.collect()));
+            }
+        }
+    }
+    out
 }
 
 impl TriangleSource<TREE_VARYINGS> for TreeTriangles<'_> {
@@ -1392,7 +1592,7 @@ impl TriangleSource<TREE_VARYINGS> for TreeTriangles<'_> {
                 self.next = (self.next.0 + 1, 0);
                 continue;
             }
-            let tris = cmd.index_count as usize / 3;
+            let tris = self.instance_triangles(self.next.0);
             if !trees.is_empty() && piece_bound + tris > SETUP_CHUNK {
                 break;
             }
@@ -1410,23 +1610,25 @@ impl TriangleSource<TREE_VARYINGS> for TreeTriangles<'_> {
             return None;
         }
         let this = &*self;
-        let shaded: Vec<(Vec<Triangle<TREE_VARYINGS>>, u64)> = items
+        let shaded: Vec<(Vec<Triangle<TREE_VARYINGS>>, u64, u64)> = items
             .par_iter()
             .map_init(Vec::new, |cache, item| {
                 let mut out = Vec::new();
-                let mut discarded = 0;
+                let (mut discarded, mut points) = (0, 0);
                 for &(c, instance) in &trees[item.clone()] {
-                    if !this.shade_instance(cache, c, instance, &mut out) {
-                        discarded += 1;
+                    match this.shade_instance(cache, c, instance, &mut out) {
+                        Some(n) => points += n,
+                        None => discarded += 1,
                     }
                 }
-                (out, discarded)
+                (out, discarded, points)
             })
             .collect();
         self.piece.clear();
-        for (tris, discarded) in shaded {
+        for (tris, discarded, points) in shaded {
             self.piece.extend_from_slice(&tris);
             self.discarded += discarded;
+            self.points += points;
         }
         Some(&self.piece)
     }
@@ -1518,7 +1720,7 @@ fn draw_frame_with(
     let mut targets: Vec<&mut RenderTarget> =
         grounds.iter_mut().map(|(target, _)| target).collect();
     let stats = draw_passes_streamed(&mut targets, &shader, &mut source, &state);
-    let trees_discarded = source.discarded;
+    let (trees_discarded, points_drawn) = (source.discarded, source.points);
     grounds
         .into_iter()
         .zip(stats)
@@ -1527,6 +1729,7 @@ fn draw_frame_with(
             terrain_stats,
             tree_stats,
             trees_discarded,
+            points_drawn,
         })
         .collect()
 }
@@ -1534,14 +1737,14 @@ fn draw_frame_with(
 /// Draws every command of `selection` into `target`, which already holds what was drawn before
 /// (no sky or ground; one cutoff, no mask): the two passes of a frame with occlusion culling
 /// (issue 31, `forestlod_shared::occlusion`), whose tree draws are [`draw_frame`]'s split in two.
-/// Returns the tree counters and the trees the draw distance discarded. `params` must be valid.
+/// Returns the tree counters, the trees the draw distance discarded and the point records drawn. `params` must be valid.
 pub fn draw_trees_into(
     res: &DrawResources,
     selection: &Selection,
     camera: &Camera,
     params: &Params,
     target: &mut RenderTarget,
-) -> (DrawStats, u64) {
+) -> (DrawStats, u64, u64) {
     let mut source = TreeTriangles::new(res, selection, camera, params, None);
     let cutoffs = [params.alpha_cutoff];
     let shader = TreeShader::new(res, selection, camera, params, &cutoffs, 1.0);
@@ -1550,7 +1753,7 @@ pub fn draw_trees_into(
         ..DrawState::TRANSPARENT
     };
     let stats = draw_passes_streamed(&mut [target], &shader, &mut source, &state);
-    (stats[0], source.discarded)
+    (stats[0], source.discarded, source.points)
 }
 
 /// A `camera`-sized target cleared to the sky (colour [`SKY_SRGB`], depth 1, id

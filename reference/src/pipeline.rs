@@ -42,6 +42,8 @@ pub struct PrepareTimings {
     pub bake: f64,
     /// The far level's bake (issue 32; 0 without one).
     pub far_bake: f64,
+    /// The point LOD's placement and hierarchies (issue 33; 0 without one).
+    pub points: f64,
 }
 
 /// Everything the per-frame path reads, built once per scene and parameters.
@@ -58,6 +60,8 @@ pub struct Prepared {
     pub hierarchy: Option<Hierarchy>,
     /// The hierarchy's far level (issue 32, `forestlod_shared::far`) under `lod_levels = 3`.
     pub far: Option<forestlod_shared::FarLevel>,
+    /// The point LOD (issue 33) under `lod1 = points`: every mesh's point hierarchy.
+    pub points: Option<crate::points::PointLod>,
     /// Mesh textures with mips.
     pub mesh_textures: Vec<Texture>,
     /// The billboard array texture.
@@ -186,6 +190,10 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
         }
     };
     timings.far_bake = t.elapsed().as_secs_f64();
+    // The point LOD (issue 33): every mesh's points, once.
+    let t = Instant::now();
+    let points = crate::points::PointLod::build(&scene.meshes, params)?;
+    timings.points = t.elapsed().as_secs_f64();
     let mut memory = scene_memory(&scene, &batches, hierarchy.as_ref(), params);
     if let Some(f) = &far {
         memory.far_level = f.bytes();
@@ -222,6 +230,7 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
         batches,
         hierarchy,
         far,
+        points,
         mesh_textures: textures,
         billboards,
         memory,
@@ -327,6 +336,7 @@ impl Prepared {
             mesh_textures: &self.mesh_textures,
             billboards: &self.billboards,
             far: self.far.as_ref(),
+            points: self.points.as_ref(),
             lod_rule: crate::sampler::LodRule::Exact,
         }
     }
@@ -461,7 +471,7 @@ impl Prepared {
         let exact = forestlod_shared::final_includes_early(params.occlusion_order);
         let (ground, terrain_stats) = sky_and_ground(&self.scene, camera);
         let mut early_target = if exact { ground.clone() } else { ground };
-        let (early_stats, early_discarded) = {
+        let (early_stats, early_discarded, early_points) = {
             let res = DrawResources {
                 indirection: &occ_indirection,
                 ..self.resources()
@@ -487,7 +497,7 @@ impl Prepared {
         } else {
             early_target
         };
-        let (late_stats, late_discarded) = {
+        let (late_stats, late_discarded, late_points) = {
             let res = DrawResources {
                 indirection: &occ_indirection,
                 ..self.resources()
@@ -502,6 +512,11 @@ impl Prepared {
                 late_discarded
             } else {
                 early_discarded + late_discarded
+            },
+            points_drawn: if exact {
+                late_points
+            } else {
+                early_points + late_points
             },
         };
         let occ = OcclusionFrame {

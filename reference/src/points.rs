@@ -13,7 +13,8 @@
 //!   conservative range by binary search), [`representation_counts`] (how often each placed
 //!   point is represented: interval mode's holes and doubles), [`mesh_change_distance`].
 //!
-//! Nothing here is drawn yet: the draw path and the WGSL twin come later (issue 33).
+//! - [`PointLod`]: what the draw reads under `lod1 = points` (`crate::draw` expands each kept
+//!   record to a square; the WGSL twin comes later).
 
 use forestlod_shared::ParamError;
 use forestlod_shared::color::{linear_to_srgb, srgb_to_linear, unorm8};
@@ -662,7 +663,7 @@ pub fn select_tree(
 }
 
 /// A batch's conservative range (trees at depths `[lo, hi]`, scales `[s_min, s_max]`), in the
-/// mode's order (area order for interval, cut order for cut), by binary search.
+/// mode's order (area order under the interval rule, cut order under the cut), by binary search.
 pub fn batch_range(
     set: &MeshPoints,
     mode: PointSelect,
@@ -779,5 +780,70 @@ pub fn select_tree_lod(
                 PointThresholds::new(c, sizes.min_point, sizes.max_point),
             ),
         },
+    }
+}
+
+/// The point LOD a frame draws under `lod1 = points` (issue 33, `forestlod_shared::points`'s
+/// module docs, "the point command path"): every mesh's [`MeshPoints`], built once in
+/// `prepare` (they depend on `point_count` and `alpha_cutoff` only), with their areas (the
+/// interval rule's binary search). The rule (`point_select`) and the thresholds
+/// (`point_detail`) are per frame, read from `Params` by the draw. The draw keeps a record with [`forestlod_shared::points::point_keep`] at the
+/// tree's own depth and scale; it visits the tree's own range ([`PointLod::tree_records`]), in
+/// the mode's order, which holds every record the keep test can pass.
+#[derive(Clone, Debug)]
+pub struct PointLod {
+    /// Per mesh, its point hierarchy (cell level; the whole-tree node is built but not drawn).
+    pub sets: Vec<MeshPoints>,
+    /// Per mesh, its records' areas in area order.
+    pub areas: Vec<Vec<f32>>,
+}
+
+impl PointLod {
+    /// The point LOD of `meshes` under `params`, `None` unless `params` draw points
+    /// ([`forestlod_shared::points::draws_points`]). `params` must be valid.
+    pub fn build(
+        meshes: &[TreeMesh],
+        params: &forestlod_shared::Params,
+    ) -> Result<Option<Self>, ParamError> {
+        if !forestlod_shared::points::draws_points(params) {
+            return Ok(None);
+        }
+        let sets = build_points(meshes, &PointParams::from_params(params))?;
+        let areas = sets.iter().map(MeshPoints::areas).collect();
+        Ok(Some(PointLod { sets, areas }))
+    }
+
+    /// Records of every mesh (memory and counters).
+    pub fn records(&self) -> usize {
+        self.sets.iter().map(|s| s.records.len()).sum()
+    }
+
+    /// The records (area-order indices) one tree of `mesh` at view depth `depth` and scale
+    /// `scale` may draw under `mode` ([`PointSelect`] as `u32`), in the mode's order: its own range ([`interval_range`] or
+    /// [`cut_range`] with `[depth, depth]`, `[scale, scale]`), a superset of what the keep test
+    /// passes (exactly it under the interval rule).
+    pub fn tree_records(
+        &self,
+        mode: u32,
+        mesh: u32,
+        depth: f32,
+        scale: f32,
+        k: [f32; 2],
+    ) -> impl Iterator<Item = u32> + '_ {
+        let set = &self.sets[mesh as usize];
+        let (area, cut): (std::ops::Range<u32>, &[u32]) = if mode == PointSelect::Interval as u32 {
+            let [i0, i1] = interval_range(
+                &self.areas[mesh as usize],
+                [depth, depth],
+                [scale, scale],
+                k[0],
+                k[1],
+            );
+            (i0..i1, &[])
+        } else {
+            let [i0, _] = cut_range(&set.cut_keys, [depth, depth], [scale, scale], k[1]);
+            (0..0, &set.cut_order[i0 as usize..])
+        };
+        area.chain(cut.iter().copied())
     }
 }

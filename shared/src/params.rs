@@ -274,8 +274,21 @@ pub struct Params {
     /// layer per frame and the blend re-projects the nearest frame's surface point (`on`) or its
     /// plane (`off`, default). Read only under octahedral views with the blend.
     pub octahedral_depth: u32,
+    /// [`crate::points::Lod1`] as `u32` (issue 33, C§4.4, `shared/src/points.rs`): what stands
+    /// for a tree past the mesh level, the thesis's billboard (default) or Celba's points.
+    pub lod1: u32,
+    /// [`crate::points::PointSelect`] as `u32` (issue 33, C§4.6.3): which records of a tree's
+    /// point hierarchy are drawn. Default `cut` (each placed point exactly once). Read only under
+    /// `lod1 = points`.
+    pub point_select: u32,
+    /// [`crate::points::DetailPreset`] as `u32` (issue 33, C Table 5.2): the screen areas the
+    /// point selection compares with. Default `normal`. Read only under `lod1 = points`.
+    pub point_detail: u32,
+    /// Points placed per mesh (`N_pts`, issue 33, C§4.4.4's fix). Default 1024. Read only under
+    /// `lod1 = points`.
+    pub point_count: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 176);
+const _: () = assert!(core::mem::size_of::<Params>() == 192);
 
 impl Default for Params {
     fn default() -> Self {
@@ -324,6 +337,10 @@ impl Default for Params {
             cluster_size: 1,
             parent_rule: crate::ParentRule::Average as u32,
             octahedral_depth: crate::OctahedralDepth::Off as u32,
+            lod1: crate::points::Lod1::Billboard as u32,
+            point_select: crate::points::PointSelect::Cut as u32,
+            point_detail: crate::points::DetailPreset::Normal as u32,
+            point_count: 1024,
         }
     }
 }

@@ -67,7 +67,20 @@
 //!   the seed's pixels (its constant was 4x too large, `crate::metric`: pass `seed = true` to
 //!   [`crate::metric::metric_constant`] to reproduce its behaviour).
 //!
-//! ## The point command path (design; issue 33 item 1, not implemented yet)
+//! ## The point command path (issue 33 item 1: the reference draws it, the WGSL twin is next)
+//! What the reference does (`reference/src/draw.rs`, `reference/src/points.rs` `PointLod`):
+//! selection is unchanged (the LOD1 commands are the billboards' own, so coalescing, ordering,
+//! `refine`, occlusion and subsets apply as they are); under `lod1 = points` the draw expands
+//! each instance of a LOD1 command into the records of its tree's own range (in the mode's
+//! order) that [`point_keep`] keeps at the tree's centre depth and drawn scale, each a square of
+//! half side [`point_half_side`] about [`point_centre`] in the camera's `right`/`up` plane (so
+//! it projects to an axis-aligned square of exactly `A·s²·C/d²` pixels at its own depth), flat
+//! colour, depth-tested, fading like the billboard it replaces. The per-tree range visits
+//! exactly the kept records under the interval rule and the kept ones and their ancestors under
+//! the cut; the GPU design below replaces it with the batch's range and degenerate quads, which
+//! draws the same records in the same order (the keep test decides, not the range).
+//!
+//! The GPU design (the plan for the WGSL twin):
 //! Points cannot go through the mesh path: [`crate::emit_command`] encodes the command slot in
 //! `base_vertex = slot << COMMAND_SHIFT`, which leaves a draw `MAX_MESH_VERTICES` = 256 local
 //! vertices, and a point range is up to about `2·n_pts` records of 6 vertices each. The far
@@ -95,11 +108,26 @@
 //! ranges keep them few (one tree's interval range is exactly what it draws, a cut range holds
 //! its drawn records and their ancestors only).
 //!
-//! Everything here is CPU-side preprocessing or a scalar formula; nothing is in `Params` yet.
+//! In `Params` (issue 33 item 1, the draw): `lod1` ([`Lod1`]) selects points as the level past
+//! the mesh, `point_select`, `point_detail` ([`DetailPreset`]) and `point_count` (`N_pts`)
+//! configure it ([`PointParams::from_params`], [`draws_points`]). They are checked by
+//! [`check_point_fields`], not yet rows of the parameter table (no CLI flag or sweep key): the
+//! stage table requires every row to be walked on both backends, and the GPU draw refuses
+//! `lod1 = points` until the WGSL twin below exists.
 
 use bytemuck::{Pod, Zeroable};
 
 use crate::ParamError;
+
+crate::modes::modes! {
+    /// What stands for a tree past the mesh level (`Params::lod1`, issue 33).
+    pub enum Lod1 {
+        /// The thesis's billboard (E§3.3).
+        Billboard = 0 => "billboard" ("E§3.3"),
+        /// Celba's point hierarchy, drawn as camera-facing squares (C§4.4, §4.6.3).
+        Points = 1 => "points" ("C§4.4"),
+    }
+}
 
 crate::modes::modes! {
     /// How a merged point's area is computed from the squares below it (module docs).
@@ -233,6 +261,66 @@ pub struct PointParams {
     /// `TriangleCutOffToleration` (fraction in `[0, 1]`): the biggest triangles that may vanish
     /// at the change distance. 0: none (safe).
     pub triangle_cutoff: f32,
+}
+
+impl PointParams {
+    /// The build settings of the point LOD drawn under `params` (issue 33): `point_count`
+    /// points per mesh, placed under the draw's `alpha_cutoff`; the rest the defaults.
+    pub fn from_params(params: &crate::Params) -> Self {
+        Self {
+            n_pts: params.point_count,
+            alpha_cutoff: params.alpha_cutoff.max(f32::MIN_POSITIVE),
+            ..Self::default()
+        }
+    }
+}
+
+/// Checks the point LOD's fields of `params` (`lod1`, `point_select`, `point_detail`,
+/// `point_count`; [`crate::Params::validate`] calls it): a [`ParamError`] names the field and the
+/// value. They are not rows of `crate::registry::PARAMS` yet: a row is a CLI flag and sweep key,
+/// and the stage table requires every row to be walked on both backends, which needs the WGSL
+/// twin of the point draw.
+pub fn check_point_fields(params: &crate::Params) -> Result<(), ParamError> {
+    let err = |field: &'static str, value: u32, reason: String| ParamError {
+        field,
+        value: value.to_string(),
+        reason: reason.into(),
+    };
+    let names = |all: &[(&str, u32)]| {
+        let v: Vec<String> = all.iter().map(|(n, c)| format!("{c} ({n})")).collect();
+        format!("expected one of {}", v.join(", "))
+    };
+    if Lod1::from_id(params.lod1).is_none() {
+        let all: Vec<(&str, u32)> = Lod1::ALL.iter().map(|m| (m.name(), *m as u32)).collect();
+        return Err(err("lod1", params.lod1, names(&all)));
+    }
+    if PointSelect::from_id(params.point_select).is_none() {
+        let all: Vec<(&str, u32)> = PointSelect::ALL
+            .iter()
+            .map(|m| (m.name(), *m as u32))
+            .collect();
+        return Err(err("point_select", params.point_select, names(&all)));
+    }
+    if DetailPreset::from_id(params.point_detail).is_none() {
+        let all: Vec<(&str, u32)> = DetailPreset::ALL
+            .iter()
+            .map(|m| (m.name(), *m as u32))
+            .collect();
+        return Err(err("point_detail", params.point_detail, names(&all)));
+    }
+    if params.point_count == 0 || params.point_count > MAX_POINTS_PER_MESH {
+        return Err(err(
+            "point_count",
+            params.point_count,
+            "expected 1..=1048576 points per mesh".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Whether `params` draw points as the second level (`lod1 = points` with `lod_levels >= 2`).
+pub fn draws_points(params: &crate::Params) -> bool {
+    params.lod1 == Lod1::Points as u32 && params.lod_levels >= 2
 }
 
 /// The seed's default grid (C§4.4.3, 4x4x4).
@@ -444,6 +532,48 @@ pub fn cut_keep(lower: f32, parent_area: f32, scale: f32, depth: f32, k_max: f32
     let s2 = scale * scale;
     let t = depth * depth * k_max;
     lower * s2 <= t && t < parent_area * s2
+}
+
+/// The per-depth² area factors `[k_min, k_max]` of a detail setting (`min_point`,
+/// `max_point`, [`area_per_depth2`]) for the metric constant `c`: what the draw compares with.
+pub fn point_thresholds(c: f64, sizes: &DetailSizes) -> [f32; 2] {
+    [
+        area_per_depth2(c, sizes.min_point),
+        area_per_depth2(c, sizes.max_point),
+    ]
+}
+
+/// Whether the draw keeps record `r` of a tree of scale `scale` whose centre lies at view depth
+/// `depth` under `mode` ([`PointSelect`] as `u32`; module docs): [`interval_keep`] or
+/// [`cut_keep`], a root's bound above every threshold tested by its [`NO_PARENT`] link (not by
+/// the overflow of [`ROOT_PARENT_AREA`]` · s²`, which WGSL need not give). The draw's one keep
+/// test, twinned by `point_keep` in `common.wgsl` (issue 33, C§4.6.3).
+pub fn point_keep(r: &PointRecord, mode: u32, scale: f32, depth: f32, k: [f32; 2]) -> bool {
+    if mode == PointSelect::Interval as u32 {
+        return interval_keep(r.area, scale, depth, k[0], k[1]);
+    }
+    if r.parent == NO_PARENT {
+        return r.lower * (scale * scale) <= depth * depth * k[1];
+    }
+    cut_keep(r.lower, r.parent_area, scale, depth, k[1])
+}
+
+/// The world-space centre of record position `pos` of a tree at `base` turned by the yaw of
+/// sine `sin` and cosine `cos` and scaled by `scale`: `base + Rz(yaw)·(scale·pos)`, the mesh
+/// vertex's transform (E§4.4).
+pub fn point_centre(base: [f32; 3], sin: f32, cos: f32, scale: f32, pos: [f32; 3]) -> [f32; 3] {
+    let p = [pos[0] * scale, pos[1] * scale, pos[2] * scale];
+    [
+        base[0] + (cos * p[0] - sin * p[1]),
+        base[1] + (sin * p[0] + cos * p[1]),
+        base[2] + p[2],
+    ]
+}
+
+/// Half the side of a record's square at scale `scale`: `√(A·s²) / 2` (the square covers the
+/// record's area, C§4.4.3's `D = √A`).
+pub fn point_half_side(area: f32, scale: f32) -> f32 {
+    (area * (scale * scale)).sqrt() * 0.5
 }
 
 /// The interval rule's range in area order for trees at depths `[lo, hi]` and scales
@@ -756,6 +886,54 @@ mod tests {
             assert_eq!(p.validate().unwrap_err().field, field);
         }
         PointParams::default().validate().unwrap();
+    }
+
+    #[test]
+    fn bad_point_fields_of_params_name_the_field() {
+        let base = crate::Params::default();
+        let bad = [
+            (crate::Params { lod1: 2, ..base }, "lod1"),
+            (
+                crate::Params {
+                    point_select: 2,
+                    ..base
+                },
+                "point_select",
+            ),
+            (
+                crate::Params {
+                    point_detail: 5,
+                    ..base
+                },
+                "point_detail",
+            ),
+            (
+                crate::Params {
+                    point_count: 0,
+                    ..base
+                },
+                "point_count",
+            ),
+            (
+                crate::Params {
+                    lod1: Lod1::Points as u32,
+                    lod_levels: 3,
+                    far_start: 4000.0,
+                    ..base
+                },
+                "lod1",
+            ),
+        ];
+        for (p, field) in bad {
+            let e = p.validate().unwrap_err();
+            assert_eq!(e.field, field, "{e}");
+        }
+        crate::Params {
+            lod1: Lod1::Points as u32,
+            ..base
+        }
+        .validate()
+        .unwrap();
     }
 
     #[test]

@@ -178,6 +178,23 @@ impl Params {
                 });
             }
         }
+        // The point LOD's fields (issue 33): not registry rows yet (a row must be walked on both
+        // backends by `parity::every_stage`, and the GPU draw has no point path), so checked here.
+        crate::points::check_point_fields(self)?;
+        // The point LOD (issue 33) replaces the billboard as the second level; the far level's
+        // chain (mesh -> billboard -> far) is not defined over points.
+        if self.lod1 == crate::points::Lod1::Points as u32 && self.lod_levels >= 3 {
+            return Err(ParamError {
+                field: "lod1",
+                value: crate::points::Lod1::Points.name().to_string(),
+                reason: format!(
+                    "lod1 = points needs lod_levels 1 or 2 (got {}): the far level follows \
+                     billboards only",
+                    self.lod_levels
+                )
+                .into(),
+            });
+        }
         // One mesh's `K·J` views must fit the billboard array (issue 30); the scene's `m·K·J` is
         // checked where the mesh count is known (`crate::check_billboard_layers`).
         crate::check_billboard_layers(1, self)?;

@@ -194,6 +194,7 @@ fn prepared_like(base: &Prepared, scene: Scene, membership: &Batches) -> Prepare
         },
         hierarchy: None,
         far: None,
+        points: None,
         mesh_textures: base.mesh_textures.clone(),
         billboards: base.billboards.clone(),
         memory: base.memory.clone(),

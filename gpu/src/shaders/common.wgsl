@@ -1489,3 +1489,47 @@ fn sprite_half(e: vec3<f32>, r: vec3<f32>, up: vec3<f32>) -> vec2<f32> {
         abs(up.x) * e.x + abs(up.y) * e.y + abs(up.z) * e.z,
     );
 }
+
+// The point LOD (issue 33, forestlod_shared::points; C§4.4, §4.6.3): the record the draw will
+// read per point and the draw's formulas, twins of `point_keep`, `point_centre` and
+// `point_half_side`. Keep in sync with forestlod_shared::points::PointRecord (48 bytes; layout
+// checked by gpu/tests/layout.rs).
+struct PointRecord {
+    pos: array<f32, 3>,
+    area: f32,
+    lower: f32,
+    parent_area: f32,
+    normal: u32,
+    rgba8: u32,
+    parent: u32,
+    leaves: u32,
+    _pad: array<u32, 2>,
+}
+
+// forestlod_shared::points::point_keep: the interval rule, or the cut with a root's bound above
+// every threshold by its POINT_NO_PARENT link (ROOT_PARENT_AREA · s² may overflow). `k` is
+// [k_min, k_max] (point_thresholds). Products only, as the Rust side: `*` is correctly rounded.
+fn point_keep(r: PointRecord, mode: u32, scale: f32, depth: f32, k: vec2<f32>) -> bool {
+    let s2 = scale * scale;
+    let d2 = depth * depth;
+    if mode == POINT_SELECT_INTERVAL {
+        let a = r.area * s2;
+        return d2 * k.x <= a && a <= d2 * k.y;
+    }
+    let t = d2 * k.y;
+    if r.parent == POINT_NO_PARENT {
+        return r.lower * s2 <= t;
+    }
+    return r.lower * s2 <= t && t < r.parent_area * s2;
+}
+
+// forestlod_shared::points::point_centre: base + Rz(yaw)·(scale·pos), yaw as its sine and cosine.
+fn point_centre(base: vec3<f32>, s: f32, c: f32, scale: f32, pos: array<f32, 3>) -> vec3<f32> {
+    let p = vec3<f32>(pos[0] * scale, pos[1] * scale, pos[2] * scale);
+    return base + vec3<f32>(c * p.x - s * p.y, s * p.x + c * p.y, p.z);
+}
+
+// forestlod_shared::points::point_half_side: √(A·s²) / 2.
+fn point_half_side(area: f32, scale: f32) -> f32 {
+    return sqrt(area * (scale * scale)) * 0.5;
+}

@@ -14,6 +14,8 @@
 //! - [`subset_properties`]: far-field subsets (issue 29): even prefixes, counts against weights;
 //! - [`occlusion_properties`]: occlusion culling (issue 31) against the false-cull oracle and
 //!   the frame without culling; the pyramid against brute force;
+//! - [`points_draw_properties`]: the point LOD's draw (issue 33): cut mode draws every placed
+//!   point once, sub-pixel squares, thread-count independence.
 //! - [`points_properties`]: Celba's point LOD (issue 33): area order, unions, Alg. 5 groups,
 //!   opaque placement, the cut's exactly-once, batch ranges, the safe change distance;
 //! - [`extremes`]: the numerical-extremes catalogue of SPEC §7.
@@ -28,6 +30,7 @@ mod extremes;
 mod far_properties;
 mod hierarchy_properties;
 mod occlusion_properties;
+mod points_draw_properties;
 mod points_properties;
 mod refine_properties;
 mod select_properties;
