@@ -1737,6 +1737,41 @@ pub(crate) mod tests {
         }
     }
 
+    /// `PointCommandUniform` has its WGSL twin's layout (`point_commands.wgsl`, issue 33).
+    #[test]
+    fn point_command_uniform_matches_wgsl() {
+        let module = validate_with(&POINT_SOURCE.module(), naga::valid::Capabilities::all());
+        assert_layout(
+            &module,
+            &rust_layout!(PointCommandUniform {
+                point_base,
+                quad_first_index,
+                capacity,
+                mesh_count
+            }),
+        );
+    }
+
+    /// `point_words`: a three-word header per mesh (records' first word, count, cut order's
+    /// first word, relative to the header), then each mesh's records and cut order.
+    #[test]
+    fn point_words_lay_out_headers_records_and_cut_orders() {
+        use forestlod_shared::points::PointRecord;
+        let r = |a: f32| PointRecord {
+            area: a,
+            ..bytemuck::Zeroable::zeroed()
+        };
+        let (a, b) = ([r(1.0), r(2.0)], [r(3.0)]);
+        let w = point_words(&[(&a, &[1, 0]), (&b, &[0])]);
+        assert_eq!(&w[..6], &[6, 2, 30, 32, 1, 44]);
+        assert_eq!(f32::from_bits(w[6 + 3]), 1.0);
+        assert_eq!(f32::from_bits(w[6 + 12 + 3]), 2.0);
+        assert_eq!(&w[30..32], &[1, 0]);
+        assert_eq!(f32::from_bits(w[32 + 3]), 3.0);
+        assert_eq!(w[44], 0);
+        assert_eq!(w.len(), 45);
+    }
+
     #[test]
     fn terrain_grid_is_two_triangles_per_cell_over_the_margin() {
         let v = terrain_vertices([0.0, 0.0, 100.0, 100.0], |_, _| 1.0);
