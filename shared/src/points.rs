@@ -316,7 +316,7 @@ pub fn check_point_fields(params: &crate::Params) -> Result<(), ParamError> {
         return Err(err(
             "point_count",
             params.point_count,
-            "expected 1..=16384 points per mesh".into(),
+            "expected 1..=4096 points per mesh".into(),
         ));
     }
     Ok(())
@@ -331,14 +331,16 @@ pub fn draws_points(params: &crate::Params) -> bool {
 pub const SEED_GRID: [u32; 3] = [4, 4, 4];
 /// Largest grid size per axis (the seed's "smaller than 11").
 pub const MAX_POINT_GRID: u32 = 10;
-/// Most points placed per mesh, 2^14 (a mesh then holds fewer than 2^15 records). Lowered from
-/// 2^20 when the fields became parameter-table rows (issue 33 item 1): the stage table's walk
-/// renders every row's greatest value on both backends, and at 2^20 `prepare` builds a million
-/// points per mesh and the GPU draw expands each LOD1 command into `trees × records` quad
-/// instances (`gpu/src/shaders/point_commands.wgsl`), whose `u32` instance index
-/// `(indirection offset + trees) × records` would overflow past ~2000 trees in the scene; at
-/// 2^14 it holds up to ~131 000 (the GPU draw checks it and names `point_count` otherwise).
-pub const MAX_POINTS_PER_MESH: u32 = 1 << 14;
+/// Most points placed per mesh, 2^12 (a mesh then holds fewer than 2^13 records; the seed's
+/// forests use a few hundred to a few thousand per tree). Lowered from 2^20 when the fields
+/// became parameter-table rows (issue 33 item 1): the stage table's walk renders every row's
+/// greatest value on both backends, and the GPU draw expands each LOD1 command into
+/// `trees × records` quad instances (`gpu/src/shaders/point_commands.wgsl`), whose cost on
+/// lavapipe grows with the count (measured at 2^14: 36-44 s per walk case, five cases, which
+/// tripled `every_stage::walk_draw`; at 2^12 about a quarter) and whose `u32` instance index
+/// `(indirection offset + trees) × records` would overflow past ~2000 trees at 2^20; at 2^12 it
+/// holds up to ~524 000 trees (the GPU draw checks it and names `point_count` otherwise).
+pub const MAX_POINTS_PER_MESH: u32 = 1 << 12;
 /// Most placement tries per point.
 pub const MAX_POINT_RETRIES: u32 = 64;
 
@@ -372,7 +374,7 @@ impl PointParams {
             return err(
                 "n_pts",
                 self.n_pts.to_string(),
-                "1 ..= 16384 points per mesh",
+                "1 ..= 4096 points per mesh",
             );
         }
         if self.max_group == 0 {

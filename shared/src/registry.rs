@@ -406,7 +406,7 @@ pub const PARAMS: [ParamSpec; 48] = [
     choice!(lod1, "lod1", Lod1, "What a tree is drawn as past the mesh level (issue 33): ", ""),
     choice!(point_select, "point-select", PointSelect, "Which records of a tree's point hierarchy are drawn under lod1 points: ", ""),
     choice!(point_detail, "point-detail", DetailPreset, "Point selection's screen areas under lod1 points: ", ""),
-    param!(point_count, "point-count", uint(1, MAX_POINTS_PER_MESH), "expected 1..=16384 points per mesh",
+    param!(point_count, "point-count", uint(1, MAX_POINTS_PER_MESH), "expected 1..=4096 points per mesh",
         "Points placed per mesh under lod1 points (C§4.4.4 N_pts)"),
 ];
 

@@ -244,7 +244,7 @@ const PINNED: [(&str, &str, &str); 48] = [
     ),
     (
         "point_count",
-        "expected 1..=16384 points per mesh",
+        "expected 1..=4096 points per mesh",
         "Points placed per mesh under lod1 points (C§4.4.4 N_pts)",
     ),
 ];
