@@ -18,6 +18,14 @@
 //! ([`DrawCalls`]). `INDIRECT_FIRST_INSTANCE` is required (`first_instance` is the batch's offset
 //! into the indirection array); [`GpuDraw::new`] fails with [`GpuError::Input`] without it.
 //!
+//! Under `lod1 = points` (issue 33 item 1, C§4.4, §4.6.3; `forestlod_shared::points`, "the point
+//! command path") one compute dispatch (`point_commands.wgsl`) first rewrites a per-frame copy of
+//! the commands, each LOD1 command becoming `trees × records` instances of one quad, and the
+//! multi-draw reads that copy; the vertex stage decodes tree and record, keeps the record by
+//! `point_keep` and draws a camera-facing square in flat colour, the reference's records in the
+//! reference's order. The point records ride in the far buffer after the far level
+//! ([`point_words`]).
+//!
 //! The vertex stage pulls everything from storage buffers ([`DrawScene`]): packed vertices
 //! ([`DrawVertex`], the reference's `PackedVertex`), instances ([`DrawInstance`]), the
 //! indirection array (the scene's, batch by batch, unless [`DrawInputs::indirection`] replaces
