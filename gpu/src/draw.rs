@@ -18,6 +18,14 @@
 //! ([`DrawCalls`]). `INDIRECT_FIRST_INSTANCE` is required (`first_instance` is the batch's offset
 //! into the indirection array); [`GpuDraw::new`] fails with [`GpuError::Input`] without it.
 //!
+//! Under `lod1 = points` (issue 33 item 1, C§4.4, §4.6.3; `forestlod_shared::points`, "the point
+//! command path") one compute dispatch (`point_commands.wgsl`) first rewrites a per-frame copy of
+//! the commands, each LOD1 command becoming `trees × records` instances of one quad, and the
+//! multi-draw reads that copy; the vertex stage decodes tree and record, keeps the record by
+//! `point_keep` and draws a camera-facing square in flat colour, the reference's records in the
+//! reference's order. The point records ride in the far buffer after the far level
+//! ([`point_words`]).
+//!
 //! The vertex stage pulls everything from storage buffers ([`DrawScene`]): packed vertices
 //! ([`DrawVertex`], the reference's `PackedVertex`), instances ([`DrawInstance`]), the
 //! indirection array (the scene's, batch by batch, unless [`DrawInputs::indirection`] replaces
@@ -60,6 +68,46 @@ pub const SOURCE: StageSource = StageSource {
     },
     parts: &[],
 };
+
+/// The point LOD's command expansion (issue 33 item 1): `point_commands.wgsl`, run by
+/// [`GpuDraw::encode`] before the draw pass under `lod1 = points` (module docs).
+pub const POINT_SOURCE: StageSource = StageSource {
+    own: WgslFile {
+        name: "point_commands.wgsl",
+        wgsl: include_str!("shaders/point_commands.wgsl"),
+        constants: &[],
+    },
+    parts: &[],
+};
+
+/// The uniform of `point_commands.wgsl` (keep in sync with `PointCommandUniform` there).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct PointCommandUniform {
+    /// First word of the point header in the far buffer.
+    pub point_base: u32,
+    /// [`DrawSceneDesc::iota_first_index`].
+    pub quad_first_index: u32,
+    /// Command slots in the selection's buffers.
+    pub capacity: u32,
+    /// Meshes in the point header.
+    pub mesh_count: u32,
+}
+
+crate::context::compute_pipelines! {
+    /// The compiled pipeline of `point_commands.wgsl` (issue 33), one per [`GpuContext`].
+    pub struct PointCommandPipelines = "point_commands", POINT_SOURCE.module(), [
+        crate::context::Slot::Uniform(size_of::<PointCommandUniform>() as u64),
+        crate::context::READ,
+        crate::context::Slot::Read(size_of::<forestlod_shared::SelectCounters>() as u64),
+        crate::context::READ,
+        crate::context::WRITE,
+    ],
+    { expand: "expand_point_commands" }
+}
+
+/// Workgroup size of `expand_point_commands` (`point_commands.wgsl`).
+const POINT_COMMANDS_WORKGROUP: u32 = 256;
 
 /// The depth read-back by compute ([`DrawTarget::read`]), standalone: neither `common.wgsl` nor a
 /// generated constant is prepended.
@@ -179,8 +227,24 @@ pub struct DrawUniform {
     pub far_nodes_base: u32,
     /// First word of the far level's hull vertices in the far buffer.
     pub far_hull_base: u32,
+    /// The camera's unit right vector (issue 33: a point's square lies in the camera's
+    /// `right`, `up` plane, `Camera::basis`).
+    pub cam_right: [f32; 3],
+    /// [`forestlod_shared::points::draws_points`] as 0/1 (issue 33): LOD1 commands draw points.
+    pub points: u32,
+    /// The camera's unit up vector (issue 33).
+    pub cam_up: [f32; 3],
+    /// `PointSelect` as `u32` (`Params::point_select`).
+    pub point_mode: u32,
+    /// The point LOD's `[k_min, k_max]` ([`forestlod_shared::points::point_thresholds`] of
+    /// `Params::point_detail`).
+    pub point_k: [f32; 2],
+    /// First word of the point header in the far buffer ([`point_words`]).
+    pub point_base: u32,
+    /// Explicit padding.
+    pub _pad_points: u32,
 }
-const _: () = assert!(size_of::<DrawUniform>() == 320);
+const _: () = assert!(size_of::<DrawUniform>() == 368);
 
 impl DrawUniform {
     /// The uniform of a validated camera and parameters, derived as the reference derives its
@@ -212,8 +276,44 @@ impl DrawUniform {
             far_kind: 0,
             far_nodes_base: 0,
             far_hull_base: 0,
+            cam_right: camera.basis().right.to_array(),
+            points: u32::from(forestlod_shared::points::draws_points(params)),
+            cam_up: camera.basis().up.to_array(),
+            point_mode: params.point_select,
+            point_k: point_k(camera, params),
+            point_base: 0,
+            _pad_points: 0,
         }
     }
+}
+
+/// The point LOD's `[k_min, k_max]` of a frame (the reference draw's `point_k`): the thresholds
+/// of `Params::point_detail` at the camera's metric constant; `[0, 0]` for an unknown preset.
+fn point_k(camera: &Camera, params: &Params) -> [f32; 2] {
+    forestlod_shared::points::DetailPreset::from_id(params.point_detail).map_or([0.0; 2], |d| {
+        forestlod_shared::points::point_thresholds(
+            forestlod_shared::metric::metric_constant(camera, false),
+            &d.sizes(),
+        )
+    })
+}
+
+/// The point LOD's words (issue 33), appended to the far buffer: per mesh `i` a header of three
+/// words at `3·i` (first word of its records, record count, first word of its cut order, all
+/// relative to the header's start), then each mesh's records ([`PointRecord`], 12 words each,
+/// area order) and its cut order (area-order indices sorted by parent area). Empty for no meshes.
+///
+/// [`PointRecord`]: forestlod_shared::points::PointRecord
+pub fn point_words(sets: &[(&[forestlod_shared::points::PointRecord], &[u32])]) -> Vec<u32> {
+    let mut words = vec![0u32; 3 * sets.len()];
+    for (i, (records, cut)) in sets.iter().enumerate() {
+        words[3 * i] = words.len() as u32;
+        words[3 * i + 1] = records.len() as u32;
+        words.extend_from_slice(bytemuck::cast_slice(records));
+        words[3 * i + 2] = words.len() as u32;
+        words.extend_from_slice(cut);
+    }
+    words
 }
 
 /// A far level (issue 32) as the draw binds it: one `u32` buffer holding the cells
@@ -408,6 +508,11 @@ pub struct DrawSceneDesc<'a> {
     pub terrain: &'a [TerrainVertex],
     /// The far level (issue 32) under `lod_levels = 3`.
     pub far: Option<&'a forestlod_shared::FarLevel>,
+    /// The point LOD's records ([`point_words`]; issue 33), empty when the scene has none.
+    pub points: &'a [u32],
+    /// First index of an iota range (`0, 1, …`) of at least 6 indices in `indices` (the packed
+    /// geometry's far range): the point commands' quad (issue 33).
+    pub iota_first_index: u32,
 }
 
 /// A scene's static draw buffers on the GPU (what E§4.1 uploads once).
@@ -426,6 +531,10 @@ pub struct DrawScene {
     far: wgpu::Buffer,
     /// Whether a far level was uploaded, and its node and hull bases in `far`.
     far_bases: Option<(u32, u32)>,
+    /// The point LOD's header word in `far` and its largest record count, when uploaded.
+    point_bases: Option<(u32, u32)>,
+    /// [`DrawSceneDesc::iota_first_index`].
+    iota_first_index: u32,
 }
 
 impl DrawScene {
@@ -496,12 +605,36 @@ impl DrawScene {
             );
         }
         use wgpu::BufferUsages as U;
-        let (far_data, far_bases) = match desc.far {
+        let (mut far_data, far_bases) = match desc.far {
             Some(f) => {
                 let (words, nodes, hull) = far_words(f);
                 (words, Some((nodes, hull)))
             }
             None => (Vec::new(), None),
+        };
+        let point_bases = if desc.points.is_empty() {
+            None
+        } else {
+            let meshes = desc.meshes.len();
+            let header = desc.points.get(..3 * meshes).unwrap_or_default();
+            let most = header.chunks_exact(3).map(|h| h[1]).max().unwrap_or(0);
+            let iota = desc.indices.get(desc.iota_first_index as usize..);
+            if header.len() != 3 * meshes
+                || !iota.is_some_and(|i| i.starts_with(&[0, 1, 2, 3, 4, 5]))
+            {
+                return bad(
+                    "point words",
+                    format!(
+                        "{} words for {meshes} meshes, iota range at index {}",
+                        desc.points.len(),
+                        desc.iota_first_index
+                    ),
+                    "expected a header of three words per mesh (point_words) and an iota range of at least 6 indices",
+                );
+            }
+            let base = far_data.len() as u32;
+            far_data.extend_from_slice(desc.points);
+            Some((base, most))
         };
         let terrain = ctx
             .device
@@ -526,6 +659,8 @@ impl DrawScene {
             mesh_count: desc.meshes.len() as u32,
             far: upload_storage(ctx, "draw far level", &far_data, U::empty()),
             far_bases,
+            point_bases,
+            iota_first_index: desc.iota_first_index,
         })
     }
 
@@ -554,6 +689,9 @@ impl DrawScene {
             uniform.far_kind = forestlod_shared::FarUniform::new(camera, params).kind;
             uniform.far_nodes_base = nodes;
             uniform.far_hull_base = hull;
+        }
+        if let Some((base, _)) = self.point_bases {
+            uniform.point_base = base;
         }
         frame_uniform(ctx, label, &uniform)
     }
@@ -1243,6 +1381,7 @@ impl GpuDraw {
         probe: DrawProbe,
     ) -> Result<DrawCalls, GpuError> {
         let bind_group = self.tree_bind_group(ctx, inputs, camera, params)?;
+        let commands = self.point_commands(ctx, encoder, inputs, params)?;
         let DrawInputs {
             scene, selection, ..
         } = *inputs;
@@ -1263,7 +1402,7 @@ impl GpuDraw {
             }
             DrawProbe::NoTreeFragments => pass.set_scissor_rect(0, 0, 1, 1),
         }
-        self.draw_trees(&mut pass, inputs);
+        self.draw_trees(&mut pass, inputs, commands.as_ref());
         Ok(DrawCalls {
             terrain: 1,
             trees: 1,
@@ -1288,15 +1427,27 @@ impl GpuDraw {
             selection,
             indirection,
         } = *inputs;
-        // The point LOD (issue 33) is drawn by the reference only so far: refused, not drawn as
-        // billboards (a parity run would compare two different frames).
+        // The point LOD (issue 33): the scene must carry its records, and an expanded command's
+        // `(first_instance + trees) × n` must fit a u32 instance index (point_commands.wgsl).
         if forestlod_shared::points::draws_points(params) {
-            return Err(GpuError::Input {
-                field: "lod1",
-                value: forestlod_shared::points::Lod1::Points.name().to_string(),
-                reason: "the GPU draw has no point path yet (issue 33: the reference draws points; \
-                         render with --no-gpu)",
-            });
+            let Some((_, most)) = scene.point_bases else {
+                return Err(GpuError::Input {
+                    field: "lod1",
+                    value: forestlod_shared::points::Lod1::Points.name().to_string(),
+                    reason: "the scene was uploaded without point records (DrawSceneDesc::points)",
+                });
+            };
+            let trees = indirection.unwrap_or(&scene.indirection).size() / 4;
+            if trees * u64::from(most) > u64::from(u32::MAX) {
+                return Err(GpuError::Input {
+                    field: "point_count",
+                    value: format!(
+                        "{} (a mesh has {most} records, {trees} indirection entries)",
+                        params.point_count
+                    ),
+                    reason: "expected trees x records per mesh to fit a u32 instance index",
+                });
+            }
         }
         let views = forestlod_shared::BillboardViews::of(params);
         if textures.mesh_layers < scene.mesh_count
@@ -1361,23 +1512,98 @@ impl GpuDraw {
         Ok(bind_group)
     }
 
-    /// Records the one multi-draw of `inputs`' tree commands into `pass` (its bind group set).
-    fn draw_trees(&self, pass: &mut wgpu::RenderPass<'_>, inputs: &DrawInputs) {
+    /// Under `lod1 = points` (issue 33), records the point commands' expansion into `encoder`: a
+    /// copy of the selection's commands (a fresh buffer of this call: no per-frame state behind
+    /// `&self`) in which `point_commands.wgsl` turns every LOD1 command into `trees × n`
+    /// instances of the quad (module docs of `forestlod_shared::points`); the draw reads the
+    /// copy, the selection's own commands stay as `select` wrote them. `None` otherwise.
+    fn point_commands(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &DrawInputs,
+        params: &Params,
+    ) -> Result<Option<wgpu::Buffer>, GpuError> {
+        if !forestlod_shared::points::draws_points(params) {
+            return Ok(None);
+        }
         let DrawInputs {
             scene, selection, ..
         } = *inputs;
+        let Some((point_base, _)) = scene.point_bases else {
+            return Ok(None);
+        };
+        let pipelines = ctx.pipelines::<PointCommandPipelines>()?;
+        let bytes =
+            u64::from(selection.capacity) * size_of::<forestlod_shared::DrawCommand>() as u64;
+        let commands = crate::readback::zeroed_buffer(
+            ctx,
+            "draw point commands",
+            bytes.max(size_of::<forestlod_shared::DrawCommand>() as u64),
+            wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::INDIRECT
+                | wgpu::BufferUsages::COPY_DST,
+        );
+        if bytes == 0 {
+            return Ok(Some(commands));
+        }
+        encoder.copy_buffer_to_buffer(&selection.commands, 0, &commands, 0, bytes);
+        let uniform = frame_uniform(
+            ctx,
+            "point commands uniform",
+            &PointCommandUniform {
+                point_base,
+                quad_first_index: scene.iota_first_index,
+                capacity: selection.capacity,
+                mesh_count: scene.mesh_count,
+            },
+        );
+        let bind_group = bind_group(
+            &ctx.device,
+            "point commands",
+            &pipelines.layout,
+            [
+                uniform.as_entire_binding(),
+                selection.data.as_entire_binding(),
+                selection.counters.as_entire_binding(),
+                scene.far.as_entire_binding(),
+                commands.as_entire_binding(),
+            ],
+        );
+        let groups = selection.capacity.div_ceil(POINT_COMMANDS_WORKGROUP);
+        compute_pass(
+            encoder,
+            "point commands",
+            &bind_group,
+            &[(&pipelines.expand, Dispatch::Groups(groups, 1))],
+        );
+        Ok(Some(commands))
+    }
+
+    /// Records the one multi-draw of `inputs`' tree commands into `pass` (its bind group set),
+    /// from `commands` when given (the point expansion, [`GpuDraw::point_commands`]).
+    fn draw_trees(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        inputs: &DrawInputs,
+        commands: Option<&wgpu::Buffer>,
+    ) {
+        let DrawInputs {
+            scene, selection, ..
+        } = *inputs;
+        let commands = commands.unwrap_or(&selection.commands);
         pass.set_pipeline(&self.pipelines.trees);
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
         match self.mode {
             IndirectMode::Count => pass.multi_draw_indexed_indirect_count(
-                &selection.commands,
+                commands,
                 0,
                 &selection.counters,
                 SelectBuffers::COUNT_OFFSET,
                 selection.capacity,
             ),
             IndirectMode::MaxCount => {
-                pass.multi_draw_indexed_indirect(&selection.commands, 0, selection.capacity)
+                pass.multi_draw_indexed_indirect(commands, 0, selection.capacity)
             }
         }
     }
@@ -1397,6 +1623,7 @@ impl GpuDraw {
         target: &DrawTarget,
     ) -> Result<DrawCalls, GpuError> {
         let bind_group = self.tree_bind_group(ctx, inputs, camera, params)?;
+        let commands = self.point_commands(ctx, encoder, inputs, params)?;
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (color, depth, lod_id) = (
             view(&target.color),
@@ -1405,7 +1632,7 @@ impl GpuDraw {
         );
         let mut pass = loaded_render_pass(encoder, "draw late", &[&color, &lod_id], &depth);
         pass.set_bind_group(0, &bind_group, &[]);
-        self.draw_trees(&mut pass, inputs);
+        self.draw_trees(&mut pass, inputs, commands.as_ref());
         Ok(DrawCalls {
             terrain: 0,
             trees: 1,
@@ -1491,7 +1718,14 @@ pub(crate) mod tests {
                 octahedral_blend,
                 far_kind,
                 far_nodes_base,
-                far_hull_base
+                far_hull_base,
+                cam_right,
+                points,
+                cam_up,
+                point_mode,
+                point_k,
+                point_base,
+                _pad_points
             }),
             rust_layout!(DrawVertex { position, uv }),
             draw_instance_layout(),
@@ -1509,6 +1743,41 @@ pub(crate) mod tests {
                 rust.name
             );
         }
+    }
+
+    /// `PointCommandUniform` has its WGSL twin's layout (`point_commands.wgsl`, issue 33).
+    #[test]
+    fn point_command_uniform_matches_wgsl() {
+        let module = validate_with(&POINT_SOURCE.module(), naga::valid::Capabilities::all());
+        assert_layout(
+            &module,
+            &rust_layout!(PointCommandUniform {
+                point_base,
+                quad_first_index,
+                capacity,
+                mesh_count
+            }),
+        );
+    }
+
+    /// `point_words`: a three-word header per mesh (records' first word, count, cut order's
+    /// first word, relative to the header), then each mesh's records and cut order.
+    #[test]
+    fn point_words_lay_out_headers_records_and_cut_orders() {
+        use forestlod_shared::points::PointRecord;
+        let r = |a: f32| PointRecord {
+            area: a,
+            ..bytemuck::Zeroable::zeroed()
+        };
+        let (a, b) = ([r(1.0), r(2.0)], [r(3.0)]);
+        let w = point_words(&[(&a, &[1, 0]), (&b, &[0])]);
+        assert_eq!(&w[..6], &[6, 2, 30, 32, 1, 44]);
+        assert_eq!(f32::from_bits(w[6 + 3]), 1.0);
+        assert_eq!(f32::from_bits(w[6 + 12 + 3]), 2.0);
+        assert_eq!(&w[30..32], &[1, 0]);
+        assert_eq!(f32::from_bits(w[32 + 3]), 3.0);
+        assert_eq!(w[44], 0);
+        assert_eq!(w.len(), 45);
     }
 
     #[test]

@@ -114,7 +114,7 @@ pub use shaders::{StageSource, WgslFile};
 
 /// Every stage's WGSL module as its driver declares it, in the order of the table above. The
 /// crate's tests compile each and check their constants against each other.
-pub const STAGE_SOURCES: [&StageSource; 13] = [
+pub const STAGE_SOURCES: [&StageSource; 14] = [
     &select::SOURCE,
     &bake::SOURCE,
     &mips::SOURCE,
@@ -128,6 +128,7 @@ pub const STAGE_SOURCES: [&StageSource; 13] = [
     &pyramid::SOURCE,
     &occlude::SOURCE,
     &far_bake::SOURCE,
+    &draw::POINT_SOURCE,
 ];
 
 #[cfg(test)]

@@ -27,6 +27,9 @@ pub struct DrawSceneData {
     pub instances: Vec<DrawInstance>,
     /// The ground, from the reference scene's terrain.
     pub terrain: Vec<forestlod_gpu::TerrainVertex>,
+    /// The point LOD's records (issue 33, `forestlod_gpu::draw::point_words` of the prepared
+    /// `PointLod`), empty without one.
+    pub points: Vec<u32>,
 }
 
 impl DrawSceneData {
@@ -54,6 +57,14 @@ impl DrawSceneData {
                 })
                 .collect(),
             terrain: terrain_vertices_of(scene.ground_triangles()),
+            points: prepared.points.as_ref().map_or_else(Vec::new, |p| {
+                let sets: Vec<_> = p
+                    .sets
+                    .iter()
+                    .map(|s| (s.records.as_slice(), s.cut_order.as_slice()))
+                    .collect();
+                forestlod_gpu::draw::point_words(&sets)
+            }),
         }
     }
 
@@ -68,6 +79,8 @@ impl DrawSceneData {
             indirection: &prepared.batches.indirection,
             terrain: &self.terrain,
             far: prepared.far.as_ref(),
+            points: &self.points,
+            iota_first_index: prepared.geometry.far.first_index,
         }
     }
 }

@@ -227,6 +227,9 @@ pub const STAGES: &[StageEntry] = &[
             "octahedral_blend",
             "octahedral_depth",
             "far_lod",
+            "lod1",
+            "point_select",
+            "point_detail",
         ],
         params: &[
             "alpha_cutoff",
@@ -246,6 +249,7 @@ pub const STAGES: &[StageEntry] = &[
             SUBSET_PARAMS[1],
             "noise_size",
             "octahedral_grid",
+            "point_count",
         ],
     },
     StageEntry {

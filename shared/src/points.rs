@@ -1,6 +1,6 @@
 //! Celba's point-based tree LOD (issue 33 item 1; C§4.4.3, Alg. 5, Alg. 6, C§4.6.3): the record
-//! both backends will read, the parameters, and the formulas the CPU preprocessing
-//! (`reference/src/points.rs`) and, later, the draw's WGSL twin share.
+//! both backends read, the parameters, and the formulas the CPU preprocessing
+//! (`reference/src/points.rs`), the reference draw and the draw's WGSL twin share.
 //!
 //! ## Contract
 //! - **Placement** (C§4.4.4's proposed fix, slip (e) of the design study: our meshes are alpha
@@ -67,7 +67,7 @@
 //!   the seed's pixels (its constant was 4x too large, `crate::metric`: pass `seed = true` to
 //!   [`crate::metric::metric_constant`] to reproduce its behaviour).
 //!
-//! ## The point command path (issue 33 item 1: the reference draws it, the WGSL twin is next)
+//! ## The point command path (issue 33 item 1: both backends draw it)
 //! What the reference does (`reference/src/draw.rs`, `reference/src/points.rs` `PointLod`):
 //! selection is unchanged (the LOD1 commands are the billboards' own, so coalescing, ordering,
 //! `refine`, occlusion and subsets apply as they are); under `lod1 = points` the draw expands
@@ -80,40 +80,44 @@
 //! the cut; the GPU design below replaces it with the batch's range and degenerate quads, which
 //! draws the same records in the same order (the keep test decides, not the range).
 //!
-//! The GPU design (the plan for the WGSL twin):
+//! The GPU twin (`gpu/src/draw.rs`, `gpu/src/shaders/point_commands.wgsl`, `draw.wgsl`):
 //! Points cannot go through the mesh path: [`crate::emit_command`] encodes the command slot in
 //! `base_vertex = slot << COMMAND_SHIFT`, which leaves a draw `MAX_MESH_VERTICES` = 256 local
-//! vertices, and a point range is up to about `2·n_pts` records of 6 vertices each. The far
-//! level's trick (`crate::far`: an iota index range, the vertex stage pulls its primitive) extends
-//! to points by moving the range into the **instances**:
-//! - a point command is an indexed command over the 6-index iota of one quad (`index_count = 6`,
-//!   `base_vertex = slot << COMMAND_SHIFT` as today, so the draw still finds its `CommandData`),
-//!   `instance_count = trees × n` for a batch of `trees` trees and a range of `n` records
-//!   (interval: `[i0, i0 + n)` in area order; cut: in cut order, read through the cut
-//!   permutation), `first_instance = 0`;
-//! - a per-slot `PointCommand { mesh, first_tree, trees, i0, n, order }` (beside `CommandData`,
-//!   which keeps `lod = LOD_POINTS`, `first_tree`, `group_len` so coalescing still merges ranges)
-//!   lets the vertex stage decode instance `k` as tree `first_tree + k / n` and record
-//!   `i0 + k % n` (exact `u32` division, no per-frame array, deterministic);
-//! - the vertex stage applies [`interval_keep`] / [`cut_keep`] with the tree's own depth and scale
-//!   (a failed record becomes a degenerate quad, as the fade's culled trees do) and otherwise
-//!   expands a camera-facing square of side `√(A·s²)` at `base + Rz(yaw)·s·pos`, flat colour.
+//! vertices, and a mesh holds up to about `2·n_pts` records of 6 vertices each. The far level's
+//! trick (`crate::far`: an iota index range, the vertex stage pulls its primitive) extends to
+//! points by moving the records into the **instances**:
+//! - selection is untouched (every GPU selection path emits its LOD1 commands as today); under
+//!   `lod1 = points` the draw copies the frame's commands into a buffer of its own and one
+//!   compute invocation per slot (`point_commands.wgsl`, no loop) rewrites each LOD1 command of
+//!   a mesh of `n` records into `index_count = 6` over the iota range (the packed geometry's
+//!   far range), `instance_count = trees × n`, `first_instance = first_instance × n`, keeping
+//!   `base_vertex` (the slot) so the draw still finds its `CommandData`;
+//! - the vertex stage decodes instance `i` as indirection entry `i / n` and record rank
+//!   `i % n` in the mode's order (area order, or the cut order read through its permutation):
+//!   exact `u32` division, no per-frame array, no atomics, and the instances run tree by tree,
+//!   record by record, the reference's draw order (blending and depth ties agree);
+//! - it applies [`point_keep`] with the tree's own depth and drawn scale (a failed record is a
+//!   degenerate quad, as the draw distance's discarded trees) and otherwise expands a
+//!   camera-facing square of half side [`point_half_side`] about [`point_centre`], flat colour.
 //!   A root's `parent_area · s²` overflows to +∞ for `s > 1`: the WGSL twin tests
 //!   `parent == NO_PARENT` first rather than rely on overflow.
 //!
-//! Rejected: non-indexed `draw_indirect` with `first_vertex = 6·i0` (frees the 256 limit but
-//! loses `base_vertex`, the slot's only channel); a compaction pass writing kept
-//! `(tree, record)` pairs (the `refine` pattern) saves degenerate quads but makes the order
-//! atomic (multiset parity instead of exact): worth it only if degenerate quads dominate; the
-//! ranges keep them few (one tree's interval range is exactly what it draws, a cut range holds
-//! its drawn records and their ancestors only).
+//! Chosen over the proposal of a per-slot range (`[i0, i0 + n)` from the batch's depth and
+//! scale bounds): that needs the batch's bounds, a loop over its trees (llvmpipe stops loops
+//! at 65,535 iterations) or a change to every selection path; the whole mesh per tree costs
+//! degenerate quads instead (every record is visited, the keep test decides), which is the
+//! simplest path that draws the reference's records in its order. The ranges
+//! ([`interval_range`], [`cut_range`]) remain the optimisation to take when the vertex work
+//! shows in a measurement. Rejected: non-indexed `draw_indirect` with `first_vertex = 6·i0`
+//! (frees the 256 limit but loses `base_vertex`, the slot's only channel); a compaction pass
+//! writing kept `(tree, record)` pairs (the `refine` pattern) saves degenerate quads but makes
+//! the order atomic (multiset parity instead of exact).
 //!
 //! In `Params` (issue 33 item 1, the draw): `lod1` ([`Lod1`]) selects points as the level past
 //! the mesh, `point_select`, `point_detail` ([`DetailPreset`]) and `point_count` (`N_pts`)
-//! configure it ([`PointParams::from_params`], [`draws_points`]). They are checked by
-//! [`check_point_fields`], not yet rows of the parameter table (no CLI flag or sweep key): the
-//! stage table requires every row to be walked on both backends, and the GPU draw refuses
-//! `lod1 = points` until the WGSL twin below exists.
+//! configure it ([`PointParams::from_params`], [`draws_points`]). They are rows of the
+//! parameter table (CLI flags, sweep keys), walked on both backends by the draw stage's row of
+//! the stage table; [`check_point_fields`] checks them.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -277,9 +281,9 @@ impl PointParams {
 
 /// Checks the point LOD's fields of `params` (`lod1`, `point_select`, `point_detail`,
 /// `point_count`; [`crate::Params::validate`] calls it): a [`ParamError`] names the field and the
-/// value. They are not rows of `crate::registry::PARAMS` yet: a row is a CLI flag and sweep key,
-/// and the stage table requires every row to be walked on both backends, which needs the WGSL
-/// twin of the point draw.
+/// value. They are also rows of `crate::registry::PARAMS` (issue 33 item 1), whose walk checks
+/// the same ranges; this check keeps the point fields' errors in one place for the callers that
+/// build a `Params` without the table (the properties, the point build).
 pub fn check_point_fields(params: &crate::Params) -> Result<(), ParamError> {
     let err = |field: &'static str, value: u32, reason: String| ParamError {
         field,
@@ -312,7 +316,7 @@ pub fn check_point_fields(params: &crate::Params) -> Result<(), ParamError> {
         return Err(err(
             "point_count",
             params.point_count,
-            "expected 1..=1048576 points per mesh".into(),
+            "expected 1..=4096 points per mesh".into(),
         ));
     }
     Ok(())
@@ -327,8 +331,16 @@ pub fn draws_points(params: &crate::Params) -> bool {
 pub const SEED_GRID: [u32; 3] = [4, 4, 4];
 /// Largest grid size per axis (the seed's "smaller than 11").
 pub const MAX_POINT_GRID: u32 = 10;
-/// Most points placed per mesh (parent indices and the cut's keys stay small; 2^20 = 1 M).
-pub const MAX_POINTS_PER_MESH: u32 = 1 << 20;
+/// Most points placed per mesh, 2^12 (a mesh then holds fewer than 2^13 records; the seed's
+/// forests use a few hundred to a few thousand per tree). Lowered from 2^20 when the fields
+/// became parameter-table rows (issue 33 item 1): the stage table's walk renders every row's
+/// greatest value on both backends, and the GPU draw expands each LOD1 command into
+/// `trees × records` quad instances (`gpu/src/shaders/point_commands.wgsl`), whose cost on
+/// lavapipe grows with the count (measured at 2^14: 36-44 s per walk case, five cases, which
+/// tripled `every_stage::walk_draw`; at 2^12 about a quarter) and whose `u32` instance index
+/// `(indirection offset + trees) × records` would overflow past ~2000 trees at 2^20; at 2^12 it
+/// holds up to ~524 000 trees (the GPU draw checks it and names `point_count` otherwise).
+pub const MAX_POINTS_PER_MESH: u32 = 1 << 12;
 /// Most placement tries per point.
 pub const MAX_POINT_RETRIES: u32 = 64;
 
@@ -362,7 +374,7 @@ impl PointParams {
             return err(
                 "n_pts",
                 self.n_pts.to_string(),
-                "1 ..= 1048576 points per mesh",
+                "1 ..= 4096 points per mesh",
             );
         }
         if self.max_group == 0 {
@@ -408,7 +420,7 @@ pub const NO_PARENT: u32 = u32::MAX;
 pub const ROOT_PARENT_AREA: f32 = f32::MAX;
 
 /// One point of a mesh's point hierarchy, at the mesh's unit scale, in mesh-local coordinates
-/// (module docs). 48 bytes; what the draw will read per point.
+/// (module docs). 48 bytes; what the draw reads per point.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct PointRecord {

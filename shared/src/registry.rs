@@ -20,6 +20,7 @@ use crate::azimuth::MAX_AZIMUTH_COUNT;
 use crate::far::MAX_CLUSTER_SIZE;
 use crate::octahedral::{MAX_OCTAHEDRAL_GRID, MIN_OCTAHEDRAL_GRID};
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
+use crate::points::{DetailPreset, Lod1, MAX_POINTS_PER_MESH, PointSelect};
 use crate::{
     AngleIndexMode, AzimuthMode, Coalesce, CommandOrder, DitherSpace, FadeGranularity, FadeMode,
     FarLod, Hierarchy, LodMetric, MipMode, Occlusion, OcclusionOrder, OctahedralDepth, Params,
@@ -330,7 +331,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 44] = [
+pub const PARAMS: [ParamSpec; 48] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -402,6 +403,11 @@ pub const PARAMS: [ParamSpec; 44] = [
         "Cells per axis of a node's far level (G§2.4 clusterSize, cs^3 cells)"),
     choice!(parent_rule, "parent-rule", ParentRule, "How interior nodes' far cells come from their children (G§2.2): ", ""),
     choice!(octahedral_depth, "octahedral-depth", OctahedralDepth, "Depth channel of octahedral impostors for the blend (issue 32): ", ""),
+    choice!(lod1, "lod1", Lod1, "What a tree is drawn as past the mesh level (issue 33): ", ""),
+    choice!(point_select, "point-select", PointSelect, "Which records of a tree's point hierarchy are drawn under lod1 points: ", ""),
+    choice!(point_detail, "point-detail", DetailPreset, "Point selection's screen areas under lod1 points: ", ""),
+    param!(point_count, "point-count", uint(1, MAX_POINTS_PER_MESH), "expected 1..=4096 points per mesh",
+        "Points placed per mesh under lod1 points (C§4.4.4 N_pts)"),
 ];
 
 /// Least `subset_min`: one tree in a thousand (a smaller floor leaves batches of a few hundred

@@ -178,8 +178,8 @@ impl Params {
                 });
             }
         }
-        // The point LOD's fields (issue 33): not registry rows yet (a row must be walked on both
-        // backends by `parity::every_stage`, and the GPU draw has no point path), so checked here.
+        // The point LOD's fields (issue 33): registry rows, checked together here too
+        // (`check_point_fields` names the field and the value).
         crate::points::check_point_fields(self)?;
         // The point LOD (issue 33) replaces the billboard as the second level; the far level's
         // chain (mesh -> billboard -> far) is not defined over points.

@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 44] = [
+const PINNED: [(&str, &str, &str); 48] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -226,6 +226,26 @@ const PINNED: [(&str, &str, &str); 44] = [
         "octahedral_depth",
         "expected 0 (off) or 1 (on)",
         "Depth channel of octahedral impostors for the blend (issue 32): off, on",
+    ),
+    (
+        "lod1",
+        "expected 0 (billboard) or 1 (points)",
+        "What a tree is drawn as past the mesh level (issue 33): billboard (E§3.3), points (C§4.4)",
+    ),
+    (
+        "point_select",
+        "expected 0 (interval) or 1 (cut)",
+        "Which records of a tree's point hierarchy are drawn under lod1 points: interval (C§4.6.3), cut (ours, hole-free)",
+    ),
+    (
+        "point_detail",
+        "expected 0 (extra-high), 1 (high), 2 (normal), 3 (low) or 4 (extra-low)",
+        "Point selection's screen areas under lod1 points: extra-high (C Table 5.2), high (C Table 5.2), normal (C Table 5.2), low (C Table 5.2), extra-low (C Table 5.2)",
+    ),
+    (
+        "point_count",
+        "expected 1..=4096 points per mesh",
+        "Points placed per mesh under lod1 points (C§4.4.4 N_pts)",
     ),
 ];
 

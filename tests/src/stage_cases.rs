@@ -189,6 +189,20 @@ pub fn coherent(p: &mut Params) {
             p.fade_width = p.fade_width.min(p.far_start);
         }
     }
+    // The point LOD (issue 33): its rule, detail setting and count are read under
+    // `lod1 = points` only, a case that picks any of them draws points; points replace the
+    // billboard as the second level, so a point case has two levels (the far level follows
+    // billboards only).
+    let d = Params::default();
+    if p.point_select != d.point_select
+        || p.point_detail != d.point_detail
+        || p.point_count != d.point_count
+    {
+        p.lod1 = forestlod_shared::points::Lod1::Points as u32;
+    }
+    if forestlod_shared::points::draws_points(p) || p.lod1 != d.lod1 {
+        p.lod_levels = p.lod_levels.min(2);
+    }
 }
 
 /// The base frame of a stage (module docs): the cut's stages on the octree cut, the rest flat.

@@ -59,6 +59,17 @@ struct DrawUniform {
     far_kind: u32,
     far_nodes_base: u32,
     far_hull_base: u32,
+    // The point LOD (issue 33, forestlod_shared::points): the camera's right and up (a point's
+    // square lies in their plane), whether LOD1 commands draw points, the PointSelect id, the
+    // thresholds [k_min, k_max] and the point header's first word in `far_words`
+    // (gpu/src/draw.rs `point_words`).
+    cam_right: vec3<f32>,
+    points: u32,
+    cam_up: vec3<f32>,
+    point_mode: u32,
+    point_k: vec2<f32>,
+    point_base: u32,
+    _pad_points: u32,
 }
 
 // Keep in sync with gpu/src/draw.rs `DrawVertex` (= reference PackedVertex).
@@ -164,6 +175,35 @@ fn far_vertex(command: u32, local: u32, instance: u32) -> TreeVaryings {
     return out;
 }
 
+// The point LOD (issue 33): record `i` (area order) of `mesh`, read from the point words in
+// `far_words` (gpu/src/draw.rs `point_words`: a 3-word header per mesh, 12 words per record).
+fn point_record(mesh: u32, i: u32) -> PointRecord {
+    let w = u.point_base + far_words[u.point_base + 3u * mesh] + 12u * i;
+    var r: PointRecord;
+    r.pos = array<f32, 3>(far_f32(w), far_f32(w + 1u), far_f32(w + 2u));
+    r.area = far_f32(w + 3u);
+    r.lower = far_f32(w + 4u);
+    r.parent_area = far_f32(w + 5u);
+    r.normal = far_words[w + 6u];
+    r.rgba8 = far_words[w + 7u];
+    r.parent = far_words[w + 8u];
+    r.leaves = far_words[w + 9u];
+    return r;
+}
+
+// Records of `mesh` in the point words.
+fn point_count(mesh: u32) -> u32 {
+    return far_words[u.point_base + 3u * mesh + 1u];
+}
+
+// The area-order index of rank `k` in the mode's order: `k` itself (interval) or the cut order's.
+fn point_index(mesh: u32, k: u32) -> u32 {
+    if u.point_mode == POINT_SELECT_INTERVAL {
+        return k;
+    }
+    return far_words[u.point_base + far_words[u.point_base + 3u * mesh + 2u] + k];
+}
+
 // Two locations, not four (issue 14): lavapipe keeps every set-up triangle of a frame's scene
 // with three vec4s per location (a0, d/dx, d/dy), so packing the reference's five varyings
 // `u, v, depth | layer, command` into one perspective vec3 and one flat vec2 cuts that memory
@@ -242,7 +282,20 @@ fn tree_vertex(
     if data.lod == LOD_FAR {
         return far_vertex(command, local, instance_index);
     }
-    let tree_index = indirection[instance_index];
+    // A point command (issue 33; point_commands.wgsl expanded it into `trees × n` instances):
+    // instance `i` is the batch's tree at indirection entry `i / n`, record rank `i % n`.
+    let points = u.points != 0u && data.billboard != 0u;
+    var slot = instance_index;
+    var point_rank = 0u;
+    if points {
+        let n = point_count(data.mesh);
+        if n == 0u {
+            return out;
+        }
+        slot = instance_index / n;
+        point_rank = instance_index % n;
+    }
+    let tree_index = indirection[slot];
     var t = instances[tree_index];
     let mesh_meta = meshes[t.mesh];
     var sphere = tree_sphere(t, mesh_meta);
@@ -251,7 +304,7 @@ fn tree_vertex(
     }
     // Far-field subsets (reference tree_stage; common.wgsl subset_*): weight 0 drops the tree,
     // `thin-scale` enlarges a kept one about its base.
-    let rank = instance_index - data.first_tree;
+    let rank = slot - data.first_tree;
     let d_tree = view_interval(sphere.center, 0.0, u.view.eye, u.view.forward).d;
     let code = subset_weight_code(rank, data.group_len, d_tree, u.view);
     if code == 0u {
@@ -264,6 +317,40 @@ fn tree_vertex(
         sphere = tree_sphere(t, mesh_meta);
     }
     let base = vec3<f32>(t.position[0], t.position[1], t.position[2]);
+    // The tree's scale, or under the `tree` granularity its progress through its own band at
+    // its centre's depth (reference tree_stage's `fade_word`).
+    var fade_word = bitcast<u32>(band_scale);
+    if u.fade_granularity == FADE_GRANULARITY_TREE {
+        let band = group_band(u.view, vec2<f32>(data.fade_start, data.fade_end), vec2<f32>(band_scale, band_scale));
+        fade_word = bitcast<u32>(fade_progress(d_tree, band.x, band.y));
+    }
+    if points {
+        // reference `shade_points`: the record of this rank in the mode's order, kept by
+        // point_keep at the tree's centre depth and drawn scale (else a degenerate quad), a
+        // square of half side point_half_side about point_centre in the camera's right/up
+        // plane; its colour word (sRGB RGB) flat in the layer and as the uv's x (the
+        // reference's first varying), lightness 1, the depth clamped as a billboard's.
+        if point_rank >= point_count(t.mesh) {
+            return out;
+        }
+        let r = point_record(t.mesh, point_index(t.mesh, point_rank));
+        if !point_keep(r, u.point_mode, t.scale, d_tree, u.point_k) {
+            return out;
+        }
+        let centre = point_centre(base, sin(t.yaw), cos(t.yaw), t.scale, r.pos);
+        let half = point_half_side(r.area, t.scale);
+        let q = far_quad_corner(local);
+        let p_world = centre + u.cam_right * (q.x * half) + u.cam_up * (q.y * half);
+        let p_rel = p_world - u.view.eye;
+        var p_depth = p_rel.x * u.view.forward.x + p_rel.y * u.view.forward.y + p_rel.z * u.view.forward.z;
+        let p_i = view_interval(sphere.center, sphere.radius, u.view.eye, u.view.forward);
+        p_depth = min(max(p_depth, p_i.lo), p_i.hi);
+        let word = r.rgba8 & 0xffffffu;
+        out.clip = u.view_proj * vec4<f32>(p_world, 1.0);
+        out.uv_depth_light = vec4<f32>(f32(word), 0.0, p_depth, 1.0);
+        out.layer_command_scale = vec4<u32>(word, command, fade_word, subset_pack(rank, code));
+        return out;
+    }
     var world: vec3<f32>;
     var uv: vec2<f32>;
     var layer: u32;
@@ -367,13 +454,6 @@ fn tree_vertex(
         u.shading, world, data.billboard != 0u, toward_eye, sphere.center, radii, u.sun, u.ambient,
     );
     out.uv_depth_light = vec4<f32>(uv, depth, lightness);
-    // The tree's scale, or under the `tree` granularity its progress through its own band at
-    // its centre's depth (reference tree_stage's `fade_word`).
-    var fade_word = bitcast<u32>(band_scale);
-    if u.fade_granularity == FADE_GRANULARITY_TREE {
-        let band = group_band(u.view, vec2<f32>(data.fade_start, data.fade_end), vec2<f32>(band_scale, band_scale));
-        fade_word = bitcast<u32>(fade_progress(d_tree, band.x, band.y));
-    }
     out.layer_command_scale = vec4<u32>(layer, command, fade_word, subset_pack(rank, code));
     return out;
 }
@@ -465,7 +545,12 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
         far_out.lod_id = LOD_ID_FAR;
         return far_out;
     }
-    let texel = select(mesh_texel, billboard_texel, data.billboard != 0u);
+    var texel = select(mesh_texel, billboard_texel, data.billboard != 0u);
+    // A point's flat colour (issue 33; reference TreeShader): its sRGB RGB word (the flat
+    // layer), opaque, so every alpha test keeps it.
+    if u.points != 0u && data.billboard != 0u {
+        texel = vec4<f32>(srgb_decode(layer), srgb_decode(layer >> 8u), srgb_decode(layer >> 16u), 1.0);
+    }
     if texel.a < u.alpha_cutoff {
         discard;
     }

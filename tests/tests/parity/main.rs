@@ -38,6 +38,7 @@ mod mips;
 mod mutants;
 mod occlusion;
 mod octahedral_depth;
+mod points;
 mod refine;
 mod sampler_lod;
 mod select;
