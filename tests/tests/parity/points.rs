@@ -15,7 +15,7 @@ use forestlod_harness::backend::GpuRenderer;
 use forestlod_harness::context::gpu_context;
 use forestlod_harness::diagnose::{check_stages, first_differing};
 use forestlod_harness::gpu_frame::StagesFromCpu;
-use forestlod_harness::image_compare::{compare_images, write_failure_images};
+use forestlod_harness::image_compare::{MaxDiffs, judge_image, print_max_diffs};
 use forestlod_harness::stage::{Backend, Draw, FrameInput, Named, Reference};
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
@@ -49,7 +49,7 @@ fn gpu_points_match_the_reference() {
     // `prepare` does not depend on `point_select` (per-frame), so one prepared scene serves both.
     let prepared = prepare(tiny.clone(), &base).expect("prepare tiny with points");
     let mut failures = Vec::new();
-    let (mut max_colour, mut max_depth) = (0u8, 0f32);
+    let mut max = MaxDiffs::default();
     for select in PointSelect::ALL {
         for (camera_name, transition, band) in [("medium", 400.0, 80.0), ("close", 60.0, 20.0)] {
             let params = Params {
@@ -95,21 +95,17 @@ fn gpu_points_match_the_reference() {
                 let backend = GpuRenderer { ctx, option };
                 let got = backend.run(input);
                 let label = format!("{name}/{}", backend.name());
-                let report = compare_images(&label, &got, &want, &alternatives, &camera);
-                eprintln!("{report}");
-                max_colour = max_colour.max(report.color_max_diff);
-                max_depth = max_depth.max(report.depth_max_diff);
-                if !report.passed() {
-                    let dir = write_failure_images(&report, &got, &want);
-                    failures.push(format!(
-                        "{label}: {} (images in {})",
-                        report.failures().join("; "),
-                        dir.display()
-                    ));
-                }
+                failures.extend(judge_image(
+                    &label,
+                    &got,
+                    &want,
+                    &alternatives,
+                    &camera,
+                    &mut max,
+                ));
             }
         }
     }
-    eprintln!("points parity: max colour diff {max_colour}, max depth diff {max_depth:.3e}");
+    print_max_diffs("points parity", &max);
     assert_no_failures("point LOD parity failed", &failures);
 }
