@@ -371,6 +371,56 @@ pub fn assert_no_failures(what: &str, failures: &[String]) {
     assert!(failures.is_empty(), "{what}:\n{}", failures.join("\n"));
 }
 
+/// The GPU twin of one reference frame `want` (drawn from `input`), judged two ways: the
+/// diagnosis's stage checks (`forestlod_harness::diagnose::check_stages`, each printed), then
+/// the draw alone (`StagesFromCpu::ALL`) and fed by the GPU's selection
+/// (`StagesFromCpu::TEXTURES`), each image judged by the image classes against `want` with the
+/// alpha test's alternatives. Failures are named by `name`; maxima go to `max`.
+pub fn gpu_frame_failures(
+    ctx: &'static forestlod_gpu::GpuContext,
+    name: &str,
+    input: forestlod_harness::stage::FrameInput<'_>,
+    want: &forestlod_harness::image_compare::Images,
+    max: &mut forestlod_harness::image_compare::MaxDiffs,
+) -> Vec<String> {
+    use forestlod_harness::stage::{Backend, Named};
+    let (prepared, camera, params) = (input.prepared, input.camera, input.params);
+    let alternatives =
+        forestlod_harness::alternatives::alpha_test_alternatives(prepared, camera, params);
+    let mut failures = Vec::new();
+    for option in [
+        forestlod_harness::gpu_frame::StagesFromCpu::ALL,
+        forestlod_harness::gpu_frame::StagesFromCpu::TEXTURES,
+    ] {
+        let checks = forestlod_harness::diagnose::check_stages(
+            ctx,
+            prepared,
+            camera,
+            params,
+            true,
+            option.selection.is_some(),
+        );
+        for c in &checks {
+            eprintln!("{name}: stage {}: {}", c.stage, c.summary);
+        }
+        if let Some(f) = forestlod_harness::diagnose::first_differing(&checks) {
+            failures.push(format!("{name}: {f}"));
+        }
+        let backend = forestlod_harness::backend::GpuRenderer { ctx, option };
+        let got = backend.run(input);
+        let label = format!("{name}/{}", backend.name());
+        failures.extend(forestlod_harness::image_compare::judge_image(
+            &label,
+            &got,
+            want,
+            &alternatives,
+            camera,
+            max,
+        ));
+    }
+    failures
+}
+
 /// The differing pixels of a frame drawn with `command_order = node` against the same frame drawn
 /// `front-to-back` (issue 13, E§7), each classified ([`classify_order_diffs`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -13,18 +13,14 @@
 //! draw alone (`from-cpu: select,textures`) and the GPU cut feeding the GPU draw
 //! (`from-cpu: textures`).
 
-use forestlod_harness::alternatives::alpha_test_alternatives;
-use forestlod_harness::backend::GpuRenderer;
 use forestlod_harness::context::gpu_context;
-use forestlod_harness::diagnose::{check_stages, first_differing};
-use forestlod_harness::gpu_frame::StagesFromCpu;
-use forestlod_harness::image_compare::{compare_images, write_failure_images};
-use forestlod_harness::stage::{Backend, Draw, FrameInput, Named, Reference};
+use forestlod_harness::image_compare::{MaxDiffs, print_max_diffs};
+use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_reference::pipeline::prepare;
 use forestlod_shared::{FadeMode, FarLod, Hierarchy, LOD_ID_FAR, Params};
-use forestlod_tests::assert_no_failures;
 use forestlod_tests::far_fixture::synthetic_far_level;
 use forestlod_tests::scenarios::{crop_params, cropped_synthetic};
+use forestlod_tests::{assert_no_failures, gpu_frame_failures};
 
 /// The least far pixels a scenario's reference frame must show, so the far path is judged
 /// (measured: 1221-1762 on the fixture's level, 446-451 on the baked one, whose cells' real
@@ -35,6 +31,7 @@ const MIN_FAR_PIXELS: usize = 300;
 fn gpu_far_level_matches_the_reference() {
     let Some(ctx) = gpu_context() else { return };
     let mut failures = Vec::new();
+    let mut max = MaxDiffs::default();
     for (hierarchy, baked) in [
         (Hierarchy::Octree, false),
         (Hierarchy::Grid, false),
@@ -77,37 +74,9 @@ fn gpu_far_level_matches_the_reference() {
                     "{name}: only {far_pixels} far pixels (want {MIN_FAR_PIXELS})"
                 ));
             }
-            let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
-            for option in [StagesFromCpu::ALL, StagesFromCpu::TEXTURES] {
-                let checks = check_stages(
-                    ctx,
-                    &prepared,
-                    &camera,
-                    &params,
-                    true,
-                    option.selection.is_some(),
-                );
-                for c in &checks {
-                    eprintln!("{name}: stage {}: {}", c.stage, c.summary);
-                }
-                if let Some(f) = first_differing(&checks) {
-                    failures.push(format!("{name}: {f}"));
-                }
-                let backend = GpuRenderer { ctx, option };
-                let got = backend.run(input);
-                let label = format!("{name}/{}", backend.name());
-                let report = compare_images(&label, &got, &want, &alternatives, &camera);
-                eprintln!("{report}");
-                if !report.passed() {
-                    let dir = write_failure_images(&report, &got, &want);
-                    failures.push(format!(
-                        "{label}: {} (images in {})",
-                        report.failures().join("; "),
-                        dir.display()
-                    ));
-                }
-            }
+            failures.extend(gpu_frame_failures(ctx, &name, input, &want, &mut max));
         }
     }
+    print_max_diffs("far level parity", &max);
     assert_no_failures("far level parity failed", &failures);
 }

@@ -10,19 +10,15 @@
 //! 60 m (20 m band) so that near points cover many pixels, at 128², 256 points per mesh. Backends: the
 //! draw alone (`from-cpu: select,textures`) and `select.wgsl` feeding it (`from-cpu: textures`).
 
-use forestlod_harness::alternatives::alpha_test_alternatives;
-use forestlod_harness::backend::GpuRenderer;
 use forestlod_harness::context::gpu_context;
-use forestlod_harness::diagnose::{check_stages, first_differing};
-use forestlod_harness::gpu_frame::StagesFromCpu;
-use forestlod_harness::image_compare::{MaxDiffs, judge_image, print_max_diffs};
-use forestlod_harness::stage::{Backend, Draw, FrameInput, Named, Reference};
+use forestlod_harness::image_compare::{MaxDiffs, print_max_diffs};
+use forestlod_harness::stage::{Backend, Draw, FrameInput, Reference};
 use forestlod_reference::pipeline::prepare;
 use forestlod_reference::scene::builtin;
 use forestlod_shared::points::{Lod1, PointSelect};
 use forestlod_shared::{FadeMode, LOD_ID_BILLBOARD, LOD_ID_TRANSITION, Params};
-use forestlod_tests::assert_no_failures;
 use forestlod_tests::scenarios::tiny_params;
+use forestlod_tests::{assert_no_failures, gpu_frame_failures};
 
 /// The least LOD1 pixels (billboard or transition ids: the points' ids) the reference frame must
 /// show, so the point path is judged rather than an empty LOD1. Why 200: measured 1349-1422
@@ -79,31 +75,7 @@ fn gpu_points_match_the_reference() {
                     "{name}: only {lod1} LOD1 pixels (want {MIN_POINT_PIXELS})"
                 ));
             }
-            let alternatives = alpha_test_alternatives(&prepared, &camera, &params);
-            for option in [StagesFromCpu::ALL, StagesFromCpu::TEXTURES] {
-                let checks = check_stages(
-                    ctx,
-                    &prepared,
-                    &camera,
-                    &params,
-                    true,
-                    option.selection.is_some(),
-                );
-                if let Some(f) = first_differing(&checks) {
-                    failures.push(format!("{name}: {f}"));
-                }
-                let backend = GpuRenderer { ctx, option };
-                let got = backend.run(input);
-                let label = format!("{name}/{}", backend.name());
-                failures.extend(judge_image(
-                    &label,
-                    &got,
-                    &want,
-                    &alternatives,
-                    &camera,
-                    &mut max,
-                ));
-            }
+            failures.extend(gpu_frame_failures(ctx, &name, input, &want, &mut max));
         }
     }
     print_max_diffs("points parity", &max);

@@ -304,7 +304,7 @@ fn sub_pixel_points_cover_at_most_a_pixel_each() {
 /// reference. `cargo test --release -p forestlod-tests --test properties -- --ignored
 /// points_against_billboards --nocapture`.
 #[test]
-#[ignore]
+#[ignore = "a measurement on the 146,800-tree default scene (minutes in a debug build), printed: run with --ignored --nocapture"]
 fn points_against_billboards_on_the_default_scene() {
     let scene = forestlod_reference::scene::builtin::synthetic();
     for lod1 in [Lod1::Billboard, Lod1::Points] {
