@@ -117,7 +117,7 @@
 //! the mesh, `point_select`, `point_detail` ([`DetailPreset`]) and `point_count` (`N_pts`)
 //! configure it ([`PointParams::from_params`], [`draws_points`]). They are rows of the
 //! parameter table (CLI flags, sweep keys), walked on both backends by the draw stage's row of
-//! the stage table; [`check_point_fields`] checks them.
+//! the stage table; `crate::Params::validate` checks them through the table like every field.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -277,49 +277,6 @@ impl PointParams {
             ..Self::default()
         }
     }
-}
-
-/// Checks the point LOD's fields of `params` (`lod1`, `point_select`, `point_detail`,
-/// `point_count`; [`crate::Params::validate`] calls it): a [`ParamError`] names the field and the
-/// value. They are also rows of `crate::registry::PARAMS` (issue 33 item 1), whose walk checks
-/// the same ranges; this check keeps the point fields' errors in one place for the callers that
-/// build a `Params` without the table (the properties, the point build).
-pub fn check_point_fields(params: &crate::Params) -> Result<(), ParamError> {
-    let err = |field: &'static str, value: u32, reason: String| ParamError {
-        field,
-        value: value.to_string(),
-        reason: reason.into(),
-    };
-    let names = |all: &[(&str, u32)]| {
-        let v: Vec<String> = all.iter().map(|(n, c)| format!("{c} ({n})")).collect();
-        format!("expected one of {}", v.join(", "))
-    };
-    if Lod1::from_id(params.lod1).is_none() {
-        let all: Vec<(&str, u32)> = Lod1::ALL.iter().map(|m| (m.name(), *m as u32)).collect();
-        return Err(err("lod1", params.lod1, names(&all)));
-    }
-    if PointSelect::from_id(params.point_select).is_none() {
-        let all: Vec<(&str, u32)> = PointSelect::ALL
-            .iter()
-            .map(|m| (m.name(), *m as u32))
-            .collect();
-        return Err(err("point_select", params.point_select, names(&all)));
-    }
-    if DetailPreset::from_id(params.point_detail).is_none() {
-        let all: Vec<(&str, u32)> = DetailPreset::ALL
-            .iter()
-            .map(|m| (m.name(), *m as u32))
-            .collect();
-        return Err(err("point_detail", params.point_detail, names(&all)));
-    }
-    if params.point_count == 0 || params.point_count > MAX_POINTS_PER_MESH {
-        return Err(err(
-            "point_count",
-            params.point_count,
-            "expected 1..=4096 points per mesh".into(),
-        ));
-    }
-    Ok(())
 }
 
 /// Whether `params` draw points as the second level (`lod1 = points` with `lod_levels >= 2`).

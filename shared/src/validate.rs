@@ -178,9 +178,6 @@ impl Params {
                 });
             }
         }
-        // The point LOD's fields (issue 33): registry rows, checked together here too
-        // (`check_point_fields` names the field and the value).
-        crate::points::check_point_fields(self)?;
         // The point LOD (issue 33) replaces the billboard as the second level; the far level's
         // chain (mesh -> billboard -> far) is not defined over points.
         if self.lod1 == crate::points::Lod1::Points as u32 && self.lod_levels >= 3 {
