@@ -250,6 +250,15 @@ pub const STAGES: &[StageEntry] = &[
             "noise_size",
             "octahedral_grid",
             "point_count",
+            // Hierarchical impostors (issue 33 item 2): the atlas the draw samples and the plan
+            // (`reference/src/impostor_cache.rs`, CPU-side as in C§4.6.3) that fills it.
+            "impostor_pixels",
+            "impostor_tiles",
+            "impostor_min_distance",
+            "impostor_max_depth",
+            "impostor_update_interval",
+            "impostor_refresh_interval",
+            "impostor_refresh_number",
         ],
     },
     StageEntry {

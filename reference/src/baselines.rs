@@ -312,6 +312,7 @@ pub fn render_vegetation_with_history(
             refine: 0.0,
             draw: draw_seconds,
             occlusion: occlusion_seconds,
+            impostors: 0.0,
         },
         occlusion,
     }
@@ -622,6 +623,7 @@ pub fn render_primitive_shifted(
             refine: 0.0,
             draw: draw_seconds,
             occlusion: 0.0,
+            impostors: 0.0,
         },
         occlusion: None,
     }

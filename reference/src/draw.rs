@@ -74,8 +74,9 @@ use forestlod_shared::{
     view_direction, view_interval, view_layer,
 };
 use forestlod_shared::{
-    FarLevel, FarLod, LOD_FAR, cube_corner, dither_threshold, pack_far_colour, side_mix,
-    sprite_corner, sprite_half, unpack_far_colour,
+    FarLevel, FarLod, LOD_FAR, cube_corner, dither_threshold,
+    impostor::{ImpostorQuad, impostor_corner, impostor_texel, impostor_texel_kept},
+    pack_far_colour, side_mix, sprite_corner, sprite_half, unpack_far_colour,
 };
 use glam::{Mat4, Vec3, Vec4};
 
@@ -500,6 +501,9 @@ fn far_stage(
                 offset: node.hull_offset,
             }
         }
+        FarLod::Impostor => TreeKind::FarImpostor {
+            quad: ImpostorQuad::from_cell(*far.cells.get(instance as usize)?),
+        },
         lod => {
             let cell = far.cells.get(instance as usize)?;
             if lod == FarLod::OctantCube {
@@ -628,6 +632,8 @@ enum TreeKind {
     },
     /// A batch hull (issue 32): its first vertex in the far level's hull.
     FarHull { offset: u32 },
+    /// A hierarchical impostor (issue 33 item 2, `forestlod_shared::impostor`): its quad.
+    FarImpostor { quad: ImpostorQuad },
 }
 
 impl TreeStage {
@@ -674,6 +680,28 @@ impl TreeStage {
                 .map(|v| (Vec3::from(v.position), v.colour)),
             _ => None,
         };
+        if let TreeKind::FarImpostor { quad } = self.kind {
+            // The quad's corner and its texture coordinate; the slot rides as an exact `f32`.
+            let (c, uv) = impostor_corner(local);
+            let world = Vec3::from(quad.center)
+                + Vec3::from(quad.right) * c[0]
+                + Vec3::from(quad.up) * c[1];
+            let depth = (world - eye).dot(forward);
+            let clip = *view_proj * Vec4::new(world.x, world.y, world.z, 1.0);
+            return Vertex::new(
+                clip.to_array(),
+                [
+                    uv[0],
+                    uv[1],
+                    depth,
+                    quad.slot as f32,
+                    self.command as f32,
+                    0.0,
+                    0.0,
+                    1.0,
+                ],
+            );
+        }
         if let Some((world, word)) = far_word {
             let depth = (world - eye).dot(forward);
             let clip = *view_proj * Vec4::new(world.x, world.y, world.z, 1.0);
@@ -723,7 +751,10 @@ impl TreeStage {
                 };
                 (origin + right * along_right + up * along_up, uv, layer)
             }
-            TreeKind::FarCube { .. } | TreeKind::FarSprite { .. } | TreeKind::FarHull { .. } => {
+            TreeKind::FarCube { .. }
+            | TreeKind::FarSprite { .. }
+            | TreeKind::FarHull { .. }
+            | TreeKind::FarImpostor { .. } => {
                 // Handled above; a hull vertex out of range draws at the eye, degenerate.
                 (eye, [0.0; 2], 0.0)
             }
@@ -787,6 +818,9 @@ pub struct TreeShader<'a> {
     /// Whether LOD1 commands draw points (issue 33): their colour is the flat word of the
     /// first varying, not a texel.
     points: bool,
+    /// The impostor tile side under `far_lod = impostor` (issue 33 item 2), else 0: far
+    /// fragments then sample the far level's atlas.
+    impostor_side: u32,
 }
 
 impl<'a> TreeShader<'a> {
@@ -816,6 +850,11 @@ impl<'a> TreeShader<'a> {
                 .expect("parameters are validated before drawing"),
             octahedral_blend: params.octahedral_blend == AzimuthMode::Blend as u32,
             points: res.points.is_some() && forestlod_shared::points::draws_points(params),
+            impostor_side: if params.lod_levels >= 3 && params.far_level() == Ok(FarLod::Impostor) {
+                params.impostor_pixels
+            } else {
+                0
+            },
         }
     }
 
@@ -950,6 +989,9 @@ impl TreeShader<'_> {
     /// A far primitive's fragment (module docs): its colour where its alpha beats the pixel's
     /// dither threshold, opaque, [`LOD_ID_FAR`]; every pass alike (no alpha test).
     fn far_fragment(&self, f: &Fragment<TREE_VARYINGS>) -> Option<FragmentOutput> {
+        if self.impostor_side > 0 {
+            return self.impostor_fragment(f);
+        }
         let rgb = round_exact(f.varyings[3]) as u32;
         let alpha = round_exact(f.varyings[5]) / 255.0;
         let (px, py) = (f.x + self.pixel_origin[0], f.y + self.pixel_origin[1]);
@@ -959,6 +1001,32 @@ impl TreeShader<'_> {
             return None;
         }
         let c = unpack_far_colour(rgb | 0xff00_0000);
+        Some(FragmentOutput {
+            color: [c[0], c[1], c[2], 1.0],
+            id: LOD_ID_FAR,
+            depth: None,
+        })
+    }
+}
+
+impl TreeShader<'_> {
+    /// A hierarchical impostor's fragment (`forestlod_shared::impostor`): the nearest texel of
+    /// its tile, kept where its alpha is at least one half, opaque, [`LOD_ID_FAR`].
+    fn impostor_fragment(&self, f: &Fragment<TREE_VARYINGS>) -> Option<FragmentOutput> {
+        let far = self.res.far?;
+        let slot = round_exact(f.varyings[3]) as u32;
+        let quad = ImpostorQuad::from_cell(*far.cells.get(slot as usize)?);
+        let side = self.impostor_side;
+        let texel = impostor_texel(quad.size, side, f.varyings[0], f.varyings[1]);
+        let word = *far
+            .texels
+            .get((slot as u64 * side as u64 * side as u64 + texel as u64) as usize)?;
+        let kept = impostor_texel_kept(word);
+        coverage::hit(coverage::Threshold::DrawFarAlpha, kept);
+        if !kept {
+            return None;
+        }
+        let c = unpack_far_colour(word | 0xff00_0000);
         Some(FragmentOutput {
             color: [c[0], c[1], c[2], 1.0],
             id: LOD_ID_FAR,

@@ -124,6 +124,12 @@ impl<'a> FarCut<'a> {
     fn cells(&self, i: usize) -> u32 {
         self.level.nodes.get(i).map_or(0, |n| n.cell_count)
     }
+
+    /// Impostored strict descendants of node `i` under `far_lod = impostor`
+    /// (`forestlod_shared::impostor`'s per-node far data; 0 otherwise).
+    fn impostored_below(&self, i: usize) -> u32 {
+        self.level.nodes.get(i).map_or(0, |n| n.hull_count)
+    }
 }
 
 /// The cut of `h` for one frame (module docs). `meshes` carry their packed index ranges; `params`
@@ -148,7 +154,15 @@ pub fn hier_select(
             let banded = u.with_band(band);
             let code = node_code(&banded, n, h.mode, params.max_cull_depth);
             match &far {
-                Some(f) => far_code(code, &banded, &f.uniform, n, h.mode, f.cells(i)),
+                Some(f) => far_code(
+                    code,
+                    &banded,
+                    &f.uniform,
+                    n,
+                    h.mode,
+                    f.cells(i),
+                    f.impostored_below(i),
+                ),
                 None => code,
             }
         })

@@ -48,6 +48,7 @@ pub mod ground_truth;
 pub mod hier_select;
 pub mod hierarchy;
 pub mod hull;
+pub mod impostor_cache;
 pub mod metric;
 pub mod mips;
 pub mod occlude;

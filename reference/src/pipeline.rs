@@ -169,6 +169,17 @@ pub fn prepare(scene: Scene, params: &Params) -> Result<Prepared, InputError> {
     let t = Instant::now();
     let far = match forestlod_shared::FramePlan::new(params)?.far {
         None => None,
+        // Hierarchical impostors (issue 33 item 2) bake nothing: per node an empty far record,
+        // which the frame's `ImpostorCache` replaces (`crate::impostor_cache`).
+        Some(forestlod_shared::FarLod::Impostor) => {
+            let h = hierarchy
+                .as_ref()
+                .expect("a far level groups the trees in a hierarchy (FramePlan)");
+            Some(forestlod_shared::FarLevel {
+                nodes: vec![forestlod_shared::FarNode::default(); h.nodes.len()],
+                ..Default::default()
+            })
+        }
         Some(kind) => {
             let h = hierarchy
                 .as_ref()
@@ -251,6 +262,9 @@ pub struct FrameTimings {
     /// Occlusion culling (issue 31) outside the draws: the early split, the pyramid and the late
     /// test; 0 when off.
     pub occlusion: f64,
+    /// Hierarchical impostors (issue 33 item 2): the step's plan and tile renders before the
+    /// frame ([`crate::impostor_cache::ImpostorCache::step`]); 0 without them.
+    pub impostors: f64,
 }
 
 /// What occlusion culling did in one frame (issue 31, [`crate::occlude`]).
@@ -414,6 +428,14 @@ impl Prepared {
     ) -> Result<Frame, InputError> {
         camera.validate()?;
         params.validate()?;
+        if params.lod_levels >= 3 && params.far_level()? == forestlod_shared::FarLod::Impostor {
+            // A frame with no path before it: a fresh impostor cache, stepped once.
+            let mut cache = crate::impostor_cache::ImpostorCache::new(self, params)?;
+            let step = cache.step(self, camera, params)?;
+            let mut frame = self.render_impostors(camera, params, &cache)?;
+            frame.timings.impostors = step.seconds;
+            return Ok(frame);
+        }
         let trace = self.select_stages(camera, params, false);
         let (selection, refined) = (trace.selection, trace.refined);
         let indirection = refined
@@ -443,6 +465,46 @@ impl Prepared {
                 refine: trace.seconds.get(StageId::Refine),
                 draw: draw_seconds,
                 occlusion: occlusion_seconds,
+                impostors: 0.0,
+            },
+        })
+    }
+
+    /// The frame of a camera path under hierarchical impostors (issue 33 item 2): the cut and the
+    /// draw read `cache`'s far level (its impostored nodes, quads and atlas), as stepped for this
+    /// frame ([`crate::impostor_cache::ImpostorCache::step`], whose time the caller adds). `params`
+    /// must have `lod_levels = 3` and `far_lod = impostor` (the cache's).
+    pub fn render_impostors(
+        &self,
+        camera: &Camera,
+        params: &Params,
+        cache: &crate::impostor_cache::ImpostorCache,
+    ) -> Result<Frame, InputError> {
+        camera.validate()?;
+        params.validate()?;
+        let scene = SelectScene {
+            far: Some(cache.level()),
+            ..self.select_scene()
+        };
+        let trace = select_stages(&scene, camera, params, false);
+        let res = DrawResources {
+            far: Some(cache.level()),
+            ..self.resources()
+        };
+        let t = Instant::now();
+        let drawn = draw_frame(&res, &trace.selection, camera, params);
+        let draw = t.elapsed().as_secs_f64();
+        Ok(Frame {
+            selection: trace.selection,
+            refined: trace.refined,
+            drawn,
+            occlusion: None,
+            timings: FrameTimings {
+                select: trace.seconds.selection(),
+                refine: 0.0,
+                draw,
+                occlusion: 0.0,
+                impostors: 0.0,
             },
         })
     }

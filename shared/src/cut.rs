@@ -145,7 +145,8 @@ pub fn node_code(u: &ViewUniform, n: &NodeMeta, mode: Hierarchy, max_cull_depth:
 /// no mesh (every tree a billboard, so the chain mesh → billboard → far stays conservative per
 /// tree) and is [`crate::far_eligible`] with its `cells` becomes `DECISION_DRAW | NODE_FAR`; an
 /// interior node that is not far but whose interval reaches `far.start` recurses, so that its
-/// smaller descendants may go far.
+/// smaller descendants may go far. Under `far_lod = impostor` the node's impostor state decides
+/// ([`impostor_code`]; `impostored_below` is read only there).
 pub fn far_code(
     code: u32,
     u: &ViewUniform,
@@ -153,9 +154,13 @@ pub fn far_code(
     n: &NodeMeta,
     mode: Hierarchy,
     cells: u32,
+    impostored_below: u32,
 ) -> u32 {
     if far.kind == 0 || code & DECISION_KIND_MASK != DECISION_DRAW {
         return code;
+    }
+    if far.kind == 1 + crate::FarLod::Impostor as u32 {
+        return impostor_code(code, n, cells, impostored_below);
     }
     let (lo, hi) = node_interval(u, n, mode);
     let billboards_only = code & crate::DECISION_LOD0 == 0;
@@ -168,6 +173,21 @@ pub fn far_code(
         return DECISION_DRAW | NODE_FAR;
     }
     if n.child_count > 0 && hi >= far.start {
+        code | NODE_RECURSE
+    } else {
+        code
+    }
+}
+
+/// [`far_code`] under `far_lod = impostor` (issue 33 item 2, `crate::impostor`): a drawn node
+/// that is impostored (`cells` = 1) goes far whatever its trees' LODs (the impostor replaces
+/// them all); a drawn interior node with impostored descendants (`impostored_below` > 0)
+/// recurses, so that no command covers an impostored node's trees; any other node keeps `code`.
+pub fn impostor_code(code: u32, n: &NodeMeta, cells: u32, impostored_below: u32) -> u32 {
+    if cells > 0 {
+        return DECISION_DRAW | NODE_FAR;
+    }
+    if n.child_count > 0 && impostored_below > 0 {
         code | NODE_RECURSE
     } else {
         code

@@ -88,6 +88,8 @@ pub fn emit_far_command(
         FarLod::OctantSprite => (SPRITE_VERTICES, far_node.cell_count, far_node.cell_offset),
         FarLod::OctantCube => (CUBE_VERTICES, far_node.cell_count, far_node.cell_offset),
         FarLod::Hull => (far_node.hull_count, 1, node),
+        // One quad, the node's (`crate::impostor`'s per-node far data).
+        FarLod::Impostor => (SPRITE_VERTICES, far_node.cell_count, far_node.cell_offset),
     };
     let command = DrawCommand {
         index_count,

@@ -55,6 +55,8 @@ crate::modes::modes! {
         OctantCube = 1 => "octant-cube" ("G§2.3 cube"),
         /// One opaque convex hull per node, coloured by face normal.
         Hull = 2 => "hull" ("E§7 batch hull"),
+        /// A hierarchical impostor per planned node, rendered from the eye (`crate::impostor`).
+        Impostor = 3 => "impostor" ("C§4.6.3 hierarchical impostor"),
     }
 }
 
@@ -143,6 +145,9 @@ pub struct FarLevel {
     pub cells: Vec<FarCell>,
     /// Every node's hull triangles (3 vertices each), node by node; empty unless `far_lod = hull`.
     pub hull: Vec<FarVertex>,
+    /// The impostor atlas under `far_lod = impostor` (`crate::impostor`): `impostor_pixels²`
+    /// RGBA8 words per slot (as [`FarCell::colours`]), slot by slot, row by row; else empty.
+    pub texels: Vec<u32>,
 }
 
 impl FarLevel {
@@ -151,7 +156,8 @@ impl FarLevel {
     pub fn bytes(&self) -> u64 {
         (self.nodes.len() * size_of::<FarNode>()
             + self.cells.len() * size_of::<FarCell>()
-            + self.hull.len() * size_of::<FarVertex>()) as u64
+            + self.hull.len() * size_of::<FarVertex>()
+            + self.texels.len() * 4) as u64
     }
 
     /// The colour bytes alone, G§2.4's `6 × 4 B` per cell.

@@ -40,6 +40,7 @@ pub mod fade;
 pub mod far;
 pub mod far_bake;
 pub mod frame;
+pub mod impostor;
 pub mod interval;
 pub mod light;
 pub mod metric;

@@ -287,8 +287,31 @@ pub struct Params {
     /// Points placed per mesh (`N_pts`, issue 33, C§4.4.4's fix). Default 1024. Read only under
     /// `lod1 = points`.
     pub point_count: u32,
+    /// Side of a hierarchical impostor's tile, pixels (issue 33 item 2, C§4.6.3
+    /// `ImpostorWidth`/`ImpostorHeight`, `shared/src/impostor.rs`): a node is impostored only
+    /// when it covers fewer than `impostor_pixels²` pixels. Default 64. Read only under
+    /// `far_lod = impostor`.
+    pub impostor_pixels: u32,
+    /// Tiles the impostor atlas holds (C§4.6.3 `ImpostorTextureWidth·Height` over the tile).
+    /// Default 64. Read only under `far_lod = impostor`.
+    pub impostor_tiles: u32,
+    /// Least distance from the eye to a node's box for it to be impostored, metres (C§4.6.3
+    /// `ImpostorMinimalDistance`). Default 300. Read only under `far_lod = impostor`.
+    pub impostor_min_distance: f32,
+    /// Deepest hierarchy level whose nodes may be impostored, the root being 0 (C§4.6.3
+    /// `ImpostorHierarchyMaxDepth`). Default 3. Read only under `far_lod = impostor`.
+    pub impostor_max_depth: u32,
+    /// Frames between two impostor plans (C§4.6.3 `ImpostorUpdateInterval`, in frames).
+    /// Default 1. Read only under `far_lod = impostor`.
+    pub impostor_update_interval: u32,
+    /// Frames between two refresh steps (C§4.6.3 `ImpostorRefreshInterval`, in frames).
+    /// Default 4. Read only under `far_lod = impostor`.
+    pub impostor_refresh_interval: u32,
+    /// Impostors re-rendered per refresh step, round robin (C§4.6.3 `ImpostorRefreshNumber`).
+    /// Default 4. Read only under `far_lod = impostor`.
+    pub impostor_refresh_number: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 192);
+const _: () = assert!(core::mem::size_of::<Params>() == 220);
 
 impl Default for Params {
     fn default() -> Self {
@@ -341,6 +364,13 @@ impl Default for Params {
             point_select: crate::points::PointSelect::Cut as u32,
             point_detail: crate::points::DetailPreset::Normal as u32,
             point_count: 1024,
+            impostor_pixels: 64,
+            impostor_tiles: 64,
+            impostor_min_distance: 300.0,
+            impostor_max_depth: 3,
+            impostor_update_interval: 1,
+            impostor_refresh_interval: 4,
+            impostor_refresh_number: 4,
         }
     }
 }

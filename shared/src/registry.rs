@@ -17,7 +17,9 @@
 use std::borrow::Cow;
 
 use crate::azimuth::MAX_AZIMUTH_COUNT;
+use crate::cut::MAX_HIERARCHY_DEPTH;
 use crate::far::MAX_CLUSTER_SIZE;
+use crate::impostor::{MAX_IMPOSTOR_PIXELS, MIN_IMPOSTOR_PIXELS};
 use crate::octahedral::{MAX_OCTAHEDRAL_GRID, MIN_OCTAHEDRAL_GRID};
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
 use crate::points::{DetailPreset, Lod1, MAX_POINTS_PER_MESH, PointSelect};
@@ -331,7 +333,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 48] = [
+pub const PARAMS: [ParamSpec; 55] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -408,6 +410,20 @@ pub const PARAMS: [ParamSpec; 48] = [
     choice!(point_detail, "point-detail", DetailPreset, "Point selection's screen areas under lod1 points: ", ""),
     param!(point_count, "point-count", uint(1, MAX_POINTS_PER_MESH), "expected 1..=4096 points per mesh",
         "Points placed per mesh under lod1 points (C§4.4.4 N_pts)"),
+    param!(impostor_pixels, "impostor-pixels", uint(MIN_IMPOSTOR_PIXELS, MAX_IMPOSTOR_PIXELS), "expected 8..=256 pixels",
+        "Side of a hierarchical impostor's tile under far-lod impostor, pixels (C§4.6.3 ImpostorWidth)"),
+    param!(impostor_tiles, "impostor-tiles", uint(1, 4096), "expected 1..=4096 tiles",
+        "Tiles of the impostor atlas under far-lod impostor (C§4.6.3 ImpostorTextureWidth)"),
+    param!(impostor_min_distance, "impostor-min-distance", distance(0.0), "expected a finite distance in 0..=1e7 m",
+        "Least distance from the eye to a node's box for an impostor, metres (C§4.6.3 ImpostorMinimalDistance)"),
+    param!(impostor_max_depth, "impostor-max-depth", uint(0, MAX_HIERARCHY_DEPTH), "expected 0..=32 levels",
+        "Deepest hierarchy level that may be impostored, root 0 (C§4.6.3 ImpostorHierarchyMaxDepth)"),
+    param!(impostor_update_interval, "impostor-update-interval", uint(1, 1 << 20), "expected 1..=1048576 frames",
+        "Frames between two impostor plans (C§4.6.3 ImpostorUpdateInterval)"),
+    param!(impostor_refresh_interval, "impostor-refresh-interval", uint(1, 1 << 20), "expected 1..=1048576 frames",
+        "Frames between two impostor refresh steps (C§4.6.3 ImpostorRefreshInterval)"),
+    param!(impostor_refresh_number, "impostor-refresh-number", uint(0, 4096), "expected 0..=4096 impostors",
+        "Impostors re-rendered per refresh step, round robin (C§4.6.3 ImpostorRefreshNumber)"),
 ];
 
 /// Least `subset_min`: one tree in a thousand (a smaller floor leaves batches of a few hundred

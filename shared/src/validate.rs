@@ -192,6 +192,22 @@ impl Params {
                 .into(),
             });
         }
+        // The impostor atlas (issue 33 item 2, `crate::impostor`) is bounded.
+        if self.lod_levels >= 3 && self.far_level()? == crate::FarLod::Impostor {
+            let texels = self.impostor_tiles as u64 * (self.impostor_pixels as u64).pow(2);
+            if texels > crate::impostor::MAX_IMPOSTOR_TEXELS {
+                return Err(ParamError {
+                    field: "impostor_tiles",
+                    value: self.impostor_tiles.to_string(),
+                    reason: format!(
+                        "the impostor atlas of impostor_tiles x impostor_pixels² = {texels} texels \
+                         exceeds {} (64 MiB)",
+                        crate::impostor::MAX_IMPOSTOR_TEXELS
+                    )
+                    .into(),
+                });
+            }
+        }
         // One mesh's `K·J` views must fit the billboard array (issue 30); the scene's `m·K·J` is
         // checked where the mesh count is known (`crate::check_billboard_layers`).
         crate::check_billboard_layers(1, self)?;

@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 48] = [
+const PINNED: [(&str, &str, &str); 55] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -199,8 +199,8 @@ const PINNED: [(&str, &str, &str); 48] = [
     ),
     (
         "far_lod",
-        "expected 0 (octant-sprite), 1 (octant-cube) or 2 (hull)",
-        "Far level of whole nodes under lod-levels 3 (issue 32): octant-sprite (G§2.3 sprite), octant-cube (G§2.3 cube), hull (E§7 batch hull)",
+        "expected 0 (octant-sprite), 1 (octant-cube), 2 (hull) or 3 (impostor)",
+        "Far level of whole nodes under lod-levels 3 (issue 32): octant-sprite (G§2.3 sprite), octant-cube (G§2.3 cube), hull (E§7 batch hull), impostor (C§4.6.3 hierarchical impostor)",
     ),
     (
         "far_start",
@@ -246,6 +246,41 @@ const PINNED: [(&str, &str, &str); 48] = [
         "point_count",
         "expected 1..=4096 points per mesh",
         "Points placed per mesh under lod1 points (C§4.4.4 N_pts)",
+    ),
+    (
+        "impostor_pixels",
+        "expected 8..=256 pixels",
+        "Side of a hierarchical impostor's tile under far-lod impostor, pixels (C§4.6.3 ImpostorWidth)",
+    ),
+    (
+        "impostor_tiles",
+        "expected 1..=4096 tiles",
+        "Tiles of the impostor atlas under far-lod impostor (C§4.6.3 ImpostorTextureWidth)",
+    ),
+    (
+        "impostor_min_distance",
+        "expected a finite distance in 0..=1e7 m",
+        "Least distance from the eye to a node's box for an impostor, metres (C§4.6.3 ImpostorMinimalDistance)",
+    ),
+    (
+        "impostor_max_depth",
+        "expected 0..=32 levels",
+        "Deepest hierarchy level that may be impostored, root 0 (C§4.6.3 ImpostorHierarchyMaxDepth)",
+    ),
+    (
+        "impostor_update_interval",
+        "expected 1..=1048576 frames",
+        "Frames between two impostor plans (C§4.6.3 ImpostorUpdateInterval)",
+    ),
+    (
+        "impostor_refresh_interval",
+        "expected 1..=1048576 frames",
+        "Frames between two impostor refresh steps (C§4.6.3 ImpostorRefreshInterval)",
+    ),
+    (
+        "impostor_refresh_number",
+        "expected 0..=4096 impostors",
+        "Impostors re-rendered per refresh step, round robin (C§4.6.3 ImpostorRefreshNumber)",
     ),
 ];
 

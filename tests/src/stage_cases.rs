@@ -140,6 +140,13 @@ pub const READ_ONLY_UNDER: &[(&str, &str, &str)] = &[
     ("azimuth_count", "billboard_views", "elevation"),
     ("far_start", "far_lod", "octant-sprite"),
     ("far_pixels", "far_lod", "octant-sprite"),
+    ("impostor_pixels", "far_lod", "impostor"),
+    ("impostor_tiles", "far_lod", "impostor"),
+    ("impostor_min_distance", "far_lod", "impostor"),
+    ("impostor_max_depth", "far_lod", "impostor"),
+    ("impostor_update_interval", "far_lod", "impostor"),
+    ("impostor_refresh_interval", "far_lod", "impostor"),
+    ("impostor_refresh_number", "far_lod", "impostor"),
 ];
 
 /// Azimuth views a case gets when it picks an azimuth rule other than the nearest at one view
@@ -177,7 +184,19 @@ pub fn coherent(p: &mut Params) {
     // primitive other than the default gets it, and a far case drops what the far level refuses
     // (per-tree refinement, occlusion culling, subsets) and pulls the transition in to a far
     // start below it (so `far_start = 0` is the extreme "everything far that can be").
-    if p.far_lod != Params::default().far_lod {
+    // Hierarchical impostors' settings (issue 33 item 2) are read under `far_lod = impostor`.
+    let d = Params::default();
+    if p.impostor_pixels != d.impostor_pixels
+        || p.impostor_tiles != d.impostor_tiles
+        || p.impostor_min_distance != d.impostor_min_distance
+        || p.impostor_max_depth != d.impostor_max_depth
+        || p.impostor_update_interval != d.impostor_update_interval
+        || p.impostor_refresh_interval != d.impostor_refresh_interval
+        || p.impostor_refresh_number != d.impostor_refresh_number
+    {
+        p.far_lod = forestlod_shared::FarLod::Impostor as u32;
+    }
+    if p.far_lod != d.far_lod {
         p.lod_levels = 3;
     }
     if p.lod_levels >= 3 {
@@ -193,7 +212,6 @@ pub fn coherent(p: &mut Params) {
     // `lod1 = points` only, a case that picks any of them draws points; points replace the
     // billboard as the second level, so a point case has two levels (the far level follows
     // billboards only).
-    let d = Params::default();
     if p.point_select != d.point_select
         || p.point_detail != d.point_detail
         || p.point_count != d.point_count

@@ -337,6 +337,15 @@ impl<'a> GpuScene<'a> {
                 "expected valid parameters (Params::validate)",
             )
         })?;
+        // Hierarchical impostors (issue 33 item 2) have no GPU twin yet: refused, not drawn as
+        // something else.
+        if params.lod_levels >= 3 && params.far_level() == Ok(forestlod_shared::FarLod::Impostor) {
+            return Err(input_error(
+                "far_lod",
+                "impostor".to_string(),
+                "hierarchical impostors run on the reference backend only (no GPU twin yet)",
+            ));
+        }
         let plan = FramePlan::new(params).map_err(|e| {
             input_error(
                 "params",

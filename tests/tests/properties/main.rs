@@ -29,6 +29,7 @@ mod command_order_properties;
 mod extremes;
 mod far_properties;
 mod hierarchy_properties;
+mod impostor_properties;
 mod occlusion_properties;
 mod points_draw_properties;
 mod points_properties;
