@@ -8,6 +8,7 @@
 //!   frame) every impostored node is allowed by the metric at this eye;
 //! - **every tree is drawn exactly once** by the frame's commands: by a mesh and/or a billboard as
 //!   the per-tree oracle asks, or inside its impostored node's image, never both, never twice;
+//!   and no tree of an impostored node is drawn as a tree (its impostor stands for it);
 //! - **a fresh impostor is the direct render of its node**: seen from its creation eye, its quad
 //!   drawn alone covers exactly the pixels the node's trees drawn alone cover, with the same
 //!   colours, bit for bit (tiles inside the frame; a tile past the frame is rendered in a grown
@@ -110,8 +111,8 @@ fn impostor_params() -> impl Strategy<Value = Params> {
 fn paths() -> impl Strategy<Value = Vec<Camera>> {
     (
         0.0f32..std::f32::consts::TAU,
-        200.0f32..1500.0,
-        5.0f32..200.0,
+        200.0f32..4000.0,
+        5.0f32..400.0,
         (0.0f32..600.0, 0.0f32..600.0),
         prop::collection::vec((-60.0f32..60.0, -60.0f32..60.0, -10.0f32..10.0), 3),
     )
@@ -337,6 +338,16 @@ proptest! {
             }
             let frame = prepared.render_impostors(camera, &p, &cache).unwrap();
             let covered = coverage(prepared, &cache, &frame.selection);
+            // An impostored node's trees are never drawn as trees: where the node is in view its
+            // impostor stands for them (the cut recurses through its ancestors).
+            let h = prepared.hierarchy.as_ref().expect("an octree");
+            for node in cache.impostored() {
+                let n = &h.nodes[node as usize];
+                for &t in &h.indirection[n.offset as usize..(n.offset + n.len) as usize] {
+                    let [c0, c1, _] = covered[t as usize];
+                    prop_assert!(c0 == 0 && c1 == 0, "tree {} of impostored node {} drawn as a tree: {:?}", t, node, covered[t as usize]);
+                }
+            }
             let oracle = select_per_tree(&prepared.tree_spheres, camera, &p);
             for (t, want) in oracle.iter().enumerate() {
                 let [c0, c1, ci] = covered[t];
