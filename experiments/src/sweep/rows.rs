@@ -104,6 +104,23 @@ pub struct Row {
     /// Temporal error: 99th percentile over pixels (empty where `temporal_mean` is).
     #[serde(default)]
     pub temporal_p99: Option<f64>,
+    /// Hierarchical impostors (issue 33 item 2): wall seconds of this frame's impostor step (the
+    /// plan and the tile renders, reference backend), outside `frame_s`: a path's frame costs
+    /// `frame_s + impostor_s`. Empty without impostors.
+    #[serde(default)]
+    pub impostor_s: Option<f64>,
+    /// Tiles this frame's impostor step rendered (created and refreshed).
+    #[serde(default)]
+    pub impostor_tiles: Option<u64>,
+    /// Texels of those tiles.
+    #[serde(default)]
+    pub impostor_texels: Option<u64>,
+    /// Triangles those tile renders drew.
+    #[serde(default)]
+    pub impostor_triangles: Option<u64>,
+    /// Impostors in the atlas after the step.
+    #[serde(default)]
+    pub impostors: Option<u64>,
     /// Accuracy against the ground truth. In the CSV: [`Accuracy`]'s columns, last
     /// ([`write_csv`]); serde skips it here, so a figure added to `Accuracy` is a column with
     /// no edit of this file or the runner.

@@ -18,6 +18,7 @@ use forestlod_reference::baselines::{
 };
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::ground_truth::{GroundTruthImage, GroundTruthScene, TruthLighting};
+use forestlod_reference::impostor_cache::ImpostorCache;
 use forestlod_reference::output::{lod_id_image, write_png};
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::scene::{Scene, builtin, load};
@@ -222,6 +223,29 @@ impl Runner {
                 if !truth_layouts.contains(&layout_text) {
                     truth_layouts.push(layout_text);
                 }
+                // Hierarchical impostors (issue 33 item 2): the path's impostor state, one at
+                // the frame's resolution and one at the total error's (a tile is screen
+                // pixels), stepped once per pose in path order. A shard would need the poses
+                // before its own: refused.
+                let impostor_path = set.params.lod_levels >= 3
+                    && set.params.far_level() == Ok(forestlod_shared::FarLod::Impostor);
+                if impostor_path && shard.is_some() {
+                    return Err(Box::new(InputError::new(
+                        file.clone(),
+                        format!("setting {}, field far_lod", set.label),
+                        "impostor",
+                        "a sweep with hierarchical impostors cannot be sharded: each frame's \
+                         impostors depend on every pose before it",
+                    )));
+                }
+                let mut caches = if impostor_path {
+                    Some((
+                        ImpostorCache::new(&prepared, &set.params)?,
+                        ImpostorCache::new(&prepared, &set.params)?,
+                    ))
+                } else {
+                    None
+                };
                 // The previous pose's frames, box-filtered, while they are a path's previous
                 // frame (the temporal error's predecessor: [`PathFrames`]).
                 let mut previous: Option<PathFrames> = None;
@@ -266,17 +290,39 @@ impl Runner {
                         self.images.insert(key.clone(), (img, seconds));
                     }
                     let (gt, truth_s) = (&self.images[&key].0, self.images[&key].1);
+                    // The same frame at the truth's sampling rate (`crate::fair`).
+                    let camera_ss = supersampled(&camera, spec.samples);
+                    // This pose's impostor step (a path's frame: plan, refresh, tile renders).
+                    // A path's first pose starts from an empty atlas.
+                    if !pose.follows_previous()
+                        && let Some(c) = caches.as_mut()
+                    {
+                        *c = (
+                            ImpostorCache::new(&prepared, &set.params)?,
+                            ImpostorCache::new(&prepared, &set.params)?,
+                        );
+                    }
+                    let impostor_step = match caches.as_mut() {
+                        Some((cache, cache_ss)) => {
+                            let step = cache.step(&prepared, &camera, &set.params)?;
+                            if spec.total_error {
+                                cache_ss.step(&prepared, &camera_ss, &set.params)?;
+                            }
+                            Some((step, cache.occupancy().1 as u64))
+                        }
+                        None => None,
+                    };
                     let frame = Frame {
                         prepared: &prepared,
                         spheres: &spheres,
                         proxies: &proxy_list,
                         camera: &camera,
                         params: &set.params,
+                        impostors: caches.as_ref().map(|c| &c.0),
                     };
-                    // The same frame at the truth's sampling rate (`crate::fair`).
-                    let camera_ss = supersampled(&camera, spec.samples);
                     let frame_ss = Frame {
                         camera: &camera_ss,
+                        impostors: caches.as_ref().map(|c| &c.1),
                         ..frame
                     };
                     for (backend_i, &backend) in backends.iter().enumerate() {
@@ -427,6 +473,12 @@ impl Runner {
                                 memory_bytes: vf.memory_bytes,
                                 temporal_mean: temporal[variant_i].map(|t| t.mean),
                                 temporal_p99: temporal[variant_i].map(|t| t.p99),
+                                impostor_s: impostor_step.map(|(st, _)| st.seconds),
+                                impostor_tiles: impostor_step
+                                    .map(|(st, _)| st.tiles_rendered as u64),
+                                impostor_texels: impostor_step.map(|(st, _)| st.texels_rendered),
+                                impostor_triangles: impostor_step.map(|(st, _)| st.triangles),
+                                impostors: impostor_step.map(|(_, n)| n),
                                 accuracy: acc,
                             });
                             if pose.save_images {
@@ -554,6 +606,9 @@ struct Frame<'a> {
     proxies: &'a [Proxy],
     camera: &'a Camera,
     params: &'a Params,
+    /// Hierarchical impostors (issue 33 item 2): the path's impostor state as stepped for this
+    /// frame at this camera's resolution; `None` without them.
+    impostors: Option<&'a ImpostorCache>,
 }
 
 /// Where a pose's full-detail frame (the LOD error's reference) comes from, per backend.
@@ -617,11 +672,15 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
         proxies: proxy_list,
         camera,
         params,
+        impostors,
     } = *f;
     fastest_of(repeats, || {
         let vf = match variant.reference_renderer() {
             Some(ReferenceRenderer::Ours) => {
-                let frame = prepared.render(camera, params)?;
+                let frame = match impostors {
+                    Some(cache) => prepared.render_impostors(camera, params, cache)?,
+                    None => prepared.render(camera, params)?,
+                };
                 let c = frame.selection.counters;
                 let indirection = frame.indirection(prepared);
                 // Under occlusion culling (issue 31) the trees of its two passes.
