@@ -188,8 +188,15 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
                 *cameras.entry(r.camera.clone()).or_default() += 1;
             }
             *sizes.entry((name, r.width, r.height)).or_default() += 1;
-            // Conservative selection: no tree misses a LOD the per-tree oracle gives it.
-            assert_eq!(r.trees_missing_lod, 0, "{name}: {} {}", r.variant, r.camera);
+            // Conservative selection: no tree misses a LOD the per-tree oracle gives it. Except
+            // under hierarchical impostors (issue 33 item 2, C§4.6.3): an impostor replaces its
+            // node's trees whatever their LOD, so a tree that would be a mesh may be drawn inside
+            // one (the row counts such trees there).
+            let impostors = r.params.lod_levels >= 3
+                && r.params.far_lod == forestlod_shared::FarLod::Impostor as u32;
+            if !impostors {
+                assert_eq!(r.trees_missing_lod, 0, "{name}: {} {}", r.variant, r.camera);
+            }
             *per_variant
                 .entry((r.variant.as_str(), r.backend.as_str()))
                 .or_default() += 1;

@@ -159,14 +159,30 @@ pub fn trees_drawn_by_selection(
     camera: &Camera,
     params: &Params,
 ) -> Vec<u32> {
+    trees_drawn_with_far(
+        prepared,
+        prepared.far.as_ref(),
+        selection,
+        indirection,
+        camera,
+        params,
+    )
+}
+
+/// [`trees_drawn_by_selection`] with the frame's far level `far` (a hierarchical impostor
+/// frame's is its cache's, issue 33 item 2; else the prepared one).
+pub fn trees_drawn_with_far(
+    prepared: &Prepared,
+    far: Option<&forestlod_shared::FarLevel>,
+    selection: &Selection,
+    indirection: &[u32],
+    camera: &Camera,
+    params: &Params,
+) -> Vec<u32> {
     let u = crate::select::SelectUniform::new(camera, params);
     // A far command stands for its nodes' trees (issue 32).
-    let selection = crate::hier_select::tree_view(
-        selection,
-        prepared.hierarchy.as_ref(),
-        prepared.far.as_ref(),
-        params,
-    );
+    let selection =
+        crate::hier_select::tree_view(selection, prepared.hierarchy.as_ref(), far, params);
     let mut out: Vec<u32> = selection
         .commands
         .iter()

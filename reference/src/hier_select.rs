@@ -313,6 +313,9 @@ pub fn tree_view(
     let (Some(h), Some(level), Ok(kind)) = (h, level, params.far_level()) else {
         return selection.clone();
     };
+    if kind == forestlod_shared::FarLod::Impostor {
+        return impostor_tree_view(selection, h, level);
+    }
     let mut out = selection.clone();
     for (c, d) in out.commands.iter_mut().zip(out.data.iter_mut()) {
         if d.lod == LOD_FAR {
@@ -321,6 +324,45 @@ pub fn tree_view(
             c.instance_count = r.end - r.start;
             d.lod = LOD_BILLBOARD;
             d.billboard = 1;
+        }
+    }
+    out
+}
+
+/// [`tree_view`] under hierarchical impostors (issue 33 item 2, `forestlod_shared::impostor`): an
+/// impostor command's instances are atlas slots, whose nodes need not be adjacent in node order
+/// (coalescing merges commands of adjacent slots), so each slot becomes a billboard command over
+/// its own node's trees. `level` is the frame's (the impostor cache's) far level.
+fn impostor_tree_view(selection: &Selection, h: &Hierarchy, level: &FarLevel) -> Selection {
+    let mut node_of_slot = std::collections::HashMap::new();
+    for (i, f) in level.nodes.iter().enumerate() {
+        if f.cell_count > 0 {
+            node_of_slot.insert(f.cell_offset, i);
+        }
+    }
+    let mut out = Selection {
+        counters: selection.counters,
+        ..Selection::default()
+    };
+    for (c, d) in selection.commands.iter().zip(&selection.data) {
+        if d.lod != LOD_FAR {
+            out.commands.push(*c);
+            out.data.push(*d);
+            continue;
+        }
+        for slot in c.first_instance..c.first_instance + c.instance_count {
+            let Some(&node) = node_of_slot.get(&slot) else {
+                continue;
+            };
+            let n = &h.nodes[node];
+            let mut c = *c;
+            let mut d = *d;
+            c.first_instance = n.offset;
+            c.instance_count = n.len;
+            d.lod = LOD_BILLBOARD;
+            d.billboard = 1;
+            out.commands.push(c);
+            out.data.push(d);
         }
     }
     out

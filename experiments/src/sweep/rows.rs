@@ -82,7 +82,9 @@ pub struct Row {
     pub trees_coarser: u64,
     /// Ours: trees drawn although per-tree culling would drop them; baselines: 0.
     pub trees_outside_view: u64,
-    /// Ours: trees missing a LOD per-tree selection gives them (conservative selection: 0).
+    /// Ours: trees missing a LOD per-tree selection gives them (conservative selection: 0). Under
+    /// hierarchical impostors (issue 33 item 2): the trees drawn inside an impostor that needed
+    /// their mesh (an impostor replaces its node's trees whatever their LOD).
     pub trees_missing_lod: u64,
     /// Tree triangles submitted (reference backend; the GPU has no such counter here).
     pub triangles: Option<u64>,
@@ -111,16 +113,16 @@ pub struct Row {
     pub impostor_s: Option<f64>,
     /// Tiles this frame's impostor step rendered (created and refreshed).
     #[serde(default)]
-    pub impostor_tiles: Option<u64>,
+    pub tiles_rendered: Option<u64>,
     /// Texels of those tiles.
     #[serde(default)]
-    pub impostor_texels: Option<u64>,
+    pub tile_texels: Option<u64>,
     /// Triangles those tile renders drew.
     #[serde(default)]
-    pub impostor_triangles: Option<u64>,
+    pub tile_triangles: Option<u64>,
     /// Impostors in the atlas after the step.
     #[serde(default)]
-    pub impostors: Option<u64>,
+    pub impostors_held: Option<u64>,
     /// Accuracy against the ground truth. In the CSV: [`Accuracy`]'s columns, last
     /// ([`write_csv`]); serde skips it here, so a figure added to `Accuracy` is a column with
     /// no edit of this file or the runner.

@@ -225,19 +225,10 @@ impl Runner {
                 }
                 // Hierarchical impostors (issue 33 item 2): the path's impostor state, one at
                 // the frame's resolution and one at the total error's (a tile is screen
-                // pixels), stepped once per pose in path order. A shard would need the poses
-                // before its own: refused.
+                // pixels), stepped once per pose in path order, the poses of other shards
+                // included (so a shard's frames are the unsharded run's).
                 let impostor_path = set.params.lod_levels >= 3
                     && set.params.far_level() == Ok(forestlod_shared::FarLod::Impostor);
-                if impostor_path && shard.is_some() {
-                    return Err(Box::new(InputError::new(
-                        file.clone(),
-                        format!("setting {}, field far_lod", set.label),
-                        "impostor",
-                        "a sweep with hierarchical impostors cannot be sharded: each frame's \
-                         impostors depend on every pose before it",
-                    )));
-                }
                 let mut caches = if impostor_path {
                     Some((
                         ImpostorCache::new(&prepared, &set.params)?,
@@ -251,6 +242,28 @@ impl Runner {
                 let mut previous: Option<PathFrames> = None;
                 for (pose_i, pose) in poses.iter().enumerate() {
                     let unit = unit_of(pose_i);
+                    // This pose's impostor step (a path's frame: plan, refresh, tile renders),
+                    // from an empty atlas at a path's first pose.
+                    // The state the previous pose was drawn with (a shard that does not own
+                    // it draws it again for the temporal error).
+                    let caches_before = caches.clone();
+                    let impostor_step = match caches.as_mut() {
+                        Some((cache, cache_ss)) => {
+                            let (camera, pose) =
+                                pose_camera(pose, scene, &set.params, width, height)?;
+                            if !pose.follows_previous() {
+                                *cache = ImpostorCache::new(&prepared, &set.params)?;
+                                *cache_ss = ImpostorCache::new(&prepared, &set.params)?;
+                            }
+                            let step = cache.step(&prepared, &camera, &set.params)?;
+                            if spec.total_error {
+                                let camera_ss = supersampled(&camera, spec.samples);
+                                cache_ss.step(&prepared, &camera_ss, &set.params)?;
+                            }
+                            Some((step, cache.occupancy().1 as u64))
+                        }
+                        None => None,
+                    };
                     if !mine(unit) {
                         continue;
                     }
@@ -293,25 +306,6 @@ impl Runner {
                     // The same frame at the truth's sampling rate (`crate::fair`).
                     let camera_ss = supersampled(&camera, spec.samples);
                     // This pose's impostor step (a path's frame: plan, refresh, tile renders).
-                    // A path's first pose starts from an empty atlas.
-                    if !pose.follows_previous()
-                        && let Some(c) = caches.as_mut()
-                    {
-                        *c = (
-                            ImpostorCache::new(&prepared, &set.params)?,
-                            ImpostorCache::new(&prepared, &set.params)?,
-                        );
-                    }
-                    let impostor_step = match caches.as_mut() {
-                        Some((cache, cache_ss)) => {
-                            let step = cache.step(&prepared, &camera, &set.params)?;
-                            if spec.total_error {
-                                cache_ss.step(&prepared, &camera_ss, &set.params)?;
-                            }
-                            Some((step, cache.occupancy().1 as u64))
-                        }
-                        None => None,
-                    };
                     let frame = Frame {
                         prepared: &prepared,
                         spheres: &spheres,
@@ -389,6 +383,7 @@ impl Runner {
                                 pose_camera(&poses[pose_i - 1], scene, &set.params, width, height)?;
                             let frame_before = Frame {
                                 camera: &camera_before,
+                                impostors: caches_before.as_ref().map(|c| &c.0),
                                 ..frame
                             };
                             let full_before =
@@ -474,11 +469,11 @@ impl Runner {
                                 temporal_mean: temporal[variant_i].map(|t| t.mean),
                                 temporal_p99: temporal[variant_i].map(|t| t.p99),
                                 impostor_s: impostor_step.map(|(st, _)| st.seconds),
-                                impostor_tiles: impostor_step
+                                tiles_rendered: impostor_step
                                     .map(|(st, _)| st.tiles_rendered as u64),
-                                impostor_texels: impostor_step.map(|(st, _)| st.texels_rendered),
-                                impostor_triangles: impostor_step.map(|(st, _)| st.triangles),
-                                impostors: impostor_step.map(|(_, n)| n),
+                                tile_texels: impostor_step.map(|(st, _)| st.texels_rendered),
+                                tile_triangles: impostor_step.map(|(st, _)| st.triangles),
+                                impostors_held: impostor_step.map(|(_, n)| n),
                                 accuracy: acc,
                             });
                             if pose.save_images {
@@ -686,8 +681,9 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
                 // Under occlusion culling (issue 31) the trees of its two passes.
                 let trees = match &frame.occlusion {
                     Some(occ) => occ.trees_drawn(prepared, camera, params),
-                    None => trees_drawn_by_selection(
+                    None => forestlod_reference::baselines::trees_drawn_with_far(
                         prepared,
+                        impostors.map_or(prepared.far.as_ref(), |c| Some(c.level())),
                         &frame.selection,
                         indirection,
                         camera,
@@ -699,7 +695,7 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
                 let tree_cmds = forestlod_reference::hier_select::tree_view(
                     &frame.selection,
                     prepared.hierarchy.as_ref(),
-                    prepared.far.as_ref(),
+                    impostors.map_or(prepared.far.as_ref(), |c| Some(c.level())),
                     params,
                 );
                 let batching = batching_counts_banded(
