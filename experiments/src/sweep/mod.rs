@@ -60,7 +60,7 @@ pub use spec::{
 pub use variant::{Engine, Pipeline, ReferenceRenderer, Registered};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 31] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 33] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -125,6 +125,14 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 31] = [
         include_str!("../../sweeps/impostors_temporal.toml"),
     ),
     ("points", include_str!("../../sweeps/points.toml")),
+    (
+        "celba_points_detail",
+        include_str!("../../sweeps/celba_points_detail.toml"),
+    ),
+    (
+        "celba_points_range",
+        include_str!("../../sweeps/celba_points_range.toml"),
+    ),
 ];
 
 /// Options of `forestlod sweep` (`Default`: no file, no override, an empty `out`).
