@@ -167,7 +167,11 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
                 r.backend
             );
             if r.params.lod1 == forestlod_shared::points::Lod1::Billboard as u32 {
-                assert_eq!(r.points_drawn.unwrap_or(0), 0, "{name}: points under billboards");
+                assert_eq!(
+                    r.points_drawn.unwrap_or(0),
+                    0,
+                    "{name}: points under billboards"
+                );
             }
             // The LOD error's reference is the full-detail frame, which the Vegetation baseline
             // is: its LOD error is exactly zero, on either backend.

@@ -414,7 +414,10 @@ mod tests {
             let (c, yaw, d) = path_camera("range", &scene, &params, t, 320, 180).unwrap();
             c.validate().unwrap();
             assert_eq!(yaw, 0.0);
-            assert!((1000.0..=4000.0).contains(&d) && d < last, "step {i}: {d} m");
+            assert!(
+                (1000.0..=4000.0).contains(&d) && d < last,
+                "step {i}: {d} m"
+            );
             last = d;
             let above = c.eye[2] - scene.terrain.height(c.eye[0], c.eye[1]);
             assert!((above - 300.0).abs() < 1e-2, "step {i}: {above} m up");
@@ -424,9 +427,16 @@ mod tests {
                 .iter()
                 .map(|t| glam::Vec3::from(t.position).distance(eye))
                 .fold(f32::INFINITY, f32::min);
-            assert!(nearest >= d, "step {i}: a tree at {nearest} m, nearer than {d}");
+            assert!(
+                nearest >= d,
+                "step {i}: a tree at {nearest} m, nearer than {d}"
+            );
             let seen = trees_in_view(&scene, &c, f32::INFINITY);
-            assert_eq!(seen, scene.instances.len(), "step {i}: the whole forest in view");
+            assert_eq!(
+                seen,
+                scene.instances.len(),
+                "step {i}: the whole forest in view"
+            );
         }
         assert_eq!(path_fraction("range", 0, steps), 0.0);
         assert_eq!(last, 1000.0);
