@@ -1447,7 +1447,7 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
          backend's wall-clock select and draw time of the software rasterizer, or the **GPU** \
          backend's submit-to-completion times of the wgpu twin (timestamp queries beside them in \
          the CSV where the adapter offers them); plus work counters that carry over to a GPU (commands, triangles, \
-         fragments, overdraw) and memory (E Eq. 4.1). Accuracy is the error against a ray-traced \
+         fragments, points drawn under `lod1 = points`, overdraw) and memory (E Eq. 4.1). Accuracy is the error against a ray-traced \
          ground truth of full meshes for every tree, alpha-tested and supersampled (SPEC §10): FLIP \
          mean and 95th/99th percentiles, and the fraction of pixels whose tree / not-tree class \
          differs. Thesis references: E§5 (Eichner 2024). The error maps' colour scale: \
