@@ -1628,6 +1628,28 @@ mod tests {
         assert!(s.lod_flip_mean.is_nan());
     }
 
+    /// Issue 33: the points column is the mean over the rows that counted points (ours on the
+    /// reference), not over every frame; with none (older CSVs, the GPU) it is `-`, not 0.
+    #[test]
+    fn points_drawn_are_averaged_over_the_rows_that_counted_them() {
+        let committed =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("results/angles_texture/angles_texture.csv");
+        let template = read_rows(&committed).unwrap()[0].clone();
+        let row = |points: Option<u64>| {
+            let mut r = template.clone();
+            r.accuracy.gt_tree_fraction = 0.3;
+            r.points_drawn = points;
+            r
+        };
+        let rows = [row(Some(10)), row(Some(30)), row(None)];
+        let s = summarize(rows.iter());
+        assert_eq!(s.frames, 3);
+        assert_eq!(s.points_drawn, 20.0);
+        let older = summarize(read_rows(&committed).unwrap().iter());
+        assert!(older.points_drawn.is_nan(), "{}", older.points_drawn);
+        assert_eq!(big(older.points_drawn), "-");
+    }
+
     #[test]
     fn differences_are_paired_by_pose_and_marked_outside_or_within_the_noise() {
         let committed =
