@@ -404,6 +404,9 @@ pub struct Summary {
     pub fragments: f64,
     /// Mean overdraw (NaN when no row counted it).
     pub overdraw: f64,
+    /// Mean point records drawn (`Row::points_drawn`, issue 33; NaN when no row counted them:
+    /// the GPU backend, the baselines, older CSVs).
+    pub points_drawn: f64,
     /// Mean trees drawn finer than per-tree selection would (SPEC §6).
     pub trees_finer: f64,
     /// Mean trees drawn coarser than per-tree selection would.
@@ -490,7 +493,7 @@ pub fn within_noise((a, a_ci): (f64, f64), (b, b_ci): (f64, f64)) -> bool {
 /// temporal error (over the frames that have one: not a path's first).
 pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     let mut s = Summary::default();
-    let mut counted = 0usize;
+    let (mut counted, mut points_counted) = (0usize, 0usize);
     let (mut times, mut flips, mut lod_flips) = (Vec::new(), Vec::new(), Vec::new());
     let (mut lod_p99, mut lod_changed) = (0.0, 0.0);
     let (mut totals, mut total_cov) = (Vec::new(), 0.0);
@@ -525,6 +528,10 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
             s.fragments += f as f64;
             s.overdraw += o;
         }
+        if let Some(p) = r.points_drawn {
+            points_counted += 1;
+            s.points_drawn += p as f64;
+        }
         s.trees_finer += r.trees_finer as f64;
         s.trees_coarser += r.trees_coarser as f64;
         s.memory_bytes += r.memory_bytes as f64;
@@ -557,6 +564,11 @@ pub fn summarize<'a>(rows: impl Iterator<Item = &'a Row>) -> Summary {
     for v in [&mut s.triangles, &mut s.fragments, &mut s.overdraw] {
         *v /= c;
     }
+    s.points_drawn = if points_counted == 0 {
+        f64::NAN
+    } else {
+        s.points_drawn / points_counted as f64
+    };
     s.frame_ci = mean_ci(&times).1;
     s.flip_ci = mean_ci(&flips).1;
     (s.lod_flip_mean, s.lod_flip_ci) = mean_ci(&lod_flips);
@@ -1044,16 +1056,16 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest, rows: &[Row]) {
         .collect();
     let _ = writeln!(
         out,
-        "| group | frames (no tree) | frame ms ±95% | select ms | draw ms | commands | trees finer / coarser | triangles | fragments | overdraw | memory MB | FLIP mean ±95% | FLIP p95 | FLIP p99 | coverage err | LOD error ±95% | LOD p99 | LOD changed | total error ±95% | total coverage err | temporal error ±95% (pairs) | temporal p99 | truth traced |"
+        "| group | frames (no tree) | frame ms ±95% | select ms | draw ms | commands | trees finer / coarser | triangles | fragments | points | overdraw | memory MB | FLIP mean ±95% | FLIP p95 | FLIP p99 | coverage err | LOD error ±95% | LOD p99 | LOD changed | total error ±95% | total coverage err | temporal error ±95% (pairs) | temporal p99 | truth traced |"
     );
     let _ = writeln!(
         out,
-        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
     );
     for (k, s) in &summaries {
         let _ = writeln!(
             out,
-            "| {} | {} ({}) | {} | {} | {} | {} | {} / {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} ({}) | {} | {} | {} | {} | {} / {} | {} | {} | {} | {} | {:.2} | {} | {:.4} | {:.4} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} |",
             md(k),
             s.frames,
             s.empty,
@@ -1065,6 +1077,7 @@ fn sweep_section(out: &mut String, dir: &Path, m: &Manifest, rows: &[Row]) {
             big(s.trees_coarser),
             big(s.triangles),
             big(s.fragments),
+            big(s.points_drawn),
             if s.overdraw.is_nan() {
                 "-".to_string()
             } else {
@@ -1434,7 +1447,7 @@ pub fn write_report(run: &Path) -> Result<PathBuf, InputError> {
          backend's wall-clock select and draw time of the software rasterizer, or the **GPU** \
          backend's submit-to-completion times of the wgpu twin (timestamp queries beside them in \
          the CSV where the adapter offers them); plus work counters that carry over to a GPU (commands, triangles, \
-         fragments, overdraw) and memory (E Eq. 4.1). Accuracy is the error against a ray-traced \
+         fragments, points drawn under `lod1 = points`, overdraw) and memory (E Eq. 4.1). Accuracy is the error against a ray-traced \
          ground truth of full meshes for every tree, alpha-tested and supersampled (SPEC §10): FLIP \
          mean and 95th/99th percentiles, and the fraction of pixels whose tree / not-tree class \
          differs. Thesis references: E§5 (Eichner 2024). The error maps' colour scale: \
@@ -1613,6 +1626,28 @@ mod tests {
         assert!(s.flip_ci > 0.0 && s.frame_ci > 0.0);
         // Written before the LOD error existed: not measured, not zero.
         assert!(s.lod_flip_mean.is_nan());
+    }
+
+    /// Issue 33: the points column is the mean over the rows that counted points (ours on the
+    /// reference), not over every frame; with none (older CSVs, the GPU) it is `-`, not 0.
+    #[test]
+    fn points_drawn_are_averaged_over_the_rows_that_counted_them() {
+        let committed =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("results/angles_texture/angles_texture.csv");
+        let template = read_rows(&committed).unwrap()[0].clone();
+        let row = |points: Option<u64>| {
+            let mut r = template.clone();
+            r.accuracy.gt_tree_fraction = 0.3;
+            r.points_drawn = points;
+            r
+        };
+        let rows = [row(Some(10)), row(Some(30)), row(None)];
+        let s = summarize(rows.iter());
+        assert_eq!(s.frames, 3);
+        assert_eq!(s.points_drawn, 20.0);
+        let older = summarize(read_rows(&committed).unwrap().iter());
+        assert!(older.points_drawn.is_nan(), "{}", older.points_drawn);
+        assert_eq!(big(older.points_drawn), "-");
     }
 
     #[test]

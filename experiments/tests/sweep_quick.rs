@@ -157,6 +157,22 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
                 r.backend
             );
             assert!(r.overdraw.is_none_or(|o| o.is_finite() && o >= 0.0));
+            // Points drawn (issue 33): ours on the reference only; the GPU and the baselines
+            // leave the cell empty.
+            assert_eq!(
+                r.points_drawn.is_some(),
+                r.backend == "reference" && r.variant == "ours",
+                "{name}: points_drawn of {} on {}",
+                r.variant,
+                r.backend
+            );
+            if r.params.lod1 == forestlod_shared::points::Lod1::Billboard as u32 {
+                assert_eq!(
+                    r.points_drawn.unwrap_or(0),
+                    0,
+                    "{name}: points under billboards"
+                );
+            }
             // The LOD error's reference is the full-detail frame, which the Vegetation baseline
             // is: its LOD error is exactly zero, on either backend.
             if r.variant == "vegetation" {
@@ -200,6 +216,13 @@ fn every_builtin_sweep_runs_in_quick_mode_and_reports_cost_and_accuracy() {
             *per_variant
                 .entry((r.variant.as_str(), r.backend.as_str()))
                 .or_default() += 1;
+        }
+        // A point sweep's reference rows count the points they drew.
+        if name == "points" {
+            assert!(
+                rows.iter().any(|r| r.points_drawn.is_some_and(|p| p > 0)),
+                "{name}: no row drew a point"
+            );
         }
         // Ours on the GPU reports the work counters of the reference's selection of the same
         // frame (`render_gpu_variant`, computed once per frame): they must equal the reference

@@ -60,7 +60,7 @@ pub use spec::{
 pub use variant::{Engine, Pipeline, ReferenceRenderer, Registered};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 32] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 34] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -128,6 +128,14 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 32] = [
     (
         "hier_impostors",
         include_str!("../../sweeps/hier_impostors.toml"),
+    ),
+    (
+        "celba_points_detail",
+        include_str!("../../sweeps/celba_points_detail.toml"),
+    ),
+    (
+        "celba_points_range",
+        include_str!("../../sweeps/celba_points_range.toml"),
     ),
 ];
 

@@ -47,6 +47,14 @@
 //!   [`FLIGHT_LOOK_AHEAD_M`] ahead (-2.3° at 20 m, -31° at 300 m; at most `R` ahead in a small
 //!   scene). Row columns: `yaw_deg` 0, `distance_m` the height above the terrain (what the
 //!   flight's cost follows).
+//! - **range** (issue 33, C§5.4's "points suffice to 2000-3500 m"): the forest seen from afar, one
+//!   distance band a pose. The eye stands west of the footprint on its centre line, `d` before the
+//!   west edge, [`RANGE_HEIGHT`]` · (x1 - x0)` above the terrain (300 m over a 1 km Celba forest,
+//!   the flight's top), looking at the ground at the footprint's centre. `d` goes from
+//!   [`RANGE_FAR_WIDTHS`] to [`RANGE_NEAR_WIDTHS`] footprint widths (4 → 1 km for a 1 km forest:
+//!   an approach, so consecutive poses carry a temporal error); every tree then lies between `d`
+//!   and about `d + 1.1 w` from the eye, so on a small forest a pose is a distance band. Row
+//!   columns: `yaw_deg` 0, `distance_m` = `d`.
 //!
 //! Every frame records its tree fraction (the truth's and the frame's, `gt_tree_fraction`,
 //! `tree_fraction`), and the report leaves frames whose truth shows no tree out of the means.
@@ -56,7 +64,7 @@ use forestlod_reference::scene::Scene;
 use forestlod_shared::{Camera, Params};
 
 /// Names of the scene-defined paths.
-pub const PATH_NAMES: [&str; 7] = [
+pub const PATH_NAMES: [&str; 8] = [
     "orbit",
     "dolly",
     "flyover",
@@ -64,6 +72,7 @@ pub const PATH_NAMES: [&str; 7] = [
     "slow-yaw",
     "walkthrough",
     "flight",
+    "range",
 ];
 
 /// Frames of a path when the sweep file gives no `steps`.
@@ -107,6 +116,13 @@ pub const FLIGHT_SECONDS: f32 = 55.0;
 pub const FLIGHT_MAX_FOOTPRINT: f32 = 0.8;
 /// The flight looks at the ground this far ahead, metres.
 pub const FLIGHT_LOOK_AHEAD_M: f32 = 500.0;
+
+/// The range's eye height above the terrain, times the footprint's width (module docs).
+pub const RANGE_HEIGHT: f32 = 0.3;
+/// The range's first distance before the footprint's west edge, in footprint widths.
+pub const RANGE_FAR_WIDTHS: f32 = 4.0;
+/// The range's last distance before the footprint's west edge, in footprint widths.
+pub const RANGE_NEAR_WIDTHS: f32 = 1.0;
 
 /// Where the walkthrough is after `walked` metres along x: `(x offset, y offset, heading in
 /// degrees)` from its start (module docs).
@@ -224,6 +240,15 @@ pub fn path_camera(
             let eye = [ex, cy, ground(ex, cy) + h];
             let pitch = -h.atan2(FLIGHT_LOOK_AHEAD_M.min(r)).to_degrees();
             (aimed(eye, 0.0, pitch, width, height), 0.0, h)
+        }
+        "range" => {
+            let w = (x1 - x0).max(1.0);
+            let d = w * (RANGE_FAR_WIDTHS + (RANGE_NEAR_WIDTHS - RANGE_FAR_WIDTHS) * t);
+            let ex = x0 - d;
+            let eye = [ex, cy, ground(ex, cy) + RANGE_HEIGHT * w];
+            let target = [cx, cy, ground(cx, cy)];
+            let c = Camera::look_at(eye, target, NAMED_FOV_Y_DEGREES, width, height);
+            (c, 0.0, d)
         }
         _ => return None,
     })
@@ -374,6 +399,47 @@ mod tests {
         let a = path_camera("flight", &scene, &params, 0.61, 64, 48).unwrap();
         let b = path_camera("flight", &scene, &params, 0.61, 64, 48).unwrap();
         assert_eq!(a, b, "deterministic");
+    }
+
+    /// The range (issue 33): an approach from 4 to 1 footprint widths before the west edge, at
+    /// 0.3 widths above the terrain, with the whole forest in view and no tree nearer than `d`.
+    #[test]
+    fn the_range_approaches_a_celba_forest_from_4_to_1_km() {
+        let scene = forestlod_reference::scene::celba::celba("celba-20-1").unwrap();
+        let params = Params::default();
+        let steps = 7;
+        let mut last = f32::INFINITY;
+        for i in 0..steps {
+            let t = path_fraction("range", i, steps);
+            let (c, yaw, d) = path_camera("range", &scene, &params, t, 320, 180).unwrap();
+            c.validate().unwrap();
+            assert_eq!(yaw, 0.0);
+            assert!(
+                (1000.0..=4000.0).contains(&d) && d < last,
+                "step {i}: {d} m"
+            );
+            last = d;
+            let above = c.eye[2] - scene.terrain.height(c.eye[0], c.eye[1]);
+            assert!((above - 300.0).abs() < 1e-2, "step {i}: {above} m up");
+            let eye = glam::Vec3::from(c.eye);
+            let nearest = scene
+                .instances
+                .iter()
+                .map(|t| glam::Vec3::from(t.position).distance(eye))
+                .fold(f32::INFINITY, f32::min);
+            assert!(
+                nearest >= d,
+                "step {i}: a tree at {nearest} m, nearer than {d}"
+            );
+            let seen = trees_in_view(&scene, &c, f32::INFINITY);
+            assert_eq!(
+                seen,
+                scene.instances.len(),
+                "step {i}: the whole forest in view"
+            );
+        }
+        assert_eq!(path_fraction("range", 0, steps), 0.0);
+        assert_eq!(last, 1000.0);
     }
 
     #[test]

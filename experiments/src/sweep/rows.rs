@@ -94,6 +94,13 @@ pub struct Row {
     pub fragments_written: Option<u64>,
     /// `fragments_written / pixels` (reference backend).
     pub overdraw: Option<f64>,
+    /// Point records the draw expanded under `lod1 = points` (issue 33, C§5.2's "points
+    /// rendered": [`forestlod_reference::draw::DrawnFrame::points_drawn`]): ours on the reference
+    /// backend only, 0 under billboards. Empty for GPU rows (the GPU counts no points; its vertex
+    /// stage visits every record of a tree and drops the rest as degenerate quads), for the
+    /// baselines (they draw no points) and in CSVs written before the column existed.
+    #[serde(default)]
+    pub points_drawn: Option<u64>,
     /// Bytes the method adds to the scene data (ours: E Eq. 4.1's terms as allocated).
     pub memory_bytes: u64,
     /// Temporal (popping) error of this frame against the previous frame of its camera path

@@ -64,6 +64,8 @@ struct VariantFrame {
     triangles: Option<u64>,
     fragments: Option<u64>,
     fragments_written: Option<u64>,
+    /// Ours on the reference backend: [`Row::points_drawn`]; `None` elsewhere.
+    points_drawn: Option<u64>,
     memory_bytes: u64,
 }
 
@@ -465,6 +467,7 @@ impl Runner {
                                 fragments: vf.fragments,
                                 fragments_written: vf.fragments_written,
                                 overdraw: vf.fragments_written.map(|f| f as f64 / pixels as f64),
+                                points_drawn: vf.points_drawn,
                                 memory_bytes: vf.memory_bytes,
                                 temporal_mean: temporal[variant_i].map(|t| t.mean),
                                 temporal_p99: temporal[variant_i].map(|t| t.p99),
@@ -721,6 +724,7 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
                     triangles: Some(s.triangles_in),
                     fragments: Some(s.fragments_shaded),
                     fragments_written: Some(s.fragments_written),
+                    points_drawn: Some(frame.drawn.points_drawn),
                     memory_bytes: ours_memory(prepared, params),
                     color: target.color_image(),
                     aux: target.aux().to_vec(),
@@ -749,6 +753,7 @@ fn render_variant(variant: Pipeline, f: &Frame, repeats: u32) -> Result<VariantF
                     triangles: Some(s.triangles_in),
                     fragments: Some(s.fragments_shaded),
                     fragments_written: Some(s.fragments_written),
+                    points_drawn: None,
                     memory_bytes: f.memory_bytes,
                     color: f.target.color_image(),
                     aux: f.target.aux().to_vec(),
@@ -893,6 +898,7 @@ fn render_gpu_variant(
         triangles: None,
         fragments: None,
         fragments_written: None,
+        points_drawn: None,
         memory_bytes,
     })
 }
