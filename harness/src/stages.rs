@@ -259,6 +259,7 @@ pub const STAGES: &[StageEntry] = &[
             "impostor_update_interval",
             "impostor_refresh_interval",
             "impostor_refresh_number",
+            "point_grid",
         ],
     },
     StageEntry {

@@ -310,8 +310,12 @@ pub struct Params {
     /// Impostors re-rendered per refresh step, round robin (C§4.6.3 `ImpostorRefreshNumber`).
     /// Default 4. Read only under `far_lod = impostor`.
     pub impostor_refresh_number: u32,
+    /// Cells per axis of the grid a mesh's points are split by before Alg. 5 builds each cell's
+    /// hierarchy (issue 33, C§4.4.3 `GridSizeX/Y/Z`, here `g³`; C§5.2 series 6). Default 1 (one
+    /// hierarchy per mesh). Read only under `lod1 = points`.
+    pub point_grid: u32,
 }
-const _: () = assert!(core::mem::size_of::<Params>() == 220);
+const _: () = assert!(core::mem::size_of::<Params>() == 224);
 
 impl Default for Params {
     fn default() -> Self {
@@ -371,6 +375,7 @@ impl Default for Params {
             impostor_update_interval: 1,
             impostor_refresh_interval: 4,
             impostor_refresh_number: 4,
+            point_grid: 1,
         }
     }
 }

@@ -269,10 +269,12 @@ pub struct PointParams {
 
 impl PointParams {
     /// The build settings of the point LOD drawn under `params` (issue 33): `point_count`
-    /// points per mesh, placed under the draw's `alpha_cutoff`; the rest the defaults.
+    /// points per mesh on a `point_grid³` grid, placed under the draw's `alpha_cutoff`; the rest
+    /// the defaults.
     pub fn from_params(params: &crate::Params) -> Self {
         Self {
             n_pts: params.point_count,
+            grid: [params.point_grid; 3],
             alpha_cutoff: params.alpha_cutoff.max(f32::MIN_POSITIVE),
             ..Self::default()
         }

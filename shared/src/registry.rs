@@ -22,7 +22,7 @@ use crate::far::MAX_CLUSTER_SIZE;
 use crate::impostor::{MAX_IMPOSTOR_PIXELS, MIN_IMPOSTOR_PIXELS};
 use crate::octahedral::{MAX_OCTAHEDRAL_GRID, MIN_OCTAHEDRAL_GRID};
 use crate::params::{MAX_ANGLE_COUNT, MAX_DISTANCE, MAX_TEXTURE_SIZE, MIN_GRID_SIZE, ParamError};
-use crate::points::{DetailPreset, Lod1, MAX_POINTS_PER_MESH, PointSelect};
+use crate::points::{DetailPreset, Lod1, MAX_POINT_GRID, MAX_POINTS_PER_MESH, PointSelect};
 use crate::{
     AngleIndexMode, AzimuthMode, Coalesce, CommandOrder, DitherSpace, FadeGranularity, FadeMode,
     FarLod, Hierarchy, LodMetric, MipMode, Occlusion, OcclusionOrder, OctahedralDepth, Params,
@@ -333,7 +333,7 @@ const fn power_of_two(max: u32) -> ParamKind {
 /// Every user-settable parameter, in the order the CLI lists them and [`Params::validate`]
 /// checks them. Kept one entry to a line or two (`rustfmt::skip`): it is a table.
 #[rustfmt::skip]
-pub const PARAMS: [ParamSpec; 55] = [
+pub const PARAMS: [ParamSpec; 56] = [
     param!(grid_size, "grid-size", distance(MIN_GRID_SIZE), "expected a finite size in 0.01..=1e7 m",
         "Batch grid cell size, metres (E§4.2)"),
     param!(angle_count, "angles", uint(1, MAX_ANGLE_COUNT), "expected 1..=91 elevation angles",
@@ -424,6 +424,8 @@ pub const PARAMS: [ParamSpec; 55] = [
         "Frames between two impostor refresh steps (C§4.6.3 ImpostorRefreshInterval)"),
     param!(impostor_refresh_number, "impostor-refresh-number", uint(0, 4096), "expected 0..=4096 impostors",
         "Impostors re-rendered per refresh step, round robin (C§4.6.3 ImpostorRefreshNumber)"),
+    param!(point_grid, "point-grid", uint(1, MAX_POINT_GRID), "expected 1..=10 cells per axis",
+        "Grid a mesh's points are split by under lod1 points, g^3 cells (C§4.4.3 GridSizeX/Y/Z)"),
 ];
 
 /// Least `subset_min`: one tree in a thousand (a smaller floor leaves batches of a few hundred

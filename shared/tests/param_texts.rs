@@ -6,7 +6,7 @@
 use forestlod_shared::PARAMS;
 
 /// `(name, reason, help)` of every parameter, in table order.
-const PINNED: [(&str, &str, &str); 55] = [
+const PINNED: [(&str, &str, &str); 56] = [
     (
         "grid_size",
         "expected a finite size in 0.01..=1e7 m",
@@ -281,6 +281,11 @@ const PINNED: [(&str, &str, &str); 55] = [
         "impostor_refresh_number",
         "expected 0..=4096 impostors",
         "Impostors re-rendered per refresh step, round robin (C§4.6.3 ImpostorRefreshNumber)",
+    ),
+    (
+        "point_grid",
+        "expected 1..=10 cells per axis",
+        "Grid a mesh's points are split by under lod1 points, g^3 cells (C§4.4.3 GridSizeX/Y/Z)",
     ),
 ];
 

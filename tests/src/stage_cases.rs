@@ -147,6 +147,7 @@ pub const READ_ONLY_UNDER: &[(&str, &str, &str)] = &[
     ("impostor_update_interval", "far_lod", "impostor"),
     ("impostor_refresh_interval", "far_lod", "impostor"),
     ("impostor_refresh_number", "far_lod", "impostor"),
+    ("point_grid", "lod1", "points"),
 ];
 
 /// Azimuth views a case gets when it picks an azimuth rule other than the nearest at one view
@@ -215,6 +216,7 @@ pub fn coherent(p: &mut Params) {
     if p.point_select != d.point_select
         || p.point_detail != d.point_detail
         || p.point_count != d.point_count
+        || p.point_grid != d.point_grid
     {
         p.lod1 = forestlod_shared::points::Lod1::Points as u32;
     }

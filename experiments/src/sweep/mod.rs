@@ -60,7 +60,7 @@ pub use spec::{
 pub use variant::{Engine, Pipeline, ReferenceRenderer, Registered};
 
 /// The built-in sweeps: `(name, TOML)`, in the order `--quick` runs them.
-pub const BUILTIN_SWEEPS: [(&str, &str); 34] = [
+pub const BUILTIN_SWEEPS: [(&str, &str); 35] = [
     ("camera360", include_str!("../../sweeps/camera360.toml")),
     ("distance", include_str!("../../sweeps/distance.toml")),
     ("grid_size", include_str!("../../sweeps/grid_size.toml")),
@@ -136,6 +136,10 @@ pub const BUILTIN_SWEEPS: [(&str, &str); 34] = [
     (
         "celba_points_range",
         include_str!("../../sweeps/celba_points_range.toml"),
+    ),
+    (
+        "celba_points_grid",
+        include_str!("../../sweeps/celba_points_grid.toml"),
     ),
 ];
 
