@@ -26,6 +26,14 @@
 //! reference's order. The point records ride in the far buffer after the far level
 //! ([`point_words`]).
 //!
+//! Under `far_lod = impostor` (issue 33 item 2, C§4.6.3; `forestlod_shared::impostor`) a far
+//! command draws one quad per impostored node: the vertex stage places the corner of the
+//! [`forestlod_shared::impostor::ImpostorQuad`] held in the far level's cell and passes its atlas
+//! slot; the fragment reads the tile's nearest texel from the atlas, appended to the far buffer
+//! ([`far_words`], [`DrawUniform::far_texel_base`]), keeps it where its alpha is at least one half
+//! and writes it opaque with the far level's LOD id. The atlas changes every frame of a path:
+//! [`DrawScene::write_far`] overwrites the far buffer in place (the tiles are the reference's).
+//!
 //! The vertex stage pulls everything from storage buffers ([`DrawScene`]): packed vertices
 //! ([`DrawVertex`], the reference's `PackedVertex`), instances ([`DrawInstance`]), the
 //! indirection array (the scene's, batch by batch, unless [`DrawInputs::indirection`] replaces

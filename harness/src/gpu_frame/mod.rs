@@ -30,6 +30,12 @@
 //!   reference's selection builds its chain for that frame (its buffers are bound at creation).
 //! - `params` must be those the scene was prepared with, apart from the per-frame fields (fade,
 //!   distances, LOD levels, coalesce, command order, tree culling).
+//! - Under hierarchical impostors (issue 33 item 2, C§4.6.3) the far level is a frame's impostor
+//!   state: the scene uploads it in the shape of an empty cache (`impostor_tiles`,
+//!   `impostor_pixels` fixed at creation), and [`GpuScene::render_impostors`] writes a state
+//!   (`ImpostorCache::level`, stepped by the caller; its tiles rendered by the reference) over it
+//!   before the frame, for the GPU cut and the draw. [`GpuScene::render`] draws a path's first
+//!   frame, as the reference's `Prepared::render`: a fresh cache stepped once.
 
 mod from_cpu;
 pub mod selection;

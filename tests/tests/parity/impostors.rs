@@ -158,3 +158,41 @@ fn gpu_impostor_frames_match_the_reference_along_a_path() {
     print_max_diffs("impostor path parity", &max);
     assert_no_failures("impostor path parity failed", &failures);
 }
+
+/// Bad input to `GpuScene::render_impostors` is refused with an error naming the field: a frame
+/// whose parameters draw no impostors, and an impostor state of another shape than the scene's
+/// (here an atlas of other tile counts).
+#[test]
+fn gpu_impostor_frames_refuse_a_foreign_state() {
+    let Some(ctx) = gpu_context() else { return };
+    let params = params();
+    let prepared = prepare(forest(), &params).expect("prepare the forest");
+    let mut scene = GpuScene::with_pipelines(
+        ctx,
+        gpu_draw(ctx),
+        &prepared,
+        &params,
+        StagesFromCpu::TEXTURES,
+    )
+    .expect("GPU scene");
+    let camera = Camera::look_at([-500.0, 300.0, 60.0], [300.0, 300.0, 10.0], 50.0, 32, 18);
+    let cache = ImpostorCache::new(&prepared, &params).expect("impostor cache");
+    let pipeline = GpuPipeline::Ours(Compaction::Stable);
+    let cube = Params {
+        far_lod: FarLod::OctantCube as u32,
+        ..params
+    };
+    let err = scene
+        .render_impostors(&prepared, pipeline, &camera, &cube, cache.level())
+        .expect_err("octant cubes are no impostor frame");
+    assert!(err.to_string().contains("far_lod"), "{err}");
+    let other = Params {
+        impostor_tiles: params.impostor_tiles + 1,
+        ..params
+    };
+    let foreign = ImpostorCache::new(&prepared, &other).expect("impostor cache");
+    let err = scene
+        .render_impostors(&prepared, pipeline, &camera, &other, foreign.level())
+        .expect_err("an atlas of another shape");
+    assert!(err.to_string().contains("far level"), "{err}");
+}
