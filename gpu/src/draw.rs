@@ -26,6 +26,14 @@
 //! reference's order. The point records ride in the far buffer after the far level
 //! ([`point_words`]).
 //!
+//! Under `far_lod = impostor` (issue 33 item 2, C§4.6.3; `forestlod_shared::impostor`) a far
+//! command draws one quad per impostored node: the vertex stage places the corner of the
+//! [`forestlod_shared::impostor::ImpostorQuad`] held in the far level's cell and passes its atlas
+//! slot; the fragment reads the tile's nearest texel from the atlas, appended to the far buffer
+//! ([`far_words`], [`DrawUniform::far_texel_base`]), keeps it where its alpha is at least one half
+//! and writes it opaque with the far level's LOD id. The atlas changes every frame of a path:
+//! [`DrawScene::write_far`] overwrites the far buffer in place (the tiles are the reference's).
+//!
 //! The vertex stage pulls everything from storage buffers ([`DrawScene`]): packed vertices
 //! ([`DrawVertex`], the reference's `PackedVertex`), instances ([`DrawInstance`]), the
 //! indirection array (the scene's, batch by batch, unless [`DrawInputs::indirection`] replaces
@@ -241,10 +249,18 @@ pub struct DrawUniform {
     pub point_k: [f32; 2],
     /// First word of the point header in the far buffer ([`point_words`]).
     pub point_base: u32,
+    /// First word of the impostor atlas in the far buffer ([`far_words`]; issue 33 item 2).
+    pub far_texel_base: u32,
+    /// The impostor tile side (`Params::impostor_pixels`) under `far_lod = impostor`, else 0.
+    pub impostor_side: u32,
     /// Explicit padding.
-    pub _pad_points: u32,
+    pub _pad_impostor0: u32,
+    /// Explicit padding.
+    pub _pad_impostor1: u32,
+    /// Explicit padding.
+    pub _pad_impostor2: u32,
 }
-const _: () = assert!(size_of::<DrawUniform>() == 368);
+const _: () = assert!(size_of::<DrawUniform>() == 384);
 
 impl DrawUniform {
     /// The uniform of a validated camera and parameters, derived as the reference derives its
@@ -282,7 +298,11 @@ impl DrawUniform {
             point_mode: params.point_select,
             point_k: point_k(camera, params),
             point_base: 0,
-            _pad_points: 0,
+            far_texel_base: 0,
+            impostor_side: 0,
+            _pad_impostor0: 0,
+            _pad_impostor1: 0,
+            _pad_impostor2: 0,
         }
     }
 }
@@ -316,18 +336,43 @@ pub fn point_words(sets: &[(&[forestlod_shared::points::PointRecord], &[u32])]) 
     words
 }
 
+/// Where a far level's parts start in its words ([`far_words`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FarBases {
+    /// First word of the node records (4 words each).
+    pub nodes: u32,
+    /// First word of the hull vertices (4 words each).
+    pub hull: u32,
+    /// First word of the impostor atlas (issue 33 item 2: RGBA8 words, slot by slot).
+    pub texels: u32,
+    /// Words in all.
+    pub len: u32,
+}
+
 /// A far level (issue 32) as the draw binds it: one `u32` buffer holding the cells
-/// ([`forestlod_shared::FarCell`], 12 words each) from word 0, then the node records (4 words
-/// each) from the second value returned, then the hull vertices (4 words each) from the third.
-/// One buffer, not three: the draw's vertex stage already binds six storage buffers and WebGPU's
-/// default limit is eight per stage.
-pub fn far_words(far: &forestlod_shared::FarLevel) -> (Vec<u32>, u32, u32) {
+/// ([`forestlod_shared::FarCell`], 12 words each; under `far_lod = impostor` the
+/// [`forestlod_shared::impostor::ImpostorQuad`]s) from word 0, then the node records (4 words
+/// each), then the hull vertices (4 words each), then the impostor atlas (issue 33 item 2), each
+/// from its [`FarBases`] word. One buffer, not four: the draw's vertex stage already binds six
+/// storage buffers and WebGPU's default limit is eight per stage.
+pub fn far_words(far: &forestlod_shared::FarLevel) -> (Vec<u32>, FarBases) {
     let mut words: Vec<u32> = bytemuck::cast_slice(&far.cells).to_vec();
-    let nodes_base = words.len() as u32;
+    let nodes = words.len() as u32;
     words.extend_from_slice(bytemuck::cast_slice(&far.nodes));
-    let hull_base = words.len() as u32;
+    let hull = words.len() as u32;
     words.extend_from_slice(bytemuck::cast_slice(&far.hull));
-    (words, nodes_base, hull_base)
+    let texels = words.len() as u32;
+    words.extend_from_slice(&far.texels);
+    let len = words.len() as u32;
+    (
+        words,
+        FarBases {
+            nodes,
+            hull,
+            texels,
+            len,
+        },
+    )
 }
 
 /// The ground grid as a triangle list in world space: [`forestlod_shared::terrain_grid`] (the
@@ -529,8 +574,8 @@ pub struct DrawScene {
     mesh_count: u32,
     /// The far level's words ([`far_words`]; one zero word without a far level).
     far: wgpu::Buffer,
-    /// Whether a far level was uploaded, and its node and hull bases in `far`.
-    far_bases: Option<(u32, u32)>,
+    /// Whether a far level was uploaded, and where its parts start in `far`.
+    far_bases: Option<FarBases>,
     /// The point LOD's header word in `far` and its largest record count, when uploaded.
     point_bases: Option<(u32, u32)>,
     /// [`DrawSceneDesc::iota_first_index`].
@@ -607,8 +652,8 @@ impl DrawScene {
         use wgpu::BufferUsages as U;
         let (mut far_data, far_bases) = match desc.far {
             Some(f) => {
-                let (words, nodes, hull) = far_words(f);
-                (words, Some((nodes, hull)))
+                let (words, bases) = far_words(f);
+                (words, Some(bases))
             }
             None => (Vec::new(), None),
         };
@@ -664,6 +709,31 @@ impl DrawScene {
         })
     }
 
+    /// Replaces the uploaded far level's words with `far`'s (issue 33 item 2: under
+    /// `far_lod = impostor` the far level is the frame's impostor state, written before each
+    /// frame). `far` must have the uploaded level's shape (the same words in each part);
+    /// otherwise, or without an uploaded far level, an error names both shapes.
+    pub fn write_far(
+        &self,
+        ctx: &GpuContext,
+        far: &forestlod_shared::FarLevel,
+    ) -> Result<(), GpuError> {
+        let (words, bases) = far_words(far);
+        if self.far_bases != Some(bases) {
+            return Err(GpuError::Input {
+                field: "far level",
+                value: format!(
+                    "parts at {bases:?}, the scene uploaded {:?}",
+                    self.far_bases
+                ),
+                reason: "expected a far level of the uploaded one's shape (the same node, cell, hull and texel counts)",
+            });
+        }
+        ctx.queue
+            .write_buffer(&self.far, 0, bytemuck::cast_slice(&words));
+        Ok(())
+    }
+
     /// The batch-by-batch tree indirection ([`DrawSceneDesc::indirection`]) the commands of a
     /// frame without `refine` index (the occlusion stage's input, issue 31).
     pub fn indirection(&self) -> &wgpu::Buffer {
@@ -685,10 +755,14 @@ impl DrawScene {
         params: &Params,
     ) -> wgpu::Buffer {
         let mut uniform = DrawUniform::new(camera, params, self.billboard_first_vertex);
-        if let Some((nodes, hull)) = self.far_bases {
+        if let Some(bases) = self.far_bases {
             uniform.far_kind = forestlod_shared::FarUniform::new(camera, params).kind;
-            uniform.far_nodes_base = nodes;
-            uniform.far_hull_base = hull;
+            uniform.far_nodes_base = bases.nodes;
+            uniform.far_hull_base = bases.hull;
+            uniform.far_texel_base = bases.texels;
+            if uniform.far_kind == 1 + forestlod_shared::FarLod::Impostor as u32 {
+                uniform.impostor_side = params.impostor_pixels;
+            }
         }
         if let Some((base, _)) = self.point_bases {
             uniform.point_base = base;
@@ -1293,7 +1367,8 @@ impl StagePipelines for DrawPipelines {
                     texture(7),
                     texture(8),
                     sampler_entry(9, S::FRAGMENT),
-                    buffer_entry(10, S::VERTEX, storage, 0),
+                    // The fragment reads the impostor atlas (issue 33 item 2).
+                    buffer_entry(10, S::VERTEX_FRAGMENT, storage, 0),
                     texture(11),
                 ],
             );
@@ -1725,7 +1800,11 @@ pub(crate) mod tests {
                 point_mode,
                 point_k,
                 point_base,
-                _pad_points
+                far_texel_base,
+                impostor_side,
+                _pad_impostor0,
+                _pad_impostor1,
+                _pad_impostor2
             }),
             rust_layout!(DrawVertex { position, uv }),
             draw_instance_layout(),

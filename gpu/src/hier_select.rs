@@ -110,6 +110,8 @@ pub struct GpuHierSelect<'a> {
     billboard: MeshMeta,
     /// The far iota range's first index, when a far level was uploaded.
     far_first_index: Option<u32>,
+    /// The far level's node records (one zeroed record without a far level).
+    far_nodes: wgpu::Buffer,
 }
 
 /// A hierarchy's far level as the cut reads it (issue 32): its per-node records and the packed
@@ -207,7 +209,31 @@ impl<'a> GpuHierSelect<'a> {
             mode,
             billboard: *billboard,
             far_first_index: far.map(|f| f.first_index),
+            far_nodes: far_buffer,
         })
+    }
+
+    /// Replaces the far level's node records (issue 33 item 2: under `far_lod = impostor` they
+    /// are the frame's impostor state, [`forestlod_shared::impostor`]'s per-node far data,
+    /// written before each frame). Errors without an uploaded far level or on a record count
+    /// other than the node count.
+    pub fn write_far_nodes(&self, far_nodes: &[FarNode]) -> Result<(), GpuError> {
+        if self.far_first_index.is_none() || far_nodes.len() != self.node_count as usize {
+            return Err(GpuError::Input {
+                field: "far level node records",
+                value: format!(
+                    "{} for {} hierarchy nodes (far level uploaded: {})",
+                    far_nodes.len(),
+                    self.node_count,
+                    self.far_first_index.is_some()
+                ),
+                reason: "expected one FarNode per hierarchy node, on a cut created with a far level",
+            });
+        }
+        self.ctx
+            .queue
+            .write_buffer(&self.far_nodes, 0, bytemuck::cast_slice(far_nodes));
+        Ok(())
     }
 
     /// The raw cut's buffers, the stage's output (valid after a dispatch).

@@ -38,6 +38,35 @@ pub fn alpha_test_alternatives(
         .collect()
 }
 
+/// [`alpha_test_alternatives`] of one frame of a camera path under hierarchical impostors
+/// (issue 33 item 2): the selection and the draw read `far`, the frame's impostor state
+/// (`ImpostorCache::level`), in place of the prepared far level.
+pub fn alpha_test_alternatives_on(
+    prepared: &Prepared,
+    far: &forestlod_shared::FarLevel,
+    camera: &Camera,
+    params: &Params,
+) -> Vec<Images> {
+    let cutoffs: Vec<f32> = cutoff_shifted(params, |p| p.alpha_cutoff);
+    prepared
+        .render_cutoffs_on(Some(far), camera, params, &cutoffs, None)
+        .expect("reference render")
+        .into_iter()
+        .chain(
+            prepared
+                .render_lod_rules_on(
+                    Some(far),
+                    camera,
+                    params,
+                    &crate::image_compare::LOD_RULES,
+                    None,
+                )
+                .expect("reference render"),
+        )
+        .map(|drawn| moved_images(drawn.target))
+        .collect()
+}
+
 /// [`alpha_test_alternatives`] drawn only at `pixels` (`image_compare::alternative_pixels` of
 /// the two frames to compare; the rest of each alternative is sky and never read), the six
 /// cutoffs sharing one selection and one setup (`Prepared::render_cutoffs`), then the LOD models:

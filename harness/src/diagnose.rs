@@ -149,8 +149,25 @@ pub fn check_select(
     camera: &Camera,
     params: &Params,
 ) -> StageCheck {
-    let want = prepared.select(camera, params);
+    // Under hierarchical impostors (issue 33 item 2) both read the frame's impostor state (a
+    // path's first frame, as `Prepared::render`).
+    let impostors = prepared
+        .first_impostor_frame(camera, params)
+        .expect("valid parameters")
+        .map(|(c, _)| c);
+    let far = impostors.as_ref().map(|c| c.level());
+    let before_refine = Params {
+        tree_cull: forestlod_shared::TreeCull::None as u32,
+        ..*params
+    };
+    let want = prepared
+        .select_stages_on(far, camera, &before_refine, false)
+        .selection;
     let mut gpu = SelectionChain::gpu(ctx, prepared).expect("GPU selection");
+    if let Some(far) = far {
+        gpu.write_far_nodes(&far.nodes)
+            .expect("the frame's far node records");
+    }
     let got = gpu
         .dispatch(camera, params, Compaction::Stable)
         .and_then(|b| b.read(ctx))

@@ -342,16 +342,30 @@ pub struct FrameStages<'a> {
     pub params: &'a Params,
     /// The reference's selection stages, every output kept.
     pub trace: SelectionTrace,
+    /// Under hierarchical impostors (issue 33 item 2), the frame's impostor state: a path's
+    /// first frame, as `Prepared::render` draws it; the selection stages read its far level.
+    pub impostors: Option<forestlod_reference::impostor_cache::ImpostorCache>,
 }
 
 impl<'a> FrameStages<'a> {
     /// Runs the reference's selection stages of `params`' plan, keeping every output.
     pub fn new(prepared: &'a Prepared, camera: &'a Camera, params: &'a Params) -> Self {
+        let impostors = ok_input(prepared.first_impostor_frame(camera, params)).map(|(c, _)| c);
+        let far = impostors.as_ref().map(|c| c.level());
         Self {
             prepared,
             camera,
             params,
-            trace: prepared.select_stages(camera, params, true),
+            trace: prepared.select_stages_on(far, camera, params, true),
+            impostors,
+        }
+    }
+
+    /// The frame's far level: the impostor state under impostors, else the prepared one.
+    pub fn far_level(&self) -> Option<&forestlod_shared::FarLevel> {
+        match &self.impostors {
+            Some(c) => Some(c.level()),
+            None => self.prepared.far.as_ref(),
         }
     }
 
@@ -425,7 +439,7 @@ impl<'a> FrameStages<'a> {
                     meshes: &g.meshes,
                     billboard: &g.billboard,
                     far: forestlod_reference::hier_select::FarCut::new(
-                        p.far.as_ref(),
+                        self.far_level(),
                         g.far.first_index,
                         camera,
                         params,

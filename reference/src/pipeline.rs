@@ -367,6 +367,44 @@ impl Prepared {
         }
     }
 
+    /// Under hierarchical impostors (`lod_levels = 3`, `far_lod = impostor`; issue 33 item 2) the
+    /// state of a frame with no path before it: a fresh cache stepped once from `camera`, what
+    /// [`Prepared::render`] draws (and the GPU frame's twin uploads); `None` otherwise.
+    pub fn first_impostor_frame(
+        &self,
+        camera: &Camera,
+        params: &Params,
+    ) -> Result<
+        Option<(
+            crate::impostor_cache::ImpostorCache,
+            crate::impostor_cache::ImpostorStep,
+        )>,
+        InputError,
+    > {
+        if params.lod_levels < 3 || params.far_level()? != forestlod_shared::FarLod::Impostor {
+            return Ok(None);
+        }
+        let mut cache = crate::impostor_cache::ImpostorCache::new(self, params)?;
+        let step = cache.step(self, camera, params)?;
+        Ok(Some((cache, step)))
+    }
+
+    /// [`Prepared::select_stages`] on the far level `far` in place of the prepared one (issue 33
+    /// item 2: a frame's impostor state, `ImpostorCache::level`); `None` keeps the prepared one.
+    pub fn select_stages_on(
+        &self,
+        far: Option<&forestlod_shared::FarLevel>,
+        camera: &Camera,
+        params: &Params,
+        keep: bool,
+    ) -> SelectionTrace {
+        let scene = SelectScene {
+            far: far.or(self.far.as_ref()),
+            ..self.select_scene()
+        };
+        select_stages(&scene, camera, params, keep)
+    }
+
     /// Every selection stage of the frame's plan, in order ([`crate::frame::select_stages`]);
     /// `keep` keeps each stage's output. `params` must be valid.
     pub fn select_stages(&self, camera: &Camera, params: &Params, keep: bool) -> SelectionTrace {
@@ -428,10 +466,7 @@ impl Prepared {
     ) -> Result<Frame, InputError> {
         camera.validate()?;
         params.validate()?;
-        if params.lod_levels >= 3 && params.far_level()? == forestlod_shared::FarLod::Impostor {
-            // A frame with no path before it: a fresh impostor cache, stepped once.
-            let mut cache = crate::impostor_cache::ImpostorCache::new(self, params)?;
-            let step = cache.step(self, camera, params)?;
+        if let Some((cache, step)) = self.first_impostor_frame(camera, params)? {
             let mut frame = self.render_impostors(camera, params, &cache)?;
             frame.timings.impostors = step.seconds;
             return Ok(frame);
@@ -651,10 +686,36 @@ impl Prepared {
     ) -> Result<Vec<DrawnFrame>, InputError> {
         camera.validate()?;
         params.validate()?;
-        let (selection, refined) = self.select_refined(camera, params);
+        // Under hierarchical impostors, a path's first frame, as `render` (issue 33 item 2).
+        let first = self.first_impostor_frame(camera, params)?;
+        self.render_cutoffs_on(
+            first.as_ref().map(|(c, _)| c.level()),
+            camera,
+            params,
+            cutoffs,
+            mask,
+        )
+    }
+
+    /// [`Prepared::render_cutoffs`] on the far level `far` (a frame's impostor state, issue 33
+    /// item 2) in place of the prepared one; `None` keeps the prepared one (no impostor cache
+    /// is made).
+    pub fn render_cutoffs_on(
+        &self,
+        far: Option<&forestlod_shared::FarLevel>,
+        camera: &Camera,
+        params: &Params,
+        cutoffs: &[f32],
+        mask: Option<Vec<bool>>,
+    ) -> Result<Vec<DrawnFrame>, InputError> {
+        camera.validate()?;
+        params.validate()?;
+        let trace = self.select_stages_on(far, camera, params, false);
+        let (selection, refined) = (trace.selection, trace.refined);
         let indirection = refined.as_ref().map(|r| r.indirection.as_slice());
         let res = DrawResources {
             indirection: indirection.unwrap_or(&self.batches.indirection),
+            far: far.or(self.far.as_ref()),
             ..self.resources()
         };
         Ok(draw_frame_cutoffs(
@@ -675,7 +736,31 @@ impl Prepared {
     ) -> Result<Vec<DrawnFrame>, InputError> {
         camera.validate()?;
         params.validate()?;
-        let (selection, refined) = self.select_refined(camera, params);
+        // Under hierarchical impostors, a path's first frame, as `render` (issue 33 item 2).
+        let first = self.first_impostor_frame(camera, params)?;
+        self.render_lod_rules_on(
+            first.as_ref().map(|(c, _)| c.level()),
+            camera,
+            params,
+            rules,
+            mask,
+        )
+    }
+
+    /// [`Prepared::render_lod_rules`] on the far level `far` (a frame's impostor state, issue 33
+    /// item 2) in place of the prepared one; `None` keeps the prepared one.
+    pub fn render_lod_rules_on(
+        &self,
+        far: Option<&forestlod_shared::FarLevel>,
+        camera: &Camera,
+        params: &Params,
+        rules: &[crate::sampler::LodRule],
+        mask: Option<Vec<bool>>,
+    ) -> Result<Vec<DrawnFrame>, InputError> {
+        camera.validate()?;
+        params.validate()?;
+        let trace = self.select_stages_on(far, camera, params, false);
+        let (selection, refined) = (trace.selection, trace.refined);
         let indirection = refined.as_ref().map(|r| r.indirection.as_slice());
         Ok(rules
             .iter()
@@ -683,6 +768,7 @@ impl Prepared {
                 let res = DrawResources {
                     indirection: indirection.unwrap_or(&self.batches.indirection),
                     lod_rule,
+                    far: far.or(self.far.as_ref()),
                     ..self.resources()
                 };
                 draw_frame_cutoffs(

@@ -673,9 +673,17 @@ fn far_eligible(kind: u32, start: f32, ratio: f32, lo: f32, bc: vec3<f32>, e: ve
 
 // forestlod_shared::far_code: a drawn node that needs no mesh and is far-eligible goes far
 // (DECISION_DRAW | NODE_FAR); an interior node whose interval reaches the far start recurses.
-fn far_code(code: u32, n: NodeMeta, mode: u32, v: ViewUniform, kind: u32, start: f32, ratio: f32, cells: u32) -> u32 {
+// Under `far_lod = impostor` the node's impostor state decides (`impostor_code`;
+// `impostored_below` is read only there).
+fn far_code(
+    code: u32, n: NodeMeta, mode: u32, v: ViewUniform, kind: u32, start: f32, ratio: f32, cells: u32,
+    impostored_below: u32,
+) -> u32 {
     if kind == 0u || (code & DECISION_KIND_MASK) != DECISION_DRAW {
         return code;
+    }
+    if kind == 1u + FAR_LOD_IMPOSTOR {
+        return impostor_code(code, n, cells, impostored_below);
     }
     let i = node_interval(n, mode, v);
     let bc = vec3<f32>(n.box_center[0], n.box_center[1], n.box_center[2]);
@@ -684,6 +692,19 @@ fn far_code(code: u32, n: NodeMeta, mode: u32, v: ViewUniform, kind: u32, start:
         return DECISION_DRAW | NODE_FAR;
     }
     if n.child_count > 0u && i.hi >= start {
+        return code | NODE_RECURSE;
+    }
+    return code;
+}
+
+// forestlod_shared::impostor_code (issue 33 item 2, C§4.6.3): an impostored node (`cells` > 0)
+// goes far whatever its trees' LODs; a drawn interior node with impostored descendants recurses;
+// any other node keeps `code`.
+fn impostor_code(code: u32, n: NodeMeta, cells: u32, impostored_below: u32) -> u32 {
+    if cells > 0u {
+        return DECISION_DRAW | NODE_FAR;
+    }
+    if n.child_count > 0u && impostored_below > 0u {
         return code | NODE_RECURSE;
     }
     return code;
@@ -1462,6 +1483,36 @@ fn far_quad_corner(k: u32) -> vec2<f32> {
     let xs = array<f32, 6>(-1.0, 1.0, 1.0, -1.0, 1.0, -1.0);
     let ys = array<f32, 6>(-1.0, -1.0, 1.0, -1.0, 1.0, 1.0);
     return vec2<f32>(xs[k % 6u], ys[k % 6u]);
+}
+
+// forestlod_shared::impostor::impostor_corner (issue 33 item 2): corner `v` of an impostor quad
+// as (s, t) in [-1, 1]² (t up) in `.xy` and its texture coordinate (u, v) in [0, 1]² (v down)
+// in `.zw`.
+fn impostor_corner(v: u32) -> vec4<f32> {
+    let c = far_quad_corner(v);
+    return vec4<f32>(c, (c.x + 1.0) * 0.5, (1.0 - c.y) * 0.5);
+}
+
+// forestlod_shared::impostor::impostor_texel: the nearest texel of a tile of
+// `size = width | height << 16` at (u, v), its index in a slot of `side²` texels, row by row;
+// outside [0, 1] clamps to the edge texel, NaN reads texel 0 (Rust's saturating `as u32`).
+fn impostor_texel_axis(t: f32, n: u32) -> u32 {
+    let x = floor(t * f32(n));
+    // `!(x > 0.0)` catches NaN as well as negatives (Rust's `max(0.0)` then `as u32`).
+    if !(x > 0.0) {
+        return 0u;
+    }
+    let hi = max(n, 1u) - 1u;
+    if x >= f32(hi) {
+        return hi;
+    }
+    return u32(x);
+}
+
+fn impostor_texel(size: u32, side: u32, u: f32, v: f32) -> u32 {
+    let x = impostor_texel_axis(u, size & 0xffffu);
+    let y = impostor_texel_axis(v, size >> 16u);
+    return y * side + x;
 }
 
 struct CubeCorner {

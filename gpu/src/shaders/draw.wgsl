@@ -69,7 +69,14 @@ struct DrawUniform {
     point_mode: u32,
     point_k: vec2<f32>,
     point_base: u32,
-    _pad_points: u32,
+    // Hierarchical impostors (issue 33 item 2, forestlod_shared::impostor): the atlas's first
+    // word in `far_words` (after the hull) and the tile side `impostor_pixels` (0 unless
+    // `far_lod = impostor`).
+    far_texel_base: u32,
+    impostor_side: u32,
+    _pad_impostor0: u32,
+    _pad_impostor1: u32,
+    _pad_impostor2: u32,
 }
 
 // Keep in sync with gpu/src/draw.rs `DrawVertex` (= reference PackedVertex).
@@ -100,7 +107,8 @@ struct DrawInstance {
 // Trilinear, clamp-to-edge (reference Sampler::TRILINEAR).
 @group(0) @binding(9) var tree_sampler: sampler;
 // The far level (issue 32; gpu/src/draw.rs `far_words`): cells (12 words each) from word 0, node
-// records (4 words) from `u.far_nodes_base`, hull vertices (4 words) from `u.far_hull_base`.
+// records (4 words) from `u.far_nodes_base`, hull vertices (4 words) from `u.far_hull_base`, the
+// impostor atlas (`impostor_side²` RGBA8 words per slot, row by row) from `u.far_texel_base`.
 @group(0) @binding(10) var<storage, read> far_words: array<u32>;
 // The octahedral impostors' depth channel (issue 32), in the billboard array's layer order; the
 // billboard array itself when there is none (then never read).
@@ -124,6 +132,9 @@ fn far_vertex(command: u32, local: u32, instance: u32) -> TreeVaryings {
     let words = arrayLength(&far_words);
     if u.far_kind == 0u {
         return out;
+    }
+    if u.far_kind == 1u + FAR_LOD_IMPOSTOR {
+        return impostor_vertex(command, local, instance);
     }
     var world: vec3<f32>;
     var word: u32;
@@ -173,6 +184,47 @@ fn far_vertex(command: u32, local: u32, instance: u32) -> TreeVaryings {
     out.uv_depth_light = vec4<f32>(0.0, 0.0, depth, 1.0);
     out.layer_command_scale = vec4<u32>(word & 0xffffffu, command, word >> 24u, 0u);
     return out;
+}
+
+// reference `TreeStage::vertex`'s impostor arm (issue 33 item 2, forestlod_shared::impostor): the
+// corner of the quad in cell `instance` (an ImpostorQuad: center, slot, right, size, up) and its
+// texture coordinate; the quad's atlas slot rides as a flat varying (the fragment reads the
+// tile's size and texels by it).
+fn impostor_vertex(command: u32, local: u32, instance: u32) -> TreeVaryings {
+    var out: TreeVaryings;
+    out.clip = DISCARDED_POSITION;
+    out.uv_depth_light = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    out.layer_command_scale = vec4<u32>(0u, command, 0u, 0u);
+    let cb = instance * 12u;
+    if cb + 12u > u.far_nodes_base {
+        return out;
+    }
+    let k = impostor_corner(local);
+    let world = far_vec3(cb) + far_vec3(cb + 4u) * k.x + far_vec3(cb + 8u) * k.y;
+    let rel = world - u.view.eye;
+    let depth = rel.x * u.view.forward.x + rel.y * u.view.forward.y + rel.z * u.view.forward.z;
+    out.clip = u.view_proj * vec4<f32>(world, 1.0);
+    out.uv_depth_light = vec4<f32>(k.z, k.w, depth, 1.0);
+    out.layer_command_scale = vec4<u32>(far_words[cb + 3u], command, 0u, 0u);
+    return out;
+}
+
+// reference `TreeShader::impostor_fragment` (issue 33 item 2): the nearest texel of the slot's
+// tile, whether it is kept (alpha at least one half), and its word. An out-of-range slot or texel
+// keeps nothing (the reference's `get` misses).
+fn impostor_texel_word(slot: u32, uv: vec2<f32>) -> vec2<u32> {
+    let cb = slot * 12u;
+    if cb + 12u > u.far_nodes_base {
+        return vec2<u32>(0u, 0u);
+    }
+    let side = u.impostor_side;
+    let texel = impostor_texel(far_words[cb + 7u], side, uv.x, uv.y);
+    let i = u.far_texel_base + slot * side * side + texel;
+    if i >= arrayLength(&far_words) || u.far_texel_base + slot * side * side > i {
+        return vec2<u32>(0u, 0u);
+    }
+    let word = far_words[i];
+    return vec2<u32>(u32((word >> 24u) >= 128u), word);
 }
 
 // The point LOD (issue 33): record `i` (area order) of `mesh`, read from the point words in
@@ -532,6 +584,18 @@ fn tree_fragment(in: TreeVaryings) -> TargetOutput {
     }
     let duv_dx = dpdxCoarse(uv);
     let duv_dy = dpdyCoarse(uv);
+    if data.lod == LOD_FAR && u.far_kind == 1u + FAR_LOD_IMPOSTOR {
+        // reference `TreeShader::impostor_fragment`: the nearest texel, kept where its alpha is
+        // at least one half, opaque, LOD_ID_FAR.
+        let t = impostor_texel_word(layer, uv);
+        if t.x == 0u {
+            discard;
+        }
+        var imp_out: TargetOutput;
+        imp_out.color = vec4<f32>(srgb_decode(t.y), srgb_decode(t.y >> 8u), srgb_decode(t.y >> 16u), 1.0);
+        imp_out.lod_id = LOD_ID_FAR;
+        return imp_out;
+    }
     if data.lod == LOD_FAR {
         // reference `TreeShader::far_fragment`: a screen door of the alpha, opaque colour.
         let pixel = vec2<u32>(in.clip.xy);

@@ -61,6 +61,15 @@ fn far_cells(i: u32) -> u32 {
     return far_nodes[i].cell_count;
 }
 
+// Impostored strict descendants of node `i` under `far_lod = impostor` (issue 33 item 2, the far
+// record's `hull_count`: forestlod_shared::impostor's per-node far data); 0 otherwise.
+fn far_impostored_below(i: u32) -> u32 {
+    if u.far_kind != 1u + FAR_LOD_IMPOSTOR {
+        return 0u;
+    }
+    return far_nodes[i].hull_count;
+}
+
 fn node_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
     return gid.y * (groups.x * HIER_WORKGROUP_SIZE) + gid.x;
 }
@@ -87,7 +96,9 @@ fn hier_decide(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
     let band = group_band(u.view, mesh_band(u.view, meshes[n.mesh]), scales[i]);
     let banded = with_band(u.view, band);
     let code = node_code(n, u.mode, u.max_cull_depth, banded);
-    codes[i] = far_code(code, n, u.mode, banded, u.far_kind, u.far_start, u.far_ratio, far_cells(i));
+    codes[i] = far_code(
+        code, n, u.mode, banded, u.far_kind, u.far_start, u.far_ratio, far_cells(i), far_impostored_below(i),
+    );
 }
 
 @compute @workgroup_size(HIER_WORKGROUP_SIZE)
@@ -178,14 +189,15 @@ fn emit(slot: u32, i: u32, n: NodeMeta, lod: u32, fading: bool) {
     command_data[slot] = e.data;
 }
 
-// forestlod_shared::emit_far_command: one instance per cell over the primitive's iota range, or
-// one hull instance (the node's index) over its vertices.
+// forestlod_shared::emit_far_command: one instance per cell (under impostors the node's quad) over
+// the primitive's iota range, or one hull instance (the node's index) over its vertices.
 fn emit_far(slot: u32, i: u32, n: NodeMeta) {
     let f = far_nodes[i];
     var index_count = CUBE_VERTICES;
     var instances = f.cell_count;
     var first = f.cell_offset;
-    if u.far_kind == 1u + FAR_LOD_OCTANT_SPRITE {
+    // An impostor is one quad, the node's (issue 33 item 2), drawn as a sprite's.
+    if u.far_kind == 1u + FAR_LOD_OCTANT_SPRITE || u.far_kind == 1u + FAR_LOD_IMPOSTOR {
         index_count = SPRITE_VERTICES;
     } else if u.far_kind == 1u + FAR_LOD_HULL {
         index_count = f.hull_count;

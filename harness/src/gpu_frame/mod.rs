@@ -30,6 +30,12 @@
 //!   reference's selection builds its chain for that frame (its buffers are bound at creation).
 //! - `params` must be those the scene was prepared with, apart from the per-frame fields (fade,
 //!   distances, LOD levels, coalesce, command order, tree culling).
+//! - Under hierarchical impostors (issue 33 item 2, C§4.6.3) the far level is a frame's impostor
+//!   state: the scene uploads it in the shape of an empty cache (`impostor_tiles`,
+//!   `impostor_pixels` fixed at creation), and [`GpuScene::render_impostors`] writes a state
+//!   (`ImpostorCache::level`, stepped by the caller; its tiles rendered by the reference) over it
+//!   before the frame, for the GPU cut and the draw. [`GpuScene::render`] draws a path's first
+//!   frame, as the reference's `Prepared::render`: a fresh cache stepped once.
 
 mod from_cpu;
 pub mod selection;
@@ -203,7 +209,15 @@ impl<'a> GpuScene<'a> {
         from_cpu: StagesFromCpu,
     ) -> Result<Self, GpuError> {
         let data = DrawSceneData::new(prepared);
-        let scene = DrawScene::new(ctx, &data.desc(prepared))?;
+        // Under hierarchical impostors (issue 33 item 2) the far level is the frame's impostor
+        // state: uploaded in the shape of an empty cache, overwritten before each frame.
+        let impostor_shape = impostor_level_shape(prepared, params)?;
+        let mut desc = data.desc(prepared);
+        if let Some(level) = &impostor_shape {
+            desc.far = Some(level);
+        }
+        let scene = DrawScene::new(ctx, &desc)?;
+        drop(impostor_shape);
         // The CPU copies are uploaded: free them before the frame (the main job's peak memory is
         // its frame's, issue 14).
         drop(data);
@@ -315,7 +329,9 @@ impl<'a> GpuScene<'a> {
     }
 
     /// Renders one frame of `pipeline` of `prepared` (the scene this was created from) as the
-    /// module docs say.
+    /// module docs say. Under hierarchical impostors (issue 33 item 2) the frame is a path's
+    /// first, as the reference's `Prepared::render`: a fresh impostor cache stepped once from
+    /// `camera` (its tiles rendered by the reference), drawn by [`GpuScene::render_impostors`].
     pub fn render(
         &mut self,
         prepared: &Prepared,
@@ -323,6 +339,53 @@ impl<'a> GpuScene<'a> {
         camera: &Camera,
         params: &Params,
     ) -> Result<GpuTimedFrame, GpuError> {
+        self.validate(camera, params)?;
+        let first = prepared.first_impostor_frame(camera, params).map_err(|e| {
+            input_error(
+                "far_lod",
+                e.to_string(),
+                "the impostor cache of the frame could not be made",
+            )
+        })?;
+        match first {
+            Some((cache, _)) => {
+                self.render_on(prepared, pipeline, camera, params, Some(cache.level()))
+            }
+            None => self.render_on(prepared, pipeline, camera, params, None),
+        }
+    }
+
+    /// One frame of a camera path under hierarchical impostors (issue 33 item 2,
+    /// `forestlod_shared::impostor`): `far` is the frame's impostor state
+    /// (`forestlod_reference::impostor_cache::ImpostorCache::level`, stepped for this frame by
+    /// the caller: its plan and its tiles are the reference's), uploaded over the scene's far
+    /// level before the frame; the cut and the draw read it. `params` must have `lod_levels = 3`
+    /// and `far_lod = impostor`, with the impostor shape (`impostor_tiles`, `impostor_pixels`)
+    /// the scene was created with.
+    pub fn render_impostors(
+        &mut self,
+        prepared: &Prepared,
+        pipeline: GpuPipeline,
+        camera: &Camera,
+        params: &Params,
+        far: &forestlod_shared::FarLevel,
+    ) -> Result<GpuTimedFrame, GpuError> {
+        self.validate(camera, params)?;
+        if !is_impostor(params) {
+            return Err(input_error(
+                "far_lod",
+                format!(
+                    "lod_levels {}, far_lod {}",
+                    params.lod_levels,
+                    forestlod_shared::FarLod::from_id(params.far_lod).map_or("?", |f| f.name())
+                ),
+                "render_impostors draws frames with lod_levels = 3 and far_lod = impostor",
+            ));
+        }
+        self.render_on(prepared, pipeline, camera, params, Some(far))
+    }
+
+    fn validate(&self, camera: &Camera, params: &Params) -> Result<(), GpuError> {
         camera.validate().map_err(|e| {
             input_error(
                 "camera",
@@ -337,15 +400,19 @@ impl<'a> GpuScene<'a> {
                 "expected valid parameters (Params::validate)",
             )
         })?;
-        // Hierarchical impostors (issue 33 item 2) have no GPU twin yet: refused, not drawn as
-        // something else.
-        if params.lod_levels >= 3 && params.far_level() == Ok(forestlod_shared::FarLod::Impostor) {
-            return Err(input_error(
-                "far_lod",
-                "impostor".to_string(),
-                "hierarchical impostors run on the reference backend only (no GPU twin yet)",
-            ));
-        }
+        Ok(())
+    }
+
+    /// [`GpuScene::render`] with `far` (the frame's impostor state) in place of the scene's far
+    /// level, when given.
+    fn render_on(
+        &mut self,
+        prepared: &Prepared,
+        pipeline: GpuPipeline,
+        camera: &Camera,
+        params: &Params,
+        far: Option<&forestlod_shared::FarLevel>,
+    ) -> Result<GpuTimedFrame, GpuError> {
         let plan = FramePlan::new(params).map_err(|e| {
             input_error(
                 "params",
@@ -395,7 +462,7 @@ impl<'a> GpuScene<'a> {
                     stages.push((s, self.ran_on(&plan, s)));
                 }
                 if let Some(last) = self.from_cpu.last_selection_stage(&plan) {
-                    let trace = prepared.select_stages(camera, params, true);
+                    let trace = prepared.select_stages_on(far, camera, params, true);
                     cpu_chain = Some(SelectionChain::from_cpu(
                         ctx, prepared, &plan, &trace, last,
                     )?);
@@ -410,6 +477,14 @@ impl<'a> GpuScene<'a> {
                     }
                 } else if self.chain.is_none() {
                     self.chain = Some(SelectionChain::gpu(ctx, prepared)?);
+                }
+                if let Some(far) = far {
+                    // The frame's impostor state over the uploaded far level (issue 33 item 2):
+                    // the GPU cut's node records and the draw's quads and atlas.
+                    if let Some(chain) = &self.chain {
+                        chain.write_far_nodes(&far.nodes)?;
+                    }
+                    self.scene.write_far(ctx, far)?;
                 }
                 for s in plan.selection_stages() {
                     stages.push((s, self.ran_on(&plan, s)));
@@ -747,6 +822,31 @@ impl<'a> GpuScene<'a> {
             RanOn::Gpu
         }
     }
+}
+
+/// Whether `params` draw hierarchical impostors (issue 33 item 2).
+fn is_impostor(params: &Params) -> bool {
+    params.lod_levels >= 3 && params.far_level() == Ok(forestlod_shared::FarLod::Impostor)
+}
+
+/// Under hierarchical impostors, the far level of an empty impostor cache of `prepared`: the
+/// shape (nodes, quads, atlas) every frame's state has, which the scene uploads (issue 33 item 2).
+fn impostor_level_shape(
+    prepared: &Prepared,
+    params: &Params,
+) -> Result<Option<forestlod_shared::FarLevel>, GpuError> {
+    if !is_impostor(params) {
+        return Ok(None);
+    }
+    let cache =
+        forestlod_reference::impostor_cache::ImpostorCache::new(prepared, params).map_err(|e| {
+            input_error(
+                "far_lod",
+                e.to_string(),
+                "hierarchical impostors need a scene prepared with a hierarchy",
+            )
+        })?;
+    Ok(Some(cache.level().clone()))
 }
 
 /// `(instances, batches, hierarchy nodes)` of a prepared scene.

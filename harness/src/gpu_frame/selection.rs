@@ -219,6 +219,16 @@ impl<'a> SelectionChain<'a> {
         }
     }
 
+    /// Replaces the GPU cut's far level node records (issue 33 item 2: the frame's impostor
+    /// state, `GpuHierSelect::write_far_nodes`); a chain whose cut is the reference's (uploaded)
+    /// or a flat chain has none to replace.
+    pub fn write_far_nodes(&self, nodes: &[forestlod_shared::FarNode]) -> Result<(), GpuError> {
+        match &self.first {
+            First::Hier(h) => h.write_far_nodes(nodes),
+            First::Select(_) | First::Cpu(_) => Ok(()),
+        }
+    }
+
     /// The stages this chain records on the GPU, in the plan's order.
     pub fn gpu_stages(&self) -> &[StageId] {
         &self.gpu_stages

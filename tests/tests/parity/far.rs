@@ -9,7 +9,8 @@
 //! transition (550 m) on and a pixel threshold that lets most far nodes go, under the octree
 //! and the grid's depth-1 hierarchy, for each far primitive (sprite, cube, hull), on the
 //! fixture's far level and, under the octree, on the baked one (`prepare`'s: the reference
-//! bake's cells and hulls, drawn by both backends). Backends: the
+//! bake's cells and hulls, drawn by both backends; under `far_lod = impostor`, issue 33 item 2,
+//! the one-step impostor cache both backends make for a lone frame). Backends: the
 //! draw alone (`from-cpu: select,textures`) and the GPU cut feeding the GPU draw
 //! (`from-cpu: textures`).
 
@@ -38,6 +39,14 @@ fn gpu_far_level_matches_the_reference() {
         (Hierarchy::Octree, true),
     ] {
         for kind in FarLod::ALL {
+            // Hierarchical impostors (issue 33 item 2) have no baked far level to replace: their
+            // level is each frame's impostor state (a path's first frame here, as
+            // `Prepared::render` draws it), so they run on the prepared scene only; the fixture's
+            // cells would cut the tiles' own selection short (`tile_selection` reads the prepared
+            // far level). Paths are judged in `impostors.rs`.
+            if kind == FarLod::Impostor && !baked {
+                continue;
+            }
             let params = Params {
                 lod_levels: 3,
                 hierarchy: hierarchy as u32,

@@ -4,6 +4,7 @@
 //! - [`hier_select`]: the hierarchical cut (issue 13) against the reference, frames against the grid's;
 //! - [`select`], [`refine`], [`draw`], [`mips`], [`bake`]: the GPU twin of each reference stage;
 //! - [`far_bake`]: issue 32's far level bake (octant impostors' leaves) against the reference;
+//! - [`impostors`]: issue 33 item 2's hierarchical impostors drawn by the GPU along a camera path;
 //! - [`blend`]: issue 30's G§4 blend (texture-space noise, per-tree progress) in the draw stage,
 //!   with the noise level's rounding boundary classified;
 //! - [`every_stage`]: every stage of the stage table run alone on the GPU and judged by its
@@ -33,6 +34,7 @@ mod far_bake;
 mod from_cpu;
 mod h200;
 mod hier_select;
+mod impostors;
 mod metamorphic;
 mod mips;
 mod mutants;
