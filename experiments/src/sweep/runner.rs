@@ -14,7 +14,7 @@ use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, StagesFromCpu};
 use forestlod_reference::InputError;
 use forestlod_reference::baselines::{
     INSTANCE_INDEX_BYTES, PROXY_BYTES, Proxy, proxies, render_primitive, render_vegetation,
-    tree_spheres, trees_drawn_by_selection,
+    tree_spheres,
 };
 use forestlod_reference::cameras::named_camera;
 use forestlod_reference::ground_truth::{GroundTruthImage, GroundTruthScene, TruthLighting};
@@ -782,11 +782,19 @@ fn render_gpu_variant(
     let gpu_variant = variant.gpu_variant();
     // Each frame on its own, as the reference renders it: under occlusion culling `two-phase`
     // a path's first frame (the scene keeps a history from render to render otherwise, issue 31).
+    // Under hierarchical impostors (issue 33 item 2) ours draws the path's stepped state.
+    let far = f.impostors.map(ImpostorCache::level);
+    let frame = |gs: &mut GpuScene| match (far, gpu_variant) {
+        (Some(level), GpuPipeline::Ours(_)) => {
+            gs.render_impostors(f.prepared, gpu_variant, f.camera, f.params, level)
+        }
+        _ => gs.render(f.prepared, gpu_variant, f.camera, f.params),
+    };
     gs.reset_history();
-    let mut g = gs.render(f.prepared, gpu_variant, f.camera, f.params)?;
+    let mut g = frame(gs)?;
     for _ in 1..repeats.max(1) {
         gs.reset_history();
-        let next = gs.render(f.prepared, gpu_variant, f.camera, f.params)?;
+        let next = frame(gs)?;
         g.select_s = g.select_s.min(next.select_s);
         g.draw_s = g.draw_s.min(next.draw_s);
         g.gpu_select_s = min_of(g.gpu_select_s, next.gpu_select_s);
@@ -797,12 +805,14 @@ fn render_gpu_variant(
     } else {
         match gpu_variant {
             GpuPipeline::Ours(_) => {
-                let (selection, refined) = f.prepared.select_refined(f.camera, f.params);
+                let trace = f.prepared.select_stages_on(far, f.camera, f.params, false);
+                let (selection, refined) = (trace.selection, trace.refined);
                 let indirection = refined
                     .as_ref()
                     .map_or(&f.prepared.batches.indirection[..], |r| &r.indirection[..]);
-                let trees = trees_drawn_by_selection(
+                let trees = forestlod_reference::baselines::trees_drawn_with_far(
                     f.prepared,
+                    far.or(f.prepared.far.as_ref()),
                     &selection,
                     indirection,
                     f.camera,
@@ -817,7 +827,7 @@ fn render_gpu_variant(
                 let tree_cmds = forestlod_reference::hier_select::tree_view(
                     &selection,
                     f.prepared.hierarchy.as_ref(),
-                    f.prepared.far.as_ref(),
+                    far.or(f.prepared.far.as_ref()),
                     f.params,
                 );
                 let batching = batching_counts_banded(
