@@ -49,6 +49,28 @@ pub fn card_tree(name: &str, height: f32, half_width: f32) -> TreeMesh {
     }
 }
 
+/// `n` trees of the five built-in species, scales 0.6..1.6, spread by a fixed hash over a 600 m
+/// square from the origin: the hierarchical impostors' test forest (issue 33 item 2;
+/// `properties::impostor_properties`, `parity::impostors`).
+pub fn species_forest(n: u32) -> Scene {
+    let trees = (0..n)
+        .map(|i| {
+            let h =
+                |k: u32| forestlod_shared::points::point_hash(i, k, 77, 2) as f32 / u32::MAX as f32;
+            Instance {
+                position: [600.0 * h(1), 600.0 * h(2), 0.0],
+                yaw: std::f32::consts::TAU * h(3),
+                scale: 0.6 + 1.0 * h(4),
+                mesh: i % 5,
+            }
+        })
+        .collect();
+    Scene {
+        meshes: forestlod_reference::scene::builtin::species_meshes(),
+        ..scene_of(trees)
+    }
+}
+
 /// A scene of the given trees over three card-tree species of different heights.
 pub fn scene_of(instances: Vec<Instance>) -> Scene {
     let mut bounds = [

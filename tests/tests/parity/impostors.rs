@@ -20,9 +20,9 @@ use forestlod_harness::gpu_frame::{GpuPipeline, GpuScene, StagesFromCpu, gpu_dra
 use forestlod_harness::image_compare::{Images, MaxDiffs, judge_image, print_max_diffs};
 use forestlod_reference::impostor_cache::ImpostorCache;
 use forestlod_reference::pipeline::prepare;
-use forestlod_reference::scene::{Instance, Scene};
+use forestlod_reference::scene::Scene;
 use forestlod_shared::{Camera, FadeMode, FarLod, Hierarchy, LOD_ID_FAR, Params};
-use forestlod_tests::{assert_no_failures, scene_of};
+use forestlod_tests::{assert_no_failures, species_forest};
 
 /// The least impostor pixels (`LOD_ID_FAR`) a reference frame of the path must show, so the
 /// impostor path is judged rather than an empty far level. Why 100: measured 147-347 on this path
@@ -61,22 +61,23 @@ fn params() -> Params {
 
 /// 400 trees of the five species on a 600 m square (`impostor_properties.rs`'s forest).
 fn forest() -> Scene {
-    let trees = (0..400u32)
-        .map(|i| {
-            let h =
-                |k: u32| forestlod_shared::points::point_hash(i, k, 77, 2) as f32 / u32::MAX as f32;
-            Instance {
-                position: [600.0 * h(1), 600.0 * h(2), 0.0],
-                yaw: std::f32::consts::TAU * h(3),
-                scale: 0.6 + 1.0 * h(4),
-                mesh: i % 5,
-            }
-        })
-        .collect();
-    Scene {
-        meshes: forestlod_reference::scene::builtin::species_meshes(),
-        ..scene_of(trees)
-    }
+    species_forest(400)
+}
+
+/// The GPU side of `prepared`: its buffers, the reference's textures.
+fn gpu_scene(
+    ctx: &'static forestlod_gpu::GpuContext,
+    prepared: &forestlod_reference::pipeline::Prepared,
+    params: &Params,
+) -> GpuScene<'static> {
+    GpuScene::with_pipelines(
+        ctx,
+        gpu_draw(ctx),
+        prepared,
+        params,
+        StagesFromCpu::TEXTURES,
+    )
+    .expect("GPU scene")
 }
 
 #[test]
@@ -84,14 +85,7 @@ fn gpu_impostor_frames_match_the_reference_along_a_path() {
     let Some(ctx) = gpu_context() else { return };
     let params = params();
     let prepared = prepare(forest(), &params).expect("prepare the forest");
-    let mut scene = GpuScene::with_pipelines(
-        ctx,
-        gpu_draw(ctx),
-        &prepared,
-        &params,
-        StagesFromCpu::TEXTURES,
-    )
-    .expect("GPU scene");
+    let mut scene = gpu_scene(ctx, &prepared, &params);
     let mut cache = ImpostorCache::new(&prepared, &params).expect("impostor cache");
     let mut failures = Vec::new();
     let mut max = MaxDiffs::default();
@@ -167,14 +161,7 @@ fn gpu_impostor_frames_refuse_a_foreign_state() {
     let Some(ctx) = gpu_context() else { return };
     let params = params();
     let prepared = prepare(forest(), &params).expect("prepare the forest");
-    let mut scene = GpuScene::with_pipelines(
-        ctx,
-        gpu_draw(ctx),
-        &prepared,
-        &params,
-        StagesFromCpu::TEXTURES,
-    )
-    .expect("GPU scene");
+    let mut scene = gpu_scene(ctx, &prepared, &params);
     let camera = Camera::look_at([-500.0, 300.0, 60.0], [300.0, 300.0, 10.0], 50.0, 32, 18);
     let cache = ImpostorCache::new(&prepared, &params).expect("impostor cache");
     let pipeline = GpuPipeline::Ours(Compaction::Stable);

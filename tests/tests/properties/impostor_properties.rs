@@ -27,11 +27,10 @@ use forestlod_reference::draw::draw_trees_into;
 use forestlod_reference::impostor_cache::{ImpostorCache, tile_selection};
 use forestlod_reference::pipeline::{Prepared, prepare};
 use forestlod_reference::raster::{ClearValues, RenderTarget};
-use forestlod_reference::scene::{Instance, Scene};
 use forestlod_reference::select::{Selection, select_per_tree};
 use forestlod_shared::impostor::impostor_allowed;
 use forestlod_shared::{Camera, FarLod, Hierarchy, LOD_FAR, LOD_ID_BACKGROUND, NO_PARENT, Params};
-use forestlod_tests::{scene_of, with_threads};
+use forestlod_tests::{species_forest, with_threads};
 use proptest::prelude::*;
 
 /// Cases per property (module docs).
@@ -61,23 +60,7 @@ fn base() -> Params {
 fn forest() -> &'static Prepared {
     static P: OnceLock<Prepared> = OnceLock::new();
     P.get_or_init(|| {
-        let trees = (0..400u32)
-            .map(|i| {
-                let h = |k: u32| {
-                    forestlod_shared::points::point_hash(i, k, 77, 2) as f32 / u32::MAX as f32
-                };
-                Instance {
-                    position: [600.0 * h(1), 600.0 * h(2), 0.0],
-                    yaw: std::f32::consts::TAU * h(3),
-                    scale: 0.6 + 1.0 * h(4),
-                    mesh: i % 5,
-                }
-            })
-            .collect();
-        let scene = Scene {
-            meshes: forestlod_reference::scene::builtin::species_meshes(),
-            ..scene_of(trees)
-        };
+        let scene = species_forest(400);
         prepare(scene, &base()).expect("a valid forest")
     })
 }
