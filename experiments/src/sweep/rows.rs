@@ -121,6 +121,10 @@ pub struct Row {
     /// Tiles this frame's impostor step rendered (created and refreshed).
     #[serde(default)]
     pub tiles_rendered: Option<u64>,
+    /// Of those tiles, the ones whose rectangle lies wholly outside the frame (the seed's
+    /// suspected "refresh of not seen parts", C§5.4).
+    #[serde(default)]
+    pub tiles_off_screen: Option<u64>,
     /// Texels of those tiles.
     #[serde(default)]
     pub tile_texels: Option<u64>,

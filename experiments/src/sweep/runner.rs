@@ -474,6 +474,8 @@ impl Runner {
                                 impostor_s: impostor_step.map(|(st, _)| st.seconds),
                                 tiles_rendered: impostor_step
                                     .map(|(st, _)| st.tiles_rendered as u64),
+                                tiles_off_screen: impostor_step
+                                    .map(|(st, _)| st.tiles_off_screen as u64),
                                 tile_texels: impostor_step.map(|(st, _)| st.texels_rendered),
                                 tile_triangles: impostor_step.map(|(st, _)| st.triangles),
                                 impostors_held: impostor_step.map(|(_, n)| n),
