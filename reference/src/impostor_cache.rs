@@ -165,19 +165,13 @@ impl ImpostorCache {
 
     /// The quad of an occupied slot's node, by node.
     pub fn quad_of(&self, node: u32) -> Option<ImpostorQuad> {
-        let slot = self
-            .slots
-            .iter()
-            .position(|s| s.map(|s| s.node) == Some(node))?;
+        let slot = self.slot_of(node)?;
         Some(ImpostorQuad::from_cell(self.level.cells[slot]))
     }
 
     /// The tile texels of `node`'s impostor, `width · height` words row by row.
     pub fn tile_of(&self, node: u32) -> Option<Vec<u32>> {
-        let slot = self
-            .slots
-            .iter()
-            .position(|s| s.map(|s| s.node) == Some(node))?;
+        let slot = self.slot_of(node)?;
         let q = ImpostorQuad::from_cell(self.level.cells[slot]);
         let (w, h) = q.tile_size();
         let side = self.side as usize;

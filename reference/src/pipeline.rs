@@ -517,11 +517,7 @@ impl Prepared {
     ) -> Result<Frame, InputError> {
         camera.validate()?;
         params.validate()?;
-        let scene = SelectScene {
-            far: Some(cache.level()),
-            ..self.select_scene()
-        };
-        let trace = select_stages(&scene, camera, params, false);
+        let trace = self.select_stages_on(Some(cache.level()), camera, params, false);
         let res = DrawResources {
             far: Some(cache.level()),
             ..self.resources()

@@ -246,9 +246,14 @@ impl Runner {
                     let unit = unit_of(pose_i);
                     // This pose's impostor step (a path's frame: plan, refresh, tile renders),
                     // from an empty atlas at a path's first pose.
-                    // The state the previous pose was drawn with (a shard that does not own
-                    // it draws it again for the temporal error).
-                    let caches_before = caches.clone();
+                    // The state the previous pose was drawn with: a shard that does not own
+                    // it draws it again for the temporal error (an unsharded run owns every
+                    // pose and needs no copy).
+                    let caches_before = if shard.is_some() {
+                        caches.clone()
+                    } else {
+                        None
+                    };
                     let impostor_step = match caches.as_mut() {
                         Some((cache, cache_ss)) => {
                             let (camera, pose) =

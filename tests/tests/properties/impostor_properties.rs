@@ -248,7 +248,7 @@ fn fresh_mismatches(
         }
         compared += 1;
         let slot = quad.slot;
-        let mut command = forestlod_shared::DrawCommand {
+        let command = forestlod_shared::DrawCommand {
             index_count: forestlod_shared::SPRITE_VERTICES,
             instance_count: 1,
             first_index: prepared.geometry.far.first_index,
@@ -262,7 +262,6 @@ fn fresh_mismatches(
             group_len: 1,
             ..bytemuck::Zeroable::zeroed()
         };
-        command.base_vertex = 0;
         let alone = Selection {
             commands: vec![command],
             data: vec![data],
